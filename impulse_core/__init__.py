@@ -1,0 +1,1 @@
+"""footopt's impulse core: a differentiable model of a floating tree's impact (CasADi + numpy)."""
