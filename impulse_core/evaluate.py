@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from impulse_core.errors import ModelError
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.impact import geometry_function, impact_function, response_function
 from impulse_core.kinematics import PLANAR, DofKind, Space, dof_layout
 from impulse_core.nnls import least_distance
@@ -132,6 +132,7 @@ def evaluate(tree: Tree, scene: Scene, space: Space = PLANAR) -> ImpactResult:
     """External and internal impulses of ``tree`` landing as ``scene`` says.
 
     Raises:
+        NumericalError: when float64 cannot resolve the impact (non-finite results).
         ModelError: for a scene the core does not model (friction) or an impulse split that
             no non-negative, restitution-meeting choice can make.
     """
@@ -149,11 +150,15 @@ def evaluate(tree: Tree, scene: Scene, space: Space = PLANAR) -> ImpactResult:
         resp = model.response(p=p, v_minus=v_minus, external=np.zeros(len(active)))
         J = np.array(resp["contact_jacobian"])
         A = np.array(resp["delassus"])
+        if not (np.all(np.isfinite(J)) and np.all(np.isfinite(A))):
+            raise NumericalError("the Delassus matrix is not finite in float64 (values too extreme)")
         rhs = -(1 + scene.restitution) * (J @ v_minus)
         redundant = _redundant_split(J, A, rhs)
         if redundant is not None:
             lam, split_unique = redundant, False
             out = model.response(p=p, v_minus=v_minus, external=lam)
+    if not all(np.all(np.isfinite(np.array(out[k]))) for k in ("v_plus", "internal", "energy_after")):
+        raise NumericalError("the impact solve gave non-finite values in float64 (values too extreme)")
     n_declared = len(tree.contacts)
     external = np.zeros(n_declared)
     external[list(active)] = lam

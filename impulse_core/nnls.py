@@ -36,15 +36,22 @@ def nnls(E: np.ndarray, f: np.ndarray, max_iter: int | None = None) -> np.ndarra
 
 
 def least_distance(G: np.ndarray, h: np.ndarray) -> np.ndarray | None:
-    """argmin ||z|| subject to G z >= h (Lawson-Hanson algorithm LDP); None if infeasible."""
+    """argmin ||z|| subject to G z >= h (Lawson-Hanson algorithm LDP); None if infeasible.
+
+    The problem is homogeneous in h (z scales with it), so it is solved for h / max|h|: the
+    algorithm's residual tests are then free of the units of h.
+    """
     G = np.asarray(G, dtype=float)
     h = np.asarray(h, dtype=float)
     m, n = G.shape
-    E = np.vstack([G.T, h[None, :]])
+    scale = float(np.max(np.abs(h))) if h.size else 0.0
+    if scale == 0.0:
+        return np.zeros(n)
+    E = np.vstack([G.T, (h / scale)[None, :]])
     f = np.zeros(n + 1)
     f[-1] = 1.0
     u = nnls(E, f)
     r = E @ u - f
-    if np.linalg.norm(r) <= 1e-12 or abs(r[-1]) <= 1e-14:
+    if abs(r[-1]) <= 1e-12:  # f lies in the cone of E's columns: the constraints conflict
         return None
-    return -r[:n] / r[-1]
+    return -r[:n] / r[-1] * scale

@@ -1,0 +1,5 @@
+"""``python -m optimizer``: the ``footopt`` command line."""
+
+from optimizer.cli import main
+
+raise SystemExit(main())

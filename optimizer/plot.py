@@ -1,0 +1,130 @@
+"""Drawings of a tree at touchdown with its impulses (matplotlib, no display needed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from impulse_core.evaluate import Geometry, ImpactResult
+from impulse_core.tree import Tree
+from optimizer.errors import ConfigError
+
+#: File types ``plot_touchdown`` writes, by suffix.
+PLOT_SUFFIXES = (".png", ".svg")
+
+_ROD, _JOINT, _CONTACT, _EXTERNAL, _INTERNAL, _GROUND = "#4a6fa5", "#333333", "#c0392b", "#c0392b", "#27ae60", "#777777"
+
+
+def plot_touchdown(tree: Tree, geometry: Geometry, result: ImpactResult, path: str | Path, title: str) -> Path:
+    """Draw the tree at touchdown and its impulses, and write the figure to ``path``.
+
+    Rods are thick lines from joint to tip, joints circles, centres of mass small crosses, the
+    ground a hatched line at ``geometry.ground_height``. Contacts are dots (filled when they
+    hit). External impulses are arrows along the ground normal at the contacts; joint impulses
+    (parent onto child, force part) arrows at the joints; both drawn to one scale and labelled
+    in N s.
+
+    Args:
+        tree: the design.
+        geometry: its touchdown geometry (``impulse_core.evaluate.touchdown_geometry``).
+        result: its impact (``impulse_core.evaluate.evaluate``).
+        path: the file to write, PNG or SVG by its suffix (overwritten if it exists).
+        title: first line of the title; the norms are added below it.
+
+    Returns:
+        The path written.
+
+    Raises:
+        ConfigError: an unsupported suffix, or the file cannot be written.
+    """
+    # Imported here: the command line only pays for matplotlib when asked for a plot. The
+    # Figure API with the Agg canvas needs no display and leaves pyplot's global state alone.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    path = Path(path)
+    if path.suffix.lower() not in PLOT_SUFFIXES:
+        raise ConfigError(f"{path}: a plot is written as {' or '.join(PLOT_SUFFIXES)} (by its suffix)", path)
+
+    fig = Figure(figsize=(10, 6.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    origins, tips, coms, contacts = geometry.origins, geometry.tips, geometry.coms, geometry.contacts
+    points = [origins, tips, coms, contacts]
+
+    for o, t in zip(origins, tips, strict=True):
+        ax.plot([o[0], t[0]], [o[1], t[1]], color=_ROD, lw=6, solid_capstyle="round", alpha=0.85, zorder=2)
+    for i, b in enumerate(tree.bodies):
+        ax.annotate(b.name, (coms[i] + tips[i]) / 2, fontsize=8, color=_ROD, xytext=(4, 4), textcoords="offset points")
+    ax.plot(coms[:, 0], coms[:, 1], "x", color="black", ms=5, zorder=4)
+    ax.plot(origins[0, 0], origins[0, 1], "s", mfc="white", mec=_JOINT, ms=8, zorder=4)
+    if len(origins) > 1:
+        ax.plot(origins[1:, 0], origins[1:, 1], "o", mfc="white", mec=_JOINT, ms=8, mew=1.5, zorder=4)
+
+    active = np.zeros(len(contacts), dtype=bool)
+    active[list(result.active)] = True
+    if active.any():
+        ax.plot(contacts[active, 0], contacts[active, 1], "o", color=_CONTACT, ms=7, zorder=5)
+    if (~active).any():
+        ax.plot(contacts[~active, 0], contacts[~active, 1], "o", mfc="white", mec=_CONTACT, ms=7, zorder=5)
+
+    span = np.vstack(points)
+    extent = float(max(np.ptp(span[:, 0]), np.ptp(span[:, 1]), 1e-3))
+    largest = max(float(np.max(np.abs(result.external), initial=0.0)), result.max_internal)
+    scale = 0.35 * extent / largest if largest > 0 else 0.0  # m per N s
+
+    def arrow(start: np.ndarray, vector: np.ndarray, color: str, label: float) -> None:
+        end = start + scale * vector
+        points.append(end[None, :])
+        ax.annotate(
+            "",
+            xy=end,
+            xytext=start,
+            zorder=6,
+            arrowprops=dict(arrowstyle="-|>", color=color, lw=2, shrinkA=0, shrinkB=0),
+        )
+        ax.annotate(f"{label:.3g}", end, fontsize=8, color=color, xytext=(3, 3), textcoords="offset points", zorder=7)
+
+    for i in result.active:
+        arrow(contacts[i], np.array([0.0, result.external[i]]), _EXTERNAL, result.external[i])
+    for j in range(len(tree.bodies) - 1):
+        arrow(origins[j + 1], np.asarray(result.internal[j, :2], dtype=float), _INTERNAL, result.internal_magnitude[j])
+
+    all_points = np.vstack(points)
+    lo, hi = all_points.min(axis=0), all_points.max(axis=0)
+    margin = 0.08 * extent
+    ground = geometry.ground_height
+    x0, x1 = lo[0] - margin, hi[0] + margin
+    ax.plot([x0, x1], [ground, ground], color=_GROUND, lw=1.5, zorder=1)
+    ax.fill_between([x0, x1], ground - 0.04 * extent, ground, facecolor="none", edgecolor=_GROUND, hatch="///", lw=0)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(min(lo[1], ground - 0.04 * extent) - margin, hi[1] + margin)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(
+        f"{title}\n|external| = {result.external_norm:.4g} N s, |internal| = {result.internal_norm:.4g} N s, "
+        f"largest joint {result.max_internal:.4g} N s",
+        fontsize=10,
+    )
+    handles = [
+        Line2D([], [], color=_ROD, lw=6, label="rod"),
+        Line2D([], [], ls="", marker="o", mfc="white", mec=_JOINT, label="joint (square: base origin)"),
+        Line2D([], [], ls="", marker="x", color="black", label="centre of mass"),
+        Line2D([], [], ls="", marker="o", color=_CONTACT, label="contact that hits (hollow: does not)"),
+        Line2D([], [], color=_EXTERNAL, lw=2, label="external impulse [N s]"),
+        Line2D([], [], color=_INTERNAL, lw=2, label="joint impulse, parent on child [N s]"),
+        Line2D([], [], color=_GROUND, lw=1.5, label="ground"),
+    ]
+    ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot write the plot: {e.strerror or e}", path) from None
+    return path
+
+
+__all__ = ["PLOT_SUFFIXES", "plot_touchdown"]

@@ -1,0 +1,256 @@
+"""What ``footopt evaluate`` prints: a readable text report and a JSON record per model file."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from impulse_core.evaluate import ImpactResult
+from impulse_core.kinematics import PLANAR, dof_layout
+from impulse_core.tree import ContactSelection, Tree
+from optimizer.model_file import ModelFile
+
+#: Kinetic energy may grow by this fraction (rounding) before the report calls it a gain.
+ENERGY_GAIN_TOL = 1e-9
+
+
+def contact_names(tree: Tree) -> tuple[str, ...]:
+    """Names of the declared contacts in declaration order: body name and index on the body,
+    e.g. ``heel[0]``."""
+    return tuple(f"{tree.bodies[b].name}[{k}]" for b, k in tree.contacts)
+
+
+def joint_names(tree: Tree) -> tuple[str, ...]:
+    """One name per joint: its child body's name (every non-base body, file order)."""
+    return tuple(b.name for b in tree.bodies[1:])
+
+
+def velocity_names(tree: Tree) -> tuple[tuple[str, str], ...]:
+    """(name, unit) of each generalized velocity: the base's vx, vy, omega, then the rate of
+    each revolute joint (named by its child body) in file order."""
+    layout = dof_layout(tree.topology(), PLANAR)
+    n_base = len(PLANAR.base_dofs)
+    base = (("base vx", "m/s"), ("base vy", "m/s"), ("base omega", "rad/s"))
+    joints = tuple((f"{tree.bodies[layout.dof_body[k]].name} rate", "rad/s") for k in range(n_base, layout.nv))
+    return base + joints
+
+
+def is_finite(result: ImpactResult) -> bool:
+    """True when every number of the result is finite (a solve that failed is not)."""
+    arrays = (result.external, result.internal, result.internal_torque, result.internal_magnitude, result.v_plus)
+    scalars = (result.external_norm, result.internal_norm, result.energy_before, result.energy_after)
+    return all(np.all(np.isfinite(a)) for a in arrays) and all(math.isfinite(x) for x in scalars)
+
+
+def energy_gained(result: ImpactResult) -> bool:
+    """True when the kinetic energy after the impact exceeds the energy before."""
+    return result.energy_after > result.energy_before * (1.0 + ENERGY_GAIN_TOL)
+
+
+def warnings(model: ModelFile, result: ImpactResult) -> tuple[str, ...]:
+    """Things about this impact a reader must know, one sentence each."""
+    names = contact_names(model.tree)
+    out = []
+    if not result.split_unique:
+        active = ", ".join(names[i] for i in result.active)
+        shown = (
+            "no non-negative split meets the restitution law, so the smallest-norm split is shown"
+            if result.pulling
+            else "the smallest-norm non-negative split is shown"
+        )
+        out.append(
+            f"contacts {active} are redundant: the post-impact velocity is unique, the split of the "
+            f"impulse is not; {shown}"
+        )
+    if result.pulling:
+        pulling = ", ".join(names[i] for i in result.pulling)
+        out.append(f"Newton's law makes contacts {pulling} pull on the ground (negative impulse)")
+    if energy_gained(result):
+        out.append(
+            f"energy gained: the kinetic energy grows from {result.energy_before:.6g} J to "
+            f"{result.energy_after:.6g} J (Newton's law at several simultaneous contacts can do that)"
+        )
+    return tuple(out)
+
+
+def result_record(model: ModelFile, result: ImpactResult, file: str) -> dict[str, Any]:
+    """The JSON object ``footopt evaluate --json`` prints for one file (plain Python types).
+
+    Keys of the contract (``MODEL_FORMAT.md``): ``external``, ``internal``, ``external_norm``,
+    ``internal_norm``. Extras: ``file``, ``model``, ``scene``, ``contacts``, ``active``,
+    ``joints``, ``joint_kinds``, ``internal_vector``, ``internal_torque``, ``max_internal``,
+    ``max_internal_joint``, ``velocities``, ``v_minus``, ``v_plus``, ``energy_before``,
+    ``energy_after``, ``energy_gained``, ``split_unique``, ``pulling``, ``reference``.
+    """
+    tree, scene, ref = model.tree, model.scene, model.reference
+    names = contact_names(tree)
+    joints = joint_names(tree)
+    active = set(result.active)
+    mags = result.internal_magnitude
+    return {
+        "file": file,
+        "model": result.model,
+        "scene": {
+            "speed": _f(scene.speed),
+            "restitution": _f(scene.restitution),
+            "friction": _f(scene.friction),
+            "contacts": scene.selection.value,
+            "contact_tolerance": _f(scene.contact_tolerance),
+        },
+        "contacts": list(names),
+        "active": [i in active for i in range(len(names))],
+        "external": _floats(result.external),
+        "joints": list(joints),
+        "joint_kinds": [b.joint.value for b in tree.bodies[1:]],
+        "internal": _floats(mags),
+        "internal_vector": [_floats(row[:2]) for row in result.internal],
+        "internal_torque": _floats(result.internal_torque[:, 2]) if len(joints) else [],
+        "external_norm": _f(result.external_norm),
+        "internal_norm": _f(result.internal_norm),
+        "max_internal": _f(result.max_internal),
+        "max_internal_joint": joints[int(np.argmax(mags))] if mags.size else None,
+        "velocities": [name for name, _ in velocity_names(tree)],
+        "v_minus": _floats(result.v_minus),
+        "v_plus": _floats(result.v_plus),
+        "energy_before": _f(result.energy_before),
+        "energy_after": _f(result.energy_after),
+        "energy_gained": energy_gained(result),
+        "split_unique": bool(result.split_unique),
+        "pulling": [names[i] for i in result.pulling],
+        "reference": None
+        if ref is None
+        else {
+            "source": ref.source,
+            "external": None if ref.external is None else [_opt(v) for v in ref.external],
+            "internal": None if ref.internal is None else [_opt(v) for v in ref.internal],
+            "external_norm": _opt(ref.external_norm),
+            "internal_norm": _opt(ref.internal_norm),
+            "note": ref.note,
+        },
+    }
+
+
+def format_report(model: ModelFile, result: ImpactResult, file: str) -> str:
+    """A plain-text report of one evaluation: contacts, joints, norms, velocities, energy,
+    warnings, with the file's reference values beside ours where it gives them."""
+    tree, scene, ref = model.tree, model.scene, model.reference
+    names = contact_names(tree)
+    joints = joint_names(tree)
+    active = set(result.active)
+    selection = (
+        "all declared contacts hit"
+        if scene.selection is ContactSelection.ALL
+        else f"lowest (contacts within {scene.contact_tolerance:g} m of the lowest hit)"
+    )
+    lines = [
+        f"== {file} ==",
+        f"model:   {result.model}",
+        f"scene:   speed {scene.speed:g} m/s down, restitution e = {scene.restitution:g}, "
+        f"friction {scene.friction:g}, contacts: {selection}",
+        f"tree:    {_count(tree.n_bodies, 'body', 'bodies')}, {len(active)} of {len(names)} declared contacts hit",
+    ]
+    if ref is not None and (ref.source or ref.note):
+        lines.append("reference: " + "; ".join(s for s in (ref.source, ref.note) if s))
+
+    show_ref_ext = ref is not None and ref.external is not None
+    headers = ["contact", "touches", "impulse [N s]"] + (["reference [N s]", "diff"] if show_ref_ext else [])
+    rows = []
+    for i, name in enumerate(names):
+        row = [name, "yes" if i in active else "no", _num(result.external[i])]
+        if show_ref_ext:
+            assert ref is not None and ref.external is not None
+            row += _ref_cells(result.external[i], ref.external[i])
+        rows.append(row)
+    lines += ["", "External impulses (normal, on the contacts)"] + _table(headers, rows)
+
+    if joints:
+        show_ref_int = ref is not None and ref.internal is not None
+        headers = ["joint (child)", "kind", "x [N s]", "y [N s]", "|impulse| [N s]"]
+        headers += ["reference [N s]", "diff"] if show_ref_int else []
+        rows = []
+        for j, name in enumerate(joints):
+            x, y = result.internal[j, :2]
+            row = [name, tree.bodies[j + 1].joint.value, _num(x), _num(y), _num(result.internal_magnitude[j])]
+            if show_ref_int:
+                assert ref is not None and ref.internal is not None
+                row += _ref_cells(result.internal_magnitude[j], ref.internal[j])
+            rows.append(row)
+        lines += ["", "Internal impulses (through each joint, parent onto child)"] + _table(headers, rows)
+
+    headers = ["norm", "ours [N s]"] + (["reference [N s]", "diff"] if ref is not None else [])
+    rows = []
+    for key in ("external_norm", "internal_norm"):
+        ours = getattr(result, key)
+        rows.append([key, _num(ours)] + (_ref_cells(ours, getattr(ref, key)) if ref is not None else []))
+    lines += [""] + _table(headers, rows)
+    if joints:
+        j = int(np.argmax(result.internal_magnitude))
+        lines.append(f"largest joint impulse: {result.max_internal:.4f} N s, through the joint of {joints[j]}")
+
+    rows = [
+        [f"{name} [{unit}]", _num(before), _num(after)]
+        for (name, unit), before, after in zip(velocity_names(tree), result.v_minus, result.v_plus, strict=True)
+    ]
+    lines += ["", "Velocities"] + _table(["velocity", "before", "after"], rows)
+
+    before, after = result.energy_before, result.energy_after
+    change = (
+        f"lost {100 * (before - after) / before:.1f}%"
+        if after <= before
+        else f"energy gained: +{100 * (after - before) / before:.1f}%"
+    )
+    lines += ["", f"kinetic energy [J]: before {before:.4f}, after {after:.4f} ({change})"]
+    lines += [f"warning: {w}" for w in warnings(model, result)]
+    return "\n".join(lines) + "\n"
+
+
+def _table(headers: list[str], rows: list[list[str]]) -> list[str]:
+    """Aligned plain-text columns: the first column left-aligned, the others right-aligned."""
+    widths = [max(len(r[c]) for r in [headers, *rows]) for c in range(len(headers))]
+
+    def line(cells: list[str]) -> str:
+        parts = [cells[0].ljust(widths[0])] + [cell.rjust(w) for cell, w in zip(cells[1:], widths[1:], strict=True)]
+        return "  ".join(parts).rstrip()
+
+    return [line(headers)] + [line(r) for r in rows]
+
+
+def _ref_cells(ours: float, ref: float | None) -> list[str]:
+    if ref is None:
+        return ["-", ""]
+    diff = f"{100 * (ours - ref) / abs(ref):+.1f}%" if ref != 0 else ""
+    return [_num(ref), diff]
+
+
+def _count(n: int, one: str, many: str) -> str:
+    return f"{n} {one if n == 1 else many}"
+
+
+def _num(x: float) -> str:
+    return f"{round(float(x), 4) + 0.0:.4f}"  # no "-0.0000"
+
+
+def _f(x: float) -> float:
+    return float(x) + 0.0  # a plain float, and -0.0 written as 0.0
+
+
+def _floats(a: Any) -> list[float]:
+    return [_f(x) for x in np.asarray(a, dtype=float).ravel()]
+
+
+def _opt(x: float | None) -> float | None:
+    return None if x is None else _f(x)
+
+
+__all__ = [
+    "contact_names",
+    "energy_gained",
+    "format_report",
+    "is_finite",
+    "joint_names",
+    "result_record",
+    "velocity_names",
+    "warnings",
+]

@@ -1,0 +1,1 @@
+"""footopt tests (a package, so helper modules import as tests.*)."""

@@ -1,0 +1,111 @@
+"""Fixtures for the optimizer tests: a small leg as a model file, and the same leg built by hand."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from impulse_core.tree import Body, ContactSelection, Scene, Tree
+
+#: A three-body leg landing on both ends of its foot at once.
+LEG_YAML = """\
+# a three-body leg landing on both ends of its foot
+scene:
+  speed: 2.0
+  restitution: 0.5
+  contacts: all
+model:
+  bodies:
+    - name: thigh
+      length: 0.5
+      mass: 2.0
+      angle: -1.3
+    - name: shank
+      parent: thigh
+      length: 0.5
+      mass: 1.0
+      angle: 0.5
+    - name: foot
+      parent: shank
+      length: 0.25
+      mass: 0.3
+      angle: 1.2
+      contacts: [0.0, 1.0]
+"""
+
+#: The leg with a heel and a toe on separate bodies; only the lowest contact hits.
+FOOT_YAML = """\
+scene: {speed: 3.43, restitution: 0.8}
+model:
+  bodies:
+    - {name: thigh, length: 0.7, mass: 1.0, angle: -1.2}
+    - {name: shank, parent: thigh, length: 0.7, mass: 1.0, angle: 0.6}
+    - {name: heel, parent: shank, length: 0.15, mass: 0.1, angle: 2.0, contacts: [1.0]}
+    - {name: toe, parent: shank, length: 0.2, mass: 0.1, angle: -0.5, contacts: [1.0]}
+reference:
+  source: a made-up table
+  external: [null, 0.9]
+  internal: [0.25, null, 0.8]
+  external_norm: 0.9
+"""
+
+#: A plank lying flat on three contacts: redundant contacts (one rigid body, three normals).
+PLANK_YAML = """\
+scene: {speed: 1.0, restitution: 0.5, contacts: all}
+model:
+  bodies:
+    - {name: plank, length: 1.0, mass: 1.0, angle: 0.0, contacts: [0.0, 0.5, 1.0]}
+"""
+
+#: A welded toe with two nearly coincident contacts: Newton's law asks one to pull.
+PULLING_YAML = """\
+scene: {speed: 3.43, restitution: 0.8, contacts: all}
+model:
+  bodies:
+    - {name: thigh, length: 0.7, mass: 1.0, angle: -1.2}
+    - {name: shank, parent: thigh, length: 0.7, mass: 1.0, angle: 0.6}
+    - {name: heel, parent: shank, length: 0.15, mass: 0.1, angle: 2.0, contacts: [1.0]}
+    - {name: toe, parent: shank, length: 0.2, mass: 0.1, angle: -1.0, joint: fixed, contacts: [1.0, 0.5]}
+"""
+
+
+@pytest.fixture
+def write(tmp_path: Path) -> Callable[..., Path]:
+    """Write text to a file under tmp_path and return its path: ``write(text, "name.yaml")``."""
+
+    def _write(text: str, name: str = "model.yaml") -> Path:
+        path = tmp_path / name
+        path.write_text(text, encoding="utf-8")
+        return path
+
+    return _write
+
+
+@pytest.fixture
+def leg_file(write: Callable[..., Path]) -> Path:
+    return write(LEG_YAML, "leg.yaml")
+
+
+@pytest.fixture
+def foot_file(write: Callable[..., Path]) -> Path:
+    return write(FOOT_YAML, "foot.yaml")
+
+
+@pytest.fixture
+def leg_tree() -> Tree:
+    """``LEG_YAML``'s tree, built by hand."""
+    return Tree(
+        (
+            Body("thigh", None, length=0.5, mass=2.0, angle=-1.3),
+            Body("shank", 0, length=0.5, mass=1.0, angle=0.5),
+            Body("foot", 1, length=0.25, mass=0.3, angle=1.2, contacts=(0.0, 1.0)),
+        )
+    )
+
+
+@pytest.fixture
+def leg_scene() -> Scene:
+    """``LEG_YAML``'s scene, built by hand."""
+    return Scene(speed=2.0, restitution=0.5, selection=ContactSelection.ALL)

@@ -1,0 +1,53 @@
+"""The text report and JSON record of one evaluation."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+from impulse_core.evaluate import evaluate
+from impulse_core.tree import Body, JointKind, Scene, Tree
+from optimizer.model_file import ModelFile, Reference
+from optimizer.report import contact_names, format_report, joint_names, result_record, velocity_names, warnings
+
+
+def test_names() -> None:
+    tree = Tree(
+        (
+            Body("hip", None, 1.0, 1.0, 0.0, contacts=(0.0,)),
+            Body("toe", 0, 1.0, 1.0, 0.5, contacts=(1.0, 0.5)),
+            Body("weld", 1, 1.0, 1.0, 0.5, joint=JointKind.FIXED),
+            Body("heel", 0, 1.0, 1.0, -0.5, contacts=(1.0,)),
+        )
+    )
+    assert contact_names(tree) == ("hip[0]", "toe[0]", "toe[1]", "heel[0]")
+    assert joint_names(tree) == ("toe", "weld", "heel")
+    assert [name for name, _ in velocity_names(tree)] == ["base vx", "base vy", "base omega", "toe rate", "heel rate"]
+
+
+def test_energy_gain_is_flagged(leg_tree: Tree, leg_scene: Scene) -> None:
+    result = evaluate(leg_tree, leg_scene)
+    model = ModelFile(leg_tree, leg_scene)
+    assert not any("energy gained" in w for w in warnings(model, result))
+    gained = dataclasses.replace(result, energy_after=2 * result.energy_before)
+    assert any(w.startswith("energy gained") for w in warnings(model, gained))
+    assert "energy gained: +100.0%" in format_report(model, gained, "leg.yaml")
+    assert result_record(model, gained, "leg.yaml")["energy_gained"] is True
+
+
+def test_reference_beside_ours(leg_tree: Tree, leg_scene: Scene) -> None:
+    result = evaluate(leg_tree, leg_scene)
+    ref = Reference(external=(None, 2 * result.external[1]), internal_norm=result.internal_norm, note="Table 2")
+    report = format_report(ModelFile(leg_tree, leg_scene, ref), result, "leg.yaml")
+    foot1 = next(line for line in report.splitlines() if line.startswith("foot[1]"))
+    assert foot1.split()[-2:] == [f"{2 * result.external[1]:.4f}", "-50.0%"]
+    foot0 = next(line for line in report.splitlines() if line.startswith("foot[0]"))
+    assert foot0.split()[-1] == "-"
+    norm = next(line for line in report.splitlines() if line.startswith("internal_norm"))
+    assert norm.split()[-1] == "+0.0%"
+    assert "reference: Table 2" in report
+
+
+def test_record_is_plain_json(leg_tree: Tree, leg_scene: Scene) -> None:
+    record = result_record(ModelFile(leg_tree, leg_scene), evaluate(leg_tree, leg_scene), "leg.yaml")
+    assert json.loads(json.dumps(record, allow_nan=False)) == record
