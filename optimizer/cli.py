@@ -27,6 +27,9 @@ from optimizer.report import format_report, is_finite, result_record
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
+#: The paper's three-toed foot, evaluated when no file is given.
+DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "configs" / "paper_case3.yaml"
+
 _MODEL_HELP = "model files (YAML or JSON, format: MODEL_FORMAT.md)"
 
 
@@ -51,8 +54,24 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run_evaluate)
 
 
+def _add_bench(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "bench",
+        help="time the evaluation of a model, next to pinocchio.impulseDynamics",
+        description=(
+            "Time one design's evaluation (external + internal impulses + norms): one call per design, "
+            "batched over many designs, and the full evaluate() path; beside pinocchio.impulseDynamics on "
+            "the same model in the same run (if `pin` is installed). Quote the ratio, not the times."
+        ),
+    )
+    p.add_argument("files", nargs="*", metavar="FILE", help=f"{_MODEL_HELP} (default: configs/paper_case3.yaml)")
+    p.add_argument("--batch", type=int, default=2000, help="designs per batched call (default 2000)")
+    p.add_argument("--json", action="store_true", help="print one JSON object per model")
+    p.set_defaults(run=run_bench)
+
+
 #: Functions that add one subcommand each to the parser.
-SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (_add_evaluate,)
+SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (_add_evaluate, _add_bench)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -139,6 +158,28 @@ def _evaluate(model: ModelFile) -> ImpactResult | None:
     return result if is_finite(result) else None
 
 
+def run_bench(args: argparse.Namespace) -> int:
+    """``footopt bench``: timings and the ratio to Pinocchio per model file."""
+    from optimizer.bench import format_report as format_bench, speed_report
+
+    if args.batch < 1:
+        _error("--batch", f"must be >= 1, got {args.batch}")
+        return EXIT_USAGE
+    files = args.files or [str(DEFAULT_MODEL)]
+    for n, file in enumerate(files):
+        try:
+            model = load_model_file(file)
+        except FootoptError as e:
+            _error(file, str(e))
+            return EXIT_USAGE
+        report = speed_report(Path(file).stem, model.tree, model.scene, batch=args.batch)
+        if args.json:
+            print(json.dumps(report.as_dict(), allow_nan=False))
+        else:
+            print(("\n" if n else "") + format_bench(report))
+    return EXIT_OK
+
+
 def _plot_paths(path: Path, files: list[str]) -> dict[int, Path]:
     """One plot path per file: ``path`` itself for one file, else ``path`` with ``_<stem>``
     before the suffix (``_<stem>-<k>`` when two files share a stem)."""
@@ -170,7 +211,7 @@ def _version() -> str:
         return "(not installed)"
 
 
-__all__ = ["SUBCOMMANDS", "build_parser", "main", "run_evaluate"]
+__all__ = ["SUBCOMMANDS", "build_parser", "main", "run_bench", "run_evaluate"]
 
 
 if __name__ == "__main__":
