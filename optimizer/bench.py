@@ -7,12 +7,13 @@ what to quote (these machines are noisy).
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from dataclasses import asdict, dataclass
 from typing import Callable
 
-import casadi as ca
 import numpy as np
 
+from impulse_core.codegen import Backend, compile_function
 from impulse_core.evaluate import active_contacts, approach_velocity, compiled_model, evaluate
 from impulse_core.tree import Scene, Tree, design_vector
 
@@ -27,7 +28,10 @@ class SpeedReport:
     n_instructions: int
     build_ms: float
     us_per_design_single: float
+    us_per_design_batched_vm: float
+    us_per_design_batched_compiled: float | None
     us_per_design_batched: float
+    backend: str
     us_per_design_evaluate: float
     pinocchio_us_per_call: float | None
     ratio: float | None
@@ -49,11 +53,15 @@ def _median_us(fn: Callable[[], object], calls: int, repeats: int = 5) -> float:
     return float(np.median(samples))
 
 
-def speed_report(name: str, tree: Tree, scene: Scene, batch: int = 2000, seed: int = 0) -> SpeedReport:
+def speed_report(
+    name: str, tree: Tree, scene: Scene, batch: int = 2000, seed: int = 0, cache_dir: Path | None = None
+) -> SpeedReport:
     """Time the paper's model (external + internal impulses + norms) on ``tree``.
 
     Single: one Python call of the compiled function per design. Batched: ``Function.map`` over
     ``batch`` designs (the design values jittered by 1 % so that no result is reused).
+    Compiled: the same function as C (``impulse_core.codegen``, cached in ``cache_dir``; skipped
+    when None or without a compiler); ``us_per_design_batched`` is the faster batched path.
     Evaluate: the full ``impulse_core.evaluate`` path. Pinocchio: ``impulseDynamics`` per call
     on the same model (external impulses and post-impact velocity only).
     """
@@ -73,7 +81,13 @@ def speed_report(name: str, tree: Tree, scene: Scene, batch: int = 2000, seed: i
     fmap = f.map(batch)
     V = np.repeat(v[:, None], batch, axis=1)
     E = np.full((1, batch), e)
-    batched = _median_us(lambda: fmap(P, V, E), calls=3) / batch
+    batched_vm = _median_us(lambda: fmap(P, V, E), calls=3) / batch
+    compiled = compile_function(f, cache_dir)
+    batched_c = None
+    if compiled.backend is Backend.COMPILED:
+        cmap = compiled.function.map(batch)
+        batched_c = _median_us(lambda: cmap(P, V, E), calls=3) / batch
+    batched = min(batched_vm, batched_c or np.inf)
     out_map = fmap(P, V, E)
     idx = rng.integers(0, batch, 5)
     names = ("external", "v_plus", "external_norm", "internal_norm")  # one column per design
@@ -96,7 +110,10 @@ def speed_report(name: str, tree: Tree, scene: Scene, batch: int = 2000, seed: i
         n_instructions=int(f.n_instructions()),
         build_ms=build_ms,
         us_per_design_single=single,
+        us_per_design_batched_vm=batched_vm,
+        us_per_design_batched_compiled=batched_c,
         us_per_design_batched=batched,
+        backend=compiled.backend.value,
         us_per_design_evaluate=per_eval,
         pinocchio_us_per_call=pin_us,
         ratio=None if pin_us is None else batched / pin_us,
@@ -124,7 +141,11 @@ def format_report(r: SpeedReport) -> str:
         ("model", f"{r.model} ({r.n_dof} DOF, {r.n_contacts} contacts, {r.n_instructions} SX instructions)"),
         ("build (first use of the topology)", f"{r.build_ms:.1f} ms"),
         ("footopt, one call per design", f"{r.us_per_design_single:.2f} us"),
-        (f"footopt, batched (map over {r.batch})", f"{r.us_per_design_batched:.2f} us/design"),
+        (f"footopt, batched (map over {r.batch}), VM", f"{r.us_per_design_batched_vm:.2f} us/design"),
+        (
+            f"footopt, batched (map over {r.batch}), compiled C",
+            "no compiler" if r.us_per_design_batched_compiled is None else f"{r.us_per_design_batched_compiled:.2f} us/design",
+        ),
         ("footopt evaluate() (full Python path)", f"{r.us_per_design_evaluate:.2f} us"),
         (
             "pinocchio.impulseDynamics (external only)",
@@ -137,5 +158,3 @@ def format_report(r: SpeedReport) -> str:
     return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
 
 
-def ca_version() -> str:
-    return ca.__version__

@@ -67,6 +67,12 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("files", nargs="*", metavar="FILE", help=f"{_MODEL_HELP} (default: configs/paper_case3.yaml)")
     p.add_argument("--batch", type=int, default=2000, help="designs per batched call (default 2000)")
     p.add_argument("--json", action="store_true", help="print one JSON object per model")
+    p.add_argument(
+        "--cache-dir",
+        default=str(Path.home() / ".cache" / "footopt"),
+        help="where compiled C libraries are cached (default ~/.cache/footopt)",
+    )
+    p.add_argument("--no-compile", action="store_true", help="time CasADi's virtual machine only")
     p.set_defaults(run=run_bench)
 
 
@@ -172,7 +178,8 @@ def run_bench(args: argparse.Namespace) -> int:
         except FootoptError as e:
             _error(file, str(e))
             return EXIT_USAGE
-        report = speed_report(Path(file).stem, model.tree, model.scene, batch=args.batch)
+        cache = None if args.no_compile else Path(args.cache_dir)
+        report = speed_report(Path(file).stem, model.tree, model.scene, batch=args.batch, cache_dir=cache)
         if args.json:
             print(json.dumps(report.as_dict(), allow_nan=False))
         else:

@@ -14,8 +14,8 @@ from optimizer.bench import speed_report
 from optimizer.cli import main
 
 
-def test_bench_json_keys_and_agreement(leg_file, capsys) -> None:
-    assert main(["bench", str(leg_file), "--batch", "8", "--json"]) == 0
+def test_bench_json_keys_and_agreement(leg_file, capsys, tmp_path) -> None:
+    assert main(["bench", str(leg_file), "--batch", "8", "--json", "--cache-dir", str(tmp_path)]) == 0
     record = json.loads(capsys.readouterr().out.strip())
     for key in ("us_per_design_batched", "pinocchio_us_per_call", "ratio", "n_instructions", "build_ms"):
         assert key in record
