@@ -1,26 +1,48 @@
-"""Numeric evaluation of one design: contact selection, the compiled model (cached per
-topology), redundant contacts, and a typed result."""
+"""Numeric evaluation of one design: contact selection, the compiled models (cached per
+topology), the ladder of impact models with an automatic choice of rung, redundant contacts,
+and a typed result.
+
+The automatic choice is the cheapest rung that is exact for the scene
+(:mod:`impulse_core.contact_models`): FRICTION when ``scene.friction > 0``; otherwise NEWTON
+(paper eq. 11) when every Newton impulse is >= 0 (it is then the complementarity answer), and
+LCP when Newton's law would make a contact pull (the contact separates with zero impulse).
+DECOUPLED (paper eq. 14) runs on request only. Frictionless scenes build no friction terms.
+"""
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from impulse_core.errors import ModelError, NumericalError
-from impulse_core.impact import geometry_function, impact_function, response_function
+from impulse_core.contact_models import (
+    PIVOT_TOL,
+    RANK_TOL,
+    ImpactModel,
+    complementarity_impulse,
+    coulomb_cone,
+    coulomb_impulse,
+    decoupled_impulse,
+    least_norm_split,
+    redundant,
+)
+from impulse_core.errors import NumericalError
+from impulse_core.impact import (
+    friction_response_function,
+    geometry_function,
+    impact_function,
+    metric_function,
+    response_function,
+)
 from impulse_core.kinematics import PLANAR, DofKind, Space, dof_layout
 from impulse_core.nnls import least_distance
 from impulse_core.tree import ContactSelection, Scene, Topology, Tree, design_vector
 
-#: A relative Delassus pivot below this sends the evaluation to the rank check.
-PIVOT_TOL = 1e-9
-#: Singular values of the column-normalised contact Jacobian below this (relative) are zero.
-RANK_TOL = 1e-9
-
-MODEL_NAME = "newton-simultaneous (paper eq. 11)"
+#: A normal impulse below this fraction of the approach momentum counts as zero (separating).
+ZERO_IMPULSE = 1e-12
 
 
 @dataclass(frozen=True)
@@ -37,6 +59,20 @@ class CompiledModel:
 def compiled_model(topology: Topology, space: Space = PLANAR) -> CompiledModel:
     """Build (once per topology) the impact and response functions."""
     return CompiledModel(topology, space, impact_function(topology, space), response_function(topology, space))
+
+
+@functools.lru_cache(maxsize=256)
+def compiled_metric(topology: Topology, space: Space = PLANAR, tangent: bool = False) -> ca.Function:
+    """Build (once per topology) the contact problem in the kinetic-energy metric
+    (:func:`impulse_core.impact.metric_function`); tangent rows only with ``tangent``."""
+    return metric_function(topology, space, tangent)
+
+
+@functools.lru_cache(maxsize=256)
+def compiled_friction(topology: Topology, space: Space = PLANAR) -> ca.Function:
+    """Build (once per topology) the response to normal and tangential impulses; only scenes
+    with friction (or an explicit FRICTION request) ever call this."""
+    return friction_response_function(topology, space)
 
 
 @functools.lru_cache(maxsize=256)
@@ -98,12 +134,17 @@ class ImpactResult:
         v_minus, v_plus: generalized velocities before and after (base vx, vy, omega, joints).
         energy_before, energy_after: kinetic energy.
         contact_velocity: normal velocity of each active contact after impact.
-        split_unique: False when the active contacts are redundant (the Delassus matrix is
-            singular): the post-impact velocity is unique, the split of the impulse is not, and
-            ``external`` is the smallest-norm non-negative split that meets the restitution law.
-        pulling: active contacts (declared indices) with a negative impulse: Newton's law asks
-            them to pull on the ground.
-        model: which impact model ran.
+        split_unique: False when the active contacts are redundant (their Jacobian rows are
+            dependent: the Delassus matrix is singular): the post-impact velocity is unique, the
+            split of the impulse is not, and the smallest-norm admissible split is shown.
+        pulling: active contacts (declared indices) with a negative impulse: the law that ran
+            (NEWTON, DECOUPLED) asks them to pull on the ground.
+        model: the rung of the impact-model ladder that ran.
+        reason: why that rung ran (automatic choice or request), and what the reader must know.
+        tangential: tangential (x) impulse at each declared contact (0 unless FRICTION ran).
+        tangent_velocity: tangential velocity of each active contact after impact (FRICTION
+            only; None for the frictionless rungs, which build no tangent terms).
+        separating: active contacts that leave the ground with zero normal impulse.
     """
 
     external: np.ndarray
@@ -120,7 +161,11 @@ class ImpactResult:
     contact_velocity: np.ndarray
     split_unique: bool
     pulling: tuple[int, ...]
-    model: str
+    model: ImpactModel
+    reason: str
+    tangential: np.ndarray
+    tangent_velocity: np.ndarray | None
+    separating: tuple[int, ...]
 
     @property
     def max_internal(self) -> float:
@@ -128,57 +173,209 @@ class ImpactResult:
         return float(self.internal_magnitude.max()) if self.internal_magnitude.size else 0.0
 
 
-def evaluate(tree: Tree, scene: Scene, space: Space = PLANAR) -> ImpactResult:
+@dataclass(frozen=True)
+class _Impact:
+    """One impact to solve: the compiled structure and the numbers."""
+
+    tree: Tree
+    scene: Scene
+    topology: Topology
+    space: Space
+    p: np.ndarray
+    v_minus: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Solution:
+    """What a rung found: impulses at the active contacts and the response to them."""
+
+    model: ImpactModel
+    normal: np.ndarray
+    tangential: np.ndarray | None
+    split_unique: bool
+    out: dict
+
+
+def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: Space = PLANAR) -> ImpactResult:
     """External and internal impulses of ``tree`` landing as ``scene`` says.
 
+    Args:
+        tree: the design.
+        scene: the landing.
+        model: the rung of the impact-model ladder to run (:class:`ImpactModel`); None (default)
+            picks the cheapest rung that is exact for the scene (module docstring).
+        space: the kinematic space (planar).
+
+    Returns:
+        The result, with the rung that ran in ``model`` and why in ``reason``.
+
     Raises:
-        NumericalError: when float64 cannot resolve the impact (non-finite results).
-        ModelError: for a scene the core does not model (friction) or an impulse split that
-            no non-negative, restitution-meeting choice can make.
+        NumericalError: when float64 cannot resolve the impact (non-finite results), or eq. 14
+            is undefined (a zero row sum of the Delassus matrix).
     """
-    if scene.friction > 0:
-        raise ModelError("scene.friction: the impulse core models frictionless contact only (friction: 0)")
     active = active_contacts(tree, scene)
     topology = tree.topology(active)
-    model = compiled_model(topology, space)
-    p = design_vector(tree)
     v_minus = approach_velocity(topology, scene.speed, space)
-    out = model.impact(p=p, v_minus=v_minus, restitution=scene.restitution)
+    impact = _Impact(tree, scene, topology, space, design_vector(tree), v_minus)
+    if model is None:
+        solution, reason = _automatic(impact)
+    else:
+        solution = _RUNGS[model](impact)
+        reason = _requested_reason(impact, solution)
+    return _result(impact, solution, reason)
+
+
+def _automatic(c: _Impact) -> tuple[_Solution, str]:
+    """The cheapest rung that is exact for the scene, and why it was chosen."""
+    mu = c.scene.friction
+    if mu > 0:
+        return _friction(c), f"automatic: scene.friction = {mu:g} > 0, so Coulomb friction acts at the contacts"
+    newton = _newton(c)
+    pulling = np.flatnonzero(newton.normal < 0)
+    if pulling.size == 0:
+        return newton, (
+            "automatic: frictionless, and every Newton impulse is >= 0, so Newton's law (eq. 11) is "
+            "the complementarity (LCP) answer"
+        )
+    names = _names(c, [c.topology.active[i] for i in pulling])
+    return _lcp(c), (
+        f"automatic: Newton's law (eq. 11) would make {names} pull on the ground (negative impulse); "
+        f"the complementarity law (LCP) lets a contact separate with zero impulse instead"
+    )
+
+
+def _requested_reason(c: _Impact, s: _Solution) -> str:
+    notes = ["requested"]
+    mu = c.scene.friction
+    if s.model is ImpactModel.FRICTION and mu == 0:
+        notes.append("scene.friction = 0, so the friction rung gives the LCP answer")
+    if s.model is not ImpactModel.FRICTION and mu > 0:
+        notes.append(f"scene.friction = {mu:g} is ignored by this frictionless rung")
+    pulling = np.flatnonzero(s.normal < 0)
+    if pulling.size:
+        names = _names(c, [c.topology.active[i] for i in pulling])
+        notes.append(f"it makes {names} pull on the ground; the complementarity law (LCP) would release them")
+    return "; ".join(notes)
+
+
+def _names(c: _Impact, declared: list[int]) -> str:
+    contacts = c.tree.contacts
+    names = [f"{c.tree.bodies[contacts[i][0]].name}[{contacts[i][1]}]" for i in declared]
+    return ("contact " if len(names) == 1 else "contacts ") + ", ".join(names)
+
+
+def _newton(c: _Impact) -> _Solution:
+    """Paper eq. 11 by the compiled L^T D L solve; redundant contacts by the least-norm split."""
+    model = compiled_model(c.topology, c.space)
+    out = model.impact(p=c.p, v_minus=c.v_minus, restitution=c.scene.restitution)
     lam = np.array(out["external"]).ravel()
     split_unique = True
-    if np.min(np.array(out["delassus_pivots"])) < PIVOT_TOL or not np.all(np.isfinite(lam)):
-        resp = model.response(p=p, v_minus=v_minus, external=np.zeros(len(active)))
+    if np.min(np.array(out["delassus_pivots"]), initial=1.0) < PIVOT_TOL or not np.all(np.isfinite(lam)):
+        resp = model.response(p=c.p, v_minus=c.v_minus, external=np.zeros(len(c.topology.active)))
         J = np.array(resp["contact_jacobian"])
         A = np.array(resp["delassus"])
         if not (np.all(np.isfinite(J)) and np.all(np.isfinite(A))):
             raise NumericalError("the Delassus matrix is not finite in float64 (values too extreme)")
-        rhs = -(1 + scene.restitution) * (J @ v_minus)
-        redundant = _redundant_split(J, A, rhs)
-        if redundant is not None:
-            lam, split_unique = redundant, False
-            out = model.response(p=p, v_minus=v_minus, external=lam)
-    if not all(np.all(np.isfinite(np.array(out[k]))) for k in ("v_plus", "internal", "energy_after")):
+        rhs = -(1 + c.scene.restitution) * (J @ c.v_minus)
+        split = _redundant_split(J, A, rhs)
+        if split is not None:
+            lam, split_unique = split, False
+            out = model.response(p=c.p, v_minus=c.v_minus, external=lam)
+    return _Solution(ImpactModel.NEWTON, lam, None, split_unique, out)
+
+
+def _metric(c: _Impact, tangent: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """J, A, E, u- of :func:`impulse_core.impact.metric_function`, checked finite."""
+    m = compiled_metric(c.topology, c.space, tangent)(p=c.p, v_minus=c.v_minus)
+    J, A, E, u = (np.array(m[k]) for k in ("contact_jacobian", "delassus", "metric_factor", "u_minus"))
+    if not all(np.all(np.isfinite(x)) for x in (J, A, E, u)):
+        raise NumericalError("the Delassus matrix is not finite in float64 (values too extreme)")
+    return J, A, E, u.ravel()
+
+
+def _lcp(c: _Impact) -> _Solution:
+    """The frictionless complementarity law by NNLS in the kinetic-energy metric."""
+    J, A, E, u = _metric(c)
+    lam = complementarity_impulse(E, -(1 + c.scene.restitution) * u)
+    split_unique = not redundant(J, A)
+    if not split_unique:
+        lam = least_norm_split(J, lam)
+    out = compiled_model(c.topology, c.space).response(p=c.p, v_minus=c.v_minus, external=lam)
+    return _Solution(ImpactModel.LCP, lam, None, split_unique, out)
+
+
+def _friction(c: _Impact) -> _Solution:
+    """Moreau's impact law with Coulomb friction, convex relaxation, by NNLS on the cone's edges."""
+    n = len(c.topology.active)
+    mu = c.scene.friction
+    J, A, E, u = _metric(c, tangent=True)
+    lam_n, lam_t = coulomb_impulse(E[:, :n], E[:, n:], -(1 + c.scene.restitution) * u, mu)
+    if mu == 0:  # the cone is the normal ray: only the normal rows can be redundant
+        split_unique = not redundant(J[:n], A[:n, :n])
+        if not split_unique:
+            lam_n = least_norm_split(J[:n], lam_n)
+    else:
+        split_unique = not redundant(J, A)
+        if not split_unique:
+            lam = least_norm_split(J, np.concatenate([lam_n, lam_t]), coulomb_cone(mu, n))
+            lam_n, lam_t = np.maximum(lam[:n], 0.0), lam[n:]
+    out = compiled_friction(c.topology, c.space)(p=c.p, v_minus=c.v_minus, external=lam_n, tangential=lam_t)
+    return _Solution(ImpactModel.FRICTION, lam_n, lam_t, split_unique, out)
+
+
+def _decoupled(c: _Impact) -> _Solution:
+    """The paper's decoupled approximation, eq. 14."""
+    J, A, _, _ = _metric(c)
+    lam = decoupled_impulse(A, -(1 + c.scene.restitution) * (J @ c.v_minus))
+    if not np.all(np.isfinite(lam)):
+        bad = [c.topology.active[i] for i in np.flatnonzero(~np.isfinite(lam))]
+        raise NumericalError(f"paper eq. 14 is undefined: the Delassus row sum of {_names(c, bad)} is zero")
+    out = compiled_model(c.topology, c.space).response(p=c.p, v_minus=c.v_minus, external=lam)
+    return _Solution(ImpactModel.DECOUPLED, lam, None, not redundant(J, A), out)
+
+
+_RUNGS: dict[ImpactModel, Callable[[_Impact], _Solution]] = {
+    ImpactModel.DECOUPLED: _decoupled,
+    ImpactModel.NEWTON: _newton,
+    ImpactModel.LCP: _lcp,
+    ImpactModel.FRICTION: _friction,
+}
+
+
+def _result(c: _Impact, s: _Solution, reason: str) -> ImpactResult:
+    out = s.out
+    keys = ("v_plus", "internal", "energy_after") + (("tangent_velocity",) if s.tangential is not None else ())
+    if not all(np.all(np.isfinite(np.array(out[k]))) for k in keys):
         raise NumericalError("the impact solve gave non-finite values in float64 (values too extreme)")
-    n_declared = len(tree.contacts)
+    active = c.topology.active
+    n_declared = len(c.tree.contacts)
     external = np.zeros(n_declared)
-    external[list(active)] = lam
+    external[list(active)] = s.normal
+    tangential = np.zeros(n_declared)
+    if s.tangential is not None:
+        tangential[list(active)] = s.tangential
     magnitude = np.array(out["internal_magnitude"]).ravel()
+    momentum = sum(b.mass for b in c.tree.bodies) * c.scene.speed
     return ImpactResult(
         external=external,
         active=active,
         internal=np.array(out["internal"]).T.reshape(-1, 3),
         internal_torque=np.array(out["internal_torque"]).T.reshape(-1, 3),
         internal_magnitude=magnitude,
-        external_norm=float(np.linalg.norm(lam)),
+        external_norm=float(np.linalg.norm(s.normal)),
         internal_norm=float(np.linalg.norm(magnitude)),
-        v_minus=v_minus,
+        v_minus=c.v_minus,
         v_plus=np.array(out["v_plus"]).ravel(),
         energy_before=float(out["energy_before"]),
         energy_after=float(out["energy_after"]),
         contact_velocity=np.array(out["contact_velocity"]).ravel(),
-        split_unique=split_unique,
-        pulling=tuple(active[i] for i in np.flatnonzero(lam < 0)),
-        model=f"{MODEL_NAME}, {space.name}",
+        split_unique=s.split_unique,
+        pulling=tuple(active[i] for i in np.flatnonzero(s.normal < 0)),
+        model=s.model,
+        reason=reason,
+        tangential=tangential,
+        tangent_velocity=None if s.tangential is None else np.array(out["tangent_velocity"]).ravel(),
+        separating=tuple(active[i] for i in np.flatnonzero(np.abs(s.normal) <= ZERO_IMPULSE * momentum)),
     )
 
 
@@ -209,9 +406,12 @@ def _redundant_split(J: np.ndarray, A: np.ndarray, rhs: np.ndarray) -> np.ndarra
 __all__ = [
     "CompiledModel",
     "Geometry",
+    "ImpactModel",
     "ImpactResult",
     "active_contacts",
     "approach_velocity",
+    "compiled_friction",
+    "compiled_metric",
     "compiled_model",
     "evaluate",
     "touchdown_geometry",

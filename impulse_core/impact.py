@@ -24,17 +24,25 @@ from impulse_core.kinematics import (
 from impulse_core.tree import Topology
 
 
+#: Ground tangent (world frame): the direction of the tangential (friction) impulse in the plane.
+GROUND_TANGENT = ca.DM([1.0, 0.0, 0.0])
+
+
 def _contact_jacobian(topology: Topology, p: ca.SX, space: Space):
     values = unpack_values(topology, p)
     kin = forward_kinematics(topology, values, space)
     layout = dof_layout(topology, space)
+    return values, kin, layout, _direction_jacobian(topology, kin, layout, space, GROUND_NORMAL)
+
+
+def _direction_jacobian(topology: Topology, kin, layout, space: Space, direction: ca.DM) -> ca.SX:
+    """Jacobian of the active contacts' velocity along ``direction`` (world frame), one row each."""
     bodies = contact_bodies(topology)
     rows = []
     for c in topology.active:
         Jv, _ = point_jacobian(kin, layout, bodies[c], kin.W_p_C[c], space)
-        rows.append(GROUND_NORMAL.T @ Jv)
-    J = ca.vertcat(*rows) if rows else ca.SX(0, layout.nv)
-    return values, kin, layout, J
+        rows.append(direction.T @ Jv)
+    return ca.vertcat(*rows) if rows else ca.SX(0, layout.nv)
 
 
 def delassus_matrix(J: ca.SX, f: dyn.LTDL) -> tuple[ca.SX, ca.SX]:
@@ -67,13 +75,16 @@ def internal_impulse(
     values,
     delta_v: ca.SX,
     external: ca.SX,
+    tangential: ca.SX | None = None,
 ) -> tuple[ca.SX, ca.SX]:
     """Impulse each joint transmits from parent to child: (force, torque about the joint), world
     frame, one column per non-base body (3 x (n_bodies - 1) each).
 
     Impulsive Newton-Euler backward pass (paper eqs. 15-27 in the world frame): the joint impulse
-    into body k's subtree equals the subtree's momentum change minus the external impulses on it.
-    Momentum is accumulated as wrenches about the world origin, then shifted to each joint.
+    into body k's subtree equals the subtree's momentum change minus the external impulses on it
+    (normal ``external`` along the ground normal, plus ``tangential`` along the ground tangent
+    when given). Momentum is accumulated as wrenches about the world origin, then shifted to each
+    joint.
     """
     n = topology.n_bodies
     dP = [values[b].mass * (jac.Jv[b] @ delta_v) for b in range(n)]
@@ -84,6 +95,8 @@ def internal_impulse(
     for i, c in enumerate(topology.active):
         b = bodies[c]
         f_ext = external[i] * GROUND_NORMAL
+        if tangential is not None:
+            f_ext = f_ext + tangential[i] * GROUND_TANGENT
         force[b] = force[b] - f_ext
         moment[b] = moment[b] - ca.cross(kin.W_p_C[c], f_ext)
     for b in reversed(range(1, n)):
@@ -121,10 +134,12 @@ def _model(topology: Topology, space: Space, p: ca.SX):
     return values, kin, layout, J, jac, M, f
 
 
-def _response_outputs(topology, kin, jac, values, J, M, M_inv_JT, v_minus, external):
-    delta_v = M_inv_JT @ external
+def _response_outputs(topology, kin, jac, values, J, M, M_inv_JT, v_minus, external, tangential=None):
+    """Outputs named ``RESPONSE_OUTPUTS``. ``M_inv_JT`` has one column per normal impulse, then,
+    with ``tangential``, one per tangential impulse."""
+    delta_v = M_inv_JT @ (external if tangential is None else ca.vertcat(external, tangential))
     v_plus = v_minus + delta_v
-    F, T = internal_impulse(topology, kin, jac, values, delta_v, external)
+    F, T = internal_impulse(topology, kin, jac, values, delta_v, external, tangential)
     magnitude = ca.sqrt(ca.sum1(F**2)).T if F.shape[1] else ca.SX(0, 1)
     return (
         v_plus,
@@ -180,6 +195,62 @@ def response_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
         [*outs, A, J],
         list(RESPONSE_INPUTS),
         list(RESPONSE_OUTPUTS) + ["delassus", "contact_jacobian"],
+    )
+
+
+def friction_response_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
+    """Given normal and tangential (x direction) impulses at the active contacts, everything that
+    follows from them: the outputs of :func:`response_function` (``contact_velocity`` normal;
+    ``internal`` includes the tangential impulses' share) plus ``tangent_velocity`` (tangential
+    velocity of each active contact after impact, m/s). Built only for scenes with friction."""
+    nv = dof_layout(topology, space).nv
+    n = len(topology.active)
+    p = ca.SX.sym("p", topology.n_values)
+    v_minus = ca.SX.sym("v_minus", nv)
+    lam = ca.SX.sym("external", n)
+    lam_t = ca.SX.sym("tangential", n)
+    values, kin, layout, J, jac, M, f = _model(topology, space, p)
+    Jt = _direction_jacobian(topology, kin, layout, space, GROUND_TANGENT)
+    _, M_inv_JT = delassus_matrix(ca.vertcat(J, Jt), f)
+    outs = _response_outputs(topology, kin, jac, values, J, M, M_inv_JT, v_minus, lam, lam_t)
+    return ca.Function(
+        "friction_response",
+        [p, v_minus, lam, lam_t],
+        [*outs, Jt @ outs[0]],
+        ["p", "v_minus", "external", "tangential"],
+        list(RESPONSE_OUTPUTS) + ["tangent_velocity"],
+    )
+
+
+def _mul_l(f: dyn.LTDL, v: ca.SX) -> ca.SX:
+    """L v with the unit lower triangular factor of M = L^T D L (sparse: ancestors only)."""
+    return ca.vertcat(*[v[k] + sum((f.L[(k, i)] * v[i] for i in f.ancestors(k)), ca.SX(0)) for k in range(v.shape[0])])
+
+
+def metric_function(topology: Topology, space: Space = PLANAR, tangent: bool = False) -> ca.Function:
+    """The contact problem in the kinetic-energy metric, for the rungs solved as least squares.
+
+    With M = L^T D L (the tree's sparse factor) and u = D^1/2 L v, the kinetic energy is |u|^2 / 2
+    and an impulse lambda on the contact rows changes u by E lambda, E = D^-1/2 L^-T J^T; the
+    Delassus matrix is A = E^T E (paper eq. 11). Inputs ``p``, ``v_minus``. Outputs
+    ``contact_jacobian`` J (rows: the active contacts' normals, then, with ``tangent``, their
+    x tangents), ``delassus`` A, ``metric_factor`` E (nv x rows) and ``u_minus`` (D^1/2 L v_minus).
+    """
+    nv = dof_layout(topology, space).nv
+    p = ca.SX.sym("p", topology.n_values)
+    v_minus = ca.SX.sym("v_minus", nv)
+    values, kin, layout, J, jac, M, f = _model(topology, space, p)
+    if tangent:
+        J = ca.vertcat(J, _direction_jacobian(topology, kin, layout, space, GROUND_TANGENT))
+    sqrt_d = ca.vertcat(*[ca.sqrt(d) for d in f.D])
+    E = dyn.solve_lt(f, J.T) / ca.repmat(sqrt_d, 1, J.shape[0])
+    A = E.T @ E
+    return ca.Function(
+        "metric",
+        [p, v_minus],
+        [J, 0.5 * (A + A.T), E, sqrt_d * _mul_l(f, v_minus)],
+        ["p", "v_minus"],
+        ["contact_jacobian", "delassus", "metric_factor", "u_minus"],
     )
 
 

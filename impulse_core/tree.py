@@ -150,7 +150,7 @@ class Scene:
     Attributes:
         speed: approach speed (m/s), > 0.
         restitution: Newton's coefficient e in [0, 1].
-        friction: Coulomb coefficient (0: frictionless; only 0 is modelled by the core).
+        friction: Coulomb coefficient (0: frictionless; > 0: the FRICTION rung of contact_models).
         selection: which contacts hit.
         contact_tolerance: with ``LOWEST``, contacts within this height (m) of the lowest hit.
     """

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from impulse_core.contact_models import ImpactModel
 from impulse_core.evaluate import ImpactResult
 from impulse_core.kinematics import PLANAR, dof_layout
 from impulse_core.tree import ContactSelection, Tree
@@ -58,6 +59,8 @@ def warnings(model: ModelFile, result: ImpactResult) -> tuple[str, ...]:
         shown = (
             "no non-negative split meets the restitution law, so the smallest-norm split is shown"
             if result.pulling
+            else "the smallest-norm split inside the friction cones is shown"
+            if result.model is ImpactModel.FRICTION
             else "the smallest-norm non-negative split is shown"
         )
         out.append(
@@ -66,20 +69,49 @@ def warnings(model: ModelFile, result: ImpactResult) -> tuple[str, ...]:
         )
     if result.pulling:
         pulling = ", ".join(names[i] for i in result.pulling)
-        out.append(f"Newton's law makes contacts {pulling} pull on the ground (negative impulse)")
+        law = "the decoupled approximation (eq. 14)" if result.model is ImpactModel.DECOUPLED else "Newton's law"
+        out.append(f"{law} makes contacts {pulling} pull on the ground (negative impulse)")
+    if result.separating and result.model in (ImpactModel.LCP, ImpactModel.FRICTION):
+        separating = ", ".join(names[i] for i in result.separating)
+        out.append(f"contacts {separating} separate from the ground with zero impulse")
+    hop = _friction_hop(model, result)
+    if hop:
+        worst = max(hop.values())
+        out.append(
+            f"contacts {', '.join(names[i] for i in hop)} slide and leave the ground up to {worst:.3g} m/s faster than "
+            f"restitution while carrying impulse (the convex friction law's relaxation): read their normal "
+            f"impulses as upper estimates"
+        )
     if energy_gained(result):
         out.append(
             f"energy gained: the kinetic energy grows from {result.energy_before:.6g} J to "
-            f"{result.energy_after:.6g} J (Newton's law at several simultaneous contacts can do that)"
+            f"{result.energy_after:.6g} J under the {result.model.value} model"
         )
     return tuple(out)
+
+
+def _friction_hop(model: ModelFile, result: ImpactResult) -> dict[int, float]:
+    """Contacts (declared index) that carry impulse under the friction rung yet leave faster than
+    Newton's restitution asks, and by how much (m/s); empty for every other rung."""
+    if result.model is not ImpactModel.FRICTION:
+        return {}
+    scene = model.scene
+    scale = max(float(np.max(result.external, initial=0.0)), 1e-300)
+    out = {}
+    for i, v_n in zip(result.active, result.contact_velocity, strict=True):
+        excess = float(v_n - scene.restitution * scene.speed)
+        if result.external[i] > 1e-9 * scale and excess > 1e-9 * scene.speed:
+            out[i] = excess
+    return out
 
 
 def result_record(model: ModelFile, result: ImpactResult, file: str) -> dict[str, Any]:
     """The JSON object ``footopt evaluate --json`` prints for one file (plain Python types).
 
     Keys of the contract (``MODEL_FORMAT.md``): ``external``, ``internal``, ``external_norm``,
-    ``internal_norm``. Extras: ``file``, ``model``, ``scene``, ``contacts``, ``active``,
+    ``internal_norm``. Extras: ``file``, ``model`` (the law, in words), ``impact_model`` (the
+    rung that ran: decoupled, newton, lcp or friction), ``impact_reason`` (why), ``scene``,
+    ``contacts``, ``active``, ``tangential`` (friction impulse per contact, x), ``separating``,
     ``joints``, ``joint_kinds``, ``internal_vector``, ``internal_torque``, ``max_internal``,
     ``max_internal_joint``, ``velocities``, ``v_minus``, ``v_plus``, ``energy_before``,
     ``energy_after``, ``energy_gained``, ``split_unique``, ``pulling``, ``reference``.
@@ -91,7 +123,9 @@ def result_record(model: ModelFile, result: ImpactResult, file: str) -> dict[str
     mags = result.internal_magnitude
     return {
         "file": file,
-        "model": result.model,
+        "model": result.model.description,
+        "impact_model": result.model.value,
+        "impact_reason": result.reason,
         "scene": {
             "speed": _f(scene.speed),
             "restitution": _f(scene.restitution),
@@ -102,6 +136,8 @@ def result_record(model: ModelFile, result: ImpactResult, file: str) -> dict[str
         "contacts": list(names),
         "active": [i in active for i in range(len(names))],
         "external": _floats(result.external),
+        "tangential": _floats(result.tangential),
+        "separating": [names[i] for i in result.separating],
         "joints": list(joints),
         "joint_kinds": [b.joint.value for b in tree.bodies[1:]],
         "internal": _floats(mags),
@@ -146,7 +182,8 @@ def format_report(model: ModelFile, result: ImpactResult, file: str) -> str:
     )
     lines = [
         f"== {file} ==",
-        f"model:   {result.model}",
+        f"model:   {result.model.value}: {result.model.description}",
+        f"why:     {result.reason}",
         f"scene:   speed {scene.speed:g} m/s down, restitution e = {scene.restitution:g}, "
         f"friction {scene.friction:g}, contacts: {selection}",
         f"tree:    {_count(tree.n_bodies, 'body', 'bodies')}, {len(active)} of {len(names)} declared contacts hit",
@@ -155,15 +192,20 @@ def format_report(model: ModelFile, result: ImpactResult, file: str) -> str:
         lines.append("reference: " + "; ".join(s for s in (ref.source, ref.note) if s))
 
     show_ref_ext = ref is not None and ref.external is not None
-    headers = ["contact", "touches", "impulse [N s]"] + (["reference [N s]", "diff"] if show_ref_ext else [])
+    friction = result.model is ImpactModel.FRICTION and result.tangent_velocity is not None
+    slip = dict(zip(result.active, result.tangent_velocity, strict=True)) if friction else {}
+    headers = ["contact", "touches", "impulse [N s]"] + (["tangential [N s]", "slip after [m/s]"] if friction else [])
+    headers += ["reference [N s]", "diff"] if show_ref_ext else []
     rows = []
     for i, name in enumerate(names):
         row = [name, "yes" if i in active else "no", _num(result.external[i])]
+        row += [_num(result.tangential[i]), _num(slip[i]) if i in slip else "-"] if friction else []
         if show_ref_ext:
             assert ref is not None and ref.external is not None
             row += _ref_cells(result.external[i], ref.external[i])
         rows.append(row)
-    lines += ["", "External impulses (normal, on the contacts)"] + _table(headers, rows)
+    kind = "normal and tangential along +x" if friction else "normal"
+    lines += ["", f"External impulses ({kind}, on the contacts)"] + _table(headers, rows)
 
     if joints:
         show_ref_int = ref is not None and ref.internal is not None

@@ -24,6 +24,7 @@ import math
 import numpy as np
 import pytest
 
+from impulse_core.contact_models import ImpactModel
 from impulse_core.evaluate import evaluate
 from impulse_core.tree import ContactSelection, Scene, Tree
 from tests import planar_numpy as pn
@@ -70,7 +71,7 @@ def test_extreme_values_match_pinocchio_and_an_extended_precision_solve(kind):
     worst = {"core": 0.0, "pinocchio": 0.0, "core_v": 0.0, "ratio": 0.0, "kappa": 0.0}
     for i, tree in enumerate(extreme_trees(kind)):
         e = 0.8
-        res = evaluate(tree, Scene(selection=ContactSelection.ALL, restitution=e))
+        res = evaluate(tree, Scene(selection=ContactSelection.ALL, restitution=e), ImpactModel.NEWTON)
         assert np.all(np.isfinite(res.external)) and np.all(np.isfinite(res.v_plus))
         assert np.all(np.isfinite(res.internal)) and math.isfinite(res.energy_after)
         assert res.split_unique
@@ -122,7 +123,7 @@ def test_restitution_bounds(e):
     Both agree with Pinocchio."""
     for tree in moderate_trees():
         for selection in (ContactSelection.ALL, ContactSelection.LOWEST):
-            res = evaluate(tree, Scene(selection=selection, restitution=e))
+            res = evaluate(tree, Scene(selection=selection, restitution=e), ImpactModel.NEWTON)
             assert np.allclose(res.contact_velocity, e * 3.43, rtol=0, atol=1e-10 * 3.43)
             v_pin, lam_pin = build(tree).impulse(res.v_minus, e, res.active)
             assert relative_error(res.external[list(res.active)], lam_pin) < 1e-9
@@ -139,8 +140,8 @@ def test_extreme_speeds(speed):
     match Pinocchio."""
     for tree in moderate_trees():
         scene = Scene(selection=ContactSelection.ALL, speed=speed, restitution=0.8)
-        res = evaluate(tree, scene)
-        ref = evaluate(tree, Scene(selection=ContactSelection.ALL, speed=3.43, restitution=0.8))
+        res = evaluate(tree, scene, ImpactModel.NEWTON)
+        ref = evaluate(tree, Scene(selection=ContactSelection.ALL, speed=3.43, restitution=0.8), ImpactModel.NEWTON)
         assert np.all(np.isfinite(res.external)) and np.all(np.isfinite(res.internal))
         assert np.allclose(res.external, ref.external * speed / 3.43, rtol=1e-12, atol=1e-14 * speed)
         assert np.allclose(res.internal, ref.internal * speed / 3.43, rtol=1e-12,
@@ -169,7 +170,7 @@ def big_tree() -> tuple[Tree, float]:
 def test_forty_five_bodies_match_pinocchio():
     tree, kappa = big_tree()
     assert tree.n_bodies == 45 and len(tree.contacts) >= 8
-    res = evaluate(tree, Scene(selection=ContactSelection.ALL, restitution=0.7))
+    res = evaluate(tree, Scene(selection=ContactSelection.ALL, restitution=0.7), ImpactModel.NEWTON)
     assert np.all(np.isfinite(res.external)) and np.all(np.isfinite(res.internal))
     v_pin, lam_pin = build(tree).impulse(res.v_minus, 0.7, res.active)
     err_lam = relative_error(res.external, lam_pin)
@@ -178,7 +179,7 @@ def test_forty_five_bodies_match_pinocchio():
            f"relative error vs Pinocchio external {err_lam:.1e}, v_plus {err_v:.1e}")
     assert err_lam < 1e-9 and err_v < 1e-9
     # the same tree with the default selection (a single contact hits)
-    low = evaluate(tree, Scene(restitution=0.7))
+    low = evaluate(tree, Scene(restitution=0.7), ImpactModel.NEWTON)
     v_pin, lam_pin = build(tree).impulse(low.v_minus, 0.7, low.active)
     assert relative_error(low.external[list(low.active)], lam_pin) < 1e-9
     assert relative_error(low.v_plus, v_pin, max(np.linalg.norm(v_pin), np.linalg.norm(low.v_minus))) < 1e-9

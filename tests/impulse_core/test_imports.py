@@ -20,6 +20,7 @@ CORE_MODULES = [
     "impulse_core.nnls",
     "impulse_core.errors",
     "impulse_core.evaluate",
+    "impulse_core.contact_models",
 ]
 FORBIDDEN = ["yaml", "optuna", "scipy", "matplotlib", "cvxpy"]
 
@@ -40,13 +41,17 @@ def test_core_module_imports_no_heavy_dependency(module):
 
 
 def test_evaluating_a_design_imports_no_heavy_dependency():
-    """Not only the import: building and running a compiled model stays within casadi + numpy."""
+    """Not only the import: building and running a compiled model (every rung of the impact-model
+    ladder, friction included) stays within casadi + numpy."""
     statement = (
         "from impulse_core.tree import Body, Tree, Scene\n"
         "from impulse_core.evaluate import evaluate\n"
         "t = Tree((Body('a', None, 1.0, 1.0, 0.0, contacts=(0.0, 0.5, 1.0)),))\n"
         "r = evaluate(t, Scene())\n"
-        "assert r.external.sum() > 0"
+        "assert r.external.sum() > 0\n"
+        "from impulse_core.contact_models import ImpactModel\n"
+        "for m in ImpactModel:\n"
+        "    assert evaluate(t, Scene(friction=0.5), m).model is m"
     )
     assert _imported_after(statement) == []
 

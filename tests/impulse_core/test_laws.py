@@ -19,6 +19,7 @@ import math
 import numpy as np
 import pytest
 
+from impulse_core.contact_models import ImpactModel
 from impulse_core.evaluate import compiled_model, evaluate
 from impulse_core.tree import (
     UNIFORM_COM,
@@ -92,9 +93,11 @@ def test_case_mix():
 
 
 @functools.lru_cache(maxsize=None)
-def _solve(case_id: str):
+def _solve(case_id: str, model: ImpactModel | None = None):
+    """A case evaluated by the given rung (default: the automatic choice, which is LCP where
+    Newton's law would make a contact pull)."""
     _, tree, scene = CASES[IDS.index(case_id)]
-    return tree, scene, evaluate(tree, scene), pn.place(tree)
+    return tree, scene, evaluate(tree, scene, model), pn.place(tree)
 
 
 def _impulse_scale(tree: Tree, scene: Scene) -> float:
@@ -104,8 +107,9 @@ def _impulse_scale(tree: Tree, scene: Scene) -> float:
 
 @pytest.mark.parametrize("case_id", IDS)
 def test_restitution_at_every_active_contact(case_id):
-    """Newton's law (paper eq. 11): v_n+ = -e v_n- with v_n- = -speed at every active contact."""
-    tree, scene, res, pl = _solve(case_id)
+    """Newton's law (paper eq. 11): v_n+ = -e v_n- with v_n- = -speed at every active contact
+    (the NEWTON rung; the automatic choice releases pulling contacts, test_contact_models.py)."""
+    tree, scene, res, pl = _solve(case_id, ImpactModel.NEWTON)
     assert res.split_unique
     target = scene.restitution * scene.speed * np.ones(len(res.active))
     assert np.allclose(res.contact_velocity, target, rtol=0, atol=TOL * scene.speed)
@@ -239,9 +243,11 @@ def test_energy_with_several_contacts_flags_gains(rng):
       E+ - E- = -(1 - e^2)/2 w^T A^-1 w         (lambda = -(1 + e) A^-1 w, paper eq. 11).
     The second says that eq. 11 solved as a linear system, pulling contacts allowed, cannot
     create energy (A^-1 is positive definite): the energy gains known for Newton's
-    simultaneous law come from variants that release pulling contacts (complementarity), which
-    this core does not do. For the straight-down landing (w = -speed) the first also shows
-    that the impulses always sum to a positive number."""
+    simultaneous law come from variants that release pulling contacts. The core's release, the
+    LCP rung, cannot gain on a landing either: complementarity gives the first identity with
+    lambda >= 0 and w < 0 (test_contact_models.py). For the straight-down landing (w = -speed)
+    the first also shows that the impulses always sum to a positive number. Checked here on the
+    NEWTON rung."""
     gains = checked = pulling_landings = 0
     for n in (2, 3, 4, 6, 8):
         structure = random_tree(rng, n, max_contacts_per_body=1, p_contact=1.0)
@@ -256,7 +262,7 @@ def test_energy_with_several_contacts_flags_gains(rng):
             A = J @ np.linalg.solve(pn.mass_matrix(tree, pl), J.T)
             e = float(rng.uniform(0, 1))
             # the straight-down landing
-            res = evaluate(tree, Scene(speed=2.0, restitution=e, selection=ContactSelection.ALL))
+            res = evaluate(tree, Scene(speed=2.0, restitution=e, selection=ContactSelection.ALL), ImpactModel.NEWTON)
             lam = res.external[list(res.active)]
             w = J @ res.v_minus
             gain = res.energy_after - res.energy_before

@@ -26,6 +26,7 @@ import functools
 import numpy as np
 import pytest
 
+from impulse_core.contact_models import ImpactModel
 from impulse_core.evaluate import compiled_model, evaluate
 from impulse_core.impact import mass_matrix_function
 from impulse_core.tree import ContactSelection, Scene, Tree, design_vector
@@ -136,7 +137,7 @@ def test_landing_impulses_equal_impulse_dynamics():
     for i, tree in enumerate(trees):
         scene = Scene(speed=float(rng.uniform(0.5, 5.0)), restitution=float(rng.uniform(0.0, 1.0)),
                       selection=ContactSelection.ALL)
-        res = evaluate(tree, scene)
+        res = evaluate(tree, scene, ImpactModel.NEWTON)
         assert res.split_unique, f"tree {i}: independent contacts reported as redundant"
         v_pin, lam_pin = build(tree).impulse(res.v_minus, scene.restitution, res.active)
         e_lam = relative_error(res.external[list(res.active)], lam_pin)
@@ -179,7 +180,7 @@ def test_the_comparison_can_fail(n_bodies):
     rng = np.random.default_rng(n_bodies)
     tree = random_tree(rng, n_bodies, p_contact=1.0)
     scene = Scene(speed=2.0, restitution=0.5, selection=ContactSelection.ALL)
-    res = evaluate(tree, scene)
+    res = evaluate(tree, scene, ImpactModel.NEWTON)
     bodies = list(tree.bodies)
     bodies[-1] = dataclasses.replace(bodies[-1], mass=bodies[-1].mass * 1.01)
     _, lam_pin = build(Tree(tuple(bodies))).impulse(res.v_minus, scene.restitution, res.active)

@@ -3,9 +3,10 @@
 Three contacts on one rigid body (a planar rigid body's normal velocities span only vy and
 omega), two coincident contacts, contacts spread over bodies welded by fixed joints. The Delassus
 matrix is singular: the post-impact velocity is unique, the split of the impulse is not.
-``evaluate`` must detect it (``split_unique`` False) and return the smallest-norm non-negative
-split that meets the restitution law; the raw undamped solve must be shown to be garbage, so that
-the guard is known to matter.
+``evaluate`` must detect it (``split_unique`` False) and, on the NEWTON rung, return the
+smallest-norm non-negative split that meets the restitution law; the raw undamped solve must be
+shown to be garbage, so that the guard is known to matter. Where no non-negative split meets
+Newton's law, the automatic choice runs the LCP rung instead (test_contact_models.py).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import math
 import numpy as np
 import pytest
 
+from impulse_core.contact_models import ImpactModel
 from impulse_core.evaluate import PIVOT_TOL, approach_velocity, compiled_model, evaluate
 from impulse_core.tree import BODY_VALUES, Body, ContactSelection, JointKind, Scene, Tree, design_vector, with_values
 from tests import planar_numpy as pn
@@ -136,7 +138,7 @@ def test_cases_are_redundant():
 @pytest.mark.parametrize("name", list(CASES))
 def test_evaluate_handles_redundant_contacts(name):
     tree = CASES[name]
-    res = evaluate(tree, SCENE)
+    res = evaluate(tree, SCENE, ImpactModel.NEWTON)
     pl = pn.place(tree)
     scale = sum(b.mass for b in tree.bodies) * SCENE.speed
     assert not res.split_unique
@@ -196,7 +198,7 @@ def test_post_impact_velocity_equals_pinocchio_without_the_redundant_rows(name):
     contacts gives the same v_plus (the dropped rows are affine combinations of the kept ones,
     and every contact approaches at the same speed, so their restitution law follows)."""
     tree = CASES[name]
-    res = evaluate(tree, SCENE)
+    res = evaluate(tree, SCENE, ImpactModel.NEWTON)
     keep = tuple(_independent_rows(pn.normal_jacobian(tree, pn.place(tree))))
     v_pin, lam_pin = build(tree).impulse(res.v_minus, SCENE.restitution, keep)
     assert relative_error(res.v_plus, v_pin, max(np.linalg.norm(v_pin), np.linalg.norm(res.v_minus))) < 1e-9

@@ -61,12 +61,6 @@ BAD_FILES = [
     ),
     bad("restitution below 0", ("restitution: 0.5", "restitution: -1e-3"), "scene.restitution: must be in [0, 1]"),
     bad("friction negative", ("restitution: 0.5", "restitution: 0.5\n  friction: -1"), "scene.friction: must be >= 0"),
-    bad(
-        "friction not modelled",
-        ("restitution: 0.5", "restitution: 0.5\n  friction: 0.3"),
-        "scene.friction:",
-        "frictionless",
-    ),
     bad("contacts mode", ("contacts: all", "contacts: some"), "scene.contacts: unknown mode 'some'", "all, lowest"),
     bad(
         "scene key typo",
@@ -277,7 +271,7 @@ def _run(*args: str) -> subprocess.CompletedProcess[str]:
         ([("  restitution: 0.5", "  restitution: [0.5")], "YAML syntax error at line"),
         ([("length: 0.25", "lenght: 0.25")], "model.bodies[2].lenght: unknown key"),
         ([("parent: thigh", "parent: foot")], "model.bodies[1].parent: the parents form a cycle"),
-        ([("restitution: 0.5", "restitution: 0.5\n  friction: 0.3")], "scene.friction:"),
+        ([("restitution: 0.5", "restitution: 0.5\n  friction: -0.3")], "scene.friction: must be >= 0"),
     ],
     ids=["mass", "syntax", "typo", "cycle", "friction"],
 )
@@ -323,7 +317,8 @@ CONTRACT_KEYS = {"external", "internal", "external_norm", "internal_norm"}
 EXTRA_KEYS = {
     "file", "model", "scene", "contacts", "active", "joints", "joint_kinds", "internal_vector", "internal_torque",
     "max_internal", "max_internal_joint", "velocities", "v_minus", "v_plus", "energy_before", "energy_after",
-    "energy_gained", "split_unique", "pulling", "reference",
+    "energy_gained", "split_unique", "pulling", "reference", "impact_model", "impact_reason", "tangential",
+    "separating",
 }  # fmt: skip
 
 
@@ -348,6 +343,10 @@ def test_json_matches_the_core(leg_file: Path, leg_tree: Tree, leg_scene: Scene,
     assert record["velocities"] == ["base vx", "base vy", "base omega", "shank rate", "foot rate"]
     assert record["split_unique"] is True and record["pulling"] == []
     assert record["reference"] is None
+    assert record["impact_model"] == expected.model.value == "newton"
+    assert record["impact_reason"] == expected.reason and record["impact_reason"].startswith("automatic")
+    assert record["model"] == expected.model.description
+    assert record["tangential"] == [0.0, 0.0] and record["separating"] == []
 
 
 def test_json_lengths_and_norms(foot_file: Path, capsys) -> None:
@@ -377,15 +376,24 @@ def test_json_lines_in_order_and_a_bad_file_among_them(write, leg_file: Path, fo
 
 
 def test_json_redundant_and_pulling(write, capsys) -> None:
+    """By default a contact that Newton's law would make pull separates (LCP rung); with
+    ``--model newton`` the pulling Newton answer is shown and flagged."""
     plank, pulling = write(PLANK_YAML, "plank.yaml"), write(PULLING_YAML, "pulling.yaml")
     assert main(["evaluate", "--json", str(plank), str(pulling)]) == 0
     r_plank, r_pulling = _json_lines(capsys.readouterr().out)
-    assert r_plank["split_unique"] is False
+    assert r_plank["split_unique"] is False and r_plank["impact_model"] == "newton"
     assert r_plank["internal"] == [] and r_plank["internal_norm"] == 0.0 and r_plank["max_internal_joint"] is None
-    assert r_pulling["pulling"] == [
-        name for name, x in zip(r_pulling["contacts"], r_pulling["external"], strict=True) if x < 0
+    assert r_pulling["impact_model"] == "lcp" and "toe[1] pull" in r_pulling["impact_reason"]
+    assert r_pulling["pulling"] == [] and min(r_pulling["external"]) >= 0.0
+    # the LCP's one solution (checked by enumerating the 8 active sets): toe[0] alone takes the impulse
+    assert r_pulling["separating"] == ["heel[0]", "toe[1]"] and r_pulling["external"][1] > 0.0
+    assert main(["evaluate", "--json", "--model", "newton", str(pulling)]) == 0
+    (r_newton,) = _json_lines(capsys.readouterr().out)
+    assert r_newton["impact_model"] == "newton" and r_newton["impact_reason"].startswith("requested")
+    assert r_newton["pulling"] == [
+        name for name, x in zip(r_newton["contacts"], r_newton["external"], strict=True) if x < 0
     ]
-    assert r_pulling["pulling"]
+    assert r_newton["pulling"] == ["toe[1]"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -399,7 +407,8 @@ def test_text_report(foot_file: Path, capsys) -> None:
     model = load_model_file(foot_file)
     result = evaluate(model.tree, model.scene)
     assert out.startswith(f"== {foot_file} ==\n")
-    assert result.model in out
+    assert f"model:   newton: {result.model.description}" in out
+    assert f"why:     {result.reason}" in out
     for words in (
         "speed 3.43 m/s", "e = 0.8", "contacts: lowest", "impulse [N s]", "reference [N s]", "a made-up table",
         "heel[0]", "toe[0]", "revolute", "external_norm", "internal_norm", "base omega [rad/s]", "toe rate [rad/s]",
@@ -417,8 +426,12 @@ def test_text_report_warnings(write, capsys) -> None:
     out = capsys.readouterr().out
     assert "warning: contacts plank[0], plank[1], plank[2] are redundant" in out
     assert "the split of the impulse is not" in out
-    assert "warning: Newton's law makes contacts toe[1] pull on the ground (negative impulse)" in out
+    assert "why:     automatic: Newton's law (eq. 11) would make contact toe[1] pull on the ground" in out
+    assert "warning: contacts heel[0], toe[1] separate from the ground with zero impulse" in out
     assert out.index("plank.yaml") < out.index("pulling.yaml")
+    assert main(["evaluate", "--model", "newton", str(pulling)]) == 0
+    out = capsys.readouterr().out
+    assert "warning: Newton's law makes contacts toe[1] pull on the ground (negative impulse)" in out
 
 
 # --------------------------------------------------------------------------------------------
