@@ -19,9 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from impulse_core.contact_models import ImpactModel
 from impulse_core.errors import FootoptError, NumericalError
 from impulse_core.evaluate import ImpactResult, evaluate, touchdown_geometry
 from optimizer.model_file import ModelFile, load_model_file
+from optimizer.optimize_cli import add_optimize, add_pareto
 from optimizer.plot import PLOT_SUFFIXES, plot_touchdown
 from optimizer.report import format_report, is_finite, result_record
 
@@ -32,6 +34,9 @@ DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "configs" / "paper_case
 
 _MODEL_HELP = "model files (YAML or JSON, format: MODEL_FORMAT.md)"
 
+#: ``footopt evaluate --model`` choices: 'auto' or an :class:`ImpactModel` value.
+IMPACT_MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel))
+
 
 def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -40,11 +45,20 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         description=(
             "Compute the external impulse at each contact and the internal impulse through each joint "
             "of a floating tree of rods landing straight down on flat ground (Newton's restitution law "
-            "at simultaneous contacts), and report them beside any reference values the file gives."
+            "at simultaneous contacts, its complementarity form where a contact would pull, or Coulomb "
+            "friction: see --model), and report them beside any reference values the file gives."
         ),
     )
     p.add_argument("files", nargs="+", metavar="FILE", help=_MODEL_HELP)
     p.add_argument("--json", action="store_true", help="print one JSON object per file per line (JSON Lines)")
+    p.add_argument(
+        "--model",
+        choices=IMPACT_MODEL_CHOICES,
+        default="auto",
+        help="the impact model (rung of the fidelity ladder): 'auto' (default) picks the cheapest exact one per "
+        "scene: friction if scene.friction > 0, else newton (paper eq. 11) unless Newton's law would make a contact "
+        "pull, then lcp (complementarity: the contact separates); 'decoupled' is the paper's eq. 14 approximation",
+    )
     p.add_argument(
         "--plot",
         metavar="PATH",
@@ -77,7 +91,12 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
 
 
 #: Functions that add one subcommand each to the parser.
-SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (_add_evaluate, _add_bench)
+SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
+    _add_evaluate,
+    _add_bench,
+    add_optimize,
+    add_pareto,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -133,7 +152,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     for n, file in enumerate(files):
         try:
             model = load_model_file(file)
-            result = _evaluate(model)
+            result = _evaluate(model, _impact_model(args.model))
             if result is None:
                 _error(file, "numerical failure: the impact solve returned no finite answer (extreme values?)")
                 status = max(status, EXIT_FAILURE)
@@ -153,12 +172,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
     return status
 
 
-def _evaluate(model: ModelFile) -> ImpactResult | None:
+def _impact_model(choice: str) -> ImpactModel | None:
+    """The rung named on the command line; None for 'auto' (the library picks)."""
+    return None if choice == "auto" else ImpactModel(choice)
+
+
+def _evaluate(model: ModelFile, impact_model: ImpactModel | None = None) -> ImpactResult | None:
     """The impact of one model file, or None when the numerics fail (overflow, a singular
     solve): a status to report, not a traceback (the cause is printed once, as one line)."""
     with np.errstate(all="ignore"):
         try:
-            result = evaluate(model.tree, model.scene)
+            result = evaluate(model.tree, model.scene, impact_model)
         except (np.linalg.LinAlgError, NumericalError):
             return None
     return result if is_finite(result) else None

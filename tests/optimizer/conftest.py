@@ -109,3 +109,30 @@ def leg_tree() -> Tree:
 def leg_scene() -> Scene:
     """``LEG_YAML``'s scene, built by hand."""
     return Scene(speed=2.0, restitution=0.5, selection=ContactSelection.ALL)
+
+
+# --------------------------------------------------------------------------------------------
+# Studies (footopt optimize)
+
+#: A tiny study: 1-2 toes of one rod, the inner (IPOPT) search; runs in about a second.
+TINY_STUDY_YAML = """\
+name: tiny
+seed: 3
+design_space: {toes: [1, 2], toe_segments: [1, 1]}
+constraints: {min_link_mass: 0.02}
+objectives: [external_norm, internal_norm]
+search: {method: inner, trials: 12, startup_trials: 5, inner: {front_points: 3, starts: 2}}
+"""
+
+#: The same design space searched by Optuna (outer), few trials.
+TINY_OUTER_YAML = TINY_STUDY_YAML.replace("method: inner", "method: outer")
+
+
+@pytest.fixture
+def tiny_study(write: Callable[..., Path]) -> Path:
+    return write(TINY_STUDY_YAML, "tiny.yaml")
+
+
+@pytest.fixture
+def tiny_outer_study(write: Callable[..., Path]) -> Path:
+    return write(TINY_OUTER_YAML, "tiny_outer.yaml")

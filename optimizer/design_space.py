@@ -1,0 +1,727 @@
+"""The parametric foot: a fixed leg, a heel chain and ``n`` toe chains, as frozen dataclasses,
+mapped to the impulse core's ``Tree``; its geometry, constraints and objectives.
+
+The leg is the paper's: the thigh (floating base) and the shank hang from the hip in a fixed
+touchdown posture; at the shank's tip (the ankle) hang, each by a passive revolute joint, a heel
+chain and ``n`` toe chains. Every chain is a serial chain of uniform rods; its last rod carries a
+contact at its tip. All chain tips are meant to touch the ground at once.
+
+Why lengths are not search variables. With uniform rods (centre of mass and joints at fixed
+fractions, inertia m L^2 / 12), passive joints and a straight-down approach, scaling one rod's
+length at fixed angles maps one solution of the impact equations to another (the rod's angular
+velocity change scales by 1/s, its moment arms by s, its inertia by s^2): no impulse, energy or
+base velocity depends on any rod length (``tests/optimizer/test_design_space.py`` checks it with
+the core's exact derivatives). Lengths matter only through geometry: whether every tip lies on
+the ground line, the foot's reach, the links' mass per length, clearance. Given the touchdown
+angles, every one of those is *linear* in the lengths and the ankle height, so
+:func:`assign_lengths` picks the lengths by a linear program: the foot that keeps every
+geometric inequality furthest inside its bounds (relative margin, capped), with each tip exactly
+on the ground line. The search then moves only the values that matter: joint angles and masses.
+
+Conventions: SI units, radians, planar, x forward, y up, angles counter-clockwise; a joint angle
+is the child's angle relative to its parent (``MODEL_FORMAT.md``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from enum import Enum
+
+import numpy as np
+from scipy.optimize import linprog
+
+from impulse_core.evaluate import ImpactResult, approach_velocity, compiled_model, evaluate
+from impulse_core.tree import Body, ContactSelection, Scene, Tree, design_vector
+
+#: A constraint value (see :class:`ConstraintValues`) up to this counts as met: room for float
+#: rounding (sums of masses, the linear program's tolerance).
+FEASIBILITY_TOL = 1e-9
+#: The linear program keeps every geometric inequality at least this relative margin inside its
+#: bound when it can (then picks the shortest foot): more would only make the foot odd.
+MARGIN_CAP = 0.25
+#: No rod is shorter than this (m): keeps the tree valid when the geometry is infeasible.
+LENGTH_FLOOR = 1e-4
+#: Names of the segments of a chain of 1, 2, 3, ... rods (proximal first).
+SEGMENT_NAMES = {1: ("",), 2: ("proximal", "distal"), 3: ("proximal", "middle", "distal")}
+
+
+# --------------------------------------------------------------------------------------------
+# Structure and values
+
+
+@dataclass(frozen=True)
+class Leg:
+    """The fixed leg above the ankle, in its touchdown posture (the paper: 0.7 m, 1 kg rods).
+
+    Attributes:
+        thigh_length, thigh_mass: the thigh (floating base), m and kg.
+        thigh_angle: absolute angle of the thigh's x axis, hip to knee (rad).
+        shank_length, shank_mass: the shank, m and kg.
+        knee_angle: the shank's joint angle relative to the thigh (rad).
+    """
+
+    thigh_length: float = 0.7
+    thigh_mass: float = 1.0
+    thigh_angle: float = -1.4
+    shank_length: float = 0.7
+    shank_mass: float = 1.0
+    knee_angle: float = -0.3
+
+    @property
+    def shank_angle(self) -> float:
+        """Absolute angle of the shank (rad)."""
+        return self.thigh_angle + self.knee_angle
+
+
+@dataclass(frozen=True, order=True)
+class FootShape:
+    """The discrete choices: how many toes, rods per toe and rods in the heel. Hashable: one
+    shape is one topology, one compiled model, one NLP."""
+
+    n_toes: int
+    toe_segments: int
+    heel_segments: int = 1
+
+    def __post_init__(self) -> None:
+        for name in ("n_toes", "toe_segments", "heel_segments"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"FootShape.{name}: must be an integer >= 1, got {value!r}")
+        for name in ("toe_segments", "heel_segments"):
+            if getattr(self, name) > max(SEGMENT_NAMES):
+                raise ValueError(f"FootShape.{name}: at most {max(SEGMENT_NAMES)} rods per chain")
+
+    @property
+    def n_links(self) -> int:
+        """Foot rods (heel and every toe)."""
+        return self.heel_segments + self.n_toes * self.toe_segments
+
+    @property
+    def label(self) -> str:
+        """``3x2`` (three toes of two rods), ``3x2+h2`` with a two-rod heel."""
+        heel = "" if self.heel_segments == 1 else f"+h{self.heel_segments}"
+        return f"{self.n_toes}x{self.toe_segments}{heel}"
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One foot rod: length (m), mass (kg) and touchdown joint angle relative to its parent (rad)."""
+
+    length: float
+    mass: float
+    joint_angle: float
+
+
+@dataclass(frozen=True)
+class FootDesign:
+    """One foot: the heel chain and the toe chains, proximal rod first in each.
+
+    Attributes:
+        heel: the heel chain (its root hangs from the ankle; it usually points back and down).
+        toes: one chain per toe, all of the same number of rods.
+    """
+
+    heel: tuple[Segment, ...]
+    toes: tuple[tuple[Segment, ...], ...]
+
+    def __post_init__(self) -> None:
+        if not self.heel or not self.toes or any(not toe for toe in self.toes):
+            raise ValueError("FootDesign: the heel and every toe need at least one rod")
+        if len({len(toe) for toe in self.toes}) != 1:
+            raise ValueError("FootDesign: every toe has the same number of rods")
+
+    @property
+    def shape(self) -> FootShape:
+        return FootShape(len(self.toes), len(self.toes[0]), len(self.heel))
+
+    @property
+    def chains(self) -> tuple[tuple[Segment, ...], ...]:
+        """Heel first, then the toes."""
+        return (self.heel, *self.toes)
+
+    @property
+    def segments(self) -> tuple[Segment, ...]:
+        """Every foot rod, in tree order (heel, then toe 1, toe 2, ...)."""
+        return tuple(s for chain in self.chains for s in chain)
+
+    @property
+    def foot_mass(self) -> float:
+        return float(sum(s.mass for s in self.segments))
+
+
+def chain_names(shape: FootShape) -> tuple[tuple[str, ...], ...]:
+    """Body names per chain, heel first: ``heel``, ``toe1_proximal``, ``toe1_distal``, ..."""
+
+    def names(prefix: str, k: int) -> tuple[str, ...]:
+        return tuple(prefix if not s else f"{prefix}_{s}" for s in SEGMENT_NAMES[k])
+
+    heel = names("heel", shape.heel_segments)
+    return (heel, *(names(f"toe{i + 1}", shape.toe_segments) for i in range(shape.n_toes)))
+
+
+def segment_names(shape: FootShape) -> tuple[str, ...]:
+    """Body names of every foot rod, in tree order."""
+    return tuple(n for chain in chain_names(shape) for n in chain)
+
+
+def foot_tree(leg: Leg, design: FootDesign) -> Tree:
+    """The design as the impulse core's tree: thigh (base), shank, then each chain (heel first),
+    hanging from the shank's tip; one contact at each chain's tip. Every declared contact is
+    one that must touch at touchdown (see :func:`intended_contacts`)."""
+    bodies = [
+        Body("thigh", None, leg.thigh_length, leg.thigh_mass, leg.thigh_angle),
+        Body("shank", 0, leg.shank_length, leg.shank_mass, leg.knee_angle),
+    ]
+    for names, chain in zip(chain_names(design.shape), design.chains, strict=True):
+        parent = 1
+        for k, (name, s) in enumerate(zip(names, chain, strict=True)):
+            tip = (1.0,) if k == len(chain) - 1 else ()
+            bodies.append(Body(name, parent, s.length, s.mass, s.joint_angle, contacts=tip))
+            parent = len(bodies) - 1
+    return Tree(tuple(bodies))
+
+
+def intended_contacts(design: FootDesign) -> tuple[int, ...]:
+    """Declared contacts of :func:`foot_tree` that must touch at once: every chain tip."""
+    return tuple(range(len(design.chains)))
+
+
+def absolute_angles(leg: Leg, design: FootDesign) -> tuple[tuple[float, ...], ...]:
+    """Absolute angle of every foot rod at touchdown, per chain (rad)."""
+    out = []
+    for chain in design.chains:
+        phi, angles = leg.shank_angle, []
+        for s in chain:
+            phi += s.joint_angle
+            angles.append(phi)
+        out.append(tuple(angles))
+    return tuple(out)
+
+
+class ToeSymmetry(Enum):
+    """Whether the toes of a design share their values."""
+
+    IDENTICAL = "identical"  # one set of rod values for every toe (the paper's case 3)
+    INDEPENDENT = "independent"  # each toe its own lengths, masses and angles
+
+
+@dataclass(frozen=True)
+class DesignSpace:
+    """The discrete part of a study's design space (inclusive ranges).
+
+    Attributes:
+        toes: (min, max) toe count.
+        toe_segments: (min, max) rods per toe.
+        heel_segments: (min, max) rods in the heel chain.
+        toe_symmetry: identical toes (fewer values; the planar model cannot tell identical toes
+            in one plane from one heavier toe) or independent ones.
+    """
+
+    toes: tuple[int, int] = (1, 3)
+    toe_segments: tuple[int, int] = (1, 2)
+    heel_segments: tuple[int, int] = (1, 1)
+    toe_symmetry: ToeSymmetry = ToeSymmetry.IDENTICAL
+
+    def shapes(self) -> tuple[FootShape, ...]:
+        """Every foot shape of the space, fewest toes first."""
+        return tuple(
+            FootShape(n, k, h)
+            for n in range(self.toes[0], self.toes[1] + 1)
+            for k in range(self.toe_segments[0], self.toe_segments[1] + 1)
+            for h in range(self.heel_segments[0], self.heel_segments[1] + 1)
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# Limits, objectives, constraint values
+
+
+class MassMode(Enum):
+    """How the foot mass budget binds."""
+
+    EQUAL = "equal"  # the foot weighs exactly the budget (the paper keeps 0.5 kg)
+    AT_MOST = "at_most"
+
+
+@dataclass(frozen=True)
+class FootLimits:
+    """The design constraints (all SI).
+
+    Attributes:
+        foot_mass: the foot mass budget: heel and toe rods together (kg).
+        mass_mode: equal to, or at most, the budget.
+        min_link_mass: every foot rod weighs at least this (kg).
+        mass_per_length: (min, max) of every foot rod's mass per length (kg/m).
+        foot_length: (min, max) horizontal distance from the heel contact to each toe contact (m).
+        min_clearance: every rod end that is not a contact (joints, ankle, knee, hip) stays at
+            least this high above the ground at touchdown (m).
+        heel_root, heel_inner, toe_root, toe_inner: joint angle limits (rad): the heel's and the
+            toes' joints at the ankle (relative to the shank) and the joints inside a chain.
+        contact_tolerance: every chain tip lies within this height of the ground at touchdown (m).
+    """
+
+    foot_mass: float = 0.5
+    mass_mode: MassMode = MassMode.EQUAL
+    min_link_mass: float = 0.01
+    mass_per_length: tuple[float, float] = (0.1, 5.0)
+    foot_length: tuple[float, float] = (0.1, 0.4)
+    min_clearance: float = 0.005
+    heel_root: tuple[float, float] = (-1.2, -0.1)
+    heel_inner: tuple[float, float] = (-0.8, 0.8)
+    toe_root: tuple[float, float] = (0.3, 1.6)
+    toe_inner: tuple[float, float] = (-1.0, 0.6)
+    contact_tolerance: float = 1e-6
+
+    def joint_limits(self, shape: FootShape) -> tuple[tuple[tuple[float, float], ...], ...]:
+        """Angle limits of every foot joint, per chain (heel first)."""
+        heel = (self.heel_root,) + (self.heel_inner,) * (shape.heel_segments - 1)
+        toe = (self.toe_root,) + (self.toe_inner,) * (shape.toe_segments - 1)
+        return (heel, *(toe,) * shape.n_toes)
+
+
+class Objective(Enum):
+    """What a study can minimise (all N s, rad/s or J; see :class:`Objectives`)."""
+
+    EXTERNAL_NORM = "external_norm"
+    INTERNAL_NORM = "internal_norm"
+    MAX_INTERNAL = "max_internal"
+    BASE_ANGULAR_VELOCITY = "base_angular_velocity"
+    ENERGY_AFTER = "energy_after"
+
+
+@dataclass(frozen=True)
+class Objectives:
+    """The impact of one design, as a designer reads it.
+
+    Attributes:
+        external_norm: Euclidean norm of the contact impulses (N s; the paper's).
+        internal_norm: Euclidean norm of the joint impulse magnitudes (N s; the paper's).
+        max_internal: the largest single joint impulse (N s).
+        base_angular_velocity: |angular velocity| of the thigh just after the impact (rad/s).
+        energy_after: kinetic energy just after the impact (J).
+    """
+
+    external_norm: float
+    internal_norm: float
+    max_internal: float
+    base_angular_velocity: float
+    energy_after: float
+
+    def value(self, objective: Objective) -> float:
+        return float(getattr(self, objective.value))
+
+
+@dataclass(frozen=True)
+class ConstraintValues:
+    """How far a design is from each constraint: <= 0 (up to ``FEASIBILITY_TOL``) is met.
+
+    Attributes:
+        foot_mass: |foot mass - budget| (equal) or foot mass - budget (at most), kg.
+        min_link_mass: minimum link mass - lightest rod, kg.
+        mass_per_length: largest excursion of a rod's mass per length outside its range, kg/m.
+        foot_length: largest excursion of a heel-to-toe distance outside its range, m.
+        joint_angles: largest excursion of a joint angle outside its limits, rad.
+        touchdown: spread of the contact heights - contact tolerance, m.
+        clearance: minimum clearance - lowest non-contact rod end above the ground, m.
+        pulling: -(smallest contact impulse), N s: Newton's law must not make a contact pull.
+        energy_gain: energy after - energy before the impact, J (Newton's law at simultaneous
+            contacts can create energy; such a design is unphysical).
+    """
+
+    foot_mass: float
+    min_link_mass: float
+    mass_per_length: float
+    foot_length: float
+    joint_angles: float
+    touchdown: float
+    clearance: float
+    pulling: float
+    energy_gain: float
+
+    def items(self) -> tuple[tuple[str, float], ...]:
+        return tuple((f.name, float(getattr(self, f.name))) for f in fields(self))
+
+    @property
+    def feasible(self) -> bool:
+        return all(v <= FEASIBILITY_TOL for _, v in self.items())
+
+    def violations(self) -> tuple[tuple[str, float], ...]:
+        """Each constraint's violation beyond the tolerance (0 when met): what a sampler sees."""
+        return tuple((name, max(0.0, v - FEASIBILITY_TOL)) for name, v in self.items())
+
+
+@dataclass(frozen=True)
+class FootGeometry:
+    """The touchdown geometry of a foot, relative to the ankle (m).
+
+    Attributes:
+        tips: (x, y) of each chain tip, heel first.
+        joints: (x, y) of the joints inside the chains (not the ankle).
+        leg_points: (x, y) of the hip and the knee.
+    """
+
+    tips: np.ndarray
+    joints: np.ndarray
+    leg_points: np.ndarray
+
+    @property
+    def ground(self) -> float:
+        return float(self.tips[:, 1].min())
+
+    @property
+    def reaches(self) -> np.ndarray:
+        """Horizontal distance from the heel contact to each toe contact."""
+        return self.tips[1:, 0] - self.tips[0, 0]
+
+    @property
+    def clearance(self) -> float:
+        """Lowest non-contact rod end (chain joints, ankle, knee, hip) above the ground."""
+        points = np.vstack([self.joints.reshape(-1, 2), self.leg_points, np.zeros((1, 2))])
+        return float(points[:, 1].min() - self.ground)
+
+
+def foot_geometry(leg: Leg, design: FootDesign) -> FootGeometry:
+    """Where the chain tips and joints are at touchdown, the ankle at the origin."""
+    tips, joints = [], []
+    for chain, angles in zip(design.chains, absolute_angles(leg, design), strict=True):
+        p = np.zeros(2)
+        for k, (s, phi) in enumerate(zip(chain, angles, strict=True)):
+            p = p + s.length * np.array([math.cos(phi), math.sin(phi)])
+            (tips if k == len(chain) - 1 else joints).append(p)
+    u_shank = np.array([math.cos(leg.shank_angle), math.sin(leg.shank_angle)])
+    u_thigh = np.array([math.cos(leg.thigh_angle), math.sin(leg.thigh_angle)])
+    knee = -leg.shank_length * u_shank
+    hip = knee - leg.thigh_length * u_thigh
+    return FootGeometry(np.array(tips), np.array(joints).reshape(-1, 2), np.array([hip, knee]))
+
+
+def objectives(result: ImpactResult) -> Objectives:
+    """The designer's objectives from the core's result (base: the thigh, DOF 2 is its rate)."""
+    return Objectives(
+        external_norm=result.external_norm,
+        internal_norm=result.internal_norm,
+        max_internal=result.max_internal,
+        base_angular_velocity=abs(float(result.v_plus[2])),
+        energy_after=result.energy_after,
+    )
+
+
+def constraint_values(
+    leg: Leg, design: FootDesign, limits: FootLimits, result: ImpactResult | None = None
+) -> ConstraintValues:
+    """Every constraint's value for ``design``; the impact-dependent ones (pulling, energy
+    gain) are 0 when ``result`` is None."""
+    segs = design.segments
+    masses = np.array([s.mass for s in segs])
+    density = masses / np.array([s.length for s in segs])
+    lo_rho, hi_rho = limits.mass_per_length
+    geo = foot_geometry(leg, design)
+    lo_f, hi_f = limits.foot_length
+    excursions = []
+    for chain, bounds in zip(design.chains, limits.joint_limits(design.shape), strict=True):
+        for s, (lo, hi) in zip(chain, bounds, strict=True):
+            excursions.append(max(lo - s.joint_angle, s.joint_angle - hi))
+    mass_excess = design.foot_mass - limits.foot_mass
+    heights = geo.tips[:, 1]
+    return ConstraintValues(
+        foot_mass=abs(mass_excess) if limits.mass_mode is MassMode.EQUAL else mass_excess,
+        min_link_mass=float(limits.min_link_mass - masses.min()),
+        mass_per_length=float(max((density - hi_rho).max(), (lo_rho - density).max())),
+        foot_length=float(max((lo_f - geo.reaches).max(), (geo.reaches - hi_f).max())),
+        joint_angles=float(max(excursions)),
+        touchdown=float(heights.max() - heights.min() - limits.contact_tolerance),
+        clearance=float(limits.min_clearance - geo.clearance),
+        pulling=0.0 if result is None else float(-result.external.min()),
+        energy_gain=0.0 if result is None else float(result.energy_after - result.energy_before),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Lengths from angles and masses: a linear program
+
+
+@dataclass(frozen=True)
+class LengthAssignment:
+    """Rod lengths chosen by :func:`assign_lengths`.
+
+    Attributes:
+        lengths: per chain, per rod (m).
+        ankle_height: the ankle's height above the ground (m).
+        margin: the smallest relative margin of the geometric inequalities (mass per length,
+            foot length, clearance); < 0: the angles and masses admit no feasible lengths, and
+            these lengths violate the worst inequality by that fraction of its bound.
+    """
+
+    lengths: tuple[tuple[float, ...], ...]
+    ankle_height: float
+    margin: float
+
+
+def assign_lengths(
+    leg: Leg,
+    shape: FootShape,
+    joint_angles: tuple[tuple[float, ...], ...],
+    masses: tuple[tuple[float, ...], ...],
+    limits: FootLimits,
+) -> LengthAssignment | None:
+    """Rod lengths that put every chain tip on one ground line and keep the geometric limits.
+
+    Given the angles, each tip's height below the ankle is sum_i L_i (-sin phi_i): linear in the
+    lengths, as are the reaches, the clearances and the length bounds from mass per length. The
+    linear program (HiGHS) finds lengths L and the ankle height h that maximise the smallest
+    relative margin t of those inequalities (capped at ``MARGIN_CAP``, then the shortest foot):
+
+        max t - eps * sum L   s.t.   sum_{i in chain} L_i (-sin phi_i) = h   for every chain,
+                                     g_k(L, h) / b_k - 1 >= t  (lower bounds),  1 - g_k / b_k >= t
+                                     (upper bounds),  L >= LENGTH_FLOOR,  t <= MARGIN_CAP.
+
+    Each chain's last length is then recomputed from h so that the tips are level to rounding.
+
+    Args:
+        leg: the fixed leg (its posture sets the chains' absolute angles).
+        shape: the foot's shape.
+        joint_angles, masses: per chain (heel first), per rod.
+        limits: the constraints.
+
+    Returns:
+        The lengths, or None when no lengths put every tip on one line (e.g. a chain that only
+        rises cannot meet a chain that falls).
+    """
+    design0 = FootDesign(
+        heel=tuple(Segment(1.0, m, a) for m, a in zip(masses[0], joint_angles[0], strict=True)),
+        toes=tuple(
+            tuple(Segment(1.0, m, a) for m, a in zip(ms, js, strict=True))
+            for ms, js in zip(masses[1:], joint_angles[1:], strict=True)
+        ),
+    )
+    if design0.shape != shape:
+        raise ValueError(f"assign_lengths: angles and masses do not have the shape {shape}")
+    angles = absolute_angles(leg, design0)
+    sizes = [len(c) for c in angles]
+    n = sum(sizes)
+    starts = np.cumsum([0] + sizes[:-1])
+    i_h, i_t = n, n + 1
+    flat_phi = np.array([phi for c in angles for phi in c])
+    flat_m = np.array([m for c in masses for m in c])
+    drop = -np.sin(flat_phi)  # height lost per metre of rod
+    run = np.cos(flat_phi)  # forward distance per metre of rod
+
+    a_eq, b_eq = [], []
+    for c, k in zip(starts, sizes, strict=True):
+        row = np.zeros(n + 2)
+        row[c : c + k] = drop[c : c + k]
+        row[i_h] = -1.0
+        a_eq.append(row)
+        b_eq.append(0.0)
+
+    a_ub, b_ub = [], []
+
+    def at_least(row: np.ndarray, bound: float) -> None:  # row . z >= bound, with margin t
+        r = -row / bound
+        r[i_t] = 1.0
+        a_ub.append(r)
+        b_ub.append(-1.0)
+
+    def at_most(row: np.ndarray, bound: float) -> None:  # row . z <= bound, with margin t
+        r = row / bound
+        r[i_t] = 1.0
+        a_ub.append(r)
+        b_ub.append(1.0)
+
+    lo_rho, hi_rho = limits.mass_per_length
+    for i in range(n):
+        e = np.zeros(n + 2)
+        e[i] = 1.0
+        at_least(e, flat_m[i] / hi_rho)  # m / L <= hi_rho
+        at_most(e, flat_m[i] / lo_rho)  # m / L >= lo_rho
+    heel = np.zeros(n + 2)
+    heel[: sizes[0]] = run[: sizes[0]]
+    lo_f, hi_f = limits.foot_length
+    for c, k in zip(starts[1:], sizes[1:], strict=True):
+        reach = -heel.copy()
+        reach[c : c + k] += run[c : c + k]
+        at_least(reach, lo_f)
+        at_most(reach, hi_f)
+    # Clearance: joints inside the chains, the ankle, the knee and the hip.
+    for c, k in zip(starts, sizes, strict=True):
+        for j in range(k - 1):
+            row = np.zeros(n + 2)
+            row[i_h] = 1.0
+            row[c : c + j + 1] = -drop[c : c + j + 1]
+            at_least(row, limits.min_clearance)
+    geo_leg = foot_geometry(leg, design0).leg_points
+    for y in (0.0, *geo_leg[:, 1]):
+        # height above ground = h + y (y: the point's height above the ankle)
+        row = np.zeros(n + 2)
+        row[i_h] = 1.0
+        a_ub.append(np.where(np.arange(n + 2) == i_t, 1.0, -row / limits.min_clearance))
+        b_ub.append(-1.0 + y / limits.min_clearance)
+
+    cost = np.zeros(n + 2)
+    cost[:n] = 1e-6
+    cost[i_t] = -1.0
+    bounds = [(LENGTH_FLOOR, None)] * n + [(None, None), (None, MARGIN_CAP)]
+    sol = linprog(
+        cost,
+        A_ub=np.array(a_ub),
+        b_ub=np.array(b_ub),
+        A_eq=np.array(a_eq),
+        b_eq=np.array(b_eq),
+        bounds=bounds,
+        method="highs",
+        options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10},
+    )
+    if sol.status != 0:
+        return None
+    z = sol.x
+    h = float(z[i_h])
+    lengths = []
+    for c, k in zip(starts, sizes, strict=True):
+        chain = [float(x) for x in z[c : c + k]]
+        # Level the tip exactly: the last rod takes up the LP's rounding.
+        d_last = float(drop[c + k - 1])
+        last = (h - float(np.dot(chain[:-1], drop[c : c + k - 1]))) / d_last if d_last > 1e-9 else 0.0
+        if last > LENGTH_FLOOR and abs(last - chain[-1]) <= 1e-6 * max(1.0, chain[-1]):
+            chain[-1] = last
+        lengths.append(tuple(chain))
+    return LengthAssignment(tuple(lengths), h, float(z[i_t]))
+
+
+def with_lengths(design_angles_masses: FootDesign, assignment: LengthAssignment) -> FootDesign:
+    """``design_angles_masses`` with the lengths of ``assignment``."""
+    chains = [
+        tuple(Segment(L, s.mass, s.joint_angle) for s, L in zip(chain, lengths, strict=True))
+        for chain, lengths in zip(design_angles_masses.chains, assignment.lengths, strict=True)
+    ]
+    return FootDesign(heel=chains[0], toes=tuple(chains[1:]))
+
+
+def design_from(
+    leg: Leg,
+    joint_angles: tuple[tuple[float, ...], ...],
+    masses: tuple[tuple[float, ...], ...],
+    limits: FootLimits,
+) -> FootDesign:
+    """The foot with these angles and masses (per chain, heel first) and lengths from
+    :func:`assign_lengths`; when no lengths level the tips, every rod gets 0.1 m (the
+    constraint values then say how far off the design is)."""
+    shape = FootShape(len(joint_angles) - 1, len(joint_angles[1]), len(joint_angles[0]))
+    unit = FootDesign(
+        heel=tuple(Segment(0.1, m, a) for m, a in zip(masses[0], joint_angles[0], strict=True)),
+        toes=tuple(
+            tuple(Segment(0.1, m, a) for m, a in zip(ms, js, strict=True))
+            for ms, js in zip(masses[1:], joint_angles[1:], strict=True)
+        ),
+    )
+    assignment = assign_lengths(leg, shape, joint_angles, masses, limits)
+    return unit if assignment is None else with_lengths(unit, assignment)
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluation
+
+
+@dataclass(frozen=True)
+class DesignEvaluation:
+    """A design with its impact, objectives and constraint values.
+
+    Attributes:
+        design: the foot.
+        objectives: None when the impact solve failed numerically.
+        constraints: the constraint values (impact-dependent ones 0 when it failed).
+    """
+
+    design: FootDesign
+    objectives: Objectives | None
+    constraints: ConstraintValues
+
+    @property
+    def feasible(self) -> bool:
+        return self.objectives is not None and self.constraints.feasible
+
+
+def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimits) -> DesignEvaluation:
+    """Impact, objectives and constraints of one design.
+
+    Every chain tip is made to hit (``contacts: all``): whether they really touch at once is the
+    ``touchdown`` constraint, measured on the geometry; the exported model files say
+    ``contacts: lowest`` so that ``footopt evaluate`` checks it independently.
+    """
+    tree = foot_tree(leg, design)
+    scene_all = Scene(
+        speed=scene.speed,
+        restitution=scene.restitution,
+        friction=scene.friction,
+        selection=ContactSelection.ALL,
+        contact_tolerance=limits.contact_tolerance,
+    )
+    try:
+        with np.errstate(all="ignore"):
+            result = evaluate(tree, scene_all)
+            newton = newton_impulses(tree, scene_all)
+    except (ArithmeticError, np.linalg.LinAlgError):
+        return DesignEvaluation(design, None, constraint_values(leg, design, limits))
+    if not (np.all(np.isfinite(newton)) and np.isfinite(result.external_norm) and np.isfinite(result.internal_norm)):
+        return DesignEvaluation(design, None, constraint_values(leg, design, limits))
+    values = constraint_values(leg, design, limits, result)
+    # Newton's law (paper eq. 11) must not make a contact pull; the core would then switch to
+    # the complementarity answer (the contact separates): a foot whose intended contact does not
+    # take part is not the design asked for.
+    values = replace(values, pulling=max(values.pulling, float(-newton.min())))
+    return DesignEvaluation(design, objectives(result), values)
+
+
+def newton_impulses(tree: Tree, scene: Scene) -> np.ndarray:
+    """The normal impulses of Newton's law at every declared contact (paper eq. 11), from the
+    core's compiled model: negative where the law would make a contact pull."""
+    topology = tree.topology()
+    out = compiled_model(topology).impact(
+        p=design_vector(tree), v_minus=approach_velocity(topology, scene.speed), restitution=scene.restitution
+    )
+    return np.array(out["external"]).ravel()
+
+
+def landing_scene(scene: Scene, limits: FootLimits) -> Scene:
+    """The scene of an exported model file: the ground at the lowest contact, contacts within
+    the touchdown tolerance hit (so re-evaluating a file re-checks simultaneous touchdown)."""
+    return Scene(
+        speed=scene.speed,
+        restitution=scene.restitution,
+        friction=scene.friction,
+        selection=ContactSelection.LOWEST,
+        contact_tolerance=limits.contact_tolerance,
+    )
+
+
+__all__ = [
+    "FEASIBILITY_TOL",
+    "ConstraintValues",
+    "DesignEvaluation",
+    "DesignSpace",
+    "FootDesign",
+    "FootGeometry",
+    "FootLimits",
+    "FootShape",
+    "LengthAssignment",
+    "Leg",
+    "MassMode",
+    "Objective",
+    "Objectives",
+    "Segment",
+    "ToeSymmetry",
+    "absolute_angles",
+    "assign_lengths",
+    "chain_names",
+    "constraint_values",
+    "design_from",
+    "evaluate_design",
+    "foot_geometry",
+    "foot_tree",
+    "intended_contacts",
+    "landing_scene",
+    "newton_impulses",
+    "objectives",
+    "segment_names",
+    "with_lengths",
+]

@@ -1,0 +1,165 @@
+"""The searches: the outer (Optuna) search is deterministic per seed and survives interruption
+(an exception inside a trial, or the process killed) without losing a finished trial; the inner
+(IPOPT) search records feasible designs only."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import optuna
+import pytest
+from optuna.trial import TrialState
+
+import optimizer.search as search
+from optimizer.design_space import FootLimits, FootShape
+from optimizer.inner import build_nlp, run_inner, shape_done_key
+from optimizer.runs import storage_url
+from optimizer.search import finished_trials, masses_from_shares, open_study, recorded_trials, run_outer
+from optimizer.study_config import load_study
+
+REPO = Path(__file__).resolve().parents[2]
+
+optuna.logging.set_verbosity(optuna.logging.WARNING)
+
+
+def complete(study: optuna.Study) -> list[tuple[int, tuple, tuple]]:
+    """(number, params, values) of every complete trial."""
+    return [
+        (t.number, tuple(sorted(t.params.items())), tuple(t.values))
+        for t in study.get_trials(states=(TrialState.COMPLETE,))
+    ]
+
+
+def test_masses_from_shares_keep_budget_and_minimum():
+    limits = FootLimits(foot_mass=0.5, min_link_mass=0.02)
+    shape = FootShape(3, 2)
+    shares = ((0.3,), (1.0, 0.0), (1.0, 0.0), (1.0, 0.0))
+    masses = masses_from_shares(shape, shares, limits, 0.5)
+    assert math.isclose(sum(sum(c) for c in masses), 0.5, rel_tol=1e-12)
+    assert min(min(c) for c in masses) == pytest.approx(0.02)
+    equal = masses_from_shares(shape, ((0.0,), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)), limits, 0.5)
+    assert all(m == pytest.approx(0.5 / 7) for c in equal for m in c)
+
+
+def test_outer_same_seed_same_trials(tiny_outer_study: Path):
+    config = load_study(tiny_outer_study)
+    runs = []
+    for _ in range(2):
+        study = open_study(config, optuna.storages.InMemoryStorage())
+        run_outer(study, config, 10)
+        runs.append(complete(study))
+    assert runs[0] == runs[1] and len(runs[0]) == 10
+    # every complete trial carries its design, objectives and constraint values
+    study_trials = list(recorded_trials(study))
+    assert len(study_trials) == 10 and all(t.method == "outer" for t in study_trials)
+
+
+def test_outer_resumes_after_an_exception_inside_a_trial(tiny_outer_study: Path, monkeypatch):
+    config = load_study(tiny_outer_study)
+    reference = open_study(config, optuna.storages.InMemoryStorage())
+    run_outer(reference, config, 10)
+
+    storage = optuna.storages.InMemoryStorage()
+    study = open_study(config, storage)
+    real = search.evaluate_design
+    calls = {"n": 0}
+
+    def failing(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 5:
+            raise RuntimeError("injected after 4 trials")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(search, "evaluate_design", failing)
+    with pytest.raises(RuntimeError, match="injected"):
+        run_outer(study, config, 10)
+    before = complete(study)
+    assert len(before) == 4
+    monkeypatch.setattr(search, "evaluate_design", real)
+    resumed = open_study(config, storage)
+    run_outer(resumed, config, 10)
+    after = complete(resumed)
+    assert after[:4] == before  # nothing finished was lost
+    assert finished_trials(resumed) == 10
+    # and the resumed study asked and got exactly what an uninterrupted one did
+    assert [(p, v) for _, p, v in after] == [(p, v) for _, p, v in complete(reference)]
+
+
+def test_outer_survives_a_killed_process(tiny_outer_study: Path, tmp_path: Path):
+    """``footopt optimize`` killed with SIGKILL mid-run, then resumed: every trial finished
+    before the kill is still there, the one it interrupted is marked, the target is reached."""
+    out = tmp_path / "run"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    cmd = [sys.executable, "-m", "optimizer", "optimize", str(tiny_outer_study), "--out", str(out), "--quiet"]
+    proc = subprocess.Popen([*cmd, "--trials", "100000"], cwd=tmp_path, env=env)
+    config = load_study(tiny_outer_study)
+    try:
+        deadline = time.monotonic() + 60
+        seen = 0
+        while time.monotonic() < deadline and seen < 8:
+            time.sleep(0.3)
+            if (out / "study.journal").exists():
+                seen = len(open_study(config, storage_url(out, config)).get_trials(states=(TrialState.COMPLETE,)))
+        assert seen >= 8, "the study did not get going"
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=30)
+    killed = open_study(config, storage_url(out, config))
+    before = complete(killed)
+    target = len(before) + 3
+    done = subprocess.run([*cmd, "--trials", str(target)], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    resumed = open_study(config, storage_url(out, config))
+    after = complete(resumed)
+    assert after[: len(before)] == before
+    assert finished_trials(resumed) == target
+    assert not resumed.get_trials(states=(TrialState.RUNNING,))
+
+
+def test_inner_records_feasible_designs_and_resumes(tiny_study: Path):
+    config = load_study(tiny_study)
+    study = open_study(config, optuna.storages.InMemoryStorage())
+    assert run_inner(study, config) == len(config.space.shapes())
+    trials = list(recorded_trials(study))
+    assert trials and all(t.method == "inner" and t.evaluation.feasible for t in trials)
+    assert all(study.user_attrs[shape_done_key(s)] for s in config.space.shapes())
+    n = len(study.trials)
+    assert run_inner(study, config) == 0 and len(study.trials) == n  # nothing left to do
+
+
+def test_inner_nlp_is_built_once_per_shape_and_reused(tiny_study: Path):
+    config = load_study(tiny_study)
+    nlp = build_nlp(config, FootShape(2, 1))
+    assert nlp.n_rods == 2  # identical toes share their values: heel + one toe rod
+    assert nlp.lbx.shape == nlp.ubx.shape == (nlp.n_x,)
+
+
+@pytest.mark.parametrize("method", ["inner", "outer"])
+def test_independent_toes_and_mass_budget_at_most(method: str, write):
+    """Each toe its own values, a foot at most 0.5 kg: both searches give feasible designs."""
+    from tests.optimizer.conftest import TINY_STUDY_YAML
+
+    text = (
+        TINY_STUDY_YAML.replace("toes: [1, 2]", "toes: [2, 2], toe_symmetry: independent")
+        .replace("min_link_mass: 0.02", "min_link_mass: 0.02, foot_mass_mode: at_most")
+        .replace("method: inner", f"method: {method}")
+    )
+    config = load_study(write(text, "independent.yaml"))
+    study = open_study(config, optuna.storages.InMemoryStorage())
+    if method == "inner":
+        run_inner(study, config)
+    else:
+        run_outer(study, config, 12)
+    trials = [t for t in recorded_trials(study) if t.evaluation.feasible]
+    assert trials
+    for t in trials:
+        design = t.evaluation.design
+        assert len(design.toes) == 2 and design.foot_mass <= 0.5 + 1e-12
+    if method == "outer":
+        assert {"toe1.joint_angle[0]", "toe2.joint_angle[0]", "foot_mass_fraction"} <= set(study.trials[0].params)

@@ -1,0 +1,106 @@
+"""Study files: the shipped studies load, the resolved form round-trips, and every bad value is
+one ConfigError naming its YAML path."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from optimizer.design_space import MassMode, Objective, ToeSymmetry
+from optimizer.errors import ConfigError
+from optimizer.study_config import SamplerKind, SearchMethod, format_study, load_study, parse_study
+from optimizer.model_file import load_yaml
+
+REPO = Path(__file__).resolve().parents[2]
+STUDIES = sorted([REPO / "configs" / "quick_study.yaml", *(REPO / "studies").glob("*/study.yaml")])
+
+
+@pytest.mark.parametrize("path", STUDIES, ids=lambda p: str(p.relative_to(REPO)))
+def test_shipped_studies_load_and_round_trip(path: Path, tmp_path: Path):
+    config = load_study(path)
+    assert config.objectives and config.search.trials >= 1
+    again = tmp_path / "resolved.yaml"
+    again.write_text(format_study(config, "resolved"), encoding="utf-8")
+    assert load_study(again) == config
+
+
+def test_quick_study_values():
+    config = load_study(REPO / "configs" / "quick_study.yaml")
+    assert config.name == "quick_study" and config.seed == 1 and config.storage is None
+    assert config.objectives == (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM)
+    assert config.space.toes == (1, 3) and config.space.toe_symmetry is ToeSymmetry.IDENTICAL
+    assert config.limits.foot_mass == 0.5 and config.limits.mass_mode is MassMode.EQUAL
+    assert config.limits.contact_tolerance == 1e-6  # YAML 1.2: a number, not a string
+
+
+def test_defaults_and_name_from_file(tmp_path: Path):
+    path = tmp_path / "my_study.yaml"
+    path.write_text("objectives: [energy_after]\nsearch: {sampler: nsga2}\n", encoding="utf-8")
+    config = load_study(path)
+    assert config.name == "my_study"
+    assert config.search.method is SearchMethod.OUTER and config.search.sampler is SamplerKind.NSGA2
+    assert config.objectives == (Objective.ENERGY_AFTER,)
+
+
+BAD = [
+    ("search:\n  trials: ten\n", "search.trials: must be an integer >= 1, got 'ten'"),
+    ("search:\n  trials: 0\n", "search.trials: must be an integer >= 1, got 0"),
+    ("search:\n  trials: 2.5\n", "search.trials: must be an integer >= 1, got 2.5"),
+    ("search:\n  method: gradient\n", "search.method: must be one of outer, inner, got 'gradient'"),
+    ("search:\n  sampler: cmaes\n", "search.sampler: must be one of tpe, nsga2"),
+    ("search:\n  inner: {starts: 0}\n", "search.inner.starts: must be an integer >= 1"),
+    ("search:\n  trails: 3\n", "search.trails: unknown key (did you mean 'trials'?"),
+    ("scene: {speed: -1}\n", "scene.speed: must be > 0"),
+    ("scene: {restitution: 1.5}\n", "scene.restitution: must be in [0, 1]"),
+    ("scene: {friction: 0.3}\n", "scene.friction: the impulse core models frictionless contact only"),
+    ("leg: {thigh: {mass: 0}}\n", "leg.thigh.mass: must be > 0"),
+    ("leg: {shank: {angle: up}}\n", "leg.shank.angle: must be a number, got 'up'"),
+    ("design_space: {toes: [3, 1]}\n", "design_space.toes: min 3 is above max 1"),
+    ("design_space: {toes: 3}\n", "design_space.toes: must be a list [min, max] of integers, got 3"),
+    ("design_space: {toe_segments: [1, 4]}\n", "design_space.toe_segments[1]: must be at most 3, got 4"),
+    ("design_space: {toe_symmetry: mirrored}\n", "design_space.toe_symmetry: must be one of identical, independent"),
+    ("constraints: {foot_mass: -0.5}\n", "constraints.foot_mass: must be > 0"),
+    ("constraints: {foot_mass_mode: about}\n", "constraints.foot_mass_mode: must be one of equal, at_most"),
+    ("constraints: {mass_per_length: [5, 0.1]}\n", "constraints.mass_per_length: min 5.0 must be below max 0.1"),
+    ("constraints: {joint_angles: {toe_root: [1, 0]}}\n", "constraints.joint_angles.toe_root: min 1.0 must be below"),
+    ("constraints: {joint_angles: {ankle: [0, 1]}}\n", "constraints.joint_angles.ankle: unknown key"),
+    ("constraints: {contact_tolerance: -1e-6}\n", "constraints.contact_tolerance: must be >= 0"),
+    ("constraints: {min_link_mass: 0.3}\n", "constraints.min_link_mass: 2 foot rods of 0.3 kg exceed"),
+    ("colour: red\n", "colour: unknown key"),
+]
+
+
+@pytest.mark.parametrize("text, message", BAD, ids=[m.split(":")[0] + f"-{i}" for i, (_, m) in enumerate(BAD)])
+def test_bad_values_name_their_path(text: str, message: str):
+    data = load_yaml("objectives: [external_norm, internal_norm]\n" + text)
+    with pytest.raises(ConfigError) as info:
+        parse_study(data)
+    assert str(info.value).startswith(message), str(info.value)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("seed: 1\n", "objectives: missing (required)"),
+        ("objectives: []\n", "objectives: must be a non-empty list"),
+        ("objectives: [external_norm, speed]\n", "objectives[1]: must be one of external_norm"),
+        ("objectives: [external_norm, external_norm]\n", "objectives[1]: 'external_norm' is listed twice"),
+        ("- 1\n", "the top level: must be a mapping"),
+    ],
+)
+def test_bad_objectives_and_top_level(text: str, message: str):
+    with pytest.raises(ConfigError) as info:
+        parse_study(load_yaml(text))
+    assert str(info.value).startswith(message), str(info.value)
+
+
+def test_missing_and_unreadable_files(tmp_path: Path):
+    with pytest.raises(ConfigError, match="file not found"):
+        load_study(tmp_path / "nope.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("objectives: [external_norm\n", encoding="utf-8")
+    with pytest.raises(ConfigError) as info:
+        load_study(bad)
+    assert info.value.source == bad and "YAML syntax error" in str(info.value)
