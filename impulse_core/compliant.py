@@ -431,11 +431,9 @@ def touchdown_order(touchdown_time: np.ndarray, resolution: float) -> tuple[int,
 
 
 def scene_ground(scene: Scene, terrain: Terrain | None = None, base_x: float | None = None) -> tuple[Terrain, float]:
-    """The terrain and base placement to use: the arguments if given, else the scene's own
-    (``scene.terrain``, ``scene.base_x``, once the scene carries them), else flat ground and 0."""
-    terrain = terrain if terrain is not None else getattr(scene, "terrain", None)
-    base_x = base_x if base_x is not None else getattr(scene, "base_x", None)
-    return (FLAT if terrain is None else terrain), (0.0 if base_x is None else float(base_x))
+    """The terrain and base placement to use: the scene's own (``scene.terrain``,
+    ``scene.base_x``) unless an argument overrides it."""
+    return (scene.terrain if terrain is None else terrain), float(scene.base_x if base_x is None else base_x)
 
 
 def subtree_incidence(tree: Tree) -> np.ndarray:
@@ -693,10 +691,9 @@ def simulate_impact(
         scene: speed (straight down, unless ``v_minus``), restitution (tunes the damping);
             ``scene.selection`` is not used: the geometry decides which contacts touch and when.
         settings: contact law, stiffness, step, gravity (:class:`CompliantSettings`).
-        terrain: the ground profile; default ``scene.terrain`` if the scene has one, else flat
-            ground at y = 0.
-        base_x: x of the base origin at touchdown (m), placing the tree over the terrain;
-            default ``scene.base_x`` if the scene has one, else 0.
+        terrain: overrides ``scene.terrain``, the ground profile (default: the scene's).
+        base_x: overrides ``scene.base_x``, the x of the base origin at touchdown (m) placing the
+            tree over the terrain (default: the scene's).
         v_minus: generalized velocity at the first touchdown (base vx, vy, omega, joint rates);
             default: straight down at ``scene.speed``.
 

@@ -7,6 +7,14 @@ The automatic choice is the cheapest rung that is exact for the scene
 (paper eq. 11) when every Newton impulse is >= 0 (it is then the complementarity answer), and
 LCP when Newton's law would make a contact pull (the contact separates with zero impulse).
 DECOUPLED (paper eq. 14) runs on request only. Frictionless scenes build no friction terms.
+
+Every rung assumes flat ground: the contacts that hit are found by height, and the impulses act
+along +y. A scene whose ``terrain`` is not flat is refused (``ModelError`` naming
+``scene.terrain``) rather than answered as if the ground were level; its landing is the business
+of :func:`impulse_core.sequential.sequential_impacts` (rigid impacts in sequence, one per
+touchdown) or :func:`impulse_core.compliant.simulate_impact`. A flat terrain at any height, and
+any ``base_x``, change nothing here: heights are measured from the lowest contact. To measure the
+flat-ground answer on purpose, evaluate ``dataclasses.replace(scene, terrain=FLAT)``.
 """
 
 from __future__ import annotations
@@ -29,7 +37,7 @@ from impulse_core.contact_models import (
     least_norm_split,
     redundant,
 )
-from impulse_core.errors import NumericalError
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.impact import (
     friction_response_function,
     geometry_function,
@@ -210,9 +218,16 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
         The result, with the rung that ran in ``model`` and why in ``reason``.
 
     Raises:
+        ModelError: the scene's terrain is not flat (module docstring).
         NumericalError: when float64 cannot resolve the impact (non-finite results), or eq. 14
             is undefined (a zero row sum of the Delassus matrix).
     """
+    if not scene.terrain.is_flat:
+        raise ModelError(
+            "scene.terrain: the rigid impact models (decoupled, newton, lcp, friction) assume flat ground and this "
+            "terrain is not flat; use the sequential rigid model (--model sequential, "
+            "impulse_core.sequential.sequential_impacts) or the compliant one (--model compliant)"
+        )
     active = active_contacts(tree, scene)
     topology = tree.topology(active)
     v_minus = approach_velocity(topology, scene.speed, space)

@@ -3,10 +3,14 @@ and internal (joint reaction) impulses (paper eqs. 15-27, as an impulsive Newton
 
 Everything here is a pure function of a :class:`~impulse_core.tree.Topology` that returns
 CasADi SX expressions of the design vector ``p``; :func:`impact_function` wraps them in one
-named ``casadi.Function`` per topology.
+named ``casadi.Function`` per topology. :func:`lean_impact_function` is the optimiser's and the
+benchmark's hot path (a subset of the outputs by tree-structured algorithms, equal to rounding);
+:func:`norms_gradient_function` adds the gradients of both norms.
 """
 
 from __future__ import annotations
+
+from enum import Enum
 
 import casadi as ca
 
@@ -15,14 +19,13 @@ from impulse_core.kinematics import (
     GROUND_NORMAL,
     PLANAR,
     Space,
+    contact_bodies,
     dof_layout,
     forward_kinematics,
     point_jacobian,
     unpack_values,
-    contact_bodies,
 )
 from impulse_core.tree import Topology
-
 
 #: Ground tangent (world frame): the direction of the tangential (friction) impulse in the plane.
 GROUND_TANGENT = ca.DM([1.0, 0.0, 0.0])
@@ -129,7 +132,7 @@ def _model(topology: Topology, space: Space, p: ca.SX):
     """Kinematics, Jacobians, mass matrix and its factor of one topology."""
     values, kin, layout, J = _contact_jacobian(topology, p, space)
     jac = dyn.body_jacobians(kin, layout, values, space)
-    M = dyn.mass_matrix(jac, values)
+    M = dyn.composite_mass_matrix(topology.parents, kin, layout, values, space)
     f = dyn.ltdl(M, layout.dof_parent)
     return values, kin, layout, J, jac, M, f
 
@@ -219,6 +222,212 @@ def friction_response_function(topology: Topology, space: Space = PLANAR) -> ca.
         [*outs, Jt @ outs[0]],
         ["p", "v_minus", "external", "tangential"],
         list(RESPONSE_OUTPUTS) + ["tangent_velocity"],
+    )
+
+
+#: Outputs of :func:`lean_impact_function`: what the optimiser and the benchmark need per design.
+LEAN_OUTPUTS = ("external", "delassus_pivots", "internal_magnitude", "external_norm", "internal_norm")
+#: Outputs of :func:`norms_gradient_function`.
+GRADIENT_OUTPUTS = LEAN_OUTPUTS[3:] + ("d_external_norm", "d_internal_norm")
+#: CasADi options of the hot-path functions: common subexpression elimination.
+LEAN_OPTIONS = {"cse": True}
+
+
+def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX) -> tuple[ca.SX, ...]:
+    """The outputs ``LEAN_OUTPUTS`` in O(n) per contact, by the articulated-body algorithm.
+
+    1. Forward kinematics, trig once per absolute angle (:func:`forward_kinematics`).
+    2. Articulated-body inertias, one backward pass (RBDA alg. 7.3; no mass matrix is formed).
+    3. Delassus matrix (paper eq. 11) column by column: the velocity change at every contact
+       under a unit normal impulse at contact j (:func:`dynamics.impulse_response`; the graph
+       keeps only the passes along the paths to the contacts); upper triangle, mirrored.
+    4. Newton's law A lambda = -(1 + e) J v_minus by a dense L^T D L of A; J v_minus from one
+       forward velocity pass.
+    5. Delta v of every body under lambda (one more response), momentum changes, and joint force
+       impulses by one backward pass (subtree momentum change minus the external impulses on
+       the subtree: the impulsive Newton-Euler pass of paper eqs. 15-27).
+    """
+    values = unpack_values(topology, p)
+    kin = forward_kinematics(topology, values, space)
+    layout = dof_layout(topology, space)
+    inertias = dyn.body_inertias(kin, values)
+    art = dyn.articulated_bodies(topology.parents, kin, layout, inertias, space)
+    bodies = contact_bodies(topology)
+    n = GROUND_NORMAL
+    active = topology.active
+    nc = len(active)
+
+    def unit_impulse(c: int) -> ca.SX:  # a unit normal impulse at contact c, about O_b
+        return ca.vertcat(ca.cross(kin.W_p_C[c] - kin.W_p_O[bodies[c]], n), n)
+
+    def normal_velocity(c: int, V: tuple[ca.SX, ...]) -> ca.SX:
+        V_b = V[bodies[c]]
+        return n.T @ (V_b[3:] + ca.cross(V_b[:3], kin.W_p_C[c] - kin.W_p_O[bodies[c]]))
+
+    A = ca.SX(nc, nc)
+    for j, c in enumerate(active):
+        response, _ = dyn.impulse_response(art, {bodies[c]: unit_impulse(c)})
+        for i in range(j + 1):
+            A[i, j] = normal_velocity(active[i], response)
+            A[j, i] = A[i, j]
+    V_minus = dyn.body_velocities(art, v_minus)
+    Jv = ca.vertcat(*[normal_velocity(c, V_minus) for c in active]) if nc else ca.SX(0, 1)
+    f = dyn.ltdl(A, dyn.dense_parent(nc))
+    lam = dyn.solve(f, -(1 + e) * Jv)
+    pivots = dyn.relative_pivots(f, A)
+    forces: dict[int, ca.SX] = {}
+    for i, c in enumerate(active):
+        forces[bodies[c]] = forces.get(bodies[c], ca.SX.zeros(6, 1)) + lam[i] * unit_impulse(c)
+    dV, _ = dyn.impulse_response(art, forces)
+    force = [inertias[b].momentum(dV[b][:3], dV[b][3:])[1] for b in range(topology.n_bodies)]
+    for i, c in enumerate(active):
+        force[bodies[c]] = force[bodies[c]] - lam[i] * n
+    for b in reversed(range(1, topology.n_bodies)):
+        force[topology.parents[b]] = force[topology.parents[b]] + force[b]
+    magnitude = ca.vertcat(*[ca.sqrt(force[b].T @ force[b]) for b in range(1, topology.n_bodies)])
+    return (
+        lam,
+        pivots,
+        magnitude,
+        ca.norm_2(lam) if nc else ca.SX(0),
+        ca.norm_2(magnitude) if magnitude.shape[0] else ca.SX(0),
+    )
+
+
+def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX) -> tuple[ca.SX, ...]:
+    """The outputs ``LEAN_OUTPUTS`` through the mass matrix and its sparse factor.
+
+    1. Forward kinematics, trig once per absolute angle (:func:`forward_kinematics`).
+    2. Mass matrix by the composite-rigid-body algorithm (RBDA alg. 6.2) and its L^T D L factor
+       with the tree's sparsity (RBDA alg. 6.3).
+    3. Contact Jacobian rows n^T (v_k + omega_k x (p_C - o_k)) from the joint motions; Delassus
+       matrix A = Y^T D^-1 Y with Y = L^-T J^T (sparse back substitution, upper triangle only),
+       and Newton's law A lambda = -(1 + e) J v_minus (paper eq. 11) by a dense L^T D L of A.
+    4. Delta v = L^-1 D^-1 Y lambda; body velocities by one forward pass, momentum changes, and
+       joint force impulses by one backward pass (subtree momentum change minus the external
+       impulses on the subtree: the impulsive Newton-Euler pass of paper eqs. 15-27).
+
+    Cost O(n d^2) for depth d: the cheaper choice for shallow trees (few divisions).
+    """
+    values = unpack_values(topology, p)
+    kin = forward_kinematics(topology, values, space)
+    layout = dof_layout(topology, space)
+    S = dyn.joint_motions(kin, layout, space)
+    inertias = dyn.body_inertias(kin, values)
+    M = dyn.composite_mass_matrix(topology.parents, kin, layout, values, space)
+    f = dyn.ltdl(M, layout.dof_parent)
+    bodies = contact_bodies(topology)
+    n = GROUND_NORMAL
+    nc = len(topology.active)
+    J = ca.SX(nc, layout.nv)
+    for r, c in enumerate(topology.active):
+        for k in layout.body_support[bodies[c]]:
+            J[r, k] = n.T @ S[k].velocity_at(kin.W_p_C[c])
+    Y = dyn.solve_lt(f, J.T)
+    DY = dyn.solve_d(f, Y)
+    A = ca.SX(nc, nc)
+    for i in range(nc):
+        for j in range(i, nc):
+            A[i, j] = Y[:, i].T @ DY[:, j]
+            A[j, i] = A[i, j]
+    lam, pivots = external_impulse(A, J, v_minus, e)
+    dv = dyn.solve_l(f, DY @ lam)
+    omega: list[ca.SX] = []
+    vel: list[ca.SX] = []  # velocity of each body's joint origin
+    n_base = len(space.base_dofs)
+    for b in range(topology.n_bodies):
+        parent = topology.parents[b]
+        O_b = kin.W_p_O[b]
+        if parent < 0:
+            w, v = ca.SX.zeros(3, 1), ca.SX.zeros(3, 1)
+            for k in range(n_base):
+                w = w + S[k].omega * dv[k]
+                v = v + S[k].velocity_at(O_b) * dv[k]
+        else:
+            w, v = omega[parent], vel[parent] + ca.cross(omega[parent], O_b - kin.W_p_O[parent])
+            k = layout.body_dof[b]
+            if k is not None:  # the joint turns about O_b: no velocity of O_b
+                w = w + S[k].omega * dv[k]
+        omega.append(w)
+        vel.append(v)
+    force = [inertias[b].momentum(omega[b], vel[b])[1] for b in range(topology.n_bodies)]
+    for i, c in enumerate(topology.active):
+        force[bodies[c]] = force[bodies[c]] - lam[i] * n
+    for b in reversed(range(1, topology.n_bodies)):
+        force[topology.parents[b]] = force[topology.parents[b]] + force[b]
+    magnitude = ca.vertcat(*[ca.sqrt(force[b].T @ force[b]) for b in range(1, topology.n_bodies)])
+    return (
+        lam,
+        pivots,
+        magnitude,
+        ca.norm_2(lam) if nc else ca.SX(0),
+        ca.norm_2(magnitude) if magnitude.shape[0] else ca.SX(0),
+    )
+
+
+class LeanAlgorithm(Enum):
+    """How :func:`lean_impact_function` reaches the Delassus matrix and Delta v.
+
+    COMPOSITE: mass matrix (RBDA alg. 6.2) and its sparse factor, O(n d^2) for depth d, few
+    divisions. ARTICULATED: articulated-body inertias (RBDA alg. 7.3), O(n) per contact, one
+    division per joint per pass. AUTO: COMPOSITE for trees no deeper than ``AUTO_DEPTH`` DOFs.
+    """
+
+    AUTO = "auto"
+    COMPOSITE = "composite"
+    ARTICULATED = "articulated"
+
+
+#: AUTO picks COMPOSITE up to this DOF depth (base DOFs included), ARTICULATED beyond.
+AUTO_DEPTH = 8
+
+_LEAN_GRAPHS = {LeanAlgorithm.COMPOSITE: _lean_graph_composite, LeanAlgorithm.ARTICULATED: _lean_graph_articulated}
+
+
+def dof_depth(topology: Topology, space: Space = PLANAR) -> int:
+    """The largest number of DOFs on one path from the root (base DOFs included)."""
+    return max(len(s) for s in dof_layout(topology, space).body_support)
+
+
+def _lean_graph(
+    topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO
+) -> tuple[ca.SX, ...]:
+    if algorithm is LeanAlgorithm.AUTO:
+        deep = dof_depth(topology, space) > AUTO_DEPTH
+        algorithm = LeanAlgorithm.ARTICULATED if deep else LeanAlgorithm.COMPOSITE
+    return _LEAN_GRAPHS[algorithm](topology, space, p, v_minus, e)
+
+
+def lean_impact_function(
+    topology: Topology, space: Space = PLANAR, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO
+) -> ca.Function:
+    """The hot path of the optimiser and the benchmark: same inputs as :func:`impact_function`
+    and the subset ``LEAN_OUTPUTS`` of its outputs (same names, same values to rounding), by the
+    tree-structured algorithms of ``algorithm`` (:class:`LeanAlgorithm`), with common
+    subexpression elimination."""
+    nv = dof_layout(topology, space).nv
+    p = ca.SX.sym("p", topology.n_values)
+    v_minus = ca.SX.sym("v_minus", nv)
+    e = ca.SX.sym("restitution")
+    outs = _lean_graph(topology, space, p, v_minus, e, algorithm)
+    return ca.Function("impact_lean", [p, v_minus, e], list(outs), list(IMPACT_INPUTS), list(LEAN_OUTPUTS), LEAN_OPTIONS)
+
+
+def norms_gradient_function(
+    topology: Topology, space: Space = PLANAR, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO
+) -> ca.Function:
+    """``external_norm`` and ``internal_norm`` with their gradients w.r.t. every design value
+    (``d_external_norm``, ``d_internal_norm``: 1 x n_values each), by reverse-mode algorithmic
+    differentiation of :func:`_lean_graph` sharing its forward pass."""
+    nv = dof_layout(topology, space).nv
+    p = ca.SX.sym("p", topology.n_values)
+    v_minus = ca.SX.sym("v_minus", nv)
+    e = ca.SX.sym("restitution")
+    outs = _lean_graph(topology, space, p, v_minus, e, algorithm)
+    norms = ca.vertcat(outs[3], outs[4])
+    G = ca.jacobian(norms, p)
+    return ca.Function(
+        "norms_gradient", [p, v_minus, e], [outs[3], outs[4], G[0, :], G[1, :]], list(IMPACT_INPUTS), list(GRADIENT_OUTPUTS), LEAN_OPTIONS
     )
 
 

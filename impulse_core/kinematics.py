@@ -128,10 +128,12 @@ def dof_layout(topology: Topology, space: Space = PLANAR) -> DofLayout:
 
 
 def axis_rotation(axis: tuple[float, float, float], angle: ca.SX) -> ca.SX:
-    """Rotation by ``angle`` about the unit ``axis`` (Rodrigues' formula)."""
+    """Rotation by ``angle`` about the unit ``axis`` (Rodrigues' formula in the form
+    k k^T + c (I - k k^T) + s [k]x: about a coordinate axis the entries are bare constants, cos
+    and sin, one sin and one cos per call)."""
     k = ca.DM(axis)
-    K = ca.skew(k)
-    return ca.DM.eye(3) + ca.sin(angle) * K + (1 - ca.cos(angle)) * (K @ K)
+    kk = k @ k.T
+    return kk + ca.cos(angle) * (ca.DM.eye(3) - kk) + ca.sin(angle) * ca.skew(k)
 
 
 @dataclass(frozen=True)
@@ -157,22 +159,29 @@ class Kinematics:
 
 def forward_kinematics(topology: Topology, values: tuple[BodyValues, ...], space: Space = PLANAR) -> Kinematics:
     """Place every body: a child's joint sits at ``at * length`` along its parent's x axis and
-    turns by ``angle`` about ``space.joint_axis``; the base's origin is the world origin."""
+    turns by ``angle`` about ``space.joint_axis``; the base's origin is the world origin.
+
+    Every rotation of the tree (the base's and the joints') is about the same axis, so rotations
+    commute and each body's rotation is one :func:`axis_rotation` of its absolute angle (the sum
+    of the angles along its chain): trig once per absolute angle, no 3 x 3 products.
+    """
     R: list[ca.SX] = []
     O: list[ca.SX] = []
+    theta: list[ca.SX] = []
     axes: list[ca.SX | None] = []
     e_x = ca.DM([1.0, 0.0, 0.0])
     for i, v in enumerate(values):
         parent = topology.parents[i]
         if parent < 0:
-            R.append(axis_rotation(space.joint_axis, v.angle))
+            theta.append(v.angle)
             O.append(ca.SX.zeros(3, 1))
             axes.append(None)
         else:
             P = values[parent]
+            theta.append(theta[parent] + v.angle)
             O.append(O[parent] + R[parent] @ (v.at * P.length * e_x))
-            R.append(R[parent] @ axis_rotation(space.joint_axis, v.angle))
-            axes.append(R[parent] @ ca.DM(space.joint_axis))  # the axis is fixed in both frames
+            axes.append(ca.SX(ca.DM(space.joint_axis)))  # the common axis is fixed in every frame
+        R.append(axis_rotation(space.joint_axis, theta[i]))
     G = [O[i] + R[i] @ (v.com * v.length * e_x) for i, v in enumerate(values)]
     T = [O[i] + R[i] @ (v.length * e_x) for i, v in enumerate(values)]
     C = [O[i] + R[i] @ (c * v.length * e_x) for i, v in enumerate(values) for c in v.contacts]

@@ -118,8 +118,8 @@ def sequential_impacts(
     """Rigid impacts of ``tree`` landing on ``terrain``, one per touchdown (module docstring).
 
     Ends when no contact that has not touched yet approaches the ground (as the compliant rung),
-    or at ``settings.max_time``. ``terrain`` and ``base_x`` default to the scene's own, else flat
-    ground and 0 (:func:`impulse_core.compliant.scene_ground`).
+    or at ``settings.max_time``. ``terrain`` and ``base_x``, when given, override the scene's own
+    ``scene.terrain`` and ``scene.base_x`` (:func:`impulse_core.compliant.scene_ground`).
 
     Raises:
         ModelError: friction (frictionless only).

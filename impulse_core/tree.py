@@ -18,6 +18,7 @@ from enum import Enum
 import numpy as np
 
 from impulse_core.errors import ModelError
+from impulse_core.terrain import FLAT, Terrain
 
 #: Centre of mass of a uniform rod, as a fraction of its length.
 UNIFORM_COM = 0.5
@@ -145,14 +146,20 @@ class Topology:
 
 @dataclass(frozen=True)
 class Scene:
-    """The landing: the whole tree translates straight down (-y) onto flat ground.
+    """The landing: the whole tree translates straight down (-y) onto the ground.
 
     Attributes:
         speed: approach speed (m/s), > 0.
         restitution: Newton's coefficient e in [0, 1].
         friction: Coulomb coefficient (0: frictionless; > 0: the FRICTION rung of contact_models).
-        selection: which contacts hit.
+        selection: which contacts hit (rigid rungs; the time-domain models let the geometry decide).
         contact_tolerance: with ``LOWEST``, contacts within this height (m) of the lowest hit.
+        terrain: the ground profile (world frame; default flat at y = 0). The rigid rungs
+            (``impulse_core.evaluate``) need it flat (``Terrain.is_flat``); the sequential and
+            compliant models (``impulse_core.sequential``, ``impulse_core.compliant``) follow it.
+        base_x: x (m) of the base origin at touchdown: the tree keeps its touchdown angles, sits
+            with its base origin at ``base_x`` and is lowered straight down until the contact with
+            the smallest vertical clearance touches the terrain. Irrelevant on flat ground.
     """
 
     speed: float = 3.43
@@ -160,6 +167,8 @@ class Scene:
     friction: float = 0.0
     selection: ContactSelection = ContactSelection.LOWEST
     contact_tolerance: float = 1e-6
+    terrain: Terrain = FLAT
+    base_x: float = 0.0
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and self.speed > 0, "scene.speed", f"must be > 0, got {self.speed}")
@@ -177,6 +186,16 @@ class Scene:
             math.isfinite(self.contact_tolerance) and self.contact_tolerance >= 0.0,
             "scene.contact_tolerance",
             f"must be >= 0, got {self.contact_tolerance}",
+        )
+        _require(
+            isinstance(self.terrain, Terrain),
+            "scene.terrain",
+            f"must be a Terrain (impulse_core.terrain), got {type(self.terrain).__name__}",
+        )
+        _require(
+            isinstance(self.base_x, (int, float)) and not isinstance(self.base_x, bool) and math.isfinite(self.base_x),
+            "scene.base_x",
+            f"must be a finite number (m), got {self.base_x!r}",
         )
 
 

@@ -14,18 +14,22 @@ import json
 import os
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 
-from impulse_core.contact_models import ImpactModel
+from impulse_core.compliant import CompliantSettings, ContactLaw
 from impulse_core.errors import FootoptError, NumericalError
-from impulse_core.evaluate import ImpactResult, evaluate, touchdown_geometry
+from impulse_core.evaluate import touchdown_geometry
+from impulse_core.sequential import SequentialSettings
+from optimizer.bench import SCALING_SIZES
+from optimizer.landing import COMPLIANT, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.model_file import ModelFile, load_model_file
 from optimizer.optimize_cli import add_optimize, add_pareto
 from optimizer.plot import PLOT_SUFFIXES, plot_touchdown
-from optimizer.report import format_report, is_finite, result_record
+from optimizer.report import Result, format_report, is_finite, result_record
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -34,8 +38,10 @@ DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "configs" / "paper_case
 
 _MODEL_HELP = "model files (YAML or JSON, format: MODEL_FORMAT.md)"
 
-#: ``footopt evaluate --model`` choices: 'auto' or an :class:`ImpactModel` value.
-IMPACT_MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel))
+#: ``footopt evaluate --model`` choices: 'auto', an :class:`ImpactModel` value, 'sequential' or 'compliant'.
+IMPACT_MODEL_CHOICES = MODEL_CHOICES
+#: ``--steps-per-period`` when not given.
+DEFAULT_STEPS_PER_PERIOD = 120.0
 
 
 def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
@@ -44,9 +50,11 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         help="compute the landing impulses of model files",
         description=(
             "Compute the external impulse at each contact and the internal impulse through each joint "
-            "of a floating tree of rods landing straight down on flat ground (Newton's restitution law "
+            "of a floating tree of rods landing straight down (on flat ground: Newton's restitution law "
             "at simultaneous contacts, its complementarity form where a contact would pull, or Coulomb "
-            "friction: see --model), and report them beside any reference values the file gives."
+            "friction; on a scene.terrain that is not flat: rigid impacts in sequence, one per touchdown, "
+            "or compliant contacts in the time domain: see --model), and report them beside any reference "
+            "values the file gives."
         ),
     )
     p.add_argument("files", nargs="+", metavar="FILE", help=_MODEL_HELP)
@@ -56,8 +64,39 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         choices=IMPACT_MODEL_CHOICES,
         default="auto",
         help="the impact model (rung of the fidelity ladder): 'auto' (default) picks the cheapest exact one per "
-        "scene: friction if scene.friction > 0, else newton (paper eq. 11) unless Newton's law would make a contact "
-        "pull, then lcp (complementarity: the contact separates); 'decoupled' is the paper's eq. 14 approximation",
+        "scene: on a terrain that is not flat, sequential; else friction if scene.friction > 0, else newton (paper "
+        "eq. 11) unless Newton's law would make a contact pull, then lcp (complementarity: the contact separates); "
+        "'decoupled' is the paper's eq. 14 approximation; the rigid rungs refuse uneven terrain. 'sequential': a "
+        "rigid (LCP) impact along the local ground normal at each touchdown, free flight between; 'compliant': "
+        "spring-damper contacts integrated through the landing (see --law, --stiffness, --steps-per-period)",
+    )
+    p.add_argument(
+        "--law",
+        choices=[law.value for law in ContactLaw],
+        default=None,
+        help="--model compliant: the contact law, 'penalty' (default: a spring-damper pad per contact, stiffness "
+        "in N/m) or 'constraint' (MuJoCo's soft constraint, stiffness in 1/s^2)",
+    )
+    p.add_argument(
+        "--stiffness",
+        type=float,
+        default=None,
+        help=f"--model compliant: contact stiffness (N/m, or 1/s^2 for the constraint law; default "
+        f"{CompliantSettings().stiffness:g})",
+    )
+    p.add_argument(
+        "--steps-per-period",
+        type=float,
+        default=None,
+        help=f"--model compliant: integration steps per period of the fastest contact oscillation (default "
+        f"{DEFAULT_STEPS_PER_PERIOD:g}; >= 4)",
+    )
+    p.add_argument(
+        "--gravity",
+        type=float,
+        default=None,
+        help="--model sequential or compliant (or auto, when it runs sequential): gravity along -y in m/s^2 "
+        "(default off: impact time scales); the rigid rungs are instantaneous, gravity gives them no impulse",
     )
     p.add_argument(
         "--plot",
@@ -73,12 +112,20 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
         "bench",
         help="time the evaluation of a model, next to pinocchio.impulseDynamics",
         description=(
-            "Time one design's evaluation (external + internal impulses + norms): one call per design, "
-            "batched over many designs, and the full evaluate() path; beside pinocchio.impulseDynamics on "
-            "the same model in the same run (if `pin` is installed). Quote the ratio, not the times."
+            "Time one design's evaluation (external + internal impulses + norms, the optimiser's hot path): "
+            "one call per design, batched over many designs (virtual machine, compiled C, 2 threads), the "
+            "gradient of both norms, beside pinocchio.impulseDynamics on the same model in the same run (if "
+            "`pin` is installed); check that batched results equal single calls and the full model. "
+            "'footopt bench speed' (the default mode) times the paper's case 3 and the scaling series "
+            "(5 to 200 bodies); 'footopt bench FILE...' times the given model files. Quote ratios, not times."
         ),
     )
-    p.add_argument("files", nargs="*", metavar="FILE", help=f"{_MODEL_HELP} (default: configs/paper_case3.yaml)")
+    p.add_argument(
+        "files",
+        nargs="*",
+        metavar="FILE",
+        help=f"'speed' (default: case 3 and the scaling series), or {_MODEL_HELP}",
+    )
     p.add_argument("--batch", type=int, default=2000, help="designs per batched call (default 2000)")
     p.add_argument("--json", action="store_true", help="print one JSON object per model")
     p.add_argument(
@@ -87,6 +134,13 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="where compiled C libraries are cached (default ~/.cache/footopt)",
     )
     p.add_argument("--no-compile", action="store_true", help="time CasADi's virtual machine only")
+    p.add_argument(
+        "--sizes",
+        default=None,
+        help="body counts of the scaling series, comma-separated (default with 'speed': "
+        + ",".join(str(n) for n in SCALING_SIZES)
+        + "; 'none' to skip; with model files: none unless given)",
+    )
     p.set_defaults(run=run_bench)
 
 
@@ -148,11 +202,14 @@ def run_evaluate(args: argparse.Namespace) -> int:
             _error("--plot", f"{args.plot}: must end in {' or '.join(PLOT_SUFFIXES)}")
             return EXIT_USAGE
         plots = _plot_paths(Path(args.plot), files)
+    options = _time_domain_options(args)
+    if options is None:
+        return EXIT_USAGE
     status = EXIT_OK
     for n, file in enumerate(files):
         try:
             model = load_model_file(file)
-            result = _evaluate(model, _impact_model(args.model))
+            result = _evaluate(model, args.model, *options)
             if result is None:
                 _error(file, "numerical failure: the impact solve returned no finite answer (extreme values?)")
                 status = max(status, EXIT_FAILURE)
@@ -162,7 +219,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
             else:
                 print(("\n" if n else "") + format_report(model, result, file), end="")
             if n in plots:
-                plot_touchdown(model.tree, touchdown_geometry(model.tree), result, plots[n], title=file)
+                plot_touchdown(
+                    model.tree, touchdown_geometry(model.tree), result, plots[n], title=file, scene=model.scene
+                )
                 if not args.json:
                     print(f"plot: {plots[n]}")
         except FootoptError as e:
@@ -172,43 +231,101 @@ def run_evaluate(args: argparse.Namespace) -> int:
     return status
 
 
-def _impact_model(choice: str) -> ImpactModel | None:
-    """The rung named on the command line; None for 'auto' (the library picks)."""
-    return None if choice == "auto" else ImpactModel(choice)
+def _time_domain_options(args: argparse.Namespace) -> tuple[CompliantSettings, SequentialSettings] | None:
+    """The settings of the time-domain models from ``--law``, ``--stiffness``,
+    ``--steps-per-period`` and ``--gravity``; None (after one line on stderr) when an option is
+    bad or does not apply to ``--model``."""
+    compliant_options = {"--law": args.law, "--stiffness": args.stiffness, "--steps-per-period": args.steps_per_period}
+    for flag, value in compliant_options.items():
+        if value is not None and args.model != COMPLIANT:
+            _error(flag, f"applies to --model compliant only (got --model {args.model})")
+            return None
+    if args.gravity is not None and args.model not in ("auto", *TIME_DOMAIN_MODELS):
+        _error("--gravity", f"applies to --model sequential or compliant only: the {args.model} rung is instantaneous")
+        return None
+    gravity = 0.0 if args.gravity is None else args.gravity
+    if not (np.isfinite(gravity) and gravity >= 0):
+        _error("--gravity", f"must be a finite number >= 0 (m/s^2, along -y), got {gravity!r}")
+        return None
+    try:
+        compliant = CompliantSettings(
+            law=ContactLaw(args.law or ContactLaw.PENALTY.value),
+            stiffness=CompliantSettings().stiffness if args.stiffness is None else args.stiffness,
+            steps_per_period=DEFAULT_STEPS_PER_PERIOD if args.steps_per_period is None else args.steps_per_period,
+            gravity=gravity,
+        )
+    except FootoptError as e:  # "compliant.stiffness: must be > 0, ..."
+        name = str(e).split(":", 1)[0].removeprefix("compliant.").replace("_", "-")
+        _error(f"--{name}", str(e).split(":", 1)[-1].strip())
+        return None
+    return compliant, SequentialSettings(gravity=gravity)
 
 
-def _evaluate(model: ModelFile, impact_model: ImpactModel | None = None) -> ImpactResult | None:
-    """The impact of one model file, or None when the numerics fail (overflow, a singular
-    solve): a status to report, not a traceback (the cause is printed once, as one line)."""
+def _evaluate(
+    model: ModelFile,
+    choice: str = "auto",
+    compliant: CompliantSettings | None = None,
+    sequential: SequentialSettings | None = None,
+) -> Result | None:
+    """The landing of one model file by the model named on the command line, or None when the
+    numerics fail (overflow, a singular solve, a diverging integration): a status to report, not
+    a traceback (the cause is printed once, as one line)."""
     with np.errstate(all="ignore"):
         try:
-            result = evaluate(model.tree, model.scene, impact_model)
+            result = evaluate_landing(model.tree, model.scene, choice, compliant, sequential)
         except (np.linalg.LinAlgError, NumericalError):
             return None
     return result if is_finite(result) else None
 
 
 def run_bench(args: argparse.Namespace) -> int:
-    """``footopt bench``: timings and the ratio to Pinocchio per model file."""
-    from optimizer.bench import format_report as format_bench, speed_report
+    """``footopt bench [speed] [FILE...]``: timings and the ratio to Pinocchio per model file, and
+    the scaling series attached to the first model's report."""
+    from optimizer.bench import format_report as format_bench
+    from optimizer.bench import scaling_series, speed_report
 
     if args.batch < 1:
         _error("--batch", f"must be >= 1, got {args.batch}")
         return EXIT_USAGE
-    files = args.files or [str(DEFAULT_MODEL)]
+    files = list(args.files)
+    speed_mode = not files or files[0] == "speed"
+    files = [f for f in files if f != "speed"] or [str(DEFAULT_MODEL)]
+    try:
+        sizes = _sizes(args.sizes, SCALING_SIZES if speed_mode else ())
+    except ValueError as e:
+        _error("--sizes", str(e))
+        return EXIT_USAGE
+    cache = None if args.no_compile else Path(args.cache_dir)
     for n, file in enumerate(files):
         try:
             model = load_model_file(file)
         except FootoptError as e:
             _error(file, str(e))
             return EXIT_USAGE
-        cache = None if args.no_compile else Path(args.cache_dir)
         report = speed_report(Path(file).stem, model.tree, model.scene, batch=args.batch, cache_dir=cache)
+        if n == 0 and sizes:
+            report = replace(report, scaling=scaling_series(sizes, batch=min(args.batch, 500), cache_dir=cache))
         if args.json:
             print(json.dumps(report.as_dict(), allow_nan=False))
         else:
             print(("\n" if n else "") + format_bench(report))
+        sys.stdout.flush()
     return EXIT_OK
+
+
+def _sizes(text: str | None, default: tuple[int, ...]) -> tuple[int, ...]:
+    """``--sizes``: body counts >= 3, comma-separated, or 'none'."""
+    if text is None:
+        return default
+    if text.strip().lower() == "none":
+        return ()
+    try:
+        sizes = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise ValueError(f"must be comma-separated integers or 'none', got {text!r}") from None
+    if not sizes or min(sizes) < 3:
+        raise ValueError(f"body counts must be >= 3, got {text!r}")
+    return sizes
 
 
 def _plot_paths(path: Path, files: list[str]) -> dict[int, Path]:

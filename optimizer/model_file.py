@@ -12,6 +12,13 @@ Extensions to the contract (a file without them means what the contract says):
       about the centre of mass as a fraction of the length (the core's parameter; written by
       :func:`dump_model_file` when no float ``inertia`` reproduces it exactly);
     - scene ``contact_tolerance`` (m, default 1e-6) and ``contacts: lowest`` (the default, named);
+    - scene ``terrain``: the ground profile y(x), world frame, m, as ``[[x0, y0], [x1, y1], ...]``
+      with x strictly increasing, linear between the points, flat beyond the ends; one point is
+      flat ground at y0 (default: flat at y = 0). The rigid rungs need it flat; the sequential and
+      compliant models follow it;
+    - scene ``base_x``: x (m) of the base origin at touchdown (default 0): the model keeps its
+      touchdown angles, sits with its base origin at ``base_x`` and is lowered straight down until
+      the contact with the smallest vertical clearance touches the terrain;
     - top-level ``reference`` (a paper's printed values, shown beside ours) and ``notes``.
 """
 
@@ -28,11 +35,12 @@ from typing import Any
 import yaml
 
 from impulse_core.errors import ModelError
+from impulse_core.terrain import FLAT, Terrain
 from impulse_core.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
 from optimizer.errors import ConfigError
 
 TOP_KEYS = ("scene", "model", "reference", "notes")
-SCENE_KEYS = ("speed", "restitution", "friction", "contacts", "contact_tolerance")
+SCENE_KEYS = ("speed", "restitution", "friction", "contacts", "contact_tolerance", "terrain", "base_x")
 MODEL_KEYS = ("bodies",)
 BODY_KEYS = ("name", "parent", "at", "length", "mass", "angle", "joint", "contacts", "com", "inertia", "gyration")
 REFERENCE_KEYS = ("source", "external", "internal", "external_norm", "internal_norm", "note")
@@ -285,9 +293,42 @@ def parse_scene(data: Any, where: str = "scene") -> Scene:
     if tolerance < 0:
         raise ConfigError(f"{where}.contact_tolerance: must be >= 0 (m), got {tolerance!r}")
     selection = _choice(m.get("contacts", ContactSelection.LOWEST.value), f"{where}.contacts", ContactSelection, "mode")
+    terrain = parse_terrain(m["terrain"], f"{where}.terrain") if "terrain" in m else FLAT
+    base_x = parse_base_x(m["base_x"], f"{where}.base_x") if "base_x" in m else 0.0
     return Scene(
-        speed=speed, restitution=restitution, friction=friction, selection=selection, contact_tolerance=tolerance
+        speed=speed,
+        restitution=restitution,
+        friction=friction,
+        selection=selection,
+        contact_tolerance=tolerance,
+        terrain=terrain,
+        base_x=base_x,
     )
+
+
+def parse_terrain(value: Any, where: str = "scene.terrain") -> Terrain:
+    """Validate ``scene.terrain``: a non-empty list of ``[x, y]`` pairs of finite numbers (m) with
+    x strictly increasing.
+
+    Raises:
+        ConfigError: naming the entry at fault (``scene.terrain[2]: ...``).
+    """
+    if not isinstance(value, list) or not value:
+        raise ConfigError(f"{where}: must be a non-empty list of [x, y] points (m), got {_describe(value)}")
+    points = []
+    for i, p in enumerate(value):
+        if not (isinstance(p, list) and len(p) == 2):
+            raise ConfigError(f"{where}[{i}]: must be a pair [x, y] (m), got {_describe(p)}")
+        points.append(tuple(_number(c, f"{where}[{i}][{k}]") for k, c in enumerate(p)))
+    try:
+        return Terrain.from_points(points)
+    except ModelError as e:  # x not increasing: Terrain names it scene.terrain[i]
+        raise ConfigError(str(e).replace("scene.terrain", where, 1)) from None
+
+
+def parse_base_x(value: Any, where: str = "scene.base_x") -> float:
+    """Validate ``scene.base_x``: a finite number (m)."""
+    return _number(value, where)
 
 
 def parse_tree(data: Any, where: str = "model") -> Tree:
@@ -533,7 +574,8 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
 
     Floats are written at repr precision with a dot in the mantissa (``1.0e-06``), so that YAML
     1.1 readers read them as numbers too. Defaults are left out (``at: 1.0``, ``joint:
-    revolute``, ``com: 0.5``, a uniform rod's inertia); the scene is written in full.
+    revolute``, ``com: 0.5``, a uniform rod's inertia, flat ground at y = 0, ``base_x: 0``); the
+    rest of the scene is written in full.
     """
     lines = [f"# {line}".rstrip() for line in header_comment.splitlines()] if header_comment else []
     s = model.scene
@@ -546,6 +588,11 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
     ]
     if s.contact_tolerance != _DEFAULT_TOLERANCE:
         lines.append(f"  contact_tolerance: {_float_text(s.contact_tolerance)}  # m")
+    if s.terrain != FLAT:
+        points = ", ".join(f"[{_float_text(x)}, {_float_text(y)}]" for x, y in s.terrain.points)
+        lines.append(f"  terrain: [{points}]  # ground profile y(x), world frame, m")
+    if s.base_x != 0.0:
+        lines.append(f"  base_x: {_float_text(s.base_x)}  # m, base origin at touchdown")
     lines += ["model:", "  bodies:"]
     tree = model.tree
     for b in tree.bodies:
@@ -684,8 +731,10 @@ __all__ = [
     "format_model_file",
     "load_model_file",
     "load_yaml",
+    "parse_base_x",
     "parse_model",
     "parse_reference",
     "parse_scene",
+    "parse_terrain",
     "parse_tree",
 ]

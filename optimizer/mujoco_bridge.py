@@ -32,10 +32,11 @@ from impulse_core.compliant import (
     ContactLaw,
     compiled_step,
     damping_ratio_for_restitution,
+    scene_ground,
     touchdown_configuration,
 )
 from impulse_core.kinematics import dof_layout
-from impulse_core.terrain import FLAT, Terrain
+from impulse_core.terrain import Terrain
 from impulse_core.tree import JointKind, Scene, Tree, design_vector
 
 #: Radius of the contact spheres (m); the terrain is offset by it, so it does not enter the gap.
@@ -54,11 +55,12 @@ def contact_parameters(
     tree: Tree,
     scene: Scene,
     settings: CompliantSettings,
-    terrain: Terrain = FLAT,
-    base_x: float = 0.0,
+    terrain: Terrain | None = None,
+    base_x: float | None = None,
     effective_mass: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's direct (stiffness 1/s^2, damping 1/s) per contact matching ``settings``.
+    ``terrain`` and ``base_x`` override the scene's own.
 
     For the penalty law, ``effective_mass`` (kg per contact; e.g. ``CompliantResult.
     effective_mass``, each contact's at its own touchdown) turns N/m into 1/s^2; default: at the
@@ -71,6 +73,7 @@ def contact_parameters(
     if settings.law is ContactLaw.CONSTRAINT:
         return np.full(n, settings.stiffness), np.full(n, 2.0 * zeta * math.sqrt(settings.stiffness))
     if effective_mass is None:
+        terrain, base_x = scene_ground(scene, terrain, base_x)
         topology = tree.topology()
         q = touchdown_configuration(tree, terrain, base_x)
         out = compiled_step(topology, terrain)(q, np.zeros(len(q)), design_vector(tree), 0.0)
@@ -206,8 +209,8 @@ def drop(
     settings: CompliantSettings,
     n_steps: int,
     timestep: float,
-    terrain: Terrain = FLAT,
-    base_x: float = 0.0,
+    terrain: Terrain | None = None,
+    base_x: float | None = None,
     v_minus: np.ndarray | None = None,
     effective_mass: np.ndarray | None = None,
 ) -> MujocoDrop:
@@ -216,8 +219,11 @@ def drop(
     rung's step and ``round(duration / timestep)`` steps, so that both integrate the same interval
     with the same semi-implicit Euler step; for a step-by-step match run the rung with
     ``flight_step=None`` (MuJoCo takes its contact step in free flight too).
-    ``effective_mass``: see :func:`contact_parameters` (penalty law only)."""
+    ``effective_mass``: see :func:`contact_parameters` (penalty law only). ``terrain`` and
+    ``base_x`` override the scene's own."""
     import mujoco  # lazy: a test and study dependency only
+
+    terrain, base_x = scene_ground(scene, terrain, base_x)
 
     stiffness, damping = contact_parameters(tree, scene, settings, terrain, base_x, effective_mass)
     text = build_mjcf(tree, terrain, timestep, stiffness, damping, settings.gravity, settings.impedance)

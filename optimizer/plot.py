@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from impulse_core.evaluate import Geometry, ImpactResult
-from impulse_core.tree import Tree
+from impulse_core.terrain import FLAT, height, slope_normal, vertical_clearance
+from impulse_core.tree import Scene, Tree
 from optimizer.errors import ConfigError
 
 #: File types ``plot_touchdown`` writes, by suffix.
@@ -16,7 +17,9 @@ PLOT_SUFFIXES = (".png", ".svg")
 _ROD, _JOINT, _CONTACT, _EXTERNAL, _INTERNAL, _GROUND = "#4a6fa5", "#333333", "#c0392b", "#c0392b", "#27ae60", "#777777"
 
 
-def plot_touchdown(tree: Tree, geometry: Geometry, result: ImpactResult, path: str | Path, title: str) -> Path:
+def plot_touchdown(
+    tree: Tree, geometry: Geometry, result: ImpactResult, path: str | Path, title: str, scene: Scene | None = None
+) -> Path:
     """Draw the tree at touchdown and its impulses, and write the figure to ``path``.
 
     Rods are thick lines from joint to tip, joints circles, centres of mass small crosses, the
@@ -28,9 +31,14 @@ def plot_touchdown(tree: Tree, geometry: Geometry, result: ImpactResult, path: s
     Args:
         tree: the design.
         geometry: its touchdown geometry (``impulse_core.evaluate.touchdown_geometry``).
-        result: its impact (``impulse_core.evaluate.evaluate``).
+        result: its impact (``impulse_core.evaluate.evaluate``), or any result with the same
+            fields (``optimizer.landing.TimeDomainResult``).
         path: the file to write, PNG or SVG by its suffix (overwritten if it exists).
         title: first line of the title; the norms are added below it.
+        scene: when it has a ``terrain`` (not the default flat ground), the tree is placed over it
+            as at touchdown (base origin at ``scene.base_x``, lowered until the first contact
+            touches), the ground is the terrain profile, and external impulses point along its
+            normal below each contact.
 
     Returns:
         The path written.
@@ -52,6 +60,11 @@ def plot_touchdown(tree: Tree, geometry: Geometry, result: ImpactResult, path: s
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     origins, tips, coms, contacts = geometry.origins, geometry.tips, geometry.coms, geometry.contacts
+    terrain = None if scene is None or scene.terrain == FLAT else scene.terrain
+    if terrain is not None:  # world frame: base origin at base_x, first contact on the terrain
+        shift = np.array([scene.base_x, 0.0]) - origins[0]
+        shift[1] -= float(np.min(vertical_clearance(terrain, contacts + shift)))
+        origins, tips, coms, contacts = (a + shift for a in (origins, tips, coms, contacts))
     points = [origins, tips, coms, contacts]
 
     for o, t in zip(origins, tips, strict=True):
@@ -88,19 +101,25 @@ def plot_touchdown(tree: Tree, geometry: Geometry, result: ImpactResult, path: s
         ax.annotate(f"{label:.3g}", end, fontsize=8, color=color, xytext=(3, 3), textcoords="offset points", zorder=7)
 
     for i in result.active:
-        arrow(contacts[i], np.array([0.0, result.external[i]]), _EXTERNAL, result.external[i])
+        normal = np.array([0.0, 1.0]) if terrain is None else slope_normal(terrain, contacts[i, 0])
+        arrow(contacts[i], normal * result.external[i], _EXTERNAL, result.external[i])
     for j in range(len(tree.bodies) - 1):
         arrow(origins[j + 1], np.asarray(result.internal[j, :2], dtype=float), _INTERNAL, result.internal_magnitude[j])
 
     all_points = np.vstack(points)
     lo, hi = all_points.min(axis=0), all_points.max(axis=0)
     margin = 0.08 * extent
-    ground = geometry.ground_height
     x0, x1 = lo[0] - margin, hi[0] + margin
-    ax.plot([x0, x1], [ground, ground], color=_GROUND, lw=1.5, zorder=1)
-    ax.fill_between([x0, x1], ground - 0.04 * extent, ground, facecolor="none", edgecolor=_GROUND, hatch="///", lw=0)
+    if terrain is None:
+        gx = np.array([x0, x1])
+        gy = np.full(2, geometry.ground_height)
+    else:
+        gx = np.concatenate([[x0], [x for x in terrain.x if x0 < x < x1], [x1]])
+        gy = height(terrain, gx)
+    ax.plot(gx, gy, color=_GROUND, lw=1.5, zorder=1)
+    ax.fill_between(gx, gy - 0.04 * extent, gy, facecolor="none", edgecolor=_GROUND, hatch="///", lw=0)
     ax.set_xlim(x0, x1)
-    ax.set_ylim(min(lo[1], ground - 0.04 * extent) - margin, hi[1] + margin)
+    ax.set_ylim(min(lo[1], float(gy.min()) - 0.04 * extent) - margin, max(hi[1], float(gy.max())) + margin)
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -1,4 +1,10 @@
-"""What ``footopt evaluate`` prints: a readable text report and a JSON record per model file."""
+"""What ``footopt evaluate`` prints: a readable text report and a JSON record per model file.
+
+One code path writes what every model shares (contacts and their impulses, joints, norms,
+velocities, energy, reference values); a rigid ``ImpactResult`` adds its friction columns and
+warnings, a time-domain result (``optimizer.landing.TimeDomainResult``: sequential or compliant)
+its touchdown table and, compliant, how the integration ended.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +13,17 @@ from typing import Any
 
 import numpy as np
 
+from impulse_core.compliant import CompliantResult, CompliantStatus, ContactLaw
 from impulse_core.contact_models import ImpactModel
 from impulse_core.evaluate import ImpactResult
 from impulse_core.kinematics import PLANAR, dof_layout
-from impulse_core.tree import ContactSelection, Tree
+from impulse_core.terrain import FLAT
+from impulse_core.tree import ContactSelection, Scene, Tree
+from optimizer.landing import TimeDomainResult
 from optimizer.model_file import ModelFile
+
+#: What the reports read: one rigid impact, or a sequential or compliant landing.
+Result = ImpactResult | TimeDomainResult
 
 #: Kinetic energy may grow by this fraction (rounding) before the report calls it a gain.
 ENERGY_GAIN_TOL = 1e-9
@@ -38,20 +50,41 @@ def velocity_names(tree: Tree) -> tuple[tuple[str, str], ...]:
     return base + joints
 
 
-def is_finite(result: ImpactResult) -> bool:
+def is_finite(result: Result) -> bool:
     """True when every number of the result is finite (a solve that failed is not)."""
-    arrays = (result.external, result.internal, result.internal_torque, result.internal_magnitude, result.v_plus)
+    arrays = [result.external, result.internal, result.internal_magnitude, result.v_plus]
+    if isinstance(result, ImpactResult):
+        arrays.append(result.internal_torque)
     scalars = (result.external_norm, result.internal_norm, result.energy_before, result.energy_after)
     return all(np.all(np.isfinite(a)) for a in arrays) and all(math.isfinite(x) for x in scalars)
 
 
-def energy_gained(result: ImpactResult) -> bool:
+def energy_gained(result: Result) -> bool:
     """True when the kinetic energy after the impact exceeds the energy before."""
     return result.energy_after > result.energy_before * (1.0 + ENERGY_GAIN_TOL)
 
 
-def warnings(model: ModelFile, result: ImpactResult) -> tuple[str, ...]:
+def rung(result: Result) -> tuple[str, str]:
+    """The model that ran: its name (``newton``, ``sequential``, ...) and a one-line description."""
+    if isinstance(result, ImpactResult):
+        return result.model.value, result.model.description
+    return result.impact_model, result.description
+
+
+def warnings(model: ModelFile, result: Result) -> tuple[str, ...]:
     """Things about this impact a reader must know, one sentence each."""
+    out = list(
+        _rigid_warnings(model, result) if isinstance(result, ImpactResult) else _time_domain_warnings(model, result)
+    )
+    if energy_gained(result):
+        out.append(
+            f"energy gained: the kinetic energy grows from {result.energy_before:.6g} J to "
+            f"{result.energy_after:.6g} J under the {rung(result)[0]} model"
+        )
+    return tuple(out)
+
+
+def _rigid_warnings(model: ModelFile, result: ImpactResult) -> list[str]:
     names = contact_names(model.tree)
     out = []
     if not result.split_unique:
@@ -82,12 +115,25 @@ def warnings(model: ModelFile, result: ImpactResult) -> tuple[str, ...]:
             f"restitution while carrying impulse (the convex friction law's relaxation): read their normal "
             f"impulses as upper estimates"
         )
-    if energy_gained(result):
-        out.append(
-            f"energy gained: the kinetic energy grows from {result.energy_before:.6g} J to "
-            f"{result.energy_after:.6g} J under the {result.model.value} model"
-        )
-    return tuple(out)
+    return out
+
+
+def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[str]:
+    names = contact_names(model.tree)
+    out = []
+    never = [names[i] for i in range(len(names)) if i not in set(result.active)]
+    if never:
+        out.append(f"contacts {', '.join(never)} never touch the ground during the landing")
+    r = result.result
+    if isinstance(r, CompliantResult):
+        if r.recontacting:
+            out.append(
+                f"contacts {', '.join(names[i] for i in r.recontacting)} head back to the ground after releasing: "
+                "a secondary impact follows that is not included"
+            )
+        if r.status is CompliantStatus.TIMEOUT:
+            out.append(f"the integration stopped at its time limit ({r.duration:.3g} s) with a contact still loaded")
+    return out
 
 
 def _friction_hop(model: ModelFile, result: ImpactResult) -> dict[int, float]:
@@ -105,44 +151,41 @@ def _friction_hop(model: ModelFile, result: ImpactResult) -> dict[int, float]:
     return out
 
 
-def result_record(model: ModelFile, result: ImpactResult, file: str) -> dict[str, Any]:
+def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]:
     """The JSON object ``footopt evaluate --json`` prints for one file (plain Python types).
 
     Keys of the contract (``MODEL_FORMAT.md``): ``external``, ``internal``, ``external_norm``,
-    ``internal_norm``. Extras: ``file``, ``model`` (the law, in words), ``impact_model`` (the
-    rung that ran: decoupled, newton, lcp or friction), ``impact_reason`` (why), ``scene``,
-    ``contacts``, ``active``, ``tangential`` (friction impulse per contact, x), ``separating``,
-    ``joints``, ``joint_kinds``, ``internal_vector``, ``internal_torque``, ``max_internal``,
-    ``max_internal_joint``, ``velocities``, ``v_minus``, ``v_plus``, ``energy_before``,
-    ``energy_after``, ``energy_gained``, ``split_unique``, ``pulling``, ``reference``.
+    ``internal_norm``. Extras for every model: ``file``, ``model`` (the law, in words),
+    ``impact_model`` (what ran: decoupled, newton, lcp, friction, sequential or compliant),
+    ``impact_reason`` (why), ``scene`` (with ``terrain`` as [x, y] points and ``base_x``),
+    ``contacts``, ``active`` (per contact: it hit, or touched down), ``joints``, ``joint_kinds``,
+    ``internal_vector``, ``max_internal``, ``max_internal_joint``, ``velocities``, ``v_minus``,
+    ``v_plus``, ``energy_before``, ``energy_after``, ``energy_gained``, ``reference``.
+    Rigid rungs add ``tangential`` (friction impulse per contact, x), ``separating``,
+    ``internal_torque``, ``split_unique``, ``pulling``. Sequential and compliant add
+    ``touchdown_time`` (s after the first touchdown, per contact; null if it never touches) and
+    ``touchdown_order`` (contact names); compliant also ``status``, ``recontacting``, ``law``,
+    ``stiffness`` (N/m for the penalty law, 1/s^2 for the constraint law) and ``timestep`` (s).
     """
-    tree, scene, ref = model.tree, model.scene, model.reference
+    tree, ref = model.tree, model.reference
     names = contact_names(tree)
     joints = joint_names(tree)
     active = set(result.active)
     mags = result.internal_magnitude
-    return {
+    name, description = rung(result)
+    record: dict[str, Any] = {
         "file": file,
-        "model": result.model.description,
-        "impact_model": result.model.value,
+        "model": description,
+        "impact_model": name,
         "impact_reason": result.reason,
-        "scene": {
-            "speed": _f(scene.speed),
-            "restitution": _f(scene.restitution),
-            "friction": _f(scene.friction),
-            "contacts": scene.selection.value,
-            "contact_tolerance": _f(scene.contact_tolerance),
-        },
+        "scene": _scene_record(model.scene),
         "contacts": list(names),
         "active": [i in active for i in range(len(names))],
         "external": _floats(result.external),
-        "tangential": _floats(result.tangential),
-        "separating": [names[i] for i in result.separating],
         "joints": list(joints),
         "joint_kinds": [b.joint.value for b in tree.bodies[1:]],
         "internal": _floats(mags),
         "internal_vector": [_floats(row[:2]) for row in result.internal],
-        "internal_torque": _floats(result.internal_torque[:, 2]) if len(joints) else [],
         "external_norm": _f(result.external_norm),
         "internal_norm": _f(result.internal_norm),
         "max_internal": _f(result.max_internal),
@@ -153,9 +196,31 @@ def result_record(model: ModelFile, result: ImpactResult, file: str) -> dict[str
         "energy_before": _f(result.energy_before),
         "energy_after": _f(result.energy_after),
         "energy_gained": energy_gained(result),
-        "split_unique": bool(result.split_unique),
-        "pulling": [names[i] for i in result.pulling],
-        "reference": None
+    }
+    if isinstance(result, ImpactResult):
+        record |= {
+            "tangential": _floats(result.tangential),
+            "separating": [names[i] for i in result.separating],
+            "internal_torque": _floats(result.internal_torque[:, 2]) if len(joints) else [],
+            "split_unique": bool(result.split_unique),
+            "pulling": [names[i] for i in result.pulling],
+        }
+    else:
+        record |= {
+            "touchdown_time": [None if math.isnan(t) else _f(t) for t in result.touchdown_time],
+            "touchdown_order": [names[i] for i in result.touchdown_order],
+        }
+        r = result.result
+        if isinstance(r, CompliantResult):
+            record |= {
+                "status": r.status.value,
+                "recontacting": [names[i] for i in r.recontacting],
+                "law": r.law.value,
+                "stiffness": _f(result.settings.stiffness),
+                "timestep": _f(r.timestep),
+            }
+    record["reference"] = (
+        None
         if ref is None
         else {
             "source": ref.source,
@@ -164,57 +229,98 @@ def result_record(model: ModelFile, result: ImpactResult, file: str) -> dict[str
             "external_norm": _opt(ref.external_norm),
             "internal_norm": _opt(ref.internal_norm),
             "note": ref.note,
-        },
+        }
+    )
+    return record
+
+
+def _scene_record(scene: Scene) -> dict[str, Any]:
+    return {
+        "speed": _f(scene.speed),
+        "restitution": _f(scene.restitution),
+        "friction": _f(scene.friction),
+        "contacts": scene.selection.value,
+        "contact_tolerance": _f(scene.contact_tolerance),
+        "terrain": [[_f(x), _f(y)] for x, y in scene.terrain.points],
+        "base_x": _f(scene.base_x),
     }
 
 
-def format_report(model: ModelFile, result: ImpactResult, file: str) -> str:
-    """A plain-text report of one evaluation: contacts, joints, norms, velocities, energy,
-    warnings, with the file's reference values beside ours where it gives them."""
+def format_report(model: ModelFile, result: Result, file: str) -> str:
+    """A plain-text report of one evaluation: contacts, (time-domain models) touchdowns, joints,
+    norms, velocities, energy, warnings, with the file's reference values beside ours where it
+    gives them."""
     tree, scene, ref = model.tree, model.scene, model.reference
     names = contact_names(tree)
     joints = joint_names(tree)
     active = set(result.active)
+    rigid = isinstance(result, ImpactResult)
+    name, description = rung(result)
     selection = (
-        "all declared contacts hit"
+        "the geometry decides (touchdowns below)"
+        if not rigid
+        else "all declared contacts hit"
         if scene.selection is ContactSelection.ALL
         else f"lowest (contacts within {scene.contact_tolerance:g} m of the lowest hit)"
     )
     lines = [
         f"== {file} ==",
-        f"model:   {result.model.value}: {result.model.description}",
+        f"model:   {name}: {description}",
         f"why:     {result.reason}",
-        f"scene:   speed {scene.speed:g} m/s down, restitution e = {scene.restitution:g}, "
-        f"friction {scene.friction:g}, contacts: {selection}",
-        f"tree:    {_count(tree.n_bodies, 'body', 'bodies')}, {len(active)} of {len(names)} declared contacts hit",
+        (
+            f"scene:   speed {scene.speed:g} m/s down, restitution e = {scene.restitution:g}, "
+            f"friction {scene.friction:g}, contacts: {selection}"
+        ),
     ]
+    if scene.terrain != FLAT or scene.base_x != 0.0:
+        points = ", ".join(f"[{x:g}, {y:g}]" for x, y in scene.terrain.points)
+        lines.append(f"ground:  terrain [{points}] (m), base origin at x = {scene.base_x:g} m")
+    verb = "hit" if rigid else "touch down"
+    lines.append(
+        f"tree:    {_count(tree.n_bodies, 'body', 'bodies')}, {len(active)} of {len(names)} declared contacts {verb}"
+    )
     if ref is not None and (ref.source or ref.note):
         lines.append("reference: " + "; ".join(s for s in (ref.source, ref.note) if s))
 
     show_ref_ext = ref is not None and ref.external is not None
-    friction = result.model is ImpactModel.FRICTION and result.tangent_velocity is not None
+    friction = rigid and result.model is ImpactModel.FRICTION and result.tangent_velocity is not None
     slip = dict(zip(result.active, result.tangent_velocity, strict=True)) if friction else {}
     headers = ["contact", "touches", "impulse [N s]"] + (["tangential [N s]", "slip after [m/s]"] if friction else [])
     headers += ["reference [N s]", "diff"] if show_ref_ext else []
     rows = []
-    for i, name in enumerate(names):
-        row = [name, "yes" if i in active else "no", _num(result.external[i])]
+    for i, cname in enumerate(names):
+        row = [cname, "yes" if i in active else "no", _num(result.external[i])]
         row += [_num(result.tangential[i]), _num(slip[i]) if i in slip else "-"] if friction else []
         if show_ref_ext:
             assert ref is not None and ref.external is not None
             row += _ref_cells(result.external[i], ref.external[i])
         rows.append(row)
-    kind = "normal and tangential along +x" if friction else "normal"
+    kind = "normal and tangential along +x" if friction else "normal" if rigid else "along the local ground normal"
     lines += ["", f"External impulses ({kind}, on the contacts)"] + _table(headers, rows)
+
+    if not rigid:
+        order = {c: k + 1 for k, c in enumerate(result.touchdown_order)}
+        rows = [
+            [cname, "-" if math.isnan(t) else f"{1e3 * t:.3f}", str(order[i]) if i in order else "-"]
+            for i, (cname, t) in enumerate(zip(names, result.touchdown_time, strict=True))
+        ]
+        lines += ["", "Touchdowns (time after the first one)"] + _table(["contact", "touchdown [ms]", "order"], rows)
+        r = result.result
+        if isinstance(r, CompliantResult):
+            unit = "N/m" if r.law is ContactLaw.PENALTY else "1/s^2"
+            lines.append(
+                f"integration: {r.status.value} after {1e3 * r.duration:.3f} ms, {r.n_steps} contact steps of "
+                f"{r.timestep:.3g} s and {r.n_flight_steps} flight steps; stiffness {result.settings.stiffness:g} {unit}"
+            )
 
     if joints:
         show_ref_int = ref is not None and ref.internal is not None
         headers = ["joint (child)", "kind", "x [N s]", "y [N s]", "|impulse| [N s]"]
         headers += ["reference [N s]", "diff"] if show_ref_int else []
         rows = []
-        for j, name in enumerate(joints):
+        for j, jname in enumerate(joints):
             x, y = result.internal[j, :2]
-            row = [name, tree.bodies[j + 1].joint.value, _num(x), _num(y), _num(result.internal_magnitude[j])]
+            row = [jname, tree.bodies[j + 1].joint.value, _num(x), _num(y), _num(result.internal_magnitude[j])]
             if show_ref_int:
                 assert ref is not None and ref.internal is not None
                 row += _ref_cells(result.internal_magnitude[j], ref.internal[j])
@@ -232,8 +338,8 @@ def format_report(model: ModelFile, result: ImpactResult, file: str) -> str:
         lines.append(f"largest joint impulse: {result.max_internal:.4f} N s, through the joint of {joints[j]}")
 
     rows = [
-        [f"{name} [{unit}]", _num(before), _num(after)]
-        for (name, unit), before, after in zip(velocity_names(tree), result.v_minus, result.v_plus, strict=True)
+        [f"{vname} [{unit}]", _num(before), _num(after)]
+        for (vname, unit), before, after in zip(velocity_names(tree), result.v_minus, result.v_plus, strict=True)
     ]
     lines += ["", "Velocities"] + _table(["velocity", "before", "after"], rows)
 
@@ -287,12 +393,14 @@ def _opt(x: float | None) -> float | None:
 
 
 __all__ = [
+    "Result",
     "contact_names",
     "energy_gained",
     "format_report",
     "is_finite",
     "joint_names",
     "result_record",
+    "rung",
     "velocity_names",
     "warnings",
 ]

@@ -1,5 +1,5 @@
 """Scenes for the compliant-rung, terrain and MuJoCo tests, defined in code (independent of the
-model-file parser, which does not know ``scene.terrain`` yet).
+model-file parser; configs/uneven_terrain.yaml carries the same scene as ``scene.terrain``).
 
 ``case2`` is the paper's case-2 foot as reconstructed in configs/paper_case2.yaml (the same
 links and touchdown angles); ``UNEVEN`` is configs/uneven_terrain.yaml's ground (toe on a ramp,

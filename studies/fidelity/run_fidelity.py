@@ -25,7 +25,7 @@ if str(ROOT) not in sys.path:
 from impulse_core.compliant import CompliantSettings, ContactLaw, simulate_impact  # noqa: E402
 from impulse_core.sequential import sequential_impacts  # noqa: E402
 from optimizer.accuracy import format_table, measure_accuracy, plot, write_csv  # noqa: E402
-from optimizer.terrain_scene import load_terrain_scene  # noqa: E402
+from optimizer.model_file import load_model_file  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 SCENES = ("paper_case2", "paper_case3", "uneven_terrain")
@@ -38,9 +38,9 @@ def force_profiles(path: Path) -> Path:
 
     from optimizer.mujoco_bridge import drop
 
-    ts = load_terrain_scene(ROOT / "configs" / "uneven_terrain.yaml")
-    tree, scene = ts.model.tree, ts.model.scene
-    seq = sequential_impacts(tree, scene, terrain=ts.terrain, base_x=ts.base_x)
+    model = load_model_file(ROOT / "configs" / "uneven_terrain.yaml")
+    tree, scene = model.tree, model.scene
+    seq = sequential_impacts(tree, scene)
     fig = Figure(figsize=(10, 4))
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, 2, sharey=True)
@@ -51,7 +51,7 @@ def force_profiles(path: Path) -> Path:
             (ContactLaw.CONSTRAINT, 1e8, "--"),
         ):
             st = CompliantSettings(law=law, stiffness=k, steps_per_period=240)
-            c = simulate_impact(tree, scene, st, ts.terrain, ts.base_x)
+            c = simulate_impact(tree, scene, st)
             t0 = c.touchdown_time[contact]
             unit = "N/m" if law is ContactLaw.PENALTY else "1/s^2"
             ax.plot(
@@ -69,8 +69,8 @@ def force_profiles(path: Path) -> Path:
         ax.set_title(f"{name}; rigid sequential impulse {seq.external[contact]:.4f} N s", fontsize=9)
         ax.legend(fontsize=7)
     st = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=1e8, steps_per_period=240)
-    c = simulate_impact(tree, scene, st, ts.terrain, ts.base_x)
-    mj = drop(tree, scene, st, c.n_steps, c.timestep, ts.terrain, ts.base_x)
+    c = simulate_impact(tree, scene, st)
+    mj = drop(tree, scene, st, c.n_steps, c.timestep, scene.terrain, scene.base_x)
     for ax, contact in zip(axes, (1, 0)):
         ax.plot([], [], " ", label=f"MuJoCo (constraint, 1e8): {mj.external[contact]:.4f} N s")
         ax.legend(fontsize=7)
@@ -108,10 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     ]
     for name in SCENES:
         t0 = time.perf_counter()
-        ts = load_terrain_scene(ROOT / "configs" / f"{name}.yaml")
-        report = measure_accuracy(
-            name, ts.model.tree, ts.model.scene, ts.terrain, ts.base_x, include_mujoco=True, **sweep
-        )
+        model = load_model_file(ROOT / "configs" / f"{name}.yaml")
+        report = measure_accuracy(name, model.tree, model.scene, include_mujoco=True, **sweep)
         write_csv(report, args.out / f"{name}.csv")
         plot(report, args.out / f"{name}.png")
         newton = next((r for r in report.rows if r.measurement.rung == "newton"), None)

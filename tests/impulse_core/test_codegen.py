@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from impulse_core.codegen import Backend, compile_function, find_compiler
+from impulse_core.codegen import Backend, batch_kernel, compile_function, find_compiler
 from impulse_core.evaluate import approach_velocity, compiled_model
 from impulse_core.tree import Body, Tree, design_vector
 
@@ -41,3 +41,27 @@ def test_falls_back_to_vm(leg, tmp_path) -> None:
     broken = compile_function(f, tmp_path, compiler="/nonexistent/cc")
     assert broken.backend is Backend.VIRTUAL_MACHINE
     np.testing.assert_array_equal(np.array(broken.function(p, v, 0.8)[0]), np.array(f(p, v, 0.8)[0]))
+
+
+@pytest.mark.skipif(find_compiler() is None, reason="no C compiler on this machine")
+def test_batch_kernel_equals_single_calls(leg, tmp_path) -> None:
+    """The compiled C loop over designs (one design per row) gives each design's single-call
+    outputs, bit for bit; the VM path has no kernel."""
+    f, p, v = leg
+    compiled = compile_function(f, tmp_path)
+    kernel = batch_kernel(compiled, f)
+    rng = np.random.default_rng(3)
+    P = p[None, :] * (1 + 0.01 * rng.standard_normal((5, p.size)))
+    E = np.full((5, 1), 0.8)
+    out = kernel(P, np.repeat(v[None, :], 5, axis=0), E)
+    for i in range(5):
+        single = compiled.function(P[i], v, 0.8)
+        for k in range(f.n_out()):
+            np.testing.assert_array_equal(out[k][i], np.array(single[k]).ravel(order="F"))
+    parallel = batch_kernel(compiled, f, parallel=True)
+    many = np.repeat(P, 40, axis=0)  # enough rows for the OpenMP loop to split
+    serial = kernel(many, np.repeat(v[None, :], 200, axis=0), np.full((200, 1), 0.8))
+    split = parallel(many, np.repeat(v[None, :], 200, axis=0), np.full((200, 1), 0.8))
+    for a, b in zip(serial, split):
+        np.testing.assert_array_equal(a, b)
+    assert batch_kernel(compile_function(f, None), f) is None

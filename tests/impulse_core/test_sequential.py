@@ -94,20 +94,15 @@ def test_terrain_modules_import_only_casadi_and_numpy(module):
 
 
 def test_a_scene_carrying_its_terrain_is_used():
-    """Forward compatibility: once ``Scene`` carries ``terrain`` and ``base_x`` (the proposed
-    model-file keys), both time-domain models take them without arguments."""
+    """Both time-domain models take ``scene.terrain`` and ``scene.base_x`` without arguments, and
+    an argument overrides the scene's."""
     import dataclasses
 
     from impulse_core.compliant import CompliantSettings, simulate_impact
 
-    @dataclasses.dataclass(frozen=True)
-    class SceneWithGround:
-        speed: float = 3.43
-        restitution: float = 0.8
-        friction: float = 0.0
-        terrain: Terrain = UNEVEN
-        base_x: float = 0.0
-
-    scene = SceneWithGround()
+    scene = dataclasses.replace(PAPER_SCENE, terrain=UNEVEN, base_x=0.0)
     assert sequential_impacts(case2(), scene).touchdown_order == (1, 0)
     assert simulate_impact(case2(), scene, CompliantSettings(steps_per_period=30)).touchdown_order == (1, 0)
+    assert sequential_impacts(case2(), PAPER_SCENE, terrain=UNEVEN).touchdown_order == (1, 0)
+    shifted = sequential_impacts(case2(), dataclasses.replace(scene, base_x=0.01))
+    assert shifted.touchdown_time[0] != sequential_impacts(case2(), scene).touchdown_time[0]

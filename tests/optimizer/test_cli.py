@@ -248,7 +248,7 @@ def test_keyboard_interrupt_exits_130(leg_file: Path, monkeypatch, capsys) -> No
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(optimizer.cli, "evaluate", interrupted)
+    monkeypatch.setattr(optimizer.cli, "evaluate_landing", interrupted)
     assert main(["evaluate", str(leg_file)]) == 130
     assert "Traceback" not in capsys.readouterr().err
 
@@ -492,6 +492,6 @@ def test_a_failing_solve_is_a_numerical_failure(leg_file: Path, monkeypatch, cap
     def singular(*args, **kwargs):
         raise np.linalg.LinAlgError("SVD did not converge")
 
-    monkeypatch.setattr(optimizer.cli, "evaluate", singular)
+    monkeypatch.setattr(optimizer.cli, "evaluate_landing", singular)
     assert main(["evaluate", str(leg_file)]) == 1
     _assert_one_error_line(capsys.readouterr().err, leg_file, "numerical failure")

@@ -13,6 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from impulse_core.errors import FootoptError
+from impulse_core.terrain import FLAT, Terrain
 from impulse_core.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
 from optimizer.errors import ConfigError
 from optimizer.model_file import (
@@ -25,6 +26,8 @@ from optimizer.model_file import (
     parse_model,
 )
 from tests.optimizer.conftest import LEG_YAML
+
+ROOT = Path(__file__).resolve().parents[2]
 
 # --------------------------------------------------------------------------------------------
 # YAML 1.2 scalars
@@ -132,6 +135,53 @@ def test_contact_selection(write, line: str, selection: ContactSelection) -> Non
     assert load_model_file(write(text)).scene.selection is selection
 
 
+def test_without_terrain_keys_the_ground_is_flat(leg_file: Path) -> None:
+    scene = load_model_file(leg_file).scene
+    assert scene.terrain == FLAT and scene.base_x == 0.0
+
+
+def test_terrain_and_base_x_are_read(write) -> None:
+    text = LEG_YAML.replace("  contacts: all\n", "  terrain: [[-1, 0], [0.5, 0.0], [1e0, 2E-2]]\n  base_x: -0.25\n")
+    scene = load_model_file(write(text)).scene
+    assert scene.terrain == Terrain((-1.0, 0.5, 1.0), (0.0, 0.0, 0.02))
+    assert scene.base_x == -0.25
+    one = load_model_file(write(LEG_YAML.replace("  contacts: all\n", "  terrain: [[3, 0.1]]\n"))).scene.terrain
+    assert one == Terrain((3.0,), (0.1,)) and one.is_flat
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        ("  terrain: []", r"^scene\.terrain: must be a non-empty list"),
+        ("  terrain: [0, 1]", r"^scene\.terrain\[0\]: must be a pair \[x, y\]"),
+        ("  terrain: {x: 0}", r"^scene\.terrain: must be a non-empty list"),
+        ("  terrain: [[0, 0], [1]]", r"^scene\.terrain\[1\]: must be a pair"),
+        ("  terrain: [[0, 0], [1, 2, 3]]", r"^scene\.terrain\[1\]: must be a pair"),
+        ("  terrain: [[0, 0], [1, yes]]", r"^scene\.terrain\[1\]\[1\]: must be a number"),
+        ("  terrain: [[0, 0], [true, 1]]", r"^scene\.terrain\[1\]\[0\]: must be a number"),
+        ("  terrain: [[0, 0], [0, 1]]", r"^scene\.terrain\[1\]: x must increase strictly"),
+        ("  terrain: [[0, 0], [1, 0], [0.5, 1]]", r"^scene\.terrain\[2\]: x must increase strictly"),
+        ("  terrain: [[0, .nan]]", r"^scene\.terrain\[0\]\[1\]: must be a finite number"),
+        ("  base_x: east", r"^scene\.base_x: must be a number"),
+        ("  base_x: .inf", r"^scene\.base_x: must be a finite number"),
+        ("  terain: [[0, 0]]", r"^scene\.terain: unknown key \(did you mean 'terrain'\?"),
+    ],
+)
+def test_bad_terrain_is_named_by_its_path(write, line: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        load_model_file(write(LEG_YAML.replace("  contacts: all\n", line + "\n")))
+
+
+def test_scene_validates_base_x_and_stays_hashable() -> None:
+    with pytest.raises(FootoptError, match=r"^scene\.base_x: must be a finite number"):
+        Scene(base_x=math.nan)
+    with pytest.raises(FootoptError, match=r"^scene\.terrain: must be a Terrain"):
+        Scene(terrain=[[0.0, 0.0]])  # type: ignore[arg-type]
+    ramp = Terrain((0.0, 1.0), (0.0, 0.1))
+    assert hash(Scene(terrain=ramp, base_x=0.5)) == hash(Scene(terrain=Terrain((0.0, 1.0), (0.0, 0.1)), base_x=0.5))
+    assert Scene() == Scene(terrain=FLAT, base_x=0.0)
+
+
 def test_every_field(write) -> None:
     text = LEG_YAML.replace("  contacts: all\n", "  friction: 0.25\n  contact_tolerance: 1e-4\n").replace(
         "      angle: 1.2\n",
@@ -224,9 +274,30 @@ def test_round_trip(tmp_path: Path, foot_file: Path) -> None:
     assert again.path == tmp_path / "again.yaml"
 
 
+def test_terrain_and_base_x_round_trip(tmp_path: Path, leg_tree: Tree) -> None:
+    for terrain, base_x in ((Terrain((-1.0, 0.45, 0.75), (0.0, 0.0, 0.04)), -0.25), (Terrain((2.0,), (0.1,)), 0.0)):
+        model = ModelFile(leg_tree, Scene(terrain=terrain, base_x=base_x))
+        again = load_model_file(dump_model_file(model, tmp_path / "terrain.yaml", overwrite=True))
+        assert again == model and again.scene.terrain == terrain and again.scene.base_x == base_x
+    assert load_model_file(ROOT / "configs" / "uneven_terrain.yaml").scene.terrain == Terrain(
+        (-1.0, 0.45, 0.75), (0.0, 0.0, 0.04)
+    )
+
+
 def test_defaults_are_left_out(leg_tree: Tree, leg_scene: Scene) -> None:
     text = format_model_file(ModelFile(leg_tree, leg_scene))
-    for key in ("at:", "joint:", "com:", "inertia:", "gyration:", "contact_tolerance:", "reference:", "notes:"):
+    for key in (
+        "at:",
+        "joint:",
+        "com:",
+        "inertia:",
+        "gyration:",
+        "contact_tolerance:",
+        "reference:",
+        "notes:",
+        "terrain:",
+        "base_x:",
+    ):
         assert key not in text
     assert "parent: shank" in text  # parents are written as names
 
@@ -274,6 +345,13 @@ _positive = st.floats(1e-9, 1e9, allow_nan=False, exclude_min=False)
 
 
 @st.composite
+def terrains(draw: st.DrawFn) -> Terrain:
+    """Ground profiles: 1-5 points, x strictly increasing."""
+    xs = sorted(draw(st.lists(_value, min_size=1, max_size=5, unique=True)))
+    return Terrain(tuple(xs), tuple(draw(st.lists(_value, min_size=len(xs), max_size=len(xs)))))
+
+
+@st.composite
 def model_files(draw: st.DrawFn) -> ModelFile:
     n = draw(st.integers(1, 5))
     names = draw(
@@ -309,6 +387,8 @@ def model_files(draw: st.DrawFn) -> ModelFile:
         friction=draw(st.floats(0.0, 10.0)),
         selection=draw(st.sampled_from(ContactSelection)),
         contact_tolerance=draw(st.floats(0.0, 1.0)),
+        terrain=draw(st.one_of(st.just(FLAT), terrains())),
+        base_x=draw(st.one_of(st.just(0.0), _value)),
     )
     maybe = st.one_of(st.none(), _value)
     reference = draw(
