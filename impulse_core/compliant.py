@@ -416,6 +416,14 @@ def compiled_step(topology: Topology, terrain: Terrain, space: Space = PLANAR) -
     return step_function(topology, terrain, space)
 
 
+def joint_impulses(per_body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Planar joint impulses (2 x bodies, the base's column unused) as the result's
+    (n_joints x 3) vectors and their magnitudes."""
+    joint = per_body[:, 1:].T
+    internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
+    return internal, np.linalg.norm(internal, axis=1)
+
+
 def touchdown_order(touchdown_time: np.ndarray, resolution: float) -> tuple[int, ...]:
     """The contacts that touched (finite times), by time; touchdowns closer than ``resolution``
     (s, one integration step) in a chain are simultaneous and keep their declaration order."""
@@ -846,9 +854,7 @@ def simulate_impact(
             )
         s = evaluate_step(q, v)
 
-    joint = joint_impulse[:, 1:].T
-    internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
-    magnitude = np.linalg.norm(internal, axis=1)
+    internal, magnitude = joint_impulses(joint_impulse)
     order = touchdown_order(touchdown, dt)
     energy_after = float(s.kinetic[0])
     return CompliantResult(

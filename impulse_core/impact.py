@@ -233,6 +233,25 @@ GRADIENT_OUTPUTS = LEAN_OUTPUTS[3:] + ("d_external_norm", "d_internal_norm")
 LEAN_OPTIONS = {"cse": True}
 
 
+def _lean_outputs(
+    topology: Topology, bodies: tuple[int, ...], n: ca.DM, force: list[ca.SX], lam: ca.SX, pivots: ca.SX
+) -> tuple[ca.SX, ...]:
+    """``LEAN_OUTPUTS`` from each body's momentum change ``force`` (consumed): subtract the contact
+    impulses, sum over subtrees (the joint impulse behind each body), take magnitudes and norms."""
+    for i, c in enumerate(topology.active):
+        force[bodies[c]] = force[bodies[c]] - lam[i] * n
+    for b in reversed(range(1, topology.n_bodies)):
+        force[topology.parents[b]] = force[topology.parents[b]] + force[b]
+    magnitude = ca.vertcat(*[ca.sqrt(force[b].T @ force[b]) for b in range(1, topology.n_bodies)])
+    return (
+        lam,
+        pivots,
+        magnitude,
+        ca.norm_2(lam) if lam.shape[0] else ca.SX(0),
+        ca.norm_2(magnitude) if magnitude.shape[0] else ca.SX(0),
+    )
+
+
 def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX) -> tuple[ca.SX, ...]:
     """The outputs ``LEAN_OUTPUTS`` in O(n) per contact, by the articulated-body algorithm.
 
@@ -280,18 +299,7 @@ def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus:
         forces[bodies[c]] = forces.get(bodies[c], ca.SX.zeros(6, 1)) + lam[i] * unit_impulse(c)
     dV, _ = dyn.impulse_response(art, forces)
     force = [inertias[b].momentum(dV[b][:3], dV[b][3:])[1] for b in range(topology.n_bodies)]
-    for i, c in enumerate(active):
-        force[bodies[c]] = force[bodies[c]] - lam[i] * n
-    for b in reversed(range(1, topology.n_bodies)):
-        force[topology.parents[b]] = force[topology.parents[b]] + force[b]
-    magnitude = ca.vertcat(*[ca.sqrt(force[b].T @ force[b]) for b in range(1, topology.n_bodies)])
-    return (
-        lam,
-        pivots,
-        magnitude,
-        ca.norm_2(lam) if nc else ca.SX(0),
-        ca.norm_2(magnitude) if magnitude.shape[0] else ca.SX(0),
-    )
+    return _lean_outputs(topology, bodies, n, force, lam, pivots)
 
 
 def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX) -> tuple[ca.SX, ...]:
@@ -351,18 +359,7 @@ def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: c
         omega.append(w)
         vel.append(v)
     force = [inertias[b].momentum(omega[b], vel[b])[1] for b in range(topology.n_bodies)]
-    for i, c in enumerate(topology.active):
-        force[bodies[c]] = force[bodies[c]] - lam[i] * n
-    for b in reversed(range(1, topology.n_bodies)):
-        force[topology.parents[b]] = force[topology.parents[b]] + force[b]
-    magnitude = ca.vertcat(*[ca.sqrt(force[b].T @ force[b]) for b in range(1, topology.n_bodies)])
-    return (
-        lam,
-        pivots,
-        magnitude,
-        ca.norm_2(lam) if nc else ca.SX(0),
-        ca.norm_2(magnitude) if magnitude.shape[0] else ca.SX(0),
-    )
+    return _lean_outputs(topology, bodies, n, force, lam, pivots)
 
 
 class LeanAlgorithm(Enum):

@@ -20,9 +20,11 @@ import numpy as np
 from impulse_core.compliant import (
     _Evaluator,
     compiled_step,
+    joint_impulses,
     scene_ground,
     subtree_incidence,
     touchdown_configuration,
+    touchdown_order,
 )
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.kinematics import dof_layout
@@ -212,9 +214,7 @@ def sequential_impacts(
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise NumericalError(f"the free flight diverged at t = {t:.3g} s")
     s = evaluate_step(q, v)
-    internal = np.column_stack([joint[:, 1:].T, np.zeros(tree.n_bodies - 1)])
-    magnitude = np.linalg.norm(internal, axis=1)
-    touched = np.flatnonzero(np.isfinite(touchdown))
+    internal, magnitude = joint_impulses(joint)
     energy_after = float(s.kinetic[0])
     return SequentialResult(
         external=external,
@@ -224,7 +224,7 @@ def sequential_impacts(
         external_norm=float(np.linalg.norm(external)),
         internal_norm=float(np.linalg.norm(magnitude)),
         touchdown_time=touchdown,
-        touchdown_order=tuple(int(i) for i in touched[np.argsort(touchdown[touched], kind="stable")]),
+        touchdown_order=touchdown_order(touchdown, 0.0),
         events=tuple(events),
         q_plus=q,
         v_plus=v,

@@ -24,10 +24,8 @@ Extensions to the contract (a file without them means what the contract says):
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,6 +36,11 @@ from impulse_core.errors import ModelError
 from impulse_core.terrain import FLAT, Terrain
 from impulse_core.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
 from optimizer.errors import ConfigError
+from optimizer.yaml_fields import describe as _describe
+from optimizer.yaml_fields import join as _join
+from optimizer.yaml_fields import mapping as _mapping
+from optimizer.yaml_fields import number as _number
+from optimizer.yaml_fields import string as _string
 
 TOP_KEYS = ("scene", "model", "reference", "notes")
 SCENE_KEYS = ("speed", "restitution", "friction", "contacts", "contact_tolerance", "terrain", "base_x")
@@ -460,51 +463,12 @@ def parse_reference(data: Any, where: str = "reference") -> Reference:
 # Field helpers: each raises ConfigError naming the YAML path
 
 
-def _join(path: str, key: object) -> str:
-    return f"{path}.{key}" if path else str(key)
-
-
-def _describe(value: Any) -> str:
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return f"{str(value).lower()} (a boolean)"
-    if isinstance(value, str):
-        return f"{value!r} (a string)"
-    if isinstance(value, Mapping):
-        return "a mapping"
-    if isinstance(value, Sequence):
-        return "a list"
-    return repr(value)
-
-
-def _mapping(value: Any, where: str, allowed: tuple[str, ...], what: str | None = None) -> dict[str, Any]:
-    what = what or where
-    if not isinstance(value, dict):
-        raise ConfigError(f"{what}: must be a mapping with keys {', '.join(allowed)}; got {_describe(value)}")
-    for key in value:
-        if key not in allowed:
-            close = difflib.get_close_matches(str(key), allowed, n=1)
-            hint = f"did you mean '{close[0]}'? " if close else ""
-            raise ConfigError(f"{_join(where, key)}: unknown key ({hint}allowed: {', '.join(allowed)})")
-    return value
-
-
 def _required(m: dict[str, Any], key: str, where: str) -> Any:
     if key not in m:
         raise ConfigError(f"{_join(where, key)}: missing (required)")
     if m[key] is None:
         raise ConfigError(f"{_join(where, key)}: required, got null")
     return m[key]
-
-
-def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{where}: must be a number, got {_describe(value)}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise ConfigError(f"{where}: must be a finite number, got {x!r}")
-    return x
 
 
 def _positive(value: Any, where: str) -> float:
@@ -519,12 +483,6 @@ def _fraction(value: Any, where: str, what: str) -> float:
     if not 0.0 <= x <= 1.0:
         raise ConfigError(f"{where}: must be in [0, 1] ({what}), got {x!r}")
     return x
-
-
-def _string(value: Any, where: str) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise ConfigError(f"{where}: must be a non-empty string, got {_describe(value)}")
-    return value
 
 
 def _choice(value: Any, where: str, enum: Any, what: str) -> Any:

@@ -9,8 +9,6 @@ with defaults, is ``configs/quick_study.yaml``; :func:`format_study` writes a re
 
 from __future__ import annotations
 
-import difflib
-import math
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -20,6 +18,11 @@ from impulse_core.tree import Scene
 from optimizer.design_space import DesignSpace, FootLimits, Leg, MassMode, Objective, ToeSymmetry
 from optimizer.errors import ConfigError
 from optimizer.model_file import load_yaml
+from optimizer.yaml_fields import describe as _describe
+from optimizer.yaml_fields import join as _join
+from optimizer.yaml_fields import mapping as _checked_mapping
+from optimizer.yaml_fields import number as _number
+from optimizer.yaml_fields import string as _string
 
 
 class SearchMethod(Enum):
@@ -338,54 +341,19 @@ def _string_text(s: str) -> str:
 # Field helpers: each raises ConfigError naming the YAML path
 
 
-def _join(path: str, key: object) -> str:
-    return f"{path}.{key}" if path else str(key)
-
-
-def _describe(value: Any) -> str:
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, str):
-        return repr(value)
-    if isinstance(value, dict):
-        return "a mapping"
-    if isinstance(value, list):
-        return "a list"
-    return repr(value)
-
-
 def _allowed(enum: type[Enum]) -> str:
     return ", ".join(e.value for e in enum)
 
 
 def _mapping(value: Any, where: str, allowed: tuple[str, ...], what: str | None = None) -> dict[str, Any]:
-    if value is None:
-        return {}
-    if not isinstance(value, dict):
-        raise ConfigError(f"{what or where}: must be a mapping with keys {', '.join(allowed)}; got {_describe(value)}")
-    for key in value:
-        if key not in allowed:
-            close = difflib.get_close_matches(str(key), allowed, n=1)
-            hint = f"did you mean '{close[0]}'? " if close else ""
-            raise ConfigError(f"{_join(where, key)}: unknown key ({hint}allowed: {', '.join(allowed)})")
-    return value
+    """A mapping with only ``allowed`` keys; an absent section (null) is empty."""
+    return {} if value is None else _checked_mapping(value, where, allowed, what)
 
 
 def _required(m: dict[str, Any], key: str, where: str) -> Any:
     if m.get(key) is None:
         raise ConfigError(f"{_join(where, key)}: missing (required)")
     return m[key]
-
-
-def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{where}: must be a number, got {_describe(value)}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise ConfigError(f"{where}: must be a finite number, got {x!r}")
-    return x
 
 
 def _positive(value: Any, where: str) -> float:
@@ -399,12 +367,6 @@ def _integer(value: Any, where: str, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise ConfigError(f"{where}: must be an integer >= {minimum}, got {_describe(value)}")
     return int(value)
-
-
-def _string(value: Any, where: str) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise ConfigError(f"{where}: must be a non-empty string, got {_describe(value)}")
-    return value
 
 
 def _pair(value: Any, where: str, what: str) -> tuple[Any, Any]:

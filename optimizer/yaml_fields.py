@@ -1,0 +1,61 @@
+"""Checks shared by the YAML readers (model files, study files): each raises ConfigError with the
+YAML path of the bad value (``model.bodies[2].mass: ...``)."""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from optimizer.errors import ConfigError
+
+
+def join(path: str, key: object) -> str:
+    """The YAML path of ``key`` under ``path`` (``scene`` + ``speed`` -> ``scene.speed``)."""
+    return f"{path}.{key}" if path else str(key)
+
+
+def describe(value: Any) -> str:
+    """A short description of a bad value for an error message."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return f"{str(value).lower()} (a boolean)"
+    if isinstance(value, str):
+        return f"{value!r} (a string)"
+    if isinstance(value, Mapping):
+        return "a mapping"
+    if isinstance(value, Sequence):
+        return "a list"
+    return repr(value)
+
+
+def mapping(value: Any, where: str, allowed: tuple[str, ...], what: str | None = None) -> dict[str, Any]:
+    """``value`` if it is a mapping whose keys are all ``allowed`` (a typo gets a suggestion)."""
+    what = what or where
+    if not isinstance(value, dict):
+        raise ConfigError(f"{what}: must be a mapping with keys {', '.join(allowed)}; got {describe(value)}")
+    for key in value:
+        if key not in allowed:
+            close = difflib.get_close_matches(str(key), allowed, n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise ConfigError(f"{join(where, key)}: unknown key ({hint}allowed: {', '.join(allowed)})")
+    return value
+
+
+def number(value: Any, where: str) -> float:
+    """A finite number (booleans are not numbers)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{where}: must be a number, got {describe(value)}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ConfigError(f"{where}: must be a finite number, got {x!r}")
+    return x
+
+
+def string(value: Any, where: str) -> str:
+    """A non-empty string."""
+    if not isinstance(value, str) or not value.strip():
+        raise ConfigError(f"{where}: must be a non-empty string, got {describe(value)}")
+    return value
