@@ -236,21 +236,26 @@ def load_model_file(path: str | Path) -> ModelFile:
             message names the field (``model.bodies[2].mass: ...``), ``source`` the file.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError("file not found", path) from None
-    except IsADirectoryError:
-        raise ConfigError("is a directory, not a model file", path) from None
-    except UnicodeDecodeError as e:
-        raise ConfigError(f"not a UTF-8 text file (byte {e.start})", path) from None
-    except OSError as e:
-        raise ConfigError(f"cannot read the file: {e.strerror or e}", path) from None
+    text = read_text(path, "model file")
     try:
         return parse_model(load_yaml(text, path), path)
     except ConfigError as e:
         e.source = e.source or path
         raise
+
+
+def read_text(path: Path, what: str) -> str:
+    """The UTF-8 text of a config file, or ConfigError saying why it cannot be read."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError("file not found", path) from None
+    except IsADirectoryError:
+        raise ConfigError(f"is a directory, not a {what}", path) from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"not a UTF-8 text file (byte {e.start})", path) from None
+    except OSError as e:
+        raise ConfigError(f"cannot read the file: {e.strerror or e}", path) from None
 
 
 def parse_model(data: Any, path: str | Path | None = None) -> ModelFile:

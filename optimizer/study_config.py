@@ -17,7 +17,7 @@ from typing import Any
 from impulse_core.tree import Scene
 from optimizer.design_space import DesignSpace, FootLimits, Leg, MassMode, Objective, ToeSymmetry
 from optimizer.errors import ConfigError
-from optimizer.model_file import load_yaml
+from optimizer.model_file import load_yaml, read_text
 from optimizer.yaml_fields import describe as _describe
 from optimizer.yaml_fields import join as _join
 from optimizer.yaml_fields import mapping as _checked_mapping
@@ -126,14 +126,7 @@ def load_study(path: str | Path) -> StudyConfig:
             first; ``source``: the file).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError("file not found", path) from None
-    except IsADirectoryError:
-        raise ConfigError("is a directory, not a study file", path) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise ConfigError(f"cannot read the file: {e}", path) from None
+    text = read_text(path, "study file")
     try:
         return parse_study(load_yaml(text, path), path)
     except ConfigError as e:
