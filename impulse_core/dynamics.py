@@ -178,6 +178,31 @@ def joint_motions(kin: Kinematics, layout: DofLayout, space: Space = PLANAR) -> 
     return tuple(out)
 
 
+def body_velocities(
+    parents: tuple[int, ...], kin: Kinematics, layout: DofLayout, motions: tuple[JointMotion, ...], x: ca.SX
+) -> tuple[tuple[ca.SX, ...], tuple[ca.SX, ...]]:
+    """Angular velocity and velocity of the joint origin O_b of every body (world frame) under
+    the generalized velocity ``x``: one forward pass (RBDA alg. 7.3, first loop), the base's
+    from its DOFs, each child's from its parent's plus its own joint (which turns about O_b)."""
+    omega: list[ca.SX] = []
+    vel: list[ca.SX] = []
+    for b, parent in enumerate(parents):
+        O_b = kin.W_p_O[b]
+        if parent < 0:
+            w, v = ca.SX.zeros(3, 1), ca.SX.zeros(3, 1)
+            for k in layout.body_support[0]:
+                w = w + motions[k].omega * x[k]
+                v = v + motions[k].velocity_at(O_b) * x[k]
+        else:
+            w, v = omega[parent], vel[parent] + ca.cross(omega[parent], O_b - kin.W_p_O[parent])
+            k = layout.body_dof[b]
+            if k is not None:
+                w = w + motions[k].omega * x[k]
+        omega.append(w)
+        vel.append(v)
+    return tuple(omega), tuple(vel)
+
+
 @dataclass(frozen=True)
 class SpatialInertia:
     """A rigid body's (or a subtree's) inertia about a reference point P, world frame.
@@ -346,13 +371,16 @@ def articulated_bodies(
     return ArticulatedBodies(tuple(S), tuple(dofs), tuple(U), tuple(D), tuple(r_parent), tuple(parents))
 
 
-def impulse_response(art: ArticulatedBodies, forces: dict[int, ca.SX]) -> tuple[tuple[ca.SX, ...], dict[int, ca.SX]]:
-    """Velocity change of every body under external impulses (RBDA alg. 7.3 with zero velocity
-    and zero joint forces: Delta v = M^-1 J^T lambda in O(n)).
+def impulse_response(
+    art: ArticulatedBodies, forces: dict[int, ca.SX], joint_impulses: ca.SX | None = None
+) -> tuple[tuple[ca.SX, ...], dict[int, ca.SX]]:
+    """Velocity change of every body under external impulses (RBDA alg. 7.3 with zero velocity:
+    Delta v = M^-1 (J^T lambda + tau) in O(n)).
 
     Args:
         art: the tree's articulated-body inertias.
         forces: external impulse on body b as a spatial force (moment about O_b; force), 6 x 1.
+        joint_impulses: generalized impulse tau on every DOF (nv x 1), or None for zero.
 
     Returns:
         (each body's change of spatial velocity (omega; v at O_b), each body's DOF rate changes).
@@ -364,6 +392,8 @@ def impulse_response(art: ArticulatedBodies, forces: dict[int, ca.SX]) -> tuple[
     for b in reversed(range(n)):
         if art.S[b].shape[1]:
             u[b] = -(art.S[b].T @ pA[b])
+            if joint_impulses is not None:
+                u[b] = u[b] + ca.vertcat(*[joint_impulses[k] for k in art.dofs[b]])
         if b > 0:
             pa = pA[b]
             if art.S[b].shape[1]:
@@ -380,15 +410,3 @@ def impulse_response(art: ArticulatedBodies, forces: dict[int, ca.SX]) -> tuple[
                 rates[k] = qdd[i]
         a.append(a_b)
     return tuple(a), rates
-
-
-def body_velocities(art: ArticulatedBodies, v: ca.SX) -> tuple[ca.SX, ...]:
-    """Spatial velocity of every body (omega; v at O_b) from the generalized velocity ``v``:
-    one forward pass, v_b = X v_parent + S_b qd_b (RBDA alg. 7.3, first loop)."""
-    out: list[ca.SX] = []
-    for b in range(len(art.parents)):
-        v_b = ca.SX.zeros(6, 1) if b == 0 else motion_shift(-art.r_parent[b]) @ out[art.parents[b]]
-        if art.S[b].shape[1]:
-            v_b = v_b + art.S[b] @ ca.vertcat(*[v[k] for k in art.dofs[b]])
-        out.append(v_b)
-    return tuple(out)

@@ -5,11 +5,14 @@ Everything here is a pure function of a :class:`~impulse_core.tree.Topology` tha
 CasADi SX expressions of the design vector ``p``; :func:`impact_function` wraps them in one
 named ``casadi.Function`` per topology. :func:`lean_impact_function` is the optimiser's and the
 benchmark's hot path (a subset of the outputs by tree-structured algorithms, equal to rounding);
-:func:`norms_gradient_function` adds the gradients of both norms.
+:func:`norms_gradient_function` adds the gradients of both norms, by the adjoint of the impact
+equations (the factorizations are reused, not differentiated).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from enum import Enum
 
 import casadi as ca
@@ -18,6 +21,8 @@ from impulse_core import dynamics as dyn
 from impulse_core.kinematics import (
     GROUND_NORMAL,
     PLANAR,
+    DofLayout,
+    Kinematics,
     Space,
     contact_bodies,
     dof_layout,
@@ -65,10 +70,14 @@ def external_impulse(A: ca.SX, J: ca.SX, v_minus: ca.SX, restitution: ca.SX) -> 
     independent). Returns (lambda, relative pivots D_k / A_kk); a pivot near zero means A has
     lost rank and lambda is not to be trusted (the caller checks).
     """
-    n = A.shape[0]
-    f = dyn.ltdl(A, dyn.dense_parent(n))
-    rhs = -(1 + restitution) * (J @ v_minus)
-    return dyn.solve(f, rhs), dyn.relative_pivots(f, A)
+    lam, pivots, _ = _newton_law(A, -(1 + restitution) * (J @ v_minus))
+    return lam, pivots
+
+
+def _newton_law(A: ca.SX, rhs: ca.SX) -> tuple[ca.SX, ca.SX, dyn.LTDL]:
+    """lambda = A^-1 rhs by a dense L^T D L factor of A (paper eq. 11); the relative pivots; the factor."""
+    f = dyn.ltdl(A, dyn.dense_parent(A.shape[0]))
+    return dyn.solve(f, rhs), dyn.relative_pivots(f, A), f
 
 
 def internal_impulse(
@@ -233,6 +242,30 @@ GRADIENT_OUTPUTS = LEAN_OUTPUTS[3:] + ("d_external_norm", "d_internal_norm")
 LEAN_OPTIONS = {"cse": True}
 
 
+@dataclass(frozen=True)
+class _LeanGraph:
+    """A lean graph's outputs and what the adjoint gradient (:func:`_adjoint_gradients`) reuses.
+
+    Attributes:
+        outputs: ``LEAN_OUTPUTS``.
+        kin, layout, motions, inertias: the tree at touchdown (world frame).
+        delta_v: generalized velocity change (nv x 1).
+        delassus: the L^T D L factor of the Delassus matrix A (paper eq. 11).
+        solve_mass: tau -> M^-1 tau.
+        contact_response: nu -> M^-1 J^T nu, the velocity change under normal impulses nu.
+    """
+
+    outputs: tuple[ca.SX, ...]
+    kin: Kinematics
+    layout: DofLayout
+    motions: tuple[dyn.JointMotion, ...]
+    inertias: tuple[dyn.SpatialInertia, ...]
+    delta_v: ca.SX
+    delassus: dyn.LTDL
+    solve_mass: Callable[[ca.SX], ca.SX]
+    contact_response: Callable[[ca.SX], ca.SX]
+
+
 def _lean_outputs(
     topology: Topology, bodies: tuple[int, ...], n: ca.DM, force: list[ca.SX], lam: ca.SX, pivots: ca.SX
 ) -> tuple[ca.SX, ...]:
@@ -252,7 +285,18 @@ def _lean_outputs(
     )
 
 
-def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX) -> tuple[ca.SX, ...]:
+def _normal_velocities(topology: Topology, kin: Kinematics, omega: tuple[ca.SX, ...], vel: tuple[ca.SX, ...]) -> ca.SX:
+    """n^T (v_b + omega_b x (p_C - O_b)) at every active contact C (on body b): J x, given the
+    body velocities (``dynamics.body_velocities``) of x."""
+    bodies = contact_bodies(topology)
+    rows = [
+        GROUND_NORMAL.T @ (vel[bodies[c]] + ca.cross(omega[bodies[c]], kin.W_p_C[c] - kin.W_p_O[bodies[c]]))
+        for c in topology.active
+    ]
+    return ca.vertcat(*rows) if rows else ca.SX(0, 1)
+
+
+def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX) -> _LeanGraph:
     """The outputs ``LEAN_OUTPUTS`` in O(n) per contact, by the articulated-body algorithm.
 
     1. Forward kinematics, trig once per absolute angle (:func:`forward_kinematics`).
@@ -269,6 +313,7 @@ def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus:
     values = unpack_values(topology, p)
     kin = forward_kinematics(topology, values, space)
     layout = dof_layout(topology, space)
+    motions = dyn.joint_motions(kin, layout, space)
     inertias = dyn.body_inertias(kin, values)
     art = dyn.articulated_bodies(topology.parents, kin, layout, inertias, space)
     bodies = contact_bodies(topology)
@@ -283,26 +328,39 @@ def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus:
         V_b = V[bodies[c]]
         return n.T @ (V_b[3:] + ca.cross(V_b[:3], kin.W_p_C[c] - kin.W_p_O[bodies[c]]))
 
+    def contact_forces(weights: ca.SX) -> dict[int, ca.SX]:
+        forces: dict[int, ca.SX] = {}
+        for i, c in enumerate(active):
+            forces[bodies[c]] = forces.get(bodies[c], ca.SX.zeros(6, 1)) + weights[i] * unit_impulse(c)
+        return forces
+
+    def rates(r: dict[int, ca.SX]) -> ca.SX:
+        return ca.vertcat(*[r[k] for k in range(layout.nv)])
+
     A = ca.SX(nc, nc)
     for j, c in enumerate(active):
         response, _ = dyn.impulse_response(art, {bodies[c]: unit_impulse(c)})
         for i in range(j + 1):
             A[i, j] = normal_velocity(active[i], response)
             A[j, i] = A[i, j]
-    V_minus = dyn.body_velocities(art, v_minus)
-    Jv = ca.vertcat(*[normal_velocity(c, V_minus) for c in active]) if nc else ca.SX(0, 1)
-    f = dyn.ltdl(A, dyn.dense_parent(nc))
-    lam = dyn.solve(f, -(1 + e) * Jv)
-    pivots = dyn.relative_pivots(f, A)
-    forces: dict[int, ca.SX] = {}
-    for i, c in enumerate(active):
-        forces[bodies[c]] = forces.get(bodies[c], ca.SX.zeros(6, 1)) + lam[i] * unit_impulse(c)
-    dV, _ = dyn.impulse_response(art, forces)
+    Jv = _normal_velocities(topology, kin, *dyn.body_velocities(topology.parents, kin, layout, motions, v_minus))
+    lam, pivots, fA = _newton_law(A, -(1 + e) * Jv)
+    dV, dv = dyn.impulse_response(art, contact_forces(lam))
     force = [inertias[b].momentum(dV[b][:3], dV[b][3:])[1] for b in range(topology.n_bodies)]
-    return _lean_outputs(topology, bodies, n, force, lam, pivots)
+    return _LeanGraph(
+        _lean_outputs(topology, bodies, n, force, lam, pivots),
+        kin,
+        layout,
+        motions,
+        inertias,
+        rates(dv),
+        fA,
+        lambda tau: rates(dyn.impulse_response(art, {}, tau)[1]),
+        lambda nu: rates(dyn.impulse_response(art, contact_forces(nu))[1]),
+    )
 
 
-def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX) -> tuple[ca.SX, ...]:
+def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX) -> _LeanGraph:
     """The outputs ``LEAN_OUTPUTS`` through the mass matrix and its sparse factor.
 
     1. Forward kinematics, trig once per absolute angle (:func:`forward_kinematics`).
@@ -338,28 +396,21 @@ def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: c
         for j in range(i, nc):
             A[i, j] = Y[:, i].T @ DY[:, j]
             A[j, i] = A[i, j]
-    lam, pivots = external_impulse(A, J, v_minus, e)
+    lam, pivots, fA = _newton_law(A, -(1 + e) * (J @ v_minus))
     dv = dyn.solve_l(f, DY @ lam)
-    omega: list[ca.SX] = []
-    vel: list[ca.SX] = []  # velocity of each body's joint origin
-    n_base = len(space.base_dofs)
-    for b in range(topology.n_bodies):
-        parent = topology.parents[b]
-        O_b = kin.W_p_O[b]
-        if parent < 0:
-            w, v = ca.SX.zeros(3, 1), ca.SX.zeros(3, 1)
-            for k in range(n_base):
-                w = w + S[k].omega * dv[k]
-                v = v + S[k].velocity_at(O_b) * dv[k]
-        else:
-            w, v = omega[parent], vel[parent] + ca.cross(omega[parent], O_b - kin.W_p_O[parent])
-            k = layout.body_dof[b]
-            if k is not None:  # the joint turns about O_b: no velocity of O_b
-                w = w + S[k].omega * dv[k]
-        omega.append(w)
-        vel.append(v)
+    omega, vel = dyn.body_velocities(topology.parents, kin, layout, S, dv)
     force = [inertias[b].momentum(omega[b], vel[b])[1] for b in range(topology.n_bodies)]
-    return _lean_outputs(topology, bodies, n, force, lam, pivots)
+    return _LeanGraph(
+        _lean_outputs(topology, bodies, n, force, lam, pivots),
+        kin,
+        layout,
+        S,
+        inertias,
+        dv,
+        fA,
+        lambda tau: dyn.solve(f, tau),
+        lambda nu: dyn.solve_l(f, DY @ nu),
+    )
 
 
 class LeanAlgorithm(Enum):
@@ -388,7 +439,7 @@ def dof_depth(topology: Topology, space: Space = PLANAR) -> int:
 
 def _lean_graph(
     topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO
-) -> tuple[ca.SX, ...]:
+) -> _LeanGraph:
     if algorithm is LeanAlgorithm.AUTO:
         deep = dof_depth(topology, space) > AUTO_DEPTH
         algorithm = LeanAlgorithm.ARTICULATED if deep else LeanAlgorithm.COMPOSITE
@@ -406,25 +457,93 @@ def lean_impact_function(
     p = ca.SX.sym("p", topology.n_values)
     v_minus = ca.SX.sym("v_minus", nv)
     e = ca.SX.sym("restitution")
-    outs = _lean_graph(topology, space, p, v_minus, e, algorithm)
+    outs = _lean_graph(topology, space, p, v_minus, e, algorithm).outputs
     return ca.Function("impact_lean", [p, v_minus, e], list(outs), list(IMPACT_INPUTS), list(LEAN_OUTPUTS), LEAN_OPTIONS)
 
 
+def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g: _LeanGraph) -> tuple[ca.SX, ca.SX]:
+    """Gradients of ``external_norm`` and ``internal_norm`` w.r.t. ``p`` (n_values x 1 each) by
+    the adjoint of the impact equations, not by differentiating through the factorizations.
+
+    The forward model is M(p) dv = J(p)^T lambda and A lambda = -(1 + e) J(p) v_minus with
+    A = J M^-1 J^T (paper eq. 11); a norm is g(p, lambda, dv) (the internal norm through the
+    impulsive Newton-Euler pass, eqs. 15-27; the external norm |lambda|). With the seeds
+    lambda_bar = dg/dlambda and dv_bar = dg/d(dv), the adjoint solves
+
+        z = M^-1 dv_bar,   nu = A^-1 (lambda_bar + J z),   a = z - M^-1 J^T nu
+
+    reuse the forward pass's factors of M and A, and then
+
+        dg/dp = d/dp [ g + a^T (J^T lambda - M dv) - nu^T J (dv + (1 + e) v_minus) ]
+
+    with lambda, dv, a and nu held fixed: derivatives of kinematics only (J x and
+    a^T M dv = sum over bodies of twist(a) . momentum(dv), one forward velocity pass each),
+    one reverse sweep per norm over a graph without the factorizations. (Both brackets vanish
+    at the solution: the first is the impulse balance, the second J v_plus + e J v_minus, the
+    restitution law.)
+    """
+    nc, nv = len(topology.active), g.layout.nv
+    lam, pivots, dv = g.outputs[0], g.outputs[1], g.delta_v
+    held = [ca.SX.sym(name, k) for name, k in (("lam", nc), ("dv", nv), ("a", nv), ("nu", nc), ("u", nv))]
+    lam_h, dv_h, a_h, nu_h, u_h = held
+
+    def velocities(x: ca.SX) -> tuple[tuple[ca.SX, ...], tuple[ca.SX, ...]]:
+        return dyn.body_velocities(topology.parents, g.kin, g.layout, g.motions, x)
+
+    omega_dv, vel_dv = velocities(dv_h)
+    momenta = [g.inertias[b].momentum(omega_dv[b], vel_dv[b]) for b in range(topology.n_bodies)]
+    internal_norm = _lean_outputs(topology, contact_bodies(topology), GROUND_NORMAL, [m[1] for m in momenta], lam_h, pivots)[4]
+    omega_a, vel_a = velocities(a_h)
+    a_M_dv = sum((omega_a[b].T @ L + vel_a[b].T @ P for b, (L, P) in enumerate(momenta)), ca.SX(0))
+    psi = lam_h.T @ _normal_velocities(topology, g.kin, omega_a, vel_a) - a_M_dv
+    psi = psi - nu_h.T @ _normal_velocities(topology, g.kin, *velocities(u_h))
+    seeds = ca.substitute(ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)), ca.vertcat(lam_h, dv_h), ca.vertcat(lam, dv))
+
+    def gradient(objective: ca.SX, lam_bar: ca.SX, dv_bar: ca.SX | None) -> ca.SX:
+        nu_rhs, z = lam_bar, ca.SX.zeros(nv, 1)
+        if dv_bar is not None:
+            z = g.solve_mass(dv_bar)
+            nu_rhs = nu_rhs + _normal_velocities(topology, g.kin, *velocities(z))
+        nu = dyn.solve(g.delassus, nu_rhs)
+        a = z - g.contact_response(nu)
+        d = ca.gradient(objective, p)
+        return ca.substitute(d, ca.vertcat(*held), ca.vertcat(lam, dv, a, nu, dv + (1 + e) * v_minus))
+
+    if nc == 0:
+        return ca.SX.zeros(topology.n_values, 1), ca.SX.zeros(topology.n_values, 1)
+    d_external = gradient(psi, lam / ca.norm_2(lam), None)
+    d_internal = gradient(psi + internal_norm, seeds[:nc], seeds[nc:])
+    return d_external, d_internal
+
+
 def norms_gradient_function(
-    topology: Topology, space: Space = PLANAR, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO
+    topology: Topology, space: Space = PLANAR, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO, adjoint: bool = True
 ) -> ca.Function:
     """``external_norm`` and ``internal_norm`` with their gradients w.r.t. every design value
-    (``d_external_norm``, ``d_internal_norm``: 1 x n_values each), by reverse-mode algorithmic
-    differentiation of :func:`_lean_graph` sharing its forward pass."""
+    (``d_external_norm``, ``d_internal_norm``: 1 x n_values each), sharing the forward pass of
+    :func:`lean_impact_function`.
+
+    With ``adjoint`` (default) by the adjoint of the impact equations (:func:`_adjoint_gradients`:
+    the factorizations are not differentiated); otherwise by CasADi's reverse-mode algorithmic
+    differentiation of the whole graph (the independent check of the first).
+    """
     nv = dof_layout(topology, space).nv
     p = ca.SX.sym("p", topology.n_values)
     v_minus = ca.SX.sym("v_minus", nv)
     e = ca.SX.sym("restitution")
-    outs = _lean_graph(topology, space, p, v_minus, e, algorithm)
-    norms = ca.vertcat(outs[3], outs[4])
-    G = ca.jacobian(norms, p)
+    g = _lean_graph(topology, space, p, v_minus, e, algorithm)
+    norms = g.outputs[3:5]
+    if adjoint:
+        d_external, d_internal = _adjoint_gradients(topology, p, v_minus, e, g)
+    else:
+        d_external, d_internal = (ca.gradient(x, p) for x in norms)
     return ca.Function(
-        "norms_gradient", [p, v_minus, e], [outs[3], outs[4], G[0, :], G[1, :]], list(IMPACT_INPUTS), list(GRADIENT_OUTPUTS), LEAN_OPTIONS
+        "norms_gradient",
+        [p, v_minus, e],
+        [*norms, d_external.T, d_internal.T],
+        list(IMPACT_INPUTS),
+        list(GRADIENT_OUTPUTS),
+        LEAN_OPTIONS,
     )
 
 

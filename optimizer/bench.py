@@ -3,7 +3,8 @@
 What is timed is the optimiser's hot path, :func:`impulse_core.impact.lean_impact_function`
 (external impulses, Delassus pivots, joint force impulse magnitudes and both norms; equal to
 the full model's outputs to rounding, which :func:`speed_report` checks), and the gradient of both
-norms w.r.t. every design value (:func:`impulse_core.impact.norms_gradient_function`).
+norms w.r.t. every design value (:func:`impulse_core.impact.norms_gradient_function`: the adjoint
+of the impact equations, beside CasADi's reverse mode through the whole graph as its peer).
 
 Batched, three ways, one call from Python per batch: ``Function.map`` on CasADi's virtual
 machine; ``Function.map`` over the compiled function (CasADi's C++ loop calls the C code per
@@ -42,7 +43,9 @@ CHECKED_OUTPUTS = ("external", "internal_magnitude", "external_norm", "internal_
 class SpeedReport:
     """Microseconds per design (or per call) for one model; ``ratio`` = best batched (any path,
     threads included) / Pinocchio (one thread), ``ratio_one_core`` the same without threads,
-    ``gradient_ratio`` = gradient / evaluation (both batched, one thread, on the same path)."""
+    ``gradient_ratio`` = gradient / evaluation (both batched, one thread, on the same path): the
+    adjoint gradient; ``gradient_ratio_autodiff`` the same for CasADi's reverse mode through the
+    whole graph, its peer in the same run."""
 
     model: str
     n_bodies: int
@@ -51,6 +54,7 @@ class SpeedReport:
     n_instructions: int
     n_instructions_full: int
     n_instructions_gradient: int | None
+    n_instructions_gradient_autodiff: int | None
     build_ms: float
     compile_s: float | None
     backend: str
@@ -64,7 +68,10 @@ class SpeedReport:
     us_per_design_batched: float
     us_per_design_full_batched: float | None
     us_per_design_gradient: float | None
+    us_per_design_gradient_autodiff: float | None
     gradient_ratio: float | None
+    gradient_ratio_autodiff: float | None
+    gradient_equals_autodiff: bool | None
     gradient_ratio_map: float | None
     pinocchio_us_per_call: float | None
     ratio: float | None
@@ -203,15 +210,25 @@ def speed_report(
             compile_s = None
     if threads > 1:
         fns["threads"] = _mapped(fast, args, batch, threads)
-    n_grad = None
+    n_grad: dict[str, int] = {}
+    grad_same = None
     if gradient:
-        grad = norms_gradient_function(topology)
-        n_grad = int(grad.n_instructions())
-        grad_compiled = None if fast is lean else _compile(grad, cache_dir)[0]
-        fns["gradient_map"] = _mapped(grad if grad_compiled is None else grad_compiled.function, args, batch)
-        if kernel is not None and grad_compiled is not None:
-            grad_kernel = batch_kernel(grad_compiled, grad)
-            fns["gradient"] = _kernel_call(grad_kernel, rows, grad_kernel(*rows))
+        grads = {
+            "gradient": norms_gradient_function(topology),
+            "gradient_autodiff": norms_gradient_function(topology, adjoint=False),
+        }
+        n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
+        grad_same = all(
+            _close(a, b, 1e-8)
+            for i in idx
+            for a, b in zip(grads["gradient"](*(x[:, i] for x in args)), grads["gradient_autodiff"](*(x[:, i] for x in args)))
+        )
+        for key, grad in grads.items():
+            grad_compiled = None if fast is lean else _compile(grad, cache_dir)[0]
+            fns[f"{key}_map"] = _mapped(grad if grad_compiled is None else grad_compiled.function, args, batch)
+            if kernel is not None and grad_compiled is not None:
+                grad_kernel = batch_kernel(grad_compiled, grad)
+                fns[key] = _kernel_call(grad_kernel, rows, grad_kernel(*rows))
         if fast is not lean:
             fns["full"] = _mapped(_compile(full, cache_dir)[0].function, args, batch)
     if pinocchio:
@@ -224,9 +241,10 @@ def speed_report(
     map_path = "compiled" if "compiled" in per_design else "vm"
     batched = min(per_design[k] for k in ("vm", "compiled", "kernel", "kernel_threads", "threads") if k in per_design)
     one_core = min(per_design[k] for k in ("vm", "compiled", "kernel") if k in per_design)
-    if "gradient" not in per_design and "gradient_map" in per_design:
-        per_design["gradient"] = per_design["gradient_map"]
-    grad_us = per_design.get("gradient")
+    for key in ("gradient", "gradient_autodiff"):
+        if key not in per_design and f"{key}_map" in per_design:
+            per_design[key] = per_design[f"{key}_map"]
+    grad_us, grad_ad_us = per_design.get("gradient"), per_design.get("gradient_autodiff")
     grad_path = "kernel" if "kernel" in per_design else map_path
     pin_us = us.get("pinocchio")
     return SpeedReport(
@@ -236,7 +254,8 @@ def speed_report(
         n_contacts=len(active),
         n_instructions=int(lean.n_instructions()),
         n_instructions_full=int(full.n_instructions()),
-        n_instructions_gradient=n_grad,
+        n_instructions_gradient=n_grad.get("gradient"),
+        n_instructions_gradient_autodiff=n_grad.get("gradient_autodiff"),
         build_ms=build_ms,
         compile_s=compile_s,
         backend=backend,
@@ -250,7 +269,10 @@ def speed_report(
         us_per_design_batched=batched,
         us_per_design_full_batched=per_design.get("full"),
         us_per_design_gradient=grad_us,
+        us_per_design_gradient_autodiff=grad_ad_us,
         gradient_ratio=None if grad_us is None else grad_us / per_design[grad_path],
+        gradient_ratio_autodiff=None if grad_ad_us is None else grad_ad_us / per_design[grad_path],
+        gradient_equals_autodiff=grad_same,
         gradient_ratio_map=None
         if "gradient_map" not in per_design
         else per_design["gradient_map"] / per_design[map_path],
@@ -383,8 +405,9 @@ def format_report(r: SpeedReport) -> str:
             f"{r.model} ({r.n_bodies} bodies, {r.n_dof} DOF, {r.n_contacts} contacts)",
         ),
         (
-            "SX instructions: lean / full model / gradient",
-            f"{r.n_instructions} / {r.n_instructions_full} / {r.n_instructions_gradient or '-'}",
+            "SX instructions: lean / full model / gradient (adjoint, reverse mode)",
+            f"{r.n_instructions} / {r.n_instructions_full} / "
+            f"{r.n_instructions_gradient or '-'}, {r.n_instructions_gradient_autodiff or '-'}",
         ),
         ("build the graph (first use of the topology)", f"{r.build_ms:.1f} ms"),
         ("compile to C (or load from the cache)", _fmt(r.compile_s, " s")),
@@ -401,14 +424,20 @@ def format_report(r: SpeedReport) -> str:
         ),
         ("batched, best", _fmt(r.us_per_design_batched, " us/design", 3)),
         ("full model (all outputs), batched compiled", _fmt(r.us_per_design_full_batched, " us/design")),
-        ("gradient of both norms, batched", _fmt(r.us_per_design_gradient, " us/design")),
+        ("gradient of both norms (adjoint), batched", _fmt(r.us_per_design_gradient, " us/design")),
         ("gradient / evaluation (same path)", _fmt(r.gradient_ratio)),
         ("gradient / evaluation (CasADi map)", _fmt(r.gradient_ratio_map)),
+        ("gradient by reverse mode through the graph, batched", _fmt(r.us_per_design_gradient_autodiff, " us/design")),
+        ("reverse-mode gradient / evaluation (same path)", _fmt(r.gradient_ratio_autodiff)),
         ("pinocchio.impulseDynamics (external only)", _fmt(r.pinocchio_us_per_call, " us/call")),
         ("ratio batched / pinocchio", _fmt(r.ratio, "", 3)),
         ("ratio batched on one core / pinocchio", _fmt(r.ratio_one_core, "", 3)),
         ("batched results equal single calls", "yes" if r.batched_equals_single else "NO"),
         ("lean outputs equal the full model's", "yes" if r.lean_equals_full else "NO"),
+        (
+            "adjoint gradients equal reverse mode's",
+            "-" if r.gradient_equals_autodiff is None else "yes" if r.gradient_equals_autodiff else "NO",
+        ),
     ]
     width = max(len(k) for k, _ in rows)
     text = "\n".join(f"{k:<{width}}  {v}" for k, v in rows)

@@ -3,7 +3,8 @@
 The gradient of ``external_norm`` and ``internal_norm`` with respect to every value of the design
 vector ``p`` (lengths, masses, angles, joint positions, centres of mass, gyration radii, contact
 fractions), from ``casadi.jacobian`` of a symbolic call of the compiled ``impact`` Function,
-against Richardson-extrapolated central differences of the numeric Function.
+against Richardson-extrapolated central differences of the numeric Function; the hot path's
+adjoint gradients (``norms_gradient_function``) against both, and against the mass scaling law.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 
 from impulse_core.evaluate import approach_velocity, compiled_model
+from impulse_core.impact import LeanAlgorithm, norms_gradient_function
 from impulse_core.tree import BODY_VALUES, JointKind, Tree, design_vector, value_names
 from tests.conftest import (
     contact_independence,
@@ -144,3 +146,38 @@ def test_gradient_would_catch_a_wrong_derivative():
     g_bad = g_ad.copy()
     g_bad[i] *= 1 + 1e-4
     assert np.abs(g_bad - g_fd)[i] > RTOL * abs(g_fd[i])
+
+
+@pytest.mark.parametrize("algorithm", [LeanAlgorithm.COMPOSITE, LeanAlgorithm.ARTICULATED])
+@pytest.mark.parametrize("case_id,tree", CASES, ids=[c[0] for c in CASES])
+def test_adjoint_gradient_equals_autodiff_of_the_full_model(case_id, tree, algorithm):
+    """The hot path's adjoint gradients (factorizations not differentiated, tree algorithms)
+    equal reverse-mode AD through the full model (dense Jacobians, a different graph), which
+    test_gradient_equals_finite_differences checks against finite differences."""
+    topology = tree.topology()
+    p = design_vector(tree)
+    ref = _gradient_function(topology, 3.43, 0.8)(p=p)
+    out = norms_gradient_function(topology, algorithm=algorithm)(
+        p=p, v_minus=approach_velocity(topology, 3.43), restitution=0.8
+    )
+    for name in OUTPUTS:
+        g, g_ref = np.array(out[f"d_{name}"]).ravel(), np.array(ref[f"d_{name}"]).ravel()
+        scale = np.abs(g_ref).max()
+        assert float(out[name]) == pytest.approx(float(ref[name]), rel=1e-12)
+        report("derivatives", f"{case_id} adjoint ({algorithm.value}) d{name}/dp vs AD of the full model: "
+               f"worst |diff| / max|grad| {np.abs(g - g_ref).max() / scale:.1e}")
+        np.testing.assert_allclose(g, g_ref, rtol=1e-8, atol=1e-10 * scale, err_msg=name)
+
+
+@pytest.mark.parametrize("case_id,tree", CASES, ids=[c[0] for c in CASES])
+def test_adjoint_gradient_obeys_mass_scaling(case_id, tree):
+    """Every mass times k scales every impulse by k (A = J M^-1 J^T scales by 1/k), so by Euler's
+    theorem for homogeneous functions sum_b m_b dN/dm_b = N for both norms N."""
+    topology = tree.topology()
+    p = design_vector(tree)
+    out = norms_gradient_function(topology)(p=p, v_minus=approach_velocity(topology, 3.43), restitution=0.8)
+    n = len(BODY_VALUES)
+    masses = slice(BODY_VALUES.index("mass"), n * tree.n_bodies, n)
+    for name in OUTPUTS:
+        g = np.array(out[f"d_{name}"]).ravel()
+        assert np.dot(p[masses], g[masses]) == pytest.approx(float(out[name]), rel=1e-10), name

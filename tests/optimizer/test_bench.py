@@ -34,6 +34,8 @@ def test_bench_json_keys_and_agreement(leg_file, capsys, tmp_path) -> None:
         assert key in record
     assert record["batched_equals_single"] is True
     assert record["lean_equals_full"] is True
+    assert record["gradient_equals_autodiff"] is True
+    assert record["gradient_ratio_autodiff"] > 0
     assert record["scaling"] == []  # model files: no scaling series unless --sizes
     assert math.isclose(record["ratio"], record["us_per_design_batched"] / record["pinocchio_us_per_call"])
     assert record["gradient_ratio"] > 0
