@@ -1,14 +1,20 @@
 """Compile a CasADi function to machine code once, cache it on disk, fall back to CasADi's
 virtual machine where no C compiler is available.
 
+Beside CasADi's own C (one design per call) each library holds two batch drivers: a C loop over
+designs (:func:`batch_driver`), and a SIMD loop (:func:`simd_driver`) that runs the same SX
+instructions on several designs at once, one per vector lane, written by this module from the
+function's instruction list.
+
 The cache key hashes the function's serialized graph (which fixes the topology), the CasADi
-version and the compiler command, so a stale library is never loaded.
+version, the compiler command and the instruction-set flags, so a stale library is never loaded.
 """
 
 from __future__ import annotations
 
 import ctypes
 import hashlib
+import platform
 import shutil
 import subprocess
 import tempfile
@@ -44,8 +50,10 @@ class Compiled:
     compiled_now: bool
 
 
-#: Version of what this module adds to CasADi's generated code (the batch driver); in the cache key.
-GENERATOR_VERSION = "batch-driver-2"
+#: Version of what this module adds to CasADi's generated code (the batch drivers); in the cache key.
+GENERATOR_VERSION = "batch-driver-3-simd"
+#: Designs per SIMD step: one 256-bit vector of doubles (AVX2; two SSE2 registers without it).
+SIMD_LANES = 4
 #: Tried first, for the driver's parallel loop; the build retries without it if the compiler lacks it.
 OPENMP_FLAG = "-fopenmp"
 
@@ -93,6 +101,161 @@ def batch_driver(f: ca.Function) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: C of the SIMD driver's vector type and its lane-wise functions (GCC/Clang vector extensions).
+_SIMD_PRELUDE = r"""
+#include <math.h>
+typedef double footopt_vd __attribute__((vector_size(8 * FOOTOPT_LANES)));
+typedef long long footopt_vi __attribute__((vector_size(8 * FOOTOPT_LANES)));
+
+static inline footopt_vd footopt_sqrt(footopt_vd x) {
+  footopt_vd r;
+  for (int l = 0; l < FOOTOPT_LANES; ++l) r[l] = sqrt(x[l]);
+  return r;
+}
+
+/* sin and cos of every lane, within 2 ulp of libm's (1 ulp for |x| <= 10; tests/impulse_core/
+   test_codegen.py): x = q pi/2 + r with q = round(2 x / pi)
+   (the 1.5 * 2^52 trick; its low bits are q mod 4), r by Cody-Waite in three parts of pi/2
+   (exact products for |q| < 2^20), fdlibm's kernels __kernel_sin / __kernel_cos on
+   [-pi/4, pi/4], then the quadrant. libm itself where any lane has |x| > 1e5 (or is not finite). */
+static inline void footopt_sincos(footopt_vd x, footopt_vd* s_out, footopt_vd* c_out) {
+  int big = 0;
+  for (int l = 0; l < FOOTOPT_LANES; ++l) big |= !(fabs(x[l]) <= 1e5);
+  if (big) {
+    for (int l = 0; l < FOOTOPT_LANES; ++l) {
+      (*s_out)[l] = sin(x[l]);
+      (*c_out)[l] = cos(x[l]);
+    }
+    return;
+  }
+  const double toint = 6755399441055744.0;
+  footopt_vd t = x * 6.36619772367581382433e-01 + toint;
+  footopt_vi qi = (footopt_vi)t;
+  footopt_vd q = t - toint;
+  footopt_vd r = x - q * 1.57079632673412561417e+00;
+  r = r - q * 6.07710050630396597660e-11;
+  r = r - q * 2.02226624879595063154e-21;
+  footopt_vd z = r * r;
+  footopt_vd ps = 8.33333333332248946124e-03 + z * (-1.98412698298579493134e-04 + z * (2.75573137070700676789e-06
+                  + z * (-2.50507602534068634195e-08 + z * 1.58969099521155010221e-10)));
+  footopt_vd s = r + z * r * (-1.66666666666666324348e-01 + z * ps);
+  footopt_vd w = z * z;
+  footopt_vd pc = z * (4.16666666666666019037e-02 + z * (-1.38888888888741095749e-03 + z * 2.48015872894767294178e-05))
+                  + w * w * (-2.75573143513906633035e-07 + z * (2.08757232129817482790e-09 + z * -1.13596475577881948265e-11));
+  footopt_vd hz = 0.5 * z;
+  footopt_vd one_hz = 1.0 - hz;
+  footopt_vd c = one_hz + (((1.0 - one_hz) - hz) + z * pc);
+  footopt_vi swap = -(qi & 1);
+  footopt_vi si = ((footopt_vi)s & ~swap) | ((footopt_vi)c & swap);
+  footopt_vi ci = ((footopt_vi)c & ~swap) | ((footopt_vi)s & swap);
+  *s_out = (footopt_vd)(si ^ ((qi & 2) << 62));
+  *c_out = (footopt_vd)(ci ^ (((qi + 1) & 2) << 62));
+}
+
+static inline footopt_vd footopt_fabs(footopt_vd x) { return (footopt_vd)((footopt_vi)x & 0x7fffffffffffffffLL); }
+
+static inline footopt_vd footopt_sin(footopt_vd x) { footopt_vd s, c; footopt_sincos(x, &s, &c); return s; }
+static inline footopt_vd footopt_cos(footopt_vd x) { footopt_vd s, c; footopt_sincos(x, &s, &c); return c; }
+
+/* Lane l reads design kk[l] (row-major: design k's input at p + k * nnz). */
+static inline footopt_vd footopt_load(const casadi_real* p, casadi_int nnz, const casadi_int* kk) {
+  footopt_vd r;
+  for (int l = 0; l < FOOTOPT_LANES; ++l) r[l] = p[kk[l] * nnz];
+  return r;
+}
+
+static inline void footopt_store(casadi_real* p, casadi_int nnz, const casadi_int* kk, int valid, footopt_vd x) {
+  for (int l = 0; l < valid; ++l) p[kk[l] * nnz] = x[l];
+}
+"""
+
+_SIMD_BINARY = {ca.OP_ADD: "+", ca.OP_SUB: "-", ca.OP_MUL: "*", ca.OP_DIV: "/"}
+_SIMD_UNARY = {
+    ca.OP_NEG: "-{a}",
+    ca.OP_SQ: "{a} * {a}",
+    ca.OP_TWICE: "{a} + {a}",
+    ca.OP_INV: "1.0 / {a}",
+    ca.OP_FABS: "footopt_fabs({a})",
+    ca.OP_SQRT: "footopt_sqrt({a})",
+    ca.OP_SIN: "footopt_sin({a})",
+    ca.OP_COS: "footopt_cos({a})",
+}
+
+
+def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
+    """C source of ``<name>_simd(in, out, n)`` and ``<name>_simd_parallel``: the batch drivers'
+    contract (:func:`batch_driver`), but each step runs ``f``'s SX instructions once on ``lanes``
+    designs, one per vector lane (the last step repeats the last design in its spare lanes and
+    stores only the real ones). Arithmetic, sqrt and fabs are IEEE operations lane by lane, so
+    they round as the scalar code does; sin and cos come from a vector kernel within 1 ulp of
+    libm's for |x| <= 10 (2 ulp up to 1e5; libm itself beyond). ``<name>_simd_lanes()`` returns ``lanes``. None when ``f`` is not an SX function or
+    uses an operation outside +, -, *, /, 1/x, negation, square, fabs, sqrt, sin and cos."""
+    if not f.is_a("SXFunction"):
+        return None
+    body = []
+    for k in range(f.n_instructions()):
+        op, i, o = f.instruction_id(k), f.instruction_input(k), f.instruction_output(k)
+        if op == ca.OP_INPUT:
+            body.append(f"  w{o[0]} = footopt_load(in[{i[0]}] + {i[1]}, {f.nnz_in(i[0])}, kk);")
+        elif op == ca.OP_OUTPUT:
+            body.append(f"  footopt_store(out[{o[0]}] + {o[1]}, {f.nnz_out(o[0])}, kk, valid, w{i[0]});")
+        elif op == ca.OP_CONST:
+            body.append(f"  w{o[0]} = zero + {float(f.instruction_constant(k)).hex()};")
+        elif op in _SIMD_BINARY:
+            body.append(f"  w{o[0]} = w{i[0]} {_SIMD_BINARY[op]} w{i[1]};")
+        elif op in _SIMD_UNARY:
+            body.append(f"  w{o[0]} = " + _SIMD_UNARY[op].format(a=f"w{i[0]}") + ";")
+        else:
+            return None
+    name, n_w = f.name(), max(f.sz_w(), 1)
+    declarations = [
+        "  footopt_vd " + ", ".join(f"w{j}" for j in range(start, min(start + 12, n_w))) + ";"
+        for start in range(0, n_w, 12)
+    ]
+    return "\n".join(
+        [
+            f"#define FOOTOPT_LANES {lanes}",
+            _SIMD_PRELUDE,
+            f"static void {name}_simd_step(const casadi_real** in, casadi_real** out, casadi_int k0, casadi_int n) {{",
+            "  casadi_int kk[FOOTOPT_LANES];",
+            "  int l, valid = n - k0 < FOOTOPT_LANES ? (int)(n - k0) : FOOTOPT_LANES;",
+            "  footopt_vd zero = {0};",
+            "  for (l = 0; l < FOOTOPT_LANES; ++l) kk[l] = l < valid ? k0 + l : n - 1;",
+            *declarations,
+            *body,
+            "}",
+            f"CASADI_SYMBOL_EXPORT int {name}_simd(const casadi_real** in, casadi_real** out, casadi_int n) {{",
+            "  casadi_int k0;",
+            f"  for (k0 = 0; k0 < n; k0 += FOOTOPT_LANES) {name}_simd_step(in, out, k0, n);",
+            "  return 0;",
+            "}",
+            f"CASADI_SYMBOL_EXPORT int {name}_simd_parallel(const casadi_real** in, casadi_real** out, casadi_int n) {{",
+            "  casadi_int k0;",
+            "  #pragma omp parallel for if(n >= 64)",
+            f"  for (k0 = 0; k0 < n; k0 += FOOTOPT_LANES) {name}_simd_step(in, out, k0, n);",
+            "  return 0;",
+            "}",
+            f"CASADI_SYMBOL_EXPORT int {name}_simd_lanes(void) {{ return {lanes}; }}",
+        ]
+    ) + "\n"
+
+
+def simd_flags() -> tuple[str, ...]:
+    """Instruction-set flags for the SIMD driver: ``-mavx2`` on an x86-64 CPU that has AVX2 (a
+    4-lane vector is then one register), none otherwise (the compiler splits the vectors into
+    what the baseline has, SSE2 pairs on x86-64). No -mfma: a fused multiply-add would round
+    differently from the scalar code. Part of the cache key, so a library built for one CPU is
+    never loaded on another that lacks the instructions."""
+    if platform.machine().lower() not in ("x86_64", "amd64"):
+        return ()
+    try:
+        cpuinfo = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return ()
+    flags = next((line.split(":", 1)[1].split() for line in cpuinfo.splitlines() if line.startswith("flags")), [])
+    return ("-mavx2",) if "avx2" in flags else ()
+
+
 def find_compiler() -> str | None:
     """The C compiler on PATH (cc, gcc or clang), or None."""
     for name in ("cc", "gcc", "clang"):
@@ -103,11 +266,12 @@ def find_compiler() -> str | None:
 
 
 def cache_key(f: ca.Function, compiler: str) -> str:
-    """A hash of the function graph, the CasADi version and the compiler command."""
+    """A hash of the function graph, the CasADi version, the compiler command and the
+    instruction-set flags."""
     h = hashlib.sha256()
     h.update(f.serialize().encode())
     h.update(ca.__version__.encode())
-    h.update(" ".join((compiler, *CFLAGS, OPENMP_FLAG, GENERATOR_VERSION)).encode())
+    h.update(" ".join((compiler, *CFLAGS, *simd_flags(), OPENMP_FLAG, GENERATOR_VERSION, str(SIMD_LANES))).encode())
     return h.hexdigest()[:20]
 
 
@@ -134,19 +298,11 @@ def compile_function(f: ca.Function, cache_dir: Path | None, compiler: str | Non
                 generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
                 generator.add(f)
                 source = Path(generator.generate(f"{tmp}/"))
+                simd = simd_driver(f) or f"CASADI_SYMBOL_EXPORT int {f.name()}_simd_lanes(void) {{ return 0; }}\n"
                 with source.open("a") as out:
-                    out.write(batch_driver(f))
+                    out.write(batch_driver(f) + simd)
                 partial = Path(tmp) / f"{name}.so"
-                try:
-                    subprocess.run(
-                        [compiler, *CFLAGS, OPENMP_FLAG, str(source), "-o", str(partial)],
-                        check=True,
-                        capture_output=True,
-                    )
-                except subprocess.CalledProcessError:  # no OpenMP: the parallel loop runs serially
-                    subprocess.run(
-                        [compiler, *CFLAGS, str(source), "-o", str(partial)], check=True, capture_output=True
-                    )
+                _build(compiler, source, partial)
                 partial.replace(library)  # atomic: a reader never sees half a library
             compiled_now = True
         except (OSError, subprocess.CalledProcessError):
@@ -154,7 +310,23 @@ def compile_function(f: ca.Function, cache_dir: Path | None, compiler: str | Non
     return Compiled(ca.external(f.name(), str(library)), Backend.COMPILED, library, compiled_now)
 
 
-def batch_kernel(compiled: Compiled, f: ca.Function, parallel: bool = False) -> Callable[..., list[np.ndarray]] | None:
+def _build(compiler: str, source: Path, library: Path) -> None:
+    """Compile ``source`` into the shared ``library``: with OpenMP and the SIMD flags, else
+    without OpenMP (the parallel loops then run serially), else with neither."""
+    arch = simd_flags()
+    attempts = [(*arch, OPENMP_FLAG), arch, ()]
+    for k, flags in enumerate(attempts):
+        try:
+            subprocess.run([compiler, *CFLAGS, *flags, str(source), "-o", str(library)], check=True, capture_output=True)
+            return
+        except subprocess.CalledProcessError:
+            if k == len(attempts) - 1:
+                raise
+
+
+def batch_kernel(
+    compiled: Compiled, f: ca.Function, parallel: bool = False, simd: bool = False
+) -> Callable[..., list[np.ndarray]] | None:
     """The compiled batch driver of ``f`` (:func:`batch_driver`) as a Python callable, or None on
     the virtual-machine path.
 
@@ -162,12 +334,16 @@ def batch_kernel(compiled: Compiled, f: ca.Function, parallel: bool = False) -> 
     per row), and returns one array per output, shape (n_designs, nnz_out(i)); pass ``out=`` (a
     list of such arrays) to reuse buffers. Raises ``FloatingPointError`` if the C code reports a
     failure. With ``parallel``, the loop is split over OpenMP threads (``OMP_NUM_THREADS``; all
-    cores by default) when the library was built with OpenMP (:func:`has_openmp`).
+    cores by default) when the library was built with OpenMP (:func:`has_openmp`). With ``simd``,
+    the SIMD driver (:func:`simd_driver`), or None if the library has none (:func:`simd_lanes`).
     """
     if compiled.backend is not Backend.COMPILED or compiled.library is None:
         return None
+    if simd and not simd_lanes(compiled, f):
+        return None
     lib = ctypes.CDLL(str(compiled.library))
-    fn = getattr(lib, f"{f.name()}_batch_parallel" if parallel else f"{f.name()}_batch")
+    driver = "simd" if simd else "batch"
+    fn = getattr(lib, f"{f.name()}_{driver}_parallel" if parallel else f"{f.name()}_{driver}")
     fn.restype = ctypes.c_int
     n_in, n_out = f.n_in(), f.n_out()
     nnz_in = [f.nnz_in(i) for i in range(n_in)]
@@ -196,3 +372,10 @@ def has_openmp(compiled: Compiled, f: ca.Function) -> bool:
     if compiled.backend is not Backend.COMPILED or compiled.library is None:
         return False
     return bool(getattr(ctypes.CDLL(str(compiled.library)), f"{f.name()}_openmp")())
+
+
+def simd_lanes(compiled: Compiled, f: ca.Function) -> int:
+    """Designs per step of the compiled library's SIMD driver; 0 if it has none."""
+    if compiled.backend is not Backend.COMPILED or compiled.library is None:
+        return 0
+    return int(getattr(ctypes.CDLL(str(compiled.library)), f"{f.name()}_simd_lanes")())

@@ -6,10 +6,12 @@ the full model's outputs to rounding, which :func:`speed_report` checks), and th
 norms w.r.t. every design value (:func:`impulse_core.impact.norms_gradient_function`: the adjoint
 of the impact equations, beside CasADi's reverse mode through the whole graph as its peer).
 
-Batched, three ways, one call from Python per batch: ``Function.map`` on CasADi's virtual
+Batched, four ways, one call from Python per batch: ``Function.map`` on CasADi's virtual
 machine; ``Function.map`` over the compiled function (CasADi's C++ loop calls the C code per
-design); and the compiled C loop (:func:`impulse_core.codegen.batch_kernel`: one C function
-walks the designs, NumPy arrays in and out, nothing allocated per call). Compiled: the function
+design); the compiled C loop (:func:`impulse_core.codegen.batch_kernel`: one C function walks
+the designs, NumPy arrays in and out, nothing allocated per call); and the SIMD loop
+(:func:`impulse_core.codegen.simd_driver`: the same instructions on several designs at once,
+one per vector lane). Compiled: the function
 as C (``-O3``), compiled once per topology and cached on disk (:mod:`impulse_core.codegen`); the
 virtual machine where no compiler exists. Inputs are built before the clock starts (CasADi
 matrices for the maps, one design per row for the C loop).
@@ -28,7 +30,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from impulse_core.codegen import Backend, Compiled, batch_kernel, compile_function, has_openmp
+from impulse_core.codegen import Backend, Compiled, batch_kernel, compile_function, has_openmp, simd_lanes
 from impulse_core.evaluate import active_contacts, approach_velocity, compiled_model
 from impulse_core.impact import LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
 from impulse_core.tree import Body, ContactSelection, Scene, Tree, design_vector
@@ -43,9 +45,11 @@ CHECKED_OUTPUTS = ("external", "internal_magnitude", "external_norm", "internal_
 class SpeedReport:
     """Microseconds per design (or per call) for one model; ``ratio`` = best batched (any path,
     threads included) / Pinocchio (one thread), ``ratio_one_core`` the same without threads,
-    ``gradient_ratio`` = gradient / evaluation (both batched, one thread, on the same path): the
-    adjoint gradient; ``gradient_ratio_autodiff`` the same for CasADi's reverse mode through the
-    whole graph, its peer in the same run."""
+    ``gradient_ratio`` = gradient / evaluation, both batched on one core on ``gradient_path``
+    (the SIMD loop where built, else the C loop, else CasADi's map): the adjoint gradient;
+    ``gradient_ratio_autodiff`` the same for CasADi's reverse mode through the whole graph, its
+    peer in the same run; ``gradient_ratio_c_loop`` and ``gradient_ratio_map`` the adjoint's on
+    those paths."""
 
     model: str
     n_bodies: int
@@ -58,21 +62,26 @@ class SpeedReport:
     build_ms: float
     compile_s: float | None
     backend: str
+    simd_lanes: int
     us_per_design_single: float
     us_per_design_batched_vm: float
     us_per_design_batched_compiled: float | None
     us_per_design_batched_kernel: float | None
     us_per_design_batched_kernel_threads: float | None
+    us_per_design_batched_simd: float | None
+    us_per_design_batched_simd_threads: float | None
     openmp: bool
     us_per_design_batched_threads: float | None
     us_per_design_batched: float
     us_per_design_full_batched: float | None
+    gradient_path: str
     us_per_design_gradient: float | None
     us_per_design_gradient_autodiff: float | None
     gradient_ratio: float | None
     gradient_ratio_autodiff: float | None
-    gradient_equals_autodiff: bool | None
+    gradient_ratio_c_loop: float | None
     gradient_ratio_map: float | None
+    gradient_equals_autodiff: bool | None
     pinocchio_us_per_call: float | None
     ratio: float | None
     ratio_one_core: float | None
@@ -182,8 +191,8 @@ def speed_report(
     backend = Backend.VIRTUAL_MACHINE.value
     fast = lean
     rows = tuple(np.ascontiguousarray(np.array(a).T) for a in args)  # one design per row
-    kernel = None
     openmp = False
+    lanes = 0
     if cache_dir is not None:
         compiled, compile_s = _compile(lean, cache_dir)
         backend = compiled.backend.value
@@ -193,19 +202,16 @@ def speed_report(
             )
             fast = compiled.function
             fns["compiled"] = _mapped(fast, args, batch)
-            kernel = batch_kernel(compiled, lean)
-            out_k = kernel(*rows)
-            for i in idx:
-                for k in CHECKED_OUTPUTS:
-                    j = LEAN_OUTPUTS.index(k)
-                    same &= _close(out_k[j][i], out_map[j][:, i], 1e-12)
-            fns["kernel"] = _kernel_call(kernel, rows, out_k)
-            if threads > 1:
-                openmp = has_openmp(compiled, lean)
-                parallel = batch_kernel(compiled, lean, parallel=True)
-                out_p = parallel(*rows)
-                same &= all(np.array_equal(a, b) for a, b in zip(out_p, out_k))
-                fns["kernel_threads"] = _kernel_call(parallel, rows, out_p)
+            paths, outs, twins_same = _batch_paths("", compiled, lean, rows, threads)
+            fns |= paths
+            same &= twins_same and all(
+                _close(out[j][i], out_map[j][:, i], 1e-12)
+                for out in outs.values()
+                for i in idx
+                for j in (LEAN_OUTPUTS.index(k) for k in CHECKED_OUTPUTS)
+            )
+            openmp = threads > 1 and has_openmp(compiled, lean)
+            lanes = simd_lanes(compiled, lean)
         else:
             compile_s = None
     if threads > 1:
@@ -218,17 +224,22 @@ def speed_report(
             "gradient_autodiff": norms_gradient_function(topology, adjoint=False),
         }
         n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
+        singles = {k: [g(*(x[:, i] for x in args)) for i in idx] for k, g in grads.items()}
         grad_same = all(
-            _close(a, b, 1e-8)
-            for i in idx
-            for a, b in zip(grads["gradient"](*(x[:, i] for x in args)), grads["gradient_autodiff"](*(x[:, i] for x in args)))
+            _close(a, b, 1e-8) for one, ref in zip(singles["gradient"], singles["gradient_autodiff"]) for a, b in zip(one, ref)
         )
         for key, grad in grads.items():
             grad_compiled = None if fast is lean else _compile(grad, cache_dir)[0]
             fns[f"{key}_map"] = _mapped(grad if grad_compiled is None else grad_compiled.function, args, batch)
-            if kernel is not None and grad_compiled is not None:
-                grad_kernel = batch_kernel(grad_compiled, grad)
-                fns[key] = _kernel_call(grad_kernel, rows, grad_kernel(*rows))
+            if grad_compiled is not None:
+                paths, outs, twins_same = _batch_paths(f"{key}_", grad_compiled, grad, rows, 1)
+                fns |= paths
+                same &= twins_same and all(
+                    _close(out[j][i], singles[key][n][j], 1e-10)
+                    for out in outs.values()
+                    for n, i in enumerate(idx)
+                    for j in range(grad.n_out())
+                )
         if fast is not lean:
             fns["full"] = _mapped(_compile(full, cache_dir)[0].function, args, batch)
     if pinocchio:
@@ -239,13 +250,16 @@ def speed_report(
     us = _best_us(fns, rounds)
     per_design = {k: t / batch for k, t in us.items() if k != "pinocchio"}
     map_path = "compiled" if "compiled" in per_design else "vm"
-    batched = min(per_design[k] for k in ("vm", "compiled", "kernel", "kernel_threads", "threads") if k in per_design)
-    one_core = min(per_design[k] for k in ("vm", "compiled", "kernel") if k in per_design)
-    for key in ("gradient", "gradient_autodiff"):
-        if key not in per_design and f"{key}_map" in per_design:
-            per_design[key] = per_design[f"{key}_map"]
-    grad_us, grad_ad_us = per_design.get("gradient"), per_design.get("gradient_autodiff")
-    grad_path = "kernel" if "kernel" in per_design else map_path
+    one_core_paths = ("vm", "compiled", "kernel", "simd")
+    batched = min(per_design[k] for k in (*one_core_paths, "kernel_threads", "simd_threads", "threads") if k in per_design)
+    one_core = min(per_design[k] for k in one_core_paths if k in per_design)
+    # The gradient ratios: gradient and evaluation on the same one-core path.
+    path = next((k for k in ("simd", "kernel") if k in per_design and f"gradient_{k}" in per_design), None)
+
+    def gradient_ratio(key: str, on: str | None) -> float | None:
+        timed = f"{key}_{on}" if on else f"{key}_map"
+        return per_design[timed] / per_design[on or map_path] if timed in per_design else None
+
     pin_us = us.get("pinocchio")
     return SpeedReport(
         model=name,
@@ -259,23 +273,26 @@ def speed_report(
         build_ms=build_ms,
         compile_s=compile_s,
         backend=backend,
+        simd_lanes=lanes,
         us_per_design_single=single,
         us_per_design_batched_vm=per_design["vm"],
         us_per_design_batched_compiled=per_design.get("compiled"),
         us_per_design_batched_kernel=per_design.get("kernel"),
         us_per_design_batched_kernel_threads=per_design.get("kernel_threads"),
+        us_per_design_batched_simd=per_design.get("simd"),
+        us_per_design_batched_simd_threads=per_design.get("simd_threads"),
         openmp=openmp,
         us_per_design_batched_threads=per_design.get("threads"),
         us_per_design_batched=batched,
         us_per_design_full_batched=per_design.get("full"),
-        us_per_design_gradient=grad_us,
-        us_per_design_gradient_autodiff=grad_ad_us,
-        gradient_ratio=None if grad_us is None else grad_us / per_design[grad_path],
-        gradient_ratio_autodiff=None if grad_ad_us is None else grad_ad_us / per_design[grad_path],
+        gradient_path=path or map_path,
+        us_per_design_gradient=per_design.get(f"gradient_{path or 'map'}"),
+        us_per_design_gradient_autodiff=per_design.get(f"gradient_autodiff_{path or 'map'}"),
+        gradient_ratio=gradient_ratio("gradient", path),
+        gradient_ratio_autodiff=gradient_ratio("gradient_autodiff", path),
+        gradient_ratio_c_loop=gradient_ratio("gradient", "kernel"),
+        gradient_ratio_map=gradient_ratio("gradient", None),
         gradient_equals_autodiff=grad_same,
-        gradient_ratio_map=None
-        if "gradient_map" not in per_design
-        else per_design["gradient_map"] / per_design[map_path],
         pinocchio_us_per_call=pin_us,
         ratio=None if pin_us is None else batched / pin_us,
         ratio_one_core=None if pin_us is None else one_core / pin_us,
@@ -283,6 +300,30 @@ def speed_report(
         batched_equals_single=bool(same),
         lean_equals_full=bool(lean_full),
     )
+
+
+def _batch_paths(
+    prefix: str, compiled: Compiled, f: ca.Function, rows: Sequence[np.ndarray], threads: int
+) -> tuple[dict[str, Callable[[], object]], dict[str, list[np.ndarray]], bool]:
+    """The compiled batch drivers of ``f``, ready to time as ``prefix + "kernel"`` (the C loop)
+    and ``prefix + "simd"`` (the SIMD loop, where built), with their OpenMP twins
+    (``..._threads``) when ``threads`` > 1; each driver's outputs on ``rows``; and whether every
+    twin equals its serial driver bit for bit."""
+    fns: dict[str, Callable[[], object]] = {}
+    outs: dict[str, list[np.ndarray]] = {}
+    same = True
+    for path, simd in (("kernel", False), ("simd", True)):
+        kernel = batch_kernel(compiled, f, simd=simd)
+        if kernel is None:
+            continue
+        outs[path] = kernel(*rows)
+        fns[prefix + path] = _kernel_call(kernel, rows, outs[path])
+        if threads > 1:
+            twin = batch_kernel(compiled, f, parallel=True, simd=simd)
+            out = twin(*rows)
+            same &= all(np.array_equal(a, b) for a, b in zip(out, outs[path]))
+            fns[prefix + path + "_threads"] = _kernel_call(twin, rows, out)
+    return fns, outs, same
 
 
 def _mapped(f: ca.Function, args: Sequence[ca.DM], batch: int, threads: int = 1) -> Callable[[], object]:
@@ -374,6 +415,7 @@ def scaling_series(
                 "compile_s": r.compile_s,
                 "backend": r.backend,
                 "us_per_design": r.us_per_design_batched,
+                "us_per_design_c_loop": r.us_per_design_batched_kernel,
                 "us_per_design_map": r.us_per_design_batched_compiled,
                 "us_per_design_vm": r.us_per_design_batched_vm,
                 "pinocchio_us_per_call": r.pinocchio_us_per_call,
@@ -416,19 +458,24 @@ def format_report(r: SpeedReport) -> str:
         (f"batched (map over {r.batch}), VM", _fmt(r.us_per_design_batched_vm, " us/design")),
         (f"batched (map over {r.batch}), compiled C", _fmt(r.us_per_design_batched_compiled, " us/design")),
         (f"batched ({r.batch} designs), compiled C loop", _fmt(r.us_per_design_batched_kernel, " us/design")),
+        (
+            f"batched, SIMD loop ({r.simd_lanes} designs per step)",
+            _fmt(r.us_per_design_batched_simd, " us/design", 3),
+        ),
         ("batched, CasADi map on 2 threads", _fmt(r.us_per_design_batched_threads, " us/design")),
         (
             "batched, compiled C loop on OpenMP threads",
             _fmt(r.us_per_design_batched_kernel_threads, " us/design")
             + ("" if r.openmp else " (built without OpenMP)"),
         ),
+        ("batched, SIMD loop on OpenMP threads", _fmt(r.us_per_design_batched_simd_threads, " us/design", 3)),
         ("batched, best", _fmt(r.us_per_design_batched, " us/design", 3)),
         ("full model (all outputs), batched compiled", _fmt(r.us_per_design_full_batched, " us/design")),
-        ("gradient of both norms (adjoint), batched", _fmt(r.us_per_design_gradient, " us/design")),
-        ("gradient / evaluation (same path)", _fmt(r.gradient_ratio)),
-        ("gradient / evaluation (CasADi map)", _fmt(r.gradient_ratio_map)),
-        ("gradient by reverse mode through the graph, batched", _fmt(r.us_per_design_gradient_autodiff, " us/design")),
-        ("reverse-mode gradient / evaluation (same path)", _fmt(r.gradient_ratio_autodiff)),
+        (f"gradient of both norms (adjoint), batched, {r.gradient_path}", _fmt(r.us_per_design_gradient, " us/design", 3)),
+        (f"gradient / evaluation ({r.gradient_path})", _fmt(r.gradient_ratio)),
+        ("gradient / evaluation (C loop; CasADi map)", f"{_fmt(r.gradient_ratio_c_loop)}; {_fmt(r.gradient_ratio_map)}"),
+        (f"gradient by reverse mode through the graph, {r.gradient_path}", _fmt(r.us_per_design_gradient_autodiff, " us/design", 3)),
+        (f"reverse-mode gradient / evaluation ({r.gradient_path})", _fmt(r.gradient_ratio_autodiff)),
         ("pinocchio.impulseDynamics (external only)", _fmt(r.pinocchio_us_per_call, " us/call")),
         ("ratio batched / pinocchio", _fmt(r.ratio, "", 3)),
         ("ratio batched on one core / pinocchio", _fmt(r.ratio_one_core, "", 3)),
@@ -448,12 +495,16 @@ def format_report(r: SpeedReport) -> str:
 
 def format_scaling(rows: Sequence[dict]) -> str:
     """The scaling series as a table, with the fitted growth exponent."""
-    head = f"{'bodies':>6} {'DOF':>4} {'contacts':>8} {'instructions':>12} {'compile s':>9} {'us/design':>10} {'pinocchio us':>12}"
+    head = (
+        f"{'bodies':>6} {'DOF':>4} {'contacts':>8} {'instructions':>12} {'compile s':>9} {'us/design':>10} "
+        f"{'C loop us':>10} {'pinocchio us':>12}"
+    )
     lines = [head]
     for r in rows:
         lines.append(
             f"{r['bodies']:>6} {r['dof']:>4} {r['contacts']:>8} {r['instructions']:>12} "
-            f"{_fmt(r['compile_s']):>9} {r['us_per_design']:>10.3f} {_fmt(r['pinocchio_us_per_call']):>12}"
+            f"{_fmt(r['compile_s']):>9} {r['us_per_design']:>10.3f} {_fmt(r['us_per_design_c_loop'], '', 3):>10} "
+            f"{_fmt(r['pinocchio_us_per_call']):>12}"
         )
     k = growth_exponent(rows)
     lines.append(f"time ~ bodies^{_fmt(k)} (least squares over the series)")

@@ -30,6 +30,9 @@ def test_bench_json_keys_and_agreement(leg_file, capsys, tmp_path) -> None:
         "backend",
         "scaling",
         "us_per_design_batched_kernel",
+        "us_per_design_batched_simd",
+        "simd_lanes",
+        "gradient_path",
     ):
         assert key in record
     assert record["batched_equals_single"] is True
