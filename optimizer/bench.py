@@ -448,8 +448,10 @@ def format_report(r: SpeedReport) -> str:
         ),
         (
             "SX instructions: lean / full model / gradient (adjoint, reverse mode)",
-            f"{r.n_instructions} / {r.n_instructions_full} / "
-            f"{r.n_instructions_gradient or '-'}, {r.n_instructions_gradient_autodiff or '-'}",
+            (
+                f"{r.n_instructions} / {r.n_instructions_full} / "
+                f"{r.n_instructions_gradient or '-'}, {r.n_instructions_gradient_autodiff or '-'}"
+            ),
         ),
         ("build the graph (first use of the topology)", f"{r.build_ms:.1f} ms"),
         ("compile to C (or load from the cache)", _fmt(r.compile_s, " s")),

@@ -28,7 +28,7 @@ from optimizer.bench import SCALING_SIZES
 from optimizer.landing import COMPLIANT, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.model_file import ModelFile, load_model_file
 from optimizer.optimize_cli import add_optimize, add_pareto
-from optimizer.plot import PLOT_SUFFIXES, plot_touchdown
+from optimizer.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown
 from optimizer.report import Result, format_report, is_finite, result_record
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -113,9 +113,10 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="time the evaluation of a model, next to pinocchio.impulseDynamics",
         description=(
             "Time one design's evaluation (external + internal impulses + norms, the optimiser's hot path): "
-            "one call per design, batched over many designs (virtual machine, compiled C, 2 threads), the "
-            "gradient of both norms, beside pinocchio.impulseDynamics on the same model in the same run (if "
-            "`pin` is installed); check that batched results equal single calls and the full model. "
+            "one call per design, batched over many designs (virtual machine, compiled C, a C loop, a SIMD "
+            "loop, 2 threads), the gradient of both norms (adjoint, beside reverse-mode AD), beside "
+            "pinocchio.impulseDynamics on the same model in the same run (if `pin` is installed); check that "
+            "batched results equal single calls and the full model, and the two gradients each other. "
             "'footopt bench speed' (the default mode) times the paper's case 3 and the scaling series "
             "(5 to 200 bodies); 'footopt bench FILE...' times the given model files. Quote ratios, not times."
         ),
@@ -134,6 +135,11 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="where compiled C libraries are cached (default ~/.cache/footopt)",
     )
     p.add_argument("--no-compile", action="store_true", help="time CasADi's virtual machine only")
+    p.add_argument(
+        "--plot",
+        metavar="PATH",
+        help="also draw the first model's paths and the scaling series to PATH (.png or .svg)",
+    )
     p.add_argument(
         "--sizes",
         default=None,
@@ -282,7 +288,7 @@ def run_bench(args: argparse.Namespace) -> int:
     """``footopt bench [speed] [FILE...]``: timings and the ratio to Pinocchio per model file, and
     the scaling series attached to the first model's report."""
     from optimizer.bench import format_report as format_bench
-    from optimizer.bench import scaling_series, speed_report
+    from optimizer.bench import speed_report
 
     if args.batch < 1:
         _error("--batch", f"must be >= 1, got {args.batch}")
@@ -295,6 +301,9 @@ def run_bench(args: argparse.Namespace) -> int:
     except ValueError as e:
         _error("--sizes", str(e))
         return EXIT_USAGE
+    if args.plot is not None and Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
+        _error("--plot", f"{args.plot}: must end in {' or '.join(PLOT_SUFFIXES)}")
+        return EXIT_USAGE
     cache = None if args.no_compile else Path(args.cache_dir)
     for n, file in enumerate(files):
         try:
@@ -302,15 +311,37 @@ def run_bench(args: argparse.Namespace) -> int:
         except FootoptError as e:
             _error(file, str(e))
             return EXIT_USAGE
+        print(f"timing {file} ...", file=sys.stderr)
         report = speed_report(Path(file).stem, model.tree, model.scene, batch=args.batch, cache_dir=cache)
         if n == 0 and sizes:
-            report = replace(report, scaling=scaling_series(sizes, batch=min(args.batch, 500), cache_dir=cache))
+            report = replace(report, scaling=_scaling_with_progress(sizes, min(args.batch, 500), cache))
+        if n == 0 and args.plot is not None:
+            try:
+                print(f"plot: {plot_speed(report, Path(args.plot))}", file=sys.stderr)
+            except FootoptError as e:
+                _error("--plot", str(e))
+                return EXIT_USAGE
         if args.json:
             print(json.dumps(report.as_dict(), allow_nan=False))
         else:
             print(("\n" if n else "") + format_bench(report))
         sys.stdout.flush()
     return EXIT_OK
+
+
+def _scaling_with_progress(sizes: tuple[int, ...], batch: int, cache: Path | None) -> list[dict]:
+    """The scaling series with a progress bar on stderr (compiling the large trees takes minutes)."""
+    from tqdm import tqdm
+
+    from optimizer.bench import scaling_series
+
+    rows: list[dict] = []
+    with tqdm(total=len(sizes), unit="tree", desc="scaling series", disable=None, dynamic_ncols=True) as bar:
+        for n in sizes:
+            bar.set_postfix_str(f"{n} bodies")
+            rows += scaling_series((n,), batch=batch, cache_dir=cache)
+            bar.update(1)
+    return rows
 
 
 def _sizes(text: str | None, default: tuple[int, ...]) -> tuple[int, ...]:

@@ -1,8 +1,10 @@
-"""Drawings of a tree at touchdown with its impulses (matplotlib, no display needed)."""
+"""Drawings of a tree at touchdown with its impulses, and of a speed report (matplotlib, no
+display needed)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -10,6 +12,9 @@ from impulse_core.evaluate import Geometry, ImpactResult
 from impulse_core.terrain import FLAT, height, slope_normal, vertical_clearance
 from impulse_core.tree import Scene, Tree
 from optimizer.errors import ConfigError
+
+if TYPE_CHECKING:
+    from optimizer.bench import SpeedReport
 
 #: File types ``plot_touchdown`` writes, by suffix.
 PLOT_SUFFIXES = (".png", ".svg")
@@ -146,4 +151,73 @@ def plot_touchdown(
     return path
 
 
-__all__ = ["PLOT_SUFFIXES", "plot_touchdown"]
+def plot_speed(report: SpeedReport, path: str | Path) -> Path:
+    """Draw a speed report (``footopt bench --plot``) and write it to ``path`` (PNG or SVG).
+
+    Left: microseconds per design of every path timed on the report's model, beside
+    ``pinocchio.impulseDynamics`` per call. Right, when the report has a scaling series:
+    microseconds per design against body count, log-log, with a quadratic slope for reference.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    path = Path(path)
+    if path.suffix.lower() not in PLOT_SUFFIXES:
+        raise ConfigError(f"{path}: a plot is written as {' or '.join(PLOT_SUFFIXES)} (by its suffix)", path)
+    bars = [
+        ("CasADi VM, map", report.us_per_design_batched_vm),
+        ("compiled, CasADi map", report.us_per_design_batched_compiled),
+        ("compiled, C loop", report.us_per_design_batched_kernel),
+        (f"compiled, SIMD ({report.simd_lanes} lanes)", report.us_per_design_batched_simd),
+        ("C loop, 2 threads", report.us_per_design_batched_kernel_threads),
+        ("SIMD, 2 threads", report.us_per_design_batched_simd_threads),
+        (f"gradient, adjoint ({report.gradient_path})", report.us_per_design_gradient),
+        (f"gradient, reverse mode ({report.gradient_path})", report.us_per_design_gradient_autodiff),
+        ("pinocchio.impulseDynamics (per call)", report.pinocchio_us_per_call),
+    ]
+    bars = [(label, us) for label, us in bars if us is not None]
+    fig = Figure(figsize=(13, 5.5) if report.scaling else (7, 5.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 2 if report.scaling else 1, 1)
+    colors = ["#c0392b" if label.startswith("pinocchio") else "#27ae60" if "gradient" in label else _ROD for label, _ in bars]
+    ax.barh(range(len(bars)), [us for _, us in bars], color=colors)
+    ax.set_yticks(range(len(bars)), [label for label, _ in bars], fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xscale("log")
+    for k, (_, us) in enumerate(bars):
+        ax.annotate(f"{us:.3g}", (us, k), xytext=(3, 0), textcoords="offset points", va="center", fontsize=8)
+    ax.set_xlabel("microseconds per design (batched) or per call")
+    ax.set_title(f"{report.model}: {report.n_bodies} bodies, {report.n_dof} DOF, {report.n_contacts} contacts", fontsize=10)
+    if report.scaling:
+        ax2 = fig.add_subplot(1, 2, 2)
+        bodies = np.array([r["bodies"] for r in report.scaling], dtype=float)
+        series = [
+            ("best one-core path", "us_per_design", "o-", _ROD),
+            ("compiled, C loop", "us_per_design_c_loop", "s--", "#8e44ad"),
+            ("CasADi VM, map", "us_per_design_vm", "^:", _GROUND),
+            ("pinocchio.impulseDynamics", "pinocchio_us_per_call", "d-", "#c0392b"),
+        ]
+        for label, key, style, color in series:
+            ys = [r.get(key) for r in report.scaling]
+            if all(y is not None for y in ys):
+                ax2.plot(bodies, ys, style, color=color, label=label)
+        first = report.scaling[0]["us_per_design"]
+        ax2.plot(bodies, first * (bodies / bodies[0]) ** 2, color="#999999", lw=1, label="quadratic growth, for reference")
+        ax2.set_xscale("log")
+        ax2.set_yscale("log")
+        ax2.set_xticks(bodies, [f"{b:.0f}" for b in bodies])
+        ax2.minorticks_off()
+        ax2.set_xlabel("bodies")
+        ax2.set_ylabel("microseconds per design (per call for Pinocchio)")
+        ax2.set_title("scaling series (more toes, more segments)", fontsize=10)
+        ax2.grid(True, which="both", alpha=0.3)
+        ax2.legend(fontsize=8)
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot write the plot: {e.strerror or e}", path) from None
+    return path
+
+
+__all__ = ["PLOT_SUFFIXES", "plot_speed", "plot_touchdown"]

@@ -113,3 +113,14 @@ def test_bench_rejects_bad_sizes(capsys) -> None:
     assert main(["bench", "speed", "--sizes", "2,x"]) == 2
     err = capsys.readouterr().err
     assert "--sizes" in err and "Traceback" not in err
+
+
+def test_bench_plot_draws_the_report(tmp_path, capsys) -> None:
+    """--plot writes a PNG of the paths and the scaling series; a bad suffix is a usage error."""
+    path = tmp_path / "speed.png"
+    args = ["bench", "speed", "--batch", "4", "--no-compile", "--sizes", "5,8", "--plot", str(path)]
+    assert main(args) == 0
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["bench", "speed", "--sizes", "none", "--plot", str(tmp_path / "speed.pdf")]) == 2
+    err = capsys.readouterr().err
+    assert "--plot" in err and "Traceback" not in err
