@@ -22,6 +22,24 @@ PLOT_SUFFIXES = (".png", ".svg")
 _ROD, _JOINT, _CONTACT, _EXTERNAL, _INTERNAL, _GROUND = "#4a6fa5", "#333333", "#c0392b", "#c0392b", "#27ae60", "#777777"
 
 
+def _plot_path(path: str | Path) -> Path:
+    """``path`` as a Path, refused (ConfigError) unless it ends in one of ``PLOT_SUFFIXES``."""
+    path = Path(path)
+    if path.suffix.lower() not in PLOT_SUFFIXES:
+        raise ConfigError(f"{path}: a plot is written as {' or '.join(PLOT_SUFFIXES)} (by its suffix)", path)
+    return path
+
+
+def _save(fig, path: Path) -> Path:
+    """Lay out ``fig`` and write it to ``path`` (ConfigError if it cannot be written)."""
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot write the plot: {e.strerror or e}", path) from None
+    return path
+
+
 def plot_touchdown(
     tree: Tree, geometry: Geometry, result: ImpactResult, path: str | Path, title: str, scene: Scene | None = None
 ) -> Path:
@@ -57,9 +75,7 @@ def plot_touchdown(
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
-    path = Path(path)
-    if path.suffix.lower() not in PLOT_SUFFIXES:
-        raise ConfigError(f"{path}: a plot is written as {' or '.join(PLOT_SUFFIXES)} (by its suffix)", path)
+    path = _plot_path(path)
 
     fig = Figure(figsize=(10, 6.5))
     FigureCanvasAgg(fig)
@@ -143,12 +159,7 @@ def plot_touchdown(
         Line2D([], [], color=_GROUND, lw=1.5, label="ground"),
     ]
     ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
-    fig.tight_layout()
-    try:
-        fig.savefig(path, dpi=150, bbox_inches="tight")
-    except OSError as e:
-        raise ConfigError(f"{path}: cannot write the plot: {e.strerror or e}", path) from None
-    return path
+    return _save(fig, path)
 
 
 def plot_speed(report: SpeedReport, path: str | Path) -> Path:
@@ -161,9 +172,7 @@ def plot_speed(report: SpeedReport, path: str | Path) -> Path:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    path = Path(path)
-    if path.suffix.lower() not in PLOT_SUFFIXES:
-        raise ConfigError(f"{path}: a plot is written as {' or '.join(PLOT_SUFFIXES)} (by its suffix)", path)
+    path = _plot_path(path)
     bars = [
         ("CasADi VM, map", report.us_per_design_batched_vm),
         ("compiled, CasADi map", report.us_per_design_batched_compiled),
@@ -212,12 +221,7 @@ def plot_speed(report: SpeedReport, path: str | Path) -> Path:
         ax2.set_title("scaling series (more toes, more segments)", fontsize=10)
         ax2.grid(True, which="both", alpha=0.3)
         ax2.legend(fontsize=8)
-    fig.tight_layout()
-    try:
-        fig.savefig(path, dpi=150, bbox_inches="tight")
-    except OSError as e:
-        raise ConfigError(f"{path}: cannot write the plot: {e.strerror or e}", path) from None
-    return path
+    return _save(fig, path)
 
 
 __all__ = ["PLOT_SUFFIXES", "plot_speed", "plot_touchdown"]
