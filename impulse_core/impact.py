@@ -483,6 +483,8 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
     restitution law.)
     """
     nc, nv = len(topology.active), g.layout.nv
+    if nc == 0:  # no impact: both norms are zero whatever the design
+        return ca.SX.zeros(topology.n_values, 1), ca.SX.zeros(topology.n_values, 1)
     lam, pivots, dv = g.outputs[0], g.outputs[1], g.delta_v
     held = [ca.SX.sym(name, k) for name, k in (("lam", nc), ("dv", nv), ("a", nv), ("nu", nc), ("u", nv))]
     lam_h, dv_h, a_h, nu_h, u_h = held
@@ -509,8 +511,6 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
         d = ca.gradient(objective, p)
         return ca.substitute(d, ca.vertcat(*held), ca.vertcat(lam, dv, a, nu, dv + (1 + e) * v_minus))
 
-    if nc == 0:
-        return ca.SX.zeros(topology.n_values, 1), ca.SX.zeros(topology.n_values, 1)
     d_external = gradient(psi, lam / ca.norm_2(lam), None)
     d_internal = gradient(psi + internal_norm, seeds[:nc], seeds[nc:])
     return d_external, d_internal
