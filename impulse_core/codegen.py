@@ -51,7 +51,7 @@ class Compiled:
 
 
 #: Version of what this module adds to CasADi's generated code (the batch drivers); in the cache key.
-GENERATOR_VERSION = "batch-driver-3-simd"
+GENERATOR_VERSION = "batch-driver-4-simd"
 #: Designs per SIMD step: one 256-bit vector of doubles (AVX2; two SSE2 registers without it).
 SIMD_LANES = 4
 #: Tried first, for the driver's parallel loop; the build retries without it if the compiler lacks it.
@@ -113,15 +113,18 @@ static inline footopt_vd footopt_sqrt(footopt_vd x) {
   return r;
 }
 
+static inline footopt_vd footopt_fabs(footopt_vd x) { return (footopt_vd)((footopt_vi)x & 0x7fffffffffffffffLL); }
+
 /* sin and cos of every lane, within 2 ulp of libm's (1 ulp for |x| <= 10; tests/impulse_core/
    test_codegen.py): x = q pi/2 + r with q = round(2 x / pi)
    (the 1.5 * 2^52 trick; its low bits are q mod 4), r by Cody-Waite in three parts of pi/2
    (exact products for |q| < 2^20), fdlibm's kernels __kernel_sin / __kernel_cos on
    [-pi/4, pi/4], then the quadrant. libm itself where any lane has |x| > 1e5 (or is not finite). */
 static inline void footopt_sincos(footopt_vd x, footopt_vd* s_out, footopt_vd* c_out) {
-  int big = 0;
-  for (int l = 0; l < FOOTOPT_LANES; ++l) big |= !(fabs(x[l]) <= 1e5);
-  if (big) {
+  footopt_vi small = footopt_fabs(x) <= 1e5 + (footopt_vd){0};  /* false for nan */
+  int all_small = 1;
+  for (int l = 0; l < FOOTOPT_LANES; ++l) all_small &= small[l] != 0;
+  if (!all_small) {
     for (int l = 0; l < FOOTOPT_LANES; ++l) {
       (*s_out)[l] = sin(x[l]);
       (*c_out)[l] = cos(x[l]);
@@ -151,8 +154,6 @@ static inline void footopt_sincos(footopt_vd x, footopt_vd* s_out, footopt_vd* c
   *s_out = (footopt_vd)(si ^ ((qi & 2) << 62));
   *c_out = (footopt_vd)(ci ^ (((qi + 1) & 2) << 62));
 }
-
-static inline footopt_vd footopt_fabs(footopt_vd x) { return (footopt_vd)((footopt_vi)x & 0x7fffffffffffffffLL); }
 
 static inline footopt_vd footopt_sin(footopt_vd x) { footopt_vd s, c; footopt_sincos(x, &s, &c); return s; }
 static inline footopt_vd footopt_cos(footopt_vd x) { footopt_vd s, c; footopt_sincos(x, &s, &c); return c; }
@@ -188,14 +189,21 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
     designs, one per vector lane (the last step repeats the last design in its spare lanes and
     stores only the real ones). Arithmetic, sqrt and fabs are IEEE operations lane by lane, so
     they round as the scalar code does; sin and cos come from a vector kernel within 1 ulp of
-    libm's for |x| <= 10 (2 ulp up to 1e5; libm itself beyond). ``<name>_simd_lanes()`` returns ``lanes``. None when ``f`` is not an SX function or
-    uses an operation outside +, -, *, /, 1/x, negation, square, fabs, sqrt, sin and cos."""
+    libm's for |x| <= 10 (2 ulp up to 1e5; libm itself beyond), one call for the sin and cos of
+    one value. ``<name>_simd_lanes()`` returns ``lanes``. None when ``f`` is not an SX function
+    or uses an operation outside +, -, *, /, 1/x, negation, square, fabs, sqrt, sin and cos."""
     if not f.is_a("SXFunction"):
         return None
+    pairs = _sincos_pairs(f)
     body = []
     for k in range(f.n_instructions()):
         op, i, o = f.instruction_id(k), f.instruction_input(k), f.instruction_output(k)
-        if op == ca.OP_INPUT:
+        if k in pairs:  # sin and cos of one value: one reduction and both polynomials, once
+            first, pair = pairs[k]
+            if first:
+                body.append(f"  footopt_sincos(w{i[0]}, &s{pair}, &c{pair});")
+            body.append(f"  w{o[0]} = {'s' if op == ca.OP_SIN else 'c'}{pair};")
+        elif op == ca.OP_INPUT:
             body.append(f"  w{o[0]} = footopt_load(in[{i[0]}] + {i[1]}, {f.nnz_in(i[0])}, kk);")
         elif op == ca.OP_OUTPUT:
             body.append(f"  footopt_store(out[{o[0]}] + {o[1]}, {f.nnz_out(o[0])}, kk, valid, w{i[0]});")
@@ -208,10 +216,8 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
         else:
             return None
     name, n_w = f.name(), max(f.sz_w(), 1)
-    declarations = [
-        "  footopt_vd " + ", ".join(f"w{j}" for j in range(start, min(start + 12, n_w))) + ";"
-        for start in range(0, n_w, 12)
-    ]
+    names = [f"w{j}" for j in range(n_w)] + [f"{sc}{p}" for p in range(len(pairs) // 2) for sc in "sc"]
+    declarations = ["  footopt_vd " + ", ".join(names[start : start + 12]) + ";" for start in range(0, len(names), 12)]
     return "\n".join(
         [
             f"#define FOOTOPT_LANES {lanes}",
@@ -238,6 +244,28 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
             f"CASADI_SYMBOL_EXPORT int {name}_simd_lanes(void) {{ return {lanes}; }}",
         ]
     ) + "\n"
+
+
+def _sincos_pairs(f: ca.Function) -> dict[int, tuple[bool, int]]:
+    """The SIN and COS instructions of ``f`` that take the same value (the same work slot, not
+    written in between), as instruction -> (first of its pair, pair number)."""
+    version = [0] * max(f.sz_w(), 1)
+    seen: dict[tuple[int, int], list[int]] = {}
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        if op in (ca.OP_SIN, ca.OP_COS):
+            slot = f.instruction_input(k)[0]
+            seen.setdefault((slot, version[slot]), []).append(k)
+        if op != ca.OP_OUTPUT:
+            for slot in f.instruction_output(k)[:1]:
+                version[slot] += 1
+    pairs: dict[int, tuple[bool, int]] = {}
+    for ks in seen.values():
+        ops = {f.instruction_id(k) for k in ks}
+        if len(ks) == 2 and ops == {ca.OP_SIN, ca.OP_COS}:
+            n = len(pairs) // 2
+            pairs[ks[0]], pairs[ks[1]] = (True, n), (False, n)
+    return pairs
 
 
 def simd_flags() -> tuple[str, ...]:
