@@ -218,32 +218,35 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
     name, n_w = f.name(), max(f.sz_w(), 1)
     names = [f"w{j}" for j in range(n_w)] + [f"{sc}{p}" for p in range(len(pairs) // 2) for sc in "sc"]
     declarations = ["  footopt_vd " + ", ".join(names[start : start + 12]) + ";" for start in range(0, len(names), 12)]
-    return "\n".join(
-        [
-            f"#define FOOTOPT_LANES {lanes}",
-            _SIMD_PRELUDE,
-            f"static void {name}_simd_step(const casadi_real** in, casadi_real** out, casadi_int k0, casadi_int n) {{",
-            "  casadi_int kk[FOOTOPT_LANES];",
-            "  int l, valid = n - k0 < FOOTOPT_LANES ? (int)(n - k0) : FOOTOPT_LANES;",
-            "  footopt_vd zero = {0};",
-            "  for (l = 0; l < FOOTOPT_LANES; ++l) kk[l] = l < valid ? k0 + l : n - 1;",
-            *declarations,
-            *body,
-            "}",
-            f"CASADI_SYMBOL_EXPORT int {name}_simd(const casadi_real** in, casadi_real** out, casadi_int n) {{",
-            "  casadi_int k0;",
-            f"  for (k0 = 0; k0 < n; k0 += FOOTOPT_LANES) {name}_simd_step(in, out, k0, n);",
-            "  return 0;",
-            "}",
-            f"CASADI_SYMBOL_EXPORT int {name}_simd_parallel(const casadi_real** in, casadi_real** out, casadi_int n) {{",
-            "  casadi_int k0;",
-            "  #pragma omp parallel for if(n >= 64)",
-            f"  for (k0 = 0; k0 < n; k0 += FOOTOPT_LANES) {name}_simd_step(in, out, k0, n);",
-            "  return 0;",
-            "}",
-            f"CASADI_SYMBOL_EXPORT int {name}_simd_lanes(void) {{ return {lanes}; }}",
-        ]
-    ) + "\n"
+    return (
+        "\n".join(
+            [
+                f"#define FOOTOPT_LANES {lanes}",
+                _SIMD_PRELUDE,
+                f"static void {name}_simd_step(const casadi_real** in, casadi_real** out, casadi_int k0, casadi_int n) {{",
+                "  casadi_int kk[FOOTOPT_LANES];",
+                "  int l, valid = n - k0 < FOOTOPT_LANES ? (int)(n - k0) : FOOTOPT_LANES;",
+                "  footopt_vd zero = {0};",
+                "  for (l = 0; l < FOOTOPT_LANES; ++l) kk[l] = l < valid ? k0 + l : n - 1;",
+                *declarations,
+                *body,
+                "}",
+                f"CASADI_SYMBOL_EXPORT int {name}_simd(const casadi_real** in, casadi_real** out, casadi_int n) {{",
+                "  casadi_int k0;",
+                f"  for (k0 = 0; k0 < n; k0 += FOOTOPT_LANES) {name}_simd_step(in, out, k0, n);",
+                "  return 0;",
+                "}",
+                f"CASADI_SYMBOL_EXPORT int {name}_simd_parallel(const casadi_real** in, casadi_real** out, casadi_int n) {{",
+                "  casadi_int k0;",
+                "  #pragma omp parallel for if(n >= 64)",
+                f"  for (k0 = 0; k0 < n; k0 += FOOTOPT_LANES) {name}_simd_step(in, out, k0, n);",
+                "  return 0;",
+                "}",
+                f"CASADI_SYMBOL_EXPORT int {name}_simd_lanes(void) {{ return {lanes}; }}",
+            ]
+        )
+        + "\n"
+    )
 
 
 def _sincos_pairs(f: ca.Function) -> dict[int, tuple[bool, int]]:
@@ -345,7 +348,9 @@ def _build(compiler: str, source: Path, library: Path) -> None:
     attempts = [(*arch, OPENMP_FLAG), arch, ()]
     for k, flags in enumerate(attempts):
         try:
-            subprocess.run([compiler, *CFLAGS, *flags, str(source), "-o", str(library)], check=True, capture_output=True)
+            subprocess.run(
+                [compiler, *CFLAGS, *flags, str(source), "-o", str(library)], check=True, capture_output=True
+            )
             return
         except subprocess.CalledProcessError:
             if k == len(attempts) - 1:

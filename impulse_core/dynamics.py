@@ -349,7 +349,10 @@ def articulated_bodies(
     motions = joint_motions(kin, layout, space)
     n = len(parents)
     n_base = len(space.base_dofs)
-    dofs = [tuple(range(n_base)) if b == 0 else (() if layout.body_dof[b] is None else (layout.body_dof[b],)) for b in range(n)]
+    dofs = [
+        tuple(range(n_base)) if b == 0 else (() if layout.body_dof[b] is None else (layout.body_dof[b],))
+        for b in range(n)
+    ]
     S = []
     for b in range(n):
         cols = [ca.vertcat(motions[k].omega, motions[k].velocity_at(kin.W_p_O[b])) for k in dofs[b]]

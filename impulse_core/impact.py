@@ -458,7 +458,9 @@ def lean_impact_function(
     v_minus = ca.SX.sym("v_minus", nv)
     e = ca.SX.sym("restitution")
     outs = _lean_graph(topology, space, p, v_minus, e, algorithm).outputs
-    return ca.Function("impact_lean", [p, v_minus, e], list(outs), list(IMPACT_INPUTS), list(LEAN_OUTPUTS), LEAN_OPTIONS)
+    return ca.Function(
+        "impact_lean", [p, v_minus, e], list(outs), list(IMPACT_INPUTS), list(LEAN_OUTPUTS), LEAN_OPTIONS
+    )
 
 
 def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g: _LeanGraph) -> tuple[ca.SX, ca.SX]:
@@ -494,12 +496,16 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
 
     omega_dv, vel_dv = velocities(dv_h)
     momenta = [g.inertias[b].momentum(omega_dv[b], vel_dv[b]) for b in range(topology.n_bodies)]
-    internal_norm = _lean_outputs(topology, contact_bodies(topology), GROUND_NORMAL, [m[1] for m in momenta], lam_h, pivots)[4]
+    internal_norm = _lean_outputs(
+        topology, contact_bodies(topology), GROUND_NORMAL, [m[1] for m in momenta], lam_h, pivots
+    )[4]
     omega_a, vel_a = velocities(a_h)
     a_M_dv = sum((omega_a[b].T @ L + vel_a[b].T @ P for b, (L, P) in enumerate(momenta)), ca.SX(0))
     psi = lam_h.T @ _normal_velocities(topology, g.kin, omega_a, vel_a) - a_M_dv
     psi = psi - nu_h.T @ _normal_velocities(topology, g.kin, *velocities(u_h))
-    seeds = ca.substitute(ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)), ca.vertcat(lam_h, dv_h), ca.vertcat(lam, dv))
+    seeds = ca.substitute(
+        ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)), ca.vertcat(lam_h, dv_h), ca.vertcat(lam, dv)
+    )
 
     def gradient(objective: ca.SX, lam_bar: ca.SX, dv_bar: ca.SX | None) -> ca.SX:
         nu_rhs, z = lam_bar, ca.SX.zeros(nv, 1)

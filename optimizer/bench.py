@@ -226,7 +226,9 @@ def speed_report(
         n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
         singles = {k: [g(*(x[:, i] for x in args)) for i in idx] for k, g in grads.items()}
         grad_same = all(
-            _close(a, b, 1e-8) for one, ref in zip(singles["gradient"], singles["gradient_autodiff"]) for a, b in zip(one, ref)
+            _close(a, b, 1e-8)
+            for one, ref in zip(singles["gradient"], singles["gradient_autodiff"])
+            for a, b in zip(one, ref)
         )
         for key, grad in grads.items():
             grad_compiled = None if fast is lean else _compile(grad, cache_dir)[0]
@@ -251,7 +253,9 @@ def speed_report(
     per_design = {k: t / batch for k, t in us.items() if k != "pinocchio"}
     map_path = "compiled" if "compiled" in per_design else "vm"
     one_core_paths = ("vm", "compiled", "kernel", "simd")
-    batched = min(per_design[k] for k in (*one_core_paths, "kernel_threads", "simd_threads", "threads") if k in per_design)
+    batched = min(
+        per_design[k] for k in (*one_core_paths, "kernel_threads", "simd_threads", "threads") if k in per_design
+    )
     one_core = min(per_design[k] for k in one_core_paths if k in per_design)
     # The gradient ratios: gradient and evaluation on the same one-core path.
     path = next((k for k in ("simd", "kernel") if k in per_design and f"gradient_{k}" in per_design), None)
@@ -473,10 +477,19 @@ def format_report(r: SpeedReport) -> str:
         ("batched, SIMD loop on OpenMP threads", _fmt(r.us_per_design_batched_simd_threads, " us/design", 3)),
         ("batched, best", _fmt(r.us_per_design_batched, " us/design", 3)),
         ("full model (all outputs), batched compiled", _fmt(r.us_per_design_full_batched, " us/design")),
-        (f"gradient of both norms (adjoint), batched, {r.gradient_path}", _fmt(r.us_per_design_gradient, " us/design", 3)),
+        (
+            f"gradient of both norms (adjoint), batched, {r.gradient_path}",
+            _fmt(r.us_per_design_gradient, " us/design", 3),
+        ),
         (f"gradient / evaluation ({r.gradient_path})", _fmt(r.gradient_ratio)),
-        ("gradient / evaluation (C loop; CasADi map)", f"{_fmt(r.gradient_ratio_c_loop)}; {_fmt(r.gradient_ratio_map)}"),
-        (f"gradient by reverse mode through the graph, {r.gradient_path}", _fmt(r.us_per_design_gradient_autodiff, " us/design", 3)),
+        (
+            "gradient / evaluation (C loop; CasADi map)",
+            f"{_fmt(r.gradient_ratio_c_loop)}; {_fmt(r.gradient_ratio_map)}",
+        ),
+        (
+            f"gradient by reverse mode through the graph, {r.gradient_path}",
+            _fmt(r.us_per_design_gradient_autodiff, " us/design", 3),
+        ),
         (f"reverse-mode gradient / evaluation ({r.gradient_path})", _fmt(r.gradient_ratio_autodiff)),
         ("pinocchio.impulseDynamics (external only)", _fmt(r.pinocchio_us_per_call, " us/call")),
         ("ratio batched / pinocchio", _fmt(r.ratio, "", 3)),

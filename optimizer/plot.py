@@ -188,7 +188,9 @@ def plot_speed(report: SpeedReport, path: str | Path) -> Path:
     fig = Figure(figsize=(13, 5.5) if report.scaling else (7, 5.5))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 2 if report.scaling else 1, 1)
-    colors = ["#c0392b" if label.startswith("pinocchio") else "#27ae60" if "gradient" in label else _ROD for label, _ in bars]
+    colors = [
+        "#c0392b" if label.startswith("pinocchio") else "#27ae60" if "gradient" in label else _ROD for label, _ in bars
+    ]
     ax.barh(range(len(bars)), [us for _, us in bars], color=colors)
     ax.set_yticks(range(len(bars)), [label for label, _ in bars], fontsize=8)
     ax.invert_yaxis()
@@ -196,7 +198,9 @@ def plot_speed(report: SpeedReport, path: str | Path) -> Path:
     for k, (_, us) in enumerate(bars):
         ax.annotate(f"{us:.3g}", (us, k), xytext=(3, 0), textcoords="offset points", va="center", fontsize=8)
     ax.set_xlabel("microseconds per design (batched) or per call")
-    ax.set_title(f"{report.model}: {report.n_bodies} bodies, {report.n_dof} DOF, {report.n_contacts} contacts", fontsize=10)
+    ax.set_title(
+        f"{report.model}: {report.n_bodies} bodies, {report.n_dof} DOF, {report.n_contacts} contacts", fontsize=10
+    )
     if report.scaling:
         ax2 = fig.add_subplot(1, 2, 2)
         bodies = np.array([r["bodies"] for r in report.scaling], dtype=float)
@@ -211,7 +215,9 @@ def plot_speed(report: SpeedReport, path: str | Path) -> Path:
             if all(y is not None for y in ys):
                 ax2.plot(bodies, ys, style, color=color, label=label)
         first = report.scaling[0]["us_per_design"]
-        ax2.plot(bodies, first * (bodies / bodies[0]) ** 2, color="#999999", lw=1, label="quadratic growth, for reference")
+        ax2.plot(
+            bodies, first * (bodies / bodies[0]) ** 2, color="#999999", lw=1, label="quadratic growth, for reference"
+        )
         ax2.set_xscale("log")
         ax2.set_yscale("log")
         ax2.set_xticks(bodies, [f"{b:.0f}" for b in bodies])

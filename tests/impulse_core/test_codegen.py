@@ -34,7 +34,9 @@ def test_compiled_equals_vm_and_is_cached(leg, tmp_path) -> None:
     again = compile_function(f, tmp_path)
     assert again.backend is Backend.COMPILED and not again.compiled_now and again.library == first.library
     for k in range(f.n_out()):
-        np.testing.assert_allclose(np.array(first.function(p, v, 0.8)[k]), np.array(f(p, v, 0.8)[k]), rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(
+            np.array(first.function(p, v, 0.8)[k]), np.array(f(p, v, 0.8)[k]), rtol=1e-13, atol=1e-15
+        )
 
 
 def test_falls_back_to_vm(leg, tmp_path) -> None:
