@@ -21,6 +21,8 @@ CORE_MODULES = [
     "impulse_core.errors",
     "impulse_core.evaluate",
     "impulse_core.contact_models",
+    "impulse_core.codegen",
+    "impulse_core.batch",
 ]
 FORBIDDEN = ["yaml", "optuna", "scipy", "matplotlib", "cvxpy"]
 

@@ -1,0 +1,136 @@
+"""Batches of designs (``impulse_core.batch``): every row equals ``evaluate()`` where the batch says
+Newton's law is its answer, and the flag says so exactly where ``evaluate()`` keeps Newton's law;
+gradients equal the single-call function's; impulses scale with speed and with (1 + e); bad
+input is refused naming the value."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from impulse_core.batch import batch_evaluator
+from impulse_core.codegen import find_compiler
+from impulse_core.contact_models import ImpactModel
+from impulse_core.errors import ModelError
+from impulse_core.evaluate import approach_velocity, evaluate
+from impulse_core.impact import norms_gradient_function
+from impulse_core.tree import BODY_VALUES, Body, ContactSelection, JointKind, Scene, Tree, design_vector, with_values
+
+SCENE = Scene(speed=2.5, restitution=0.7, selection=ContactSelection.ALL)
+PATHS = [pytest.param(True, marks=pytest.mark.skipif(find_compiler() is None, reason="no C compiler")), False]
+
+
+def foot() -> Tree:
+    """Thigh, shank, heel and three toes (one welded), five contacts, two of them on one rod."""
+    return Tree(
+        (
+            Body("thigh", None, 0.7, 1.0, -1.2),
+            Body("shank", 0, 0.7, 1.0, -0.6),
+            Body("heel", 1, 0.15, 0.1, -0.8, contacts=(1.0,)),
+            Body("toe1", 1, 0.3, 0.09, 1.5),
+            Body("toe1_tip", 3, 0.15, 0.04, 0.3, contacts=(1.0,)),
+            Body("toe2", 1, 0.25, 0.09, 1.2),
+            Body("toe2_tip", 5, 0.15, 0.04, 0.5, contacts=(0.2, 1.0)),
+            Body("toe3", 1, 0.2, 0.09, 1.0, joint=JointKind.FIXED),
+            Body("toe3_tip", 7, 0.1, 0.04, 0.2, contacts=(1.0,)),
+        )
+    )
+
+
+def _designs(seed: int, rows: int = 24) -> tuple[Tree, np.ndarray]:
+    """``rows`` designs of :func:`foot`: angles +-0.1 rad, masses x exp(+-0.3), and the inner
+    contact of toe 2 moved from its joint to 0.4 of the rod: Newton's law holds for the first
+    rows and makes that contact pull for most of the last."""
+    tree = foot()
+    rng = np.random.default_rng(seed)
+    n_body = len(BODY_VALUES)
+    P = np.repeat(design_vector(tree)[None, :], rows, axis=0)
+    P[:, BODY_VALUES.index("angle") : n_body * tree.n_bodies : n_body] += 0.1 * rng.standard_normal(
+        (rows, tree.n_bodies)
+    )
+    P[:, BODY_VALUES.index("mass") : n_body * tree.n_bodies : n_body] *= np.exp(
+        0.3 * rng.standard_normal((rows, tree.n_bodies))
+    )
+    P[:, n_body * tree.n_bodies + 2] = np.linspace(0.0, 0.4, rows)
+    return tree, P
+
+
+@pytest.mark.parametrize("compiled", PATHS, ids=["compiled", "vm"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_rows_equal_evaluate_where_newton(compiled, seed, tmp_path) -> None:
+    tree, P = _designs(seed)
+    evaluator = batch_evaluator(tree.topology(), tmp_path if compiled else None, gradient=True)
+    assert ("loop" in evaluator.path) == compiled
+    out = evaluator(P, SCENE.speed, SCENE.restitution)
+    grad = norms_gradient_function(tree.topology())
+    v = approach_velocity(tree.topology(), SCENE.speed)
+    for i, p in enumerate(P):
+        result = evaluate(with_values(tree, p), SCENE)
+        assert out.newton[i] == (result.model is ImpactModel.NEWTON and result.split_unique), i
+        if not out.newton[i]:
+            continue
+        scale = max(1.0, float(np.abs(result.external).max()))
+        np.testing.assert_allclose(
+            out.external[i], result.external[list(result.active)], rtol=1e-11, atol=1e-12 * scale
+        )
+        np.testing.assert_allclose(out.internal_magnitude[i], result.internal_magnitude, rtol=1e-10, atol=1e-12 * scale)
+        assert out.external_norm[i] == pytest.approx(result.external_norm, rel=1e-11)
+        assert out.internal_norm[i] == pytest.approx(result.internal_norm, rel=1e-10)
+        single = grad(p=p, v_minus=v, restitution=SCENE.restitution)
+        for name in ("d_external_norm", "d_internal_norm"):
+            ref = np.array(single[name]).ravel()
+            np.testing.assert_allclose(getattr(out, name)[i], ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
+    assert out.newton.any() and not out.newton.all()  # both kinds of row were checked
+
+
+@pytest.mark.parametrize("compiled", PATHS, ids=["compiled", "vm"])
+def test_impulses_scale_with_speed_and_restitution(compiled, tmp_path) -> None:
+    """External and joint impulses are linear in (1 + e) v (paper eq. 11 and the Newton-Euler
+    pass); per-row speeds give what one call per speed gives."""
+    tree, P = _designs(2)
+    evaluator = batch_evaluator(tree.topology(), tmp_path if compiled else None)
+    base = evaluator(P, 2.0, 0.5)
+    same_product = evaluator(P, 3.0, 0.0)  # (1 + e) v = 3 in both
+    faster = evaluator(P, 3.0, 0.5)
+    rows = base.newton  # well-conditioned rows: rounding stays near 1e-16 relative
+    assert rows.sum() >= 3
+    for out, factor in ((faster, 1.5), (same_product, 1.0)):
+        for name in ("external", "internal_magnitude", "external_norm", "internal_norm"):
+            ref = factor * getattr(base, name)[rows]
+            np.testing.assert_allclose(getattr(out, name)[rows], ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
+    speeds = np.where(np.arange(len(P)) % 2, 2.0, 3.0)
+    mixed = evaluator(P, speeds, 0.5)
+    np.testing.assert_array_equal(mixed.external[1::2], base.external[1::2])
+    np.testing.assert_array_equal(mixed.external[::2], faster.external[::2])
+
+
+@pytest.mark.parametrize(
+    "change,message",
+    [
+        (lambda P: P[:, :-1], "p: must have"),
+        (lambda P: _set(P, (1, 1), -1.0), "p[1]: body 0 mass"),
+        (lambda P: _set(P, (2, 3), 1.5), "p[2]: body 0 at"),
+        (lambda P: _set(P, (0, 2), np.nan), "p[0]: body 0 angle"),
+        (lambda P: _set(P, (1, -1), 2.0), "p[1]: contact"),
+    ],
+)
+def test_bad_designs_are_refused_naming_the_value(change, message) -> None:
+    tree, P = _designs(3, rows=3)
+    evaluator = batch_evaluator(tree.topology(), None)
+    with pytest.raises(ModelError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        evaluator(change(P.copy()), 2.0, 0.5)
+
+
+@pytest.mark.parametrize(
+    "speed,restitution,message",
+    [(0.0, 0.5, "speed"), (2.0, 1.5, "restitution"), ([1.0, 2.0], 0.5, "speed: must be one value or one per row")],
+)
+def test_bad_scene_values_are_refused(speed, restitution, message) -> None:
+    tree, P = _designs(3, rows=3)
+    with pytest.raises(ModelError, match=message):
+        batch_evaluator(tree.topology(), None)(P, speed, restitution)
+
+
+def _set(P: np.ndarray, index: tuple[int, int], value: float) -> np.ndarray:
+    P[index] = value
+    return P
