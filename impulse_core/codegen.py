@@ -30,7 +30,9 @@ import numpy as np
 #: -fno-math-errno only drops errno updates, so sqrt becomes one instruction instead of a call
 #: guarded by a branch; results are unchanged. No -march=native: a cache directory may be shared
 #: by machines with different CPUs, and it gained nothing measurable here (studies/speed).
-CFLAGS = ("-O3", "-fno-math-errno", "-fPIC", "-shared")
+#: -ffp-contract=off: no fused multiply-adds where the CPU has them (aarch64 always does), so the
+#: C loop and the SIMD loop round every operation as the VM does.
+CFLAGS = ("-O3", "-fno-math-errno", "-ffp-contract=off", "-fPIC", "-shared")
 
 
 class Backend(Enum):
