@@ -28,7 +28,6 @@ from optimizer.design_space import (
     FootDesign,
     FootLimits,
     FootShape,
-    Leg,
     MassMode,
     Objectives,
     Segment,

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from optimizer.cli import main
-from optimizer.design_space import FEASIBILITY_TOL, ConstraintValues, constraint_values, foot_geometry
+from optimizer.design_space import FEASIBILITY_TOL, ConstraintValues
 from optimizer.model_file import load_model_file
 from optimizer.pareto import dominates
 from optimizer.study_config import load_study
