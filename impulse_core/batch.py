@@ -28,7 +28,7 @@ from impulse_core.errors import ModelError
 from impulse_core.evaluate import approach_velocity
 from impulse_core.impact import GRADIENT_OUTPUTS, LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
 from impulse_core.kinematics import PLANAR, Space
-from impulse_core.tree import BODY_VALUES, Topology
+from impulse_core.tree import BODY_VALUES, CONTACT_BOUNDS, VALUE_BOUNDS, Topology
 
 #: Rows -> one array per output (rows of designs in, rows out).
 _Runner = Callable[[np.ndarray, np.ndarray, np.ndarray], list[np.ndarray]]
@@ -156,25 +156,13 @@ def _runner(f: ca.Function, cache_dir: str | Path | None, parallel: bool) -> tup
     return on_vm, Backend.VIRTUAL_MACHINE.value
 
 
-#: Bounds of every design value (``BODY_VALUES`` order): (lowest, lowest allowed itself, highest).
-_BOUNDS = {
-    "length": (0.0, False, np.inf),
-    "mass": (0.0, False, np.inf),
-    "angle": (-np.inf, False, np.inf),
-    "at": (0.0, True, 1.0),
-    "com": (0.0, True, 1.0),
-    "gyration": (0.0, True, np.inf),
-}
-_CONTACT_BOUNDS = (0.0, True, 1.0)
-
-
 def _check_values(topology: Topology, P: np.ndarray) -> None:
     """Raise ModelError naming the first value of ``P`` that no tree may have (the checks of
     :func:`impulse_core.tree.validate_tree`): one pass for each column's extremes, the rows
     searched only when a column is out of bounds."""
     names = [(b, name) for b in range(topology.n_bodies) for name in BODY_VALUES]
     names += [(c, "contact") for c in range(sum(topology.n_contacts))]
-    bounds = np.array([_BOUNDS[name] if name in _BOUNDS else _CONTACT_BOUNDS for _, name in names], dtype=float)
+    bounds = np.array([VALUE_BOUNDS.get(name, CONTACT_BOUNDS) for _, name in names], dtype=float)
     low, closed, high = bounds[:, 0], bounds[:, 1].astype(bool), bounds[:, 2]
 
     def ok(x: np.ndarray) -> np.ndarray:

@@ -27,6 +27,19 @@ UNIFORM_GYRATION = 1.0 / math.sqrt(12.0)
 
 #: Values per body in the design vector, in this order.
 BODY_VALUES = ("length", "mass", "angle", "at", "com", "gyration")
+#: Where each body value may lie: (lowest, whether the lowest itself is allowed, highest); every
+#: value is also finite. :func:`validate_tree` enforces them one tree at a time, the batch
+#: evaluator (``impulse_core.batch``) on whole arrays of design vectors.
+VALUE_BOUNDS = {
+    "length": (0.0, False, math.inf),
+    "mass": (0.0, False, math.inf),
+    "angle": (-math.inf, False, math.inf),
+    "at": (0.0, True, 1.0),
+    "com": (0.0, True, 1.0),
+    "gyration": (0.0, True, math.inf),
+}
+#: The same for every contact fraction.
+CONTACT_BOUNDS = (0.0, True, 1.0)
 
 
 class JointKind(Enum):
@@ -277,6 +290,8 @@ def with_values(tree: Tree, p: np.ndarray) -> Tree:
 
 __all__ = [
     "BODY_VALUES",
+    "CONTACT_BOUNDS",
+    "VALUE_BOUNDS",
     "Body",
     "ContactSelection",
     "JointKind",

@@ -14,7 +14,18 @@ from impulse_core.contact_models import ImpactModel
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import approach_velocity, evaluate
 from impulse_core.impact import norms_gradient_function
-from impulse_core.tree import BODY_VALUES, Body, ContactSelection, JointKind, Scene, Tree, design_vector, with_values
+from impulse_core.tree import (
+    BODY_VALUES,
+    CONTACT_BOUNDS,
+    VALUE_BOUNDS,
+    Body,
+    ContactSelection,
+    JointKind,
+    Scene,
+    Tree,
+    design_vector,
+    with_values,
+)
 
 SCENE = Scene(speed=2.5, restitution=0.7, selection=ContactSelection.ALL)
 PATHS = [pytest.param(True, marks=pytest.mark.skipif(find_compiler() is None, reason="no C compiler")), False]
@@ -134,3 +145,30 @@ def test_bad_scene_values_are_refused(speed, restitution, message) -> None:
 def _set(P: np.ndarray, index: tuple[int, int], value: float) -> np.ndarray:
     P[index] = value
     return P
+
+
+@pytest.mark.parametrize("name", [*BODY_VALUES, "contact"])
+def test_value_bounds_are_what_validate_tree_enforces(name) -> None:
+    """The batch check and ``validate_tree`` accept and refuse the same values at each bound
+    (``VALUE_BOUNDS``): just inside, at the bound, just outside."""
+    tree, P = _designs(6, rows=1)
+    low, closed, high = VALUE_BOUNDS.get(name, CONTACT_BOUNDS)
+    n_body = len(BODY_VALUES)
+    col = n_body * tree.n_bodies if name == "contact" else n_body + BODY_VALUES.index(name)  # the shank's
+    evaluator = batch_evaluator(tree.topology(), None)
+    candidates = [v for v in (low, high) if np.isfinite(v)] + [np.nextafter(low, -np.inf), np.nan]
+    candidates += [np.nextafter(high, np.inf)] if np.isfinite(high) else []
+    for value in candidates:
+        row = P[0].copy()
+        row[col] = value
+        try:
+            with_values(tree, row)
+            tree_ok = True
+        except ModelError:
+            tree_ok = False
+        try:
+            evaluator(row, SCENE.speed, SCENE.restitution)
+            batch_ok = True
+        except ModelError:
+            batch_ok = False
+        assert batch_ok == tree_ok, (name, value)
