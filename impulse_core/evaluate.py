@@ -3,7 +3,7 @@ topology), the ladder of impact models with an automatic choice of rung, redunda
 and a typed result.
 
 The automatic choice is the cheapest rung that is exact for the scene
-(:mod:`impulse_core.contact_models`): FRICTION when ``scene.friction > 0``; otherwise NEWTON
+(:mod:`impulse_core.impact.laws`): FRICTION when ``scene.friction > 0``; otherwise NEWTON
 (paper eq. 11) when every Newton impulse is >= 0 (it is then the complementarity answer), and
 LCP when Newton's law would make a contact pull (the contact separates with zero impulse).
 DECOUPLED (paper eq. 14) runs on request only. Frictionless scenes build no friction terms.
@@ -11,8 +11,8 @@ DECOUPLED (paper eq. 14) runs on request only. Frictionless scenes build no fric
 Every rung assumes flat ground: the contacts that hit are found by height, and the impulses act
 along +y. A scene whose ``terrain`` is not flat is refused (``ModelError`` naming
 ``scene.terrain``) rather than answered as if the ground were level; its landing is the business
-of :func:`impulse_core.sequential.sequential_impacts` (rigid impacts in sequence, one per
-touchdown) or :func:`impulse_core.compliant.simulate_impact`. A flat terrain at any height, and
+of :func:`impulse_core.timedomain.sequential.sequential_impacts` (rigid impacts in sequence, one per
+touchdown) or :func:`impulse_core.timedomain.compliant.simulate_impact`. A flat terrain at any height, and
 any ``base_x``, change nothing here: heights are measured from the lowest contact. To measure the
 flat-ground answer on purpose, evaluate ``dataclasses.replace(scene, terrain=FLAT)``.
 """
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from impulse_core.contact_models import (
+from impulse_core.impact.laws import (
     PIVOT_TOL,
     RANK_TOL,
     ImpactModel,
@@ -38,16 +38,16 @@ from impulse_core.contact_models import (
     redundant,
 )
 from impulse_core.errors import ModelError, NumericalError
-from impulse_core.impact import (
+from impulse_core.impact.delassus import (
     friction_response_function,
     geometry_function,
     impact_function,
     metric_function,
     response_function,
 )
-from impulse_core.kinematics import PLANAR, DofKind, Space, dof_layout
-from impulse_core.nnls import least_distance
-from impulse_core.tree import ContactSelection, Scene, Topology, Tree, design_vector
+from impulse_core.kinematics.spatial import PLANAR, DofKind, Space, dof_layout
+from impulse_core.impact.nnls import least_distance
+from impulse_core.model.tree import ContactSelection, Scene, Topology, Tree, design_vector
 
 #: A normal impulse below this fraction of the approach momentum counts as zero (separating).
 ZERO_IMPULSE = 1e-12
@@ -55,7 +55,7 @@ ZERO_IMPULSE = 1e-12
 
 @dataclass(frozen=True)
 class CompiledModel:
-    """The CasADi functions of one topology (see :mod:`impulse_core.impact`)."""
+    """The CasADi functions of one topology (see :mod:`impulse_core.impact.delassus`)."""
 
     topology: Topology
     space: Space
@@ -72,7 +72,7 @@ def compiled_model(topology: Topology, space: Space = PLANAR) -> CompiledModel:
 @functools.lru_cache(maxsize=256)
 def compiled_metric(topology: Topology, space: Space = PLANAR, tangent: bool = False) -> ca.Function:
     """Build (once per topology) the contact problem in the kinetic-energy metric
-    (:func:`impulse_core.impact.metric_function`); tangent rows only with ``tangent``."""
+    (:func:`impulse_core.impact.delassus.metric_function`); tangent rows only with ``tangent``."""
     return metric_function(topology, space, tangent)
 
 
@@ -226,7 +226,7 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
         raise ModelError(
             "scene.terrain: the rigid impact models (decoupled, newton, lcp, friction) assume flat ground and this "
             "terrain is not flat; use the sequential rigid model (--model sequential, "
-            "impulse_core.sequential.sequential_impacts) or the compliant one (--model compliant)"
+            "impulse_core.timedomain.sequential.sequential_impacts) or the compliant one (--model compliant)"
         )
     active = active_contacts(tree, scene)
     topology = tree.topology(active)
@@ -300,7 +300,7 @@ def _newton(c: _Impact) -> _Solution:
 
 
 def _metric(c: _Impact, tangent: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """J, A, E, u- of :func:`impulse_core.impact.metric_function`, checked finite."""
+    """J, A, E, u- of :func:`impulse_core.impact.delassus.metric_function`, checked finite."""
     m = compiled_metric(c.topology, c.space, tangent)(p=c.p, v_minus=c.v_minus)
     J, A, E, u = (np.array(m[k]) for k in ("contact_jacobian", "delassus", "metric_factor", "u_minus"))
     if not all(np.all(np.isfinite(x)) for x in (J, A, E, u)):

@@ -2,7 +2,7 @@
 :mod:`impulse_core`."""
 
 from optimizer.errors import ConfigError
-from optimizer.model_file import (
+from optimizer.config.model_file import (
     ModelFile,
     Reference,
     dump_model_file,
@@ -11,8 +11,8 @@ from optimizer.model_file import (
     load_yaml,
     parse_model,
 )
-from optimizer.plot import plot_touchdown
-from optimizer.report import contact_names, format_report, joint_names, result_record
+from optimizer.report.plot import plot_touchdown
+from optimizer.report.text import contact_names, format_report, joint_names, result_record
 
 __all__ = [
     "ConfigError",

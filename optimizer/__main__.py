@@ -1,5 +1,5 @@
 """``python -m optimizer``: the ``footopt`` command line."""
 
-from optimizer.cli import main
+from optimizer.cli.main import main
 
 raise SystemExit(main())

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from impulse_core.evaluate import ImpactResult, approach_velocity, compiled_model, evaluate
-from impulse_core.tree import Body, ContactSelection, Scene, Tree, design_vector
+from impulse_core.model.tree import Body, ContactSelection, Scene, Tree, design_vector
 
 #: A constraint value (see :class:`ConstraintValues`) up to this counts as met: room for float
 #: rounding (sums of masses, the linear program's tolerance).

@@ -25,7 +25,7 @@ if str(TESTS.parent) not in sys.path:
 if str(TESTS) not in sys.path:
     sys.path.append(str(TESTS))
 
-from impulse_core.tree import (  # noqa: E402
+from impulse_core.model.tree import (  # noqa: E402
     UNIFORM_COM,
     UNIFORM_GYRATION,
     Body,

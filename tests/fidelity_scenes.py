@@ -8,8 +8,8 @@ heel on the flat below); ``rod`` and ``chain`` are single-contact trees.
 
 from __future__ import annotations
 
-from impulse_core.terrain import Terrain
-from impulse_core.tree import Body, ContactSelection, Scene, Tree
+from impulse_core.model.terrain import Terrain
+from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 
 #: The paper's landing: 3.43 m/s straight down, e = 0.8, frictionless.
 PAPER_SCENE = Scene(speed=3.43, restitution=0.8, friction=0.0, selection=ContactSelection.ALL)

@@ -1,7 +1,7 @@
 """An independent numpy model of a planar tree of rods, for the tests.
 
-Written from the conventions of ``impulse_core.tree`` only (no code shared with
-``impulse_core.kinematics`` / ``dynamics``): every body is a rod along its own x axis, a child's
+Written from the conventions of ``impulse_core.model.tree`` only (no code shared with
+``impulse_core.kinematics.spatial`` / ``dynamics``): every body is a rod along its own x axis, a child's
 joint sits at ``at * parent.length`` on its parent and turns it by ``angle``; the base's origin is
 the world origin. Generalized velocity: base (vx, vy of the base origin, omega), then one rate per
 revolute joint in body order.
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impulse_core.tree import JointKind, Tree
+from impulse_core.model.tree import JointKind, Tree
 
 #: Ground normal in the plane (y up).
 NORMAL = np.array([0.0, 1.0])

@@ -12,7 +12,7 @@ the fit reproduces the ratios between the entries to rounding, and with the prin
 printed inputs and tables disagree (../shared/paper/ERRATA.md). Case 1 is not reproduced by any
 reading of the lost figure; its test asserts only the measured gap.
 
-The files are read with plain ``yaml.safe_load`` and built with ``impulse_core.tree`` directly,
+The files are read with plain ``yaml.safe_load`` and built with ``impulse_core.model.tree`` directly,
 so this test does not depend on the model-file loader.
 """
 
@@ -26,7 +26,7 @@ import pytest
 import yaml
 
 from impulse_core.evaluate import evaluate, touchdown_geometry
-from impulse_core.tree import Body, ContactSelection, JointKind, Scene, Tree
+from impulse_core.model.tree import Body, ContactSelection, JointKind, Scene, Tree
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 

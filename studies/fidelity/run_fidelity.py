@@ -22,10 +22,10 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from impulse_core.compliant import CompliantSettings, ContactLaw, simulate_impact  # noqa: E402
-from impulse_core.sequential import sequential_impacts  # noqa: E402
-from optimizer.accuracy import format_table, measure_accuracy, plot, write_csv  # noqa: E402
-from optimizer.model_file import load_model_file  # noqa: E402
+from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact  # noqa: E402
+from impulse_core.timedomain.sequential import sequential_impacts  # noqa: E402
+from optimizer.analysis.accuracy import format_table, measure_accuracy, plot, write_csv  # noqa: E402
+from optimizer.config.model_file import load_model_file  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 SCENES = ("paper_case2", "paper_case3", "uneven_terrain")
@@ -36,7 +36,7 @@ def force_profiles(path: Path) -> Path:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from optimizer.mujoco_bridge import drop
+    from optimizer.validation.mujoco_bridge import drop
 
     model = load_model_file(ROOT / "configs" / "uneven_terrain.yaml")
     tree, scene = model.tree, model.scene

@@ -63,7 +63,7 @@ from impulse_core.evaluate import (  # noqa: E402
     evaluate,
     touchdown_geometry,
 )
-from impulse_core.tree import Body, ContactSelection, JointKind, Scene, Tree, design_vector, value_names  # noqa: E402
+from impulse_core.model.tree import Body, ContactSelection, JointKind, Scene, Tree, design_vector, value_names  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 CONFIGS = ROOT / "configs"

@@ -38,10 +38,10 @@ if str(ROOT) not in sys.path:  # run from a checkout without installing the pack
     sys.path.insert(0, str(ROOT))
 
 from impulse_core import evaluate as evaluate_module  # noqa: E402
-from impulse_core.contact_models import ImpactModel, complementarity_impulse, coulomb_impulse  # noqa: E402
+from impulse_core.impact.laws import ImpactModel, complementarity_impulse, coulomb_impulse  # noqa: E402
 from impulse_core.evaluate import ImpactResult, evaluate  # noqa: E402
-from impulse_core.impact import mass_matrix_function  # noqa: E402
-from impulse_core.tree import Body, ContactSelection, JointKind, Scene, Tree, design_vector  # noqa: E402
+from impulse_core.impact.delassus import mass_matrix_function  # noqa: E402
+from impulse_core.model.tree import Body, ContactSelection, JointKind, Scene, Tree, design_vector  # noqa: E402
 
 OUTPUT = ROOT / "studies" / "fidelity" / "rigid_rungs.md"
 CONFIGS = ROOT / "configs"
@@ -81,7 +81,7 @@ def scenes() -> list[tuple[str, Tree, Scene]]:
     for case in (1, 2, 3):
         path = CONFIGS / f"paper_case{case}.yaml"
         if path.exists():
-            from optimizer.model_file import load_model_file
+            from optimizer.config.model_file import load_model_file
 
             model = load_model_file(path)
             out.append((f"paper case {case}", model.tree, model.scene))

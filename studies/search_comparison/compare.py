@@ -27,11 +27,11 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from optimizer.inner import run_inner  # noqa: E402
-from optimizer.pareto import hypervolume  # noqa: E402
-from optimizer.runs import pareto_front, versions  # noqa: E402
-from optimizer.search import open_study, recorded_trials, run_outer  # noqa: E402
-from optimizer.study_config import SamplerKind, SearchMethod, load_study  # noqa: E402
+from optimizer.search.inner import run_inner  # noqa: E402
+from optimizer.results.pareto import hypervolume  # noqa: E402
+from optimizer.results.runs import pareto_front, versions  # noqa: E402
+from optimizer.search.outer import open_study, recorded_trials, run_outer  # noqa: E402
+from optimizer.config.study_config import SamplerKind, SearchMethod, load_study  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

@@ -27,10 +27,10 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from optimizer.design_space import FootDesign, Segment, design_from, evaluate_design  # noqa: E402
-from optimizer.inner import run_inner  # noqa: E402
-from optimizer.search import open_study, recorded_trials  # noqa: E402
-from optimizer.sensitivity import QUANTITIES, sensitivities  # noqa: E402
-from optimizer.study_config import load_study  # noqa: E402
+from optimizer.search.inner import run_inner  # noqa: E402
+from optimizer.search.outer import open_study, recorded_trials  # noqa: E402
+from optimizer.analysis.sensitivity import QUANTITIES, sensitivities  # noqa: E402
+from optimizer.config.study_config import load_study  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 #: A value's "step" for the change columns: 10 % of a length, mass or fraction; 0.1 rad of an angle.

@@ -21,9 +21,9 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from optimizer.runs import storage_url  # noqa: E402
-from optimizer.search import open_study, recorded_trials  # noqa: E402
-from optimizer.study_config import load_study  # noqa: E402
+from optimizer.results.runs import storage_url  # noqa: E402
+from optimizer.search.outer import open_study, recorded_trials  # noqa: E402
+from optimizer.config.study_config import load_study  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

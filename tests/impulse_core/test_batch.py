@@ -1,4 +1,4 @@
-"""Batches of designs (``impulse_core.batch``): every row equals ``evaluate()`` where the batch says
+"""Batches of designs (``impulse_core.compile.batch``): every row equals ``evaluate()`` where the batch says
 Newton's law is its answer, and the flag says so exactly where ``evaluate()`` keeps Newton's law;
 gradients equal the single-call function's; impulses scale with speed and with (1 + e); bad
 input is refused naming the value."""
@@ -8,13 +8,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from impulse_core.batch import batch_evaluator
-from impulse_core.codegen import find_compiler
-from impulse_core.contact_models import ImpactModel
+from impulse_core.compile.batch import batch_evaluator
+from impulse_core.compile.codegen import find_compiler
+from impulse_core.impact.laws import ImpactModel
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import approach_velocity, evaluate
-from impulse_core.impact import norms_gradient_function
-from impulse_core.tree import (
+from impulse_core.impact.delassus import norms_gradient_function
+from impulse_core.model.tree import (
     BODY_VALUES,
     CONTACT_BOUNDS,
     VALUE_BOUNDS,

@@ -7,9 +7,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from impulse_core.codegen import Backend, batch_kernel, compile_function, find_compiler, simd_driver, simd_lanes
+from impulse_core.compile.codegen import Backend, batch_kernel, compile_function, find_compiler, simd_driver, simd_lanes
 from impulse_core.evaluate import approach_velocity, compiled_model
-from impulse_core.tree import Body, Tree, design_vector
+from impulse_core.model.tree import Body, Tree, design_vector
 
 
 @pytest.fixture(scope="module")

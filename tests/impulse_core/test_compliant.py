@@ -10,7 +10,7 @@ import pytest
 from fidelity_scenes import PAPER_SCENE, UNEVEN, case2, case3, chain, rod
 from scipy.integrate import solve_ivp
 
-from impulse_core.compliant import (
+from impulse_core.timedomain.compliant import (
     CompliantSettings,
     CompliantStatus,
     ContactLaw,
@@ -22,10 +22,10 @@ from impulse_core.compliant import (
 )
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import evaluate
-from impulse_core.impact import mass_matrix_function
-from impulse_core.kinematics import dof_layout
-from impulse_core.terrain import signed_gap
-from impulse_core.tree import Body, Scene, Tree, design_vector
+from impulse_core.impact.delassus import mass_matrix_function
+from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.model.terrain import signed_gap
+from impulse_core.model.tree import Body, Scene, Tree, design_vector
 from tests.conftest import random_tree, report
 
 
@@ -254,7 +254,7 @@ def test_elastic_impact_conserves_energy():
 def test_uneven_terrain_touchdown_order_and_convergence_to_sequential_impacts():
     """Toe on the ramp first, heel about 5 ms later; as the contacts stiffen, the impulses approach
     the sequential rigid model's (a Newton impact per touchdown, free flight between)."""
-    from impulse_core.sequential import sequential_impacts
+    from impulse_core.timedomain.sequential import sequential_impacts
 
     rigid = sequential_impacts(case2(), PAPER_SCENE, terrain=UNEVEN)
     errors, internal = [], []
@@ -328,7 +328,7 @@ def test_runge_kutta_flight_between_touchdowns_is_converged():
 
 
 def test_touchdown_order_groups_simultaneous_contacts():
-    from impulse_core.compliant import touchdown_order
+    from impulse_core.timedomain.compliant import touchdown_order
 
     t = np.array([3e-13, 0.0, np.nan, 5e-3, 1e-13])
     assert touchdown_order(t, 1e-6) == (0, 1, 4, 3)

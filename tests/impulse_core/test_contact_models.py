@@ -1,4 +1,4 @@
-"""The ladder of rigid impact models (impulse_core.contact_models): each rung against an
+"""The ladder of rigid impact models (impulse_core.impact.laws): each rung against an
 independent solver or its defining law, and the automatic choice of rung.
 
 Independent quantities come from the numpy model (tests/planar_numpy.py: its own Jacobians and
@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 
 from impulse_core import evaluate as evaluate_module
-from impulse_core.contact_models import ImpactModel, coulomb_impulse, decoupled_impulse
+from impulse_core.impact.laws import ImpactModel, coulomb_impulse, decoupled_impulse
 from impulse_core.evaluate import evaluate
-from impulse_core.tree import Body, ContactSelection, Scene, Tree
+from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 from tests import planar_numpy as pn
 from tests.conftest import contact_independence, delassus_condition, leg_with_heel_and_toe, random_tree, report
 from tests.impulse_core.test_redundant import CASES as REDUNDANT_CASES
@@ -472,7 +472,7 @@ def test_decoupled_error_on_the_paper_cases(case):
     path = CONFIGS / f"{case}.yaml"
     if not path.exists():
         pytest.skip(f"{path} not written yet")
-    from optimizer.model_file import load_model_file
+    from optimizer.config.model_file import load_model_file
 
     model = load_model_file(path)
     newton = evaluate(model.tree, model.scene, ImpactModel.NEWTON)
@@ -495,7 +495,7 @@ def test_nnls_path_equals_scipy_and_the_fallback_is_exercised(shape, monkeypatch
     problem is also solved with the block pivoting switched off (Lawson-Hanson alone)."""
     from scipy.optimize import nnls as scipy_nnls
 
-    from impulse_core import contact_models
+    from impulse_core.impact import laws as contact_models
 
     rng = np.random.default_rng(shape[0] * 100 + shape[1])
     fallbacks = 0

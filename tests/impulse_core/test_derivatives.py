@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from impulse_core.evaluate import approach_velocity, compiled_model
-from impulse_core.impact import LeanAlgorithm, norms_gradient_function
-from impulse_core.tree import BODY_VALUES, JointKind, Tree, design_vector, value_names
+from impulse_core.impact.delassus import LeanAlgorithm, norms_gradient_function
+from impulse_core.model.tree import BODY_VALUES, JointKind, Tree, design_vector, value_names
 from tests.conftest import (
     contact_independence,
     delassus_condition,

@@ -24,9 +24,9 @@ import math
 import numpy as np
 import pytest
 
-from impulse_core.contact_models import ImpactModel
+from impulse_core.impact.laws import ImpactModel
 from impulse_core.evaluate import evaluate
-from impulse_core.tree import ContactSelection, Scene, Tree
+from impulse_core.model.tree import ContactSelection, Scene, Tree
 from tests import planar_numpy as pn
 from tests.conftest import contact_independence, delassus_condition, random_tree, redraw_values, relative_error, report
 from tests.pinocchio_reference import build

@@ -13,16 +13,16 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 CORE_MODULES = [
     "impulse_core",
-    "impulse_core.tree",
-    "impulse_core.kinematics",
-    "impulse_core.dynamics",
-    "impulse_core.impact",
-    "impulse_core.nnls",
+    "impulse_core.model.tree",
+    "impulse_core.kinematics.spatial",
+    "impulse_core.kinematics.dynamics",
+    "impulse_core.impact.delassus",
+    "impulse_core.impact.nnls",
     "impulse_core.errors",
     "impulse_core.evaluate",
-    "impulse_core.contact_models",
-    "impulse_core.codegen",
-    "impulse_core.batch",
+    "impulse_core.impact.laws",
+    "impulse_core.compile.codegen",
+    "impulse_core.compile.batch",
 ]
 FORBIDDEN = ["yaml", "optuna", "scipy", "matplotlib", "cvxpy"]
 
@@ -46,12 +46,12 @@ def test_evaluating_a_design_imports_no_heavy_dependency():
     """Not only the import: building and running a compiled model (every rung of the impact-model
     ladder, friction included) stays within casadi + numpy."""
     statement = (
-        "from impulse_core.tree import Body, Tree, Scene\n"
+        "from impulse_core.model.tree import Body, Tree, Scene\n"
         "from impulse_core.evaluate import evaluate\n"
         "t = Tree((Body('a', None, 1.0, 1.0, 0.0, contacts=(0.0, 0.5, 1.0)),))\n"
         "r = evaluate(t, Scene())\n"
         "assert r.external.sum() > 0\n"
-        "from impulse_core.contact_models import ImpactModel\n"
+        "from impulse_core.impact.laws import ImpactModel\n"
         "for m in ImpactModel:\n"
         "    assert evaluate(t, Scene(friction=0.5), m).model is m"
     )

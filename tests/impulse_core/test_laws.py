@@ -19,9 +19,9 @@ import math
 import numpy as np
 import pytest
 
-from impulse_core.contact_models import ImpactModel
+from impulse_core.impact.laws import ImpactModel
 from impulse_core.evaluate import compiled_model, evaluate
-from impulse_core.tree import (
+from impulse_core.model.tree import (
     UNIFORM_COM,
     UNIFORM_GYRATION,
     Body,

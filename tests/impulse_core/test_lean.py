@@ -9,9 +9,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from impulse_core import dynamics as dyn
+from impulse_core.kinematics import dynamics as dyn
 from impulse_core.evaluate import approach_velocity
-from impulse_core.impact import (
+from impulse_core.impact.delassus import (
     GRADIENT_OUTPUTS,
     LEAN_OUTPUTS,
     LeanAlgorithm,
@@ -20,8 +20,8 @@ from impulse_core.impact import (
     mass_matrix_function,
     norms_gradient_function,
 )
-from impulse_core.kinematics import dof_layout, forward_kinematics, unpack_values
-from impulse_core.tree import design_vector
+from impulse_core.kinematics.spatial import dof_layout, forward_kinematics, unpack_values
+from impulse_core.model.tree import design_vector
 from tests.conftest import contact_independence, random_tree
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls as scipy_nnls
 
-from impulse_core.nnls import least_distance, nnls
+from impulse_core.impact.nnls import least_distance, nnls
 
 SHAPES = [(5, 3), (10, 10), (20, 8), (3, 6), (8, 1), (1, 4)]
 

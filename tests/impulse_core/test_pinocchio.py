@@ -26,10 +26,10 @@ import functools
 import numpy as np
 import pytest
 
-from impulse_core.contact_models import ImpactModel
+from impulse_core.impact.laws import ImpactModel
 from impulse_core.evaluate import compiled_model, evaluate
-from impulse_core.impact import mass_matrix_function
-from impulse_core.tree import ContactSelection, Scene, Tree, design_vector
+from impulse_core.impact.delassus import mass_matrix_function
+from impulse_core.model.tree import ContactSelection, Scene, Tree, design_vector
 from tests.conftest import contact_independence, delassus_condition, random_tree, redraw_values, relative_error, report
 from tests.pinocchio_reference import build
 

@@ -17,9 +17,9 @@ import math
 import numpy as np
 import pytest
 
-from impulse_core.contact_models import ImpactModel
+from impulse_core.impact.laws import ImpactModel
 from impulse_core.evaluate import PIVOT_TOL, approach_velocity, compiled_model, evaluate
-from impulse_core.tree import BODY_VALUES, Body, ContactSelection, JointKind, Scene, Tree, design_vector, with_values
+from impulse_core.model.tree import BODY_VALUES, Body, ContactSelection, JointKind, Scene, Tree, design_vector, with_values
 from tests import planar_numpy as pn
 from tests.conftest import random_tree, relative_error, report
 from tests.pinocchio_reference import build

@@ -8,8 +8,8 @@ import pytest
 from fidelity_scenes import PAPER_SCENE, UNEVEN, case2, case3
 
 from impulse_core.evaluate import evaluate
-from impulse_core.sequential import SequentialSettings, _lcp_impulse, sequential_impacts
-from impulse_core.terrain import Terrain
+from impulse_core.timedomain.sequential import SequentialSettings, _lcp_impulse, sequential_impacts
+from impulse_core.model.terrain import Terrain
 from tests.conftest import random_tree
 
 
@@ -49,8 +49,8 @@ def test_complementarity_when_newton_would_pull(rng):
     """The impact law at a touchdown, on the Delassus matrices of seeded random trees (several
     contacts, straight-down approach): impulses >= 0, post-impact normal velocities >= -e times the
     approach, complementary (1e-9); where eq. 11 asks a contact to pull, it separates instead."""
-    from impulse_core.compliant import _Evaluator, compiled_step, touchdown_configuration
-    from impulse_core.tree import design_vector
+    from impulse_core.timedomain.compliant import _Evaluator, compiled_step, touchdown_configuration
+    from impulse_core.model.tree import design_vector
 
     e = 0.5
     pulling = 0
@@ -75,7 +75,7 @@ def test_complementarity_when_newton_would_pull(rng):
     assert pulling >= 3  # the check met contacts that eq. 11 makes pull
 
 
-@pytest.mark.parametrize("module", ["impulse_core.terrain", "impulse_core.compliant", "impulse_core.sequential"])
+@pytest.mark.parametrize("module", ["impulse_core.model.terrain", "impulse_core.timedomain.compliant", "impulse_core.timedomain.sequential"])
 def test_terrain_modules_import_only_casadi_and_numpy(module):
     """Dependency direction (STYLE.md), as tests/impulse_core/test_imports.py checks the others."""
     import json
@@ -98,7 +98,7 @@ def test_a_scene_carrying_its_terrain_is_used():
     an argument overrides the scene's."""
     import dataclasses
 
-    from impulse_core.compliant import CompliantSettings, simulate_impact
+    from impulse_core.timedomain.compliant import CompliantSettings, simulate_impact
 
     scene = dataclasses.replace(PAPER_SCENE, terrain=UNEVEN, base_x=0.0)
     assert sequential_impacts(case2(), scene).touchdown_order == (1, 0)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from impulse_core.errors import ModelError
-from impulse_core.terrain import FLAT, Terrain, flat, height, signed_gap, slope_normal, vertical_clearance
+from impulse_core.model.terrain import FLAT, Terrain, flat, height, signed_gap, slope_normal, vertical_clearance
 
 
 def brute_gap(terrain: Terrain, p: np.ndarray) -> tuple[float, int, float]:

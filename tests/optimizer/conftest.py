@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from impulse_core.tree import Body, ContactSelection, Scene, Tree
+from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 
 #: A three-body leg landing on both ends of its foot at once.
 LEG_YAML = """\

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from fidelity_scenes import PAPER_SCENE, UNEVEN, case2
 
-from optimizer.accuracy import format_table, measure_accuracy, plot, write_csv
+from optimizer.analysis.accuracy import format_table, measure_accuracy, plot, write_csv
 
 SMALL = dict(
     penalty_stiffness=(1e6, 1e7), constraint_stiffness=(1e7,), steps_per_period=(30, 60), repeats=1, budget=0.05

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from impulse_core.evaluate import active_contacts, approach_velocity, evaluate
-from impulse_core.impact import lean_impact_function, norms_gradient_function
-from impulse_core.tree import design_vector
-from optimizer.bench import SCALING_SCENE, scaled_tree, speed_report
-from optimizer.cli import main
+from impulse_core.impact.delassus import lean_impact_function, norms_gradient_function
+from impulse_core.model.tree import design_vector
+from optimizer.analysis.bench import SCALING_SCENE, scaled_tree, speed_report
+from optimizer.cli.main import main
 
 #: The keys the issue asks for at the top level of ``footopt bench speed --json``.
 SPEED_KEYS = ("us_per_design_batched", "pinocchio_us_per_call", "ratio", "gradient_ratio")

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import optimizer.cli
+import optimizer.cli.main
 from impulse_core.evaluate import evaluate
-from impulse_core.tree import Scene, Tree
-from optimizer.cli import main
-from optimizer.model_file import load_model_file
+from impulse_core.model.tree import Scene, Tree
+from optimizer.cli.main import main
+from optimizer.config.model_file import load_model_file
 from tests.optimizer.conftest import LEG_YAML, PLANK_YAML, PULLING_YAML
 
 REPO = Path(__file__).resolve().parents[2]
@@ -248,7 +248,7 @@ def test_keyboard_interrupt_exits_130(leg_file: Path, monkeypatch, capsys) -> No
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(optimizer.cli, "evaluate_landing", interrupted)
+    monkeypatch.setattr(optimizer.cli.main, "evaluate_landing", interrupted)
     assert main(["evaluate", str(leg_file)]) == 130
     assert "Traceback" not in capsys.readouterr().err
 
@@ -260,7 +260,7 @@ def test_keyboard_interrupt_exits_130(leg_file: Path, monkeypatch, capsys) -> No
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
     return subprocess.run(
-        [sys.executable, "-m", "optimizer.cli", *args], capture_output=True, text=True, env=env, timeout=120
+        [sys.executable, "-m", "optimizer.cli.main", *args], capture_output=True, text=True, env=env, timeout=120
     )
 
 
@@ -475,7 +475,7 @@ def test_plot_unwritable(leg_file: Path, tmp_path: Path, capsys) -> None:
 
 
 def test_importing_the_cli_does_not_import_matplotlib() -> None:
-    code = "import sys, optimizer.cli; assert 'matplotlib' not in sys.modules, 'matplotlib imported'"
+    code = "import sys, optimizer.cli.main; assert 'matplotlib' not in sys.modules, 'matplotlib imported'"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=120)
 
@@ -492,6 +492,6 @@ def test_a_failing_solve_is_a_numerical_failure(leg_file: Path, monkeypatch, cap
     def singular(*args, **kwargs):
         raise np.linalg.LinAlgError("SVD did not converge")
 
-    monkeypatch.setattr(optimizer.cli, "evaluate_landing", singular)
+    monkeypatch.setattr(optimizer.cli.main, "evaluate_landing", singular)
     assert main(["evaluate", str(leg_file)]) == 1
     _assert_one_error_line(capsys.readouterr().err, leg_file, "numerical failure")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from impulse_core.evaluate import touchdown_geometry
-from impulse_core.tree import JointKind, Scene
+from impulse_core.model.tree import JointKind, Scene
 from optimizer.design_space import (
     FEASIBILITY_TOL,
     MARGIN_CAP,
@@ -29,7 +29,7 @@ from optimizer.design_space import (
     intended_contacts,
     segment_names,
 )
-from optimizer.sensitivity import QUANTITIES, sensitivities
+from optimizer.analysis.sensitivity import QUANTITIES, sensitivities
 
 LEG = Leg()
 LIMITS = FootLimits()

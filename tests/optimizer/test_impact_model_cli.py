@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from impulse_core.contact_models import ImpactModel
+from impulse_core.impact.laws import ImpactModel
 from impulse_core.evaluate import evaluate
-from optimizer.cli import IMPACT_MODEL_CHOICES, main
-from optimizer.model_file import load_model_file
+from optimizer.cli.main import IMPACT_MODEL_CHOICES, main
+from optimizer.config.model_file import load_model_file
 from tests.optimizer.conftest import LEG_YAML, PULLING_YAML
 
 #: A rod landing tilted on two points with e = 1: the decoupled approximation (eq. 14) creates

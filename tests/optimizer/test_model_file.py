@@ -13,10 +13,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from impulse_core.errors import FootoptError
-from impulse_core.terrain import FLAT, Terrain
-from impulse_core.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
+from impulse_core.model.terrain import FLAT, Terrain
+from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
 from optimizer.errors import ConfigError
-from optimizer.model_file import (
+from optimizer.config.model_file import (
     ModelFile,
     Reference,
     dump_model_file,

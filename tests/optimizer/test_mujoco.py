@@ -26,10 +26,10 @@ pytest.importorskip("mujoco")
 
 from fidelity_scenes import PAPER_SCENE, UNEVEN, case2, case3, chain  # noqa: E402
 
-from impulse_core.compliant import CompliantSettings, ContactLaw, simulate_impact  # noqa: E402
+from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact  # noqa: E402
 from impulse_core.evaluate import evaluate  # noqa: E402
-from impulse_core.tree import Body, Scene, Tree  # noqa: E402
-from optimizer.mujoco_bridge import build_mjcf, drop  # noqa: E402
+from impulse_core.model.tree import Body, Scene, Tree  # noqa: E402
+from optimizer.validation.mujoco_bridge import build_mjcf, drop  # noqa: E402
 from tests.conftest import report  # noqa: E402
 
 AGREE = 1e-4
@@ -69,7 +69,7 @@ def test_constraint_law_agrees_with_mujoco(name, make, terrain):
 def test_the_agreement_check_can_fail():
     """Control: MuJoCo with 1 % more contact damping (e 0.2 % lower), or with the toe's sphere
     moved 1 mm along its rod, is told apart at the same tolerance."""
-    from impulse_core.compliant import damping_ratio_for_restitution
+    from impulse_core.timedomain.compliant import damping_ratio_for_restitution
 
     tree = case2()
     st = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=1e7, steps_per_period=120)

@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from optimizer.cli import main
+from optimizer.cli.main import main
 from optimizer.design_space import FEASIBILITY_TOL, ConstraintValues
-from optimizer.model_file import load_model_file
-from optimizer.pareto import dominates
-from optimizer.study_config import load_study
+from optimizer.config.model_file import load_model_file
+from optimizer.results.pareto import dominates
+from optimizer.config.study_config import load_study
 from tests.optimizer.conftest import TINY_OUTER_YAML, TINY_STUDY_YAML
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

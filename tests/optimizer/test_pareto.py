@@ -9,12 +9,12 @@ import optuna
 import pytest
 
 from optimizer.design_space import design_from, evaluate_design
-from optimizer.inner import run_inner
-from optimizer.model_file import load_yaml
-from optimizer.pareto import dominates, hypervolume, non_dominated
-from optimizer.runs import pareto_front
-from optimizer.search import open_study, recorded_trials
-from optimizer.study_config import parse_study
+from optimizer.search.inner import run_inner
+from optimizer.config.model_file import load_yaml
+from optimizer.results.pareto import dominates, hypervolume, non_dominated
+from optimizer.results.runs import pareto_front
+from optimizer.search.outer import open_study, recorded_trials
+from optimizer.config.study_config import parse_study
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
 

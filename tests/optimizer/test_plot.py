@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from impulse_core.evaluate import evaluate, touchdown_geometry
-from impulse_core.tree import Scene, Tree
+from impulse_core.model.tree import Scene, Tree
 from optimizer.errors import ConfigError
-from optimizer.plot import plot_touchdown
+from optimizer.report.plot import plot_touchdown
 
 
 @pytest.mark.parametrize(("name", "magic"), [("leg.png", b"\x89PNG\r\n\x1a\n"), ("leg.svg", b"<?xml")])

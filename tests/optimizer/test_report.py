@@ -6,9 +6,9 @@ import dataclasses
 import json
 
 from impulse_core.evaluate import evaluate
-from impulse_core.tree import Body, JointKind, Scene, Tree
-from optimizer.model_file import ModelFile, Reference
-from optimizer.report import contact_names, format_report, joint_names, result_record, velocity_names, warnings
+from impulse_core.model.tree import Body, JointKind, Scene, Tree
+from optimizer.config.model_file import ModelFile, Reference
+from optimizer.report.text import contact_names, format_report, joint_names, result_record, velocity_names, warnings
 
 
 def test_names() -> None:

@@ -16,12 +16,12 @@ import optuna
 import pytest
 from optuna.trial import TrialState
 
-import optimizer.search as search
+import optimizer.search.outer as search
 from optimizer.design_space import FootLimits, FootShape
-from optimizer.inner import build_nlp, run_inner, shape_done_key
-from optimizer.runs import storage_url
-from optimizer.search import finished_trials, masses_from_shares, open_study, recorded_trials, run_outer
-from optimizer.study_config import load_study
+from optimizer.search.inner import build_nlp, run_inner, shape_done_key
+from optimizer.results.runs import storage_url
+from optimizer.search.outer import finished_trials, masses_from_shares, open_study, recorded_trials, run_outer
+from optimizer.config.study_config import load_study
 
 REPO = Path(__file__).resolve().parents[2]
 

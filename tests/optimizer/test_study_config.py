@@ -9,8 +9,8 @@ import pytest
 
 from optimizer.design_space import MassMode, Objective, ToeSymmetry
 from optimizer.errors import ConfigError
-from optimizer.study_config import SamplerKind, SearchMethod, format_study, load_study, parse_study
-from optimizer.model_file import load_yaml
+from optimizer.config.study_config import SamplerKind, SearchMethod, format_study, load_study, parse_study
+from optimizer.config.model_file import load_yaml
 
 REPO = Path(__file__).resolve().parents[2]
 STUDIES = sorted([REPO / "configs" / "quick_study.yaml", *(REPO / "studies").glob("*/study.yaml")])

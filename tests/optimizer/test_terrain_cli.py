@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from impulse_core.compliant import CompliantSettings, ContactLaw, simulate_impact
+from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import evaluate
-from impulse_core.sequential import sequential_impacts
-from impulse_core.terrain import FLAT, Terrain
-from optimizer.cli import main
-from optimizer.model_file import load_model_file
+from impulse_core.timedomain.sequential import sequential_impacts
+from impulse_core.model.terrain import FLAT, Terrain
+from optimizer.cli.main import main
+from optimizer.config.model_file import load_model_file
 from tests.optimizer.conftest import LEG_YAML
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -188,7 +188,7 @@ def test_plot_draws_the_terrain(tmp_path: Path, capsys) -> None:
 
 
 def test_a_written_file_keeps_its_terrain(tmp_path: Path, capsys) -> None:
-    from optimizer.model_file import dump_model_file
+    from optimizer.config.model_file import dump_model_file
 
     model = load_model_file(UNEVEN_FILE)
     moved = dataclasses.replace(model, scene=dataclasses.replace(model.scene, base_x=0.005))
@@ -208,7 +208,7 @@ def test_friction_on_uneven_terrain_is_refused(write, capsys) -> None:
 
 
 def test_contact_law_choices_match_the_library() -> None:
-    from optimizer.cli import build_parser
+    from optimizer.cli.main import build_parser
 
     args = build_parser().parse_args(["evaluate", "x.yaml", "--law", "penalty"])
     assert ContactLaw(args.law) is ContactLaw.PENALTY and args.steps_per_period is None

@@ -1,0 +1,1 @@
+"""Compiled evaluation: C code per topology, the on-disk cache, batched evaluators."""

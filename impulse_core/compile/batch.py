@@ -1,0 +1,190 @@
+"""Many designs of one topology at once: the hot path (:func:`impulse_core.impact.delassus.lean_impact_function`)
+compiled once per topology and run over a block of designs, for sweeps, robust-design studies and
+searches that evaluate millions of designs.
+
+Each row is one design of the same topology: the contacts of ``topology.active`` hit at once (as
+``contacts: all``), the whole tree translating straight down, frictionless. The answer is
+Newton's law (paper eq. 11) for that contact set; ``BatchResult.newton`` flags the rows where that
+is also what :func:`impulse_core.evaluate.evaluate` answers (every impulse >= 0, the Delassus
+matrix well conditioned). Evaluate the other rows one by one: there a contact would pull, and the
+complementarity law lets it separate instead.
+
+The path is the fastest one built: the SIMD loop (:func:`impulse_core.compile.codegen.simd_driver`), else
+the C loop, else CasADi's ``map`` on its virtual machine (no cache directory, or no C compiler).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from impulse_core.compile.codegen import Backend, batch_kernel, compile_function, simd_lanes
+from impulse_core.impact.laws import PIVOT_TOL
+from impulse_core.errors import ModelError
+from impulse_core.evaluate import approach_velocity
+from impulse_core.impact.delassus import GRADIENT_OUTPUTS, LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
+from impulse_core.kinematics.spatial import PLANAR, Space
+from impulse_core.model.tree import BODY_VALUES, CONTACT_BOUNDS, VALUE_BOUNDS, Topology
+
+#: Rows -> one array per output (rows of designs in, rows out).
+_Runner = Callable[[np.ndarray, np.ndarray, np.ndarray], list[np.ndarray]]
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """The impact of every row (design) of a batch; N s, first axis the designs.
+
+    Attributes:
+        external: normal impulse at each active contact (n x contacts).
+        internal_magnitude: force impulse through each joint, one per non-base body (n x joints).
+        external_norm, internal_norm: their Euclidean norms (n).
+        newton: True where Newton's law is also :func:`impulse_core.evaluate.evaluate`'s answer.
+        d_external_norm, d_internal_norm: gradients w.r.t. the design vector (n x n_values),
+            with ``gradient=True`` only.
+    """
+
+    external: np.ndarray
+    internal_magnitude: np.ndarray
+    external_norm: np.ndarray
+    internal_norm: np.ndarray
+    newton: np.ndarray
+    d_external_norm: np.ndarray | None = None
+    d_internal_norm: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class BatchEvaluator:
+    """Evaluates batches of designs of one topology (made by :func:`batch_evaluator`).
+
+    Attributes:
+        topology: the tree's structure and the contacts that hit.
+        space: the kinematic space.
+        path: what runs: "SIMD loop (4 designs per step)", "C loop" or "CasADi virtual machine".
+        run_impact, run_gradient: the compiled (or VM) batch functions, rows in and out.
+    """
+
+    topology: Topology
+    space: Space
+    path: str
+    run_impact: _Runner = field(repr=False)
+    run_gradient: _Runner | None = field(repr=False)
+
+    def __call__(self, p: np.ndarray, speed: float | np.ndarray, restitution: float | np.ndarray) -> BatchResult:
+        """The impact of every design.
+
+        Args:
+            p: design vectors, one per row (n x ``topology.n_values``, layout of
+                :func:`impulse_core.model.tree.design_vector`); a single vector is one row.
+            speed: approach speed (m/s, > 0), one for all rows or one per row.
+            restitution: Newton's coefficient in [0, 1], one for all rows or one per row.
+
+        Raises:
+            ModelError: naming the argument whose shape or values are wrong.
+        """
+        P = np.atleast_2d(np.asarray(p, dtype=float))
+        n = P.shape[0]
+        if P.ndim != 2 or P.shape[1] != self.topology.n_values:
+            raise ModelError(f"p: must have {self.topology.n_values} values per row, got shape {np.shape(p)}")
+        _check_values(self.topology, P)
+        speeds = _per_row("speed", speed, n)
+        if not np.all(speeds > 0):
+            raise ModelError("speed: must be > 0")
+        E = _per_row("restitution", restitution, n)
+        if not np.all((E >= 0) & (E <= 1)):
+            raise ModelError("restitution: must be in [0, 1]")
+        V = speeds[:, None] * approach_velocity(self.topology, 1.0, self.space)[None, :]
+        out = dict(zip(LEAN_OUTPUTS, self.run_impact(P, V, E[:, None]), strict=True))
+        external = out["external"]
+        newton = np.all(np.isfinite(external) & (external >= 0), axis=1)
+        newton &= np.min(out["delassus_pivots"], axis=1, initial=1.0) >= PIVOT_TOL
+        grads = {}
+        if self.run_gradient is not None:
+            grads = dict(zip(GRADIENT_OUTPUTS, self.run_gradient(P, V, E[:, None]), strict=True))
+        return BatchResult(
+            external=external,
+            internal_magnitude=out["internal_magnitude"],
+            external_norm=out["external_norm"][:, 0],
+            internal_norm=out["internal_norm"][:, 0],
+            newton=newton,
+            d_external_norm=grads.get("d_external_norm"),
+            d_internal_norm=grads.get("d_internal_norm"),
+        )
+
+
+def batch_evaluator(
+    topology: Topology,
+    cache_dir: str | Path | None,
+    *,
+    gradient: bool = False,
+    parallel: bool = True,
+    space: Space = PLANAR,
+) -> BatchEvaluator:
+    """Build (once per topology; compiled code is cached in ``cache_dir``) a batch evaluator.
+
+    Args:
+        topology: the structure; its ``active`` contacts are the ones that hit.
+        cache_dir: where compiled C is cached (:func:`impulse_core.compile.codegen.compile_function`);
+            None: CasADi's virtual machine.
+        gradient: also compute the gradients of both norms (adjoint,
+            :func:`impulse_core.impact.delassus.norms_gradient_function`).
+        parallel: split the compiled loops over the cores (OpenMP; same results bit for bit).
+        space: the kinematic space (planar).
+    """
+    lean = lean_impact_function(topology, space)
+    impact, path = _runner(lean, cache_dir, parallel)
+    grad = _runner(norms_gradient_function(topology, space), cache_dir, parallel)[0] if gradient else None
+    return BatchEvaluator(topology, space, path, impact, grad)
+
+
+def _runner(f: ca.Function, cache_dir: str | Path | None, parallel: bool) -> tuple[_Runner, str]:
+    """The fastest batch path of ``f`` and its name."""
+    compiled = compile_function(f, None if cache_dir is None else Path(cache_dir).expanduser())
+    if compiled.backend is Backend.COMPILED:
+        lanes = simd_lanes(compiled, f)
+        kernel = batch_kernel(compiled, f, parallel=parallel, simd=lanes > 0)
+        assert kernel is not None
+        return kernel, f"SIMD loop ({lanes} designs per step)" if lanes else "C loop"
+
+    def on_vm(P: np.ndarray, V: np.ndarray, E: np.ndarray) -> list[np.ndarray]:
+        outs = f.map(P.shape[0])(P.T, V.T, E.T)
+        return [np.array(o, dtype=float).T.reshape(P.shape[0], -1) for o in outs]
+
+    return on_vm, Backend.VIRTUAL_MACHINE.value
+
+
+def _check_values(topology: Topology, P: np.ndarray) -> None:
+    """Raise ModelError naming the first value of ``P`` that no tree may have (the checks of
+    :func:`impulse_core.model.tree.validate_tree`): one pass for each column's extremes, the rows
+    searched only when a column is out of bounds."""
+    names = [(b, name) for b in range(topology.n_bodies) for name in BODY_VALUES]
+    names += [(c, "contact") for c in range(sum(topology.n_contacts))]
+    bounds = np.array([VALUE_BOUNDS.get(name, CONTACT_BOUNDS) for _, name in names], dtype=float)
+    low, closed, high = bounds[:, 0], bounds[:, 1].astype(bool), bounds[:, 2]
+
+    def ok(x: np.ndarray) -> np.ndarray:
+        return np.isfinite(x) & np.where(closed, x >= low, x > low) & (x <= high)
+
+    if P.shape[0] == 0 or (ok(P.min(axis=0)) & ok(P.max(axis=0))).all():
+        return
+    row, col = (int(i) for i in np.argwhere(~ok(P))[0])
+    k, name = names[col]
+    where = f"contact {k}" if name == "contact" else f"body {k} {name}"
+    lo, hi = ("[" if closed[col] else "(") + f"{low[col]:g}", f"{high[col]:g}]"
+    raise ModelError(f"p[{row}]: {where} must be finite and in {lo}, {hi}, got {P[row, col]}")
+
+
+def _per_row(name: str, value: float | np.ndarray, n: int) -> np.ndarray:
+    """``value`` as one float per row (a scalar is broadcast)."""
+    arr = np.asarray(value, dtype=float).ravel()
+    if arr.size not in (1, n):
+        raise ModelError(f"{name}: must be one value or one per row ({n}), got {arr.size}")
+    if not np.all(np.isfinite(arr)):
+        raise ModelError(f"{name}: must be finite")
+    return np.broadcast_to(arr, (n,)).copy()
+
+
+__all__ = ["BatchEvaluator", "BatchResult", "batch_evaluator"]

@@ -1,0 +1,245 @@
+"""The ladder of rigid impact models (coarse to fine) and their numeric solvers.
+
+Notation: n active contacts; J the normal Jacobian (n x nv); A = J M^-1 J^T the Delassus matrix;
+w = J v- the normal approach velocities; b = -(1 + e) w. With M = L^T D L and u = D^1/2 L v the
+kinetic energy is |u|^2 / 2 and an impulse lambda changes u by E lambda, E = D^-1/2 L^-T J^T,
+so A = E^T E and b = E^T f with f = -(1 + e) u- (``impact.metric_function`` builds E and u-).
+
+Rungs:
+
+- ``DECOUPLED``, paper eq. 14: lambda_i = b_i / sum_j A_ij, each contact's row of eq. 11 divided
+  by its row sum (ERRATA.md). Equals eq. 11 only when all impulses are equal; no sign guarantee.
+- ``NEWTON``, paper eq. 11: A lambda = b, Newton's restitution at every contact at once. A
+  contact may pull (lambda_i < 0).
+- ``LCP``, frictionless complementarity with Newton restitution (Moreau's impact law without
+  friction): lambda >= 0, A lambda - b >= 0 (that is v+_n + e v-_n >= 0), complementary. With A
+  symmetric positive semi-definite these are the KKT conditions of
+  min 1/2 |E lambda - f|^2 s.t. lambda >= 0, solved exactly by NNLS (Lawson-Hanson). Equals
+  NEWTON whenever every Newton impulse is >= 0. For an approach with w <= 0 (every contact
+  closing, as in a landing) the energy change is (1 - e)/2 lambda^T w <= 0: no energy gain.
+- ``FRICTION``, Coulomb friction by Moreau's impact law (Moreau 1988, Newton restitution on
+  Moreau's weighted velocity v+ + e v-) in its convex relaxation (Anitescu 2006, the cone
+  complementarity problem): the maximal-dissipation program
+      min over lambda = (lambda_n, lambda_t) in the Coulomb cone |lambda_t| <= mu lambda_n of
+      1/2 |v+ + e v-|_M^2,  v+ = v- + M^-1 (J_n^T lambda_n + J_t^T lambda_t).
+  In the plane the cone is spanned by its two edges (1, mu) and (1, -mu): with lambda_n = x+ + x-,
+  lambda_t = mu (x+ - x-), the cone is x >= 0 and the program is again an NNLS. Its KKT
+  conditions: tangentially, Coulomb's law on the weighted velocity (sticking inside the cone,
+  sliding against the tangential velocity on its edge); normally, v+_n + e v-_n >= mu |v+_t + e v-_t|
+  at every contact (the dual cone), with equality where it carries impulse. At e = 0 the program is
+  "minimise the post-impact kinetic energy over the cone" (maximal dissipation, Drumwright & Shell
+  2010), and v+_n >= 0 follows from the KKT conditions.
+
+Known limits of the FRICTION rung:
+
+- Convex relaxation, not Coulomb's complementarity law: the normal condition is the dual cone,
+  y_n >= mu |y_t| (y = J (v+ + e v-)), not y_n >= 0. A sliding contact leaves with a normal
+  velocity mu |y_t| above the restitution value while still carrying impulse (the "hopping" of
+  convex relaxations, Anitescu 2006), and a contact that would separate while sliding is held
+  by friction until y_n >= mu |y_t|: at large mu it grips tangentially with a normal impulse near
+  0. Sticking contacts are exact. At mu = 0 the program is the LCP rung's; as mu grows, every
+  contact that carries impulse sticks (v+_t = 0, v+_n = -e v-_n).
+- Restitution: Newton's kinematic coefficient applied to Moreau's weighted velocity, the same e
+  for the normal and the tangential part. For a straight-down landing (v-_t = 0) the answer is
+  (1 + e) times the perfectly plastic (e = 0) one, i.e. Poisson's hypothesis; Stronge's
+  energetic coefficient and the time-resolved slip reversal of a real impact are not modelled.
+  The alternative "minimise the kinetic energy of v+ subject to the cone and v+_n >= -e v-_n"
+  (the KE-min law) was not taken: for e > 0 its stationarity gives v+_t = (J_t M^-1 J_n^T) nu at
+  a sticking contact (nu the restitution multiplier), so it slides even with unbounded friction.
+  It has the opposite strength: no hop at sliding contacts.
+- Measured against the exact (non-convex) Coulomb-Newton law, whose contact modes the study
+  enumerates (studies/fidelity/rigid_rungs.md): exact where contacts stick; on random scenes
+  the post-impact velocity is off by about 1 % (median, energy norm), but on the paper's case 3
+  with mu = 0.3, where every contact slides, the contact impulses are 18 % off (the KE-min law:
+  exact there).
+- Energy: for a landing (every contact closing, v-_t = 0) the kinetic energy falls by
+  (1 - e^2) times the plastic loss: never a gain, conserved at e = 1.
+- Impulse-level Coulomb law: the friction bound holds for the impulses integrated over the
+  impact, not for the force at every instant.
+- Numerics: the cone's edge coordinates lose about log10(mu) digits of the tangential impulse
+  of a sticking contact (lambda_t = mu (x+ - x-)); fine to mu ~ 1e4.
+
+Redundant contacts (rank J < rows) leave the split of the impulse open under every rung; the
+smallest-norm admissible split is returned (:func:`least_norm_split`).
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+
+import numpy as np
+
+from impulse_core.impact.nnls import least_distance, nnls
+
+#: Singular values of the column-normalised contact Jacobian below this (relative) are zero.
+RANK_TOL = 1e-9
+#: A relative Delassus pivot below this sends an evaluation to the rank check (the SVD of J).
+PIVOT_TOL = 1e-9
+
+
+class ImpactModel(Enum):
+    """The rigid impact models, from the coarsest to the finest."""
+
+    DECOUPLED = "decoupled"
+    NEWTON = "newton"
+    LCP = "lcp"
+    FRICTION = "friction"
+
+    @property
+    def description(self) -> str:
+        """One line naming the law (and the paper's equation) the rung implements."""
+        return _DESCRIPTIONS[self]
+
+
+_DESCRIPTIONS = {
+    ImpactModel.DECOUPLED: "decoupled approximation (paper eq. 14)",
+    ImpactModel.NEWTON: "newton-simultaneous (paper eq. 11)",
+    ImpactModel.LCP: "complementarity, frictionless (LCP: impulses >= 0, Newton restitution)",
+    ImpactModel.FRICTION: "Coulomb friction (Moreau's impact law, maximal dissipation, convex relaxation)",
+}
+
+
+def decoupled_impulse(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Paper eq. 14: lambda_i = b_i / sum_j A_ij (N s), b = -(1 + e) J v-.
+
+    Returns non-finite entries where a row sum of A is zero (the caller checks).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.asarray(b, dtype=float) / np.asarray(A, dtype=float).sum(axis=1)
+
+
+def complementarity_impulse(E: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """The frictionless impact LCP: lambda >= 0, E^T (E lambda - f) >= 0, complementary (N s).
+
+    With E the metric factor of the normal rows and f = -(1 + e) u-, that is lambda >= 0,
+    A lambda - b >= 0, lambda^T (A lambda - b) = 0: the KKT conditions of
+    min 1/2 |E lambda - f|^2 s.t. lambda >= 0, solved by NNLS. For a singular A one minimiser
+    is returned (the post-impact velocity is unique; see :func:`least_norm_split`).
+    """
+    return _scaled_nnls(E, f)
+
+
+def coulomb_impulse(E_n: np.ndarray, E_t: np.ndarray, f: np.ndarray, mu: float) -> tuple[np.ndarray, np.ndarray]:
+    """Normal and tangential impulses of the FRICTION rung (module docstring): the maximal-
+    dissipation program min 1/2 |E_n l_n + E_t l_t - f|^2 over |l_t| <= mu l_n, in the cone's
+    edge coordinates (l_n = x+ + x-, l_t = mu (x+ - x-), x >= 0) as an NNLS.
+
+    Args:
+        E_n, E_t: metric factors of the normal and the tangential rows (nv x n each).
+        f: -(1 + e) u-, Moreau's weighted velocity target in the metric coordinates.
+        mu: Coulomb coefficient, >= 0 (0 gives the LCP answer with zero tangential impulse).
+    """
+    n = E_n.shape[1]
+    x = _scaled_nnls(np.hstack([E_n + mu * E_t, E_n - mu * E_t]), f)
+    x_plus, x_minus = x[:n], x[n:]
+    return x_plus + x_minus, mu * (x_plus - x_minus)
+
+
+def coulomb_cone(mu: float, n: int) -> np.ndarray:
+    """Rows P with P @ concat(l_n, l_t) >= 0 the planar Coulomb cone at n contacts:
+    mu l_n + l_t >= 0 and mu l_n - l_t >= 0 (2n x 2n)."""
+    eye = np.eye(n)
+    return np.block([[mu * eye, eye], [mu * eye, -eye]])
+
+
+def redundant(J: np.ndarray, A: np.ndarray | None = None) -> bool:
+    """True when the rows of J are dependent (rank from the SVD of J with unit columns, so the
+    answer does not depend on the units of the DOFs).
+
+    With the Delassus matrix A = J M^-1 J^T, a Cholesky factor of A scaled to unit diagonal whose
+    pivots all exceed ``PIVOT_TOL`` settles "independent" without the SVD (the fast path).
+    """
+    if A is not None and A.size:
+        d = np.sqrt(np.diag(A))
+        if np.all(d > 0):
+            try:
+                L = np.linalg.cholesky(A / d[:, None] / d[None, :])
+            except np.linalg.LinAlgError:
+                pass
+            else:
+                if np.min(np.diag(L)) ** 2 >= PIVOT_TOL:
+                    return False
+    return _left_null_space(J).shape[1] > 0
+
+
+def least_norm_split(J: np.ndarray, lam: np.ndarray, P: np.ndarray | None = None) -> np.ndarray:
+    """The smallest-norm impulse with the same effect as ``lam`` (J^T lambda = J^T lam, hence the
+    same post-impact velocity) that stays admissible (P lambda >= 0; default lambda >= 0).
+
+    Every such lambda is lam_0 + N z with lam_0 the projection of ``lam`` on the range of J and
+    N an orthonormal basis of J's left null space; |lambda|^2 = |lam_0|^2 + |z|^2, so this is the
+    least-distance program min |z| s.t. P N z >= -P lam_0 (Lawson-Hanson LDP). ``lam`` itself is
+    admissible, so the program is feasible; ``lam`` is returned if rounding says otherwise.
+    """
+    lam = np.asarray(lam, dtype=float)
+    N = _left_null_space(J)
+    if N.shape[1] == 0:
+        return lam
+    lam0 = lam - N @ (N.T @ lam)
+    if P is None:
+        z = least_distance(N, -lam0)
+        return lam if z is None else np.maximum(lam0 + N @ z, 0.0)
+    z = least_distance(P @ N, -(P @ lam0))
+    return lam if z is None else lam0 + N @ z
+
+
+def _left_null_space(J: np.ndarray) -> np.ndarray:
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    U, s, _ = np.linalg.svd(J / scale, full_matrices=True)
+    rank = int(np.sum(s > RANK_TOL * s.max())) if s.size else 0
+    return U[:, rank:]
+
+
+def _scaled_nnls(E: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """NNLS on unit columns and a unit right-hand side: the solver's tolerances are then free of
+    the units (masses, speeds) of the problem. Block principal pivoting first (fast, a few
+    least-squares solves), Lawson-Hanson when it does not settle."""
+    E = np.asarray(E, dtype=float)
+    f = np.asarray(f, dtype=float)
+    col = np.linalg.norm(E, axis=0)
+    scale = float(np.max(np.abs(f))) if f.size else 0.0
+    x = np.zeros(E.shape[1])
+    keep = col > 0
+    if scale == 0.0 or not keep.any():
+        return x
+    Es, fs = E[:, keep] / col[keep], f / scale
+    xs = _block_pivoting(Es, fs)
+    x[keep] = (nnls(Es, fs) if xs is None else xs) / col[keep] * scale
+    return x
+
+
+#: Block pivoting steps before falling back to Lawson-Hanson.
+BLOCK_PIVOTING_STEPS = 6
+
+
+def _block_pivoting(E: np.ndarray, f: np.ndarray) -> np.ndarray | None:
+    """min |E x - f| s.t. x >= 0 (unit columns, |f|_inf = 1) by block principal pivoting
+    (Judice & Pires 1994; Kim & Park 2011 for NNLS) from the unconstrained solution: every
+    infeasible index changes sides at once. Returns None unless the KKT conditions hold
+    (x >= 0, g = E^T (E x - f) >= 0 where x = 0, g = 0 where x > 0) within rounding; the caller
+    then runs Lawson-Hanson, which always terminates."""
+    n = E.shape[1]
+    tol = 1e3 * np.finfo(float).eps * max(E.shape)
+    passive = np.ones(n, dtype=bool)
+    for _ in range(BLOCK_PIVOTING_STEPS):
+        x = np.zeros(n)
+        if passive.any():
+            x[passive] = np.linalg.lstsq(E[:, passive], f, rcond=None)[0]
+        g = E.T @ (E @ x - f)
+        infeasible = (passive & (x < 0)) | (~passive & (g < -tol))
+        if not infeasible.any():
+            return x
+        passive ^= infeasible
+    return None
+
+
+__all__ = [
+    "ImpactModel",
+    "complementarity_impulse",
+    "coulomb_cone",
+    "coulomb_impulse",
+    "decoupled_impulse",
+    "least_norm_split",
+    "redundant",
+]

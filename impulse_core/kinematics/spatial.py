@@ -1,0 +1,222 @@
+"""Forward kinematics and Jacobians of a floating tree, in spatial (3D) form.
+
+One kinematic core: every quantity is a 3-vector or 3x3 rotation in the world frame. The planar
+model is the restriction ``PLANAR`` (base: translations along x and y, rotation about z; joints
+about z); a 3D model is another :class:`Space`, not another copy of this code.
+
+Frame names follow ``W_p_C`` (position of C in the world frame W) and ``W_R_B`` (rotation from
+body B to W).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import casadi as ca
+
+from impulse_core.model.tree import BODY_VALUES, JointKind, Topology
+
+
+class DofKind(Enum):
+    TRANSLATION = "translation"
+    ROTATION = "rotation"
+
+
+@dataclass(frozen=True)
+class Space:
+    """Which motions the model has: the floating base's DOFs and the revolute joints' axis.
+
+    Attributes:
+        base_dofs: the base's generalized velocities, as (kind, world axis); a rotation is about
+            the base's origin.
+        joint_axis: the axis of every revolute joint, in the child's frame.
+    """
+
+    name: str
+    base_dofs: tuple[tuple[DofKind, tuple[float, float, float]], ...]
+    joint_axis: tuple[float, float, float]
+
+
+#: The planar restriction: x forward, y up, rotations about z.
+PLANAR = Space(
+    name="planar",
+    base_dofs=(
+        (DofKind.TRANSLATION, (1.0, 0.0, 0.0)),
+        (DofKind.TRANSLATION, (0.0, 1.0, 0.0)),
+        (DofKind.ROTATION, (0.0, 0.0, 1.0)),
+    ),
+    joint_axis=(0.0, 0.0, 1.0),
+)
+
+#: Ground normal (world frame): the ground is horizontal, y is up.
+GROUND_NORMAL = ca.DM([0.0, 1.0, 0.0])
+
+
+@dataclass(frozen=True)
+class BodyValues:
+    """The symbolic values of one body (see ``BODY_VALUES``) and its contact fractions."""
+
+    length: ca.SX
+    mass: ca.SX
+    angle: ca.SX
+    at: ca.SX
+    com: ca.SX
+    gyration: ca.SX
+    contacts: tuple[ca.SX, ...]
+
+    @property
+    def inertia(self) -> ca.SX:
+        """Moment of inertia about the centre of mass, about the body's z axis (kg m^2)."""
+        return self.mass * (self.gyration * self.length) ** 2
+
+
+def unpack_values(topology: Topology, p: ca.SX) -> tuple[BodyValues, ...]:
+    """Split the flat design vector ``p`` (layout: ``tree.design_vector``) per body."""
+    n = len(BODY_VALUES)
+    offset = n * topology.n_bodies
+    out = []
+    for i, nc in enumerate(topology.n_contacts):
+        vals = {name: p[n * i + j] for j, name in enumerate(BODY_VALUES)}
+        contacts = tuple(p[offset + k] for k in range(nc))
+        offset += nc
+        out.append(BodyValues(contacts=contacts, **vals))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class DofLayout:
+    """Where each generalized velocity sits.
+
+    Attributes:
+        nv: number of generalized velocities (base DOFs first, then one per revolute joint).
+        body_dof: the DOF index of each body's joint (None for the base and for fixed joints).
+        dof_parent: the expanded parent array (Featherstone, RBDA 6.5): the DOF each DOF
+            moves with, -1 for the first; M[i, j] != 0 only if one is an ancestor of the other.
+        body_support: for each body, the DOFs that move it (its ancestors' and its own).
+    """
+
+    nv: int
+    body_dof: tuple[int | None, ...]
+    dof_parent: tuple[int, ...]
+    body_support: tuple[tuple[int, ...], ...]
+    dof_body: tuple[int, ...]
+
+
+def dof_layout(topology: Topology, space: Space = PLANAR) -> DofLayout:
+    """Number the generalized velocities of a tree."""
+    n_base = len(space.base_dofs)
+    dof_parent = list(range(-1, n_base - 1))
+    dof_body = [0] * n_base
+    body_dof: list[int | None] = [None]
+    last_dof = [n_base - 1]  # the last DOF that moves each body
+    support: list[tuple[int, ...]] = [tuple(range(n_base))]
+    for i in range(1, topology.n_bodies):
+        parent = topology.parents[i]
+        if topology.joints[i] is JointKind.REVOLUTE:
+            k = len(dof_parent)
+            dof_parent.append(last_dof[parent])
+            dof_body.append(i)
+            body_dof.append(k)
+            last_dof.append(k)
+            support.append(support[parent] + (k,))
+        else:
+            body_dof.append(None)
+            last_dof.append(last_dof[parent])
+            support.append(support[parent])
+    return DofLayout(len(dof_parent), tuple(body_dof), tuple(dof_parent), tuple(support), tuple(dof_body))
+
+
+def axis_rotation(axis: tuple[float, float, float], angle: ca.SX) -> ca.SX:
+    """Rotation by ``angle`` about the unit ``axis`` (Rodrigues' formula in the form
+    k k^T + c (I - k k^T) + s [k]x: about a coordinate axis the entries are bare constants, cos
+    and sin, one sin and one cos per call)."""
+    k = ca.DM(axis)
+    kk = k @ k.T
+    return kk + ca.cos(angle) * (ca.DM.eye(3) - kk) + ca.sin(angle) * ca.skew(k)
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """World-frame placement of every body at touchdown.
+
+    Attributes:
+        W_R_B: rotation of each body frame.
+        W_p_O: each body's origin (its joint).
+        W_p_G: each body's centre of mass.
+        W_p_T: each body's tip.
+        W_p_C: every declared contact point, in declaration order.
+        joint_axis: each body's joint axis in the world frame (None for the base).
+    """
+
+    W_R_B: tuple[ca.SX, ...]
+    W_p_O: tuple[ca.SX, ...]
+    W_p_G: tuple[ca.SX, ...]
+    W_p_T: tuple[ca.SX, ...]
+    W_p_C: tuple[ca.SX, ...]
+    joint_axis: tuple[ca.SX | None, ...]
+
+
+def forward_kinematics(topology: Topology, values: tuple[BodyValues, ...], space: Space = PLANAR) -> Kinematics:
+    """Place every body: a child's joint sits at ``at * length`` along its parent's x axis and
+    turns by ``angle`` about ``space.joint_axis``; the base's origin is the world origin.
+
+    Every rotation of the tree (the base's and the joints') is about the same axis, so rotations
+    commute and each body's rotation is one :func:`axis_rotation` of its absolute angle (the sum
+    of the angles along its chain): trig once per absolute angle, no 3 x 3 products.
+    """
+    R: list[ca.SX] = []
+    O: list[ca.SX] = []
+    theta: list[ca.SX] = []
+    axes: list[ca.SX | None] = []
+    e_x = ca.DM([1.0, 0.0, 0.0])
+    for i, v in enumerate(values):
+        parent = topology.parents[i]
+        if parent < 0:
+            theta.append(v.angle)
+            O.append(ca.SX.zeros(3, 1))
+            axes.append(None)
+        else:
+            P = values[parent]
+            theta.append(theta[parent] + v.angle)
+            O.append(O[parent] + R[parent] @ (v.at * P.length * e_x))
+            axes.append(ca.SX(ca.DM(space.joint_axis)))  # the common axis is fixed in every frame
+        R.append(axis_rotation(space.joint_axis, theta[i]))
+    G = [O[i] + R[i] @ (v.com * v.length * e_x) for i, v in enumerate(values)]
+    T = [O[i] + R[i] @ (v.length * e_x) for i, v in enumerate(values)]
+    C = [O[i] + R[i] @ (c * v.length * e_x) for i, v in enumerate(values) for c in v.contacts]
+    return Kinematics(tuple(R), tuple(O), tuple(G), tuple(T), tuple(C), tuple(axes))
+
+
+def point_jacobian(
+    kin: Kinematics, layout: DofLayout, body: int, W_p: ca.SX, space: Space = PLANAR
+) -> tuple[ca.SX, ca.SX]:
+    """Jacobians of the linear velocity of a point fixed on ``body`` and of the body's angular
+    velocity, both in the world frame: (3 x nv, 3 x nv).
+
+    Column of a revolute DOF with world axis a through o: (a x (p - o), a). Base translation e:
+    (e, 0); base rotation e about the base origin: (e x (p - o_base), e).
+    """
+    Jv = ca.SX.zeros(3, layout.nv)
+    Jw = ca.SX.zeros(3, layout.nv)
+    n_base = len(space.base_dofs)
+    for k in layout.body_support[body]:
+        if k < n_base:
+            kind, axis = space.base_dofs[k]
+            e = ca.DM(axis)
+            if kind is DofKind.TRANSLATION:
+                Jv[:, k] = e
+            else:
+                Jv[:, k] = ca.cross(e, W_p - kin.W_p_O[0])
+                Jw[:, k] = e
+        else:
+            j = layout.dof_body[k]
+            a = kin.joint_axis[j]
+            Jv[:, k] = ca.cross(a, W_p - kin.W_p_O[j])
+            Jw[:, k] = a
+    return Jv, Jw
+
+
+def contact_bodies(topology: Topology) -> tuple[int, ...]:
+    """The body of every declared contact, in declaration order."""
+    return tuple(b for b, _ in topology.declared_contacts)

@@ -1,0 +1,304 @@
+"""Floating kinematic trees of rods and the impact scene, as immutable dataclasses.
+
+Structure (``Topology``: parents, joint kinds, contact counts, which contacts touch) is kept
+apart from values (lengths, masses, angles, ...): one compiled CasADi function serves every
+design of one topology, and the values enter it as the flat vector ``p``
+(see :func:`design_vector`).
+
+Conventions (``MODEL_FORMAT.md``): SI units, radians. Every body is a rod along its own x axis
+from its joint (x = 0) to its tip (x = length). Planar: x forward, y up, angles counter-clockwise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from impulse_core.errors import ModelError
+from impulse_core.model.terrain import FLAT, Terrain
+
+#: Centre of mass of a uniform rod, as a fraction of its length.
+UNIFORM_COM = 0.5
+#: Radius of gyration of a uniform rod about its centre, as a fraction of its length (1/sqrt(12)).
+UNIFORM_GYRATION = 1.0 / math.sqrt(12.0)
+
+#: Values per body in the design vector, in this order.
+BODY_VALUES = ("length", "mass", "angle", "at", "com", "gyration")
+#: Where each body value may lie: (lowest, whether the lowest itself is allowed, highest); every
+#: value is also finite. :func:`validate_tree` enforces them one tree at a time, the batch
+#: evaluator (``impulse_core.compile.batch``) on whole arrays of design vectors.
+VALUE_BOUNDS = {
+    "length": (0.0, False, math.inf),
+    "mass": (0.0, False, math.inf),
+    "angle": (-math.inf, False, math.inf),
+    "at": (0.0, True, 1.0),
+    "com": (0.0, True, 1.0),
+    "gyration": (0.0, True, math.inf),
+}
+#: The same for every contact fraction.
+CONTACT_BOUNDS = (0.0, True, 1.0)
+
+
+class JointKind(Enum):
+    """How a body hangs from its parent. Revolute joints are passive during the impact."""
+
+    REVOLUTE = "revolute"
+    FIXED = "fixed"
+
+
+class ContactSelection(Enum):
+    """Which declared contacts take part in the impact."""
+
+    ALL = "all"  # every declared contact hits at the same instant (the paper's assumption)
+    LOWEST = "lowest"  # ground at the lowest contact point; contacts within a tolerance hit
+
+
+@dataclass(frozen=True)
+class Body:
+    """One rigid rod of the tree.
+
+    Attributes:
+        name: unique name.
+        parent: index of the parent body in the tree, None for the floating base (body 0).
+        length: rod length (m), > 0.
+        mass: mass (kg), > 0.
+        angle: base: absolute angle of its x axis; others: joint angle relative to the parent (rad).
+        at: where the joint sits on the parent, as a fraction of the parent's length.
+        joint: revolute (passive) or fixed (welded).
+        contacts: contact points on this body, as fractions of its length.
+        com: centre of mass along the rod, as a fraction of its length (0.5: uniform rod).
+        gyration: radius of gyration about the centre of mass, as a fraction of the length;
+            inertia about the centre of mass (z axis) = mass * (gyration * length)**2.
+    """
+
+    name: str
+    parent: int | None
+    length: float
+    mass: float
+    angle: float
+    at: float = 1.0
+    joint: JointKind = JointKind.REVOLUTE
+    contacts: tuple[float, ...] = ()
+    com: float = UNIFORM_COM
+    gyration: float = UNIFORM_GYRATION
+
+    @property
+    def inertia(self) -> float:
+        """Moment of inertia about the centre of mass, z axis (kg m^2)."""
+        return self.mass * (self.gyration * self.length) ** 2
+
+
+@dataclass(frozen=True)
+class Tree:
+    """A floating tree of rods, listed parents first; body 0 is the floating base."""
+
+    bodies: tuple[Body, ...]
+
+    def __post_init__(self) -> None:
+        validate_tree(self)
+
+    @property
+    def n_bodies(self) -> int:
+        return len(self.bodies)
+
+    @property
+    def contacts(self) -> tuple[tuple[int, int], ...]:
+        """Declared contacts as (body index, index within the body), in declaration order."""
+        return tuple((b, k) for b, body in enumerate(self.bodies) for k in range(len(body.contacts)))
+
+    def topology(self, active: tuple[int, ...] | None = None) -> Topology:
+        """The structure of this tree with the given active contacts (default: all)."""
+        n_declared = len(self.contacts)
+        return Topology(
+            parents=tuple(-1 if b.parent is None else b.parent for b in self.bodies),
+            joints=tuple(b.joint for b in self.bodies),
+            n_contacts=tuple(len(b.contacts) for b in self.bodies),
+            active=tuple(range(n_declared)) if active is None else tuple(active),
+        )
+
+
+@dataclass(frozen=True)
+class Topology:
+    """Hashable structure of a tree: keys one compiled impulse function.
+
+    Attributes:
+        parents: parent index per body (-1 for the base).
+        joints: joint kind per body (the base's entry is ignored).
+        n_contacts: number of declared contact points per body.
+        active: indices (into the declared contact list) of the contacts that take part.
+    """
+
+    parents: tuple[int, ...]
+    joints: tuple[JointKind, ...]
+    n_contacts: tuple[int, ...]
+    active: tuple[int, ...]
+
+    @property
+    def n_bodies(self) -> int:
+        return len(self.parents)
+
+    @property
+    def declared_contacts(self) -> tuple[tuple[int, int], ...]:
+        return tuple((b, k) for b, n in enumerate(self.n_contacts) for k in range(n))
+
+    @property
+    def active_contacts(self) -> tuple[tuple[int, int], ...]:
+        declared = self.declared_contacts
+        return tuple(declared[i] for i in self.active)
+
+    @property
+    def n_values(self) -> int:
+        return len(BODY_VALUES) * self.n_bodies + sum(self.n_contacts)
+
+    def with_active(self, active: tuple[int, ...]) -> Topology:
+        return Topology(self.parents, self.joints, self.n_contacts, tuple(active))
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The landing: the whole tree translates straight down (-y) onto the ground.
+
+    Attributes:
+        speed: approach speed (m/s), > 0.
+        restitution: Newton's coefficient e in [0, 1].
+        friction: Coulomb coefficient (0: frictionless; > 0: the FRICTION rung of contact_models).
+        selection: which contacts hit (rigid rungs; the time-domain models let the geometry decide).
+        contact_tolerance: with ``LOWEST``, contacts within this height (m) of the lowest hit.
+        terrain: the ground profile (world frame; default flat at y = 0). The rigid rungs
+            (``impulse_core.evaluate``) need it flat (``Terrain.is_flat``); the sequential and
+            compliant models (``impulse_core.timedomain.sequential``, ``impulse_core.timedomain.compliant``) follow it.
+        base_x: x (m) of the base origin at touchdown: the tree keeps its touchdown angles, sits
+            with its base origin at ``base_x`` and is lowered straight down until the contact with
+            the smallest vertical clearance touches the terrain. Irrelevant on flat ground.
+    """
+
+    speed: float = 3.43
+    restitution: float = 0.8
+    friction: float = 0.0
+    selection: ContactSelection = ContactSelection.LOWEST
+    contact_tolerance: float = 1e-6
+    terrain: Terrain = FLAT
+    base_x: float = 0.0
+
+    def __post_init__(self) -> None:
+        _require(math.isfinite(self.speed) and self.speed > 0, "scene.speed", f"must be > 0, got {self.speed}")
+        _require(
+            math.isfinite(self.restitution) and 0.0 <= self.restitution <= 1.0,
+            "scene.restitution",
+            f"must be in [0, 1], got {self.restitution}",
+        )
+        _require(
+            math.isfinite(self.friction) and self.friction >= 0.0,
+            "scene.friction",
+            f"must be >= 0, got {self.friction}",
+        )
+        _require(
+            math.isfinite(self.contact_tolerance) and self.contact_tolerance >= 0.0,
+            "scene.contact_tolerance",
+            f"must be >= 0, got {self.contact_tolerance}",
+        )
+        _require(
+            isinstance(self.terrain, Terrain),
+            "scene.terrain",
+            f"must be a Terrain (impulse_core.model.terrain), got {type(self.terrain).__name__}",
+        )
+        _require(
+            isinstance(self.base_x, (int, float)) and not isinstance(self.base_x, bool) and math.isfinite(self.base_x),
+            "scene.base_x",
+            f"must be a finite number (m), got {self.base_x!r}",
+        )
+
+
+def _require(ok: bool, where: str, problem: str) -> None:
+    if not ok:
+        raise ModelError(f"{where}: {problem}")
+
+
+def validate_tree(tree: Tree) -> None:
+    """Raise ModelError naming the body field at fault (``model.bodies[i].field``)."""
+    if not tree.bodies:
+        raise ModelError("model.bodies: must list at least one body")
+    names: set[str] = set()
+    for i, b in enumerate(tree.bodies):
+        where = f"model.bodies[{i}]"
+        _require(bool(b.name), f"{where}.name", "must be a non-empty string")
+        _require(b.name not in names, f"{where}.name", f"duplicate body name '{b.name}'")
+        names.add(b.name)
+        if i == 0:
+            _require(b.parent is None, f"{where}.parent", "the first body is the floating base and has no parent")
+        else:
+            _require(b.parent is not None, f"{where}.parent", "missing (only the first body is the base)")
+            assert b.parent is not None
+            _require(
+                0 <= b.parent < i,
+                f"{where}.parent",
+                "must name a body listed before this one (bodies are listed parents first)",
+            )
+        for field_name in ("length", "mass"):
+            v = getattr(b, field_name)
+            _require(math.isfinite(v) and v > 0, f"{where}.{field_name}", f"must be a finite number > 0, got {v}")
+        for field_name in ("angle", "at", "com", "gyration"):
+            v = getattr(b, field_name)
+            _require(math.isfinite(v), f"{where}.{field_name}", f"must be a finite number, got {v}")
+        _require(0.0 <= b.at <= 1.0, f"{where}.at", f"must be in [0, 1] (a point on the parent), got {b.at}")
+        _require(0.0 <= b.com <= 1.0, f"{where}.com", f"must be in [0, 1] (a point on the rod), got {b.com}")
+        _require(b.gyration >= 0.0, f"{where}.gyration", f"must be >= 0, got {b.gyration}")
+        for k, c in enumerate(b.contacts):
+            _require(
+                math.isfinite(c) and 0.0 <= c <= 1.0,
+                f"{where}.contacts[{k}]",
+                f"must be a fraction of the body's length in [0, 1], got {c}",
+            )
+    if not any(b.contacts for b in tree.bodies):
+        raise ModelError("model.bodies: no body declares a contact point")
+
+
+def design_vector(tree: Tree) -> np.ndarray:
+    """The values of a tree as the flat vector ``p`` the compiled functions take.
+
+    Layout: for each body, ``BODY_VALUES`` in order; then every declared contact fraction.
+    """
+    per_body = [[getattr(b, name) for name in BODY_VALUES] for b in tree.bodies]
+    contacts = [c for b in tree.bodies for c in b.contacts]
+    return np.array([v for row in per_body for v in row] + contacts, dtype=float)
+
+
+def value_names(tree: Tree) -> tuple[str, ...]:
+    """Names of the entries of :func:`design_vector`, e.g. ``shank.length``, ``heel.contacts[0]``."""
+    names = [f"{b.name}.{v}" for b in tree.bodies for v in BODY_VALUES]
+    names += [f"{b.name}.contacts[{k}]" for b in tree.bodies for k in range(len(b.contacts))]
+    return tuple(names)
+
+
+def with_values(tree: Tree, p: np.ndarray) -> Tree:
+    """A copy of ``tree`` with the values taken from the flat vector ``p``."""
+    p = np.asarray(p, dtype=float).ravel()
+    n = len(BODY_VALUES)
+    offset = n * tree.n_bodies
+    bodies = []
+    for i, b in enumerate(tree.bodies):
+        vals = dict(zip(BODY_VALUES, (float(x) for x in p[n * i : n * (i + 1)])))
+        k = len(b.contacts)
+        contacts = tuple(float(x) for x in p[offset : offset + k])
+        offset += k
+        bodies.append(Body(name=b.name, parent=b.parent, joint=b.joint, contacts=contacts, **vals))
+    return Tree(tuple(bodies))
+
+
+__all__ = [
+    "BODY_VALUES",
+    "CONTACT_BOUNDS",
+    "VALUE_BOUNDS",
+    "Body",
+    "ContactSelection",
+    "JointKind",
+    "Scene",
+    "Topology",
+    "Tree",
+    "design_vector",
+    "value_names",
+    "with_values",
+]

@@ -1,0 +1,1 @@
+"""Time-domain models of a landing: sequential rigid impacts and compliant contacts."""

@@ -1,0 +1,912 @@
+"""The compliant, time-domain impact rung: contacts as unilateral spring-dampers along the local
+terrain normal, integrated through the impact with the tree's nonlinear dynamics.
+
+Dynamics. Generalized coordinates q = (base x, base y, base angle, revolute joint angles): the
+positions whose rates are the core's generalized velocities (``approach_velocity``,
+``ImpactResult.v_minus``), q' = v. The equations of motion are Lagrange's,
+
+    M(q) v' + h(q, v) = tau_g(q) + sum_i (n_i^T J_i(q))^T f_i,
+
+with h = (dM/dt) v - d/dq (v^T M v / 2) the Coriolis and centrifugal terms, obtained by automatic
+differentiation of the core's own mass matrix: the kinematics (``forward_kinematics``,
+``point_jacobian``), the mass matrix (``body_jacobians``, ``mass_matrix``) and its sparse L^T D L
+factor (``ltdl``, ``solve``) are the core's, evaluated with the angles of the design vector
+replaced by the symbols q (:func:`configured_design`). Gravity is off by default (impact time
+scales); ``CompliantSettings.gravity`` adds it.
+
+Contact laws (:class:`ContactLaw`), frictionless, along the terrain's outward normal n_i at the
+nearest ground point; g_i is the signed gap (``terrain.gap_expression``), g_i' = n_i^T J_i v:
+
+* ``PENALTY`` (default): a force-level linear spring-damper per contact, a physical pad,
+  f_i = max(0, -k g_i - c_i g_i'), one stiffness k (N/m) for every contact and
+  c_i = 2 zeta sqrt(k m_i), m_i = 1 / A_ii the contact's effective mass when it touches down
+  (A = J M^-1 J^T, the Delassus matrix along the normals). Contacts interact only through the
+  tree's dynamics; each rings at its own frequency sqrt(k / m_i).
+* ``CONSTRAINT``: MuJoCo's soft-constraint law with direct parameters (``solref = (-k, -b)``,
+  constant impedance d = ``impedance``): the forces are the non-negative, complementary solution of
+  ``(A + R) f = a_ref - a_0``, a_ref = -(b g' + k g) / d, R = (1 - d)/d diag(A),
+  a_0 = n^T J M^-1 (tau_g - h) (without a J' v term, as in MuJoCo). While they push, every
+  contact's gap follows its own oscillator g'' = -k g - b g' + (1 - d) a_0 (k in 1/s^2:
+  mass-normalised), whatever the coupling: with simultaneous touchdowns all contacts release
+  together, and the stiff limit is the paper's eq. 11.
+
+Restitution. A linear spring-damper that may not pull releases when k x + c x' falls to 0, before
+the spring is back at its free length, so its coefficient of restitution is not the textbook
+exp(-zeta pi / sqrt(1 - zeta^2)) but (derived in :func:`clipped_restitution`; e.g. Schwager &
+Poeschel 2007, "Coefficient of restitution and linear-dashpot model revisited")
+
+    e(zeta) = exp(-zeta (pi - 2 arcsin zeta) / sqrt(1 - zeta^2)),   zeta < 1,
+
+e(1) = exp(-2), and its overdamped continuation. The damping is tuned with the inverse,
+:func:`damping_ratio_for_restitution`: e = 0.8 needs zeta = 0.0744, not the textbook 0.0708 (which
+gives e = 0.808). Exact for one contact in the stiff limit; e = 0 would need infinite damping.
+
+Integrator: semi-implicit (symplectic) Euler with a fixed step, v+ = v + dt a(q, v),
+q+ = q + dt v+ (MuJoCo's ``Euler``, so that both integrate the same map). The step is a fraction
+of the fastest contact period, dt = 2 pi / (omega_max * steps_per_period), omega_max^2 =
+k lambda_max(A) (penalty: the stiffest mode with every contact engaged) or k (constraint). The
+scheme is stable for omega dt < 2, its energy error on the elastic part stays bounded instead of
+drifting (symplectic), and its impulse error is first order, about 0.2 / steps_per_period
+relative (from the touchdown and release falling between steps; measured). The integration starts
+1e-12 m above the first touchdown (:data:`TOUCHDOWN_CLEARANCE`) and ends when every contact that
+touched has released and no contact that has not touched yet approaches the ground
+(``SEPARATED``; a released contact heading back is listed in ``recontacting``, or followed with
+``follow_recontacts``), when the loaded contacts have come to rest (``SETTLED``), or at
+``max_time`` (``TIMEOUT``).
+
+Outputs (:class:`CompliantResult`): force profiles, external impulses as their time integrals,
+internal (joint) impulses as the time integral, over the steps in which a contact pushes, of the
+joint force given by each subtree's momentum balance (momentum rate - contact and gravity forces on
+the subtree), touchdown and release times and order, the state after the impact, kinetic energy
+before and after (a gain is flagged).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+import casadi as ca
+import numpy as np
+
+from impulse_core.kinematics import dynamics as dyn
+from impulse_core.errors import ModelError, NumericalError
+from impulse_core.evaluate import touchdown_geometry
+from impulse_core.kinematics.spatial import (
+    PLANAR,
+    DofKind,
+    Space,
+    contact_bodies,
+    dof_layout,
+    forward_kinematics,
+    point_jacobian,
+    unpack_values,
+)
+from impulse_core.impact.nnls import nnls
+from impulse_core.model.terrain import FLAT, Terrain, gap_expression, vertical_clearance
+from impulse_core.model.tree import BODY_VALUES, Scene, Topology, Tree, design_vector
+
+
+class ContactLaw(Enum):
+    """How a compliant contact turns penetration into force (module docstring)."""
+
+    PENALTY = "penalty"
+    CONSTRAINT = "constraint"
+
+
+class CompliantStatus(Enum):
+    """How the integration ended."""
+
+    SEPARATED = "separated"  # every contact released, none approaching the ground
+    SETTLED = "settled"  # contacts at rest on the ground (gravity, or very low restitution)
+    TIMEOUT = "timeout"  # max_time reached with a contact still loaded or approaching
+
+
+@dataclass(frozen=True)
+class CompliantSettings:
+    """Parameters of the compliant rung.
+
+    Attributes:
+        law: the contact law.
+        stiffness: ``PENALTY``: N/m, every contact. ``CONSTRAINT``: 1/s^2, mass-normalised
+            (MuJoCo's ``-solref[0]``).
+        damping_ratio: zeta of every contact; None: tuned so that one contact in the stiff limit
+            rebounds with the scene's restitution (:func:`damping_ratio_for_restitution`).
+        steps_per_period: integration steps per period of the fastest contact oscillation.
+        timestep: a fixed step (s) instead of ``steps_per_period``.
+        gravity: m/s^2 along -y (0: impact time scales, gravity negligible).
+        impedance: ``CONSTRAINT`` only: MuJoCo's d in (0, 1) (``solimp = (d, d, ...)``).
+        max_time: give up after this long (s) from the first touchdown.
+        follow_recontacts: keep integrating while a contact that has already released heads back
+            to the ground (secondary impacts); default: the impact ends once every contact that
+            touched has released and no contact that has not touched yet approaches; contacts
+            heading back then are listed in ``CompliantResult.recontacting``.
+        settle_fraction: ``SETTLED`` when every loaded contact moves slower than this fraction
+            of the approach speed for one contact period.
+        flight_step: between touchdowns, while no contact is within two contact steps of the
+            ground, fly with classical Runge-Kutta 4 steps up to this long (s) instead of contact
+            steps; None: contact steps throughout (the same map as MuJoCo's, step for step).
+        record: keep the force profiles (time x contacts).
+    """
+
+    law: ContactLaw = ContactLaw.PENALTY
+    stiffness: float = 1.0e6
+    damping_ratio: float | None = None
+    steps_per_period: float = 120.0
+    timestep: float | None = None
+    gravity: float = 0.0
+    impedance: float = 0.9999
+    max_time: float = 0.1
+    settle_fraction: float = 1.0e-3
+    follow_recontacts: bool = False
+    flight_step: float | None = 1.0e-4
+    record: bool = True
+
+    def __post_init__(self) -> None:
+        checks = (
+            (math.isfinite(self.stiffness) and self.stiffness > 0, "stiffness", "must be > 0"),
+            (
+                self.damping_ratio is None or (math.isfinite(self.damping_ratio) and self.damping_ratio >= 0),
+                "damping_ratio",
+                "must be >= 0 or None",
+            ),
+            (math.isfinite(self.steps_per_period) and self.steps_per_period >= 4, "steps_per_period", "must be >= 4"),
+            (self.timestep is None or (math.isfinite(self.timestep) and self.timestep > 0), "timestep", "must be > 0"),
+            (
+                self.flight_step is None or (math.isfinite(self.flight_step) and self.flight_step > 0),
+                "flight_step",
+                "must be > 0 or None",
+            ),
+            (math.isfinite(self.gravity) and self.gravity >= 0, "gravity", "must be >= 0"),
+            (0.0 < self.impedance < 1.0, "impedance", "must be in (0, 1)"),
+            (math.isfinite(self.max_time) and self.max_time > 0, "max_time", "must be > 0"),
+            (self.settle_fraction >= 0, "settle_fraction", "must be >= 0"),
+        )
+        for ok, name, problem in checks:
+            if not ok:
+                raise ModelError(f"compliant.{name}: {problem}, got {getattr(self, name)!r}")
+
+
+# --------------------------------------------------------------------------------------------
+# Restitution of a unilateral (clipped) linear spring-damper
+
+
+def clipped_restitution(zeta: float) -> float:
+    """Coefficient of restitution of m x'' + c x' + k x = 0, x(0) = 0, x'(0) = v0 > 0, when the
+    contact force k x + c x' may not pull: the mass leaves at the first zero of that force.
+
+    zeta = c / (2 sqrt(k m)). Underdamped: exp(-zeta (pi - 2 arcsin zeta) / sqrt(1 - zeta^2));
+    critical: exp(-2); overdamped (roots r1 > r2 of r^2 + 2 zeta r + 1): the force vanishes at
+    t = ln(r2 / r1) / sqrt(zeta^2 - 1) (units of 1/omega_n) and e = -x'(t) / v0.
+    """
+    if zeta < 0 or not math.isfinite(zeta):
+        raise ModelError(f"damping ratio must be finite and >= 0, got {zeta!r}")
+    if zeta == 0.0:
+        return 1.0
+    if zeta < 1.0 - 1e-9:
+        return math.exp(-zeta * (math.pi - 2.0 * math.asin(zeta)) / math.sqrt(1.0 - zeta * zeta))
+    if zeta <= 1.0 + 1e-9:
+        return math.exp(-2.0)
+    s = math.sqrt(zeta * zeta - 1.0)
+    r2 = -zeta - s
+    r1 = 1.0 / r2  # r1 r2 = 1; avoids the cancellation in -zeta + s
+    t = math.log(r2 / r1) / s
+    velocity = (r1 * math.exp(r1 * t) - r2 * math.exp(r2 * t)) / (r1 - r2)
+    return -velocity
+
+
+def damping_ratio_for_restitution(restitution: float) -> float:
+    """The zeta at which a clipped linear spring-damper rebounds with ``restitution``
+    (inverse of :func:`clipped_restitution`, by bisection; e is decreasing in zeta).
+
+    Raises:
+        ModelError: for e <= 0 (infinite damping) or e > 1.
+    """
+    e = float(restitution)
+    if not 0.0 < e <= 1.0:
+        raise ModelError(
+            f"scene.restitution: the compliant rung needs 0 < e <= 1, got {e!r} (a clipped spring-damper "
+            "reaches e = 0 only with infinite damping)"
+        )
+    if e == 1.0:
+        return 0.0
+    lo, hi = 0.0, 1.0
+    while clipped_restitution(hi) > e:
+        lo, hi = hi, 2.0 * hi
+        if hi > 1e12:
+            raise ModelError(f"scene.restitution: {e!r} is too small for the compliant rung")
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if clipped_restitution(mid) > e:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-15 * hi:
+            break
+    return 0.5 * (lo + hi)
+
+
+# --------------------------------------------------------------------------------------------
+# Dynamics as a CasADi function of (q, v, p)
+
+#: Names of the compiled functions' inputs and outputs.
+DYNAMICS_INPUTS = ("q", "v", "p", "gravity")
+DYNAMICS_OUTPUTS = (
+    "contacts",
+    "contact_jacobian",
+    "minv_jt",
+    "free_acceleration",
+    "kinetic_energy",
+    "subtree_momentum",
+)
+STEP_OUTPUTS = (
+    "gap",
+    "normal",
+    "rate",
+    "normal_jacobian",
+    "minv_jnt",
+    "free_acceleration",
+    "kinetic_energy",
+    "subtree_momentum",
+    "subtree_jacobian",
+    "subtree_bias",
+)
+
+
+def _require_planar(space: Space) -> None:
+    if space != PLANAR:
+        raise ModelError(f"the compliant rung is planar (terrain is a profile in x-y), got space '{space.name}'")
+
+
+def configured_design(topology: Topology, p: ca.SX, q: ca.SX, space: Space = PLANAR) -> ca.SX:
+    """The design vector with its angles replaced by the configuration q: the base's absolute
+    angle by q's base rotation, each revolute joint's angle by its joint coordinate. Fixed joints
+    keep their angle. The core's kinematics evaluated at this vector place the tree at q (up to
+    the base translation, which :func:`dynamics_function` adds)."""
+    layout = dof_layout(topology, space)
+    n = len(BODY_VALUES)
+    i_angle = BODY_VALUES.index("angle")
+    rotation = [k for k, (kind, _) in enumerate(space.base_dofs) if kind is DofKind.ROTATION]
+    entries = [p[i] for i in range(p.shape[0])]
+    if rotation:
+        entries[i_angle] = q[rotation[0]]
+    for b in range(1, topology.n_bodies):
+        k = layout.body_dof[b]
+        if k is not None:
+            entries[n * b + i_angle] = q[k]
+    return ca.vertcat(*entries)
+
+
+@dataclass(frozen=True)
+class _Expressions:
+    """Symbols (q, v, p, gravity) and the dynamics built from the core at configuration q."""
+
+    q: ca.SX
+    v: ca.SX
+    p: ca.SX
+    gravity: ca.SX
+    contacts: ca.SX  # 2 x n_c
+    contact_jacobian: ca.SX  # 2 n_c x nv
+    minv_jt: ca.SX  # nv x 2 n_c
+    free_acceleration: ca.SX
+    kinetic_energy: ca.SX
+    subtree_momentum: ca.SX  # 2 x bodies
+    subtree_jacobian: ca.SX  # 2 bodies x nv: rows (x, y) of each subtree's momentum Jacobian
+    subtree_bias: ca.SX  # 2 x bodies: d/dt (subtree momentum) at zero acceleration
+
+
+def _expressions(topology: Topology, space: Space) -> _Expressions:
+    _require_planar(space)
+    layout = dof_layout(topology, space)
+    nv = layout.nv
+    q = ca.SX.sym("q", nv)
+    v = ca.SX.sym("v", nv)
+    p = ca.SX.sym("p", topology.n_values)
+    g = ca.SX.sym("gravity")
+    values = unpack_values(topology, configured_design(topology, p, q, space))
+    kin = forward_kinematics(topology, values, space)
+    offset = ca.SX.zeros(3, 1)
+    for k, (kind, axis) in enumerate(space.base_dofs):
+        if kind is DofKind.TRANSLATION:
+            offset = offset + q[k] * ca.DM(axis)
+    jac = dyn.body_jacobians(kin, layout, values, space)
+    M = dyn.mass_matrix(jac, values)
+    factor = dyn.ltdl(M, layout.dof_parent)
+
+    positions, rows = [], []
+    for c, b in enumerate(contact_bodies(topology)):
+        Jv, _ = point_jacobian(kin, layout, b, kin.W_p_C[c], space)
+        positions.append((kin.W_p_C[c] + offset)[:2])
+        rows.append(Jv[:2, :])
+    C = ca.horzcat(*positions) if positions else ca.SX(2, 0)
+    Jc = ca.vertcat(*rows) if rows else ca.SX(0, nv)
+
+    Mv = M @ v
+    kinetic = 0.5 * ca.dot(v, Mv)
+    h = ca.jtimes(Mv, q, v) - ca.gradient(kinetic, q)  # Coriolis and centrifugal: (dM/dt) v - dT/dq
+    tau_g = ca.SX.zeros(nv, 1)
+    down = ca.vertcat(0, -g, 0)
+    for b, val in enumerate(values):
+        tau_g = tau_g + val.mass * (jac.Jv[b].T @ down)
+    free = dyn.solve(factor, tau_g - h)
+    minv_jt = dyn.solve(factor, Jc.T) if rows else ca.SX(nv, 0)
+
+    Jsub = [val.mass * jac.Jv[b][:2, :] for b, val in enumerate(values)]
+    for b in reversed(range(1, topology.n_bodies)):
+        parent = topology.parents[b]
+        Jsub[parent] = Jsub[parent] + Jsub[b]
+    momentum = ca.horzcat(*[J @ v for J in Jsub])
+    bias = ca.jtimes(momentum, q, v)  # (dJ/dt) v of each subtree's momentum
+    return _Expressions(q, v, p, g, C, Jc, minv_jt, free, kinetic, momentum, ca.vertcat(*Jsub), bias)
+
+
+def dynamics_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
+    """The tree's planar dynamics at configuration q, as a named CasADi function of
+    (q, v, p, gravity).
+
+    Outputs (world frame): ``contacts`` (2 x declared contacts, positions), ``contact_jacobian``
+    (2 n_c x nv: the x and y rows of each contact's velocity Jacobian, declaration order),
+    ``minv_jt`` (M^-1 of its transpose, by the sparse L^T D L factor), ``free_acceleration``
+    (M^-1 (tau_g - h), nv), ``kinetic_energy`` (v^T M v / 2), ``subtree_momentum`` (2 x bodies:
+    linear momentum of each body's subtree; column 0 is the whole tree's).
+    """
+    x = _expressions(topology, space)
+    outs = [x.contacts, x.contact_jacobian, x.minv_jt, x.free_acceleration, x.kinetic_energy, x.subtree_momentum]
+    return ca.Function(
+        "compliant_dynamics", [x.q, x.v, x.p, x.gravity], outs, list(DYNAMICS_INPUTS), list(DYNAMICS_OUTPUTS)
+    )
+
+
+def step_function(topology: Topology, terrain: Terrain, space: Space = PLANAR) -> ca.Function:
+    """What one integration step needs at (q, v, p, gravity), with the contact detection of
+    ``terrain`` built in (one call per step).
+
+    Outputs: ``gap`` (n_c, signed distance), ``normal`` (2 x n_c, outward, at the nearest ground
+    point), ``rate`` (n_c, d gap/dt = n . contact velocity), ``normal_jacobian`` (n_c x nv, rows
+    n_i^T J_i), ``minv_jnt`` (M^-1 of its transpose), ``free_acceleration``, ``kinetic_energy``,
+    ``subtree_momentum`` (as :func:`dynamics_function`), ``subtree_jacobian`` (2 bodies x nv,
+    rows x and y of each subtree's momentum Jacobian) and ``subtree_bias`` (2 x bodies, its
+    (dJ/dt) v): a subtree's momentum rate is ``subtree_jacobian @ a + subtree_bias`` for an
+    acceleration a. Every output is dense.
+    """
+    x = _expressions(topology, space)
+    nc = x.contacts.shape[1]
+    gaps, normals = [], []
+    for c in range(nc):
+        gap, normal = gap_expression(terrain, x.contacts[:, c])
+        gaps.append(gap)
+        normals.append(normal)
+    nv = x.q.shape[0]
+    N = ca.horzcat(*normals) if nc else ca.SX(2, 0)
+    Jn = ca.vertcat(*[N[:, c].T @ x.contact_jacobian[2 * c : 2 * c + 2, :] for c in range(nc)]) if nc else ca.SX(0, nv)
+    minv_jnt = ca.horzcat(*[x.minv_jt[:, 2 * c : 2 * c + 2] @ N[:, c] for c in range(nc)]) if nc else ca.SX(nv, 0)
+    gap = ca.vertcat(*gaps) if nc else ca.SX(0, 1)
+    outs = [
+        gap,
+        N,
+        Jn @ x.v,
+        Jn,
+        minv_jnt,
+        x.free_acceleration,
+        x.kinetic_energy,
+        x.subtree_momentum,
+        x.subtree_jacobian,
+        x.subtree_bias,
+    ]
+    return ca.Function(
+        "compliant_step",
+        [x.q, x.v, x.p, x.gravity],
+        [ca.densify(o) for o in outs],
+        list(DYNAMICS_INPUTS),
+        list(STEP_OUTPUTS),
+    )
+
+
+@functools.lru_cache(maxsize=64)
+def compiled_dynamics(topology: Topology, space: Space = PLANAR) -> ca.Function:
+    """:func:`dynamics_function`, built once per topology."""
+    return dynamics_function(topology, space)
+
+
+@functools.lru_cache(maxsize=64)
+def compiled_step(topology: Topology, terrain: Terrain, space: Space = PLANAR) -> ca.Function:
+    """:func:`step_function`, built once per (topology, terrain)."""
+    return step_function(topology, terrain, space)
+
+
+def joint_impulses(per_body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Planar joint impulses (2 x bodies, the base's column unused) as the result's
+    (n_joints x 3) vectors and their magnitudes."""
+    joint = per_body[:, 1:].T
+    internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
+    return internal, np.linalg.norm(internal, axis=1)
+
+
+def touchdown_order(touchdown_time: np.ndarray, resolution: float) -> tuple[int, ...]:
+    """The contacts that touched (finite times), by time; touchdowns closer than ``resolution``
+    (s, one integration step) in a chain are simultaneous and keep their declaration order."""
+    touched = np.flatnonzero(np.isfinite(touchdown_time))
+    by_time = touched[np.argsort(touchdown_time[touched], kind="stable")]
+    group, groups, last = 0, [], None
+    for i in by_time:
+        if last is not None and touchdown_time[i] - last > resolution:
+            group += 1
+        groups.append(group)
+        last = touchdown_time[i]
+    return tuple(int(i) for _, i in sorted(zip(groups, by_time)))
+
+
+def scene_ground(scene: Scene, terrain: Terrain | None = None, base_x: float | None = None) -> tuple[Terrain, float]:
+    """The terrain and base placement to use: the scene's own (``scene.terrain``,
+    ``scene.base_x``) unless an argument overrides it."""
+    return (scene.terrain if terrain is None else terrain), float(scene.base_x if base_x is None else base_x)
+
+
+def subtree_incidence(tree: Tree) -> np.ndarray:
+    """S[b, i] = 1 when contact i sits on body b's subtree (b or a descendant): bodies x contacts."""
+    S = np.zeros((tree.n_bodies, len(tree.contacts)))
+    for i, (b, _) in enumerate(tree.contacts):
+        while b is not None:
+            S[b, i] = 1.0
+            b = tree.bodies[b].parent
+    return S
+
+
+def subtree_masses(tree: Tree) -> np.ndarray:
+    """Mass of each body's subtree (kg)."""
+    m = np.array([b.mass for b in tree.bodies], dtype=float)
+    for b in reversed(range(1, tree.n_bodies)):
+        m[tree.bodies[b].parent] += m[b]
+    return m
+
+
+# --------------------------------------------------------------------------------------------
+# Touchdown
+
+
+#: The first contact starts this far (m) above the ground: a gap of exactly 0 would be rounded to
+#: +-1e-17 differently by different engines, moving the first loaded step by one.
+TOUCHDOWN_CLEARANCE = 1e-12
+
+
+def touchdown_configuration(
+    tree: Tree, terrain: Terrain = FLAT, base_x: float = 0.0, clearance: float = TOUCHDOWN_CLEARANCE
+) -> np.ndarray:
+    """The configuration q at the instant the first contact touches, approaching straight down.
+
+    The tree keeps its touchdown angles; its base origin sits at x = ``base_x`` and is lowered
+    until the contact with the smallest vertical clearance above the terrain is ``clearance``
+    above it.
+    """
+    topology = tree.topology()
+    layout = dof_layout(topology)
+    q = np.zeros(layout.nv)
+    q[2] = tree.bodies[0].angle
+    for b in range(1, tree.n_bodies):
+        if layout.body_dof[b] is not None:
+            q[layout.body_dof[b]] = tree.bodies[b].angle
+    q[0] = float(base_x)
+    C = touchdown_geometry(tree).contacts + np.array([q[0], 0.0])  # base origin at height 0
+    q[1] = clearance - float(np.min(vertical_clearance(terrain, C)))
+    return q
+
+
+# --------------------------------------------------------------------------------------------
+# Result
+
+
+@dataclass(frozen=True)
+class CompliantResult:
+    """One compliant impact. World frame; N, N s, m/s, s, J. Contacts in declaration order.
+
+    Attributes:
+        external: normal impulse of each declared contact, the time integral of its force.
+        external_vector: the same impulses as planar vectors (n_c x 2; the normal may turn).
+        internal: force impulse through each joint, parent onto child (n_joints x 3, z = 0): the
+            joint force from each subtree's momentum balance (momentum rate - contact and gravity
+            forces on it) integrated, like the contact forces, over the steps in which some
+            contact pushes: the impulsive part, without the finite joint forces of free flight
+            between touchdowns.
+        internal_magnitude: |internal| per joint (one per non-base body, file order).
+        external_norm, internal_norm: Euclidean norms of ``external`` and ``internal_magnitude``.
+        touchdown_time: when each contact first touched (s from the first touchdown; NaN: never).
+        release_time: when each contact's force last was non-zero (NaN: never loaded).
+        touchdown_order: the contacts that touched, by touchdown time (touchdowns within one
+            contact step of each other count as simultaneous: declaration order).
+        recontacting: contacts that had released and were heading back to the ground when the
+            integration stopped (secondary impacts follow; see ``follow_recontacts``).
+        max_penetration: deepest penetration of each contact (m).
+        time: start of each step (s); ``force``: normal force of each contact over that step
+            (steps x n_c); empty when not recorded.
+        q_minus, q_plus, v_minus, v_plus: configuration and generalized velocity at the first
+            touchdown and at the end.
+        energy_before, energy_after: kinetic energy at the first touchdown and at the end.
+        energy_gain: the impact created kinetic energy (beyond 1e-9 relative): flagged, not hidden.
+        stiffness, damping: per contact, in the law's units (penalty: N/m, N s/m; constraint:
+            1/s^2, 1/s); damping_ratio: zeta used.
+        effective_mass: 1 / A_ii of each contact at its touchdown (at the first touchdown for
+            contacts that never touched), kg: the penalty law's damping is 2 zeta sqrt(k m).
+        timestep, n_steps, duration: the contact step, the number of contact steps, and the
+            integrated time; n_flight_steps: Runge-Kutta steps of free flight between touchdowns.
+        status: how it ended; law: the contact law; model: a one-line description.
+    """
+
+    external: np.ndarray
+    external_vector: np.ndarray
+    internal: np.ndarray
+    internal_magnitude: np.ndarray
+    external_norm: float
+    internal_norm: float
+    touchdown_time: np.ndarray
+    release_time: np.ndarray
+    touchdown_order: tuple[int, ...]
+    recontacting: tuple[int, ...]
+    max_penetration: np.ndarray
+    time: np.ndarray
+    force: np.ndarray
+    q_minus: np.ndarray
+    q_plus: np.ndarray
+    v_minus: np.ndarray
+    v_plus: np.ndarray
+    energy_before: float
+    energy_after: float
+    energy_gain: bool
+    stiffness: np.ndarray
+    damping: np.ndarray
+    effective_mass: np.ndarray
+    damping_ratio: float
+    timestep: float
+    n_steps: int
+    n_flight_steps: int
+    duration: float
+    status: CompliantStatus
+    law: ContactLaw
+    model: str
+
+    @property
+    def max_internal(self) -> float:
+        return float(self.internal_magnitude.max()) if self.internal_magnitude.size else 0.0
+
+    @property
+    def active(self) -> tuple[int, ...]:
+        """Contacts that touched, in declaration order."""
+        return tuple(int(i) for i in np.flatnonzero(np.isfinite(self.touchdown_time)))
+
+
+# --------------------------------------------------------------------------------------------
+# Integration
+
+
+@dataclass(frozen=True)
+class _State:
+    """Per-step quantities at (q, v): views into the evaluator's output buffers, overwritten by
+    the next evaluation (copy what must outlive a step)."""
+
+    gap: np.ndarray
+    normal: np.ndarray  # 2 x n_c
+    rate: np.ndarray  # d gap / dt
+    Jn: np.ndarray  # normal Jacobian rows (n_c x nv)
+    minv_jnt: np.ndarray  # M^-1 Jn^T (nv x n_c)
+    free: np.ndarray
+    kinetic: np.ndarray  # 1 element
+    momentum: np.ndarray  # 2 x bodies
+    subtree_jacobian: np.ndarray  # 2 bodies x nv
+    subtree_bias: np.ndarray  # 2 x bodies
+
+
+class _Evaluator:
+    """Low-overhead numeric calls of a CasADi function through its buffer interface (a few us
+    per call instead of tens): inputs are copied into fixed arrays, outputs are views of fixed
+    arrays in CasADi's column-major order."""
+
+    def __init__(self, fn: ca.Function, p: np.ndarray, gravity: float) -> None:
+        self._buf, self._eval = fn.buffer()
+        self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
+        self._res = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
+        for i, a in enumerate(self._args):
+            self._buf.set_arg(i, memoryview(a))
+        for i, r in enumerate(self._res):
+            self._buf.set_res(i, memoryview(r))
+        self._args[2][:] = p
+        self._args[3][:] = gravity
+        self._out = [r.reshape(fn.size_out(i), order="F") for i, r in enumerate(self._res)]
+        self._state = _State(
+            gap=self._res[0],
+            normal=self._out[1],
+            rate=self._res[2],
+            Jn=self._out[3],
+            minv_jnt=self._out[4],
+            free=self._res[5],
+            kinetic=self._res[6],
+            momentum=self._out[7],
+            subtree_jacobian=self._out[8],
+            subtree_bias=self._out[9],
+        )
+
+    def __call__(self, q: np.ndarray, v: np.ndarray) -> _State:
+        self._args[0][:] = q
+        self._args[1][:] = v
+        self._eval()
+        return self._state
+
+
+def _flight(
+    evaluate_step: _Evaluator, q: np.ndarray, v: np.ndarray, step: float, reach: float
+) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """One classical Runge-Kutta 4 step of the free flight, as long as ``step`` or, halving, at
+    least 4 x ``reach`` / 2, such that no contact comes within ``reach`` seconds (at its normal
+    velocity) of the ground at any stage of it; None when none qualifies (take contact steps).
+
+    Contact steps resolve every touchdown; the flight steps only skip the free flight between
+    them, where the contact step (a fraction of a contact period) is needlessly small.
+    """
+    h = step
+    while h >= 2.0 * reach:
+        ok = True
+        ks = [(v, evaluate_step(q, v).free.copy())]
+        for frac in (0.5, 0.5, 1.0):
+            dq, dv = ks[-1]
+            qq, vv = q + frac * h * dq, v + frac * h * dv
+            s = evaluate_step(qq, vv)
+            if np.any(s.gap <= reach * np.maximum(0.0, -s.rate)):
+                ok = False
+                break
+            ks.append((vv, s.free.copy()))
+        if ok:
+            q1 = q + h / 6.0 * (ks[0][0] + 2 * ks[1][0] + 2 * ks[2][0] + ks[3][0])
+            v1 = v + h / 6.0 * (ks[0][1] + 2 * ks[1][1] + 2 * ks[2][1] + ks[3][1])
+            s = evaluate_step(q1, v1)
+            if np.all(s.gap > reach * np.maximum(0.0, -s.rate)) and np.all(s.gap > 0.0):
+                return q1, v1, h
+        h *= 0.5
+    return None
+
+
+def _constraint_forces(s: _State, active: np.ndarray, k: float, b: float, d: float) -> np.ndarray:
+    """MuJoCo's soft-constraint contact forces: f >= 0 complementary to (A + R) f - (a_ref - a0)
+    >= 0, as the bound-constrained QP min f^T (A+R) f / 2 - (a_ref - a0)^T f, solved as an NNLS on
+    the Cholesky factor of A + R (Lawson-Hanson)."""
+    f = np.zeros(len(s.gap))
+    idx = np.flatnonzero(active)
+    if idx.size == 0:
+        return f
+    Jn = s.Jn[idx]
+    A = Jn @ s.minv_jnt[:, idx]
+    H = A + np.diag((1.0 - d) / d * np.diag(A))
+    rhs = -(b * s.rate[idx] + k * s.gap[idx]) / d - Jn @ s.free
+    if idx.size == 1:
+        f[idx] = max(0.0, rhs[0] / H[0, 0])
+        return f
+    L = np.linalg.cholesky(0.5 * (H + H.T))
+    f[idx] = nnls(L.T, np.linalg.solve(L, rhs))
+    return f
+
+
+def simulate_impact(
+    tree: Tree,
+    scene: Scene,
+    settings: CompliantSettings = CompliantSettings(),
+    terrain: Terrain | None = None,
+    base_x: float | None = None,
+    v_minus: np.ndarray | None = None,
+) -> CompliantResult:
+    """Integrate the landing of ``tree`` through the impact with compliant contacts.
+
+    Args:
+        tree: the floating tree; its angles are the touchdown configuration.
+        scene: speed (straight down, unless ``v_minus``), restitution (tunes the damping);
+            ``scene.selection`` is not used: the geometry decides which contacts touch and when.
+        settings: contact law, stiffness, step, gravity (:class:`CompliantSettings`).
+        terrain: overrides ``scene.terrain``, the ground profile (default: the scene's).
+        base_x: overrides ``scene.base_x``, the x of the base origin at touchdown (m) placing the
+            tree over the terrain (default: the scene's).
+        v_minus: generalized velocity at the first touchdown (base vx, vy, omega, joint rates);
+            default: straight down at ``scene.speed``.
+
+    Raises:
+        ModelError: friction (the rung is frictionless) or a restitution it cannot represent.
+        NumericalError: the integration blew up (non-finite state).
+    """
+    if scene.friction > 0:
+        raise ModelError("scene.friction: the compliant rung models frictionless contact only (friction: 0)")
+    terrain, base_x = scene_ground(scene, terrain, base_x)
+    topology = tree.topology()
+    layout = dof_layout(topology)
+    p = design_vector(tree)
+    g = settings.gravity
+    evaluate_step = _Evaluator(compiled_step(topology, terrain), p, g)
+    q = touchdown_configuration(tree, terrain, base_x)
+    if v_minus is None:
+        v = np.zeros(layout.nv)
+        v[1] = -scene.speed
+    else:
+        v = np.array(v_minus, dtype=float).ravel()
+        if v.shape != (layout.nv,):
+            raise ModelError(f"v_minus: expected {layout.nv} generalized velocities, got {v.shape}")
+    zeta = (
+        damping_ratio_for_restitution(scene.restitution) if settings.damping_ratio is None else settings.damping_ratio
+    )
+
+    s = evaluate_step(q, v)
+    nc = len(s.gap)
+    A0 = s.Jn @ s.minv_jnt
+    k = np.full(nc, settings.stiffness)
+    penalty = settings.law is ContactLaw.PENALTY
+    effective_mass = 1.0 / np.diag(A0)  # updated at each contact's own touchdown
+    if penalty:
+        c = 2.0 * zeta * np.sqrt(k * effective_mass)
+        omega_max = math.sqrt(settings.stiffness * float(np.max(np.linalg.eigvalsh(0.5 * (A0 + A0.T)))))
+    else:
+        c = np.full(nc, 2.0 * zeta * math.sqrt(settings.stiffness))
+        omega_max = math.sqrt(settings.stiffness)
+    dt = settings.timestep or 2.0 * math.pi / (omega_max * settings.steps_per_period)
+    period = 2.0 * math.pi / omega_max
+    settle_steps = max(1, int(math.ceil(period / dt)))
+    settle_speed = settings.settle_fraction * max(abs(scene.speed), float(np.max(np.abs(v))), 1e-12)
+
+    in_subtree = subtree_incidence(tree)  # bodies x contacts
+    gravity_force = np.outer([0.0, -g], subtree_masses(tree))  # on each subtree, 2 x bodies
+
+    q0, v0 = q.copy(), v.copy()
+    energy_before = float(s.kinetic[0])
+    joint_impulse = np.zeros((2, tree.n_bodies))
+    impulse = np.zeros(nc)
+    impulse_vec = np.zeros((2, nc))
+    touchdown = np.full(nc, np.nan)
+    release = np.full(nc, np.nan)
+    max_pen = np.zeros(nc)
+    times: list[float] = []
+    forces: list[np.ndarray] = []
+    prev_gap = s.gap.copy()
+    status = CompliantStatus.TIMEOUT
+    still = 0
+    t = prev_t = 0.0
+    n_steps = n_flight = 0
+    untouched = np.ones(nc, dtype=bool)  # contacts that have not touched yet
+    any_touched = False
+    zeros = np.zeros(nc)
+    # The loop runs a few hundred to tens of thousands of times: flags are kept as Python bools and
+    # arrays are reused, since numpy's per-call overhead on these tiny arrays dominates the step.
+    while True:
+        touching = s.gap < 0.0
+        any_touching = bool(touching.any())
+        if n_steps and any_touching and not any_touched or (any_touched and untouched.any() and any_touching):
+            new = touching & untouched
+            if new.any():  # linear interpolation of the crossing within the last step
+                frac = -s.gap[new] / np.maximum(prev_gap[new] - s.gap[new], 1e-300)
+                touchdown[new] = t - (t - prev_t) * np.minimum(frac, 1.0)
+                untouched &= ~new
+                any_touched = True
+                # damping tuned to e on the effective mass the contact meets when it lands
+                effective_mass[new] = 1.0 / np.einsum("cv,vc->c", s.Jn[new], s.minv_jnt[:, new])
+                if penalty:
+                    c[new] = 2.0 * zeta * np.sqrt(k[new] * effective_mass[new])
+        if not any_touching:
+            f = zeros
+        elif penalty:
+            f = -k * s.gap - c * s.rate
+            f[(f < 0.0) | ~touching] = 0.0
+        else:
+            f = _constraint_forces(s, touching, settings.stiffness, c[0] if nc else 0.0, settings.impedance)
+        loaded = f > 0.0
+        any_loaded = any_touching and bool(loaded.any())
+        # stop: nothing pushes and nothing approaches (after the first touch), or at rest
+        if any_touched:
+            if not any_loaded:
+                approaching = s.rate < 0.0
+                if settings.follow_recontacts:
+                    blocking = approaching
+                else:
+                    blocking = approaching & (touching | untouched)
+                if not blocking.any():
+                    status = CompliantStatus.SEPARATED
+                    break
+                still = 0
+            elif np.abs(s.rate[touching]).max() < settle_speed:
+                still += 1
+                if still >= settle_steps:
+                    status = CompliantStatus.SETTLED
+                    break
+            else:
+                still = 0
+        if t >= settings.max_time:
+            break
+        prev_gap[:] = s.gap
+        prev_t = t
+        if settings.flight_step and not any_touching:
+            flown = _flight(evaluate_step, q, v, settings.flight_step, 2.0 * dt)
+            if flown is not None:
+                q, v, h = flown
+                t += h
+                n_flight += 1
+                if settings.record:
+                    times.append(prev_t)
+                    forces.append(zeros)
+                s = evaluate_step(q, v)
+                continue
+            s = evaluate_step(q, v)  # the trial flight overwrote the evaluator's state
+        if any_loaded:
+            a = s.free + s.minv_jnt @ f
+            F = s.normal * f  # 2 x contacts
+            # joint forces (parent onto child) at this state: Newton's law for each subtree
+            momentum_rate = (s.subtree_jacobian @ a).reshape(-1, 2).T + s.subtree_bias
+            joint_impulse += dt * (momentum_rate - F @ in_subtree.T - gravity_force)
+            impulse += dt * f
+            impulse_vec += dt * F
+            release[loaded] = t + dt
+        else:
+            a = s.free
+        if any_touching:
+            np.maximum(max_pen, -s.gap, out=max_pen)
+        v = v + dt * a
+        q = q + dt * v
+        if settings.record:
+            times.append(t)
+            forces.append(f)
+        t += dt
+        n_steps += 1
+        if not (math.isfinite(v.sum()) and math.isfinite(q.sum())):
+            raise NumericalError(
+                f"the compliant integration diverged at t = {t:.3g} s (step {dt:.3g} s for stiffness "
+                f"{settings.stiffness:.3g}): lower the step"
+            )
+        s = evaluate_step(q, v)
+
+    internal, magnitude = joint_impulses(joint_impulse)
+    order = touchdown_order(touchdown, dt)
+    energy_after = float(s.kinetic[0])
+    return CompliantResult(
+        external=impulse,
+        external_vector=impulse_vec.T.copy(),
+        internal=internal,
+        internal_magnitude=magnitude,
+        external_norm=float(np.linalg.norm(impulse)),
+        internal_norm=float(np.linalg.norm(magnitude)),
+        touchdown_time=touchdown,
+        release_time=release,
+        touchdown_order=order,
+        recontacting=tuple(int(i) for i in np.flatnonzero(np.isfinite(touchdown) & (s.rate < 0.0))),
+        max_penetration=max_pen,
+        time=np.array(times),
+        force=np.array(forces).reshape(len(forces), nc),
+        q_minus=q0,
+        q_plus=q,
+        v_minus=v0,
+        v_plus=v,
+        energy_before=energy_before,
+        energy_after=energy_after,
+        energy_gain=energy_after > energy_before * (1.0 + 1e-9),
+        stiffness=k,
+        damping=c,
+        effective_mass=effective_mass,
+        damping_ratio=zeta,
+        timestep=dt,
+        n_steps=n_steps,
+        n_flight_steps=n_flight,
+        duration=t,
+        status=status,
+        law=settings.law,
+        model=f"compliant ({settings.law.value}, semi-implicit Euler), planar",
+    )
+
+
+__all__ = [
+    "CompliantResult",
+    "CompliantSettings",
+    "CompliantStatus",
+    "ContactLaw",
+    "clipped_restitution",
+    "compiled_dynamics",
+    "configured_design",
+    "damping_ratio_for_restitution",
+    "dynamics_function",
+    "scene_ground",
+    "simulate_impact",
+    "subtree_incidence",
+    "subtree_masses",
+    "touchdown_configuration",
+    "touchdown_order",
+    "TOUCHDOWN_CLEARANCE",
+]

@@ -1,0 +1,237 @@
+"""Rigid impacts in sequence on a terrain: the stiff limit of the compliant rung when contacts
+touch down at different times.
+
+Between touchdowns the tree flies freely (the same Lagrangian dynamics as
+:mod:`impulse_core.timedomain.compliant`, integrated with classical Runge-Kutta 4 and a fixed step; a
+touchdown is located by bisection on the step length). At each touchdown every contact that
+touches (|gap| <= ``contact_tolerance``) and approaches the ground takes part in one rigid impact
+by Newton's restitution law with complementarity (the frictionless LCP: impulses lambda >= 0,
+post-impact normal velocities u+ = u- + A lambda >= -e u-, complementary), A = Jn M^-1 Jn^T
+along the terrain normals. With simultaneous touchdowns on flat ground and all impulses positive
+this is the paper's eq. 11, and :func:`sequential_impacts` equals ``impulse_core.evaluate``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from impulse_core.timedomain.compliant import (
+    _Evaluator,
+    compiled_step,
+    joint_impulses,
+    scene_ground,
+    subtree_incidence,
+    touchdown_configuration,
+    touchdown_order,
+)
+from impulse_core.errors import ModelError, NumericalError
+from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.impact.nnls import nnls
+from impulse_core.model.terrain import Terrain
+from impulse_core.model.tree import Scene, Tree, design_vector
+
+MODEL_NAME = "newton-sequential on terrain (LCP at each touchdown, RK4 flight)"
+
+
+@dataclass(frozen=True)
+class SequentialSettings:
+    """Parameters of the sequential rigid model.
+
+    Attributes:
+        flight_step: RK4 step of the free flight between touchdowns (s).
+        contact_tolerance: a contact within this distance of the ground (m) touches.
+        time_tolerance: touchdowns are located to this (s).
+        gravity: m/s^2 along -y.
+        max_time: stop looking for touchdowns after this long (s).
+    """
+
+    flight_step: float = 1.0e-4
+    contact_tolerance: float = 1.0e-9
+    time_tolerance: float = 1.0e-12
+    gravity: float = 0.0
+    max_time: float = 0.1
+
+
+@dataclass(frozen=True)
+class ImpactEvent:
+    """One rigid impact: when, which contacts (declared indices), their normal impulses (N s)."""
+
+    time: float
+    contacts: tuple[int, ...]
+    impulses: np.ndarray
+
+
+@dataclass(frozen=True)
+class SequentialResult:
+    """The sequence of rigid impacts. Same fields and units as the compliant result where they
+    exist: external (normal impulse per declared contact, summed over events), external_vector
+    (n_c x 2), internal (joint impulses summed over events, n_joints x 3), internal_magnitude,
+    norms, touchdown_time and order, the state after the last impact, kinetic energy before the
+    first and after the last impact, and the events."""
+
+    external: np.ndarray
+    external_vector: np.ndarray
+    internal: np.ndarray
+    internal_magnitude: np.ndarray
+    external_norm: float
+    internal_norm: float
+    touchdown_time: np.ndarray
+    touchdown_order: tuple[int, ...]
+    events: tuple[ImpactEvent, ...]
+    q_plus: np.ndarray
+    v_plus: np.ndarray
+    energy_before: float
+    energy_after: float
+    energy_gain: bool
+    model: str = MODEL_NAME
+
+    @property
+    def active(self) -> tuple[int, ...]:
+        """Contacts that touched, in declaration order."""
+        return tuple(int(i) for i in np.flatnonzero(np.isfinite(self.touchdown_time)))
+
+    @property
+    def max_internal(self) -> float:
+        return float(self.internal_magnitude.max()) if self.internal_magnitude.size else 0.0
+
+
+def _lcp_impulse(A: np.ndarray, u: np.ndarray, e: float) -> np.ndarray:
+    """Newton's law with complementarity: lambda >= 0, A lambda + (1 + e) u >= 0, complementary;
+    the QP min lambda^T A lambda / 2 + (1 + e) u^T lambda, lambda >= 0, as an NNLS on the Cholesky
+    factor of A (slightly regularised: redundant contacts make A singular)."""
+    n = len(u)
+    A = 0.5 * (A + A.T) + 1e-12 * np.trace(A) / n * np.eye(n)
+    if n == 1:
+        return np.array([max(0.0, -(1.0 + e) * u[0] / A[0, 0])])
+    L = np.linalg.cholesky(A)
+    return nnls(L.T, np.linalg.solve(L, -(1.0 + e) * u))
+
+
+def sequential_impacts(
+    tree: Tree,
+    scene: Scene,
+    settings: SequentialSettings = SequentialSettings(),
+    terrain: Terrain | None = None,
+    base_x: float | None = None,
+    v_minus: np.ndarray | None = None,
+) -> SequentialResult:
+    """Rigid impacts of ``tree`` landing on ``terrain``, one per touchdown (module docstring).
+
+    Ends when no contact that has not touched yet approaches the ground (as the compliant rung),
+    or at ``settings.max_time``. ``terrain`` and ``base_x``, when given, override the scene's own
+    ``scene.terrain`` and ``scene.base_x`` (:func:`impulse_core.timedomain.compliant.scene_ground`).
+
+    Raises:
+        ModelError: friction (frictionless only).
+        NumericalError: a non-finite state.
+    """
+    if scene.friction > 0:
+        raise ModelError("scene.friction: the sequential rigid model is frictionless (friction: 0)")
+    terrain, base_x = scene_ground(scene, terrain, base_x)
+    topology = tree.topology()
+    layout = dof_layout(topology)
+    evaluate_step = _Evaluator(compiled_step(topology, terrain), design_vector(tree), settings.gravity)
+    q = touchdown_configuration(tree, terrain, base_x)
+    if v_minus is None:
+        v = np.zeros(layout.nv)
+        v[1] = -scene.speed
+    else:
+        v = np.array(v_minus, dtype=float).ravel()
+    e = scene.restitution
+    in_subtree = subtree_incidence(tree)
+    s = evaluate_step(q, v)
+    nc = len(s.gap)
+    energy_before = float(s.kinetic[0])
+    external = np.zeros(nc)
+    external_vec = np.zeros((2, nc))
+    joint = np.zeros((2, tree.n_bodies))
+    touchdown = np.full(nc, np.nan)
+    events: list[ImpactEvent] = []
+    t = 0.0
+    h = settings.flight_step
+
+    def flight(q0: np.ndarray, v0: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """One RK4 step of the free flight (contact forces off)."""
+
+        def accel(qq, vv):
+            return evaluate_step(qq, vv).free.copy()
+
+        k1q, k1v = v0, accel(q0, v0)
+        k2q, k2v = v0 + 0.5 * dt * k1v, accel(q0 + 0.5 * dt * k1q, v0 + 0.5 * dt * k1v)
+        k3q, k3v = v0 + 0.5 * dt * k2v, accel(q0 + 0.5 * dt * k2q, v0 + 0.5 * dt * k2v)
+        k4q, k4v = v0 + dt * k3v, accel(q0 + dt * k3q, v0 + dt * k3v)
+        return (
+            q0 + dt / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
+            v0 + dt / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v),
+        )
+
+    approaching = -1e-12 * max(abs(scene.speed), float(np.max(np.abs(v))), 1.0)  # m/s: below this, a contact hits
+    while True:
+        s = evaluate_step(q, v)
+        hitting = (s.gap <= settings.contact_tolerance) & (s.rate < approaching)
+        if np.any(hitting):
+            idx = np.flatnonzero(hitting)
+            A = s.Jn[idx] @ s.minv_jnt[:, idx]
+            lam = _lcp_impulse(A, s.rate[idx], e)
+            momentum = s.momentum.copy()
+            F = np.zeros((2, nc))
+            F[:, idx] = s.normal[:, idx] * lam
+            v = v + s.minv_jnt[:, idx] @ lam
+            external[idx] += lam
+            external_vec += F
+            fresh = idx[np.isnan(touchdown[idx])]
+            touchdown[fresh] = t
+            events.append(ImpactEvent(t, tuple(int(i) for i in idx), lam))
+            s = evaluate_step(q, v)
+            joint += s.momentum - momentum - F @ in_subtree.T
+            if len(events) > 1000:
+                raise NumericalError("more than 1000 rigid impacts: the contacts chatter (lower the restitution?)")
+            continue
+        untouched = np.isnan(touchdown)
+        if np.any(np.isfinite(touchdown)) and np.all((s.rate >= 0.0) | ~(untouched | (s.gap < 0.0))):
+            break
+        if t >= settings.max_time:
+            break
+        q1, v1 = flight(q, v, h)
+        g1 = evaluate_step(q1, v1).gap.copy()
+        crossing = g1 < -settings.contact_tolerance
+        if np.any(crossing):
+            lo, hi = 0.0, h  # bisect the step length for the first touchdown
+            while hi - lo > settings.time_tolerance:
+                mid = 0.5 * (lo + hi)
+                qm, vm = flight(q, v, mid)
+                if np.min(evaluate_step(qm, vm).gap[crossing]) < 0.0:
+                    hi = mid
+                else:
+                    lo = mid
+            q1, v1 = flight(q, v, hi)
+            t += hi
+        else:
+            t += h
+        q, v = q1, v1
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise NumericalError(f"the free flight diverged at t = {t:.3g} s")
+    s = evaluate_step(q, v)
+    internal, magnitude = joint_impulses(joint)
+    energy_after = float(s.kinetic[0])
+    return SequentialResult(
+        external=external,
+        external_vector=external_vec.T.copy(),
+        internal=internal,
+        internal_magnitude=magnitude,
+        external_norm=float(np.linalg.norm(external)),
+        internal_norm=float(np.linalg.norm(magnitude)),
+        touchdown_time=touchdown,
+        touchdown_order=touchdown_order(touchdown, 0.0),
+        events=tuple(events),
+        q_plus=q,
+        v_plus=v,
+        energy_before=energy_before,
+        energy_after=energy_after,
+        energy_gain=energy_after > energy_before * (1.0 + 1e-9),
+    )
+
+
+__all__ = ["ImpactEvent", "SequentialResult", "SequentialSettings", "sequential_impacts"]

@@ -1,0 +1,1 @@
+"""Benchmarks and accuracy/sensitivity studies behind footopt bench."""

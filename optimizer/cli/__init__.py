@@ -1,0 +1,1 @@
+"""The footopt command line (argparse only; library code never reads sys.argv)."""

@@ -1,0 +1,397 @@
+"""The ``footopt`` command line: a thin layer over the library.
+
+Exit status: 0 success; 1 a numerical failure; 2 a bad file or bad usage (one line on stderr,
+``footopt: error: <file>: <message>``); 130 interrupted.
+
+To add a subcommand, write ``_add_<name>(subparsers)`` that builds its parser and sets
+``run=<function(args) -> int>``, and list it in ``SUBCOMMANDS``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw
+from impulse_core.errors import FootoptError, NumericalError
+from impulse_core.evaluate import touchdown_geometry
+from impulse_core.timedomain.sequential import SequentialSettings
+from optimizer.analysis.bench import SCALING_SIZES
+from optimizer.evaluation.model_choice import COMPLIANT, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
+from optimizer.config.model_file import ModelFile, load_model_file
+from optimizer.cli.optimize import add_optimize, add_pareto
+from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown
+from optimizer.report.text import Result, format_report, is_finite, result_record
+
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+#: The paper's three-toed foot, evaluated when no file is given.
+DEFAULT_MODEL = Path(__file__).resolve().parents[2] / "configs" / "paper_case3.yaml"
+
+_MODEL_HELP = "model files (YAML or JSON, format: MODEL_FORMAT.md)"
+
+#: ``footopt evaluate --model`` choices: 'auto', an :class:`ImpactModel` value, 'sequential' or 'compliant'.
+IMPACT_MODEL_CHOICES = MODEL_CHOICES
+#: ``--steps-per-period`` when not given.
+DEFAULT_STEPS_PER_PERIOD = 120.0
+
+
+def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "evaluate",
+        help="compute the landing impulses of model files",
+        description=(
+            "Compute the external impulse at each contact and the internal impulse through each joint "
+            "of a floating tree of rods landing straight down (on flat ground: Newton's restitution law "
+            "at simultaneous contacts, its complementarity form where a contact would pull, or Coulomb "
+            "friction; on a scene.terrain that is not flat: rigid impacts in sequence, one per touchdown, "
+            "or compliant contacts in the time domain: see --model), and report them beside any reference "
+            "values the file gives."
+        ),
+    )
+    p.add_argument("files", nargs="+", metavar="FILE", help=_MODEL_HELP)
+    p.add_argument("--json", action="store_true", help="print one JSON object per file per line (JSON Lines)")
+    p.add_argument(
+        "--model",
+        choices=IMPACT_MODEL_CHOICES,
+        default="auto",
+        help="the impact model (rung of the fidelity ladder): 'auto' (default) picks the cheapest exact one per "
+        "scene: on a terrain that is not flat, sequential; else friction if scene.friction > 0, else newton (paper "
+        "eq. 11) unless Newton's law would make a contact pull, then lcp (complementarity: the contact separates); "
+        "'decoupled' is the paper's eq. 14 approximation; the rigid rungs refuse uneven terrain. 'sequential': a "
+        "rigid (LCP) impact along the local ground normal at each touchdown, free flight between; 'compliant': "
+        "spring-damper contacts integrated through the landing (see --law, --stiffness, --steps-per-period)",
+    )
+    p.add_argument(
+        "--law",
+        choices=[law.value for law in ContactLaw],
+        default=None,
+        help="--model compliant: the contact law, 'penalty' (default: a spring-damper pad per contact, stiffness "
+        "in N/m) or 'constraint' (MuJoCo's soft constraint, stiffness in 1/s^2)",
+    )
+    p.add_argument(
+        "--stiffness",
+        type=float,
+        default=None,
+        help=f"--model compliant: contact stiffness (N/m, or 1/s^2 for the constraint law; default "
+        f"{CompliantSettings().stiffness:g})",
+    )
+    p.add_argument(
+        "--steps-per-period",
+        type=float,
+        default=None,
+        help=f"--model compliant: integration steps per period of the fastest contact oscillation (default "
+        f"{DEFAULT_STEPS_PER_PERIOD:g}; >= 4)",
+    )
+    p.add_argument(
+        "--gravity",
+        type=float,
+        default=None,
+        help="--model sequential or compliant (or auto, when it runs sequential): gravity along -y in m/s^2 "
+        "(default off: impact time scales); the rigid rungs are instantaneous, gravity gives them no impulse",
+    )
+    p.add_argument(
+        "--plot",
+        metavar="PATH",
+        help="draw the tree at touchdown with its impulses to PATH (.png or .svg); with several files, "
+        "PATH gets '_<file stem>' before its suffix",
+    )
+    p.set_defaults(run=run_evaluate)
+
+
+def _add_bench(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "bench",
+        help="time the evaluation of a model, next to pinocchio.impulseDynamics",
+        description=(
+            "Time one design's evaluation (external + internal impulses + norms, the optimiser's hot path): "
+            "one call per design, batched over many designs (virtual machine, compiled C, a C loop, a SIMD "
+            "loop, 2 threads), the gradient of both norms (adjoint, beside reverse-mode AD), beside "
+            "pinocchio.impulseDynamics on the same model in the same run (if `pin` is installed); check that "
+            "batched results equal single calls and the full model, and the two gradients each other. "
+            "'footopt bench speed' (the default mode) times the paper's case 3 and the scaling series "
+            "(5 to 200 bodies); 'footopt bench FILE...' times the given model files. Quote ratios, not times."
+        ),
+    )
+    p.add_argument(
+        "files",
+        nargs="*",
+        metavar="FILE",
+        help=f"'speed' (default: case 3 and the scaling series), or {_MODEL_HELP}",
+    )
+    p.add_argument("--batch", type=int, default=2000, help="designs per batched call (default 2000)")
+    p.add_argument("--json", action="store_true", help="print one JSON object per model")
+    p.add_argument(
+        "--cache-dir",
+        default=str(Path.home() / ".cache" / "footopt"),
+        help="where compiled C libraries are cached (default ~/.cache/footopt)",
+    )
+    p.add_argument("--no-compile", action="store_true", help="time CasADi's virtual machine only")
+    p.add_argument(
+        "--plot",
+        metavar="PATH",
+        help="also draw the first model's paths and the scaling series to PATH (.png or .svg)",
+    )
+    p.add_argument(
+        "--sizes",
+        default=None,
+        help="body counts of the scaling series, comma-separated (default with 'speed': "
+        + ",".join(str(n) for n in SCALING_SIZES)
+        + "; 'none' to skip; with model files: none unless given)",
+    )
+    p.set_defaults(run=run_bench)
+
+
+#: Functions that add one subcommand each to the parser.
+SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
+    _add_evaluate,
+    _add_bench,
+    add_optimize,
+    add_pareto,
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand of ``SUBCOMMANDS``."""
+    parser = argparse.ArgumentParser(
+        prog="footopt",
+        description="Design robot feet that spread landing impulses.",
+        epilog="Run 'footopt COMMAND --help' for a command's options.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for add in SUBCOMMANDS:
+        add(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line.
+
+    Args:
+        argv: the arguments after the program name (default: ``sys.argv[1:]``).
+
+    Returns:
+        The exit status.
+    """
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # --help, --version (0) and usage errors (2, message already printed)
+        return e.code if isinstance(e.code, int) else EXIT_OK if e.code is None else EXIT_USAGE
+    try:
+        return int(args.run(args))
+    except KeyboardInterrupt:
+        print("footopt: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # e.g. `footopt evaluate --json ... | head -1`
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # Python would complain again when flushing at exit
+        return EXIT_FAILURE
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    """``footopt evaluate``: report, or print as JSON Lines, each file's impact; a bad file is
+    reported on stderr and the others still run."""
+    files: list[str] = args.files
+    plots: dict[int, Path] = {}
+    if args.plot is not None:
+        if Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
+            _error("--plot", f"{args.plot}: must end in {' or '.join(PLOT_SUFFIXES)}")
+            return EXIT_USAGE
+        plots = _plot_paths(Path(args.plot), files)
+    options = _time_domain_options(args)
+    if options is None:
+        return EXIT_USAGE
+    status = EXIT_OK
+    for n, file in enumerate(files):
+        try:
+            model = load_model_file(file)
+            result = _evaluate(model, args.model, *options)
+            if result is None:
+                _error(file, "numerical failure: the impact solve returned no finite answer (extreme values?)")
+                status = max(status, EXIT_FAILURE)
+                continue
+            if args.json:
+                print(json.dumps(result_record(model, result, file), allow_nan=False))
+            else:
+                print(("\n" if n else "") + format_report(model, result, file), end="")
+            if n in plots:
+                plot_touchdown(
+                    model.tree, touchdown_geometry(model.tree), result, plots[n], title=file, scene=model.scene
+                )
+                if not args.json:
+                    print(f"plot: {plots[n]}")
+        except FootoptError as e:
+            _error(file, str(e))
+            status = EXIT_USAGE
+        sys.stdout.flush()
+    return status
+
+
+def _time_domain_options(args: argparse.Namespace) -> tuple[CompliantSettings, SequentialSettings] | None:
+    """The settings of the time-domain models from ``--law``, ``--stiffness``,
+    ``--steps-per-period`` and ``--gravity``; None (after one line on stderr) when an option is
+    bad or does not apply to ``--model``."""
+    compliant_options = {"--law": args.law, "--stiffness": args.stiffness, "--steps-per-period": args.steps_per_period}
+    for flag, value in compliant_options.items():
+        if value is not None and args.model != COMPLIANT:
+            _error(flag, f"applies to --model compliant only (got --model {args.model})")
+            return None
+    if args.gravity is not None and args.model not in ("auto", *TIME_DOMAIN_MODELS):
+        _error("--gravity", f"applies to --model sequential or compliant only: the {args.model} rung is instantaneous")
+        return None
+    gravity = 0.0 if args.gravity is None else args.gravity
+    if not (np.isfinite(gravity) and gravity >= 0):
+        _error("--gravity", f"must be a finite number >= 0 (m/s^2, along -y), got {gravity!r}")
+        return None
+    try:
+        compliant = CompliantSettings(
+            law=ContactLaw(args.law or ContactLaw.PENALTY.value),
+            stiffness=CompliantSettings().stiffness if args.stiffness is None else args.stiffness,
+            steps_per_period=DEFAULT_STEPS_PER_PERIOD if args.steps_per_period is None else args.steps_per_period,
+            gravity=gravity,
+        )
+    except FootoptError as e:  # "compliant.stiffness: must be > 0, ..."
+        name = str(e).split(":", 1)[0].removeprefix("compliant.").replace("_", "-")
+        _error(f"--{name}", str(e).split(":", 1)[-1].strip())
+        return None
+    return compliant, SequentialSettings(gravity=gravity)
+
+
+def _evaluate(
+    model: ModelFile,
+    choice: str = "auto",
+    compliant: CompliantSettings | None = None,
+    sequential: SequentialSettings | None = None,
+) -> Result | None:
+    """The landing of one model file by the model named on the command line, or None when the
+    numerics fail (overflow, a singular solve, a diverging integration): a status to report, not
+    a traceback (the cause is printed once, as one line)."""
+    with np.errstate(all="ignore"):
+        try:
+            result = evaluate_landing(model.tree, model.scene, choice, compliant, sequential)
+        except (np.linalg.LinAlgError, NumericalError):
+            return None
+    return result if is_finite(result) else None
+
+
+def run_bench(args: argparse.Namespace) -> int:
+    """``footopt bench [speed] [FILE...]``: timings and the ratio to Pinocchio per model file, and
+    the scaling series attached to the first model's report."""
+    from optimizer.analysis.bench import format_report as format_bench
+    from optimizer.analysis.bench import speed_report
+
+    if args.batch < 1:
+        _error("--batch", f"must be >= 1, got {args.batch}")
+        return EXIT_USAGE
+    files = list(args.files)
+    speed_mode = not files or files[0] == "speed"
+    files = [f for f in files if f != "speed"] or [str(DEFAULT_MODEL)]
+    try:
+        sizes = _sizes(args.sizes, SCALING_SIZES if speed_mode else ())
+    except ValueError as e:
+        _error("--sizes", str(e))
+        return EXIT_USAGE
+    if args.plot is not None and Path(args.plot).suffix.lower() not in PLOT_SUFFIXES:
+        _error("--plot", f"{args.plot}: must end in {' or '.join(PLOT_SUFFIXES)}")
+        return EXIT_USAGE
+    cache = None if args.no_compile else Path(args.cache_dir)
+    for n, file in enumerate(files):
+        try:
+            model = load_model_file(file)
+        except FootoptError as e:
+            _error(file, str(e))
+            return EXIT_USAGE
+        print(f"timing {file} ...", file=sys.stderr)
+        report = speed_report(Path(file).stem, model.tree, model.scene, batch=args.batch, cache_dir=cache)
+        if n == 0 and sizes:
+            report = replace(report, scaling=_scaling_with_progress(sizes, min(args.batch, 500), cache))
+        if n == 0 and args.plot is not None:
+            try:
+                print(f"plot: {plot_speed(report, Path(args.plot))}", file=sys.stderr)
+            except FootoptError as e:
+                _error("--plot", str(e))
+                return EXIT_USAGE
+        if args.json:
+            print(json.dumps(report.as_dict(), allow_nan=False))
+        else:
+            print(("\n" if n else "") + format_bench(report))
+        sys.stdout.flush()
+    return EXIT_OK
+
+
+def _scaling_with_progress(sizes: tuple[int, ...], batch: int, cache: Path | None) -> list[dict]:
+    """The scaling series with a progress bar on stderr (compiling the large trees takes minutes)."""
+    from tqdm import tqdm
+
+    from optimizer.analysis.bench import scaling_series
+
+    rows: list[dict] = []
+    with tqdm(total=len(sizes), unit="tree", desc="scaling series", disable=None, dynamic_ncols=True) as bar:
+        for n in sizes:
+            bar.set_postfix_str(f"{n} bodies")
+            rows += scaling_series((n,), batch=batch, cache_dir=cache)
+            bar.update(1)
+    return rows
+
+
+def _sizes(text: str | None, default: tuple[int, ...]) -> tuple[int, ...]:
+    """``--sizes``: body counts >= 3, comma-separated, or 'none'."""
+    if text is None:
+        return default
+    if text.strip().lower() == "none":
+        return ()
+    try:
+        sizes = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise ValueError(f"must be comma-separated integers or 'none', got {text!r}") from None
+    if not sizes or min(sizes) < 3:
+        raise ValueError(f"body counts must be >= 3, got {text!r}")
+    return sizes
+
+
+def _plot_paths(path: Path, files: list[str]) -> dict[int, Path]:
+    """One plot path per file: ``path`` itself for one file, else ``path`` with ``_<stem>``
+    before the suffix (``_<stem>-<k>`` when two files share a stem)."""
+    if len(files) == 1:
+        return {0: path}
+    out: dict[int, Path] = {}
+    used: set[Path] = set()
+    for n, file in enumerate(files):
+        stem = Path(file).stem
+        candidate = path.with_name(f"{path.stem}_{stem}{path.suffix}")
+        k = 2
+        while candidate in used:
+            candidate = path.with_name(f"{path.stem}_{stem}-{k}{path.suffix}")
+            k += 1
+        used.add(candidate)
+        out[n] = candidate
+    return out
+
+
+def _error(where: str, message: str) -> None:
+    one_line = " ".join(line.strip() for line in message.splitlines())
+    print(f"footopt: error: {where}: {one_line}", file=sys.stderr)
+
+
+def _version() -> str:
+    try:
+        return metadata.version("footopt")
+    except metadata.PackageNotFoundError:
+        return "(not installed)"
+
+
+__all__ = ["SUBCOMMANDS", "build_parser", "main", "run_bench", "run_evaluate"]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

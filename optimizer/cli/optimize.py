@@ -1,0 +1,193 @@
+"""``footopt optimize`` and ``footopt pareto``: run a study into a run directory, and print and
+re-export its front. Registered in :data:`optimizer.cli.main.SUBCOMMANDS`.
+
+Exit status as the rest of ``footopt``: 0 success; 2 a bad study file or bad usage (one line on
+stderr naming the file and the YAML path); 130 interrupted (run the same command to resume).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from impulse_core.errors import FootoptError
+
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def add_optimize(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "optimize",
+        help="search a study's design space for Pareto-optimal feet",
+        description=(
+            "Search toe count, rods per toe and heel, joint angles and masses of a foot under the study's "
+            "constraints, minimising its objectives (landing impulses, energy, ...). Every evaluated design is "
+            "kept in an Optuna storage; the Pareto designs are written to the run directory as pareto.csv, "
+            "pareto.json, front.png and one model file each (designs/). An interrupted study resumes where it "
+            "stopped when the same command is run again."
+        ),
+    )
+    p.add_argument("study", metavar="STUDY.yaml", help="the study file (see configs/quick_study.yaml)")
+    p.add_argument("--out", metavar="DIR", help="run directory (default: runs/<study name>)")
+    p.add_argument("--trials", type=int, metavar="N", help="outer search: finished trials to reach (default: the study's)")
+    p.add_argument(
+        "--storage",
+        metavar="URL",
+        help="an Optuna storage URL, e.g. sqlite:///study.db (default: the study's, else a journal file in DIR)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="start over in a DIR that holds other files or another study's run: this run's own files (and the "
+        "study in its storage) are replaced; other files are left alone",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no front table")
+    p.set_defaults(run=run_optimize)
+
+
+def add_pareto(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "pareto",
+        help="print and re-export the Pareto front of a run directory",
+        description="Read a run directory's study and storage, print its Pareto front and write its front files again.",
+    )
+    p.add_argument("run_dir", metavar="DIR", help="a run directory of 'footopt optimize'")
+    p.set_defaults(run=run_pareto)
+
+
+def run_optimize(args: argparse.Namespace) -> int:
+    """``footopt optimize``."""
+    from optimizer.config.study_config import load_study
+
+    try:
+        config = load_study(args.study)
+    except FootoptError as e:
+        _error(args.study, str(e))
+        return EXIT_USAGE
+    if args.trials is not None:
+        if args.trials < 1:
+            _error("--trials", f"must be >= 1, got {args.trials}")
+            return EXIT_USAGE
+        config = replace(config, search=replace(config.search, trials=args.trials))
+    if args.storage is not None:
+        config = replace(config, storage=args.storage)
+    run_dir = Path(args.out) if args.out else Path("runs") / config.name
+    return optimize(config, run_dir, force=args.force, quiet=args.quiet)
+
+
+def optimize(config, run_dir: Path, force: bool = False, quiet: bool = False) -> int:
+    """Run ``config`` into ``run_dir`` (the body of ``footopt optimize``); returns the exit status."""
+    import optuna
+    from tqdm import tqdm
+
+    from optimizer.search.inner import run_inner
+    from optimizer.results.runs import (
+        RunState,
+        export_front,
+        format_front,
+        prepare_run,
+        storage_url,
+        write_run_file,
+        write_study_file,
+    )
+    from optimizer.search.outer import finished_trials, open_study, run_outer
+    from optimizer.config.study_config import SearchMethod
+
+    optuna.logging.set_verbosity(logging.WARNING)
+    try:
+        state = prepare_run(run_dir, config, force=force)
+        study = open_study(config, storage_url(run_dir, config))
+    except FootoptError as e:
+        _error(str(run_dir), str(e))
+        return EXIT_USAGE
+    except (ValueError, ImportError, RuntimeError) as e:  # a bad storage URL
+        _error("--storage", f"{config.storage}: {e}")
+        return EXIT_USAGE
+    write_study_file(run_dir, config)
+    inner = config.search.method is SearchMethod.INNER
+    already = finished_trials(study)
+    if not quiet:
+        what = "resuming" if state is RunState.RESUME else "starting"
+        print(f"{what} study '{config.name}' ({config.search.method.value} search) in {run_dir}", file=sys.stderr)
+    bar = tqdm(
+        total=len(config.space.shapes()) if inner else config.search.trials,
+        initial=0 if inner else min(already, config.search.trials),
+        unit="shape" if inner else "trial",
+        disable=True if quiet else None,
+        dynamic_ncols=True,
+    )
+
+    def progress(done: int, total: int) -> None:
+        bar.n = done
+        bar.refresh()
+
+    started = time.perf_counter()
+    status = EXIT_OK
+    try:
+        if inner:
+            run_inner(study, config, progress)
+        else:
+            run_outer(study, config, config.search.trials, progress)
+    except KeyboardInterrupt:
+        status = EXIT_INTERRUPTED
+    finally:
+        bar.close()
+    wall = time.perf_counter() - started
+    points = export_front(run_dir, config, study)
+    write_run_file(
+        run_dir,
+        config,
+        finished_trials=finished_trials(study),
+        trials_this_run=finished_trials(study) - already,
+        pareto_designs=len(points),
+        wall_time_s=round(wall, 3),
+        interrupted=status == EXIT_INTERRUPTED,
+    )
+    if status == EXIT_INTERRUPTED:
+        print(f"footopt: interrupted; the finished trials are kept. Resume: footopt optimize ... --out {run_dir}",
+              file=sys.stderr)
+        return status
+    if not quiet:
+        print(format_front(config, points), end="")
+        print(f"run directory: {run_dir} ({wall:.1f} s)")
+    return EXIT_OK
+
+
+def run_pareto(args: argparse.Namespace) -> int:
+    """``footopt pareto DIR``."""
+    import optuna
+
+    from optimizer.results.runs import STUDY_FILE, export_front, format_front, storage_url
+    from optimizer.search.outer import open_study
+    from optimizer.config.study_config import load_study
+
+    optuna.logging.set_verbosity(logging.WARNING)
+    run_dir = Path(args.run_dir)
+    study_file = run_dir / STUDY_FILE
+    if not study_file.exists():
+        _error(str(run_dir), f"not a run directory of 'footopt optimize' (no {STUDY_FILE})")
+        return EXIT_USAGE
+    try:
+        config = load_study(study_file)
+        study = open_study(config, storage_url(run_dir, config))
+        if not study.trials:  # e.g. a run directory copied without its storage: keep its files
+            _error(str(run_dir), f"its storage ({config.storage or 'study.journal'}) holds no trials; nothing re-exported")
+            return EXIT_USAGE
+        points = export_front(run_dir, config, study)
+    except FootoptError as e:
+        _error(str(study_file), str(e))
+        return EXIT_USAGE
+    print(format_front(config, points), end="")
+    return EXIT_OK
+
+
+def _error(where: str, message: str) -> None:
+    one_line = " ".join(line.strip() for line in message.splitlines())
+    print(f"footopt: error: {where}: {one_line}", file=sys.stderr)
+
+
+__all__ = ["add_optimize", "add_pareto", "optimize", "run_optimize", "run_pareto"]

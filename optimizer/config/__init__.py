@@ -1,0 +1,1 @@
+"""Validated, frozen configuration: model files and study files."""

@@ -1,0 +1,703 @@
+"""Model files (``MODEL_FORMAT.md``): read, validate and write one tree and its landing scene.
+
+A model file is YAML (JSON is valid YAML) read with the YAML 1.2 core schema, so ``1e-6`` is a
+number. It is parsed once into frozen dataclasses (:class:`ModelFile`, the core's ``Tree`` and
+``Scene``, :class:`Reference`); every bad input becomes a :class:`ConfigError` whose one-line
+message starts with the YAML path of the field at fault.
+
+Extensions to the contract (a file without them means what the contract says):
+    - body ``com``: centre of mass as a fraction of the length (default 0.5);
+    - body ``inertia``: moment of inertia about the centre of mass, z axis (kg m^2; default
+      that of a uniform rod, mass * length^2 / 12), or ``gyration``: the radius of gyration
+      about the centre of mass as a fraction of the length (the core's parameter; written by
+      :func:`dump_model_file` when no float ``inertia`` reproduces it exactly);
+    - scene ``contact_tolerance`` (m, default 1e-6) and ``contacts: lowest`` (the default, named);
+    - scene ``terrain``: the ground profile y(x), world frame, m, as ``[[x0, y0], [x1, y1], ...]``
+      with x strictly increasing, linear between the points, flat beyond the ends; one point is
+      flat ground at y0 (default: flat at y = 0). The rigid rungs need it flat; the sequential and
+      compliant models follow it;
+    - scene ``base_x``: x (m) of the base origin at touchdown (default 0): the model keeps its
+      touchdown angles, sits with its base origin at ``base_x`` and is lowered straight down until
+      the contact with the smallest vertical clearance touches the terrain;
+    - top-level ``reference`` (a paper's printed values, shown beside ours) and ``notes``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from impulse_core.errors import ModelError
+from impulse_core.model.terrain import FLAT, Terrain
+from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
+from optimizer.errors import ConfigError
+from optimizer.config.yaml_fields import describe as _describe
+from optimizer.config.yaml_fields import join as _join
+from optimizer.config.yaml_fields import mapping as _mapping
+from optimizer.config.yaml_fields import number as _number
+from optimizer.config.yaml_fields import string as _string
+
+TOP_KEYS = ("scene", "model", "reference", "notes")
+SCENE_KEYS = ("speed", "restitution", "friction", "contacts", "contact_tolerance", "terrain", "base_x")
+MODEL_KEYS = ("bodies",)
+BODY_KEYS = ("name", "parent", "at", "length", "mass", "angle", "joint", "contacts", "com", "inertia", "gyration")
+REFERENCE_KEYS = ("source", "external", "internal", "external_norm", "internal_norm", "note")
+
+_DEFAULT_TOLERANCE = Scene().contact_tolerance
+
+
+# --------------------------------------------------------------------------------------------
+# YAML 1.2 core schema on PyYAML
+
+
+class Yaml12Loader(yaml.SafeLoader):
+    """PyYAML's safe loader with the YAML 1.2 core schema's implicit types.
+
+    PyYAML implements YAML 1.1: ``1e-6`` (no dot) is a string there, ``010`` is octal, ``yes``
+    and ``off`` are booleans, ``2021-05-01`` is a date. Here plain scalars resolve as YAML 1.2
+    reads them: null (``~``, ``null``, empty), booleans (``true``/``false``), integers (decimal,
+    ``0o`` octal, ``0x`` hex) and floats (``1e-6``, ``2E3``, ``.5``, ``-1.5e+3``, ``.inf``,
+    ``.nan``); everything else is a string.
+    """
+
+    yaml_implicit_resolvers: dict[Any, list[tuple[str, re.Pattern[str]]]] = {}
+
+
+Yaml12Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:null", re.compile(r"^(?:~|null|Null|NULL|)$"), ["~", "n", "N", ""]
+)
+Yaml12Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF")
+)
+# Integers before floats: a plain "3" is an int (then read as 3.0 where a number is expected).
+Yaml12Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:int", re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$"), list("-+0123456789")
+)
+Yaml12Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+        r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"
+    ),
+    list("-+.0123456789"),
+)
+Yaml12Loader.add_implicit_resolver("tag:yaml.org,2002:merge", re.compile(r"^(?:<<)$"), ["<"])
+
+
+def _construct_int(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> int:
+    text = str(loader.construct_scalar(node))
+    if text.startswith("0o"):
+        return int(text[2:], 8)
+    if text.startswith("0x"):
+        return int(text[2:], 16)
+    return int(text)  # decimal, leading zeros allowed ("010" is ten in YAML 1.2)
+
+
+Yaml12Loader.add_constructor("tag:yaml.org,2002:int", _construct_int)
+
+
+def load_yaml(text: str, source: str | Path | None = None) -> Any:
+    """Parse YAML text with the YAML 1.2 core schema (see :class:`Yaml12Loader`).
+
+    Args:
+        text: the document.
+        source: the file it came from, recorded on errors.
+
+    Returns:
+        The plain data (dicts, lists, str, int, float, bool, None); None for an empty document.
+
+    Raises:
+        ConfigError: a syntax error (with line and column), several documents, or a key
+            repeated in one mapping (named by its YAML path).
+    """
+    loader = Yaml12Loader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _check_duplicate_keys(node, "", set())
+        return loader.construct_document(node)
+    except ConfigError:
+        raise
+    except yaml.MarkedYAMLError as e:
+        raise ConfigError(_yaml_error_message(e), source) from None
+    except (yaml.YAMLError, ValueError) as e:
+        raise ConfigError(f"YAML error: {e}", source) from None
+    except RecursionError:
+        raise ConfigError("YAML: nested too deeply", source) from None
+    finally:
+        loader.dispose()
+
+
+def _yaml_error_message(e: yaml.MarkedYAMLError) -> str:
+    if isinstance(e, yaml.composer.ComposerError) and e.context and "single document" in e.context:
+        return f"YAML: a second document starts{_mark(e.problem_mark)}; a model file holds one"
+    context = f" ({e.context}{_mark(e.context_mark)})" if e.context else ""
+    return f"YAML syntax error{_mark(e.problem_mark)}: {e.problem or 'invalid YAML'}{context}"
+
+
+def _mark(mark: yaml.Mark | None) -> str:
+    return "" if mark is None else f" at line {mark.line + 1}, column {mark.column + 1}"
+
+
+def _check_duplicate_keys(node: yaml.Node, path: str, seen: set[int]) -> None:
+    """Reject a key given twice in one mapping (PyYAML would keep the last one silently)."""
+    if id(node) in seen:  # an alias: already checked (and anchors may be recursive)
+        return
+    seen.add(id(node))
+    if isinstance(node, yaml.MappingNode):
+        keys: dict[str, str] = {}
+        for key_node, value_node in node.value:
+            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
+                key = key_node.value
+                mark = key_node.start_mark
+                at = f"line {mark.line + 1}, column {mark.column + 1}"
+                if key in keys:
+                    raise ConfigError(f"{_join(path, key)}: duplicate key (at {keys[key]} and {at})")
+                keys[key] = at
+                _check_duplicate_keys(value_node, _join(path, key), seen)
+            else:
+                _check_duplicate_keys(value_node, path, seen)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _check_duplicate_keys(item, f"{path}[{i}]", seen)
+
+
+# --------------------------------------------------------------------------------------------
+# Parsed file
+
+
+@dataclass(frozen=True)
+class Reference:
+    """Published values to print beside ours (e.g. the paper's table); None where unknown.
+
+    Attributes:
+        source: where the values come from.
+        external: normal impulse per declared contact, declaration order (N s).
+        internal: joint impulse magnitude per non-base body, file order (N s).
+        external_norm, internal_norm: norms of those (N s).
+        note: free text.
+    """
+
+    source: str | None = None
+    external: tuple[float | None, ...] | None = None
+    internal: tuple[float | None, ...] | None = None
+    external_norm: float | None = None
+    internal_norm: float | None = None
+    note: str | None = None
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """One model file: the tree, its landing scene, and optional reference values and notes.
+
+    Attributes:
+        tree: the floating tree of rods.
+        scene: the landing.
+        reference: published values for comparison, or None.
+        notes: free text (the top-level ``notes``), ignored by the evaluation.
+        path: the file it was read from (not part of equality).
+    """
+
+    tree: Tree
+    scene: Scene
+    reference: Reference | None = None
+    notes: str | None = None
+    path: Path | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        ref = self.reference
+        if ref is None:
+            return
+        n_contacts = len(self.tree.contacts)
+        if ref.external is not None and len(ref.external) != n_contacts:
+            raise ConfigError(
+                f"reference.external: has {len(ref.external)} entries, the model declares {n_contacts} "
+                "contacts (one per contact, in declaration order; null where unknown)"
+            )
+        n_joints = self.tree.n_bodies - 1
+        if ref.internal is not None and len(ref.internal) != n_joints:
+            raise ConfigError(
+                f"reference.internal: has {len(ref.internal)} entries, the model has {n_joints} joints "
+                "(one per non-base body, in file order; null where unknown)"
+            )
+
+
+def load_model_file(path: str | Path) -> ModelFile:
+    """Read and validate a model file.
+
+    Raises:
+        ConfigError: the file is missing or unreadable, is not YAML, or a field is wrong; the
+            message names the field (``model.bodies[2].mass: ...``), ``source`` the file.
+    """
+    path = Path(path)
+    text = read_text(path, "model file")
+    try:
+        return parse_model(load_yaml(text, path), path)
+    except ConfigError as e:
+        e.source = e.source or path
+        raise
+
+
+def read_text(path: Path, what: str) -> str:
+    """The UTF-8 text of a config file, or ConfigError saying why it cannot be read."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError("file not found", path) from None
+    except IsADirectoryError:
+        raise ConfigError(f"is a directory, not a {what}", path) from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"not a UTF-8 text file (byte {e.start})", path) from None
+    except OSError as e:
+        raise ConfigError(f"cannot read the file: {e.strerror or e}", path) from None
+
+
+def parse_model(data: Any, path: str | Path | None = None) -> ModelFile:
+    """Validate already-loaded model data (a mapping as in ``MODEL_FORMAT.md``).
+
+    Args:
+        data: the loaded YAML/JSON document.
+        path: the file it came from, kept on the result and on errors.
+
+    Raises:
+        ConfigError: naming the first bad field.
+    """
+    source = None if path is None else Path(path)
+    try:
+        if data is None:
+            raise ConfigError("empty file: expected a mapping with 'scene' and 'model'")
+        top = _mapping(data, "", TOP_KEYS, what="the top level")
+        scene = parse_scene(_required(top, "scene", ""))
+        tree = parse_tree(_required(top, "model", ""))
+        reference = parse_reference(top["reference"]) if top.get("reference") is not None else None
+        notes = _optional_string(top, "notes", "")
+        return ModelFile(tree=tree, scene=scene, reference=reference, notes=notes, path=source)
+    except ModelError as e:  # the dataclasses' own checks, already named by field
+        raise ConfigError(str(e), source) from None
+    except ConfigError as e:
+        e.source = e.source or source
+        raise
+
+
+def parse_scene(data: Any, where: str = "scene") -> Scene:
+    """Validate the ``scene`` block into a core ``Scene``."""
+    m = _mapping(data, where, SCENE_KEYS)
+    speed = _number(_required(m, "speed", where), f"{where}.speed")
+    if speed <= 0:
+        raise ConfigError(f"{where}.speed: must be > 0 (m/s; the approach is always straight down), got {speed!r}")
+    restitution = _number(_required(m, "restitution", where), f"{where}.restitution")
+    if not 0.0 <= restitution <= 1.0:
+        raise ConfigError(f"{where}.restitution: must be in [0, 1], got {restitution!r}")
+    friction = _number(m.get("friction", 0.0), f"{where}.friction")
+    if friction < 0:
+        raise ConfigError(f"{where}.friction: must be >= 0, got {friction!r}")
+    tolerance = _number(m.get("contact_tolerance", _DEFAULT_TOLERANCE), f"{where}.contact_tolerance")
+    if tolerance < 0:
+        raise ConfigError(f"{where}.contact_tolerance: must be >= 0 (m), got {tolerance!r}")
+    selection = _choice(m.get("contacts", ContactSelection.LOWEST.value), f"{where}.contacts", ContactSelection, "mode")
+    terrain = parse_terrain(m["terrain"], f"{where}.terrain") if "terrain" in m else FLAT
+    base_x = parse_base_x(m["base_x"], f"{where}.base_x") if "base_x" in m else 0.0
+    return Scene(
+        speed=speed,
+        restitution=restitution,
+        friction=friction,
+        selection=selection,
+        contact_tolerance=tolerance,
+        terrain=terrain,
+        base_x=base_x,
+    )
+
+
+def parse_terrain(value: Any, where: str = "scene.terrain") -> Terrain:
+    """Validate ``scene.terrain``: a non-empty list of ``[x, y]`` pairs of finite numbers (m) with
+    x strictly increasing.
+
+    Raises:
+        ConfigError: naming the entry at fault (``scene.terrain[2]: ...``).
+    """
+    if not isinstance(value, list) or not value:
+        raise ConfigError(f"{where}: must be a non-empty list of [x, y] points (m), got {_describe(value)}")
+    points = []
+    for i, p in enumerate(value):
+        if not (isinstance(p, list) and len(p) == 2):
+            raise ConfigError(f"{where}[{i}]: must be a pair [x, y] (m), got {_describe(p)}")
+        points.append(tuple(_number(c, f"{where}[{i}][{k}]") for k, c in enumerate(p)))
+    try:
+        return Terrain.from_points(points)
+    except ModelError as e:  # x not increasing: Terrain names it scene.terrain[i]
+        raise ConfigError(str(e).replace("scene.terrain", where, 1)) from None
+
+
+def parse_base_x(value: Any, where: str = "scene.base_x") -> float:
+    """Validate ``scene.base_x``: a finite number (m)."""
+    return _number(value, where)
+
+
+def parse_tree(data: Any, where: str = "model") -> Tree:
+    """Validate the ``model`` block (a list of bodies, parents first) into a core ``Tree``."""
+    m = _mapping(data, where, MODEL_KEYS)
+    raw = _required(m, "bodies", where)
+    path = f"{where}.bodies"
+    if not isinstance(raw, list):
+        raise ConfigError(f"{path}: must be a list of bodies, got {_describe(raw)}")
+    if not raw:
+        raise ConfigError(f"{path}: must list at least one body")
+    entries = [_mapping(b, f"{path}[{i}]", BODY_KEYS) for i, b in enumerate(raw)]
+
+    index: dict[str, int] = {}
+    for i, b in enumerate(entries):
+        name = _string(_required(b, "name", f"{path}[{i}]"), f"{path}[{i}].name")
+        if name in index:
+            raise ConfigError(f"{path}[{i}].name: duplicate body name '{name}' (also {path}[{index[name]}])")
+        index[name] = i
+    names = list(index)
+
+    bodies = [_parse_body(b, i, names, entries, path) for i, b in enumerate(entries)]
+    if not any(b.contacts for b in bodies):
+        raise ConfigError(f"{path}: no body declares a contact point (add e.g. 'contacts: [1.0]' to a body)")
+    return Tree(tuple(bodies))
+
+
+def _parse_body(b: dict[str, Any], i: int, names: list[str], entries: list[dict[str, Any]], path: str) -> Body:
+    where = f"{path}[{i}]"
+    parent = _parse_parent(b, i, names, entries, where)
+    length = _positive(_required(b, "length", where), f"{where}.length")
+    mass = _positive(_required(b, "mass", where), f"{where}.mass")
+    angle = _number(_required(b, "angle", where), f"{where}.angle")
+    at = _fraction(b.get("at", 1.0), f"{where}.at", "a fraction of the parent's length")
+    joint = _choice(b.get("joint", JointKind.REVOLUTE.value), f"{where}.joint", JointKind, "joint kind")
+    com = _fraction(b.get("com", UNIFORM_COM), f"{where}.com", "a fraction of the body's length")
+    raw_contacts = b.get("contacts", [])
+    if not isinstance(raw_contacts, list):
+        raise ConfigError(
+            f"{where}.contacts: must be a list of fractions of the body's length, e.g. [1.0], "
+            f"got {_describe(raw_contacts)}"
+        )
+    contacts = []
+    for k, c in enumerate(raw_contacts):
+        x = _number(c, f"{where}.contacts[{k}]")
+        if not 0.0 <= x <= 1.0:
+            raise ConfigError(
+                f"{where}.contacts[{k}]: {x!r} is off its body: a contact is a fraction of the body's length in [0, 1]"
+            )
+        contacts.append(x)
+    if "inertia" in b and "gyration" in b:
+        raise ConfigError(f"{where}.gyration: give 'inertia' or 'gyration', not both")
+    gyration = UNIFORM_GYRATION
+    if "inertia" in b:
+        inertia = _number(b["inertia"], f"{where}.inertia")
+        if inertia < 0:
+            raise ConfigError(f"{where}.inertia: must be >= 0 (kg m^2, about the centre of mass), got {inertia!r}")
+        gyration = math.sqrt(inertia / mass) / length
+    elif "gyration" in b:
+        gyration = _number(b["gyration"], f"{where}.gyration")
+        if gyration < 0:
+            raise ConfigError(f"{where}.gyration: must be >= 0 (a fraction of the length), got {gyration!r}")
+    return Body(
+        name=names[i],
+        parent=parent,
+        length=length,
+        mass=mass,
+        angle=angle,
+        at=at,
+        joint=joint,
+        contacts=tuple(contacts),
+        com=com,
+        gyration=gyration,
+    )
+
+
+def _parse_parent(b: dict[str, Any], i: int, names: list[str], entries: list[dict[str, Any]], where: str) -> int | None:
+    """Resolve a body's ``parent`` name to the index of a body listed before it."""
+    raw = b.get("parent")
+    if i == 0:
+        if raw is not None:
+            raise ConfigError(f"{where}.parent: the first body is the floating base and has no parent")
+        return None
+    if raw is None:
+        raise ConfigError(
+            f"{where}.parent: missing (only the first body is the floating base; name this body's parent)"
+        )
+    parent = _string(raw, f"{where}.parent")
+    if parent not in names:
+        raise ConfigError(f"{where}.parent: unknown body '{parent}' (bodies: {', '.join(names)})")
+    j = names.index(parent)
+    if j < i:
+        return j
+    cycle = _parent_cycle(i, names, entries)
+    if cycle is not None:
+        raise ConfigError(f"{where}.parent: the parents form a cycle: {' -> '.join(cycle)}")
+    raise ConfigError(f"{where}.parent: '{parent}' is listed after '{names[i]}'; list parents first")
+
+
+def _parent_cycle(i: int, names: list[str], entries: list[dict[str, Any]]) -> list[str] | None:
+    """The names along the parent chain from body ``i`` back to itself, or None if it ends."""
+    chain = [names[i]]
+    current = i
+    for _ in range(len(names)):
+        parent = entries[current].get("parent")
+        if not isinstance(parent, str) or parent not in names:
+            return None
+        current = names.index(parent)
+        chain.append(parent)
+        if current == i:
+            return chain
+    return None
+
+
+def parse_reference(data: Any, where: str = "reference") -> Reference:
+    """Validate a ``reference`` block (lengths are checked against the tree by ``ModelFile``)."""
+    m = _mapping(data, where, REFERENCE_KEYS)
+    return Reference(
+        source=_optional_string(m, "source", where),
+        external=_optional_values(m, "external", where),
+        internal=_optional_values(m, "internal", where),
+        external_norm=_optional_number(m, "external_norm", where),
+        internal_norm=_optional_number(m, "internal_norm", where),
+        note=_optional_string(m, "note", where),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Field helpers: each raises ConfigError naming the YAML path
+
+
+def _required(m: dict[str, Any], key: str, where: str) -> Any:
+    if key not in m:
+        raise ConfigError(f"{_join(where, key)}: missing (required)")
+    if m[key] is None:
+        raise ConfigError(f"{_join(where, key)}: required, got null")
+    return m[key]
+
+
+def _positive(value: Any, where: str) -> float:
+    x = _number(value, where)
+    if x <= 0:
+        raise ConfigError(f"{where}: must be a finite number > 0, got {x!r}")
+    return x
+
+
+def _fraction(value: Any, where: str, what: str) -> float:
+    x = _number(value, where)
+    if not 0.0 <= x <= 1.0:
+        raise ConfigError(f"{where}: must be in [0, 1] ({what}), got {x!r}")
+    return x
+
+
+def _choice(value: Any, where: str, enum: Any, what: str) -> Any:
+    allowed = [e.value for e in enum]
+    for e in enum:
+        if value == e.value:
+            return e
+    raise ConfigError(f"{where}: unknown {what} {_describe(value)} (allowed: {', '.join(allowed)})")
+
+
+def _optional_string(m: dict[str, Any], key: str, where: str) -> str | None:
+    value = m.get(key)
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise ConfigError(f"{_join(where, key)}: must be a string, got {_describe(value)}")
+    return value
+
+
+def _optional_number(m: dict[str, Any], key: str, where: str) -> float | None:
+    value = m.get(key)
+    return None if value is None else _number(value, _join(where, key))
+
+
+def _optional_values(m: dict[str, Any], key: str, where: str) -> tuple[float | None, ...] | None:
+    value = m.get(key)
+    if value is None:
+        return None
+    path = _join(where, key)
+    if not isinstance(value, list):
+        raise ConfigError(f"{path}: must be a list of numbers (null where unknown), got {_describe(value)}")
+    return tuple(None if v is None else _number(v, f"{path}[{k}]") for k, v in enumerate(value))
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+
+_PLAIN = re.compile(r"[A-Za-z_][A-Za-z0-9_\-]*")
+# Plain words that some YAML reader (1.1 or 1.2) would not read as a string.
+_RESERVED = frozenset({"true", "false", "yes", "no", "on", "off", "y", "n", "null"})
+# Characters written as they are inside a double-quoted scalar (YAML's printable set, less line breaks).
+_PRINTABLE = re.compile("[\x20-\x7e\xa0-\u2027\u202a-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def format_model_file(model: ModelFile, header_comment: str | None = None) -> str:
+    """The text of a model file for ``model``: loading it gives back equal dataclasses.
+
+    Floats are written at repr precision with a dot in the mantissa (``1.0e-06``), so that YAML
+    1.1 readers read them as numbers too. Defaults are left out (``at: 1.0``, ``joint:
+    revolute``, ``com: 0.5``, a uniform rod's inertia, flat ground at y = 0, ``base_x: 0``); the
+    rest of the scene is written in full.
+    """
+    lines = [f"# {line}".rstrip() for line in header_comment.splitlines()] if header_comment else []
+    s = model.scene
+    lines += [
+        "scene:",
+        f"  speed: {_float_text(s.speed)}  # m/s, straight down",
+        f"  restitution: {_float_text(s.restitution)}",
+        f"  friction: {_float_text(s.friction)}",
+        f"  contacts: {s.selection.value}",
+    ]
+    if s.contact_tolerance != _DEFAULT_TOLERANCE:
+        lines.append(f"  contact_tolerance: {_float_text(s.contact_tolerance)}  # m")
+    if s.terrain != FLAT:
+        points = ", ".join(f"[{_float_text(x)}, {_float_text(y)}]" for x, y in s.terrain.points)
+        lines.append(f"  terrain: [{points}]  # ground profile y(x), world frame, m")
+    if s.base_x != 0.0:
+        lines.append(f"  base_x: {_float_text(s.base_x)}  # m, base origin at touchdown")
+    lines += ["model:", "  bodies:"]
+    tree = model.tree
+    for b in tree.bodies:
+        lines.append(f"    - name: {_string_text(b.name)}")
+        if b.parent is not None:
+            lines.append(f"      parent: {_string_text(tree.bodies[b.parent].name)}")
+        if b.at != 1.0:
+            lines.append(f"      at: {_float_text(b.at)}")
+        lines += [
+            f"      length: {_float_text(b.length)}",
+            f"      mass: {_float_text(b.mass)}",
+            f"      angle: {_float_text(b.angle)}",
+        ]
+        if b.joint is not JointKind.REVOLUTE:
+            lines.append(f"      joint: {b.joint.value}")
+        if b.com != UNIFORM_COM:
+            lines.append(f"      com: {_float_text(b.com)}")
+        if b.gyration != UNIFORM_GYRATION:
+            inertia = _exact_inertia(b)
+            if inertia is not None:
+                lines.append(f"      inertia: {_float_text(inertia)}  # kg m^2, about the centre of mass")
+            else:
+                lines.append(f"      gyration: {_float_text(b.gyration)}  # radius of gyration / length")
+        if b.contacts:
+            lines.append(f"      contacts: [{', '.join(_float_text(c) for c in b.contacts)}]")
+    ref = model.reference
+    if ref is not None:
+        lines.append("reference:" if any(getattr(ref, key) is not None for key in REFERENCE_KEYS) else "reference: {}")
+        for key in REFERENCE_KEYS:
+            value = getattr(ref, key)
+            if value is None:
+                continue
+            if isinstance(value, str):
+                text = _string_text(value)
+            elif isinstance(value, tuple):
+                text = f"[{', '.join('null' if v is None else _float_text(v) for v in value)}]"
+            else:
+                text = _float_text(value)
+            lines.append(f"  {key}: {text}")
+    if model.notes is not None:
+        lines.append(f"notes: {_string_text(model.notes)}")
+    return "\n".join(lines) + "\n"
+
+
+def dump_model_file(
+    model: ModelFile | Tree,
+    path: str | Path,
+    scene: Scene | None = None,
+    reference: Reference | None = None,
+    *,
+    header_comment: str | None = None,
+    overwrite: bool = False,
+) -> Path:
+    """Write a model file.
+
+    Args:
+        model: a ``ModelFile``, or a ``Tree`` (then ``scene`` is required and ``reference``
+            optional).
+        path: where to write.
+        scene, reference: with a ``Tree``.
+        header_comment: text written first as YAML comments (one ``#`` per line).
+        overwrite: replace an existing file (default: refuse).
+
+    Returns:
+        The path written.
+
+    Raises:
+        ConfigError: the file exists and ``overwrite`` is False, or it cannot be written.
+    """
+    if isinstance(model, Tree):
+        if scene is None:
+            raise TypeError("dump_model_file(tree, path, scene): a Tree needs its Scene")
+        model = ModelFile(tree=model, scene=scene, reference=reference)
+    elif scene is not None or reference is not None:
+        raise TypeError("dump_model_file: scene and reference go with a Tree, not a ModelFile")
+    path = Path(path)
+    text = format_model_file(model, header_comment)
+    try:
+        with path.open("w" if overwrite else "x", encoding="utf-8") as f:
+            f.write(text)
+    except FileExistsError:
+        raise ConfigError(f"{path}: already exists; not overwriting it (pass overwrite=True)", path) from None
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot write: {e.strerror or e}", path) from None
+    return path
+
+
+def _float_text(x: float) -> str:
+    x = float(x)
+    if math.isnan(x):
+        return ".nan"
+    if math.isinf(x):
+        return ".inf" if x > 0 else "-.inf"
+    text = repr(x)
+    mantissa, e, exponent = text.partition("e")
+    if e and "." not in mantissa:
+        text = f"{mantissa}.0e{exponent}"
+    return text
+
+
+def _string_text(s: str) -> str:
+    """A YAML scalar that reads back as ``s``: plain when that is safe, else double-quoted."""
+    if _PLAIN.fullmatch(s) and s.lower() not in _RESERVED:
+        return s
+    return '"' + "".join(_escape(ch) for ch in s) + '"'
+
+
+def _escape(ch: str) -> str:
+    if ch in '"\\':
+        return "\\" + ch
+    if _PRINTABLE.fullmatch(ch):
+        return ch
+    code = ord(ch)  # control characters, YAML 1.1 line breaks (NEL, LS, PS), non-characters
+    return f"\\x{code:02x}" if code <= 0xFF else f"\\u{code:04x}" if code <= 0xFFFF else f"\\U{code:08x}"
+
+
+def _exact_inertia(b: Body) -> float | None:
+    """A float inertia that loads back to exactly ``b.gyration``, or None if none is near."""
+    inertia = b.inertia
+    candidates = [inertia]
+    lo = hi = inertia
+    for _ in range(8):
+        lo, hi = math.nextafter(lo, 0.0), math.nextafter(hi, math.inf)
+        candidates += [lo, hi]
+    for c in candidates:
+        if math.sqrt(c / b.mass) / b.length == b.gyration:
+            return c
+    return None
+
+
+__all__ = [
+    "ModelFile",
+    "Reference",
+    "Yaml12Loader",
+    "dump_model_file",
+    "format_model_file",
+    "load_model_file",
+    "load_yaml",
+    "parse_base_x",
+    "parse_model",
+    "parse_reference",
+    "parse_scene",
+    "parse_terrain",
+    "parse_tree",
+]

@@ -1,0 +1,406 @@
+"""Study files: what to optimise, validated once into frozen dataclasses.
+
+A study file is YAML 1.2 (read by :func:`optimizer.config.model_file.load_yaml`, so ``1e-6`` is a
+number). Every bad value becomes a :class:`~optimizer.errors.ConfigError` whose one-line message
+starts with its YAML path (``search.trials: must be an integer >= 1, got 'ten'``). The schema,
+with defaults, is ``configs/quick_study.yaml``; :func:`format_study` writes a resolved study
+(every default filled in) that loads back to an equal :class:`StudyConfig`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Any
+
+from impulse_core.model.tree import Scene
+from optimizer.design_space import DesignSpace, FootLimits, Leg, MassMode, Objective, ToeSymmetry
+from optimizer.errors import ConfigError
+from optimizer.config.model_file import load_yaml, read_text
+from optimizer.config.yaml_fields import describe as _describe
+from optimizer.config.yaml_fields import join as _join
+from optimizer.config.yaml_fields import mapping as _checked_mapping
+from optimizer.config.yaml_fields import number as _number
+from optimizer.config.yaml_fields import string as _string
+
+
+class SearchMethod(Enum):
+    """How a study searches."""
+
+    OUTER = "outer"  # Optuna over shapes and values together (global, derivative-free)
+    INNER = "inner"  # per shape: IPOPT with exact derivatives, an epsilon-constraint sweep
+
+
+class SamplerKind(Enum):
+    """The outer search's Optuna sampler."""
+
+    TPE = "tpe"
+    NSGA2 = "nsga2"
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    """How to search.
+
+    Attributes:
+        method: outer (Optuna) or inner (IPOPT per shape).
+        sampler: the outer search's sampler.
+        trials: outer: completed trials to reach (a resumed study runs the rest).
+        startup_trials: TPE: random trials before the model-based ones.
+        population: NSGA-II: population size.
+        front_points: inner: epsilon-constraint points per shape (besides the two anchors).
+        starts: inner: random starts per shape.
+    """
+
+    method: SearchMethod = SearchMethod.OUTER
+    sampler: SamplerKind = SamplerKind.TPE
+    trials: int = 200
+    startup_trials: int = 20
+    population: int = 24
+    front_points: int = 8
+    starts: int = 4
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    """One study: the landing, the leg, the design space, the constraints, the objectives and
+    how to search.
+
+    Attributes:
+        name: the study's name (the Optuna study name).
+        seed: seeds every random choice of the search.
+        storage: an Optuna storage URL, or None for a journal file in the run directory.
+        scene: the landing (straight down; frictionless).
+        leg: the fixed leg and its posture.
+        space: toe count, rods per toe and per heel, toe symmetry.
+        limits: the constraints.
+        objectives: what to minimise (at least one; the first two span the plotted front).
+        search: how to search.
+        source: the file it was read from (not part of equality).
+    """
+
+    name: str
+    seed: int
+    storage: str | None
+    scene: Scene
+    leg: Leg
+    space: DesignSpace
+    limits: FootLimits
+    objectives: tuple[Objective, ...]
+    search: SearchSettings
+    source: Path | None = field(default=None, compare=False)
+
+
+TOP_KEYS = ("name", "seed", "storage", "scene", "leg", "design_space", "constraints", "objectives", "search", "notes")
+SCENE_KEYS = ("speed", "restitution", "friction")
+LEG_KEYS = ("thigh", "shank")
+ROD_KEYS = ("length", "mass", "angle")
+SPACE_KEYS = ("toes", "toe_segments", "heel_segments", "toe_symmetry")
+CONSTRAINT_KEYS = (
+    "foot_mass",
+    "foot_mass_mode",
+    "min_link_mass",
+    "mass_per_length",
+    "foot_length",
+    "min_clearance",
+    "joint_angles",
+    "contact_tolerance",
+)
+ANGLE_KEYS = ("heel_root", "heel_inner", "toe_root", "toe_inner")
+SEARCH_KEYS = ("method", "sampler", "trials", "startup_trials", "population", "inner")
+INNER_KEYS = ("front_points", "starts")
+#: Most rods per chain a study may ask for.
+MAX_SEGMENTS = 3
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+
+
+def load_study(path: str | Path) -> StudyConfig:
+    """Read and validate a study file.
+
+    Raises:
+        ConfigError: the file is missing, not YAML, or a value is wrong (message: YAML path
+            first; ``source``: the file).
+    """
+    path = Path(path)
+    text = read_text(path, "study file")
+    try:
+        return parse_study(load_yaml(text, path), path)
+    except ConfigError as e:
+        e.source = e.source or path
+        raise
+
+
+def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
+    """Validate loaded study data (a mapping as in ``configs/quick_study.yaml``).
+
+    Args:
+        data: the loaded YAML document.
+        path: the file it came from; its stem is the default study name.
+    """
+    source = None if path is None else Path(path)
+    if data is None:
+        raise ConfigError("empty file: expected a study (see configs/quick_study.yaml)", source)
+    top = _mapping(data, "", TOP_KEYS, what="the top level")
+    default_name = source.stem if source is not None else "study"
+    name = _string(top.get("name", default_name), "name")
+    seed = _integer(top.get("seed", 0), "seed", minimum=0)
+    storage = top.get("storage")
+    if storage is not None:
+        storage = _string(storage, "storage")
+    objectives = _objectives(_required(top, "objectives", ""))
+    space = _space(top.get("design_space", {}))
+    limits = _limits(top.get("constraints", {}))
+    fewest = space.heel_segments[0] + space.toes[0] * space.toe_segments[0]
+    if fewest * limits.min_link_mass > limits.foot_mass:
+        raise ConfigError(
+            f"constraints.min_link_mass: {fewest} foot rods of {limits.min_link_mass!r} kg exceed the foot mass "
+            f"{limits.foot_mass!r} kg even for the smallest foot of the design space"
+        )
+    return StudyConfig(
+        name=name,
+        seed=seed,
+        storage=storage,
+        scene=_scene(top.get("scene", {})),
+        leg=_leg(top.get("leg", {})),
+        space=space,
+        limits=limits,
+        objectives=objectives,
+        search=_search(top.get("search", {})),
+        source=source,
+    )
+
+
+def _scene(data: Any) -> Scene:
+    m = _mapping(data, "scene", SCENE_KEYS)
+    default = Scene()
+    speed = _number(m.get("speed", default.speed), "scene.speed")
+    if speed <= 0:
+        raise ConfigError(f"scene.speed: must be > 0 (m/s, straight down), got {speed!r}")
+    e = _number(m.get("restitution", default.restitution), "scene.restitution")
+    if not 0.0 <= e <= 1.0:
+        raise ConfigError(f"scene.restitution: must be in [0, 1], got {e!r}")
+    friction = _number(m.get("friction", 0.0), "scene.friction")
+    if friction != 0.0:
+        raise ConfigError(f"scene.friction: the impulse core models frictionless contact only (0), got {friction!r}")
+    return Scene(speed=speed, restitution=e, friction=0.0)
+
+
+def _leg(data: Any) -> Leg:
+    m = _mapping(data, "leg", LEG_KEYS)
+    d = Leg()
+    values = {}
+    for rod, angle_name in (("thigh", "thigh_angle"), ("shank", "knee_angle")):
+        where = f"leg.{rod}"
+        r = _mapping(m.get(rod, {}), where, ROD_KEYS)
+        for key in ("length", "mass"):
+            x = _number(r.get(key, getattr(d, f"{rod}_{key}")), f"{where}.{key}")
+            if x <= 0:
+                raise ConfigError(f"{where}.{key}: must be > 0, got {x!r}")
+            values[f"{rod}_{key}"] = x
+        values[angle_name] = _number(r.get("angle", getattr(d, angle_name)), f"{where}.angle")
+    return Leg(**values)
+
+
+def _space(data: Any) -> DesignSpace:
+    m = _mapping(data, "design_space", SPACE_KEYS)
+    d = DesignSpace()
+    toes = _int_range(m.get("toes", list(d.toes)), "design_space.toes", 1, None)
+    toe_segments = _int_range(m.get("toe_segments", list(d.toe_segments)), "design_space.toe_segments", 1, MAX_SEGMENTS)
+    heel = _int_range(m.get("heel_segments", list(d.heel_segments)), "design_space.heel_segments", 1, MAX_SEGMENTS)
+    symmetry = _choice(m.get("toe_symmetry", d.toe_symmetry.value), "design_space.toe_symmetry", ToeSymmetry)
+    return DesignSpace(toes=toes, toe_segments=toe_segments, heel_segments=heel, toe_symmetry=symmetry)
+
+
+def _limits(data: Any) -> FootLimits:
+    m = _mapping(data, "constraints", CONSTRAINT_KEYS)
+    d = FootLimits()
+    w = "constraints"
+    foot_mass = _positive(m.get("foot_mass", d.foot_mass), f"{w}.foot_mass")
+    mode = _choice(m.get("foot_mass_mode", d.mass_mode.value), f"{w}.foot_mass_mode", MassMode)
+    min_link = _positive(m.get("min_link_mass", d.min_link_mass), f"{w}.min_link_mass")
+    rho = _float_range(m.get("mass_per_length", list(d.mass_per_length)), f"{w}.mass_per_length", positive=True)
+    length = _float_range(m.get("foot_length", list(d.foot_length)), f"{w}.foot_length", positive=True)
+    clearance = _positive(m.get("min_clearance", d.min_clearance), f"{w}.min_clearance")
+    tol = _number(m.get("contact_tolerance", d.contact_tolerance), f"{w}.contact_tolerance")
+    if tol < 0:
+        raise ConfigError(f"{w}.contact_tolerance: must be >= 0 (m), got {tol!r}")
+    a = _mapping(m.get("joint_angles", {}), f"{w}.joint_angles", ANGLE_KEYS)
+    angles = {k: _float_range(a.get(k, list(getattr(d, k))), f"{w}.joint_angles.{k}") for k in ANGLE_KEYS}
+    return FootLimits(
+        foot_mass=foot_mass,
+        mass_mode=mode,
+        min_link_mass=min_link,
+        mass_per_length=rho,
+        foot_length=length,
+        min_clearance=clearance,
+        contact_tolerance=tol,
+        **angles,
+    )
+
+
+def _objectives(data: Any) -> tuple[Objective, ...]:
+    if isinstance(data, str):
+        data = [data]
+    if not isinstance(data, list) or not data:
+        raise ConfigError(f"objectives: must be a non-empty list of {_allowed(Objective)}, got {_describe(data)}")
+    out = tuple(_choice(x, f"objectives[{i}]", Objective) for i, x in enumerate(data))
+    for i, o in enumerate(out):
+        if o in out[:i]:
+            raise ConfigError(f"objectives[{i}]: '{o.value}' is listed twice")
+    return out
+
+
+def _search(data: Any) -> SearchSettings:
+    m = _mapping(data, "search", SEARCH_KEYS)
+    d = SearchSettings()
+    inner = _mapping(m.get("inner", {}), "search.inner", INNER_KEYS)
+    return SearchSettings(
+        method=_choice(m.get("method", d.method.value), "search.method", SearchMethod),
+        sampler=_choice(m.get("sampler", d.sampler.value), "search.sampler", SamplerKind),
+        trials=_integer(m.get("trials", d.trials), "search.trials", minimum=1),
+        startup_trials=_integer(m.get("startup_trials", d.startup_trials), "search.startup_trials", minimum=1),
+        population=_integer(m.get("population", d.population), "search.population", minimum=2),
+        front_points=_integer(inner.get("front_points", d.front_points), "search.inner.front_points", minimum=0),
+        starts=_integer(inner.get("starts", d.starts), "search.inner.starts", minimum=1),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+
+
+def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
+    """The resolved study as YAML: every value explicit; ``load_study`` reads it back equal."""
+    s, leg, sp, lim, se = config.scene, config.leg, config.space, config.limits, config.search
+    f = _float_text
+    lines = [f"# {line}".rstrip() for line in header_comment.splitlines()] if header_comment else []
+    lines += [
+        f"name: {_string_text(config.name)}",
+        f"seed: {config.seed}",
+        f"storage: {'null' if config.storage is None else _string_text(config.storage)}",
+        "scene:",
+        f"  speed: {f(s.speed)}",
+        f"  restitution: {f(s.restitution)}",
+        f"  friction: {f(s.friction)}",
+        "leg:",
+        f"  thigh: {{length: {f(leg.thigh_length)}, mass: {f(leg.thigh_mass)}, angle: {f(leg.thigh_angle)}}}",
+        f"  shank: {{length: {f(leg.shank_length)}, mass: {f(leg.shank_mass)}, angle: {f(leg.knee_angle)}}}",
+        "design_space:",
+        f"  toes: [{sp.toes[0]}, {sp.toes[1]}]",
+        f"  toe_segments: [{sp.toe_segments[0]}, {sp.toe_segments[1]}]",
+        f"  heel_segments: [{sp.heel_segments[0]}, {sp.heel_segments[1]}]",
+        f"  toe_symmetry: {sp.toe_symmetry.value}",
+        "constraints:",
+        f"  foot_mass: {f(lim.foot_mass)}",
+        f"  foot_mass_mode: {lim.mass_mode.value}",
+        f"  min_link_mass: {f(lim.min_link_mass)}",
+        f"  mass_per_length: [{f(lim.mass_per_length[0])}, {f(lim.mass_per_length[1])}]",
+        f"  foot_length: [{f(lim.foot_length[0])}, {f(lim.foot_length[1])}]",
+        f"  min_clearance: {f(lim.min_clearance)}",
+        "  joint_angles:",
+        *(f"    {k}: [{f(getattr(lim, k)[0])}, {f(getattr(lim, k)[1])}]" for k in ANGLE_KEYS),
+        f"  contact_tolerance: {f(lim.contact_tolerance)}",
+        f"objectives: [{', '.join(o.value for o in config.objectives)}]",
+        "search:",
+        f"  method: {se.method.value}",
+        f"  sampler: {se.sampler.value}",
+        f"  trials: {se.trials}",
+        f"  startup_trials: {se.startup_trials}",
+        f"  population: {se.population}",
+        "  inner:",
+        f"    front_points: {se.front_points}",
+        f"    starts: {se.starts}",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _float_text(x: float) -> str:
+    text = repr(float(x))
+    mantissa, e, exponent = text.partition("e")
+    return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
+
+
+def _string_text(s: str) -> str:
+    import json
+
+    return json.dumps(s)  # a JSON string is a valid double-quoted YAML scalar
+
+
+# --------------------------------------------------------------------------------------------
+# Field helpers: each raises ConfigError naming the YAML path
+
+
+def _allowed(enum: type[Enum]) -> str:
+    return ", ".join(e.value for e in enum)
+
+
+def _mapping(value: Any, where: str, allowed: tuple[str, ...], what: str | None = None) -> dict[str, Any]:
+    """A mapping with only ``allowed`` keys; an absent section (null) is empty."""
+    return {} if value is None else _checked_mapping(value, where, allowed, what)
+
+
+def _required(m: dict[str, Any], key: str, where: str) -> Any:
+    if m.get(key) is None:
+        raise ConfigError(f"{_join(where, key)}: missing (required)")
+    return m[key]
+
+
+def _positive(value: Any, where: str) -> float:
+    x = _number(value, where)
+    if x <= 0:
+        raise ConfigError(f"{where}: must be > 0, got {x!r}")
+    return x
+
+
+def _integer(value: Any, where: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ConfigError(f"{where}: must be an integer >= {minimum}, got {_describe(value)}")
+    return int(value)
+
+
+def _pair(value: Any, where: str, what: str) -> tuple[Any, Any]:
+    if not isinstance(value, list) or len(value) != 2:
+        raise ConfigError(f"{where}: must be a list [min, max] of {what}, got {_describe(value)}")
+    return value[0], value[1]
+
+
+def _int_range(value: Any, where: str, minimum: int, maximum: int | None) -> tuple[int, int]:
+    lo, hi = _pair(value, where, "integers")
+    lo = _integer(lo, f"{where}[0]", minimum)
+    hi = _integer(hi, f"{where}[1]", minimum)
+    if maximum is not None and hi > maximum:
+        raise ConfigError(f"{where}[1]: must be at most {maximum}, got {hi}")
+    if lo > hi:
+        raise ConfigError(f"{where}: min {lo} is above max {hi}")
+    return lo, hi
+
+
+def _float_range(value: Any, where: str, positive: bool = False) -> tuple[float, float]:
+    lo, hi = _pair(value, where, "numbers")
+    lo = _positive(lo, f"{where}[0]") if positive else _number(lo, f"{where}[0]")
+    hi = _positive(hi, f"{where}[1]") if positive else _number(hi, f"{where}[1]")
+    if lo >= hi:
+        raise ConfigError(f"{where}: min {lo!r} must be below max {hi!r}")
+    return lo, hi
+
+
+def _choice(value: Any, where: str, enum: type[Enum]) -> Any:
+    for e in enum:
+        if value == e.value:
+            return e
+    raise ConfigError(f"{where}: must be one of {_allowed(enum)}, got {_describe(value)}")
+
+
+__all__ = [
+    "SamplerKind",
+    "SearchMethod",
+    "SearchSettings",
+    "StudyConfig",
+    "format_study",
+    "load_study",
+    "parse_study",
+]

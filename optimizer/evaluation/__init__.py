@@ -1,0 +1,1 @@
+"""Running one model file through the model a scene needs."""

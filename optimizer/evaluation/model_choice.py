@@ -1,0 +1,176 @@
+"""One landing by any model of the ladder: the rigid rungs on flat ground, or one of the two
+time-domain models when the ground is uneven (or on request).
+
+``auto`` (the default) keeps the rigid ladder's automatic choice (``impulse_core.evaluate``) on
+flat ground, and runs the sequential rigid model (``impulse_core.timedomain.sequential``: a Newton/LCP impact
+along the local ground normal at each touchdown, free flight between) when ``scene.terrain`` is
+not flat: the rigid rungs assume level ground and simultaneous contacts, and refuse such a scene.
+The compliant rung (``impulse_core.timedomain.compliant``) runs on request only: it needs a contact
+stiffness, which is a modelling choice (studies/fidelity/README.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from impulse_core.timedomain.compliant import CompliantResult, CompliantSettings, ContactLaw, simulate_impact
+from impulse_core.impact.laws import ImpactModel
+from impulse_core.errors import ModelError
+from impulse_core.evaluate import ImpactResult, approach_velocity, evaluate
+from impulse_core.timedomain.sequential import SequentialResult, SequentialSettings, sequential_impacts
+from impulse_core.model.tree import ContactSelection, Scene, Tree
+
+SEQUENTIAL, COMPLIANT = "sequential", "compliant"
+#: The models that integrate through the landing instead of one instantaneous impact.
+TIME_DOMAIN_MODELS = (SEQUENTIAL, COMPLIANT)
+#: Every model name ``footopt evaluate --model`` takes: 'auto', the rigid rungs, the time-domain models.
+MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel), *TIME_DOMAIN_MODELS)
+
+_DESCRIPTIONS = {
+    SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact along the local normal at each touchdown, "
+    "free flight between)",
+    COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal, semi-implicit Euler)",
+}
+
+
+@dataclass(frozen=True)
+class TimeDomainResult:
+    """A landing by the sequential or the compliant model, with what a report needs beside it.
+
+    The attributes a rigid ``ImpactResult`` also has (``external``, ``active``, ``internal``,
+    ``internal_magnitude``, the norms, ``max_internal``, ``v_minus``, ``v_plus``, the energies,
+    ``reason``) mean the same, so reports and plots read either.
+
+    Attributes:
+        impact_model: ``sequential`` or ``compliant``.
+        reason: why it ran (automatic choice or request) and what the reader must know.
+        result: the model's own result (touchdown times and order; compliant: status, force
+            profiles, ...).
+        v_minus: generalized velocity before the first touchdown.
+        settings: the settings it ran with.
+    """
+
+    impact_model: str
+    reason: str
+    result: SequentialResult | CompliantResult
+    v_minus: np.ndarray
+    settings: SequentialSettings | CompliantSettings
+
+    @property
+    def description(self) -> str:
+        """One line naming the model (and, compliant, its law)."""
+        text = _DESCRIPTIONS[self.impact_model]
+        return f"{text}; {self.result.law.value} law" if isinstance(self.result, CompliantResult) else text
+
+    @property
+    def external(self) -> np.ndarray:
+        return self.result.external
+
+    @property
+    def active(self) -> tuple[int, ...]:
+        """Contacts that touched down, in declaration order."""
+        return self.result.active
+
+    @property
+    def internal(self) -> np.ndarray:
+        return self.result.internal
+
+    @property
+    def internal_magnitude(self) -> np.ndarray:
+        return self.result.internal_magnitude
+
+    @property
+    def external_norm(self) -> float:
+        return self.result.external_norm
+
+    @property
+    def internal_norm(self) -> float:
+        return self.result.internal_norm
+
+    @property
+    def max_internal(self) -> float:
+        return self.result.max_internal
+
+    @property
+    def v_plus(self) -> np.ndarray:
+        return self.result.v_plus
+
+    @property
+    def energy_before(self) -> float:
+        return self.result.energy_before
+
+    @property
+    def energy_after(self) -> float:
+        return self.result.energy_after
+
+    @property
+    def touchdown_time(self) -> np.ndarray:
+        """Per declared contact: its first touchdown (s from the first one), NaN if it never touched."""
+        return self.result.touchdown_time
+
+    @property
+    def touchdown_order(self) -> tuple[int, ...]:
+        return self.result.touchdown_order
+
+
+def evaluate_landing(
+    tree: Tree,
+    scene: Scene,
+    model: str = "auto",
+    compliant: CompliantSettings | None = None,
+    sequential: SequentialSettings | None = None,
+) -> ImpactResult | TimeDomainResult:
+    """The landing of ``tree`` as ``scene`` says, by ``model`` (one of :data:`MODEL_CHOICES`), the
+    time-domain models with their settings (default: the modules' defaults).
+
+    Raises:
+        ModelError: a rigid rung on a terrain that is not flat, friction under a time-domain model
+            (both frictionless), or an unknown model name.
+        NumericalError: the solve or the integration failed.
+    """
+    flat = scene.terrain.is_flat
+    if model == "auto" and flat or model in {m.value for m in ImpactModel}:
+        return evaluate(tree, scene, None if model == "auto" else ImpactModel(model))
+    notes = []
+    if model == "auto":
+        model = SEQUENTIAL
+        notes.append(
+            "automatic: scene.terrain is not flat, so the contacts touch down at different times and on slopes, "
+            "which the flat-ground rigid rungs cannot describe; the sequential rigid model is their stiff limit "
+            "(--model compliant for finite contact stiffness)"
+        )
+    elif model in TIME_DOMAIN_MODELS:
+        notes.append("requested")
+    else:
+        raise ModelError(f"model: unknown model {model!r} (choices: {', '.join(MODEL_CHOICES)})")
+    if scene.selection is ContactSelection.ALL:
+        notes.append("scene.contacts: all is not used here: the geometry decides which contacts touch and when")
+    v_minus = approach_velocity(tree.topology(), scene.speed)
+    settings: SequentialSettings | CompliantSettings
+    result: SequentialResult | CompliantResult
+    if model == SEQUENTIAL:
+        settings = sequential or SequentialSettings()
+        result = sequential_impacts(tree, scene, settings)
+    else:
+        settings = compliant or CompliantSettings()
+        result = simulate_impact(tree, scene, settings)
+        unit = "N/m" if settings.law is ContactLaw.PENALTY else "1/s^2"
+        notes.append(
+            f"{settings.law.value} law, stiffness {settings.stiffness:g} {unit}, "
+            f"{settings.steps_per_period:g} steps per contact period (step {result.timestep:.3g} s)"
+        )
+    if settings.gravity:
+        notes.append(f"gravity {settings.gravity:g} m/s^2")
+    return TimeDomainResult(model, "; ".join(notes), result, v_minus, settings)
+
+
+__all__ = [
+    "COMPLIANT",
+    "MODEL_CHOICES",
+    "SEQUENTIAL",
+    "TIME_DOMAIN_MODELS",
+    "TimeDomainResult",
+    "evaluate_landing",
+]

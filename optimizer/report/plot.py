@@ -1,0 +1,233 @@
+"""Drawings of a tree at touchdown with its impulses, and of a speed report (matplotlib, no
+display needed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from impulse_core.evaluate import Geometry, ImpactResult
+from impulse_core.model.terrain import FLAT, height, slope_normal, vertical_clearance
+from impulse_core.model.tree import Scene, Tree
+from optimizer.errors import ConfigError
+
+if TYPE_CHECKING:
+    from optimizer.analysis.bench import SpeedReport
+
+#: File types ``plot_touchdown`` writes, by suffix.
+PLOT_SUFFIXES = (".png", ".svg")
+
+_ROD, _JOINT, _CONTACT, _EXTERNAL, _INTERNAL, _GROUND = "#4a6fa5", "#333333", "#c0392b", "#c0392b", "#27ae60", "#777777"
+
+
+def _plot_path(path: str | Path) -> Path:
+    """``path`` as a Path, refused (ConfigError) unless it ends in one of ``PLOT_SUFFIXES``."""
+    path = Path(path)
+    if path.suffix.lower() not in PLOT_SUFFIXES:
+        raise ConfigError(f"{path}: a plot is written as {' or '.join(PLOT_SUFFIXES)} (by its suffix)", path)
+    return path
+
+
+def _save(fig, path: Path) -> Path:
+    """Lay out ``fig`` and write it to ``path`` (ConfigError if it cannot be written)."""
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot write the plot: {e.strerror or e}", path) from None
+    return path
+
+
+def plot_touchdown(
+    tree: Tree, geometry: Geometry, result: ImpactResult, path: str | Path, title: str, scene: Scene | None = None
+) -> Path:
+    """Draw the tree at touchdown and its impulses, and write the figure to ``path``.
+
+    Rods are thick lines from joint to tip, joints circles, centres of mass small crosses, the
+    ground a hatched line at ``geometry.ground_height``. Contacts are dots (filled when they
+    hit). External impulses are arrows along the ground normal at the contacts; joint impulses
+    (parent onto child, force part) arrows at the joints; both drawn to one scale and labelled
+    in N s.
+
+    Args:
+        tree: the design.
+        geometry: its touchdown geometry (``impulse_core.evaluate.touchdown_geometry``).
+        result: its impact (``impulse_core.evaluate.evaluate``), or any result with the same
+            fields (``optimizer.evaluation.model_choice.TimeDomainResult``).
+        path: the file to write, PNG or SVG by its suffix (overwritten if it exists).
+        title: first line of the title; the norms are added below it.
+        scene: when it has a ``terrain`` (not the default flat ground), the tree is placed over it
+            as at touchdown (base origin at ``scene.base_x``, lowered until the first contact
+            touches), the ground is the terrain profile, and external impulses point along its
+            normal below each contact.
+
+    Returns:
+        The path written.
+
+    Raises:
+        ConfigError: an unsupported suffix, or the file cannot be written.
+    """
+    # Imported here: the command line only pays for matplotlib when asked for a plot. The
+    # Figure API with the Agg canvas needs no display and leaves pyplot's global state alone.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    path = _plot_path(path)
+
+    fig = Figure(figsize=(10, 6.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    origins, tips, coms, contacts = geometry.origins, geometry.tips, geometry.coms, geometry.contacts
+    terrain = None if scene is None or scene.terrain == FLAT else scene.terrain
+    if terrain is not None:  # world frame: base origin at base_x, first contact on the terrain
+        shift = np.array([scene.base_x, 0.0]) - origins[0]
+        shift[1] -= float(np.min(vertical_clearance(terrain, contacts + shift)))
+        origins, tips, coms, contacts = (a + shift for a in (origins, tips, coms, contacts))
+    points = [origins, tips, coms, contacts]
+
+    for o, t in zip(origins, tips, strict=True):
+        ax.plot([o[0], t[0]], [o[1], t[1]], color=_ROD, lw=6, solid_capstyle="round", alpha=0.85, zorder=2)
+    for i, b in enumerate(tree.bodies):
+        ax.annotate(b.name, (coms[i] + tips[i]) / 2, fontsize=8, color=_ROD, xytext=(4, 4), textcoords="offset points")
+    ax.plot(coms[:, 0], coms[:, 1], "x", color="black", ms=5, zorder=4)
+    ax.plot(origins[0, 0], origins[0, 1], "s", mfc="white", mec=_JOINT, ms=8, zorder=4)
+    if len(origins) > 1:
+        ax.plot(origins[1:, 0], origins[1:, 1], "o", mfc="white", mec=_JOINT, ms=8, mew=1.5, zorder=4)
+
+    active = np.zeros(len(contacts), dtype=bool)
+    active[list(result.active)] = True
+    if active.any():
+        ax.plot(contacts[active, 0], contacts[active, 1], "o", color=_CONTACT, ms=7, zorder=5)
+    if (~active).any():
+        ax.plot(contacts[~active, 0], contacts[~active, 1], "o", mfc="white", mec=_CONTACT, ms=7, zorder=5)
+
+    span = np.vstack(points)
+    extent = float(max(np.ptp(span[:, 0]), np.ptp(span[:, 1]), 1e-3))
+    largest = max(float(np.max(np.abs(result.external), initial=0.0)), result.max_internal)
+    scale = 0.35 * extent / largest if largest > 0 else 0.0  # m per N s
+
+    def arrow(start: np.ndarray, vector: np.ndarray, color: str, label: float) -> None:
+        end = start + scale * vector
+        points.append(end[None, :])
+        ax.annotate(
+            "",
+            xy=end,
+            xytext=start,
+            zorder=6,
+            arrowprops=dict(arrowstyle="-|>", color=color, lw=2, shrinkA=0, shrinkB=0),
+        )
+        ax.annotate(f"{label:.3g}", end, fontsize=8, color=color, xytext=(3, 3), textcoords="offset points", zorder=7)
+
+    for i in result.active:
+        normal = np.array([0.0, 1.0]) if terrain is None else slope_normal(terrain, contacts[i, 0])
+        arrow(contacts[i], normal * result.external[i], _EXTERNAL, result.external[i])
+    for j in range(len(tree.bodies) - 1):
+        arrow(origins[j + 1], np.asarray(result.internal[j, :2], dtype=float), _INTERNAL, result.internal_magnitude[j])
+
+    all_points = np.vstack(points)
+    lo, hi = all_points.min(axis=0), all_points.max(axis=0)
+    margin = 0.08 * extent
+    x0, x1 = lo[0] - margin, hi[0] + margin
+    if terrain is None:
+        gx = np.array([x0, x1])
+        gy = np.full(2, geometry.ground_height)
+    else:
+        gx = np.concatenate([[x0], [x for x in terrain.x if x0 < x < x1], [x1]])
+        gy = height(terrain, gx)
+    ax.plot(gx, gy, color=_GROUND, lw=1.5, zorder=1)
+    ax.fill_between(gx, gy - 0.04 * extent, gy, facecolor="none", edgecolor=_GROUND, hatch="///", lw=0)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(min(lo[1], float(gy.min()) - 0.04 * extent) - margin, max(hi[1], float(gy.max())) + margin)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(
+        f"{title}\n|external| = {result.external_norm:.4g} N s, |internal| = {result.internal_norm:.4g} N s, "
+        f"largest joint {result.max_internal:.4g} N s",
+        fontsize=10,
+    )
+    handles = [
+        Line2D([], [], color=_ROD, lw=6, label="rod"),
+        Line2D([], [], ls="", marker="o", mfc="white", mec=_JOINT, label="joint (square: base origin)"),
+        Line2D([], [], ls="", marker="x", color="black", label="centre of mass"),
+        Line2D([], [], ls="", marker="o", color=_CONTACT, label="contact that hits (hollow: does not)"),
+        Line2D([], [], color=_EXTERNAL, lw=2, label="external impulse [N s]"),
+        Line2D([], [], color=_INTERNAL, lw=2, label="joint impulse, parent on child [N s]"),
+        Line2D([], [], color=_GROUND, lw=1.5, label="ground"),
+    ]
+    ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    return _save(fig, path)
+
+
+def plot_speed(report: SpeedReport, path: str | Path) -> Path:
+    """Draw a speed report (``footopt bench --plot``) and write it to ``path`` (PNG or SVG).
+
+    Left: microseconds per design of every path timed on the report's model, beside
+    ``pinocchio.impulseDynamics`` per call. Right, when the report has a scaling series:
+    microseconds per design against body count, log-log, with a quadratic slope for reference.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    path = _plot_path(path)
+    bars = [
+        ("CasADi VM, map", report.us_per_design_batched_vm),
+        ("compiled, CasADi map", report.us_per_design_batched_compiled),
+        ("compiled, C loop", report.us_per_design_batched_kernel),
+        (f"compiled, SIMD ({report.simd_lanes} lanes)", report.us_per_design_batched_simd),
+        ("C loop, 2 threads", report.us_per_design_batched_kernel_threads),
+        ("SIMD, 2 threads", report.us_per_design_batched_simd_threads),
+        (f"gradient, adjoint ({report.gradient_path})", report.us_per_design_gradient),
+        (f"gradient, reverse mode ({report.gradient_path})", report.us_per_design_gradient_autodiff),
+        ("pinocchio.impulseDynamics (per call)", report.pinocchio_us_per_call),
+    ]
+    bars = [(label, us) for label, us in bars if us is not None]
+    fig = Figure(figsize=(13, 5.5) if report.scaling else (7, 5.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 2 if report.scaling else 1, 1)
+    colors = [
+        "#c0392b" if label.startswith("pinocchio") else "#27ae60" if "gradient" in label else _ROD for label, _ in bars
+    ]
+    ax.barh(range(len(bars)), [us for _, us in bars], color=colors)
+    ax.set_yticks(range(len(bars)), [label for label, _ in bars], fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xscale("log")
+    for k, (_, us) in enumerate(bars):
+        ax.annotate(f"{us:.3g}", (us, k), xytext=(3, 0), textcoords="offset points", va="center", fontsize=8)
+    ax.set_xlabel("microseconds per design (batched) or per call")
+    ax.set_title(
+        f"{report.model}: {report.n_bodies} bodies, {report.n_dof} DOF, {report.n_contacts} contacts", fontsize=10
+    )
+    if report.scaling:
+        ax2 = fig.add_subplot(1, 2, 2)
+        bodies = np.array([r["bodies"] for r in report.scaling], dtype=float)
+        series = [
+            ("best one-core path", "us_per_design", "o-", _ROD),
+            ("compiled, C loop", "us_per_design_c_loop", "s--", "#8e44ad"),
+            ("CasADi VM, map", "us_per_design_vm", "^:", _GROUND),
+            ("pinocchio.impulseDynamics", "pinocchio_us_per_call", "d-", "#c0392b"),
+        ]
+        for label, key, style, color in series:
+            ys = [r.get(key) for r in report.scaling]
+            if all(y is not None for y in ys):
+                ax2.plot(bodies, ys, style, color=color, label=label)
+        first = report.scaling[0]["us_per_design"]
+        ax2.plot(
+            bodies, first * (bodies / bodies[0]) ** 2, color="#999999", lw=1, label="quadratic growth, for reference"
+        )
+        ax2.set_xscale("log")
+        ax2.set_yscale("log")
+        ax2.set_xticks(bodies, [f"{b:.0f}" for b in bodies])
+        ax2.minorticks_off()
+        ax2.set_xlabel("bodies")
+        ax2.set_ylabel("microseconds per design (per call for Pinocchio)")
+        ax2.set_title("scaling series (more toes, more segments)", fontsize=10)
+        ax2.grid(True, which="both", alpha=0.3)
+        ax2.legend(fontsize=8)
+    return _save(fig, path)
+
+
+__all__ = ["PLOT_SUFFIXES", "plot_speed", "plot_touchdown"]

@@ -1,0 +1,406 @@
+"""What ``footopt evaluate`` prints: a readable text report and a JSON record per model file.
+
+One code path writes what every model shares (contacts and their impulses, joints, norms,
+velocities, energy, reference values); a rigid ``ImpactResult`` adds its friction columns and
+warnings, a time-domain result (``optimizer.evaluation.model_choice.TimeDomainResult``: sequential or compliant)
+its touchdown table and, compliant, how the integration ended.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from impulse_core.timedomain.compliant import CompliantResult, CompliantStatus, ContactLaw
+from impulse_core.impact.laws import ImpactModel
+from impulse_core.evaluate import ImpactResult
+from impulse_core.kinematics.spatial import PLANAR, dof_layout
+from impulse_core.model.terrain import FLAT
+from impulse_core.model.tree import ContactSelection, Scene, Tree
+from optimizer.evaluation.model_choice import TimeDomainResult
+from optimizer.config.model_file import ModelFile
+
+#: What the reports read: one rigid impact, or a sequential or compliant landing.
+Result = ImpactResult | TimeDomainResult
+
+#: Kinetic energy may grow by this fraction (rounding) before the report calls it a gain.
+ENERGY_GAIN_TOL = 1e-9
+
+
+def contact_names(tree: Tree) -> tuple[str, ...]:
+    """Names of the declared contacts in declaration order: body name and index on the body,
+    e.g. ``heel[0]``."""
+    return tuple(f"{tree.bodies[b].name}[{k}]" for b, k in tree.contacts)
+
+
+def joint_names(tree: Tree) -> tuple[str, ...]:
+    """One name per joint: its child body's name (every non-base body, file order)."""
+    return tuple(b.name for b in tree.bodies[1:])
+
+
+def velocity_names(tree: Tree) -> tuple[tuple[str, str], ...]:
+    """(name, unit) of each generalized velocity: the base's vx, vy, omega, then the rate of
+    each revolute joint (named by its child body) in file order."""
+    layout = dof_layout(tree.topology(), PLANAR)
+    n_base = len(PLANAR.base_dofs)
+    base = (("base vx", "m/s"), ("base vy", "m/s"), ("base omega", "rad/s"))
+    joints = tuple((f"{tree.bodies[layout.dof_body[k]].name} rate", "rad/s") for k in range(n_base, layout.nv))
+    return base + joints
+
+
+def is_finite(result: Result) -> bool:
+    """True when every number of the result is finite (a solve that failed is not)."""
+    arrays = [result.external, result.internal, result.internal_magnitude, result.v_plus]
+    if isinstance(result, ImpactResult):
+        arrays.append(result.internal_torque)
+    scalars = (result.external_norm, result.internal_norm, result.energy_before, result.energy_after)
+    return all(np.all(np.isfinite(a)) for a in arrays) and all(math.isfinite(x) for x in scalars)
+
+
+def energy_gained(result: Result) -> bool:
+    """True when the kinetic energy after the impact exceeds the energy before."""
+    return result.energy_after > result.energy_before * (1.0 + ENERGY_GAIN_TOL)
+
+
+def rung(result: Result) -> tuple[str, str]:
+    """The model that ran: its name (``newton``, ``sequential``, ...) and a one-line description."""
+    if isinstance(result, ImpactResult):
+        return result.model.value, result.model.description
+    return result.impact_model, result.description
+
+
+def warnings(model: ModelFile, result: Result) -> tuple[str, ...]:
+    """Things about this impact a reader must know, one sentence each."""
+    out = list(
+        _rigid_warnings(model, result) if isinstance(result, ImpactResult) else _time_domain_warnings(model, result)
+    )
+    if energy_gained(result):
+        out.append(
+            f"energy gained: the kinetic energy grows from {result.energy_before:.6g} J to "
+            f"{result.energy_after:.6g} J under the {rung(result)[0]} model"
+        )
+    return tuple(out)
+
+
+def _rigid_warnings(model: ModelFile, result: ImpactResult) -> list[str]:
+    names = contact_names(model.tree)
+    out = []
+    if not result.split_unique:
+        active = ", ".join(names[i] for i in result.active)
+        shown = (
+            "no non-negative split meets the restitution law, so the smallest-norm split is shown"
+            if result.pulling
+            else "the smallest-norm split inside the friction cones is shown"
+            if result.model is ImpactModel.FRICTION
+            else "the smallest-norm non-negative split is shown"
+        )
+        out.append(
+            f"contacts {active} are redundant: the post-impact velocity is unique, the split of the "
+            f"impulse is not; {shown}"
+        )
+    if result.pulling:
+        pulling = ", ".join(names[i] for i in result.pulling)
+        law = "the decoupled approximation (eq. 14)" if result.model is ImpactModel.DECOUPLED else "Newton's law"
+        out.append(f"{law} makes contacts {pulling} pull on the ground (negative impulse)")
+    if result.separating and result.model in (ImpactModel.LCP, ImpactModel.FRICTION):
+        separating = ", ".join(names[i] for i in result.separating)
+        out.append(f"contacts {separating} separate from the ground with zero impulse")
+    hop = _friction_hop(model, result)
+    if hop:
+        worst = max(hop.values())
+        out.append(
+            f"contacts {', '.join(names[i] for i in hop)} slide and leave the ground up to {worst:.3g} m/s faster than "
+            f"restitution while carrying impulse (the convex friction law's relaxation): read their normal "
+            f"impulses as upper estimates"
+        )
+    return out
+
+
+def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[str]:
+    names = contact_names(model.tree)
+    out = []
+    never = [names[i] for i in range(len(names)) if i not in set(result.active)]
+    if never:
+        out.append(f"contacts {', '.join(never)} never touch the ground during the landing")
+    r = result.result
+    if isinstance(r, CompliantResult):
+        if r.recontacting:
+            out.append(
+                f"contacts {', '.join(names[i] for i in r.recontacting)} head back to the ground after releasing: "
+                "a secondary impact follows that is not included"
+            )
+        if r.status is CompliantStatus.TIMEOUT:
+            out.append(f"the integration stopped at its time limit ({r.duration:.3g} s) with a contact still loaded")
+    return out
+
+
+def _friction_hop(model: ModelFile, result: ImpactResult) -> dict[int, float]:
+    """Contacts (declared index) that carry impulse under the friction rung yet leave faster than
+    Newton's restitution asks, and by how much (m/s); empty for every other rung."""
+    if result.model is not ImpactModel.FRICTION:
+        return {}
+    scene = model.scene
+    scale = max(float(np.max(result.external, initial=0.0)), 1e-300)
+    out = {}
+    for i, v_n in zip(result.active, result.contact_velocity, strict=True):
+        excess = float(v_n - scene.restitution * scene.speed)
+        if result.external[i] > 1e-9 * scale and excess > 1e-9 * scene.speed:
+            out[i] = excess
+    return out
+
+
+def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]:
+    """The JSON object ``footopt evaluate --json`` prints for one file (plain Python types).
+
+    Keys of the contract (``MODEL_FORMAT.md``): ``external``, ``internal``, ``external_norm``,
+    ``internal_norm``. Extras for every model: ``file``, ``model`` (the law, in words),
+    ``impact_model`` (what ran: decoupled, newton, lcp, friction, sequential or compliant),
+    ``impact_reason`` (why), ``scene`` (with ``terrain`` as [x, y] points and ``base_x``),
+    ``contacts``, ``active`` (per contact: it hit, or touched down), ``joints``, ``joint_kinds``,
+    ``internal_vector``, ``max_internal``, ``max_internal_joint``, ``velocities``, ``v_minus``,
+    ``v_plus``, ``energy_before``, ``energy_after``, ``energy_gained``, ``reference``.
+    Rigid rungs add ``tangential`` (friction impulse per contact, x), ``separating``,
+    ``internal_torque``, ``split_unique``, ``pulling``. Sequential and compliant add
+    ``touchdown_time`` (s after the first touchdown, per contact; null if it never touches) and
+    ``touchdown_order`` (contact names); compliant also ``status``, ``recontacting``, ``law``,
+    ``stiffness`` (N/m for the penalty law, 1/s^2 for the constraint law) and ``timestep`` (s).
+    """
+    tree, ref = model.tree, model.reference
+    names = contact_names(tree)
+    joints = joint_names(tree)
+    active = set(result.active)
+    mags = result.internal_magnitude
+    name, description = rung(result)
+    record: dict[str, Any] = {
+        "file": file,
+        "model": description,
+        "impact_model": name,
+        "impact_reason": result.reason,
+        "scene": _scene_record(model.scene),
+        "contacts": list(names),
+        "active": [i in active for i in range(len(names))],
+        "external": _floats(result.external),
+        "joints": list(joints),
+        "joint_kinds": [b.joint.value for b in tree.bodies[1:]],
+        "internal": _floats(mags),
+        "internal_vector": [_floats(row[:2]) for row in result.internal],
+        "external_norm": _f(result.external_norm),
+        "internal_norm": _f(result.internal_norm),
+        "max_internal": _f(result.max_internal),
+        "max_internal_joint": joints[int(np.argmax(mags))] if mags.size else None,
+        "velocities": [name for name, _ in velocity_names(tree)],
+        "v_minus": _floats(result.v_minus),
+        "v_plus": _floats(result.v_plus),
+        "energy_before": _f(result.energy_before),
+        "energy_after": _f(result.energy_after),
+        "energy_gained": energy_gained(result),
+    }
+    if isinstance(result, ImpactResult):
+        record |= {
+            "tangential": _floats(result.tangential),
+            "separating": [names[i] for i in result.separating],
+            "internal_torque": _floats(result.internal_torque[:, 2]) if len(joints) else [],
+            "split_unique": bool(result.split_unique),
+            "pulling": [names[i] for i in result.pulling],
+        }
+    else:
+        record |= {
+            "touchdown_time": [None if math.isnan(t) else _f(t) for t in result.touchdown_time],
+            "touchdown_order": [names[i] for i in result.touchdown_order],
+        }
+        r = result.result
+        if isinstance(r, CompliantResult):
+            record |= {
+                "status": r.status.value,
+                "recontacting": [names[i] for i in r.recontacting],
+                "law": r.law.value,
+                "stiffness": _f(result.settings.stiffness),
+                "timestep": _f(r.timestep),
+            }
+    record["reference"] = (
+        None
+        if ref is None
+        else {
+            "source": ref.source,
+            "external": None if ref.external is None else [_opt(v) for v in ref.external],
+            "internal": None if ref.internal is None else [_opt(v) for v in ref.internal],
+            "external_norm": _opt(ref.external_norm),
+            "internal_norm": _opt(ref.internal_norm),
+            "note": ref.note,
+        }
+    )
+    return record
+
+
+def _scene_record(scene: Scene) -> dict[str, Any]:
+    return {
+        "speed": _f(scene.speed),
+        "restitution": _f(scene.restitution),
+        "friction": _f(scene.friction),
+        "contacts": scene.selection.value,
+        "contact_tolerance": _f(scene.contact_tolerance),
+        "terrain": [[_f(x), _f(y)] for x, y in scene.terrain.points],
+        "base_x": _f(scene.base_x),
+    }
+
+
+def format_report(model: ModelFile, result: Result, file: str) -> str:
+    """A plain-text report of one evaluation: contacts, (time-domain models) touchdowns, joints,
+    norms, velocities, energy, warnings, with the file's reference values beside ours where it
+    gives them."""
+    tree, scene, ref = model.tree, model.scene, model.reference
+    names = contact_names(tree)
+    joints = joint_names(tree)
+    active = set(result.active)
+    rigid = isinstance(result, ImpactResult)
+    name, description = rung(result)
+    selection = (
+        "the geometry decides (touchdowns below)"
+        if not rigid
+        else "all declared contacts hit"
+        if scene.selection is ContactSelection.ALL
+        else f"lowest (contacts within {scene.contact_tolerance:g} m of the lowest hit)"
+    )
+    lines = [
+        f"== {file} ==",
+        f"model:   {name}: {description}",
+        f"why:     {result.reason}",
+        (
+            f"scene:   speed {scene.speed:g} m/s down, restitution e = {scene.restitution:g}, "
+            f"friction {scene.friction:g}, contacts: {selection}"
+        ),
+    ]
+    if scene.terrain != FLAT or scene.base_x != 0.0:
+        points = ", ".join(f"[{x:g}, {y:g}]" for x, y in scene.terrain.points)
+        lines.append(f"ground:  terrain [{points}] (m), base origin at x = {scene.base_x:g} m")
+    verb = "hit" if rigid else "touch down"
+    lines.append(
+        f"tree:    {_count(tree.n_bodies, 'body', 'bodies')}, {len(active)} of {len(names)} declared contacts {verb}"
+    )
+    if ref is not None and (ref.source or ref.note):
+        lines.append("reference: " + "; ".join(s for s in (ref.source, ref.note) if s))
+
+    show_ref_ext = ref is not None and ref.external is not None
+    friction = rigid and result.model is ImpactModel.FRICTION and result.tangent_velocity is not None
+    slip = dict(zip(result.active, result.tangent_velocity, strict=True)) if friction else {}
+    headers = ["contact", "touches", "impulse [N s]"] + (["tangential [N s]", "slip after [m/s]"] if friction else [])
+    headers += ["reference [N s]", "diff"] if show_ref_ext else []
+    rows = []
+    for i, cname in enumerate(names):
+        row = [cname, "yes" if i in active else "no", _num(result.external[i])]
+        row += [_num(result.tangential[i]), _num(slip[i]) if i in slip else "-"] if friction else []
+        if show_ref_ext:
+            assert ref is not None and ref.external is not None
+            row += _ref_cells(result.external[i], ref.external[i])
+        rows.append(row)
+    kind = "normal and tangential along +x" if friction else "normal" if rigid else "along the local ground normal"
+    lines += ["", f"External impulses ({kind}, on the contacts)"] + _table(headers, rows)
+
+    if not rigid:
+        order = {c: k + 1 for k, c in enumerate(result.touchdown_order)}
+        rows = [
+            [cname, "-" if math.isnan(t) else f"{1e3 * t:.3f}", str(order[i]) if i in order else "-"]
+            for i, (cname, t) in enumerate(zip(names, result.touchdown_time, strict=True))
+        ]
+        lines += ["", "Touchdowns (time after the first one)"] + _table(["contact", "touchdown [ms]", "order"], rows)
+        r = result.result
+        if isinstance(r, CompliantResult):
+            unit = "N/m" if r.law is ContactLaw.PENALTY else "1/s^2"
+            lines.append(
+                f"integration: {r.status.value} after {1e3 * r.duration:.3f} ms, {r.n_steps} contact steps of "
+                f"{r.timestep:.3g} s and {r.n_flight_steps} flight steps; stiffness {result.settings.stiffness:g} {unit}"
+            )
+
+    if joints:
+        show_ref_int = ref is not None and ref.internal is not None
+        headers = ["joint (child)", "kind", "x [N s]", "y [N s]", "|impulse| [N s]"]
+        headers += ["reference [N s]", "diff"] if show_ref_int else []
+        rows = []
+        for j, jname in enumerate(joints):
+            x, y = result.internal[j, :2]
+            row = [jname, tree.bodies[j + 1].joint.value, _num(x), _num(y), _num(result.internal_magnitude[j])]
+            if show_ref_int:
+                assert ref is not None and ref.internal is not None
+                row += _ref_cells(result.internal_magnitude[j], ref.internal[j])
+            rows.append(row)
+        lines += ["", "Internal impulses (through each joint, parent onto child)"] + _table(headers, rows)
+
+    headers = ["norm", "ours [N s]"] + (["reference [N s]", "diff"] if ref is not None else [])
+    rows = []
+    for key in ("external_norm", "internal_norm"):
+        ours = getattr(result, key)
+        rows.append([key, _num(ours)] + (_ref_cells(ours, getattr(ref, key)) if ref is not None else []))
+    lines += [""] + _table(headers, rows)
+    if joints:
+        j = int(np.argmax(result.internal_magnitude))
+        lines.append(f"largest joint impulse: {result.max_internal:.4f} N s, through the joint of {joints[j]}")
+
+    rows = [
+        [f"{vname} [{unit}]", _num(before), _num(after)]
+        for (vname, unit), before, after in zip(velocity_names(tree), result.v_minus, result.v_plus, strict=True)
+    ]
+    lines += ["", "Velocities"] + _table(["velocity", "before", "after"], rows)
+
+    before, after = result.energy_before, result.energy_after
+    change = (
+        f"lost {100 * (before - after) / before:.1f}%"
+        if after <= before
+        else f"energy gained: +{100 * (after - before) / before:.1f}%"
+    )
+    lines += ["", f"kinetic energy [J]: before {before:.4f}, after {after:.4f} ({change})"]
+    lines += [f"warning: {w}" for w in warnings(model, result)]
+    return "\n".join(lines) + "\n"
+
+
+def _table(headers: list[str], rows: list[list[str]]) -> list[str]:
+    """Aligned plain-text columns: the first column left-aligned, the others right-aligned."""
+    widths = [max(len(r[c]) for r in [headers, *rows]) for c in range(len(headers))]
+
+    def line(cells: list[str]) -> str:
+        parts = [cells[0].ljust(widths[0])] + [cell.rjust(w) for cell, w in zip(cells[1:], widths[1:], strict=True)]
+        return "  ".join(parts).rstrip()
+
+    return [line(headers)] + [line(r) for r in rows]
+
+
+def _ref_cells(ours: float, ref: float | None) -> list[str]:
+    if ref is None:
+        return ["-", ""]
+    diff = f"{100 * (ours - ref) / abs(ref):+.1f}%" if ref != 0 else ""
+    return [_num(ref), diff]
+
+
+def _count(n: int, one: str, many: str) -> str:
+    return f"{n} {one if n == 1 else many}"
+
+
+def _num(x: float) -> str:
+    return f"{round(float(x), 4) + 0.0:.4f}"  # no "-0.0000"
+
+
+def _f(x: float) -> float:
+    return float(x) + 0.0  # a plain float, and -0.0 written as 0.0
+
+
+def _floats(a: Any) -> list[float]:
+    return [_f(x) for x in np.asarray(a, dtype=float).ravel()]
+
+
+def _opt(x: float | None) -> float | None:
+    return None if x is None else _f(x)
+
+
+__all__ = [
+    "Result",
+    "contact_names",
+    "energy_gained",
+    "format_report",
+    "is_finite",
+    "joint_names",
+    "result_record",
+    "rung",
+    "velocity_names",
+    "warnings",
+]

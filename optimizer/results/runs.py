@@ -1,0 +1,413 @@
+"""Run directories: where a study's storage, resolved config, versions and Pareto front live.
+
+A run directory holds (names fixed: outside checks read them):
+
+- ``study.yaml``: the resolved study (every default explicit; ``search.trials`` as last run);
+- ``study.journal``: the Optuna journal storage (unless the study names another storage);
+- ``run.json``: versions, seed, storage, method, trial counts, wall time;
+- ``pareto.csv``, ``pareto.json``: one row/entry per Pareto design: every objective, every
+  constraint value, the design's values, and ``model_file``, the path of its model file
+  relative to the run directory;
+- ``designs/trial_<n>.yaml``: each Pareto design as a ``MODEL_FORMAT.md`` model file;
+- ``front.png``: the front in the first two objectives, over every evaluated design.
+
+footopt never removes a file it did not write: a directory holding anything else is refused
+unless it is a run of the same study (then the run resumes) or ``force`` is given (then this
+run's own files are replaced; other files stay).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import platform
+import sys
+from dataclasses import dataclass, replace
+from enum import Enum
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import optuna
+
+from impulse_core.evaluate import evaluate
+from optimizer.design_space import (
+    DesignEvaluation,
+    Objective,
+    chain_names,
+    foot_geometry,
+    foot_tree,
+    landing_scene,
+)
+from optimizer.errors import ConfigError
+from optimizer.config.model_file import Reference, dump_model_file
+from optimizer.results.pareto import non_dominated
+from optimizer.search.outer import RecordedTrial, recorded_trials
+from optimizer.config.study_config import StudyConfig, format_study, load_study
+
+STUDY_FILE, STORAGE_FILE, RUN_FILE = "study.yaml", "study.journal", "run.json"
+CSV_FILE, JSON_FILE, PLOT_FILE, DESIGNS_DIR = "pareto.csv", "pareto.json", "front.png", "designs"
+#: Files footopt writes in a run directory (and may replace).
+OWN_FILES = (STUDY_FILE, STORAGE_FILE, RUN_FILE, CSV_FILE, JSON_FILE, PLOT_FILE)
+OBJECTIVE_COLUMNS = tuple(o.value for o in Objective)
+#: Seconds after which the journal's lock file counts as left behind by a killed run.
+JOURNAL_LOCK_GRACE_S = 3
+
+
+class RunState(Enum):
+    """What :func:`prepare_run` found in the directory."""
+
+    FRESH = "fresh"
+    RESUME = "resume"
+
+
+def storage_url(run_dir: Path, config: StudyConfig) -> str | optuna.storages.BaseStorage:
+    """The study's storage: its URL, or the journal file in the run directory."""
+    if config.storage is not None:
+        return config.storage
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend, JournalFileSymlinkLock
+
+    path = str(run_dir / STORAGE_FILE)
+    # A killed run leaves its lock behind; a write holds it for milliseconds, so a lock older
+    # than the grace period is stale (Optuna's default waits 30 s before breaking it).
+    lock = JournalFileSymlinkLock(path, grace_period=JOURNAL_LOCK_GRACE_S)
+    return JournalStorage(JournalFileBackend(path, lock_obj=lock))
+
+
+def _own(path: Path) -> bool:
+    return path.name in OWN_FILES or path.name == DESIGNS_DIR or path.name.startswith(f"{STORAGE_FILE}.")
+
+
+def prepare_run(run_dir: Path, config: StudyConfig, force: bool = False) -> RunState:
+    """Check (and create) the run directory for ``config``.
+
+    Returns:
+        FRESH for a new or empty directory (or with ``force``: this run's old files removed),
+        RESUME when it holds a run of the same study (``search.trials`` may differ).
+
+    Raises:
+        ConfigError: the directory holds other files, or a run of a different study, and
+            ``force`` is False; or it is not a directory.
+    """
+    if run_dir.exists() and not run_dir.is_dir():
+        raise ConfigError("exists and is not a directory", run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    entries = sorted(run_dir.iterdir())
+    if not entries:
+        return RunState.FRESH
+    if force:
+        remove_own_files(run_dir, config)
+        return RunState.FRESH
+    previous_file = run_dir / STUDY_FILE
+    if not previous_file.exists():
+        names = ", ".join(p.name for p in entries[:3]) + (", ..." if len(entries) > 3 else "")
+        raise ConfigError(
+            f"not empty and not a footopt run ({names}); choose another --out, or pass --force to "
+            "write this run's files there anyway",
+            run_dir,
+        )
+    previous = load_study(previous_file)
+    different = _differences(previous, config)
+    if different:
+        verb = "differs" if len(different) == 1 else "differ"
+        raise ConfigError(
+            f"holds a run of a different study ({', '.join(different)} {verb}); choose another --out, "
+            "or pass --force to start this study over there",
+            run_dir,
+        )
+    return RunState.RESUME
+
+
+def _differences(a: StudyConfig, b: StudyConfig) -> list[str]:
+    """Top-level fields in which two studies differ (``search.trials`` excepted)."""
+    a = replace(a, search=replace(a.search, trials=0))
+    b = replace(b, search=replace(b.search, trials=0))
+    return [name for name in ("name", "seed", "storage", "scene", "leg", "space", "limits", "objectives", "search")
+            if getattr(a, name) != getattr(b, name)]
+
+
+def remove_own_files(run_dir: Path, config: StudyConfig) -> None:
+    """Remove what a previous run wrote (and its study, from an external storage)."""
+    if config.storage is not None:
+        try:
+            optuna.delete_study(study_name=config.name, storage=config.storage)
+        except KeyError:
+            pass
+    for p in run_dir.iterdir():
+        if p.name == DESIGNS_DIR and p.is_dir():
+            for f in p.glob("trial_*.yaml"):
+                f.unlink()
+            if not any(p.iterdir()):
+                p.rmdir()
+        elif _own(p) and p.is_file():
+            p.unlink()
+
+
+def write_study_file(run_dir: Path, config: StudyConfig) -> Path:
+    path = run_dir / STUDY_FILE
+    header = "The resolved study of this run (every default explicit). Resume: footopt optimize this-file --out this-dir"
+    path.write_text(format_study(config, header), encoding="utf-8")
+    return path
+
+
+def versions() -> dict[str, str]:
+    """Versions of what made a run."""
+    out = {"python": platform.python_version()}
+    for package in ("footopt", "optuna", "casadi", "numpy", "scipy"):
+        try:
+            out[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            out[package] = "not installed"
+    return out
+
+
+def write_run_file(run_dir: Path, config: StudyConfig, **extra: Any) -> Path:
+    """``run.json``: versions, seed, storage and whatever the caller adds (counts, times)."""
+    record = {
+        "study": config.name,
+        "seed": config.seed,
+        "method": config.search.method.value,
+        "sampler": config.search.sampler.value,
+        "storage": config.storage or STORAGE_FILE,
+        "versions": versions(),
+        "command": " ".join(sys.argv),
+        **extra,
+    }
+    path = run_dir / RUN_FILE
+    path.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    return path
+
+
+# --------------------------------------------------------------------------------------------
+# The front
+
+
+@dataclass(frozen=True)
+class FrontPoint:
+    """One exported Pareto design.
+
+    Attributes:
+        trial: its Optuna trial number.
+        method: outer or inner.
+        evaluation: design, objectives, constraint values.
+        model_file: its model file, relative to the run directory.
+    """
+
+    trial: int
+    method: str
+    evaluation: DesignEvaluation
+    model_file: Path
+
+
+def pareto_front(config: StudyConfig, trials: list[RecordedTrial]) -> list[RecordedTrial]:
+    """The feasible trials that no other feasible trial dominates in the study's objectives
+    (coinciding points once), ordered by the first objective."""
+    feasible = [t for t in trials if t.evaluation.feasible]
+    if not feasible:
+        return []
+    values = np.array([[t.evaluation.objectives.value(o) for o in config.objectives] for t in feasible])
+    return [feasible[i] for i in non_dominated(values)]
+
+
+def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> list[FrontPoint]:
+    """Write the front's files (CSV, JSON, model files, plot) and return its points."""
+    trials = list(recorded_trials(study))
+    front = pareto_front(config, trials)
+    designs = run_dir / DESIGNS_DIR
+    designs.mkdir(exist_ok=True)
+    for f in designs.glob("trial_*.yaml"):
+        f.unlink()
+    points = []
+    scene = landing_scene(config.scene, config.limits)
+    for t in front:
+        rel = Path(DESIGNS_DIR) / f"trial_{t.number:05d}.yaml"
+        tree = foot_tree(config.leg, t.evaluation.design)
+        result = evaluate(tree, scene)
+        reference = Reference(
+            source=f"footopt optimize, study '{config.name}', trial {t.number} ({t.method} search)",
+            external=tuple(float(x) for x in result.external),
+            internal=tuple(float(x) for x in result.internal_magnitude),
+            external_norm=result.external_norm,
+            internal_norm=result.internal_norm,
+        )
+        header = (
+            f"Pareto design of study '{config.name}' (trial {t.number}, shape {t.evaluation.design.shape.label}).\n"
+            "Lengths were chosen by footopt's linear program; with uniform rods the impulses do not depend on\n"
+            "them, only on the angles and masses (and the touchdown constraints on the lengths)."
+        )
+        dump_model_file(tree, run_dir / rel, scene=scene, reference=reference, header_comment=header)
+        points.append(FrontPoint(t.number, t.method, t.evaluation, rel))
+    (run_dir / CSV_FILE).write_text(front_csv(config, points), encoding="utf-8")
+    (run_dir / JSON_FILE).write_text(json.dumps(front_json(config, points), indent=2) + "\n", encoding="utf-8")
+    plot_front(run_dir / PLOT_FILE, config, trials, points)
+    return points
+
+
+def design_values(config: StudyConfig, evaluation: DesignEvaluation) -> dict[str, float]:
+    """The design's values by name (``toe1_distal.mass``), plus its ankle height and foot length."""
+    design = evaluation.design
+    out: dict[str, float] = {}
+    for names, chain in zip(chain_names(design.shape), design.chains, strict=True):
+        for name, s in zip(names, chain, strict=True):
+            out[f"{name}.length"] = s.length
+            out[f"{name}.mass"] = s.mass
+            out[f"{name}.joint_angle"] = s.joint_angle
+    geo = foot_geometry(config.leg, design)
+    out["ankle_height"] = -geo.ground
+    out["foot_length"] = float(geo.reaches.max())
+    out["foot_mass"] = design.foot_mass
+    return out
+
+
+def _row(config: StudyConfig, p: FrontPoint) -> dict[str, Any]:
+    ev = p.evaluation
+    shape = ev.design.shape
+    row: dict[str, Any] = {
+        "trial": p.trial,
+        "method": p.method,
+        "shape": shape.label,
+        "toes": shape.n_toes,
+        "toe_segments": shape.toe_segments,
+        "heel_segments": shape.heel_segments,
+    }
+    row.update({name: ev.objectives.value(Objective(name)) for name in OBJECTIVE_COLUMNS})
+    row["model_file"] = p.model_file.as_posix()
+    row.update({f"constraint.{name}": v for name, v in ev.constraints.items()})
+    row.update(design_values(config, ev))
+    return row
+
+
+def front_csv(config: StudyConfig, points: list[FrontPoint]) -> str:
+    """``pareto.csv``: one row per Pareto design; design columns are the union over shapes
+    (empty where a design has no such rod)."""
+    rows = [_row(config, p) for p in points]
+    columns: list[str] = ["trial", "method", "shape", "toes", "toe_segments", "heel_segments", *OBJECTIVE_COLUMNS]
+    columns += ["model_file"] + [f"constraint.{n}" for n in _constraint_names()]
+    for row in rows:
+        columns += [k for k in row if k not in columns]
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=columns, restval="", lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
+    return buffer.getvalue()
+
+
+def _constraint_names() -> list[str]:
+    from dataclasses import fields
+
+    from optimizer.design_space import ConstraintValues
+
+    return [f.name for f in fields(ConstraintValues)]
+
+
+def front_json(config: StudyConfig, points: list[FrontPoint]) -> dict[str, Any]:
+    """``pareto.json``: the study's objectives and one entry per Pareto design."""
+    entries = []
+    for p in points:
+        ev = p.evaluation
+        shape = ev.design.shape
+        entries.append(
+            {
+                "trial": p.trial,
+                "method": p.method,
+                "shape": {"toes": shape.n_toes, "toe_segments": shape.toe_segments, "heel_segments": shape.heel_segments},
+                "objectives": {name: ev.objectives.value(Objective(name)) for name in OBJECTIVE_COLUMNS},
+                "constraints": dict(ev.constraints.items()),
+                "design": design_values(config, ev),
+                "model_file": p.model_file.as_posix(),
+            }
+        )
+    return {"study": config.name, "objectives": [o.value for o in config.objectives], "designs": entries}
+
+
+def plot_front(path: Path, config: StudyConfig, trials: list[RecordedTrial], points: list[FrontPoint]) -> Path:
+    """The front in the first two objectives (or the one objective against the trial number),
+    every evaluated design behind it, front points coloured by toe count."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.5, 5.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    objs = config.objectives
+    two = len(objs) > 1
+
+    def xy(ev: DesignEvaluation, number: int) -> tuple[float, float]:
+        o = ev.objectives
+        return (o.value(objs[0]), o.value(objs[1])) if two else (float(number), o.value(objs[0]))
+
+    feasible = [xy(t.evaluation, t.number) for t in trials if t.evaluation.feasible]
+    infeasible = [xy(t.evaluation, t.number) for t in trials if not t.evaluation.feasible]
+    if infeasible:
+        ax.scatter(*zip(*infeasible), s=8, marker="x", color="#dddddd", label="infeasible", zorder=1)
+    if feasible:
+        ax.scatter(*zip(*feasible), s=10, color="#999999", alpha=0.6, label="feasible", zorder=2)
+    if points:
+        toes = sorted({p.evaluation.design.shape.n_toes for p in points})
+        cmap = __import__("matplotlib").colormaps["viridis"]
+        for n in toes:
+            sel = [xy(p.evaluation, p.trial) for p in points if p.evaluation.design.shape.n_toes == n]
+            color = cmap((n - toes[0]) / max(1, toes[-1] - toes[0]))
+            ax.scatter(*zip(*sel), s=42, color=color, edgecolor="black", zorder=3, label=f"Pareto, {n} toe(s)")
+        if two:
+            line = sorted(xy(p.evaluation, p.trial) for p in points)
+            ax.plot(*zip(*line), color="black", lw=0.8, zorder=2.5, drawstyle="steps-post")
+    everything = np.array(feasible + [xy(p.evaluation, p.trial) for p in points])
+    if everything.size and np.all(everything > 0):  # impulses span decades: log axes then
+        low, high = everything.min(axis=0), everything.max(axis=0)
+        if two and high[0] > 20 * low[0]:
+            ax.set_xscale("log")
+        if high[1] > 20 * low[1]:
+            ax.set_yscale("log")
+    unit = {"energy_after": "J", "base_angular_velocity": "rad/s"}
+    label = lambda o: f"{o.value} ({unit.get(o.value, 'N s')})"  # noqa: E731
+    ax.set_xlabel(label(objs[0]) if two else "trial")
+    ax.set_ylabel(label(objs[1]) if two else label(objs[0]))
+    ax.set_title(f"study '{config.name}': {len(points)} Pareto designs of {len(trials)} evaluated")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def format_front(config: StudyConfig, points: list[FrontPoint]) -> str:
+    """The front as a text table: shape, every objective, model file."""
+    header = f"{'trial':>6} {'shape':>7} " + " ".join(f"{c:>21}" for c in OBJECTIVE_COLUMNS) + "  model_file"
+    lines = [header]
+    for p in points:
+        o = p.evaluation.objectives
+        values = " ".join(f"{o.value(Objective(c)):>21.6g}" for c in OBJECTIVE_COLUMNS)
+        lines.append(f"{p.trial:>6} {p.evaluation.design.shape.label:>7} {values}  {p.model_file.as_posix()}")
+    minimised = ", ".join(o.value for o in config.objectives)
+    return f"study '{config.name}': {len(points)} Pareto designs (minimising {minimised})\n" + "\n".join(lines) + "\n"
+
+
+__all__ = [
+    "CSV_FILE",
+    "DESIGNS_DIR",
+    "JSON_FILE",
+    "PLOT_FILE",
+    "RUN_FILE",
+    "STORAGE_FILE",
+    "STUDY_FILE",
+    "FrontPoint",
+    "RunState",
+    "design_values",
+    "export_front",
+    "format_front",
+    "front_csv",
+    "front_json",
+    "pareto_front",
+    "plot_front",
+    "prepare_run",
+    "remove_own_files",
+    "storage_url",
+    "versions",
+    "write_run_file",
+    "write_study_file",
+]

@@ -1,0 +1,1 @@
+"""Searches over foot designs: inner (IPOPT per shape) and outer (Optuna)."""

@@ -1,0 +1,298 @@
+"""The outer search: Optuna over the foot's shape and values, every trial kept in a storage.
+
+One trial = one foot: Optuna suggests the shape (toe count, rods per toe and heel), every joint
+angle (within its limits) and a mass share per rod; the masses follow from the budget, the
+lengths from the linear program of :func:`optimizer.design_space.assign_lengths`. The trial
+records its design, all objectives and all constraint values as user attributes, and its
+constraint violations with ``trial.set_constraint`` (Optuna 5; TPE and NSGA-II read them).
+
+Determinism: the sampler is rebuilt before every trial with a seed made from the study's seed
+and the number of trials already finished, so that a study run sequentially, or interrupted and
+resumed, asks the same questions and gets the same answers.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import optuna
+from optuna.trial import FrozenTrial, TrialState
+
+from optimizer.design_space import (
+    ConstraintValues,
+    DesignEvaluation,
+    FootDesign,
+    FootLimits,
+    FootShape,
+    MassMode,
+    Objectives,
+    Segment,
+    ToeSymmetry,
+    design_from,
+    evaluate_design,
+)
+from optimizer.config.study_config import SamplerKind, SearchSettings, StudyConfig
+
+#: User attributes every recorded trial carries.
+ATTR_DESIGN, ATTR_OBJECTIVES, ATTR_CONSTRAINTS, ATTR_METHOD = "design", "objectives", "constraints", "method"
+#: Set on a trial found RUNNING when a study resumes (its process was killed).
+ATTR_INTERRUPTED = "interrupted"
+
+
+class TrialFailed(Exception):
+    """The impact solve of a trial's design failed numerically: the trial is recorded FAIL."""
+
+
+# --------------------------------------------------------------------------------------------
+# Records: designs and results as plain data in the storage
+
+
+def design_record(design: FootDesign) -> dict[str, Any]:
+    """The design as JSON-able data: ``{"heel": [[L, m, angle], ...], "toes": [[[...]]]}``."""
+
+    def chain(c: tuple[Segment, ...]) -> list[list[float]]:
+        return [[float(s.length), float(s.mass), float(s.joint_angle)] for s in c]
+
+    return {"heel": chain(design.heel), "toes": [chain(t) for t in design.toes]}
+
+
+def design_from_record(record: dict[str, Any]) -> FootDesign:
+    """Inverse of :func:`design_record`."""
+
+    def chain(c: list[list[float]]) -> tuple[Segment, ...]:
+        return tuple(Segment(float(L), float(m), float(a)) for L, m, a in c)
+
+    return FootDesign(heel=chain(record["heel"]), toes=tuple(chain(t) for t in record["toes"]))
+
+
+@dataclass(frozen=True)
+class RecordedTrial:
+    """A finished trial as read back from the storage.
+
+    Attributes:
+        number: Optuna's trial number.
+        method: ``outer`` or ``inner``.
+        evaluation: the design, its objectives and its constraint values.
+    """
+
+    number: int
+    method: str
+    evaluation: DesignEvaluation
+
+
+def read_trial(trial: FrozenTrial) -> RecordedTrial | None:
+    """The recorded evaluation of a COMPLETE trial (None for other states or foreign trials)."""
+    attrs = trial.user_attrs
+    if trial.state is not TrialState.COMPLETE or ATTR_DESIGN not in attrs:
+        return None
+    objectives = Objectives(**attrs[ATTR_OBJECTIVES])
+    constraints = ConstraintValues(**attrs[ATTR_CONSTRAINTS])
+    evaluation = DesignEvaluation(design_from_record(attrs[ATTR_DESIGN]), objectives, constraints)
+    return RecordedTrial(trial.number, str(attrs.get(ATTR_METHOD, "outer")), evaluation)
+
+
+def record_attrs(evaluation: DesignEvaluation, method: str) -> dict[str, Any]:
+    """User attributes of a trial that evaluated ``evaluation``."""
+    assert evaluation.objectives is not None
+    return {
+        ATTR_METHOD: method,
+        ATTR_DESIGN: design_record(evaluation.design),
+        ATTR_OBJECTIVES: {k: float(v) for k, v in vars(evaluation.objectives).items()},
+        ATTR_CONSTRAINTS: dict(evaluation.constraints.items()),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# From a trial's suggestions to a design
+
+
+def suggest_shape(trial: optuna.Trial, config: StudyConfig) -> FootShape:
+    sp = config.space
+    return FootShape(
+        n_toes=trial.suggest_int("toes", *sp.toes),
+        toe_segments=trial.suggest_int("toe_segments", *sp.toe_segments),
+        heel_segments=trial.suggest_int("heel_segments", *sp.heel_segments),
+    )
+
+
+def masses_from_shares(
+    shape: FootShape, shares: tuple[tuple[float, ...], ...], limits: FootLimits, used: float
+) -> tuple[tuple[float, ...], ...]:
+    """Rod masses from non-negative shares (per chain, heel first): each rod gets the minimum
+    link mass plus its share of what the foot mass ``used`` leaves; budget and minimum hold by
+    construction (equal shares when every share is 0)."""
+    n = shape.n_links
+    free = used - n * limits.min_link_mass
+    total = sum(sum(c) for c in shares)
+    if total <= 0:
+        return tuple(tuple(used / n for _ in c) for c in shares)
+    return tuple(tuple(limits.min_link_mass + free * w / total for w in c) for c in shares)
+
+
+def suggest_design(trial: optuna.Trial, config: StudyConfig) -> FootDesign:
+    """The foot a trial's suggestions make (see the module docstring)."""
+    shape = suggest_shape(trial, config)
+    limits = config.limits
+    identical = config.space.toe_symmetry is ToeSymmetry.IDENTICAL
+    chain_limits = limits.joint_limits(shape)
+
+    def chain(prefix: str, k: int, bounds: tuple[tuple[float, float], ...]) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        angles = tuple(trial.suggest_float(f"{prefix}.joint_angle[{j}]", *bounds[j]) for j in range(k))
+        shares = tuple(trial.suggest_float(f"{prefix}.mass_share[{j}]", 0.0, 1.0) for j in range(k))
+        return angles, shares
+
+    heel = chain("heel", shape.heel_segments, chain_limits[0])
+    if identical:
+        toe = chain("toe", shape.toe_segments, chain_limits[1])
+        toes = [toe] * shape.n_toes
+    else:
+        toes = [chain(f"toe{i + 1}", shape.toe_segments, chain_limits[1 + i]) for i in range(shape.n_toes)]
+    angles = (heel[0], *(t[0] for t in toes))
+    shares = (heel[1], *(t[1] for t in toes))
+    n_min = shape.n_links * limits.min_link_mass
+    if limits.mass_mode is MassMode.AT_MOST:
+        used = n_min + trial.suggest_float("foot_mass_fraction", 0.0, 1.0) * max(limits.foot_mass - n_min, 0.0)
+    else:
+        used = limits.foot_mass
+    masses = masses_from_shares(shape, shares, limits, used)
+    return design_from(config.leg, angles, masses, limits)
+
+
+def objective_values(config: StudyConfig, objectives: Objectives) -> list[float]:
+    return [objectives.value(o) for o in config.objectives]
+
+
+# --------------------------------------------------------------------------------------------
+# Studies
+
+
+def make_sampler(search: SearchSettings, seed: int) -> optuna.samplers.BaseSampler:
+    """A fresh sampler: TPE (Optuna's multi-objective default) or NSGA-II."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        if search.sampler is SamplerKind.NSGA2:
+            return optuna.samplers.NSGAIISampler(population_size=search.population, seed=seed)
+        return optuna.samplers.TPESampler(
+            n_startup_trials=search.startup_trials, seed=seed, multivariate=True, group=True, constant_liar=False
+        )
+
+
+def trial_seed(seed: int, finished: int) -> int:
+    """The sampler's seed for the trial after ``finished`` finished trials."""
+    return (seed * 1_000_003 + finished) % (2**32)
+
+
+def open_study(config: StudyConfig, storage: str | optuna.storages.BaseStorage) -> optuna.Study:
+    """Create the study in ``storage``, or load it when it is there (same name)."""
+    return optuna.create_study(
+        storage=storage,
+        study_name=config.name,
+        directions=["minimize"] * len(config.objectives),
+        sampler=make_sampler(config.search, config.seed),
+        load_if_exists=True,
+    )
+
+
+def mark_interrupted(study: optuna.Study) -> int:
+    """Mark the trials left RUNNING by a killed process FAIL (``interrupted``); returns how
+    many. Only for a study that one process runs at a time."""
+    n = 0
+    storage = study._storage  # noqa: SLF001 (Optuna has no public way to fail a stale trial)
+    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        storage.set_trial_user_attr(t._trial_id, ATTR_INTERRUPTED, True)  # noqa: SLF001
+        storage.set_trial_state_values(t._trial_id, TrialState.FAIL)  # noqa: SLF001
+        n += 1
+    return n
+
+
+def finished_trials(study: optuna.Study) -> int:
+    """Trials that count toward the target: complete, or failed by the numerics (not the ones
+    an interruption left behind)."""
+    trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.FAIL))
+    return sum(1 for t in trials if not t.user_attrs.get(ATTR_INTERRUPTED))
+
+
+def run_trial(study: optuna.Study, config: StudyConfig) -> FrozenTrial:
+    """Ask for one trial, evaluate its design, tell the result."""
+    study.sampler = make_sampler(config.search, trial_seed(config.seed, finished_trials(study)))
+    trial = study.ask()
+    try:
+        design = suggest_design(trial, config)
+        evaluation = evaluate_design(config.leg, design, config.scene, config.limits)
+        if evaluation.objectives is None:
+            raise TrialFailed("numerical failure")
+    except TrialFailed:
+        return study.tell(trial, state=TrialState.FAIL)
+    except BaseException:
+        study._storage.set_trial_user_attr(trial._trial_id, ATTR_INTERRUPTED, True)  # noqa: SLF001
+        study.tell(trial, state=TrialState.FAIL)
+        raise
+    for key, value in record_attrs(evaluation, "outer").items():
+        trial.set_user_attr(key, value)
+    for name, violation in evaluation.constraints.violations():
+        trial.set_constraint(name, violation)
+    return study.tell(trial, objective_values(config, evaluation.objectives))
+
+
+def run_outer(
+    study: optuna.Study,
+    config: StudyConfig,
+    trials: int,
+    progress: Callable[[int, int], None] | None = None,
+) -> int:
+    """Run trials until ``trials`` have finished (resuming counts what is there).
+
+    Args:
+        study: from :func:`open_study`.
+        config: the study.
+        trials: target number of finished trials.
+        progress: called as ``progress(done, target)`` after each trial.
+
+    Returns:
+        The number of trials run now.
+    """
+    mark_interrupted(study)
+    done = finished_trials(study)
+    ran = 0
+    while done < trials:
+        run_trial(study, config)
+        done, ran = done + 1, ran + 1
+        if progress is not None:
+            progress(done, trials)
+    return ran
+
+
+def recorded_trials(study: optuna.Study) -> Iterator[RecordedTrial]:
+    """Every complete trial with a recorded design, in trial order."""
+    for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
+        r = read_trial(t)
+        if r is not None:
+            yield r
+
+
+def is_finite_values(values: list[float]) -> bool:
+    return all(math.isfinite(v) for v in values)
+
+
+__all__ = [
+    "RecordedTrial",
+    "TrialFailed",
+    "design_from_record",
+    "design_record",
+    "finished_trials",
+    "make_sampler",
+    "mark_interrupted",
+    "masses_from_shares",
+    "open_study",
+    "read_trial",
+    "record_attrs",
+    "recorded_trials",
+    "run_outer",
+    "run_trial",
+    "suggest_design",
+    "trial_seed",
+]

@@ -1,0 +1,297 @@
+"""The same tree, terrain and compliant contacts built in MuJoCo (an independent simulator), for
+the agreement tests and the fidelity study. Needs ``mujoco`` (a test dependency), imported lazily.
+
+Conventions. MuJoCo's world is ours: x forward, y up, rotations about z. The base body sits at the
+world origin with slide-x, slide-y and hinge-z joints, so ``qvel`` of the base is our base
+velocity (origin velocity in the world frame, angular velocity); each other body sits at
+``at * parent length`` on its parent's x axis with a hinge about z (or welded at its angle for a
+fixed joint), with the rod's mass, centre of mass and inertia set by ``<inertial>`` (geoms carry
+no mass). Each contact point is the centre of a small massless sphere (radius ``radius``); the
+terrain (a plane, or one box per segment) is lowered by that radius along its normal, so that
+MuJoCo's contact distance is our signed gap. Contacts are frictionless (``condim=1``).
+
+Contact softness. MuJoCo's contact is a soft constraint: with direct parameters
+``solref = (-k, -b)`` and a constant impedance ``solimp = (d, d, ...)`` each contact's gap follows
+g'' = -k g - b g' while it pushes (k in 1/s^2: mass-normalised), and the force is released, not
+reversed, when that would pull. This is :attr:`ContactLaw.CONSTRAINT`. For the
+:attr:`ContactLaw.PENALTY` law (force-level pads, k in N/m) each contact gets its own
+``solref = (-k A_ii, -c_i A_ii)``, with A_ii the inverse effective mass at touchdown: the same
+per-contact oscillator, exact for one contact in the stiff limit; with several contacts MuJoCo
+still couples them through its constraint-space solve, so the two laws differ by that coupling.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from impulse_core.timedomain.compliant import (
+    CompliantSettings,
+    ContactLaw,
+    compiled_step,
+    damping_ratio_for_restitution,
+    scene_ground,
+    touchdown_configuration,
+)
+from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.model.terrain import Terrain
+from impulse_core.model.tree import JointKind, Scene, Tree, design_vector
+
+#: Radius of the contact spheres (m); the terrain is offset by it, so it does not enter the gap.
+CONTACT_RADIUS = 1e-3
+#: Half thickness of the terrain boxes (m).
+BOX_HALF_THICKNESS = 0.5
+#: How far the flat ends of a terrain extend beyond its first and last breakpoints (m).
+FLAT_EXTENT = 20.0
+
+
+def _f(x: float) -> str:
+    return repr(float(x))
+
+
+def contact_parameters(
+    tree: Tree,
+    scene: Scene,
+    settings: CompliantSettings,
+    terrain: Terrain | None = None,
+    base_x: float | None = None,
+    effective_mass: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's direct (stiffness 1/s^2, damping 1/s) per contact matching ``settings``.
+    ``terrain`` and ``base_x`` override the scene's own.
+
+    For the penalty law, ``effective_mass`` (kg per contact; e.g. ``CompliantResult.
+    effective_mass``, each contact's at its own touchdown) turns N/m into 1/s^2; default: at the
+    first touchdown.
+    """
+    zeta = (
+        damping_ratio_for_restitution(scene.restitution) if settings.damping_ratio is None else settings.damping_ratio
+    )
+    n = len(tree.contacts)
+    if settings.law is ContactLaw.CONSTRAINT:
+        return np.full(n, settings.stiffness), np.full(n, 2.0 * zeta * math.sqrt(settings.stiffness))
+    if effective_mass is None:
+        terrain, base_x = scene_ground(scene, terrain, base_x)
+        topology = tree.topology()
+        q = touchdown_configuration(tree, terrain, base_x)
+        out = compiled_step(topology, terrain)(q, np.zeros(len(q)), design_vector(tree), 0.0)
+        effective_mass = 1.0 / np.diag(np.array(out[3]) @ np.array(out[4]))
+    a = 1.0 / np.asarray(effective_mass, dtype=float)
+    c = 2.0 * zeta * np.sqrt(settings.stiffness / a)
+    return settings.stiffness * a, c * a
+
+
+def _terrain_geoms(terrain: Terrain, radius: float, contact_attrs: str) -> list[str]:
+    if terrain.is_flat:
+        y = terrain.y[0] - radius
+        return [f'<geom name="ground" type="plane" size="0 0 1" pos="0 {_f(y)} 0" zaxis="0 1 0" {contact_attrs}/>']
+    pts = list(terrain.points)
+    pieces = [((pts[0][0] - FLAT_EXTENT, pts[0][1]), pts[0])]
+    pieces += list(zip(pts[:-1], pts[1:]))
+    pieces += [(pts[-1], (pts[-1][0] + FLAT_EXTENT, pts[-1][1]))]
+    geoms = []
+    for i, ((x0, y0), (x1, y1)) in enumerate(pieces):
+        dx, dy = x1 - x0, y1 - y0
+        length = math.hypot(dx, dy)
+        nx, ny = -dy / length, dx / length
+        depth = BOX_HALF_THICKNESS + radius
+        cx, cy = 0.5 * (x0 + x1) - nx * depth, 0.5 * (y0 + y1) - ny * depth
+        geoms.append(
+            f'<geom name="ground{i}" type="box" size="{_f(0.5 * length)} {_f(BOX_HALF_THICKNESS)} 1" '
+            f'pos="{_f(cx)} {_f(cy)} 0" axisangle="0 0 1 {_f(math.atan2(dy, dx))}" {contact_attrs}/>'
+        )
+    return geoms
+
+
+def build_mjcf(
+    tree: Tree,
+    terrain: Terrain,
+    timestep: float,
+    stiffness: np.ndarray,
+    damping: np.ndarray,
+    gravity: float = 0.0,
+    impedance: float = 0.9999,
+    radius: float = CONTACT_RADIUS,
+) -> str:
+    """The MJCF text of ``tree`` over ``terrain`` with per-contact direct contact parameters."""
+    solimp = f"{_f(impedance)} {_f(impedance)} 0.001 0.5 2"
+    ground = 'contype="0" conaffinity="1" condim="1" solmix="0"'
+    lines = [
+        '<mujoco model="footopt">',
+        '  <compiler angle="radian"/>',
+        f'  <option timestep="{_f(timestep)}" gravity="0 {_f(-gravity)} 0" integrator="Euler" solver="Newton" '
+        'tolerance="1e-14" iterations="200" ls_tolerance="1e-12" cone="pyramidal" jacobian="dense"/>',
+        "  <worldbody>",
+        *[f"    {g}" for g in _terrain_geoms(terrain, radius, ground)],
+    ]
+    children: dict[int, list[int]] = {}
+    for i, b in enumerate(tree.bodies):
+        if b.parent is not None:
+            children.setdefault(b.parent, []).append(i)
+    contact_index = {c: k for k, c in enumerate(tree.contacts)}
+
+    def body(i: int, indent: str) -> list[str]:
+        b = tree.bodies[i]
+        if b.parent is None:
+            head = f'{indent}<body name="{b.name}" pos="0 0 0">'
+            joints = [
+                f'{indent}  <joint name="base_x" type="slide" axis="1 0 0"/>',
+                f'{indent}  <joint name="base_y" type="slide" axis="0 1 0"/>',
+                f'{indent}  <joint name="base_rz" type="hinge" axis="0 0 1"/>',
+            ]
+        else:
+            at = b.at * tree.bodies[b.parent].length
+            if b.joint is JointKind.REVOLUTE:
+                head = f'{indent}<body name="{b.name}" pos="{_f(at)} 0 0">'
+                joints = [f'{indent}  <joint name="{b.name}" type="hinge" axis="0 0 1"/>']
+            else:
+                head = f'{indent}<body name="{b.name}" pos="{_f(at)} 0 0" axisangle="0 0 1 {_f(b.angle)}">'
+                joints = []
+        inertia = max(b.inertia, 1e-12)
+        out = [
+            head,
+            *joints,
+            f'{indent}  <inertial pos="{_f(b.com * b.length)} 0 0" mass="{_f(b.mass)}" '
+            f'diaginertia="{_f(inertia)} {_f(inertia)} {_f(inertia)}"/>',
+        ]
+        for k, c in enumerate(b.contacts):
+            j = contact_index[(i, k)]
+            out.append(
+                f'{indent}  <geom name="contact{j}" type="sphere" size="{_f(radius)}" pos="{_f(c * b.length)} 0 0" '
+                f'contype="1" conaffinity="0" condim="1" solmix="1" mass="0" '
+                f'solref="{_f(-stiffness[j])} {_f(-damping[j])}" solimp="{solimp}"/>'
+            )
+        for child in children.get(i, []):
+            out += body(child, indent + "  ")
+        out.append(f"{indent}</body>")
+        return out
+
+    lines += body(0, "    ")
+    lines += ["  </worldbody>", "</mujoco>"]
+    return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class MujocoDrop:
+    """The same landing simulated by MuJoCo. World frame; N s, m/s, s. Contacts in declaration order.
+
+    Attributes:
+        external: time integral of each contact's normal force.
+        external_vector: the same as planar vectors on the tree (n_c x 2).
+        internal: joint force impulses (n_joints x 3, z = 0): MuJoCo's own joint reaction forces
+            (``cfrc_int`` from ``mj_rnePostConstraint``: the force of the parent on each body)
+            integrated over the steps in which a contact pushes (as the compliant rung).
+        internal_magnitude: |internal| per joint.
+        touchdown_time: start of the first step in which each contact had a constraint (NaN: never).
+        v_plus: generalized velocity at the end, in our order (base vx, vy, omega, joints).
+        loaded_at_end: a contact carries force in the final state (the impact was not over).
+        timestep, n_steps: MuJoCo's integration.
+        mjcf: the model text.
+    """
+
+    external: np.ndarray
+    external_vector: np.ndarray
+    internal: np.ndarray
+    internal_magnitude: np.ndarray
+    touchdown_time: np.ndarray
+    v_plus: np.ndarray
+    loaded_at_end: bool
+    timestep: float
+    n_steps: int
+    mjcf: str
+
+
+def drop(
+    tree: Tree,
+    scene: Scene,
+    settings: CompliantSettings,
+    n_steps: int,
+    timestep: float,
+    terrain: Terrain | None = None,
+    base_x: float | None = None,
+    v_minus: np.ndarray | None = None,
+    effective_mass: np.ndarray | None = None,
+) -> MujocoDrop:
+    """Drop ``tree`` in MuJoCo from the touchdown configuration for ``n_steps`` steps of
+    ``timestep``, integrating each contact's force (``mj_contactForce``). Pass the compliant
+    rung's step and ``round(duration / timestep)`` steps, so that both integrate the same interval
+    with the same semi-implicit Euler step; for a step-by-step match run the rung with
+    ``flight_step=None`` (MuJoCo takes its contact step in free flight too).
+    ``effective_mass``: see :func:`contact_parameters` (penalty law only). ``terrain`` and
+    ``base_x`` override the scene's own."""
+    import mujoco  # lazy: a test and study dependency only
+
+    terrain, base_x = scene_ground(scene, terrain, base_x)
+
+    stiffness, damping = contact_parameters(tree, scene, settings, terrain, base_x, effective_mass)
+    text = build_mjcf(tree, terrain, timestep, stiffness, damping, settings.gravity, settings.impedance)
+    m = mujoco.MjModel.from_xml_string(text)
+    d = mujoco.MjData(m)
+    topology = tree.topology()
+    layout = dof_layout(topology)
+    q0 = touchdown_configuration(tree, terrain, base_x)
+    if v_minus is None:
+        v0 = np.zeros(layout.nv)
+        v0[1] = -scene.speed
+    else:
+        v0 = np.asarray(v_minus, dtype=float)
+    # our DOF k -> MuJoCo joint address
+    names = ["base_x", "base_y", "base_rz"] + [tree.bodies[layout.dof_body[k]].name for k in range(3, layout.nv)]
+    qadr = np.array([m.joint(name).qposadr[0] for name in names])
+    vadr = np.array([m.joint(name).dofadr[0] for name in names])
+    d.qpos[qadr] = q0
+    d.qvel[vadr] = v0
+    geom_contact = {m.geom(f"contact{j}").id: j for j in range(len(tree.contacts))}
+    body_ids = [m.body(b.name).id for b in tree.bodies]
+
+    nc = len(tree.contacts)
+    impulse = np.zeros(nc)
+    impulse_vec = np.zeros((nc, 2))
+    joint_impulse = np.zeros((tree.n_bodies, 2))
+    touchdown = np.full(nc, np.nan)
+    f6 = np.zeros(6)
+    for step in range(n_steps):
+        mujoco.mj_forward(m, d)  # contacts, constraint forces and accelerations at this state
+        mujoco.mj_rnePostConstraint(m, d)  # cfrc_int: MuJoCo's own joint reaction forces (RNE)
+        F = np.zeros((nc, 2))
+        for i in range(d.ncon):
+            con = d.contact[i]
+            if con.geom1 in geom_contact:
+                j, sign = geom_contact[con.geom1], -1.0
+            elif con.geom2 in geom_contact:
+                j, sign = geom_contact[con.geom2], 1.0
+            else:
+                continue
+            if math.isnan(touchdown[j]):
+                touchdown[j] = step * timestep
+            mujoco.mj_contactForce(m, d, i, f6)
+            impulse[j] += timestep * f6[0]
+            F[j] += sign * f6[0] * np.array(con.frame[:2])
+        impulse_vec += timestep * F
+        if np.any(F != 0.0):  # the force the parent exerts on each body (world axes)
+            joint_impulse += timestep * np.array([d.cfrc_int[i, 3:5] for i in body_ids])
+        mujoco.mj_Euler(m, d)  # semi-implicit Euler with these accelerations (= mj_step)
+    mujoco.mj_forward(m, d)
+    loaded = False
+    for i in range(d.ncon):
+        mujoco.mj_contactForce(m, d, i, f6)
+        loaded = loaded or f6[0] > 0.0
+    joint = joint_impulse[1:]
+    internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
+    return MujocoDrop(
+        external=impulse,
+        external_vector=impulse_vec,
+        internal=internal,
+        internal_magnitude=np.linalg.norm(internal, axis=1),
+        touchdown_time=touchdown,
+        v_plus=np.array(d.qvel[vadr]),
+        loaded_at_end=loaded,
+        timestep=timestep,
+        n_steps=n_steps,
+        mjcf=text,
+    )
+
+
+__all__ = ["CONTACT_RADIUS", "MujocoDrop", "build_mjcf", "contact_parameters", "drop"]

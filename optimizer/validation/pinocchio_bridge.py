@@ -1,0 +1,117 @@
+"""The same tree built in Pinocchio (an independent rigid-body implementation), for the agreement
+tests and as the benchmark's peer. Needs `pin` (a test dependency)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from impulse_core.model.tree import JointKind, Tree
+
+
+@dataclass(frozen=True)
+class PinocchioTree:
+    model: pin.Model
+    q: np.ndarray
+    contact_frames: tuple[int, ...]
+    T: np.ndarray  # v_ours = T v_pinocchio
+
+    def to_pin_velocity(self, v: np.ndarray) -> np.ndarray:
+        return np.linalg.solve(self.T, v)
+
+    def from_pin_velocity(self, v: np.ndarray) -> np.ndarray:
+        return self.T @ v
+
+    def normal_jacobian(self, active: tuple[int, ...]) -> np.ndarray:
+        data = self.model.createData()
+        pin.computeJointJacobians(self.model, data, self.q)
+        pin.updateFramePlacements(self.model, data)
+        rows = []
+        for c in active:
+            J = pin.getFrameJacobian(self.model, data, self.contact_frames[c], pin.LOCAL_WORLD_ALIGNED)
+            rows.append(J[1])
+        return np.array(rows).reshape(len(active), self.model.nv)
+
+    def mass_matrix(self) -> np.ndarray:
+        data = self.model.createData()
+        M = pin.crba(self.model, data, self.q)
+        return np.triu(M) + np.triu(M, 1).T
+
+    def mass_matrix_ours(self) -> np.ndarray:
+        """Pinocchio's mass matrix in our coordinates: M_ours = T^-T M_pin T^-1."""
+        Ti = np.linalg.inv(self.T)
+        return Ti.T @ self.mass_matrix() @ Ti
+
+    def impulse(self, v_minus: np.ndarray, restitution: float, active: tuple[int, ...]):
+        """(v_plus in our convention, normal impulses) from pinocchio.impulseDynamics."""
+        data = self.model.createData()
+        J = self.normal_jacobian(active)
+        v_pin = pin.impulseDynamics(self.model, data, self.q, self.to_pin_velocity(v_minus), J, restitution, 0.0)
+        return self.from_pin_velocity(np.array(v_pin)), np.array(data.impulse_c).copy()
+
+
+def _depth_first(tree: Tree) -> list[int]:
+    """Pinocchio wants each subtree's DOFs contiguous: add bodies depth first."""
+    children: dict[int, list[int]] = {}
+    for i, b in enumerate(tree.bodies):
+        if b.parent is not None:
+            children.setdefault(b.parent, []).append(i)
+    order, stack = [], [0]
+    while stack:
+        i = stack.pop()
+        order.append(i)
+        stack.extend(reversed(children.get(i, [])))
+    return order
+
+
+def build(tree: Tree) -> PinocchioTree:
+    """Rods as Pinocchio bodies: a planar base joint, revolute-z joints, fixed joints welded."""
+    model = pin.Model()
+    n = tree.n_bodies
+    joint_of: list[int] = [0] * n
+    placement_in_joint: list[pin.SE3] = [pin.SE3.Identity()] * n
+    q_of: dict[int, float] = {}
+    for i in _depth_first(tree):
+        b = tree.bodies[i]
+        if b.parent is None:
+            joint_of[i] = model.addJoint(0, pin.JointModelPlanar(), pin.SE3.Identity(), "base")
+        else:
+            parent = tree.bodies[b.parent]
+            offset = placement_in_joint[b.parent] * pin.SE3(np.eye(3), np.array([b.at * parent.length, 0.0, 0.0]))
+            if b.joint is JointKind.REVOLUTE:
+                joint_of[i] = model.addJoint(joint_of[b.parent], pin.JointModelRZ(), offset, b.name)
+                q_of[i] = b.angle
+            else:
+                joint_of[i] = joint_of[b.parent]
+                placement_in_joint[i] = offset * pin.SE3(pin.utils.rotate("z", b.angle), np.zeros(3))
+        I = b.inertia
+        inertia = pin.Inertia(b.mass, np.array([b.com * b.length, 0.0, 0.0]), np.diag([0.0, I, I]))
+        model.appendBodyToJoint(joint_of[i], inertia, placement_in_joint[i])
+    frames = []
+    for i, b in enumerate(tree.bodies):
+        for k, c in enumerate(b.contacts):
+            placement = placement_in_joint[i] * pin.SE3(np.eye(3), np.array([c * b.length, 0.0, 0.0]))
+            frame = pin.Frame(f"{b.name}_c{k}", joint_of[i], 0, placement, pin.FrameType.OP_FRAME)
+            frames.append(model.addFrame(frame, False))
+    angle = tree.bodies[0].angle
+    q = np.zeros(model.nq)
+    q[:4] = [0.0, 0.0, np.cos(angle), np.sin(angle)]
+    # our DOFs: base (3), then revolute bodies in file order
+    revolute = [i for i in range(1, n) if tree.bodies[i].joint is JointKind.REVOLUTE]
+    T = velocity_map(angle, model.nv)
+    P = np.zeros((model.nv, model.nv))
+    P[:3, :3] = np.eye(3)
+    for k, i in enumerate(revolute):
+        jm = model.joints[joint_of[i]]
+        q[jm.idx_q] = q_of[i]
+        P[3 + k, jm.idx_v] = 1.0
+    return PinocchioTree(model, q, tuple(frames), P @ T)
+
+def velocity_map(base_angle: float, nv: int) -> np.ndarray:
+    """T with v_ours = T v_pinocchio (the base's linear velocity rotated to the world frame)."""
+    T = np.eye(nv)
+    c, s = np.cos(base_angle), np.sin(base_angle)
+    T[:2, :2] = [[c, -s], [s, c]]
+    return T
