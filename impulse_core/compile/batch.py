@@ -43,6 +43,8 @@ class BatchResult:
         internal_magnitude: force impulse through each joint, one per non-base body (n x joints).
         external_norm, internal_norm: their Euclidean norms (n).
         newton: True where Newton's law is also :func:`impulse_core.evaluate.evaluate`'s answer.
+        failed: True where an output is not finite (the design's impact could not be resolved in
+            float64); such rows are never ``newton``.
         d_external_norm, d_internal_norm: gradients w.r.t. the design vector (n x n_values),
             with ``gradient=True`` only.
     """
@@ -52,6 +54,7 @@ class BatchResult:
     external_norm: np.ndarray
     internal_norm: np.ndarray
     newton: np.ndarray
+    failed: np.ndarray
     d_external_norm: np.ndarray | None = None
     d_internal_norm: np.ndarray | None = None
 
@@ -99,7 +102,8 @@ class BatchEvaluator:
         V = speeds[:, None] * approach_velocity(self.topology, 1.0, self.space)[None, :]
         out = dict(zip(LEAN_OUTPUTS, self.run_impact(P, V, E[:, None]), strict=True))
         external = out["external"]
-        newton = np.all(np.isfinite(external) & (external >= 0), axis=1)
+        failed = ~np.logical_and.reduce([np.isfinite(o).all(axis=1) for o in out.values()])
+        newton = ~failed & np.all(external >= 0, axis=1)
         newton &= np.min(out["delassus_pivots"], axis=1, initial=1.0) >= PIVOT_TOL
         grads = {}
         if self.run_gradient is not None:
@@ -110,6 +114,7 @@ class BatchEvaluator:
             external_norm=out["external_norm"][:, 0],
             internal_norm=out["internal_norm"][:, 0],
             newton=newton,
+            failed=failed,
             d_external_norm=grads.get("d_external_norm"),
             d_internal_norm=grads.get("d_internal_norm"),
         )
@@ -122,6 +127,7 @@ def batch_evaluator(
     gradient: bool = False,
     parallel: bool = True,
     space: Space = PLANAR,
+    fallback: bool = False,
 ) -> BatchEvaluator:
     """Build (once per topology; compiled code is cached in ``cache_dir``) a batch evaluator.
 
@@ -133,16 +139,19 @@ def batch_evaluator(
             :func:`impulse_core.impact.delassus.norms_gradient_function`).
         parallel: split the compiled loops over the cores (OpenMP; same results bit for bit).
         space: the kinematic space (planar).
+        fallback: on a missing or failing C compiler, warn and run on the virtual machine
+            instead of raising ``CompileError``.
     """
     lean = lean_impact_function(topology, space)
-    impact, path = _runner(lean, cache_dir, parallel)
-    grad = _runner(norms_gradient_function(topology, space), cache_dir, parallel)[0] if gradient else None
+    impact, path = _runner(lean, cache_dir, parallel, fallback)
+    grad = _runner(norms_gradient_function(topology, space), cache_dir, parallel, fallback)[0] if gradient else None
     return BatchEvaluator(topology, space, path, impact, grad)
 
 
-def _runner(f: ca.Function, cache_dir: str | Path | None, parallel: bool) -> tuple[_Runner, str]:
+def _runner(f: ca.Function, cache_dir: str | Path | None, parallel: bool, fallback: bool) -> tuple[_Runner, str]:
     """The fastest batch path of ``f`` and its name."""
-    compiled = compile_function(f, None if cache_dir is None else Path(cache_dir).expanduser())
+    directory = None if cache_dir is None else Path(cache_dir).expanduser()
+    compiled = compile_function(f, directory, fallback=fallback)
     if compiled.backend is Backend.COMPILED:
         lanes = simd_lanes(compiled, f)
         kernel = batch_kernel(compiled, f, parallel=parallel, simd=lanes > 0)

@@ -1,23 +1,23 @@
-"""Compile a CasADi function to machine code once, cache it on disk, fall back to CasADi's
-virtual machine where no C compiler is available.
+"""Compile a CasADi function to machine code once and cache it on disk.
 
 Beside CasADi's own C (one design per call) each library holds two batch drivers: a C loop over
 designs (:func:`batch_driver`), and a SIMD loop (:func:`simd_driver`) that runs the same SX
 instructions on several designs at once, one per vector lane, written by this module from the
 function's instruction list.
 
-The cache key hashes the function's serialized graph (which fixes the topology), the CasADi
-version, the compiler command and the instruction-set flags, so a stale library is never loaded.
+Libraries live in the trusted cache of :mod:`impulse_core.compile.cache`: keyed by a hash of
+the generated source, the compiler's path and version and the flags, and loaded only if the entry
+matches its key and its files' hashes. A missing or failing compiler is a ``CompileError``
+(or, on request, a visible warning and the virtual machine).
 """
 
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import platform
 import shutil
-import subprocess
 import tempfile
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
@@ -25,6 +25,8 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
+
+from impulse_core.compile.cache import CompileError, compiler_identity, entry_key, lookup, run_compiler, store
 
 #: Compiler flags; -O3 without -ffast-math keeps IEEE semantics (results equal the VM's to rounding).
 #: -fno-math-errno only drops errno updates, so sqrt becomes one instruction instead of a call
@@ -52,8 +54,8 @@ class Compiled:
     compiled_now: bool
 
 
-#: Version of what this module adds to CasADi's generated code (the batch drivers); in the cache key.
-GENERATOR_VERSION = "batch-driver-4-simd"
+#: File name of the compiled library inside its cache entry.
+LIBRARY = "library.so"
 #: Designs per SIMD step: one 256-bit vector of doubles (AVX2; two SSE2 registers without it).
 SIMD_LANES = 4
 #: Tried first, for the driver's parallel loop; the build retries without it if the compiler lacks it.
@@ -298,65 +300,69 @@ def find_compiler() -> str | None:
     return None
 
 
-def cache_key(f: ca.Function, compiler: str) -> str:
-    """A hash of the function graph, the CasADi version, the compiler command and the
-    instruction-set flags."""
-    h = hashlib.sha256()
-    h.update(f.serialize().encode())
-    h.update(ca.__version__.encode())
-    h.update(" ".join((compiler, *CFLAGS, *simd_flags(), OPENMP_FLAG, GENERATOR_VERSION, str(SIMD_LANES))).encode())
-    return h.hexdigest()[:20]
-
-
-def compile_function(f: ca.Function, cache_dir: Path | None, compiler: str | None = None) -> Compiled:
-    """``f`` as compiled C loaded from (or built into) ``cache_dir``; the VM function when
-    ``cache_dir`` is None, no compiler exists or the build fails.
+def compile_function(
+    f: ca.Function, cache_dir: Path | None, compiler: str | None = None, *, fallback: bool = False
+) -> Compiled:
+    """``f`` as compiled C, loaded from (or built into) the trusted cache in ``cache_dir``
+    (:mod:`impulse_core.compile.cache`: keyed by the generated source, the compiler and its flags).
 
     Args:
         f: the function (SX graphs generate the leanest code).
-        cache_dir: where compiled libraries live (created if missing); None: do not compile.
+        cache_dir: where compiled libraries live (created if missing); None: do not compile, run
+            on CasADi's virtual machine.
         compiler: the C compiler to use (default: :func:`find_compiler`).
+        fallback: on a missing or failing compiler, warn (``RuntimeWarning``) and return the
+            virtual-machine function instead of raising.
+
+    Raises:
+        CompileError: no C compiler, or the build failed (unless ``fallback``).
     """
-    compiler = compiler or find_compiler()
-    if cache_dir is None or compiler is None:
+    if cache_dir is None:
         return Compiled(f, Backend.VIRTUAL_MACHINE, None, False)
-    cache_dir = Path(cache_dir)
-    name = f"{f.name()}_{cache_key(f, compiler)}"
-    library = cache_dir / f"{name}.so"
-    compiled_now = False
-    if not library.exists():
-        try:
-            cache_dir.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=cache_dir) as tmp:
-                generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-                generator.add(f)
-                source = Path(generator.generate(f"{tmp}/"))
-                simd = simd_driver(f) or f"CASADI_SYMBOL_EXPORT int {f.name()}_simd_lanes(void) {{ return 0; }}\n"
-                with source.open("a") as out:
-                    out.write(batch_driver(f) + simd)
-                partial = Path(tmp) / f"{name}.so"
-                _build(compiler, source, partial)
-                partial.replace(library)  # atomic: a reader never sees half a library
-            compiled_now = True
-        except (OSError, subprocess.CalledProcessError):
-            return Compiled(f, Backend.VIRTUAL_MACHINE, None, False)
+    try:
+        return _compiled(f, Path(cache_dir), compiler or find_compiler())
+    except CompileError as exc:
+        if not fallback:
+            raise
+        warnings.warn(f"{exc}; {f.name()} runs on CasADi's virtual machine (slower)", RuntimeWarning, stacklevel=2)
+        return Compiled(f, Backend.VIRTUAL_MACHINE, None, False)
+
+
+def _compiled(f: ca.Function, cache_dir: Path, compiler: str | None) -> Compiled:
+    """The cached library of ``f``, built first if the cache has no entry matching its key."""
+    if compiler is None:
+        raise CompileError("no C compiler found (cc, gcc or clang): install one, or pass no cache directory")
+    source = generated_source(f)
+    arch = simd_flags()
+    key = entry_key(source, compiler_identity(compiler), *CFLAGS, *arch, OPENMP_FLAG)
+    folder = lookup(cache_dir, f.name(), key)
+    compiled_now = folder is None
+    if folder is None:
+        folder = store(cache_dir, f.name(), key, lambda work: _build(compiler, source, arch, work))
+    library = folder / LIBRARY
     return Compiled(ca.external(f.name(), str(library)), Backend.COMPILED, library, compiled_now)
 
 
-def _build(compiler: str, source: Path, library: Path) -> None:
-    """Compile ``source`` into the shared ``library``: with OpenMP and the SIMD flags, else
-    without OpenMP (the parallel loops then run serially), else with neither."""
-    arch = simd_flags()
-    attempts = [(*arch, OPENMP_FLAG), arch, ()]
-    for k, flags in enumerate(attempts):
-        try:
-            subprocess.run(
-                [compiler, *CFLAGS, *flags, str(source), "-o", str(library)], check=True, capture_output=True
-            )
-            return
-        except subprocess.CalledProcessError:
-            if k == len(attempts) - 1:
-                raise
+def generated_source(f: ca.Function) -> str:
+    """The C of one library: CasADi's code for ``f``, then the C loop and the SIMD loop over designs."""
+    with tempfile.TemporaryDirectory() as tmp:
+        generator = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
+        generator.add(f)
+        source = Path(generator.generate(f"{tmp}/")).read_text()
+    simd = simd_driver(f) or f"CASADI_SYMBOL_EXPORT int {f.name()}_simd_lanes(void) {{ return 0; }}\n"
+    return source + batch_driver(f) + simd
+
+
+def _build(compiler: str, source: str, arch: tuple[str, ...], work: Path) -> list[str]:
+    """Compile ``source`` into ``work``/LIBRARY: with OpenMP and the SIMD flags, else without
+    OpenMP (the parallel loops then run serially); returns the files to record."""
+    (work / "source.c").write_text(source)
+    command = [compiler, *CFLAGS, *arch, str(work / "source.c"), "-o", str(work / LIBRARY)]
+    try:
+        run_compiler([*command[:-3], OPENMP_FLAG, *command[-3:]])
+    except CompileError:
+        run_compiler(command)
+    return [LIBRARY, "source.c"]
 
 
 def batch_kernel(

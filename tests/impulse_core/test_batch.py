@@ -172,3 +172,26 @@ def test_value_bounds_are_what_validate_tree_enforces(name) -> None:
         except ModelError:
             batch_ok = False
         assert batch_ok == tree_ok, (name, value)
+
+
+def test_rows_that_are_not_finite_are_reported_and_never_newton() -> None:
+    """A row whose outputs are not finite (here injected into the runner's outputs) is flagged
+    ``failed`` and not ``newton``; the other rows are untouched."""
+    from dataclasses import replace
+
+    tree, P = _designs(0, rows=4)
+    fast = batch_evaluator(tree.topology(), None)
+    clean = fast(P, SCENE.speed, SCENE.restitution)
+
+    def poisoned(*inputs: np.ndarray) -> list[np.ndarray]:
+        outs = [o.copy() for o in fast.run_impact(*inputs)]
+        outs[0][1, 0] = np.nan  # one external impulse of row 1
+        outs[-1][0, 0] = np.inf  # and row 0's last output
+        return outs
+
+    out = replace(fast, run_impact=poisoned)(P, SCENE.speed, SCENE.restitution)
+    assert clean.newton[0]  # so the flag below is tested on a row that was newton
+    np.testing.assert_array_equal(out.failed, [True, True, False, False])
+    assert not out.newton[out.failed].any()
+    np.testing.assert_array_equal(out.newton[~out.failed], clean.newton[~out.failed])
+    assert not clean.failed.any()

@@ -7,9 +7,13 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from impulse_core.compile.cache import CompileError
 from impulse_core.compile.codegen import Backend, batch_kernel, compile_function, find_compiler, simd_driver, simd_lanes
 from impulse_core.evaluate import approach_velocity, compiled_model
 from impulse_core.model.tree import Body, Tree, design_vector
+
+
+needs_compiler_here = pytest.mark.skipif(find_compiler() is None, reason="no C compiler on this machine")
 
 
 @pytest.fixture(scope="module")
@@ -39,12 +43,49 @@ def test_compiled_equals_vm_and_is_cached(leg, tmp_path) -> None:
         )
 
 
-def test_falls_back_to_vm(leg, tmp_path) -> None:
+def test_no_cache_dir_runs_on_the_vm(leg) -> None:
     f, p, v = leg
     assert compile_function(f, None).backend is Backend.VIRTUAL_MACHINE
-    broken = compile_function(f, tmp_path, compiler="/nonexistent/cc")
+
+
+@pytest.mark.parametrize("compiler", ["/nonexistent/cc", "false"])
+def test_a_failing_compiler_is_an_error_or_on_request_a_warning_and_the_vm(leg, tmp_path, compiler) -> None:
+    f, p, v = leg
+    with pytest.raises(CompileError, match="compiler"):
+        compile_function(f, tmp_path, compiler=compiler)
+    with pytest.warns(RuntimeWarning, match="virtual machine"):
+        broken = compile_function(f, tmp_path, compiler=compiler, fallback=True)
     assert broken.backend is Backend.VIRTUAL_MACHINE
     np.testing.assert_array_equal(np.array(broken.function(p, v, 0.8)[0]), np.array(f(p, v, 0.8)[0]))
+
+
+@needs_compiler_here
+def test_a_tampered_or_foreign_library_is_never_loaded(leg, tmp_path) -> None:
+    """A library whose bytes changed, or a folder of the right name without our manifest, is
+    rebuilt, never loaded."""
+    f, p, v = leg
+    first = compile_function(f, tmp_path)
+    tampered = first.library.with_suffix(".tmp")  # a new file, not the one this process mapped
+    tampered.write_bytes(first.library.read_bytes() + b"\0")
+    tampered.replace(first.library)
+    again = compile_function(f, tmp_path)
+    assert again.compiled_now and again.library == first.library
+    (again.library.parent / "manifest.json").unlink()  # a foreign folder: no manifest of ours
+    third = compile_function(f, tmp_path)
+    assert third.compiled_now
+    np.testing.assert_allclose(np.array(third.function(p, v, 0.8)[0]), np.array(f(p, v, 0.8)[0]), rtol=1e-13)
+
+
+@needs_compiler_here
+def test_the_key_follows_the_generated_source(leg, tmp_path) -> None:
+    """Two functions of one name with different graphs get different entries; the same graph
+    the same entry."""
+    x = ca.SX.sym("x")
+    a = compile_function(ca.Function("same_name", [x], [2 * x]), tmp_path)
+    b = compile_function(ca.Function("same_name", [x], [3 * x]), tmp_path)
+    again = compile_function(ca.Function("same_name", [x], [2 * x]), tmp_path)
+    assert a.library != b.library and again.library == a.library and not again.compiled_now
+    assert float(b.function(1.0)) == 3.0 and float(again.function(1.0)) == 2.0
 
 
 @pytest.mark.skipif(find_compiler() is None, reason="no C compiler on this machine")

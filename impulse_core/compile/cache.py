@@ -1,0 +1,122 @@
+"""A compile cache that can be trusted: one folder per entry, loaded only if it matches its key.
+
+An entry is a folder ``<name>_<key[:20]>`` under the cache root holding the built files and a
+``manifest.json`` with the full key and the SHA-256 of every file, written last. The key hashes
+what defines the build (the generated source, the compiler's path and version, the flags), so a
+change to any of them makes a new entry, and nothing is versioned by hand. A folder whose manifest
+is missing, names another key, or whose files no longer hash to what was built (a library of a
+matching name dropped in by someone else, a half-copied file) is never loaded: it is rebuilt.
+Builds happen in a private temporary folder that is renamed into place, so two processes building
+the same entry at once never see each other's half-written files.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from impulse_core.errors import FootoptError
+
+MANIFEST = "manifest.json"
+
+
+class CompileError(FootoptError, RuntimeError):
+    """A C compiler is missing or failed; the message says which and how to run without it."""
+
+
+@functools.lru_cache(maxsize=None)
+def compiler_identity(compiler: str) -> str:
+    """The compiler's resolved path and the first line of ``--version`` (part of every key)."""
+    path = shutil.which(compiler) or compiler
+    try:
+        out = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=30, check=False)
+    except (OSError, subprocess.SubprocessError) as exc:
+        raise CompileError(f"C compiler {compiler!r} cannot be run: {exc}") from exc
+    lines = (out.stdout or out.stderr).splitlines()
+    return f"{Path(path).resolve()} {lines[0] if lines else ''}"
+
+
+def entry_key(*parts: str | bytes) -> str:
+    """SHA-256 over ``parts`` (sources, compiler identity, flags), each length-prefixed."""
+    h = hashlib.sha256()
+    for part in parts:
+        data = part.encode() if isinstance(part, str) else part
+        h.update(len(data).to_bytes(8, "little"))
+        h.update(data)
+    return h.hexdigest()
+
+
+def entry_folder(root: Path, name: str, key: str) -> Path:
+    """Where the entry ``name`` with ``key`` lives."""
+    return Path(root) / f"{name}_{key[:20]}"
+
+
+def lookup(root: Path, name: str, key: str) -> Path | None:
+    """The entry's folder if it exists and matches its key and its files' hashes; else None."""
+    folder = entry_folder(root, name, key)
+    try:
+        manifest = json.loads((folder / MANIFEST).read_text())
+        files = manifest["files"]
+        if manifest["key"] != key or not files:
+            return None
+        if all(_digest(folder / f) == d for f, d in files.items()):
+            return folder
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return None
+
+
+def store(root: Path, name: str, key: str, build: Callable[[Path], Iterable[str]]) -> Path:
+    """Build the entry in a private folder with ``build(folder)`` (which returns the names of the
+    files it made), record their hashes, and move it into place; returns the verified folder.
+
+    Raises:
+        CompileError: the build failed (its message is kept).
+    """
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(dir=root, prefix=".build_"))
+    try:
+        files = {f: _digest(work / f) for f in build(work)}
+        (work / MANIFEST).write_text(json.dumps({"key": key, "files": files}, indent=1))
+        folder = entry_folder(root, name, key)
+        if folder.exists() and lookup(root, name, key) is None:
+            shutil.rmtree(folder, ignore_errors=True)  # a stale or foreign folder: replace it
+        try:
+            work.rename(folder)
+        except OSError:
+            pass  # another process stored the same entry first; verified below
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    found = lookup(root, name, key)
+    if found is None:
+        raise CompileError(f"cache entry {entry_folder(root, name, key)} does not verify after building it")
+    return found
+
+
+def run_compiler(command: list[str]) -> None:
+    """Run one compiler command; CompileError with the compiler's last lines if it fails."""
+    try:
+        subprocess.run(command, check=True, capture_output=True, text=True)
+    except FileNotFoundError as exc:
+        raise CompileError(f"C compiler not found: {command[0]}") from exc
+    except subprocess.CalledProcessError as exc:
+        tail = " | ".join((exc.stderr or exc.stdout or "").strip().splitlines()[-3:])
+        raise CompileError(f"C compiler failed ({command[0]}, exit {exc.returncode}): {tail}") from exc
+
+
+def _digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+__all__ = ["CompileError", "compiler_identity", "entry_key", "entry_folder", "lookup", "run_compiler", "store"]
