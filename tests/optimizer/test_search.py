@@ -133,11 +133,13 @@ def test_inner_records_feasible_designs_and_resumes(tiny_study: Path):
     assert run_inner(study, config) == 0 and len(study.trials) == n  # nothing left to do
 
 
-def test_inner_nlp_is_built_once_per_shape_and_reused(tiny_study: Path):
+def test_inner_nlp_is_built_once_per_kind_and_shared_by_toe_counts(tiny_study: Path):
     config = load_study(tiny_study)
-    nlp = build_nlp(config, FootShape(2, 1))
-    assert nlp.n_rods == 2  # identical toes share their values: heel + one toe rod
-    assert nlp.lbx.shape == nlp.ubx.shape == (nlp.n_x,)
+    cache: dict = {}
+    two, three = build_nlp(config, FootShape(2, 1), cache), build_nlp(config, FootShape(3, 1), cache)
+    assert two.compiled is three.compiled and len(cache) == 1  # the toe count is a parameter
+    assert two.compiled.n_rods == 2  # identical toes share their values: heel + one toe rod
+    assert two.compiled.lbx.shape == two.compiled.ubx.shape == (two.compiled.n_x,)
 
 
 @pytest.mark.parametrize("method", ["inner", "outer"])
