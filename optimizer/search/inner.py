@@ -328,31 +328,41 @@ def run_inner(
         "heel_segments": optuna.distributions.IntDistribution(*sp.heel_segments),
     }
     done = sum(1 for s in shapes if study.user_attrs.get(shape_done_key(s)))
-    todo = [s for s in shapes if not study.user_attrs.get(shape_done_key(s))]
+    lim = config.limits
+    todo = [
+        s
+        for s in shapes
+        if not study.user_attrs.get(shape_done_key(s)) and s.n_links * lim.min_link_mass <= lim.foot_mass
+    ]
     swept, cache = 0, compiled_nlps(config, list(dict.fromkeys(foot_kind(config, s) for s in todo)))
     with interruptible():
         for shape in shapes:
             if study.user_attrs.get(shape_done_key(shape)):
                 continue
-            have = recorded_indices(study, shape)
-            params = {"toes": shape.n_toes, "toe_segments": shape.toe_segments, "heel_segments": shape.heel_segments}
-            nlp = build_nlp(config, shape, cache)
-            for i, evaluation in enumerate(epsilon_sweep(config, nlp, shape_seed(config.seed, shape))):
-                if i in have:
-                    continue
-                trial = optuna.trial.create_trial(
-                    params=params,
-                    distributions=distributions,
-                    values=objective_values(config, evaluation.objectives),
-                    user_attrs={**record_attrs(evaluation, "inner"), ATTR_SHAPE: shape.label, ATTR_INDEX: i},
-                    constraints=dict(evaluation.constraints.violations()),
-                )
-                study.add_trial(trial)
+            if shape.n_links * lim.min_link_mass <= lim.foot_mass:  # else no design of it is feasible
+                _record_shape(study, config, shape, build_nlp(config, shape, cache), distributions)
             study.set_user_attr(shape_done_key(shape), True)
             done, swept = done + 1, swept + 1
             if progress is not None:
                 progress(done, len(shapes))
     return swept
+
+
+def _record_shape(study: optuna.Study, config: StudyConfig, shape: FootShape, nlp: ShapeNlp, distributions: dict) -> None:
+    """Sweep one shape and add each design not yet recorded as a COMPLETE trial."""
+    have = recorded_indices(study, shape)
+    params = {"toes": shape.n_toes, "toe_segments": shape.toe_segments, "heel_segments": shape.heel_segments}
+    for i, evaluation in enumerate(epsilon_sweep(config, nlp, shape_seed(config.seed, shape))):
+        if i in have:
+            continue
+        trial = optuna.trial.create_trial(
+            params=params,
+            distributions=distributions,
+            values=objective_values(config, evaluation.objectives),
+            user_attrs={**record_attrs(evaluation, "inner"), ATTR_SHAPE: shape.label, ATTR_INDEX: i},
+            constraints=dict(evaluation.constraints.violations()),
+        )
+        study.add_trial(trial)
 
 
 __all__ = [

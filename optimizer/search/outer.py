@@ -124,9 +124,13 @@ def masses_from_shares(
 ) -> tuple[tuple[float, ...], ...]:
     """Rod masses from non-negative shares (per chain, heel first): each rod gets the minimum
     link mass plus its share of what the foot mass ``used`` leaves; budget and minimum hold by
-    construction (equal shares when every share is 0)."""
+    construction (equal shares when every share is 0). A shape whose rods cannot all weigh the
+    minimum within ``used`` gets the minimum everywhere: its ``foot_mass`` constraint then says by
+    how much the budget is exceeded (rather than a negative mass)."""
     n = shape.n_links
     free = used - n * limits.min_link_mass
+    if free < 0:
+        return tuple(tuple(limits.min_link_mass for _ in c) for c in shares)
     total = sum(sum(c) for c in shares)
     if total <= 0:
         return tuple(tuple(used / n for _ in c) for c in shares)
