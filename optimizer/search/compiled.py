@@ -295,10 +295,23 @@ def _graph(config: StudyConfig, kind: FootKind) -> _Graph:
     lbx = np.concatenate([a_lo, [lim.min_link_mass * (1 + 1e-6)] * n, [LENGTH_FLOOR] * n, [0.0], [0.0] * k])
     ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n, [math.inf], [math.inf] * k])
     nlp = {"x": x, "p": params, "f": params[0] * f1 + params[1] * f2, "g": ca.vertcat(*g)}
-    outs = [impact[name] for name in VALUE_OUTPUTS[:4]] + [impact["energy_after"], impact["energy_before"]]
-    outs.append(ca.mmin(lam) if lam.shape[0] else ca.SX(0))
-    values = ca.Function("foot_values", [x, params[2]], outs, ["x", "n_toes"], list(VALUE_OUTPUTS))
+    values = _values(impact, ca.vertcat(a, m), params[2], "foot_values")
     return _Graph(nlp, values, lbx, ubx, np.array(lbg), np.array(ubg))
+
+
+def _values(impact: dict[str, ca.SX], angles_masses: ca.SX, n_toes: ca.SX, name: str) -> ca.Function:
+    """``(angles and masses, toe count)`` -> ``VALUE_OUTPUTS``."""
+    lam = impact["per_toe_external"]
+    outs = [impact[k] for k in VALUE_OUTPUTS[:6]] + [ca.mmin(lam) if lam.shape[0] else ca.SX(0)]
+    return ca.Function(name, [angles_masses, n_toes], outs, ["angles_masses", "n_toes"], list(VALUE_OUTPUTS))
+
+
+def values_function(config: StudyConfig, kind: FootKind) -> ca.Function:
+    """The kind's ``VALUE_OUTPUTS`` alone (the outer search's evaluation), named after the kind."""
+    n = sum(kind.sizes)
+    a, m, n_toes = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n), ca.SX.sym("n_toes")
+    mult = [ca.SX(1)] + [n_toes if kind.distinct_toes == 1 else ca.SX(1)] * kind.distinct_toes
+    return _values(_merged_impact(config, kind, a, m, mult), ca.vertcat(a, m), n_toes, f"values_{kind.name}")
 
 
 def _chain_limits(config: StudyConfig, kind: FootKind) -> tuple:
@@ -337,6 +350,7 @@ def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult) -> dict[str,
     joint_mult = ca.vertcat(*body_mult)
     return {
         "external": lam,
+        "per_toe_external": lam / contact_mult,
         "external_norm": ca.sqrt(ca.sum1(lam**2 / contact_mult)),
         "internal_norm": ca.sqrt(ca.sum1(mag**2 / joint_mult)),
         "scaled_magnitude": mag / joint_mult,
@@ -383,4 +397,4 @@ def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add) -> Non
         add(total, -math.inf, lim.foot_mass)
 
 
-__all__ = ["CompiledNlp", "FootKind", "IPOPT_OPTIONS", "TIGHTEN", "VALUE_OUTPUTS", "compiled_nlps", "foot_kind"]
+__all__ = ["CompiledNlp", "FootKind", "IPOPT_OPTIONS", "TIGHTEN", "VALUE_OUTPUTS", "compiled_nlps", "foot_kind", "values_function"]

@@ -182,9 +182,8 @@ def _evaluate(config: StudyConfig, nlp: ShapeNlp, angles, masses, lengths) -> De
     """Objectives and constraint values of a design given per distinct chain: the impact from
     the compiled ``foot_values``, the geometry from :func:`constraint_values`."""
     c = nlp.compiled
-    flat = [np.concatenate([np.array(ch, dtype=float) for ch in block]) for block in (angles, masses, lengths)]
-    x = np.concatenate([*flat, np.zeros(c.n_x - 3 * c.n_rods)])
-    out = dict(zip(VALUE_OUTPUTS, (float(v) for v in c.values(x, nlp.shape.n_toes)), strict=True))
+    angles_masses = np.array([v for block in (angles, masses) for ch in block for v in ch], dtype=float)
+    out = dict(zip(VALUE_OUTPUTS, (float(v) for v in c.values(angles_masses, nlp.shape.n_toes)), strict=True))
     if not all(math.isfinite(v) for v in out.values()):
         return None
     chains = [

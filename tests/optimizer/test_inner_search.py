@@ -117,6 +117,8 @@ def test_recorded_values_are_the_cores(symmetry: ToeSymmetry):
         assert again.feasible
         for o in Objective:
             assert again.objectives.value(o) == pytest.approx(t.evaluation.objectives.value(o), rel=1e-10, abs=1e-12)
+        for (name, a), (_, b) in zip(t.evaluation.constraints.items(), again.constraints.items(), strict=True):
+            assert a == pytest.approx(b, rel=1e-9, abs=1e-12), name
 
 
 def test_impulses_do_not_depend_on_rod_lengths():

@@ -67,25 +67,25 @@ def test_outer_resumes_after_an_exception_inside_a_trial(tiny_outer_study: Path,
 
     storage = optuna.storages.InMemoryStorage()
     study = open_study(config, storage)
-    real = search.evaluate_design
+    real = search.evaluate_designs
     calls = {"n": 0}
 
     def failing(*args, **kwargs):
         calls["n"] += 1
-        if calls["n"] == 5:
-            raise RuntimeError("injected after 4 trials")
+        if calls["n"] == 2:
+            raise RuntimeError("injected in the second batch")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(search, "evaluate_design", failing)
+    monkeypatch.setattr(search, "evaluate_designs", failing)
     with pytest.raises(RuntimeError, match="injected"):
         run_outer(study, config, 10)
     before = complete(study)
-    assert len(before) == 4
-    monkeypatch.setattr(search, "evaluate_design", real)
+    assert len(before) == search.OUTER_BATCH  # the first batch, told before the second was asked
+    monkeypatch.setattr(search, "evaluate_designs", real)
     resumed = open_study(config, storage)
     run_outer(resumed, config, 10)
     after = complete(resumed)
-    assert after[:4] == before  # nothing finished was lost
+    assert after[: len(before)] == before  # nothing finished was lost
     assert finished_trials(resumed) == 10
     # and the resumed study asked and got exactly what an uninterrupted one did
     assert [(p, v) for _, p, v in after] == [(p, v) for _, p, v in complete(reference)]
