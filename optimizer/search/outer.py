@@ -6,9 +6,14 @@ lengths from the linear program of :func:`optimizer.design_space.assign_lengths`
 records its design, all objectives and all constraint values as user attributes, and its
 constraint violations with ``trial.set_constraint`` (Optuna 5; TPE and NSGA-II read them).
 
-Determinism: the sampler is rebuilt before every trial with a seed made from the study's seed
-and the number of trials already finished, so that a study run sequentially, or interrupted and
-resumed, asks the same questions and gets the same answers.
+Trials are asked for in batches (ask/tell) and a batch's designs are evaluated together: the
+impact of each kind of foot by its compiled values (:mod:`optimizer.search.compiled`, the same
+merged model as the inner search's, one batched C loop per kind), each design once.
+
+Determinism: the sampler is rebuilt before every ask with a seed made from the study's seed and
+the trial's place (trials finished before its batch plus its place in the batch), so that a
+study run in one go, or interrupted and resumed, asks the same questions and gets the same
+answers.
 """
 
 from __future__ import annotations
@@ -46,10 +51,6 @@ from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_k
 ATTR_DESIGN, ATTR_OBJECTIVES, ATTR_CONSTRAINTS, ATTR_METHOD = "design", "objectives", "constraints", "method"
 #: Set on a trial found RUNNING when a study resumes (its process was killed).
 ATTR_INTERRUPTED = "interrupted"
-
-
-class TrialFailed(Exception):
-    """The impact solve of a trial's design failed numerically: the trial is recorded FAIL."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -348,7 +349,6 @@ def is_finite_values(values: list[float]) -> bool:
 
 __all__ = [
     "RecordedTrial",
-    "TrialFailed",
     "design_from_record",
     "design_record",
     "finished_trials",
