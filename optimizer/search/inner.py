@@ -52,7 +52,7 @@ from optimizer.design_space import (
     assign_lengths,
     constraint_values,
 )
-from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, compiled_nlps, foot_kind
+from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, NlpCache, foot_kind
 from optimizer.search.outer import objective_values, record_attrs
 
 #: Weights of the two anchors: each objective first, the other as a tie-break.
@@ -101,13 +101,10 @@ class ShapeNlp:
         return (per_chain[0], *([per_chain[1]] * self.shape.n_toes if self.identical else per_chain[1:]))
 
 
-def build_nlp(config: StudyConfig, shape: FootShape, cache: dict | None = None) -> ShapeNlp:
-    """The NLP of ``shape`` (its kind's compiled NLP, from ``cache`` when there)."""
-    kind = foot_kind(config, shape)
-    cache = {} if cache is None else cache
-    if kind not in cache:
-        cache.update(compiled_nlps(config, [kind]))
-    return ShapeNlp(shape, cache[kind], config.space.toe_symmetry is ToeSymmetry.IDENTICAL)
+def build_nlp(config: StudyConfig, shape: FootShape, cache: NlpCache | None = None) -> ShapeNlp:
+    """The NLP of ``shape``: its kind's compiled NLP (from ``cache``, or a new one)."""
+    cache = NlpCache(config, []) if cache is None else cache
+    return ShapeNlp(shape, cache[foot_kind(config, shape)], config.space.toe_symmetry is ToeSymmetry.IDENTICAL)
 
 
 def start_point(config: StudyConfig, nlp: ShapeNlp, rng: np.random.Generator) -> np.ndarray | None:
@@ -333,9 +330,12 @@ def run_inner(
         for s in shapes
         if not study.user_attrs.get(shape_done_key(s)) and s.n_links * lim.min_link_mass <= lim.foot_mass
     ]
-    swept, cache = 0, compiled_nlps(config, list(dict.fromkeys(foot_kind(config, s) for s in todo)))
+    # One kind after another, smallest first: its search runs while the larger ones compile.
+    kinds = sorted(dict.fromkeys(foot_kind(config, s) for s in todo), key=lambda k: (sum(k.sizes), k.sizes))
+    swept, cache = 0, NlpCache(config, kinds)
+    order = {k: i for i, k in enumerate(kinds)}
     with interruptible():
-        for shape in shapes:
+        for shape in sorted(shapes, key=lambda s: order.get(foot_kind(config, s), -1)):
             if study.user_attrs.get(shape_done_key(shape)):
                 continue
             if shape.n_links * lim.min_link_mass <= lim.foot_mass:  # else no design of it is feasible
