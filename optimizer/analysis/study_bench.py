@@ -88,7 +88,8 @@ class StudyBench:
                 f"  HEAD cold cache: {self.cold:.2f} s  ({self.cold / self.old:.2f} x {self.old_commit})",
                 f"  HEAD warm cache: {self.warm:.2f} s  ({self.warm / self.old:.2f} x {self.old_commit})",
                 f"front hypervolume (external_norm, internal_norm), reference ({r[0]:.6g}, {r[1]:.6g}) N s:",
-                f"  {self.old_commit}: {self.hv_old:.6e}   HEAD: {self.hv_new:.6e}   ratio {self.hv_new / self.hv_old:.4f}",
+                f"  {self.old_commit}: {self.hv_old:.6e}   HEAD: {self.hv_new:.6e}"
+                f"   ratio {self.hv_new / self.hv_old:.4f}",
                 f"batched API, {BATCH_DESIGNS} designs per call: {self.api_ns:.1f} ns per design against "
                 f"{self.loop_ns:.1f} ns in its bare compiled loop ({self.api_ns / self.loop_ns:.2f} x)",
             ]
@@ -99,36 +100,32 @@ def study_bench(study: Path = DEFAULT_STUDY, old_commit: str = DEFAULT_OLD, repe
     """Run the comparison (see the module docstring)."""
     with tempfile.TemporaryDirectory(prefix="footopt_bench_") as tmp:
         root = Path(tmp)
-        old_tree = root / "old"
-        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(old_tree), old_commit], check=True, capture_output=True)
+        git = ["git", "-C", str(REPO), "worktree"]
+        subprocess.run([*git, "add", "--detach", str(root / "old"), old_commit], check=True, capture_output=True)
         try:
-            times: dict[str, list[float]] = {"old": [], "cold": [], "warm": []}
-            for r in range(repeats):
-                cache = root / f"cache{r}"
-                runs = {
-                    "old": ([sys.executable, "-m", "optimizer", "optimize"], old_tree, {}),
-                    "cold": ([sys.executable, "-m", "optimizer.cli.main", "optimize"], REPO, {"FOOTOPT_CACHE_DIR": str(cache)}),
-                    "warm": ([sys.executable, "-m", "optimizer.cli.main", "optimize"], REPO, {"FOOTOPT_CACHE_DIR": str(cache)}),
-                }
-                for name, (command, tree, extra) in runs.items():
-                    env = {**os.environ, "PYTHONPATH": str(tree), **extra}
-                    out = root / f"{name}{r}"
-                    times[name].append(timed_run([*command, str(study.resolve()), "--out", str(out), "--quiet"], env, tree))
+            times = _timed_versions(root, study.resolve(), repeats)
             fronts = {name: read_front(root / f"{name}0") for name in ("old", "cold")}
         finally:
-            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(old_tree)], capture_output=True)
+            subprocess.run([*git, "remove", "--force", str(root / "old")], capture_output=True)
     reference = 1.1 * np.vstack(list(fronts.values())).max(axis=0)
-    api_ns, loop_ns = batch_api_cost()
-    return StudyBench(
-        old_commit,
-        repeats,
-        *(statistics.median(times[k]) for k in ("old", "cold", "warm")),
-        hypervolume_2d(fronts["old"], reference),
-        hypervolume_2d(fronts["cold"], reference),
-        (float(reference[0]), float(reference[1])),
-        api_ns,
-        loop_ns,
-    )
+    hv_old, hv_new = (hypervolume_2d(fronts[k], reference) for k in ("old", "cold"))
+    medians = (statistics.median(times[k]) for k in ("old", "cold", "warm"))
+    return StudyBench(old_commit, repeats, *medians, hv_old, hv_new, tuple(reference.tolist()), *batch_api_cost())
+
+
+def _timed_versions(root: Path, study: Path, repeats: int) -> dict[str, list[float]]:
+    """Wall times of the old worktree (``root/old``), HEAD cold and HEAD warm, interleaved; run
+    ``k`` of each writes to ``root/<name><k>``."""
+    times: dict[str, list[float]] = {"old": [], "cold": [], "warm": []}
+    old = ([sys.executable, "-m", "optimizer", "optimize"], root / "old", {})
+    for r in range(repeats):
+        cache = {"FOOTOPT_CACHE_DIR": str(root / f"c{r}")}
+        head = ([sys.executable, "-m", "optimizer.cli.main", "optimize"], REPO, cache)
+        for name, (command, tree, extra) in {"old": old, "cold": head, "warm": head}.items():
+            env = {**os.environ, "PYTHONPATH": str(tree), **extra}
+            args = [*command, str(study), "--out", str(root / f"{name}{r}"), "--quiet"]
+            times[name].append(timed_run(args, env, tree))
+    return times
 
 
 def batch_api_cost(cache_dir: Path | None = None, repeats: int = 7) -> tuple[float, float]:

@@ -412,7 +412,8 @@ def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add) -> Non
     for chain in distinct:
         for j in range(len(chain) - 1):
             add(h - sum(L[i] * drop[i] for i in chain[: j + 1]), lim.min_clearance + TIGHTEN, math.inf)
-    leg_y = foot_geometry(leg, FootDesign(heel=(Segment(0.1, 0.1, 0.0),), toes=((Segment(0.1, 0.1, 0.0),),))).leg_points[:, 1]
+    rod = (Segment(0.1, 0.1, 0.0),)
+    leg_y = foot_geometry(leg, FootDesign(heel=rod, toes=(rod,))).leg_points[:, 1]
     for y in (0.0, *leg_y):
         add(h + float(y), lim.min_clearance + TIGHTEN, math.inf)
     total = sum(mult[c] * m[i] for c, chain in enumerate(distinct) for i in chain)
@@ -422,4 +423,13 @@ def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add) -> Non
         add(total, -math.inf, lim.foot_mass)
 
 
-__all__ = ["CompiledNlp", "FootKind", "IPOPT_OPTIONS", "TIGHTEN", "VALUE_OUTPUTS", "NlpCache", "foot_kind", "values_function"]
+__all__ = [
+    "IPOPT_OPTIONS",
+    "TIGHTEN",
+    "VALUE_OUTPUTS",
+    "CompiledNlp",
+    "FootKind",
+    "NlpCache",
+    "foot_kind",
+    "values_function",
+]

@@ -347,7 +347,9 @@ def run_inner(
     return swept
 
 
-def _record_shape(study: optuna.Study, config: StudyConfig, shape: FootShape, nlp: ShapeNlp, distributions: dict) -> None:
+def _record_shape(
+    study: optuna.Study, config: StudyConfig, shape: FootShape, nlp: ShapeNlp, distributions: dict
+) -> None:
     """Sweep one shape and add each design not yet recorded as a COMPLETE trial."""
     have = recorded_indices(study, shape)
     params = {"toes": shape.n_toes, "toe_segments": shape.toe_segments, "heel_segments": shape.heel_segments}

@@ -297,9 +297,9 @@ def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[Des
     for kind, rows in groups.items():
         run = _values_runner(config, kind)
         k = 1 + kind.distinct_toes
-        angles_masses = np.array(
-            [[s.joint_angle for c in designs[i].chains[:k] for s in c] + [s.mass for c in designs[i].chains[:k] for s in c] for i in rows]
-        )
+        chains = [designs[i].chains[:k] for i in rows]
+        rods = [[s for c in d for s in c] for d in chains]
+        angles_masses = np.array([[s.joint_angle for s in r] + [s.mass for s in r] for r in rods])
         n_toes = np.array([[float(designs[i].shape.n_toes)] for i in rows])
         with np.errstate(all="ignore"):
             values = np.hstack(run(angles_masses, n_toes))

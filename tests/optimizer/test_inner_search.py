@@ -129,7 +129,9 @@ def test_impulses_do_not_depend_on_rod_lengths():
     for _ in range(5):
         design = FootDesign(
             heel=(Segment(0.1, 0.1, rng.uniform(-1.2, -0.1)),),
-            toes=tuple((Segment(0.1, 0.1, rng.uniform(0.3, 1.6)), Segment(0.1, 0.1, rng.uniform(-1, 0.6))) for _ in range(2)),
+            toes=tuple(
+                (Segment(0.1, 0.1, rng.uniform(0.3, 1.6)), Segment(0.1, 0.1, rng.uniform(-1, 0.6))) for _ in range(2)
+            ),
         )
         base = evaluate_design(config.leg, design, config.scene, config.limits).objectives
         chains = [tuple(dataclasses.replace(s, length=rng.uniform(0.02, 0.4)) for s in c) for c in design.chains]

@@ -18,7 +18,8 @@ optuna.logging.set_verbosity(optuna.logging.WARNING)
 
 @pytest.mark.parametrize("symmetry", ["identical", "independent"])
 def test_batched_values_are_evaluate_designs(tiny_outer_study: Path, write, symmetry: str):
-    text = tiny_outer_study.read_text().replace("toes: [1, 2], toe_segments: [1, 1]", "toes: [1, 3], toe_segments: [1, 2]")
+    text = tiny_outer_study.read_text()
+    text = text.replace("toes: [1, 2], toe_segments: [1, 1]", "toes: [1, 3], toe_segments: [1, 2]")
     config = load_study(write(text.replace("}", f", toe_symmetry: {symmetry}}}", 1), "outer.yaml"))
     study = open_study(config, optuna.storages.InMemoryStorage())
     designs = [suggest_design(study.ask(), config) for _ in range(40)]
