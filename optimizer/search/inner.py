@@ -141,7 +141,11 @@ def solve(
     args = dict(x0=x0, p=[*weights, nlp.shape.n_toes], lbx=c.lbx, ubx=c.ubx, lbg=c.lbg, ubg=ubg)
     if warm is not None:
         args.update(lam_x0=warm.lam_x, lam_g0=warm.lam_g)
-    sol = c.solver(**args)
+    try:
+        sol = c.solver(**args)
+    except RuntimeError:  # CasADi reports a KeyboardInterrupt raised inside IPOPT as an error
+        _check_interrupt()
+        raise
     _check_interrupt()
     success = bool(c.solver.stats()["success"])
     return Solution(

@@ -199,3 +199,41 @@ def test_per_shape_minima_do_not_improve_with_many_more_starts(shape: FootShape)
     few = per_shape_minima(swept(study_of(space, front_points=0, starts=6)))[shape]
     many = per_shape_minima(swept(study_of(space, front_points=0, starts=30)))[shape]
     assert few == pytest.approx(many, rel=1e-6)
+
+
+def test_energy_lost_is_restitution_times_impulse_sum():
+    """Why the NLP has no energy row: every contact approaches at the landing speed v, so
+    Newton's law gives E_after - E_before = -(1 - e) v sum(lambda) / 2 (<= 0 when every
+    lambda >= 0)."""
+    from impulse_core.evaluate import evaluate
+    from impulse_core.model.tree import ContactSelection, Scene
+
+    config = load_study(TOE_COUNT)
+    rng = np.random.default_rng(1)
+    for e in (0.0, 0.5, 0.8):
+        scene = Scene(speed=3.43, restitution=e, selection=ContactSelection.ALL)
+        design = FootDesign(
+            heel=(Segment(0.1, rng.uniform(0.02, 0.2), rng.uniform(-1.2, -0.1)),),
+            toes=((Segment(0.1, rng.uniform(0.02, 0.2), rng.uniform(0.3, 1.6)),),) * 2,
+        )
+        result = evaluate(foot_tree(config.leg, design), scene)
+        lost = -(1 - e) * scene.speed * float(np.sum(result.external)) / 2
+        assert result.energy_after - result.energy_before == pytest.approx(lost, rel=1e-9, abs=1e-12)
+
+
+def test_an_interrupt_casadi_reports_as_an_error_is_a_keyboard_interrupt(tiny_study: Path, monkeypatch):
+    """CasADi may turn the KeyboardInterrupt raised inside IPOPT into a RuntimeError."""
+    import optimizer.search.inner as inner
+
+    config = load_study(tiny_study)
+    nlp = inner.build_nlp(config, FootShape(1, 1))
+
+    def interrupted_solver(**kwargs):
+        inner._INTERRUPTED.set()
+        raise RuntimeError("Error in Function::call for 'foot_h1_t1_k1': KeyboardInterrupt")
+
+    fake = dataclasses.replace(nlp.compiled, solver=interrupted_solver)
+    x0 = inner.start_point(config, nlp, np.random.default_rng(0))
+    with pytest.raises(KeyboardInterrupt):
+        inner.solve(dataclasses.replace(nlp, compiled=fake), (1.0, 0.0), float("inf"), x0)
+    assert not inner._INTERRUPTED.is_set()
