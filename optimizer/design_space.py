@@ -46,6 +46,14 @@ LENGTH_FLOOR = 1e-4
 SEGMENT_NAMES = {1: ("",), 2: ("proximal", "distal"), 3: ("proximal", "middle", "distal")}
 
 
+def segment_suffixes(k: int) -> tuple[str, ...]:
+    """Names of the rods of a chain of ``k`` rods, proximal first: ``SEGMENT_NAMES`` up to three,
+    then ``proximal, middle1, ..., middle{k-2}, distal``."""
+    if k in SEGMENT_NAMES:
+        return SEGMENT_NAMES[k]
+    return ("proximal", *(f"middle{j}" for j in range(1, k - 1)), "distal")
+
+
 # --------------------------------------------------------------------------------------------
 # Structure and values
 
@@ -88,9 +96,6 @@ class FootShape:
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise ValueError(f"FootShape.{name}: must be an integer >= 1, got {value!r}")
-        for name in ("toe_segments", "heel_segments"):
-            if getattr(self, name) > max(SEGMENT_NAMES):
-                raise ValueError(f"FootShape.{name}: at most {max(SEGMENT_NAMES)} rods per chain")
 
     @property
     def n_links(self) -> int:
@@ -154,7 +159,7 @@ def chain_names(shape: FootShape) -> tuple[tuple[str, ...], ...]:
     """Body names per chain, heel first: ``heel``, ``toe1_proximal``, ``toe1_distal``, ..."""
 
     def names(prefix: str, k: int) -> tuple[str, ...]:
-        return tuple(prefix if not s else f"{prefix}_{s}" for s in SEGMENT_NAMES[k])
+        return tuple(prefix if not s else f"{prefix}_{s}" for s in segment_suffixes(k))
 
     heel = names("heel", shape.heel_segments)
     return (heel, *(names(f"toe{i + 1}", shape.toe_segments) for i in range(shape.n_toes)))
@@ -723,5 +728,6 @@ __all__ = [
     "newton_impulses",
     "objectives",
     "segment_names",
+    "segment_suffixes",
     "with_lengths",
 ]

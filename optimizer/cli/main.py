@@ -147,6 +147,8 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
         + ",".join(str(n) for n in SCALING_SIZES)
         + "; 'none' to skip; with model files: none unless given)",
     )
+    p.add_argument("--old", default="087e17f", help="with 'study': the commit to time beside HEAD (default 087e17f)")
+    p.add_argument("--repeats", type=int, default=2, help="with 'study': runs of each version (default 2)")
     p.set_defaults(run=run_bench)
 
 
@@ -290,6 +292,11 @@ def run_bench(args: argparse.Namespace) -> int:
     from optimizer.analysis.bench import format_report as format_bench
     from optimizer.analysis.bench import speed_report
 
+    if args.files[:1] == ["study"]:  # footopt bench study: the toe-count study beside --old
+        from optimizer.analysis.study_bench import study_bench
+
+        print(study_bench(old_commit=args.old, repeats=max(args.repeats, 1)).format())
+        return EXIT_OK
     if args.batch < 1:
         _error("--batch", f"must be >= 1, got {args.batch}")
         return EXIT_USAGE

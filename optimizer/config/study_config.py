@@ -110,8 +110,8 @@ CONSTRAINT_KEYS = (
 ANGLE_KEYS = ("heel_root", "heel_inner", "toe_root", "toe_inner")
 SEARCH_KEYS = ("method", "sampler", "trials", "startup_trials", "population", "inner")
 INNER_KEYS = ("front_points", "starts")
-#: Most rods per chain a study may ask for.
-MAX_SEGMENTS = 3
+#: Most rods per chain a study may ask for (None: as many as the mass budget allows).
+MAX_SEGMENTS = None
 
 
 # --------------------------------------------------------------------------------------------

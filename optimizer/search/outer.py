@@ -6,21 +6,30 @@ lengths from the linear program of :func:`optimizer.design_space.assign_lengths`
 records its design, all objectives and all constraint values as user attributes, and its
 constraint violations with ``trial.set_constraint`` (Optuna 5; TPE and NSGA-II read them).
 
-Determinism: the sampler is rebuilt before every trial with a seed made from the study's seed
-and the number of trials already finished, so that a study run sequentially, or interrupted and
-resumed, asks the same questions and gets the same answers.
+Trials are asked for in batches (ask/tell) and a batch's designs are evaluated together: the
+impact of each kind of foot by its compiled values (:mod:`optimizer.search.compiled`, the same
+merged model as the inner search's, one batched C loop per kind), each design once.
+
+Determinism: the sampler is rebuilt before every ask with a seed made from the study's seed and
+the trial's place (trials finished before its batch plus its place in the batch), so that a
+study run in one go, or interrupted and resumed, asks the same questions and gets the same
+answers.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
+import numpy as np
 import optuna
 from optuna.trial import FrozenTrial, TrialState
+
+from impulse_core.compile.codegen import batch_kernel, compile_function
 
 from optimizer.design_space import (
     ConstraintValues,
@@ -32,19 +41,16 @@ from optimizer.design_space import (
     Objectives,
     Segment,
     ToeSymmetry,
+    constraint_values,
     design_from,
-    evaluate_design,
 )
 from optimizer.config.study_config import SamplerKind, SearchSettings, StudyConfig
+from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
 
 #: User attributes every recorded trial carries.
 ATTR_DESIGN, ATTR_OBJECTIVES, ATTR_CONSTRAINTS, ATTR_METHOD = "design", "objectives", "constraints", "method"
 #: Set on a trial found RUNNING when a study resumes (its process was killed).
 ATTR_INTERRUPTED = "interrupted"
-
-
-class TrialFailed(Exception):
-    """The impact solve of a trial's design failed numerically: the trial is recorded FAIL."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -124,9 +130,13 @@ def masses_from_shares(
 ) -> tuple[tuple[float, ...], ...]:
     """Rod masses from non-negative shares (per chain, heel first): each rod gets the minimum
     link mass plus its share of what the foot mass ``used`` leaves; budget and minimum hold by
-    construction (equal shares when every share is 0)."""
+    construction (equal shares when every share is 0). A shape whose rods cannot all weigh the
+    minimum within ``used`` gets the minimum everywhere: its ``foot_mass`` constraint then says by
+    how much the budget is exceeded (rather than a negative mass)."""
     n = shape.n_links
     free = used - n * limits.min_link_mass
+    if free < 0:
+        return tuple(tuple(limits.min_link_mass for _ in c) for c in shares)
     total = sum(sum(c) for c in shares)
     if total <= 0:
         return tuple(tuple(used / n for _ in c) for c in shares)
@@ -216,26 +226,8 @@ def finished_trials(study: optuna.Study) -> int:
     return sum(1 for t in trials if not t.user_attrs.get(ATTR_INTERRUPTED))
 
 
-def run_trial(study: optuna.Study, config: StudyConfig) -> FrozenTrial:
-    """Ask for one trial, evaluate its design, tell the result."""
-    study.sampler = make_sampler(config.search, trial_seed(config.seed, finished_trials(study)))
-    trial = study.ask()
-    try:
-        design = suggest_design(trial, config)
-        evaluation = evaluate_design(config.leg, design, config.scene, config.limits)
-        if evaluation.objectives is None:
-            raise TrialFailed("numerical failure")
-    except TrialFailed:
-        return study.tell(trial, state=TrialState.FAIL)
-    except BaseException:
-        study._storage.set_trial_user_attr(trial._trial_id, ATTR_INTERRUPTED, True)  # noqa: SLF001
-        study.tell(trial, state=TrialState.FAIL)
-        raise
-    for key, value in record_attrs(evaluation, "outer").items():
-        trial.set_user_attr(key, value)
-    for name, violation in evaluation.constraints.violations():
-        trial.set_constraint(name, violation)
-    return study.tell(trial, objective_values(config, evaluation.objectives))
+#: Trials asked for at once and evaluated together.
+OUTER_BATCH = 8
 
 
 def run_outer(
@@ -244,13 +236,15 @@ def run_outer(
     trials: int,
     progress: Callable[[int, int], None] | None = None,
 ) -> int:
-    """Run trials until ``trials`` have finished (resuming counts what is there).
+    """Run trials until ``trials`` have finished (resuming counts what is there): ask for up to
+    ``OUTER_BATCH`` at once (the sampler reseeded before each ask from the study's seed and the
+    trial's place), evaluate their designs together (:func:`evaluate_designs`), tell each.
 
     Args:
         study: from :func:`open_study`.
         config: the study.
         trials: target number of finished trials.
-        progress: called as ``progress(done, target)`` after each trial.
+        progress: called as ``progress(done, target)`` after each batch.
 
     Returns:
         The number of trials run now.
@@ -259,11 +253,86 @@ def run_outer(
     done = finished_trials(study)
     ran = 0
     while done < trials:
-        run_trial(study, config)
-        done, ran = done + 1, ran + 1
+        asked = []
+        for j in range(min(OUTER_BATCH, trials - done)):
+            study.sampler = make_sampler(config.search, trial_seed(config.seed, done + j))
+            asked.append(study.ask())
+        try:
+            evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked])
+        except BaseException:
+            for trial in asked:
+                study._storage.set_trial_user_attr(trial._trial_id, ATTR_INTERRUPTED, True)  # noqa: SLF001
+                study.tell(trial, state=TrialState.FAIL)
+            raise
+        for trial, evaluation in zip(asked, evaluations, strict=True):
+            tell(study, config, trial, evaluation)
+        done, ran = done + len(asked), ran + len(asked)
         if progress is not None:
             progress(done, trials)
     return ran
+
+
+def tell(study: optuna.Study, config: StudyConfig, trial: optuna.Trial, evaluation: DesignEvaluation) -> FrozenTrial:
+    """Record a trial's evaluation: COMPLETE with its values, design, objectives and constraint
+    values (and violations for the sampler), or FAIL when the impact solve failed numerically
+    (the constraint values are still recorded)."""
+    if evaluation.objectives is None:
+        trial.set_user_attr(ATTR_CONSTRAINTS, dict(evaluation.constraints.items()))
+        return study.tell(trial, state=TrialState.FAIL)
+    for key, value in record_attrs(evaluation, "outer").items():
+        trial.set_user_attr(key, value)
+    for name, violation in evaluation.constraints.violations():
+        trial.set_constraint(name, violation)
+    return study.tell(trial, objective_values(config, evaluation.objectives))
+
+
+def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[DesignEvaluation]:
+    """Every design's objectives and constraint values: the impact of each kind of foot
+    (:func:`optimizer.search.compiled.foot_kind`) from its compiled ``VALUE_OUTPUTS`` function,
+    one batched C loop per kind, cached on disk; the geometry from :func:`constraint_values`."""
+    out: list[DesignEvaluation | None] = [None] * len(designs)
+    groups: dict[FootKind, list[int]] = {}
+    for i, design in enumerate(designs):
+        groups.setdefault(foot_kind(config, design.shape), []).append(i)
+    for kind, rows in groups.items():
+        run = _values_runner(config, kind)
+        k = 1 + kind.distinct_toes
+        chains = [designs[i].chains[:k] for i in rows]
+        rods = [[s for c in d for s in c] for d in chains]
+        angles_masses = np.array([[s.joint_angle for s in r] + [s.mass for s in r] for r in rods])
+        n_toes = np.array([[float(designs[i].shape.n_toes)] for i in rows])
+        with np.errstate(all="ignore"):
+            values = np.hstack(run(angles_masses, n_toes))
+        for i, row in zip(rows, values, strict=True):
+            out[i] = _evaluation(config, designs[i], dict(zip(VALUE_OUTPUTS, (float(v) for v in row), strict=True)))
+    return [e for e in out if e is not None]
+
+
+def _evaluation(config: StudyConfig, design: FootDesign, values: dict[str, float]) -> DesignEvaluation:
+    """A design's evaluation from its compiled ``VALUE_OUTPUTS`` (None objectives if not finite)."""
+    geometric = constraint_values(config.leg, design, config.limits)
+    if not all(math.isfinite(v) for v in values.values()):
+        return DesignEvaluation(design, None, geometric)
+    constraints = replace(
+        geometric, pulling=-values["min_external"], energy_gain=values["energy_after"] - values["energy_before"]
+    )
+    return DesignEvaluation(design, Objectives(**{k: values[k] for k in VALUE_OUTPUTS[:5]}), constraints)
+
+
+@functools.lru_cache(maxsize=64)
+def _values_runner(config: StudyConfig, kind: FootKind) -> Callable[..., list[np.ndarray]]:
+    """The batched C loop of a kind's values (CasADi's map on its virtual machine without a compiler)."""
+    f = values_function(config, kind)
+    compiled = compile_function(f, cache_dir())
+    kernel = batch_kernel(compiled, f)
+    if kernel is not None:
+        return kernel
+
+    def on_vm(*inputs: np.ndarray) -> list[np.ndarray]:
+        outs = f.map(inputs[0].shape[0])(*(x.T for x in inputs))
+        return [np.array(o, dtype=float).T.reshape(inputs[0].shape[0], -1) for o in outs]
+
+    return on_vm
 
 
 def recorded_trials(study: optuna.Study) -> Iterator[RecordedTrial]:
@@ -280,7 +349,6 @@ def is_finite_values(values: list[float]) -> bool:
 
 __all__ = [
     "RecordedTrial",
-    "TrialFailed",
     "design_from_record",
     "design_record",
     "finished_trials",
@@ -291,8 +359,9 @@ __all__ = [
     "read_trial",
     "record_attrs",
     "recorded_trials",
+    "evaluate_designs",
     "run_outer",
-    "run_trial",
+    "tell",
     "suggest_design",
     "trial_seed",
 ]

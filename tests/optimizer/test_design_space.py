@@ -176,7 +176,9 @@ def test_design_validation():
     with pytest.raises(ValueError):
         FootShape(0, 1)
     with pytest.raises(ValueError):
-        FootShape(1, 4)
+        FootShape(1, 1, 0)
+    names = segment_names(FootShape(1, 5))  # any number of rods: proximal, middle1..3, distal
+    assert names == ("heel", "toe1_proximal", "toe1_middle1", "toe1_middle2", "toe1_middle3", "toe1_distal")
 
 
 def test_a_contact_newton_would_make_pull_is_infeasible():

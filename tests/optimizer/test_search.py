@@ -18,6 +18,7 @@ from optuna.trial import TrialState
 
 import optimizer.search.outer as search
 from optimizer.design_space import FootLimits, FootShape
+from optimizer.search.compiled import NlpCache
 from optimizer.search.inner import build_nlp, run_inner, shape_done_key
 from optimizer.results.runs import storage_url
 from optimizer.search.outer import finished_trials, masses_from_shares, open_study, recorded_trials, run_outer
@@ -67,25 +68,25 @@ def test_outer_resumes_after_an_exception_inside_a_trial(tiny_outer_study: Path,
 
     storage = optuna.storages.InMemoryStorage()
     study = open_study(config, storage)
-    real = search.evaluate_design
+    real = search.evaluate_designs
     calls = {"n": 0}
 
     def failing(*args, **kwargs):
         calls["n"] += 1
-        if calls["n"] == 5:
-            raise RuntimeError("injected after 4 trials")
+        if calls["n"] == 2:
+            raise RuntimeError("injected in the second batch")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(search, "evaluate_design", failing)
+    monkeypatch.setattr(search, "evaluate_designs", failing)
     with pytest.raises(RuntimeError, match="injected"):
         run_outer(study, config, 10)
     before = complete(study)
-    assert len(before) == 4
-    monkeypatch.setattr(search, "evaluate_design", real)
+    assert len(before) == search.OUTER_BATCH  # the first batch, told before the second was asked
+    monkeypatch.setattr(search, "evaluate_designs", real)
     resumed = open_study(config, storage)
     run_outer(resumed, config, 10)
     after = complete(resumed)
-    assert after[:4] == before  # nothing finished was lost
+    assert after[: len(before)] == before  # nothing finished was lost
     assert finished_trials(resumed) == 10
     # and the resumed study asked and got exactly what an uninterrupted one did
     assert [(p, v) for _, p, v in after] == [(p, v) for _, p, v in complete(reference)]
@@ -133,11 +134,13 @@ def test_inner_records_feasible_designs_and_resumes(tiny_study: Path):
     assert run_inner(study, config) == 0 and len(study.trials) == n  # nothing left to do
 
 
-def test_inner_nlp_is_built_once_per_shape_and_reused(tiny_study: Path):
+def test_inner_nlp_is_built_once_per_kind_and_shared_by_toe_counts(tiny_study: Path):
     config = load_study(tiny_study)
-    nlp = build_nlp(config, FootShape(2, 1))
-    assert nlp.n_rods == 2  # identical toes share their values: heel + one toe rod
-    assert nlp.lbx.shape == nlp.ubx.shape == (nlp.n_x,)
+    cache = NlpCache(config, [])
+    two, three = build_nlp(config, FootShape(2, 1), cache), build_nlp(config, FootShape(3, 1), cache)
+    assert two.compiled is three.compiled  # the toe count is a parameter
+    assert two.compiled.n_rods == 2  # identical toes share their values: heel + one toe rod
+    assert two.compiled.lbx.shape == two.compiled.ubx.shape == (two.compiled.n_x,)
 
 
 @pytest.mark.parametrize("method", ["inner", "outer"])

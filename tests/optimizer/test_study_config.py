@@ -58,7 +58,7 @@ BAD = [
     ("leg: {shank: {angle: up}}\n", "leg.shank.angle: must be a number, got 'up'"),
     ("design_space: {toes: [3, 1]}\n", "design_space.toes: min 3 is above max 1"),
     ("design_space: {toes: 3}\n", "design_space.toes: must be a list [min, max] of integers, got 3"),
-    ("design_space: {toe_segments: [1, 4]}\n", "design_space.toe_segments[1]: must be at most 3, got 4"),
+    ("design_space: {toe_segments: [3, 2]}\n", "design_space.toe_segments: min 3 is above max 2"),
     ("design_space: {toe_symmetry: mirrored}\n", "design_space.toe_symmetry: must be one of identical, independent"),
     ("constraints: {foot_mass: -0.5}\n", "constraints.foot_mass: must be > 0"),
     ("constraints: {foot_mass_mode: about}\n", "constraints.foot_mass_mode: must be one of equal, at_most"),

@@ -1,0 +1,435 @@
+"""The inner search's NLP of one kind of foot, compiled to C once and cached on disk.
+
+Identical toes are one merged chain. n identical toes hit at once by Newton's law move alike
+(the law's solution is unique, so it keeps the symmetry), so the impact of the tree equals the
+impact of the tree with one toe whose rods carry n times the mass (and, at the same radius of
+gyration, n times the inertia); each real toe takes 1/n of the merged toe's impulses. The
+objectives follow exactly:
+
+    external_norm^2 = sum_heel lambda^2 + sum_toe Lambda^2 / n
+    internal_norm^2 = sum_(shank, heel) |F|^2 + sum_toe |F|^2 / n,   max_internal likewise
+
+and the toe count is a parameter of the NLP: one library serves every toe count. Independent
+toes keep one chain per toe (multiplicity 1).
+
+A library holds CasADi's generated NLP functions (objective, constraints, their exact gradient,
+Jacobian and the Hessian of the Lagrangian, :meth:`casadi.Function.generate_dependencies`) and a
+``foot_values`` function (every objective and the impact's constraint values at a point). It is
+keyed by a hash of everything that defines the graph: the study's leg, scene, limits and
+objectives, the kind of foot, the source of the modules that build it, the CasADi version, the
+compiler and its flags. A warm study loads it without building any symbolic model.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+import impulse_core
+from impulse_core.compile.codegen import find_compiler
+from impulse_core.evaluate import approach_velocity, compiled_model
+from impulse_core.model.tree import BODY_VALUES, design_vector
+from optimizer.config.study_config import StudyConfig
+from optimizer.design_space import (
+    LENGTH_FLOOR,
+    FootDesign,
+    FootShape,
+    MassMode,
+    Objective,
+    Segment,
+    ToeSymmetry,
+    foot_geometry,
+    foot_tree,
+)
+
+#: Inequalities of the NLP are tightened by this (in their own units) so that the realised
+#: design meets them with room for rounding.
+TIGHTEN = 1e-7
+#: Compiler flags of the NLP libraries: the Hessian's code is one long straight-line function that
+#: -O1 compiles about 5 x slower than -O0 (7 s against 1.5 s for a three-rod toe) and runs no
+#: faster within a study (IPOPT's own work dominates); no -ffast-math.
+NLP_CFLAGS = ("-O0", "-fPIC", "-shared")
+#: Outputs of ``foot_values``.
+VALUE_OUTPUTS = (
+    "external_norm",
+    "internal_norm",
+    "max_internal",
+    "base_angular_velocity",
+    "energy_after",
+    "energy_before",
+    "min_external",
+)
+#: Where libraries are cached unless ``FOOTOPT_CACHE_DIR`` says otherwise.
+DEFAULT_CACHE = Path.home() / ".cache" / "footopt"
+
+
+@dataclass(frozen=True)
+class FootKind:
+    """What one compiled NLP covers: the rods of the heel and of each toe, and how many
+    distinct toe chains (1 for identical toes, whatever their number)."""
+
+    heel_segments: int
+    toe_segments: int
+    distinct_toes: int
+
+    @property
+    def name(self) -> str:
+        """A C identifier (shape labels such as ``3x1+h2`` are not)."""
+        return f"foot_h{self.heel_segments}_t{self.toe_segments}_k{self.distinct_toes}"
+
+    @property
+    def sizes(self) -> tuple[int, ...]:
+        """Rods per distinct chain, heel first."""
+        return (self.heel_segments, *([self.toe_segments] * self.distinct_toes))
+
+
+def foot_kind(config: StudyConfig, shape: FootShape) -> FootKind:
+    identical = config.space.toe_symmetry is ToeSymmetry.IDENTICAL
+    return FootKind(shape.heel_segments, shape.toe_segments, 1 if identical else shape.n_toes)
+
+
+@dataclass(frozen=True)
+class CompiledNlp:
+    """One kind's NLP, ready to solve.
+
+    Attributes:
+        kind: the foot kind.
+        solver: IPOPT on the compiled functions; parameters ``[w1, w2, n_toes]``; constraint row
+            0 is the second objective f2 (its upper bound is a solve's epsilon).
+        values: ``(x, n_toes)`` -> ``VALUE_OUTPUTS`` (compiled).
+        lbx, ubx, lbg, ubg: bounds (the same for every toe count).
+    """
+
+    kind: FootKind
+    solver: ca.Function
+    values: ca.Function
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+
+    @property
+    def n_rods(self) -> int:
+        return sum(self.kind.sizes)
+
+    @property
+    def n_x(self) -> int:
+        return int(self.lbx.size)
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("FOOTOPT_CACHE_DIR", str(DEFAULT_CACHE))).expanduser()
+
+
+def _source_hash() -> str:
+    """Hash of the source of every module that shapes the NLP graph."""
+    h = hashlib.sha256()
+    roots = [Path(impulse_core.__file__).parent]
+    files = sorted(p for r in roots for p in r.rglob("*.py"))
+    here = Path(__file__).parent.parent
+    files += [Path(__file__), here / "design_space.py"]
+    for f in files:
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def nlp_key(config: StudyConfig, kind: FootKind, compiler: str) -> str:
+    """The cache key of a kind's library (see the module docstring)."""
+    parts = (
+        repr(config.leg),
+        repr(config.limits),
+        repr((config.scene.speed, config.scene.restitution)),
+        repr(tuple(o.value for o in config.objectives)),
+        repr(kind),
+        _source_hash(),
+        ca.__version__,
+        compiler,
+        " ".join(NLP_CFLAGS),
+    )
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:20]
+
+
+IPOPT_OPTIONS = {
+    "ipopt.print_level": 0,
+    "print_time": False,
+    "ipopt.sb": "yes",
+    "ipopt.tol": 1e-8,
+    "ipopt.constr_viol_tol": 1e-9,
+    "ipopt.bound_relax_factor": 0.0,
+    "ipopt.max_iter": 300,
+    "ipopt.mu_strategy": "adaptive",
+}
+
+
+class NlpCache:
+    """The NLPs of a study's kinds of foot. Made with the kinds it will need: the libraries that
+    are not cached yet are generated at once and compiled in the background, one compiler
+    process per library; ``cache[kind]`` waits for that kind's only, so the search of one kind
+    runs while the others compile. Without a C compiler, or when a build fails, that kind's NLP
+    runs on CasADi's virtual machine."""
+
+    def __init__(self, config: StudyConfig, kinds: list[FootKind], directory: Path | None = None) -> None:
+        self._config, self._ready = config, {}
+        self._compiler = find_compiler()
+        self._root = directory or cache_dir()
+        self._builds = {k: self._start(k) for k in kinds}
+
+    def _folder(self, kind: FootKind) -> Path:
+        return self._root / f"{kind.name}_{nlp_key(self._config, kind, self._compiler)}"
+
+    def _start(self, kind: FootKind) -> _Build | None:
+        if self._compiler is None or (self._folder(kind) / "done").exists():
+            return None
+        self._root.mkdir(parents=True, exist_ok=True)
+        return _start_build(_graph(self._config, kind), kind, self._compiler, self._root)
+
+    def __getitem__(self, kind: FootKind) -> CompiledNlp:
+        if kind not in self._ready:
+            build = self._builds.pop(kind) if kind in self._builds else self._start(kind)
+            if self._compiler is None:
+                self._ready[kind] = _on_vm(_graph(self._config, kind), kind)
+            elif build is not None and not build.finish(self._folder(kind)):
+                self._ready[kind] = _on_vm(build.graph, kind)
+            else:
+                self._ready[kind] = _load(kind, self._folder(kind))
+        return self._ready[kind]
+
+
+def _load(kind: FootKind, folder: Path) -> CompiledNlp:
+    bounds = np.load(folder / "bounds.npz")
+    solver = ca.nlpsol(kind.name, "ipopt", str(folder / "nlp.so"), IPOPT_OPTIONS)
+    values = ca.external("foot_values", str(folder / "values.so"))
+    return CompiledNlp(kind, solver, values, *(bounds[b] for b in ("lbx", "ubx", "lbg", "ubg")))
+
+
+def _on_vm(graph: _Graph, kind: FootKind) -> CompiledNlp:
+    solver = ca.nlpsol(kind.name, "ipopt", graph.nlp, IPOPT_OPTIONS)
+    return CompiledNlp(kind, solver, graph.values, graph.lbx, graph.ubx, graph.lbg, graph.ubg)
+
+
+@dataclass(frozen=True)
+class _Build:
+    """A kind's libraries being compiled in a private folder."""
+
+    graph: _Graph
+    work: Path
+    jobs: tuple[subprocess.Popen, ...]
+
+    def finish(self, folder: Path) -> bool:
+        """Wait for the compiler; store the folder as ``folder`` atomically. False if it failed."""
+        if any(job.wait() != 0 for job in self.jobs):
+            shutil.rmtree(self.work, ignore_errors=True)
+            return False
+        (self.work / "done").write_text("ok\n")
+        try:
+            self.work.replace(folder)
+        except OSError:  # another process stored the same library first
+            shutil.rmtree(self.work, ignore_errors=True)
+        return True
+
+
+def _start_build(graph: _Graph, kind: FootKind, compiler: str, root: Path) -> _Build:
+    """Generate a kind's C (the NLP's functions, ``foot_values``) and start compiling it."""
+    work = Path(tempfile.mkdtemp(dir=root, prefix=".build_"))
+    solver = ca.nlpsol(kind.name, "ipopt", graph.nlp, IPOPT_OPTIONS)
+    dependencies = [solver.oracle(), *map(solver.get_function, solver.get_function())]
+    jobs = []
+    for name, functions in (("nlp", dependencies), ("values", [graph.values])):
+        generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+        for f in functions:
+            generator.add(f)
+        generator.generate(f"{work}/")
+        command = [compiler, *NLP_CFLAGS, str(work / f"{name}.c"), "-o", str(work / f"{name}.so")]
+        jobs.append(subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    np.savez(work / "bounds.npz", lbx=graph.lbx, ubx=graph.ubx, lbg=graph.lbg, ubg=graph.ubg)
+    return _Build(graph, work, tuple(jobs))
+
+
+@dataclass(frozen=True)
+class _Graph:
+    nlp: dict
+    values: ca.Function
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+
+
+def _graph(config: StudyConfig, kind: FootKind) -> _Graph:
+    """The symbolic NLP of a kind (see the inner search's module docstring for its rows)."""
+    leg, lim = config.leg, config.limits
+    sizes = kind.sizes
+    n = sum(sizes)
+    starts = np.cumsum((0, *sizes[:-1]))
+    distinct = [list(range(s, s + k)) for s, k in zip(starts, sizes, strict=True)]
+    a, m, L = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n), ca.SX.sym("length", n)
+    h = ca.SX.sym("ankle_height")
+    params = ca.SX.sym("params", 3)  # w1, w2, toe count
+    n_toes = params[2] if kind.distinct_toes == 1 else ca.SX(1)
+    mult = [ca.SX(1)] + [n_toes] * kind.distinct_toes
+    impact = _merged_impact(config, kind, a, m, mult)
+
+    extra: list[ca.SX] = []
+    g, lbg, ubg = [], [], []
+
+    def add(expr: ca.SX, lo: float, hi: float) -> None:
+        g.append(expr)
+        lbg.append(lo)
+        ubg.append(hi)
+
+    def objective(o: Objective) -> ca.SX:
+        if o in (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM, Objective.ENERGY_AFTER):
+            return impact[o.value]
+        s = ca.SX.sym(f"epigraph_{o.value}")
+        extra.append(s)
+        if o is Objective.MAX_INTERNAL:
+            for j in range(impact["scaled_magnitude"].shape[0]):
+                add(s - impact["scaled_magnitude"][j], 0.0, math.inf)
+        else:  # base angular velocity: |omega| <= s
+            add(s - impact["omega"], 0.0, math.inf)
+            add(s + impact["omega"], 0.0, math.inf)
+        return s
+
+    primary = config.objectives[:2]
+    f1 = objective(primary[0])
+    f2 = objective(primary[1]) if len(primary) > 1 else ca.SX(0)
+    add(f2, -math.inf, math.inf)  # the epsilon row
+    _geometric_rows(config, distinct, a, m, L, h, mult, add)
+    lam = impact["external"]
+    for c in range(lam.shape[0]):
+        add(lam[c], TIGHTEN, math.inf)
+    # No energy row: every contact approaches at the landing speed v, so Newton's law gives
+    # E_after - E_before = -(1 - e) v sum(lambda) / 2 <= 0 once every lambda >= 0 (the realised
+    # design's energy_gain is still checked, from the model).
+
+    x = ca.vertcat(a, m, L, h, *extra)
+    a_lo, a_hi = [], []
+    for chain, bounds in zip(distinct, _chain_limits(config, kind), strict=True):
+        a_lo += [bounds[j][0] for j in range(len(chain))]
+        a_hi += [bounds[j][1] for j in range(len(chain))]
+    k = len(extra)
+    lbx = np.concatenate([a_lo, [lim.min_link_mass * (1 + 1e-6)] * n, [LENGTH_FLOOR] * n, [0.0], [0.0] * k])
+    ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n, [math.inf], [math.inf] * k])
+    nlp = {"x": x, "p": params, "f": params[0] * f1 + params[1] * f2, "g": ca.vertcat(*g)}
+    values = _values(impact, ca.vertcat(a, m), params[2], "foot_values")
+    return _Graph(nlp, values, lbx, ubx, np.array(lbg), np.array(ubg))
+
+
+def _values(impact: dict[str, ca.SX], angles_masses: ca.SX, n_toes: ca.SX, name: str) -> ca.Function:
+    """``(angles and masses, toe count)`` -> ``VALUE_OUTPUTS``."""
+    lam = impact["per_toe_external"]
+    outs = [impact[k] for k in VALUE_OUTPUTS[:6]] + [ca.mmin(lam) if lam.shape[0] else ca.SX(0)]
+    return ca.Function(name, [angles_masses, n_toes], outs, ["angles_masses", "n_toes"], list(VALUE_OUTPUTS))
+
+
+def values_function(config: StudyConfig, kind: FootKind) -> ca.Function:
+    """The kind's ``VALUE_OUTPUTS`` alone (the outer search's evaluation), named after the kind."""
+    n = sum(kind.sizes)
+    a, m, n_toes = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n), ca.SX.sym("n_toes")
+    mult = [ca.SX(1)] + [n_toes if kind.distinct_toes == 1 else ca.SX(1)] * kind.distinct_toes
+    return _values(_merged_impact(config, kind, a, m, mult), ca.vertcat(a, m), n_toes, f"values_{kind.name}")
+
+
+def _chain_limits(config: StudyConfig, kind: FootKind) -> tuple:
+    shape = FootShape(kind.distinct_toes, kind.toe_segments, kind.heel_segments)
+    return config.limits.joint_limits(shape)
+
+
+def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult) -> dict[str, ca.SX]:
+    """The impact of the merged tree (each distinct toe's rods carry ``mult`` times their mass)
+    and the real foot's objectives (see the module docstring)."""
+    template = FootDesign(
+        heel=tuple(Segment(0.1, 0.1, 0.0) for _ in range(kind.heel_segments)),
+        toes=tuple(
+            tuple(Segment(0.1, 0.1, 0.0) for _ in range(kind.toe_segments)) for _ in range(kind.distinct_toes)
+        ),
+    )
+    tree = foot_tree(config.leg, template)
+    p = ca.SX(ca.DM(design_vector(tree)))
+    width = len(BODY_VALUES)
+    body, body_mult = 2, [ca.SX(1)]  # the shank's joint impulse is counted once
+    for c, k in enumerate(kind.sizes):
+        for _ in range(k):
+            i = body - 2
+            # The impulses do not depend on the rods' lengths (rods scale with their length:
+            # com and radius of gyration are fractions of it), so the impact sees fixed ones
+            # and its derivatives skip the lengths (tested against evaluate() on real lengths).
+            p[width * body + 1] = mult[c] * m[i]
+            p[width * body + 2] = a[i]
+            body_mult.append(mult[c])
+            body += 1
+    topology = tree.topology()
+    v_minus = approach_velocity(topology, config.scene.speed)
+    out = compiled_model(topology).impact(p=p, v_minus=ca.DM(v_minus), restitution=config.scene.restitution)
+    lam, mag = out["external"], out["internal_magnitude"]
+    contact_mult = ca.vertcat(*mult)
+    joint_mult = ca.vertcat(*body_mult)
+    return {
+        "external": lam,
+        "per_toe_external": lam / contact_mult,
+        "external_norm": ca.sqrt(ca.sum1(lam**2 / contact_mult)),
+        "internal_norm": ca.sqrt(ca.sum1(mag**2 / joint_mult)),
+        "scaled_magnitude": mag / joint_mult,
+        "max_internal": ca.mmax(mag / joint_mult),
+        "omega": out["v_plus"][2],
+        "base_angular_velocity": ca.fabs(out["v_plus"][2]),
+        "energy_after": out["energy_after"],
+        "energy_before": out["energy_before"],
+    }
+
+
+def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add) -> None:
+    """Rows of the NLP that only the geometry and the masses set (level tips, mass per length,
+    foot length, clearance, foot mass)."""
+    leg, lim = config.leg, config.limits
+    phi = {}
+    for chain in distinct:
+        acc = leg.shank_angle
+        for i in chain:
+            acc = acc + a[i]
+            phi[i] = acc
+    drop = {i: -ca.sin(v) for i, v in phi.items()}
+    run = {i: ca.cos(v) for i, v in phi.items()}
+    for chain in distinct:
+        add(sum(L[i] * drop[i] for i in chain) - h, 0.0, 0.0)
+    lo_rho, hi_rho = lim.mass_per_length
+    for i in phi:
+        add(m[i] - hi_rho * L[i], -math.inf, -TIGHTEN * hi_rho)
+        add(lo_rho * L[i] - m[i], -math.inf, -TIGHTEN)
+    heel_run = sum(L[i] * run[i] for i in distinct[0])
+    lo_f, hi_f = lim.foot_length
+    for chain in distinct[1:]:
+        add(sum(L[i] * run[i] for i in chain) - heel_run, lo_f + TIGHTEN, hi_f - TIGHTEN)
+    for chain in distinct:
+        for j in range(len(chain) - 1):
+            add(h - sum(L[i] * drop[i] for i in chain[: j + 1]), lim.min_clearance + TIGHTEN, math.inf)
+    rod = (Segment(0.1, 0.1, 0.0),)
+    leg_y = foot_geometry(leg, FootDesign(heel=rod, toes=(rod,))).leg_points[:, 1]
+    for y in (0.0, *leg_y):
+        add(h + float(y), lim.min_clearance + TIGHTEN, math.inf)
+    total = sum(mult[c] * m[i] for c, chain in enumerate(distinct) for i in chain)
+    if lim.mass_mode is MassMode.EQUAL:
+        add(total, lim.foot_mass, lim.foot_mass)
+    else:
+        add(total, -math.inf, lim.foot_mass)
+
+
+__all__ = [
+    "IPOPT_OPTIONS",
+    "TIGHTEN",
+    "VALUE_OUTPUTS",
+    "CompiledNlp",
+    "FootKind",
+    "NlpCache",
+    "foot_kind",
+    "values_function",
+]
