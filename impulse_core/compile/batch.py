@@ -23,10 +23,10 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.compile.codegen import Backend, batch_kernel, compile_function, simd_lanes
-from impulse_core.impact.laws import PIVOT_TOL
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import approach_velocity
 from impulse_core.impact.delassus import GRADIENT_OUTPUTS, LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
+from impulse_core.impact.laws import PIVOT_TOL
 from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.tree import BODY_VALUES, CONTACT_BOUNDS, VALUE_BOUNDS, Topology
 

@@ -30,7 +30,7 @@ class CompileError(FootoptError, RuntimeError):
     """A C compiler is missing or failed; the message says which and how to run without it."""
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def compiler_identity(compiler: str) -> str:
     """The compiler's resolved path and the first line of ``--version`` (part of every key)."""
     path = shutil.which(compiler) or compiler
@@ -100,15 +100,18 @@ def store(root: Path, name: str, key: str, build: Callable[[Path], Iterable[str]
     return found
 
 
-def run_compiler(command: list[str]) -> None:
-    """Run one compiler command; CompileError with the compiler's last lines if it fails."""
+def run_compilers(*commands: list[str]) -> None:
+    """Run compiler commands at once (one process each) and wait for all; CompileError with the
+    first failing compiler's last lines."""
     try:
-        subprocess.run(command, check=True, capture_output=True, text=True)
-    except FileNotFoundError as exc:
-        raise CompileError(f"C compiler not found: {command[0]}") from exc
-    except subprocess.CalledProcessError as exc:
-        tail = " | ".join((exc.stderr or exc.stdout or "").strip().splitlines()[-3:])
-        raise CompileError(f"C compiler failed ({command[0]}, exit {exc.returncode}): {tail}") from exc
+        jobs = [subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands]
+    except OSError as exc:
+        raise CompileError(f"C compiler cannot be run: {exc}") from exc
+    outputs = [job.communicate() for job in jobs]
+    for command, job, (out, err) in zip(commands, jobs, outputs, strict=True):
+        if job.returncode:
+            tail = " | ".join((err or out or "").strip().splitlines()[-3:])
+            raise CompileError(f"C compiler failed ({command[0]}, exit {job.returncode}): {tail}")
 
 
 def _digest(path: Path) -> str:
@@ -119,4 +122,4 @@ def _digest(path: Path) -> str:
     return h.hexdigest()
 
 
-__all__ = ["CompileError", "compiler_identity", "entry_key", "entry_folder", "lookup", "run_compiler", "store"]
+__all__ = ["CompileError", "compiler_identity", "entry_folder", "entry_key", "lookup", "run_compilers", "store"]

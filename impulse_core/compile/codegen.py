@@ -26,7 +26,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from impulse_core.compile.cache import CompileError, compiler_identity, entry_key, lookup, run_compiler, store
+from impulse_core.compile.cache import CompileError, compiler_identity, entry_key, lookup, run_compilers, store
 
 #: Compiler flags; -O3 without -ffast-math keeps IEEE semantics (results equal the VM's to rounding).
 #: -fno-math-errno only drops errno updates, so sqrt becomes one instruction instead of a call
@@ -359,9 +359,9 @@ def _build(compiler: str, source: str, arch: tuple[str, ...], work: Path) -> lis
     (work / "source.c").write_text(source)
     command = [compiler, *CFLAGS, *arch, str(work / "source.c"), "-o", str(work / LIBRARY)]
     try:
-        run_compiler([*command[:-3], OPENMP_FLAG, *command[-3:]])
+        run_compilers([*command[:-3], OPENMP_FLAG, *command[-3:]])
     except CompileError:
-        run_compiler(command)
+        run_compilers(command)
     return [LIBRARY, "source.c"]
 
 

@@ -22,12 +22,13 @@ compiler and its flags. A warm study loads it without building any symbolic mode
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import os
-import shutil
-import subprocess
 import tempfile
+import warnings
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +36,7 @@ import casadi as ca
 import numpy as np
 
 import impulse_core
+from impulse_core.compile.cache import CompileError, compiler_identity, entry_key, lookup, run_compilers, store
 from impulse_core.compile.codegen import find_compiler
 from impulse_core.evaluate import approach_velocity, compiled_model
 from impulse_core.model.tree import BODY_VALUES, design_vector
@@ -143,8 +145,9 @@ def _source_hash() -> str:
 
 
 def nlp_key(config: StudyConfig, kind: FootKind, compiler: str) -> str:
-    """The cache key of a kind's library (see the module docstring)."""
-    parts = (
+    """The cache key of a kind's library (see the module docstring): it hashes what the generated
+    source is made from (generating the source to hash it would cost what the cache saves)."""
+    return entry_key(
         repr(config.leg),
         repr(config.limits),
         repr((config.scene.speed, config.scene.restitution)),
@@ -152,10 +155,9 @@ def nlp_key(config: StudyConfig, kind: FootKind, compiler: str) -> str:
         repr(kind),
         _source_hash(),
         ca.__version__,
-        compiler,
-        " ".join(NLP_CFLAGS),
+        compiler_identity(compiler),
+        *NLP_CFLAGS,
     )
-    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:20]
 
 
 IPOPT_OPTIONS = {
@@ -172,36 +174,55 @@ IPOPT_OPTIONS = {
 
 class NlpCache:
     """The NLPs of a study's kinds of foot. Made with the kinds it will need: the libraries that
-    are not cached yet are generated at once and compiled in the background, one compiler
-    process per library; ``cache[kind]`` waits for that kind's only, so the search of one kind
-    runs while the others compile. Without a C compiler, or when a build fails, that kind's NLP
-    runs on CasADi's virtual machine."""
+    are not cached yet are generated at once and compiled in background threads (one compiler
+    process per library); ``cache[kind]`` waits for that kind's only, so the search of one kind
+    runs while the others compile. Libraries live in the trusted cache
+    (:mod:`impulse_core.compile.cache`). Without a C compiler, or when a build fails, that kind's
+    NLP runs on CasADi's virtual machine, and a ``RuntimeWarning`` says so."""
 
     def __init__(self, config: StudyConfig, kinds: list[FootKind], directory: Path | None = None) -> None:
         self._config, self._ready = config, {}
         self._compiler = find_compiler()
         self._root = directory or cache_dir()
+        self._pool = ThreadPoolExecutor(max_workers=max(1, len(kinds)))
         self._builds = {k: self._start(k) for k in kinds}
 
-    def _folder(self, kind: FootKind) -> Path:
-        return self._root / f"{kind.name}_{nlp_key(self._config, kind, self._compiler)}"
+    def _key(self, kind: FootKind) -> str:
+        return nlp_key(self._config, kind, self._compiler)
 
-    def _start(self, kind: FootKind) -> _Build | None:
-        if self._compiler is None or (self._folder(kind) / "done").exists():
+    def _start(self, kind: FootKind) -> tuple[_Graph, Future] | None:
+        """Generate the kind's C and start compiling it, unless it is cached or cannot be."""
+        if self._compiler is None or lookup(self._root, kind.name, self._key(kind)) is not None:
             return None
-        self._root.mkdir(parents=True, exist_ok=True)
-        return _start_build(_graph(self._config, kind), kind, self._compiler, self._root)
+        graph = _graph(self._config, kind)
+        build = functools.partial(_build, _sources(graph, kind), graph, self._compiler)
+        return graph, self._pool.submit(store, self._root, kind.name, self._key(kind), build)
 
     def __getitem__(self, kind: FootKind) -> CompiledNlp:
         if kind not in self._ready:
-            build = self._builds.pop(kind) if kind in self._builds else self._start(kind)
-            if self._compiler is None:
-                self._ready[kind] = _on_vm(_graph(self._config, kind), kind)
-            elif build is not None and not build.finish(self._folder(kind)):
-                self._ready[kind] = _on_vm(build.graph, kind)
-            else:
-                self._ready[kind] = _load(kind, self._folder(kind))
+            self._ready[kind] = self._nlp(kind)
         return self._ready[kind]
+
+    def _nlp(self, kind: FootKind) -> CompiledNlp:
+        if self._compiler is None:
+            warnings.warn(
+                "no C compiler found (cc, gcc or clang): the inner search runs on CasADi's virtual machine (slower)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            return _on_vm(_graph(self._config, kind), kind)
+        started = self._builds.pop(kind, None) or self._start(kind)
+        if started is None:
+            folder = lookup(self._root, kind.name, self._key(kind))
+            if folder is not None:
+                return _load(kind, folder)
+            started = self._start(kind)
+        graph, future = started
+        try:
+            return _load(kind, future.result())
+        except CompileError as exc:
+            warnings.warn(f"{exc}; {kind.name} runs on CasADi's virtual machine (slower)", RuntimeWarning, stacklevel=3)
+            return _on_vm(graph, kind)
 
 
 def _load(kind: FootKind, folder: Path) -> CompiledNlp:
@@ -216,42 +237,29 @@ def _on_vm(graph: _Graph, kind: FootKind) -> CompiledNlp:
     return CompiledNlp(kind, solver, graph.values, graph.lbx, graph.ubx, graph.lbg, graph.ubg)
 
 
-@dataclass(frozen=True)
-class _Build:
-    """A kind's libraries being compiled in a private folder."""
-
-    graph: _Graph
-    work: Path
-    jobs: tuple[subprocess.Popen, ...]
-
-    def finish(self, folder: Path) -> bool:
-        """Wait for the compiler; store the folder as ``folder`` atomically. False if it failed."""
-        if any(job.wait() != 0 for job in self.jobs):
-            shutil.rmtree(self.work, ignore_errors=True)
-            return False
-        (self.work / "done").write_text("ok\n")
-        try:
-            self.work.replace(folder)
-        except OSError:  # another process stored the same library first
-            shutil.rmtree(self.work, ignore_errors=True)
-        return True
-
-
-def _start_build(graph: _Graph, kind: FootKind, compiler: str, root: Path) -> _Build:
-    """Generate a kind's C (the NLP's functions, ``foot_values``) and start compiling it."""
-    work = Path(tempfile.mkdtemp(dir=root, prefix=".build_"))
+def _sources(graph: _Graph, kind: FootKind) -> dict[str, str]:
+    """A kind's C: the NLP's functions (``nlp.c``) and ``foot_values`` (``values.c``)."""
     solver = ca.nlpsol(kind.name, "ipopt", graph.nlp, IPOPT_OPTIONS)
     dependencies = [solver.oracle(), *map(solver.get_function, solver.get_function())]
-    jobs = []
-    for name, functions in (("nlp", dependencies), ("values", [graph.values])):
-        generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-        for f in functions:
-            generator.add(f)
-        generator.generate(f"{work}/")
-        command = [compiler, *NLP_CFLAGS, str(work / f"{name}.c"), "-o", str(work / f"{name}.so")]
-        jobs.append(subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    sources = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, functions in (("nlp", dependencies), ("values", [graph.values])):
+            generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+            for f in functions:
+                generator.add(f)
+            sources[name] = Path(generator.generate(f"{tmp}/")).read_text()
+    return sources
+
+
+def _build(sources: dict[str, str], graph: _Graph, compiler: str, work: Path) -> list[str]:
+    """Compile a kind's sources into ``work`` (both at once) beside its bounds; the files made."""
+    commands = []
+    for name, text in sources.items():
+        (work / f"{name}.c").write_text(text)
+        commands.append([compiler, *NLP_CFLAGS, str(work / f"{name}.c"), "-o", str(work / f"{name}.so")])
+    run_compilers(*commands)
     np.savez(work / "bounds.npz", lbx=graph.lbx, ubx=graph.ubx, lbg=graph.lbg, ubg=graph.ubg)
-    return _Build(graph, work, tuple(jobs))
+    return ["nlp.so", "values.so", "bounds.npz"]
 
 
 @dataclass(frozen=True)
@@ -266,7 +274,7 @@ class _Graph:
 
 def _graph(config: StudyConfig, kind: FootKind) -> _Graph:
     """The symbolic NLP of a kind (see the inner search's module docstring for its rows)."""
-    leg, lim = config.leg, config.limits
+    lim = config.limits
     sizes = kind.sizes
     n = sum(sizes)
     starts = np.cumsum((0, *sizes[:-1]))
@@ -349,9 +357,7 @@ def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult) -> dict[str,
     and the real foot's objectives (see the module docstring)."""
     template = FootDesign(
         heel=tuple(Segment(0.1, 0.1, 0.0) for _ in range(kind.heel_segments)),
-        toes=tuple(
-            tuple(Segment(0.1, 0.1, 0.0) for _ in range(kind.toe_segments)) for _ in range(kind.distinct_toes)
-        ),
+        toes=tuple(tuple(Segment(0.1, 0.1, 0.0) for _ in range(kind.toe_segments)) for _ in range(kind.distinct_toes)),
     )
     tree = foot_tree(config.leg, template)
     p = ca.SX(ca.DM(design_vector(tree)))

@@ -323,7 +323,7 @@ def _evaluation(config: StudyConfig, design: FootDesign, values: dict[str, float
 def _values_runner(config: StudyConfig, kind: FootKind) -> Callable[..., list[np.ndarray]]:
     """The batched C loop of a kind's values (CasADi's map on its virtual machine without a compiler)."""
     f = values_function(config, kind)
-    compiled = compile_function(f, cache_dir())
+    compiled = compile_function(f, cache_dir(), fallback=True)
     kernel = batch_kernel(compiled, f)
     if kernel is not None:
         return kernel

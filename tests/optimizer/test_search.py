@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import optuna
 import pytest
 from optuna.trial import TrialState
@@ -166,3 +167,22 @@ def test_independent_toes_and_mass_budget_at_most(method: str, write):
         assert len(design.toes) == 2 and design.foot_mass <= 0.5 + 1e-12
     if method == "outer":
         assert {"toe1.joint_angle[0]", "toe2.joint_angle[0]", "foot_mass_fraction"} <= set(study.trials[0].params)
+
+
+def test_nlp_libraries_come_from_the_trusted_cache_and_a_failed_build_is_said(tiny_study: Path, tmp_path, monkeypatch):
+    """A kind's library is built once into a verified cache entry and loaded from it; a failing
+    compiler gives a RuntimeWarning and the virtual machine, with the same NLP bounds."""
+    import optimizer.search.compiled as compiled
+    from impulse_core.compile.cache import lookup
+
+    config = load_study(tiny_study)
+    kind = compiled.foot_kind(config, FootShape(2, 1))
+    built = compiled.NlpCache(config, [kind], directory=tmp_path / "good")[kind]
+    key = compiled.nlp_key(config, kind, compiled.find_compiler())
+    assert lookup(tmp_path / "good", kind.name, key) is not None
+    assert compiled.NlpCache(config, [], directory=tmp_path / "good")[kind].n_x == built.n_x
+    monkeypatch.setattr(compiled, "find_compiler", lambda: "false")
+    with pytest.warns(RuntimeWarning, match="virtual machine"):
+        on_vm = compiled.NlpCache(config, [kind], directory=tmp_path / "bad")[kind]
+    np.testing.assert_array_equal(on_vm.lbx, built.lbx)
+    assert not list((tmp_path / "bad").glob(f"{kind.name}_*"))  # nothing half-built was kept
