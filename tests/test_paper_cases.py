@@ -1,7 +1,7 @@
 """The paper's three feet (configs/paper_case{1,2,3}.yaml) against the paper's printed tables.
 
 Golden values: Kim & Yi, "Analysis of Multi-Chained and Multiple Contact Characteristics of Foot
-Mechanisms in Aspect of Impulse Absorption" (../shared/paper/), section 6.1:
+Mechanisms in Aspect of Impulse Absorption" (notes: docs/ERRATA.md), section 6.1:
 Table 2 and Table 3 (case 1, flat foot), Table 5 and Table 6 (case 2, one two-link toe),
 Table 8 and Table 9 (case 3, three two-link toes), mapped to the files' order as
 studies/paper_reproduction/README.md explains. Table 5's "0.602" is read 0.2602 (its norm says so).
@@ -9,7 +9,7 @@ studies/paper_reproduction/README.md explains. Table 5's "0.602" is read 0.2602 
 The touchdown angles were fitted to these tables (studies/paper_reproduction/fit_paper_cases.py):
 the fit reproduces the ratios between the entries to rounding, and with the printed inputs
 (3.43 m/s, e = 0.8) every impulse sits one common factor (~1/1.037) below the tables, because the
-printed inputs and tables disagree (../shared/paper/ERRATA.md). Case 1 is not reproduced by any
+printed inputs and tables disagree (docs/ERRATA.md). Case 1 is not reproduced by any
 reading of the lost figure; its test asserts only the measured gap.
 
 The files are read with plain ``yaml.safe_load`` and built with ``impulse_core.model.tree`` directly,

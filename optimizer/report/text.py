@@ -87,6 +87,11 @@ def warnings(model: ModelFile, result: Result) -> tuple[str, ...]:
 def _rigid_warnings(model: ModelFile, result: ImpactResult) -> list[str]:
     names = contact_names(model.tree)
     out = []
+    if result.model is ImpactModel.DECOUPLED:
+        out.append(
+            "decoupled (paper eq. 14) approximates Newton's law (eq. 11) with no error bound: it equals eq. 11 "
+            "only when every impulse is equal (docs/ERRATA.md); run newton or lcp for the model's answer"
+        )
     if not result.split_unique:
         active = ", ".join(names[i] for i in result.active)
         shown = (
@@ -155,8 +160,9 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
     """The JSON object ``footopt evaluate --json`` prints for one file (plain Python types).
 
     Keys of the contract (``MODEL_FORMAT.md``): ``external``, ``internal``, ``external_norm``,
-    ``internal_norm``. Extras for every model: ``file``, ``model`` (the law, in words),
-    ``impact_model`` (what ran: decoupled, newton, lcp, friction, sequential or compliant),
+    ``internal_norm``, ``model`` (what ran: decoupled, newton, lcp, friction, sequential or
+    compliant), ``warnings`` (a list, empty when there is nothing to say). Extras for every model:
+    ``file``, ``model_description`` (the law, in words), ``impact_model`` (= ``model``),
     ``impact_reason`` (why), ``scene`` (with ``terrain`` as [x, y] points and ``base_x``),
     ``contacts``, ``active`` (per contact: it hit, or touched down), ``joints``, ``joint_kinds``,
     ``internal_vector``, ``max_internal``, ``max_internal_joint``, ``velocities``, ``v_minus``,
@@ -175,7 +181,8 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
     name, description = rung(result)
     record: dict[str, Any] = {
         "file": file,
-        "model": description,
+        "model": name,
+        "model_description": description,
         "impact_model": name,
         "impact_reason": result.reason,
         "scene": _scene_record(model.scene),
@@ -196,6 +203,7 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
         "energy_before": _f(result.energy_before),
         "energy_after": _f(result.energy_after),
         "energy_gained": energy_gained(result),
+        "warnings": list(warnings(model, result)),
     }
     if isinstance(result, ImpactResult):
         record |= {

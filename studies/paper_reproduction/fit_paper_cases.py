@@ -3,8 +3,8 @@
 paper's figures) to its printed impulse tables through footopt's impulse model.
 
 Paper: "Analysis of Multi-Chained and Multiple Contact Characteristics of Foot Mechanisms in
-Aspect of Impulse Absorption" (Kim & Yi; OCR in ../shared/paper/), section 6.1, Tables 1-9.
-Reading notes: ../shared/paper/ERRATA.md. What this script found: README.md next to it.
+Aspect of Impulse Absorption" (Kim & Yi; our notes: docs/ERRATA.md), section 6.1, Tables 1-9.
+Reading notes: docs/ERRATA.md. What this script found: README.md next to it.
 
 For every case the unknowns are the absolute touchdown angles of the links (x forward, y up,
 counter-clockwise); the model file stores them as the base's absolute angle and joint angles.

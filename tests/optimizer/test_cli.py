@@ -313,9 +313,9 @@ def _json_lines(out: str) -> list[dict]:
     return [json.loads(line, parse_constant=no_constants) for line in out.splitlines()]
 
 
-CONTRACT_KEYS = {"external", "internal", "external_norm", "internal_norm"}
+CONTRACT_KEYS = {"external", "internal", "external_norm", "internal_norm", "model", "warnings"}
 EXTRA_KEYS = {
-    "file", "model", "scene", "contacts", "active", "joints", "joint_kinds", "internal_vector", "internal_torque",
+    "file", "model_description", "scene", "contacts", "active", "joints", "joint_kinds", "internal_vector", "internal_torque",
     "max_internal", "max_internal_joint", "velocities", "v_minus", "v_plus", "energy_before", "energy_after",
     "energy_gained", "split_unique", "pulling", "reference", "impact_model", "impact_reason", "tangential",
     "separating",
@@ -345,7 +345,8 @@ def test_json_matches_the_core(leg_file: Path, leg_tree: Tree, leg_scene: Scene,
     assert record["reference"] is None
     assert record["impact_model"] == expected.model.value == "newton"
     assert record["impact_reason"] == expected.reason and record["impact_reason"].startswith("automatic")
-    assert record["model"] == expected.model.description
+    assert record["model"] == "newton" and record["model_description"] == expected.model.description
+    assert record["warnings"] == []  # always a list (MODEL_FORMAT.md)
     assert record["tangential"] == [0.0, 0.0] and record["separating"] == []
 
 
@@ -495,3 +496,15 @@ def test_a_failing_solve_is_a_numerical_failure(leg_file: Path, monkeypatch, cap
     monkeypatch.setattr(optimizer.cli.main, "evaluate_landing", singular)
     assert main(["evaluate", str(leg_file)]) == 1
     _assert_one_error_line(capsys.readouterr().err, leg_file, "numerical failure")
+
+
+def test_json_warnings_are_the_reports_warnings(capsys) -> None:
+    """An approximation on request warns, and the JSON's ``warnings`` list holds exactly the
+    warnings the text report prints."""
+    case = str(REPO / "configs" / "paper_case3.yaml")
+    assert main(["evaluate", "--model", "decoupled", case]) == 0
+    printed = [line.removeprefix("warning: ") for line in capsys.readouterr().out.splitlines() if line.startswith("warning: ")]
+    assert main(["evaluate", "--json", "--model", "decoupled", case]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["model"] == "decoupled" and record["warnings"] == printed
+    assert any("no error bound" in w for w in printed)
