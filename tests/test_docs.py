@@ -39,7 +39,7 @@ def test_the_readme_python_snippet_runs(tmp_path, monkeypatch) -> None:
     snippet = text.split("```python\n", 1)[1].split("```", 1)[0]
     monkeypatch.chdir(ROOT)
     names: dict = {}
-    exec(compile(snippet.replace("~/.cache/footopt", str(tmp_path)), "README.md", "exec"), names)  # our own text
+    exec(compile(snippet.replace("~/.cache/footopt", str(tmp_path)), "README.md", "exec"), names)  # noqa: S102 (our own README)
     from impulse_core.evaluate import evaluate
     from optimizer.config.model_file import load_model_file
 

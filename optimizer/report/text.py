@@ -13,14 +13,14 @@ from typing import Any
 
 import numpy as np
 
-from impulse_core.timedomain.compliant import CompliantResult, CompliantStatus, ContactLaw
-from impulse_core.impact.laws import ImpactModel
 from impulse_core.evaluate import ImpactResult
+from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import PLANAR, dof_layout
 from impulse_core.model.terrain import FLAT
 from impulse_core.model.tree import ContactSelection, Scene, Tree
-from optimizer.evaluation.model_choice import TimeDomainResult
+from impulse_core.timedomain.compliant import CompliantResult, CompliantStatus, ContactLaw
 from optimizer.config.model_file import ModelFile
+from optimizer.evaluation.model_choice import TimeDomainResult
 
 #: What the reports read: one rigid impact, or a sequential or compliant landing.
 Result = ImpactResult | TimeDomainResult
