@@ -1,7 +1,6 @@
 """footopt's edge layer: model files, reports, plots and the ``footopt`` command line, over
 :mod:`impulse_core`."""
 
-from optimizer.errors import ConfigError
 from optimizer.config.model_file import (
     ModelFile,
     Reference,
@@ -11,6 +10,7 @@ from optimizer.config.model_file import (
     load_yaml,
     parse_model,
 )
+from optimizer.errors import ConfigError
 from optimizer.report.plot import plot_touchdown
 from optimizer.report.text import contact_names, format_report, joint_names, result_record
 

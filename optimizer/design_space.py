@@ -356,6 +356,20 @@ class ConstraintValues:
         return tuple((name, max(0.0, v - FEASIBILITY_TOL)) for name, v in self.items())
 
 
+#: The study-file field behind each constraint value (None: a law of physics, not a setting).
+CONSTRAINT_FIELDS = {
+    "foot_mass": "constraints.foot_mass",
+    "min_link_mass": "constraints.min_link_mass",
+    "mass_per_length": "constraints.mass_per_length",
+    "foot_length": "constraints.foot_length",
+    "joint_angles": "constraints.joint_angles",
+    "touchdown": "constraints.contact_tolerance",
+    "clearance": "constraints.min_clearance",
+    "pulling": None,
+    "energy_gain": None,
+}
+
+
 @dataclass(frozen=True)
 class FootGeometry:
     """The touchdown geometry of a foot, relative to the ankle (m).
@@ -708,8 +722,8 @@ __all__ = [
     "FootGeometry",
     "FootLimits",
     "FootShape",
-    "LengthAssignment",
     "Leg",
+    "LengthAssignment",
     "MassMode",
     "Objective",
     "Objectives",

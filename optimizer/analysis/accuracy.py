@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, scene_ground, simulate_impact
 from impulse_core.evaluate import evaluate
-from impulse_core.timedomain.sequential import SequentialSettings, sequential_impacts
 from impulse_core.model.terrain import FLAT, Terrain
 from impulse_core.model.tree import Scene, Tree
+from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, scene_ground, simulate_impact
+from impulse_core.timedomain.sequential import SequentialSettings, sequential_impacts
 
 #: A quantity "differs" when it is off by more than this fraction of itself ...
 DIFFERS_RELATIVE = 0.01

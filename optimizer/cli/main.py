@@ -20,18 +20,18 @@ from pathlib import Path
 
 import numpy as np
 
-from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw
 from impulse_core.errors import FootoptError, NumericalError
 from impulse_core.evaluate import touchdown_geometry
+from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw
 from impulse_core.timedomain.sequential import SequentialSettings
 from optimizer.analysis.bench import SCALING_SIZES
-from optimizer.evaluation.model_choice import COMPLIANT, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
-from optimizer.config.model_file import ModelFile, load_model_file
 from optimizer.cli.optimize import add_optimize, add_pareto
+from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
+from optimizer.cli.status import error as _error
+from optimizer.config.model_file import ModelFile, load_model_file
+from optimizer.evaluation.model_choice import COMPLIANT, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown
 from optimizer.report.text import Result, format_report, is_finite, result_record
-
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 #: The paper's three-toed foot, evaluated when no file is given.
 DEFAULT_MODEL = Path(__file__).resolve().parents[2] / "configs" / "paper_case3.yaml"
@@ -169,6 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'footopt COMMAND --help' for a command's options.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--debug", action="store_true", help="show a Python traceback for any error")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for add in SUBCOMMANDS:
         add(subparsers)
@@ -198,6 +199,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # Python would complain again when flushing at exit
         return EXIT_FAILURE
+    except Exception as exc:
+        if args.debug:
+            raise
+        return _internal_error(exc)
+
+
+def _internal_error(exc: Exception) -> int:
+    """An error footopt did not expect: its traceback and a request to report it."""
+    import traceback
+
+    traceback.print_exception(exc, file=sys.stderr)
+    _error(
+        "internal error",
+        f"{type(exc).__name__}: {exc}. This is a bug in footopt: please report it with the "
+        "command and the files it read (footopt --debug ... shows the same traceback on purpose)",
+    )
+    return EXIT_FAILURE
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
@@ -383,11 +401,6 @@ def _plot_paths(path: Path, files: list[str]) -> dict[int, Path]:
         used.add(candidate)
         out[n] = candidate
     return out
-
-
-def _error(where: str, message: str) -> None:
-    one_line = " ".join(line.strip() for line in message.splitlines())
-    print(f"footopt: error: {where}: {one_line}", file=sys.stderr)
 
 
 def _version() -> str:

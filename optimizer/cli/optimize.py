@@ -9,14 +9,15 @@ from __future__ import annotations
 
 import argparse
 import logging
+import shlex
 import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
 from impulse_core.errors import FootoptError
-
-EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, warn
+from optimizer.cli.status import error as _error
 
 
 def add_optimize(subparsers: argparse._SubParsersAction) -> None:
@@ -33,7 +34,9 @@ def add_optimize(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("study", metavar="STUDY.yaml", help="the study file (see configs/quick_study.yaml)")
     p.add_argument("--out", metavar="DIR", help="run directory (default: runs/<study name>)")
-    p.add_argument("--trials", type=int, metavar="N", help="outer search: finished trials to reach (default: the study's)")
+    p.add_argument(
+        "--trials", type=int, metavar="N", help="outer search: finished trials to reach (default: the study's)"
+    )
     p.add_argument(
         "--storage",
         metavar="URL",
@@ -61,7 +64,7 @@ def add_pareto(subparsers: argparse._SubParsersAction) -> None:
 
 def run_optimize(args: argparse.Namespace) -> int:
     """``footopt optimize``."""
-    from optimizer.config.study_config import load_study
+    from optimizer.config.study_config import SearchMethod, load_study, redact_url
 
     try:
         config = load_study(args.study)
@@ -72,30 +75,38 @@ def run_optimize(args: argparse.Namespace) -> int:
         if args.trials < 1:
             _error("--trials", f"must be >= 1, got {args.trials}")
             return EXIT_USAGE
+        if config.search.method is SearchMethod.INNER:
+            warn("--trials counts the outer search's trials; the inner search runs every shape once (ignored)")
         config = replace(config, search=replace(config.search, trials=args.trials))
     if args.storage is not None:
         config = replace(config, storage=args.storage)
     run_dir = Path(args.out) if args.out else Path("runs") / config.name
-    return optimize(config, run_dir, force=args.force, quiet=args.quiet)
+    resume = " ".join(shlex.quote(a) for a in ["footopt", "optimize", args.study, "--out", str(run_dir)])
+    if args.storage is not None:
+        resume += " --storage " + shlex.quote(redact_url(args.storage))
+    return optimize(config, run_dir, force=args.force, quiet=args.quiet, resume=resume)
 
 
-def optimize(config, run_dir: Path, force: bool = False, quiet: bool = False) -> int:
-    """Run ``config`` into ``run_dir`` (the body of ``footopt optimize``); returns the exit status."""
+def optimize(config, run_dir: Path, force: bool = False, quiet: bool = False, resume: str | None = None) -> int:
+    """Run ``config`` into ``run_dir`` (the body of ``footopt optimize``); returns the exit status.
+    ``resume`` is the command that resumes it (printed when interrupted)."""
     import optuna
     from tqdm import tqdm
 
-    from optimizer.search.inner import run_inner
+    from optimizer.config.study_config import SearchMethod
     from optimizer.results.runs import (
         RunState,
         export_front,
         format_front,
+        infeasible_summary,
+        plural,
         prepare_run,
         storage_url,
         write_run_file,
         write_study_file,
     )
+    from optimizer.search.inner import run_inner
     from optimizer.search.outer import finished_trials, open_study, run_outer
-    from optimizer.config.study_config import SearchMethod
 
     optuna.logging.set_verbosity(logging.WARNING)
     try:
@@ -148,12 +159,15 @@ def optimize(config, run_dir: Path, force: bool = False, quiet: bool = False) ->
         interrupted=status == EXIT_INTERRUPTED,
     )
     if status == EXIT_INTERRUPTED:
-        print(f"footopt: interrupted; the finished trials are kept. Resume: footopt optimize ... --out {run_dir}",
-              file=sys.stderr)
+        resume = resume or f"footopt optimize {shlex.quote(str(config.source))} --out {shlex.quote(str(run_dir))}"
+        print(f"footopt: interrupted; the finished trials are kept. Resume: {resume}", file=sys.stderr)
         return status
+    if not points:
+        _error(config.name, infeasible_summary(study))
+        return EXIT_FAILURE
     if not quiet:
         print(format_front(config, points), end="")
-        print(f"run directory: {run_dir} ({wall:.1f} s)")
+    print(f"{plural(len(points), 'Pareto design')} in {run_dir} ({wall:.1f} s)")
     return EXIT_OK
 
 
@@ -161,9 +175,9 @@ def run_pareto(args: argparse.Namespace) -> int:
     """``footopt pareto DIR``."""
     import optuna
 
+    from optimizer.config.study_config import load_study
     from optimizer.results.runs import STUDY_FILE, export_front, format_front, storage_url
     from optimizer.search.outer import open_study
-    from optimizer.config.study_config import load_study
 
     optuna.logging.set_verbosity(logging.WARNING)
     run_dir = Path(args.run_dir)
@@ -175,7 +189,9 @@ def run_pareto(args: argparse.Namespace) -> int:
         config = load_study(study_file)
         study = open_study(config, storage_url(run_dir, config))
         if not study.trials:  # e.g. a run directory copied without its storage: keep its files
-            _error(str(run_dir), f"its storage ({config.storage or 'study.journal'}) holds no trials; nothing re-exported")
+            _error(
+                str(run_dir), f"its storage ({config.storage or 'study.journal'}) holds no trials; nothing re-exported"
+            )
             return EXIT_USAGE
         points = export_front(run_dir, config, study)
     except FootoptError as e:
@@ -183,11 +199,6 @@ def run_pareto(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     print(format_front(config, points), end="")
     return EXIT_OK
-
-
-def _error(where: str, message: str) -> None:
-    one_line = " ".join(line.strip() for line in message.splitlines())
-    print(f"footopt: error: {where}: {one_line}", file=sys.stderr)
 
 
 __all__ = ["add_optimize", "add_pareto", "optimize", "run_optimize", "run_pareto"]

@@ -35,12 +35,12 @@ import yaml
 from impulse_core.errors import ModelError
 from impulse_core.model.terrain import FLAT, Terrain
 from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
-from optimizer.errors import ConfigError
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import join as _join
 from optimizer.config.yaml_fields import mapping as _mapping
 from optimizer.config.yaml_fields import number as _number
 from optimizer.config.yaml_fields import string as _string
+from optimizer.errors import ConfigError
 
 TOP_KEYS = ("scene", "model", "reference", "notes")
 SCENE_KEYS = ("speed", "restitution", "friction", "contacts", "contact_tolerance", "terrain", "base_x")

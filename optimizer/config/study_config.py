@@ -9,20 +9,21 @@ with defaults, is ``configs/quick_study.yaml``; :func:`format_study` writes a re
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
 from typing import Any
 
 from impulse_core.model.tree import Scene
-from optimizer.design_space import DesignSpace, FootLimits, Leg, MassMode, Objective, ToeSymmetry
-from optimizer.errors import ConfigError
 from optimizer.config.model_file import load_yaml, read_text
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import join as _join
 from optimizer.config.yaml_fields import mapping as _checked_mapping
 from optimizer.config.yaml_fields import number as _number
 from optimizer.config.yaml_fields import string as _string
+from optimizer.design_space import DesignSpace, FootLimits, Leg, MassMode, Objective, ToeSymmetry
+from optimizer.errors import ConfigError
 
 
 class SearchMethod(Enum):
@@ -53,7 +54,7 @@ class SearchSettings:
         starts: inner: random starts per shape.
     """
 
-    method: SearchMethod = SearchMethod.OUTER
+    method: SearchMethod = SearchMethod.INNER
     sampler: SamplerKind = SamplerKind.TPE
     trials: int = 200
     startup_trials: int = 20
@@ -110,8 +111,12 @@ CONSTRAINT_KEYS = (
 ANGLE_KEYS = ("heel_root", "heel_inner", "toe_root", "toe_inner")
 SEARCH_KEYS = ("method", "sampler", "trials", "startup_trials", "population", "inner")
 INNER_KEYS = ("front_points", "starts")
-#: Most rods per chain a study may ask for (None: as many as the mass budget allows).
-MAX_SEGMENTS = None
+#: Most toes and most rods per chain a study may ask for (documented in configs/quick_study.yaml):
+#: beyond them a study is refused at once rather than enumerating shapes for ever.
+MAX_TOES = 32
+MAX_SEGMENTS = 16
+#: The seed of a study file without ``seed`` (configs/quick_study.yaml shows every default).
+DEFAULT_SEED = 1
 
 
 # --------------------------------------------------------------------------------------------
@@ -147,10 +152,10 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
     top = _mapping(data, "", TOP_KEYS, what="the top level")
     default_name = source.stem if source is not None else "study"
     name = _string(top.get("name", default_name), "name")
-    seed = _integer(top.get("seed", 0), "seed", minimum=0)
+    seed = _integer(top.get("seed", DEFAULT_SEED), "seed", minimum=0)
     storage = top.get("storage")
     if storage is not None:
-        storage = _string(storage, "storage")
+        storage = resolve_storage(_string(storage, "storage"), None if source is None else source.parent)
     objectives = _objectives(_required(top, "objectives", ""))
     space = _space(top.get("design_space", {}))
     limits = _limits(top.get("constraints", {}))
@@ -172,6 +177,21 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
         search=_search(top.get("search", {})),
         source=source,
     )
+
+
+def resolve_storage(url: str, folder: Path | None) -> str:
+    """``url`` with a relative SQLite path (``sqlite:///x.db``) made absolute against ``folder``
+    (the study file's), so a study finds its storage from any working directory."""
+    prefix = "sqlite:///"
+    if folder is None or not url.startswith(prefix) or url == prefix + ":memory:":
+        return url
+    path = Path(url[len(prefix) :])
+    return url if path.is_absolute() else prefix + str((folder / path).resolve())
+
+
+def redact_url(url: str) -> str:
+    """A storage URL fit for logs, run folders and reports: any password replaced by ``***``."""
+    return re.sub(r"(//[^/@:]*:)[^/@]*@", r"\1***@", url)
 
 
 def _scene(data: Any) -> Scene:
@@ -208,7 +228,7 @@ def _leg(data: Any) -> Leg:
 def _space(data: Any) -> DesignSpace:
     m = _mapping(data, "design_space", SPACE_KEYS)
     d = DesignSpace()
-    toes = _int_range(m.get("toes", list(d.toes)), "design_space.toes", 1, None)
+    toes = _int_range(m.get("toes", list(d.toes)), "design_space.toes", 1, MAX_TOES)
     toe_segments = _int_range(m.get("toe_segments", list(d.toe_segments)), "design_space.toe_segments", 1, MAX_SEGMENTS)
     heel = _int_range(m.get("heel_segments", list(d.heel_segments)), "design_space.heel_segments", 1, MAX_SEGMENTS)
     symmetry = _choice(m.get("toe_symmetry", d.toe_symmetry.value), "design_space.toe_symmetry", ToeSymmetry)
@@ -281,7 +301,7 @@ def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
     lines += [
         f"name: {_string_text(config.name)}",
         f"seed: {config.seed}",
-        f"storage: {'null' if config.storage is None else _string_text(config.storage)}",
+        f"storage: {'null' if config.storage is None else _string_text(redact_url(config.storage))}",
         "scene:",
         f"  speed: {f(s.speed)}",
         f"  restitution: {f(s.restitution)}",

@@ -3,7 +3,6 @@ YAML path of the bad value (``model.bodies[2].mass: ...``)."""
 
 from __future__ import annotations
 
-import difflib
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -38,10 +37,28 @@ def mapping(value: Any, where: str, allowed: tuple[str, ...], what: str | None =
         raise ConfigError(f"{what}: must be a mapping with keys {', '.join(allowed)}; got {describe(value)}")
     for key in value:
         if key not in allowed:
-            close = difflib.get_close_matches(str(key), allowed, n=1)
-            hint = f"did you mean '{close[0]}'? " if close else ""
+            close = closest(str(key), allowed)
+            hint = f"did you mean '{close}'? " if close else ""
             raise ConfigError(f"{join(where, key)}: unknown key ({hint}allowed: {', '.join(allowed)})")
     return value
+
+
+def edit_distance(a: str, b: str) -> int:
+    """Levenshtein distance (insertions, deletions, substitutions)."""
+    row = list(range(len(b) + 1))
+    for i, ca in enumerate(a, 1):
+        prev, row[0] = row[0], i
+        for j, cb in enumerate(b, 1):
+            prev, row[j] = row[j], min(row[j] + 1, row[j - 1] + 1, prev + (ca != cb))
+    return row[-1]
+
+
+def closest(key: str, allowed: Sequence[str], within: int = 2) -> str | None:
+    """The allowed key nearest to ``key`` if it is within ``within`` edits (case ignored), else None."""
+    if not allowed:
+        return None
+    best = min(allowed, key=lambda k: edit_distance(key.lower(), k.lower()))
+    return best if edit_distance(key.lower(), best.lower()) <= within else None
 
 
 def number(value: Any, where: str) -> float:

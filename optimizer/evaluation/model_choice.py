@@ -15,12 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impulse_core.timedomain.compliant import CompliantResult, CompliantSettings, ContactLaw, simulate_impact
-from impulse_core.impact.laws import ImpactModel
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import ImpactResult, approach_velocity, evaluate
-from impulse_core.timedomain.sequential import SequentialResult, SequentialSettings, sequential_impacts
+from impulse_core.impact.laws import ImpactModel
 from impulse_core.model.tree import ContactSelection, Scene, Tree
+from impulse_core.timedomain.compliant import CompliantResult, CompliantSettings, ContactLaw, simulate_impact
+from impulse_core.timedomain.sequential import SequentialResult, SequentialSettings, sequential_impacts
 
 SEQUENTIAL, COMPLIANT = "sequential", "compliant"
 #: The models that integrate through the landing instead of one instantaneous impact.

@@ -33,7 +33,10 @@ import numpy as np
 import optuna
 
 from impulse_core.evaluate import evaluate
+from optimizer.config.model_file import Reference, dump_model_file
+from optimizer.config.study_config import StudyConfig, format_study, load_study
 from optimizer.design_space import (
+    CONSTRAINT_FIELDS,
     DesignEvaluation,
     Objective,
     chain_names,
@@ -42,10 +45,8 @@ from optimizer.design_space import (
     landing_scene,
 )
 from optimizer.errors import ConfigError
-from optimizer.config.model_file import Reference, dump_model_file
 from optimizer.results.pareto import non_dominated
 from optimizer.search.outer import RecordedTrial, recorded_trials
-from optimizer.config.study_config import StudyConfig, format_study, load_study
 
 STUDY_FILE, STORAGE_FILE, RUN_FILE = "study.yaml", "study.journal", "run.json"
 CSV_FILE, JSON_FILE, PLOT_FILE, DESIGNS_DIR = "pareto.csv", "pareto.json", "front.png", "designs"
@@ -125,8 +126,11 @@ def _differences(a: StudyConfig, b: StudyConfig) -> list[str]:
     """Top-level fields in which two studies differ (``search.trials`` excepted)."""
     a = replace(a, search=replace(a.search, trials=0))
     b = replace(b, search=replace(b.search, trials=0))
-    return [name for name in ("name", "seed", "storage", "scene", "leg", "space", "limits", "objectives", "search")
-            if getattr(a, name) != getattr(b, name)]
+    return [
+        name
+        for name in ("name", "seed", "storage", "scene", "leg", "space", "limits", "objectives", "search")
+        if getattr(a, name) != getattr(b, name)
+    ]
 
 
 def remove_own_files(run_dir: Path, config: StudyConfig) -> None:
@@ -148,7 +152,9 @@ def remove_own_files(run_dir: Path, config: StudyConfig) -> None:
 
 def write_study_file(run_dir: Path, config: StudyConfig) -> Path:
     path = run_dir / STUDY_FILE
-    header = "The resolved study of this run (every default explicit). Resume: footopt optimize this-file --out this-dir"
+    header = (
+        "The resolved study of this run (every default explicit). Resume: footopt optimize this-file --out this-dir"
+    )
     path.write_text(format_study(config, header), encoding="utf-8")
     return path
 
@@ -242,7 +248,10 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
         points.append(FrontPoint(t.number, t.method, t.evaluation, rel))
     (run_dir / CSV_FILE).write_text(front_csv(config, points), encoding="utf-8")
     (run_dir / JSON_FILE).write_text(json.dumps(front_json(config, points), indent=2) + "\n", encoding="utf-8")
-    plot_front(run_dir / PLOT_FILE, config, trials, points)
+    if points:
+        plot_front(run_dir / PLOT_FILE, config, trials, points)
+    else:  # no empty plot: the command says why nothing is shown
+        (run_dir / PLOT_FILE).unlink(missing_ok=True)
     return points
 
 
@@ -314,7 +323,11 @@ def front_json(config: StudyConfig, points: list[FrontPoint]) -> dict[str, Any]:
             {
                 "trial": p.trial,
                 "method": p.method,
-                "shape": {"toes": shape.n_toes, "toe_segments": shape.toe_segments, "heel_segments": shape.heel_segments},
+                "shape": {
+                    "toes": shape.n_toes,
+                    "toe_segments": shape.toe_segments,
+                    "heel_segments": shape.heel_segments,
+                },
                 "objectives": {name: ev.objectives.value(Objective(name)) for name in OBJECTIVE_COLUMNS},
                 "constraints": dict(ev.constraints.items()),
                 "design": design_values(config, ev),
@@ -364,10 +377,10 @@ def plot_front(path: Path, config: StudyConfig, trials: list[RecordedTrial], poi
         if high[1] > 20 * low[1]:
             ax.set_yscale("log")
     unit = {"energy_after": "J", "base_angular_velocity": "rad/s"}
-    label = lambda o: f"{o.value} ({unit.get(o.value, 'N s')})"  # noqa: E731
+    label = lambda o: f"{o.value} ({unit.get(o.value, 'N s')})"
     ax.set_xlabel(label(objs[0]) if two else "trial")
     ax.set_ylabel(label(objs[1]) if two else label(objs[0]))
-    ax.set_title(f"study '{config.name}': {len(points)} Pareto designs of {len(trials)} evaluated")
+    ax.set_title(f"study '{config.name}': {plural(len(points), 'Pareto design')} of {len(trials)} evaluated")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
@@ -384,7 +397,38 @@ def format_front(config: StudyConfig, points: list[FrontPoint]) -> str:
         values = " ".join(f"{o.value(Objective(c)):>21.6g}" for c in OBJECTIVE_COLUMNS)
         lines.append(f"{p.trial:>6} {p.evaluation.design.shape.label:>7} {values}  {p.model_file.as_posix()}")
     minimised = ", ".join(o.value for o in config.objectives)
-    return f"study '{config.name}': {len(points)} Pareto designs (minimising {minimised})\n" + "\n".join(lines) + "\n"
+    head = f"study '{config.name}': {plural(len(points), 'Pareto design')} (minimising {minimised})"
+    return head + "\n" + "\n".join(lines) + "\n"
+
+
+def plural(n: int, noun: str) -> str:
+    """``1 Pareto design``, ``2 Pareto designs``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def infeasible_summary(study: optuna.Study) -> str:
+    """Why a study has no feasible design: the constraints its designs missed, most often first."""
+    trials = list(recorded_trials(study))
+    shapes: dict[str, list[str]] = {}
+    for key, why in study.user_attrs.items():
+        if key.startswith("infeasible:"):
+            shapes.setdefault(str(why), []).append(key.split(":", 1)[1])
+    if not trials:
+        why = [f"{reason} (shapes {', '.join(labels)})" for reason, labels in shapes.items()]
+        return "no feasible design: " + ("; ".join(why) or "no design was evaluated")
+    missed: dict[str, int] = {}
+    for t in trials:
+        for name, v in t.evaluation.constraints.violations():
+            if v > 0:
+                missed[name] = missed.get(name, 0) + 1
+    failed = sum(t.evaluation.objectives is None for t in trials)
+    parts = [
+        f"{CONSTRAINT_FIELDS.get(n) or n + ' (physics)'} missed by {k} of {len(trials)}"
+        for n, k in sorted(missed.items(), key=lambda nk: -nk[1])
+    ]
+    if failed:
+        parts.append(f"{failed} of {len(trials)} impact solves failed numerically")
+    return f"no feasible design among {plural(len(trials), 'evaluated design')}: " + "; ".join(parts or ["?"])
 
 
 __all__ = [
@@ -402,8 +446,10 @@ __all__ = [
     "format_front",
     "front_csv",
     "front_json",
+    "infeasible_summary",
     "pareto_front",
     "plot_front",
+    "plural",
     "prepare_run",
     "remove_own_files",
     "storage_url",

@@ -42,6 +42,7 @@ import optuna
 
 from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
+    CONSTRAINT_FIELDS,
     DesignEvaluation,
     FootDesign,
     FootShape,
@@ -344,6 +345,8 @@ def run_inner(
                 continue
             if shape.n_links * lim.min_link_mass <= lim.foot_mass:  # else no design of it is feasible
                 _record_shape(study, config, shape, build_nlp(config, shape, cache), distributions)
+            else:
+                study.set_user_attr(infeasible_key(shape), NO_MASS)
             study.set_user_attr(shape_done_key(shape), True)
             done, swept = done + 1, swept + 1
             if progress is not None:
@@ -357,6 +360,7 @@ def _record_shape(
     """Sweep one shape and add each design not yet recorded as a COMPLETE trial."""
     have = recorded_indices(study, shape)
     params = {"toes": shape.n_toes, "toe_segments": shape.toe_segments, "heel_segments": shape.heel_segments}
+    i = -1
     for i, evaluation in enumerate(epsilon_sweep(config, nlp, shape_seed(config.seed, shape))):
         if i in have:
             continue
@@ -368,14 +372,50 @@ def _record_shape(
             constraints=dict(evaluation.constraints.violations()),
         )
         study.add_trial(trial)
+    if i < 0:  # nothing feasible: say which constraints stood in the way
+        study.set_user_attr(infeasible_key(shape), _diagnose(config, nlp, shape))
+
+
+#: Why a shape has no feasible design, as the study files' fields say it (see ``infeasible_key``).
+NO_MASS = "constraints.min_link_mass x its rods exceeds constraints.foot_mass"
+NO_POSTURE = (
+    "no level touchdown posture meets constraints.foot_length, constraints.min_clearance, "
+    "constraints.joint_angles and constraints.mass_per_length together"
+)
+
+
+def _diagnose(config: StudyConfig, nlp: ShapeNlp, shape: FootShape, tries: int = 8) -> str:
+    """Why no design of ``shape`` was found: no level posture at all, or the constraints that
+    every random level start (of ``tries``) misses, by their study-file fields."""
+    rng = shape_seed(config.seed, shape)
+    starts = [x for x in (start_point(config, nlp, rng) for _ in range(tries)) if x is not None]
+    if not starts:
+        return NO_POSTURE
+    n = nlp.compiled.n_rods
+    missed: set[str] | None = None
+    for x in starts:
+        angles, masses, lengths = nlp.unpack(np.concatenate([x[:n], x[n : 2 * n], x[2 * n : 3 * n]]))
+        ev = _evaluate(config, nlp, angles, masses, lengths)
+        names = {k for k, v in ev.constraints.violations() if v > 0} if ev is not None else set()
+        missed = names if missed is None else missed & names
+    fields = sorted(CONSTRAINT_FIELDS.get(k) or f"{k} (physics)" for k in missed or ())
+    return f"every level posture tried misses {', '.join(fields)}" if fields else "IPOPT found no feasible design"
+
+
+def infeasible_key(shape: FootShape) -> str:
+    """The study user attribute that says why ``shape`` has no feasible design."""
+    return f"infeasible:{shape.label}"
 
 
 __all__ = [
+    "NO_MASS",
+    "NO_POSTURE",
     "ShapeNlp",
     "Solution",
     "anchors",
     "build_nlp",
     "epsilon_sweep",
+    "infeasible_key",
     "interruptible",
     "realise",
     "run_inner",

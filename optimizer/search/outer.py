@@ -30,7 +30,7 @@ import optuna
 from optuna.trial import FrozenTrial, TrialState
 
 from impulse_core.compile.codegen import batch_kernel, compile_function
-
+from optimizer.config.study_config import SamplerKind, SearchSettings, StudyConfig
 from optimizer.design_space import (
     ConstraintValues,
     DesignEvaluation,
@@ -44,7 +44,6 @@ from optimizer.design_space import (
     constraint_values,
     design_from,
 )
-from optimizer.config.study_config import SamplerKind, SearchSettings, StudyConfig
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
 
 #: User attributes every recorded trial carries.
@@ -211,10 +210,10 @@ def mark_interrupted(study: optuna.Study) -> int:
     """Mark the trials left RUNNING by a killed process FAIL (``interrupted``); returns how
     many. Only for a study that one process runs at a time."""
     n = 0
-    storage = study._storage  # noqa: SLF001 (Optuna has no public way to fail a stale trial)
+    storage = study._storage
     for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-        storage.set_trial_user_attr(t._trial_id, ATTR_INTERRUPTED, True)  # noqa: SLF001
-        storage.set_trial_state_values(t._trial_id, TrialState.FAIL)  # noqa: SLF001
+        storage.set_trial_user_attr(t._trial_id, ATTR_INTERRUPTED, True)
+        storage.set_trial_state_values(t._trial_id, TrialState.FAIL)
         n += 1
     return n
 
@@ -261,7 +260,7 @@ def run_outer(
             evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked])
         except BaseException:
             for trial in asked:
-                study._storage.set_trial_user_attr(trial._trial_id, ATTR_INTERRUPTED, True)  # noqa: SLF001
+                study._storage.set_trial_user_attr(trial._trial_id, ATTR_INTERRUPTED, True)
                 study.tell(trial, state=TrialState.FAIL)
             raise
         for trial, evaluation in zip(asked, evaluations, strict=True):
@@ -351,6 +350,7 @@ __all__ = [
     "RecordedTrial",
     "design_from_record",
     "design_record",
+    "evaluate_designs",
     "finished_trials",
     "make_sampler",
     "mark_interrupted",
@@ -359,9 +359,8 @@ __all__ = [
     "read_trial",
     "record_attrs",
     "recorded_trials",
-    "evaluate_designs",
     "run_outer",
-    "tell",
     "suggest_design",
+    "tell",
     "trial_seed",
 ]

@@ -27,6 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.model.terrain import Terrain
+from impulse_core.model.tree import JointKind, Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
     CompliantSettings,
     ContactLaw,
@@ -35,9 +38,6 @@ from impulse_core.timedomain.compliant import (
     scene_ground,
     touchdown_configuration,
 )
-from impulse_core.kinematics.spatial import dof_layout
-from impulse_core.model.terrain import Terrain
-from impulse_core.model.tree import JointKind, Scene, Tree, design_vector
 
 #: Radius of the contact spheres (m); the terrain is offset by it, so it does not enter the gap.
 CONTACT_RADIUS = 1e-3

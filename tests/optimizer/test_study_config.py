@@ -3,6 +3,7 @@ one ConfigError naming its YAML path."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -39,8 +40,25 @@ def test_defaults_and_name_from_file(tmp_path: Path):
     path.write_text("objectives: [energy_after]\nsearch: {sampler: nsga2}\n", encoding="utf-8")
     config = load_study(path)
     assert config.name == "my_study"
-    assert config.search.method is SearchMethod.OUTER and config.search.sampler is SamplerKind.NSGA2
+    assert config.search.method is SearchMethod.INNER and config.search.sampler is SamplerKind.NSGA2
     assert config.objectives == (Objective.ENERGY_AFTER,)
+
+
+def test_every_default_is_what_quick_study_documents():
+    """configs/quick_study.yaml shows every key with its default unless a line is marked
+    ``[study: ...]``: a study file with only its objectives equals it once the marked values are
+    put back, and README says the same search and seed."""
+    import re
+
+    text = (REPO / "configs" / "quick_study.yaml").read_text()
+    documented = load_study(REPO / "configs" / "quick_study.yaml")
+    marked = {m.group(1) for m in re.finditer(r"^\s*(\w+):.*\[study:", text, re.M)}
+    assert marked == {"toes", "toe_segments"}
+    bare = parse_study({"name": "quick_study", "objectives": [o.value for o in documented.objectives]})
+    space = replace(bare.space, toes=documented.space.toes, toe_segments=documented.space.toe_segments)
+    assert replace(bare, space=space, source=documented.source) == documented
+    readme = (REPO / "README.md").read_text()
+    assert "`inner` (default)" in readme and documented.search.method is SearchMethod.INNER
 
 
 BAD = [

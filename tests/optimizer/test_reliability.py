@@ -1,0 +1,154 @@
+"""A user's study never ends in a traceback and nothing finished is lost (issue #11): exit 1
+with the missed constraints named and no empty plot for an infeasible study, exit 2 naming the
+field for bad input (with the closest key for a typo), relative storage against the study file,
+no password in a run folder, Ctrl-C gives 130 and a complete resume command."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from optimizer.cli.main import main
+from optimizer.config.study_config import load_study, redact_url
+from optimizer.config.yaml_fields import closest, edit_distance
+from tests.optimizer.conftest import TINY_OUTER_YAML, TINY_STUDY_YAML
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _run(tmp_path: Path, text: str, *extra: str, name: str = "s.yaml") -> tuple[int, Path]:
+    study = tmp_path / name
+    study.write_text(text, encoding="utf-8")
+    out = tmp_path / "out"
+    return main(["optimize", str(study), "--out", str(out), *extra]), out
+
+
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        (TINY_OUTER_YAML.replace("min_link_mass: 0.02}", "min_link_mass: 0.02, min_clearance: 1.5}"),
+         "constraints.min_clearance"),
+        (TINY_STUDY_YAML.replace("min_link_mass: 0.02}", "min_link_mass: 0.02, min_clearance: 1.5}"),
+         "constraints.min_clearance"),
+    ],
+    ids=["outer", "inner"],
+)  # fmt: skip
+def test_an_infeasible_study_exits_1_naming_what_was_missed_and_draws_no_plot(tmp_path, capsys, text, field):
+    status, out = _run(tmp_path, text.replace("trials: 12", "trials: 8"), "--quiet")
+    err = capsys.readouterr().err
+    assert status == 1, err
+    assert "no feasible design" in err and field in err and "Traceback" not in err
+    assert not (out / "front.png").exists()
+
+
+def test_a_tiny_mass_budget_in_the_outer_search_ends_cleanly(tmp_path, capsys):
+    """Shapes the budget cannot build are recorded as missing ``constraints.foot_mass`` (the
+    issue's traceback: a negative rod mass); the shapes it can build make the front."""
+    text = TINY_OUTER_YAML.replace("min_link_mass: 0.02", "min_link_mass: 0.01, foot_mass: 0.03")
+    text = text.replace("toe_segments: [1, 1]", "toe_segments: [1, 2]")
+    status, out = _run(tmp_path, text, "--quiet")
+    err = capsys.readouterr().err
+    assert status in (0, 1) and "Traceback" not in err
+    assert (status == 1) == ("constraints.foot_mass" in err)
+
+
+def test_a_misspelt_key_names_the_closest_one_and_exits_2(tmp_path, capsys):
+    status, _ = _run(tmp_path, TINY_STUDY_YAML.replace("min_link_mass", "min_lnk_mas"))
+    err = capsys.readouterr().err
+    assert status == 2 and "constraints.min_lnk_mas" in err and "did you mean 'min_link_mass'" in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_closest_key_is_within_two_edits():
+    assert edit_distance("kitten", "sitting") == 3 and edit_distance("", "ab") == 2
+    assert closest("restituton", ("restitution", "speed")) == "restitution"
+    assert closest("spede", ("restitution", "speed")) == "speed"  # a swap: 2 edits
+    assert closest("velocity_x", ("restitution", "speed")) is None
+
+
+def test_thousands_of_toes_are_refused_at_once_naming_the_field(tmp_path, capsys):
+    started = time.perf_counter()
+    status, _ = _run(tmp_path, TINY_STUDY_YAML.replace("toes: [1, 2]", "toes: [1, 5000]"))
+    assert status == 2 and "design_space.toes[1]: must be at most" in capsys.readouterr().err
+    assert time.perf_counter() - started < 10
+
+
+def test_a_relative_sqlite_storage_is_found_from_the_study_files_folder(tmp_path, monkeypatch):
+    folder = tmp_path / "studies"
+    folder.mkdir()
+    (folder / "s.yaml").write_text(TINY_STUDY_YAML + "storage: sqlite:///runs/s.db\n", encoding="utf-8")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    config = load_study(folder / "s.yaml")
+    assert config.storage == f"sqlite:///{(folder / 'runs' / 's.db').resolve()}"
+    assert load_study(folder / "s.yaml").storage == config.storage  # the same from anywhere
+
+
+def test_a_storage_password_never_reaches_the_run_folder_or_stderr(tmp_path, capsys):
+    url = "postgresql://alice:s3cret@localhost:1/footopt"
+    assert redact_url(url) == "postgresql://alice:***@localhost:1/footopt"
+    status, out = _run(tmp_path, TINY_STUDY_YAML, "--storage", url)
+    err = capsys.readouterr().err
+    assert status == 2 and "s3cret" not in err and "***" in err
+    for f in out.rglob("*") if out.exists() else []:
+        assert f.is_dir() or b"s3cret" not in f.read_bytes(), f
+
+
+def test_quiet_still_says_where_the_results_went_and_trials_with_inner_warns(tmp_path, capsys):
+    status, out = _run(tmp_path, TINY_STUDY_YAML, "--quiet", "--trials", "5")
+    captured = capsys.readouterr()
+    assert status == 0
+    assert captured.out.count("\n") == 1 and str(out) in captured.out and "Pareto design" in captured.out
+    assert "--trials" in captured.err and "inner" in captured.err
+
+
+def test_an_internal_error_prints_a_traceback_and_asks_for_a_report(tmp_path, capsys, monkeypatch):
+    import optimizer.cli.main as cli
+
+    def broken(args):
+        raise ZeroDivisionError("boom")
+
+    monkeypatch.setattr(cli, "run_evaluate", broken)
+    parser = cli.build_parser
+    monkeypatch.setattr(cli, "build_parser", lambda: _with_run(parser(), broken))
+    assert main(["evaluate", str(REPO / "configs" / "paper_case2.yaml")]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "internal error" in err and "please report it" in err
+    with pytest.raises(ZeroDivisionError):
+        main(["--debug", "evaluate", str(REPO / "configs" / "paper_case2.yaml")])
+
+
+def _with_run(parser, run):
+    for action in parser._subparsers._group_actions:
+        for sub in action.choices.values():
+            sub.set_defaults(run=run)
+    return parser
+
+
+def test_sigint_exits_130_quickly_with_a_complete_resume_command(tmp_path):
+    """A real Ctrl-C (SIGINT) to ``footopt optimize``: exit 130 within 10 s, the printed resume
+    command names the study file, and running it finishes the study."""
+    study = tmp_path / "tiny outer.yaml"  # a space: the command must quote it
+    study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 400"), encoding="utf-8")
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    command = [sys.executable, "-m", "optimizer", "optimize", str(study), "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(command, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and not (out / "study.journal").exists():
+        time.sleep(0.1)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    sent = time.time()
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    assert time.time() - sent < 10
+    resume = err.split("Resume: ", 1)[1].strip()
+    assert "..." not in resume and "'" + str(study) + "'" in resume
