@@ -491,7 +491,12 @@ def format_report(r: SpeedReport) -> str:
             _fmt(r.us_per_design_gradient_autodiff, " us/design", 3),
         ),
         (f"reverse-mode gradient / evaluation ({r.gradient_path})", _fmt(r.gradient_ratio_autodiff)),
-        ("pinocchio.impulseDynamics (external only)", _fmt(r.pinocchio_us_per_call, " us/call")),
+        (
+            "pinocchio.impulseDynamics (external only)",
+            _fmt(r.pinocchio_us_per_call, " us/call")
+            if r.pinocchio_us_per_call is not None
+            else "not timed: Pinocchio is not installed (pip install pin)",
+        ),
         ("ratio batched / pinocchio", _fmt(r.ratio, "", 3)),
         ("ratio batched on one core / pinocchio", _fmt(r.ratio_one_core, "", 3)),
         ("batched results equal single calls", "yes" if r.batched_equals_single else "NO"),

@@ -246,7 +246,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 print(("\n" if n else "") + format_report(model, result, file), end="")
             if n in plots:
                 plot_touchdown(
-                    model.tree, touchdown_geometry(model.tree), result, plots[n], title=file, scene=model.scene
+                    model.tree, touchdown_geometry(model.tree), result, plots[n], title=Path(file).name, scene=model.scene
                 )
                 if not args.json:
                     print(f"plot: {plots[n]}")
