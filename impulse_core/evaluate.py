@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from impulse_core.impact.coulomb import ContactMode, coulomb_impact
 from impulse_core.impact.laws import (
     PIVOT_TOL,
     RANK_TOL,
@@ -153,6 +154,8 @@ class ImpactResult:
         tangent_velocity: tangential velocity of each active contact after impact (FRICTION
             only; None for the frictionless rungs, which build no tangent terms).
         separating: active contacts that leave the ground with zero normal impulse.
+        modes: each declared contact's mode with exact friction (FRICTION only, else None):
+            separating (also a contact that does not hit), sticking or sliding.
     """
 
     external: np.ndarray
@@ -174,6 +177,7 @@ class ImpactResult:
     tangential: np.ndarray
     tangent_velocity: np.ndarray | None
     separating: tuple[int, ...]
+    modes: tuple[ContactMode, ...] | None = None
 
     @property
     def max_internal(self) -> float:
@@ -202,6 +206,7 @@ class _Solution:
     tangential: np.ndarray | None
     split_unique: bool
     out: dict
+    modes: tuple[ContactMode, ...] | None = None
 
 
 def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: Space = PLANAR) -> ImpactResult:
@@ -244,7 +249,10 @@ def _automatic(c: _Impact) -> tuple[_Solution, str]:
     """The cheapest rung that is exact for the scene, and why it was chosen."""
     mu = c.scene.friction
     if mu > 0:
-        return _friction(c), f"automatic: scene.friction = {mu:g} > 0, so Coulomb friction acts at the contacts"
+        return _friction(c), (
+            f"automatic: scene.friction = {mu:g} > 0, so Coulomb friction acts at the contacts (exact law: "
+            "Newton restitution and Coulomb's law on the impulses, by Lemke's method)"
+        )
     newton = _newton(c)
     pulling = np.flatnonzero(newton.normal < 0)
     if pulling.size == 0:
@@ -262,9 +270,10 @@ def _automatic(c: _Impact) -> tuple[_Solution, str]:
 def _requested_reason(c: _Impact, s: _Solution) -> str:
     notes = ["requested"]
     mu = c.scene.friction
-    if s.model is ImpactModel.FRICTION and mu == 0:
+    frictional = s.model in (ImpactModel.FRICTION, ImpactModel.FRICTION_RELAXED)
+    if frictional and mu == 0:
         notes.append("scene.friction = 0, so the friction rung gives the LCP answer")
-    if s.model is not ImpactModel.FRICTION and mu > 0:
+    if not frictional and mu > 0:
         notes.append(f"scene.friction = {mu:g} is ignored by this frictionless rung")
     pulling = np.flatnonzero(s.normal < 0)
     if pulling.size:
@@ -320,6 +329,21 @@ def _lcp(c: _Impact) -> _Solution:
 
 
 def _friction(c: _Impact) -> _Solution:
+    """Exact Newton-Coulomb impact law (:func:`impulse_core.impact.coulomb.coulomb_impact`)."""
+    n = len(c.topology.active)
+    J, A, _, _ = _metric(c, tangent=True)
+    law = coulomb_impact(A, J @ c.v_minus, c.scene.restitution, c.scene.friction)
+    split_unique = not redundant(J, A) if c.scene.friction > 0 else not redundant(J[:n], A[:n, :n])
+    out = compiled_friction(c.topology, c.space)(
+        p=c.p, v_minus=c.v_minus, external=law.normal, tangential=law.tangential
+    )
+    modes = [ContactMode.SEPARATING] * len(c.tree.contacts)
+    for k, i in enumerate(c.topology.active):
+        modes[i] = law.modes[k]
+    return _Solution(ImpactModel.FRICTION, law.normal, law.tangential, split_unique, out, tuple(modes))
+
+
+def _friction_relaxed(c: _Impact) -> _Solution:
     """Moreau's impact law with Coulomb friction, convex relaxation, by NNLS on the cone's edges."""
     n = len(c.topology.active)
     mu = c.scene.friction
@@ -335,7 +359,7 @@ def _friction(c: _Impact) -> _Solution:
             lam = least_norm_split(J, np.concatenate([lam_n, lam_t]), coulomb_cone(mu, n))
             lam_n, lam_t = np.maximum(lam[:n], 0.0), lam[n:]
     out = compiled_friction(c.topology, c.space)(p=c.p, v_minus=c.v_minus, external=lam_n, tangential=lam_t)
-    return _Solution(ImpactModel.FRICTION, lam_n, lam_t, split_unique, out)
+    return _Solution(ImpactModel.FRICTION_RELAXED, lam_n, lam_t, split_unique, out)
 
 
 def _decoupled(c: _Impact) -> _Solution:
@@ -354,6 +378,7 @@ _RUNGS: dict[ImpactModel, Callable[[_Impact], _Solution]] = {
     ImpactModel.NEWTON: _newton,
     ImpactModel.LCP: _lcp,
     ImpactModel.FRICTION: _friction,
+    ImpactModel.FRICTION_RELAXED: _friction_relaxed,
 }
 
 
@@ -391,6 +416,7 @@ def _result(c: _Impact, s: _Solution, reason: str) -> ImpactResult:
         tangential=tangential,
         tangent_velocity=None if s.tangential is None else np.array(out["tangent_velocity"]).ravel(),
         separating=tuple(active[i] for i in np.flatnonzero(np.abs(s.normal) <= ZERO_IMPULSE * momentum)),
+        modes=s.modes,
     )
 
 

@@ -17,7 +17,10 @@ Rungs:
   min 1/2 |E lambda - f|^2 s.t. lambda >= 0, solved exactly by NNLS (Lawson-Hanson). Equals
   NEWTON whenever every Newton impulse is >= 0. For an approach with w <= 0 (every contact
   closing, as in a landing) the energy change is (1 - e)/2 lambda^T w <= 0: no energy gain.
-- ``FRICTION``, Coulomb friction by Moreau's impact law (Moreau 1988, Newton restitution on
+- ``FRICTION``, exact Coulomb friction: Newton's restitution and Coulomb's law on the impulses,
+  an LCP solved by Lemke's method (:mod:`impulse_core.impact.coulomb`). What ``auto`` runs when
+  the scene has friction.
+- ``FRICTION_RELAXED`` (on request only), Coulomb friction by Moreau's impact law (Moreau 1988, Newton restitution on
   Moreau's weighted velocity v+ + e v-) in its convex relaxation (Anitescu 2006, the cone
   complementarity problem): the maximal-dissipation program
       min over lambda = (lambda_n, lambda_t) in the Coulomb cone |lambda_t| <= mu lambda_n of
@@ -30,7 +33,7 @@ Rungs:
   "minimise the post-impact kinetic energy over the cone" (maximal dissipation, Drumwright & Shell
   2010), and v+_n >= 0 follows from the KKT conditions.
 
-Known limits of the FRICTION rung:
+Known limits of the FRICTION_RELAXED rung (why it is not the default):
 
 - Convex relaxation, not Coulomb's complementarity law: the normal condition is the dual cone,
   y_n >= mu |y_t| (y = J (v+ + e v-)), not y_n >= 0. A sliding contact leaves with a normal
@@ -84,6 +87,7 @@ class ImpactModel(Enum):
     NEWTON = "newton"
     LCP = "lcp"
     FRICTION = "friction"
+    FRICTION_RELAXED = "friction-relaxed"
 
     @property
     def description(self) -> str:
@@ -95,7 +99,8 @@ _DESCRIPTIONS = {
     ImpactModel.DECOUPLED: "decoupled approximation (paper eq. 14)",
     ImpactModel.NEWTON: "newton-simultaneous (paper eq. 11)",
     ImpactModel.LCP: "complementarity, frictionless (LCP: impulses >= 0, Newton restitution)",
-    ImpactModel.FRICTION: "Coulomb friction (Moreau's impact law, maximal dissipation, convex relaxation)",
+    ImpactModel.FRICTION: "Coulomb friction, exact (Newton restitution, Coulomb's law on the impulses: LCP, Lemke)",
+    ImpactModel.FRICTION_RELAXED: "Coulomb friction, convex relaxation (Moreau's impact law, maximal dissipation)",
 }
 
 
@@ -120,7 +125,7 @@ def complementarity_impulse(E: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 
 def coulomb_impulse(E_n: np.ndarray, E_t: np.ndarray, f: np.ndarray, mu: float) -> tuple[np.ndarray, np.ndarray]:
-    """Normal and tangential impulses of the FRICTION rung (module docstring): the maximal-
+    """Normal and tangential impulses of the FRICTION_RELAXED rung (module docstring): the maximal-
     dissipation program min 1/2 |E_n l_n + E_t l_t - f|^2 over |l_t| <= mu l_n, in the cone's
     edge coordinates (l_n = x+ + x-, l_t = mu (x+ - x-), x >= 0) as an NNLS.
 

@@ -98,6 +98,8 @@ def _rigid_warnings(model: ModelFile, result: ImpactResult) -> list[str]:
             "no non-negative split meets the restitution law, so the smallest-norm split is shown"
             if result.pulling
             else "the smallest-norm split inside the friction cones is shown"
+            if result.model is ImpactModel.FRICTION_RELAXED
+            else "the solution Lemke's method reaches from zero impulse is shown (one of several)"
             if result.model is ImpactModel.FRICTION
             else "the smallest-norm non-negative split is shown"
         )
@@ -109,7 +111,13 @@ def _rigid_warnings(model: ModelFile, result: ImpactResult) -> list[str]:
         pulling = ", ".join(names[i] for i in result.pulling)
         law = "the decoupled approximation (eq. 14)" if result.model is ImpactModel.DECOUPLED else "Newton's law"
         out.append(f"{law} makes contacts {pulling} pull on the ground (negative impulse)")
-    if result.separating and result.model in (ImpactModel.LCP, ImpactModel.FRICTION):
+    if result.model is ImpactModel.FRICTION_RELAXED:
+        out.append(
+            "friction-relaxed is Anitescu's convex relaxation, not Coulomb's law: a sliding contact leaves the "
+            "ground faster than restitution by mu |slip velocity|, so its normal impulse is biased high (run friction "
+            "for the exact law)"
+        )
+    if result.separating and result.model in (ImpactModel.LCP, ImpactModel.FRICTION, ImpactModel.FRICTION_RELAXED):
         separating = ", ".join(names[i] for i in result.separating)
         out.append(f"contacts {separating} separate from the ground with zero impulse")
     hop = _friction_hop(model, result)
@@ -144,7 +152,7 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
 def _friction_hop(model: ModelFile, result: ImpactResult) -> dict[int, float]:
     """Contacts (declared index) that carry impulse under the friction rung yet leave faster than
     Newton's restitution asks, and by how much (m/s); empty for every other rung."""
-    if result.model is not ImpactModel.FRICTION:
+    if result.model is not ImpactModel.FRICTION_RELAXED:
         return {}
     scene = model.scene
     scale = max(float(np.max(result.external, initial=0.0)), 1e-300)
@@ -208,6 +216,7 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
     if isinstance(result, ImpactResult):
         record |= {
             "tangential": _floats(result.tangential),
+            "modes": None if result.modes is None else [m.value for m in result.modes],
             "separating": [names[i] for i in result.separating],
             "internal_torque": _floats(result.internal_torque[:, 2]) if len(joints) else [],
             "split_unique": bool(result.split_unique),
@@ -291,7 +300,7 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
         lines.append("reference: " + "; ".join(s for s in (ref.source, ref.note) if s))
 
     show_ref_ext = ref is not None and ref.external is not None
-    friction = rigid and result.model is ImpactModel.FRICTION and result.tangent_velocity is not None
+    friction = rigid and result.tangent_velocity is not None
     slip = dict(zip(result.active, result.tangent_velocity, strict=True)) if friction else {}
     headers = ["contact", "touches", "impulse [N s]"] + (["tangential [N s]", "slip after [m/s]"] if friction else [])
     headers += ["reference [N s]", "diff"] if show_ref_ext else []

@@ -318,7 +318,7 @@ EXTRA_KEYS = {
     "file", "model_description", "scene", "contacts", "active", "joints", "joint_kinds", "internal_vector", "internal_torque",
     "max_internal", "max_internal_joint", "velocities", "v_minus", "v_plus", "energy_before", "energy_after",
     "energy_gained", "split_unique", "pulling", "reference", "impact_model", "impact_reason", "tangential",
-    "separating",
+    "separating", "modes",
 }  # fmt: skip
 
 

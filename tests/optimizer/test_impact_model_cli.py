@@ -37,7 +37,7 @@ RIGID_CHOICES = ("auto", *(m.value for m in ImpactModel))
 
 
 def test_the_choices_are_auto_and_every_rung() -> None:
-    assert IMPACT_MODEL_CHOICES == ("auto", "decoupled", "newton", "lcp", "friction", "sequential", "compliant")
+    assert IMPACT_MODEL_CHOICES == ("auto", "decoupled", "newton", "lcp", "friction", "friction-relaxed", "sequential", "compliant")
 
 
 @pytest.mark.parametrize("choice", RIGID_CHOICES)
@@ -79,6 +79,9 @@ def test_friction_scene_runs_the_friction_rung_by_default(write, capsys) -> None
     assert main(["evaluate", str(path)]) == 0
     out = capsys.readouterr().out
     assert "tangential [N s]" in out and "slip after [m/s]" in out and "normal and tangential along +x" in out
+    assert "the convex friction law's relaxation" not in out  # the exact law: no hop
+    assert main(["evaluate", "--model", "friction-relaxed", str(path)]) == 0
+    out = capsys.readouterr().out
     assert "faster than restitution while carrying impulse (the convex friction law's relaxation)" in out
     assert main(["evaluate", "--json", "--model", "lcp", str(path)]) == 0
     record = _record(capsys)

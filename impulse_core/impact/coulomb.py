@@ -1,0 +1,190 @@
+"""Exact Coulomb friction at impact: Newton's restitution and Coulomb's law at the impulse level,
+as a linear complementarity problem solved by Lemke's method.
+
+The law at each contact i (n the ground normal, t the tangent along +x, v- and v+ the contact
+velocity before and after the impact, e the restitution, mu the friction coefficient):
+
+    0 <= lambda_n  _|_  v+_n + e v-_n >= 0          (Newton's restitution, unilateral)
+    |lambda_t| <= mu lambda_n                        (the friction cone)
+    v+_t != 0  =>  lambda_t = -mu lambda_n sign(v+_t) (sliding opposes the post-impact slip)
+
+In the plane this is exactly an LCP (Stewart & Trinkle 1996, with restitution as in Anitescu &
+Potra 1997): split lambda_t = lambda_t+ - lambda_t- and add beta (the slip speed |v+_t| where a
+contact slides):
+
+    0 <= lambda_t+ _|_ beta + v+_t >= 0
+    0 <= lambda_t- _|_ beta - v+_t >= 0
+    0 <= beta      _|_ mu lambda_n - lambda_t+ - lambda_t- >= 0
+
+With W = J M^-1 J^T (normal rows, then tangent rows) the post-impact contact velocities are
+v+ = v- + W lambda, so z = (lambda_n, lambda_t+, lambda_t-, beta) solves the LCP (M_lcp, q)
+of :func:`coulomb_lcp`. That matrix is copositive-plus, so Lemke's method finds a solution
+(Stewart & Trinkle 1996). It is the law, not a relaxation: unlike Anitescu's convex program
+(``friction-relaxed``) a sliding contact leaves the ground at its restitution speed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from impulse_core.errors import NumericalError
+
+#: Relative tolerance of Lemke's ratio test and of the mode classification.
+LEMKE_TOL = 1e-12
+#: Covering vectors tried after the first when a pivoting path ends on a ray (degenerate ties).
+RETRIES = 8
+
+
+class ContactMode(Enum):
+    """What a contact does in the impact."""
+
+    SEPARATING = "separating"
+    STICKING = "sticking"
+    SLIDING = "sliding"
+
+
+@dataclass(frozen=True)
+class CoulombImpact:
+    """The impulses of one impact with exact Coulomb friction (N s) and each contact's mode.
+
+    Attributes:
+        normal: normal impulse per contact.
+        tangential: tangential impulse per contact, along the tangent rows of J (+x).
+        modes: per contact.
+        velocity: contact velocities after the impact, normal rows then tangent rows (m/s).
+    """
+
+    normal: np.ndarray
+    tangential: np.ndarray
+    modes: tuple[ContactMode, ...]
+    velocity: np.ndarray
+
+
+def lemke(
+    M: np.ndarray, q: np.ndarray, cover: np.ndarray | None = None, max_pivots: int | None = None
+) -> np.ndarray | None:
+    """A solution z of the LCP  z >= 0, w = M z + q >= 0, z^T w = 0  by Lemke's complementary
+    pivoting with the covering vector ``cover`` (> 0; default (1, ..., 1)); None when it ends on a
+    secondary ray (no solution found) or runs out of pivots.
+
+    Ties in the ratio test go to the artificial variable first (it ends the path), then to the
+    lowest row, which is enough for the small, nondegenerate problems of an impact.
+    """
+    M, q = np.asarray(M, dtype=float), np.asarray(q, dtype=float)
+    n = q.size
+    if n == 0 or np.all(q >= 0):
+        return np.zeros(n)
+    cover = np.ones(n) if cover is None else np.asarray(cover, dtype=float)
+    tableau = np.hstack([np.eye(n), -M, -cover[:, None], q[:, None]])
+    basis = list(range(n))  # w_i basic; z_j is column n + j, the artificial z0 column 2n
+    scale = max(1.0, float(np.max(np.abs(tableau[:, :-1]))))
+    tol = LEMKE_TOL * scale
+    first = int(np.argmin(q / cover))
+    _pivot(tableau, basis, first, 2 * n)
+    entering = n + first  # the complement of the w that left
+    for _ in range(max_pivots or 50 * n + 50):
+        column, rhs = tableau[:, entering], tableau[:, -1]
+        rows = np.flatnonzero(column > tol)
+        if rows.size == 0:
+            return None  # a secondary ray
+        ratios = rhs[rows] / column[rows]
+        ties = rows[ratios <= ratios.min() + tol * (1.0 + abs(ratios.min()))]
+        row = next((int(r) for r in ties if basis[r] == 2 * n), int(ties[0]))
+        leaving = basis[row]
+        _pivot(tableau, basis, row, entering)
+        if leaving == 2 * n:
+            z = np.zeros(n)
+            for r, var in enumerate(basis):
+                if n <= var < 2 * n:
+                    z[var - n] = tableau[r, -1]
+            return np.maximum(z, 0.0)
+        entering = leaving + n if leaving < n else leaving - n
+    return None
+
+
+def _pivot(tableau: np.ndarray, basis: list[int], row: int, column: int) -> None:
+    """Gauss-Jordan pivot of ``tableau`` on (row, column); ``column`` enters the basis."""
+    tableau[row] /= tableau[row, column]
+    others = np.arange(tableau.shape[0]) != row
+    tableau[others] -= np.outer(tableau[others, column], tableau[row])
+    basis[row] = column
+
+
+def coulomb_lcp(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: float) -> tuple[np.ndarray, np.ndarray]:
+    """The LCP (M, q) of the impact law (module docstring) at n contacts.
+
+    Args:
+        W: J M^-1 J^T with J's normal rows first, then its tangent rows (2n x 2n).
+        v_minus: contact velocities before the impact, normal then tangent (2n).
+        restitution: Newton's e in [0, 1].
+        mu: Coulomb coefficient >= 0.
+    """
+    n = W.shape[0] // 2
+    Wnn, Wnt, Wtn, Wtt = W[:n, :n], W[:n, n:], W[n:, :n], W[n:, n:]
+    eye, zero = np.eye(n), np.zeros((n, n))
+    M = np.block(
+        [
+            [Wnn, Wnt, -Wnt, zero],
+            [Wtn, Wtt, -Wtt, eye],
+            [-Wtn, -Wtt, Wtt, eye],
+            [mu * eye, -eye, -eye, zero],
+        ]
+    )
+    vn, vt = v_minus[:n], v_minus[n:]
+    q = np.concatenate([(1.0 + restitution) * vn, vt, -vt, np.zeros(n)])
+    return M, q
+
+
+def coulomb_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: float) -> CoulombImpact:
+    """Normal and tangential impulses of the exact Newton-Coulomb impact law, with the modes.
+
+    Args:
+        W, v_minus, restitution, mu: as in :func:`coulomb_lcp`.
+
+    Raises:
+        NumericalError: Lemke's method found no solution (a ray, or too many pivots).
+    """
+    n = W.shape[0] // 2
+    M, q = coulomb_lcp(W, v_minus, restitution, mu)
+    # Diagonal scaling z = D z', w' = D w with D = (s, s, s, 1/s), s_i = 1/sqrt(W_nn,ii): the velocity
+    # blocks get a unit diagonal and the cone and slip blocks stay mu and 1, whatever the units.
+    s = 1.0 / np.sqrt(np.maximum(np.diag(W)[:n], np.finfo(float).tiny))
+    d = np.concatenate([s, s, s, 1.0 / s])
+    speed = max(float(np.max(np.abs(v_minus))), np.finfo(float).tiny)
+    Ms, qs = d[:, None] * M * d[None, :], d * q / speed
+    z = lemke(Ms, qs)
+    rng = np.random.default_rng(0)
+    for _ in range(RETRIES):  # a degenerate path (extreme conditioning): other covering vectors
+        if z is not None:
+            break
+        z = lemke(Ms, qs, cover=rng.uniform(0.5, 2.0, qs.size))
+    if z is None:
+        raise NumericalError("Lemke's method found no solution of the Coulomb impact LCP (a secondary ray)")
+    z = d * z * speed
+    normal, tangential = z[:n], z[n : 2 * n] - z[2 * n : 3 * n]
+    if mu == 0:
+        tangential = np.zeros(n)  # not rounding's 1e-16: no friction, no tangential impulse
+    velocity = v_minus + W @ np.concatenate([normal, tangential])
+    return CoulombImpact(normal, tangential, contact_modes(normal, velocity, speed), velocity)
+
+
+def contact_modes(normal: np.ndarray, velocity: np.ndarray, speed: float) -> tuple[ContactMode, ...]:
+    """Each contact's mode: separating without normal impulse, sticking with no slip after the
+    impact, sliding otherwise (``speed`` sets the scale of "no slip")."""
+    n = normal.size
+    impulse_tol = LEMKE_TOL * 1e3 * max(float(np.max(np.abs(normal), initial=0.0)), np.finfo(float).tiny)
+    slip_tol = 1e-9 * speed
+    return tuple(
+        ContactMode.SEPARATING
+        if normal[i] <= impulse_tol
+        else ContactMode.STICKING
+        if abs(velocity[n + i]) <= slip_tol
+        else ContactMode.SLIDING
+        for i in range(n)
+    )
+
+
+__all__ = ["LEMKE_TOL", "CoulombImpact", "ContactMode", "contact_modes", "coulomb_impact", "coulomb_lcp", "lemke"]
