@@ -26,7 +26,15 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.impact.coulomb import ContactMode, coulomb_impact
+from impulse_core.impact.delassus import (
+    friction_response_function,
+    geometry_function,
+    impact_function,
+    metric_function,
+    response_function,
+)
 from impulse_core.impact.laws import (
     PIVOT_TOL,
     RANK_TOL,
@@ -38,16 +46,8 @@ from impulse_core.impact.laws import (
     least_norm_split,
     redundant,
 )
-from impulse_core.errors import ModelError, NumericalError
-from impulse_core.impact.delassus import (
-    friction_response_function,
-    geometry_function,
-    impact_function,
-    metric_function,
-    response_function,
-)
-from impulse_core.kinematics.spatial import PLANAR, DofKind, Space, dof_layout
 from impulse_core.impact.nnls import least_distance
+from impulse_core.kinematics.spatial import PLANAR, DofKind, Space, dof_layout
 from impulse_core.model.tree import ContactSelection, Scene, Topology, Tree, design_vector
 
 #: A normal impulse below this fraction of the approach momentum counts as zero (separating).
@@ -125,6 +125,18 @@ def approach_velocity(topology: Topology, speed: float, space: Space = PLANAR) -
     for k, (kind, axis) in enumerate(space.base_dofs):
         if kind is DofKind.TRANSLATION:
             v[k] = -speed * axis[1]
+    return v
+
+
+def pre_impact_velocity(topology: Topology, scene: Scene, space: Space = PLANAR) -> np.ndarray:
+    """Generalized velocity of the whole tree moving as one rigid body as ``scene`` says: base
+    origin at (velocity_x, -speed), every body turning at angular_velocity about z, joints at rest."""
+    v = approach_velocity(topology, scene.speed, space)
+    for k, (kind, axis) in enumerate(space.base_dofs):
+        if kind is DofKind.TRANSLATION:
+            v[k] += scene.velocity_x * axis[0]
+        else:
+            v[k] += scene.angular_velocity * axis[2]
     return v
 
 
@@ -235,7 +247,7 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
         )
     active = active_contacts(tree, scene)
     topology = tree.topology(active)
-    v_minus = approach_velocity(topology, scene.speed, space)
+    v_minus = pre_impact_velocity(topology, scene, space)
     impact = _Impact(tree, scene, topology, space, design_vector(tree), v_minus)
     if model is None:
         solution, reason = _automatic(impact)
@@ -455,5 +467,6 @@ __all__ = [
     "compiled_metric",
     "compiled_model",
     "evaluate",
+    "pre_impact_velocity",
     "touchdown_geometry",
 ]

@@ -187,4 +187,4 @@ def contact_modes(normal: np.ndarray, velocity: np.ndarray, speed: float) -> tup
     )
 
 
-__all__ = ["LEMKE_TOL", "CoulombImpact", "ContactMode", "contact_modes", "coulomb_impact", "coulomb_lcp", "lemke"]
+__all__ = ["LEMKE_TOL", "ContactMode", "CoulombImpact", "contact_modes", "coulomb_impact", "coulomb_lcp", "lemke"]

@@ -590,7 +590,7 @@ def geometry_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
     ``contacts`` (3 x declared contacts)."""
     p = ca.SX.sym("p", topology.n_values)
     kin = forward_kinematics(topology, unpack_values(topology, p), space)
-    cat = lambda xs: ca.horzcat(*xs) if xs else ca.SX(3, 0)  # noqa: E731
+    cat = lambda xs: ca.horzcat(*xs) if xs else ca.SX(3, 0)
     return ca.Function(
         "geometry",
         [p],

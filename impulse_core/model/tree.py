@@ -159,10 +159,14 @@ class Topology:
 
 @dataclass(frozen=True)
 class Scene:
-    """The landing: the whole tree translates straight down (-y) onto the ground.
+    """The landing: the whole tree moves as one rigid body onto the ground (joints at rest
+    relative to their parents): its base origin at (velocity_x, -speed), turning at
+    angular_velocity about z (default: straight down).
 
     Attributes:
-        speed: approach speed (m/s), > 0.
+        speed: downward speed of the base origin (m/s), > 0.
+        velocity_x: horizontal (+x) velocity of the base origin (m/s).
+        angular_velocity: the base's (and every body's) angular velocity about z (rad/s).
         restitution: Newton's coefficient e in [0, 1].
         friction: Coulomb coefficient (0: frictionless; > 0: the FRICTION rung of contact_models).
         selection: which contacts hit (rigid rungs; the time-domain models let the geometry decide).
@@ -182,9 +186,17 @@ class Scene:
     contact_tolerance: float = 1e-6
     terrain: Terrain = FLAT
     base_x: float = 0.0
+    velocity_x: float = 0.0
+    angular_velocity: float = 0.0
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and self.speed > 0, "scene.speed", f"must be > 0, got {self.speed}")
+        _require(math.isfinite(self.velocity_x), "scene.velocity", f"must be finite, got {self.velocity_x}")
+        _require(
+            math.isfinite(self.angular_velocity),
+            "scene.angular_velocity",
+            f"must be finite, got {self.angular_velocity}",
+        )
         _require(
             math.isfinite(self.restitution) and 0.0 <= self.restitution <= 1.0,
             "scene.restitution",
@@ -210,6 +222,11 @@ class Scene:
             "scene.base_x",
             f"must be a finite number (m), got {self.base_x!r}",
         )
+
+    @property
+    def straight_down(self) -> bool:
+        """True when the approach is a pure downward translation (the paper's landing)."""
+        return self.velocity_x == 0.0 and self.angular_velocity == 0.0
 
 
 def _require(ok: bool, where: str, problem: str) -> None:

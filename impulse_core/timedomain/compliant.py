@@ -71,9 +71,10 @@ from enum import Enum
 import casadi as ca
 import numpy as np
 
-from impulse_core.kinematics import dynamics as dyn
 from impulse_core.errors import ModelError, NumericalError
-from impulse_core.evaluate import touchdown_geometry
+from impulse_core.evaluate import pre_impact_velocity, touchdown_geometry
+from impulse_core.impact.nnls import nnls
+from impulse_core.kinematics import dynamics as dyn
 from impulse_core.kinematics.spatial import (
     PLANAR,
     DofKind,
@@ -84,7 +85,6 @@ from impulse_core.kinematics.spatial import (
     point_jacobian,
     unpack_values,
 )
-from impulse_core.impact.nnls import nnls
 from impulse_core.model.terrain import FLAT, Terrain, gap_expression, vertical_clearance
 from impulse_core.model.tree import BODY_VALUES, Scene, Topology, Tree, design_vector
 
@@ -703,7 +703,7 @@ def simulate_impact(
         base_x: overrides ``scene.base_x``, the x of the base origin at touchdown (m) placing the
             tree over the terrain (default: the scene's).
         v_minus: generalized velocity at the first touchdown (base vx, vy, omega, joint rates);
-            default: straight down at ``scene.speed``.
+            default: the scene's approach (:func:`impulse_core.evaluate.pre_impact_velocity`).
 
     Raises:
         ModelError: friction (the rung is frictionless) or a restitution it cannot represent.
@@ -719,8 +719,7 @@ def simulate_impact(
     evaluate_step = _Evaluator(compiled_step(topology, terrain), p, g)
     q = touchdown_configuration(tree, terrain, base_x)
     if v_minus is None:
-        v = np.zeros(layout.nv)
-        v[1] = -scene.speed
+        v = pre_impact_velocity(topology, scene)
     else:
         v = np.array(v_minus, dtype=float).ravel()
         if v.shape != (layout.nv,):
@@ -893,6 +892,7 @@ def simulate_impact(
 
 
 __all__ = [
+    "TOUCHDOWN_CLEARANCE",
     "CompliantResult",
     "CompliantSettings",
     "CompliantStatus",
@@ -908,5 +908,4 @@ __all__ = [
     "subtree_masses",
     "touchdown_configuration",
     "touchdown_order",
-    "TOUCHDOWN_CLEARANCE",
 ]

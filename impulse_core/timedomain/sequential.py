@@ -17,6 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impulse_core.errors import ModelError, NumericalError
+from impulse_core.evaluate import pre_impact_velocity
+from impulse_core.impact.nnls import nnls
+from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.model.terrain import Terrain
+from impulse_core.model.tree import Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
     _Evaluator,
     compiled_step,
@@ -26,11 +32,6 @@ from impulse_core.timedomain.compliant import (
     touchdown_configuration,
     touchdown_order,
 )
-from impulse_core.errors import ModelError, NumericalError
-from impulse_core.kinematics.spatial import dof_layout
-from impulse_core.impact.nnls import nnls
-from impulse_core.model.terrain import Terrain
-from impulse_core.model.tree import Scene, Tree, design_vector
 
 MODEL_NAME = "newton-sequential on terrain (LCP at each touchdown, RK4 flight)"
 
@@ -131,12 +132,10 @@ def sequential_impacts(
         raise ModelError("scene.friction: the sequential rigid model is frictionless (friction: 0)")
     terrain, base_x = scene_ground(scene, terrain, base_x)
     topology = tree.topology()
-    layout = dof_layout(topology)
     evaluate_step = _Evaluator(compiled_step(topology, terrain), design_vector(tree), settings.gravity)
     q = touchdown_configuration(tree, terrain, base_x)
     if v_minus is None:
-        v = np.zeros(layout.nv)
-        v[1] = -scene.speed
+        v = pre_impact_velocity(topology, scene)
     else:
         v = np.array(v_minus, dtype=float).ravel()
     e = scene.restitution

@@ -43,7 +43,17 @@ from optimizer.config.yaml_fields import string as _string
 from optimizer.errors import ConfigError
 
 TOP_KEYS = ("scene", "model", "reference", "notes")
-SCENE_KEYS = ("speed", "restitution", "friction", "contacts", "contact_tolerance", "terrain", "base_x")
+SCENE_KEYS = (
+    "speed",
+    "velocity",
+    "angular_velocity",
+    "restitution",
+    "friction",
+    "contacts",
+    "contact_tolerance",
+    "terrain",
+    "base_x",
+)
 MODEL_KEYS = ("bodies",)
 BODY_KEYS = ("name", "parent", "at", "length", "mass", "angle", "joint", "contacts", "com", "inertia", "gyration")
 REFERENCE_KEYS = ("source", "external", "internal", "external_norm", "internal_norm", "note")
@@ -285,12 +295,29 @@ def parse_model(data: Any, path: str | Path | None = None) -> ModelFile:
         raise
 
 
+def _approach(m: dict[str, Any], where: str) -> tuple[float, float]:
+    """(velocity_x, speed) from ``speed: s`` (straight down) or ``velocity: [vx, vy]``, vy < 0."""
+    if "velocity" in m and "speed" in m:
+        raise ConfigError(f"{where}.velocity: give speed (straight down) or velocity, not both")
+    if "velocity" not in m:
+        speed = _number(_required(m, "speed", where), f"{where}.speed")
+        if speed <= 0:
+            raise ConfigError(f"{where}.speed: must be > 0 (m/s, straight down), got {speed!r}")
+        return 0.0, speed
+    v = m["velocity"]
+    if not isinstance(v, list) or len(v) != 2:
+        raise ConfigError(f"{where}.velocity: must be [vx, vy] (m/s), got {_describe(v)}")
+    vx, vy = (_number(x, f"{where}.velocity[{i}]") for i, x in enumerate(v))
+    if vy >= 0:
+        raise ConfigError(f"{where}.velocity[1]: must be < 0 (the model comes down onto the ground), got {vy!r}")
+    return vx, -vy
+
+
 def parse_scene(data: Any, where: str = "scene") -> Scene:
     """Validate the ``scene`` block into a core ``Scene``."""
     m = _mapping(data, where, SCENE_KEYS)
-    speed = _number(_required(m, "speed", where), f"{where}.speed")
-    if speed <= 0:
-        raise ConfigError(f"{where}.speed: must be > 0 (m/s; the approach is always straight down), got {speed!r}")
+    velocity_x, speed = _approach(m, where)
+    angular_velocity = _number(m.get("angular_velocity", 0.0), f"{where}.angular_velocity")
     restitution = _number(_required(m, "restitution", where), f"{where}.restitution")
     if not 0.0 <= restitution <= 1.0:
         raise ConfigError(f"{where}.restitution: must be in [0, 1], got {restitution!r}")
@@ -305,6 +332,8 @@ def parse_scene(data: Any, where: str = "scene") -> Scene:
     base_x = parse_base_x(m["base_x"], f"{where}.base_x") if "base_x" in m else 0.0
     return Scene(
         speed=speed,
+        velocity_x=velocity_x,
+        angular_velocity=angular_velocity,
         restitution=restitution,
         friction=friction,
         selection=selection,
@@ -544,11 +573,15 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
     s = model.scene
     lines += [
         "scene:",
-        f"  speed: {_float_text(s.speed)}  # m/s, straight down",
+        f"  speed: {_float_text(s.speed)}  # m/s, straight down"
+        if s.velocity_x == 0.0
+        else f"  velocity: [{_float_text(s.velocity_x)}, {_float_text(-s.speed)}]  # m/s, base origin",
         f"  restitution: {_float_text(s.restitution)}",
         f"  friction: {_float_text(s.friction)}",
         f"  contacts: {s.selection.value}",
     ]
+    if s.angular_velocity != 0.0:
+        lines.append(f"  angular_velocity: {_float_text(s.angular_velocity)}  # rad/s, about z")
     if s.contact_tolerance != _DEFAULT_TOLERANCE:
         lines.append(f"  contact_tolerance: {_float_text(s.contact_tolerance)}  # m")
     if s.terrain != FLAT:

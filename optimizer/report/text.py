@@ -254,6 +254,8 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
 def _scene_record(scene: Scene) -> dict[str, Any]:
     return {
         "speed": _f(scene.speed),
+        "velocity": [_f(scene.velocity_x), _f(-scene.speed)],
+        "angular_velocity": _f(scene.angular_velocity),
         "restitution": _f(scene.restitution),
         "friction": _f(scene.friction),
         "contacts": scene.selection.value,
@@ -285,7 +287,13 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
         f"model:   {name}: {description}",
         f"why:     {result.reason}",
         (
-            f"scene:   speed {scene.speed:g} m/s down, restitution e = {scene.restitution:g}, "
+            f"scene:   speed {scene.speed:g} m/s down"
+            + (
+                ""
+                if scene.straight_down
+                else f", {scene.velocity_x:g} m/s along x, turning {scene.angular_velocity:g} rad/s"
+            )
+            + f", restitution e = {scene.restitution:g}, "
             f"friction {scene.friction:g}, contacts: {selection}"
         ),
     ]

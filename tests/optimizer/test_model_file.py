@@ -457,3 +457,28 @@ def test_the_contracts_example(write) -> None:
             Body("heel", 1, 0.15, 0.1, 2.0, contacts=(1.0,)),
         )
     )
+
+
+def test_the_approach_keys_read_write_and_refuse(write, capsys) -> None:
+    """``velocity: [vx, vy]`` and ``angular_velocity`` (MODEL_FORMAT "The approach"): read into
+    the scene, written back equal, and refused with the field named when wrong."""
+    from optimizer.cli.main import main
+    from tests.optimizer.conftest import LEG_YAML
+
+    text = LEG_YAML.replace("  speed: 2.0\n", "  velocity: [0.4, -2.0]\n  angular_velocity: -0.3\n")
+    model = load_model_file(write(text, "oblique.yaml"))
+    assert (model.scene.velocity_x, model.scene.speed, model.scene.angular_velocity) == (0.4, 2.0, -0.3)
+    again = load_model_file(write(format_model_file(model), "again.yaml"))
+    assert again.scene == model.scene
+    bad = {
+        "  velocity: [0.4, -2.0]\n  speed: 2.0\n": "scene.velocity: give speed",
+        "  velocity: [0.4, 2.0]\n": "scene.velocity[1]: must be < 0",
+        "  velocity: [0.4]\n": "scene.velocity: must be [vx, vy]",
+        "  velocity: [.nan, -2.0]\n": "scene.velocity[0]",
+        "  speed: 2.0\n  angular_velocity: fast\n": "scene.angular_velocity",
+    }
+    for block, message in bad.items():
+        path = write(LEG_YAML.replace("  speed: 2.0\n", block), "bad.yaml")
+        assert main(["evaluate", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err, err
