@@ -20,7 +20,6 @@ import numpy as np
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.nnls import nnls
-from impulse_core.kinematics.spatial import dof_layout
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
