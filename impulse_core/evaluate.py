@@ -37,7 +37,6 @@ from impulse_core.impact.delassus import (
 )
 from impulse_core.impact.laws import (
     PIVOT_TOL,
-    RANK_TOL,
     ImpactModel,
     complementarity_impulse,
     coulomb_cone,
@@ -45,6 +44,7 @@ from impulse_core.impact.laws import (
     decoupled_impulse,
     least_norm_split,
     redundant,
+    row_space_split,
 )
 from impulse_core.impact.nnls import least_distance
 from impulse_core.kinematics.spatial import PLANAR, DofKind, Space, dof_layout
@@ -442,13 +442,9 @@ def _redundant_split(J: np.ndarray, A: np.ndarray, rhs: np.ndarray) -> np.ndarra
     non-negative one is a least-distance program: min |z| s.t. N z >= -lambda_0. If no
     non-negative split exists, the smallest-norm split (with pulling contacts) is returned.
     """
-    scale = np.linalg.norm(J, axis=0)
-    scale[scale == 0] = 1.0
-    U, s, _ = np.linalg.svd(J / scale, full_matrices=True)
-    rank = int(np.sum(s > RANK_TOL * s.max())) if s.size else 0
-    if rank == J.shape[0]:
+    Ur, N = row_space_split(J)
+    if N.shape[1] == 0:
         return None
-    Ur, N = U[:, :rank], U[:, rank:]
     lam0 = Ur @ np.linalg.solve(Ur.T @ A @ Ur, Ur.T @ rhs)
     if np.all(lam0 >= 0):
         return lam0

@@ -188,12 +188,18 @@ def least_norm_split(J: np.ndarray, lam: np.ndarray, P: np.ndarray | None = None
     return lam if z is None else lam0 + N @ z
 
 
-def _left_null_space(J: np.ndarray) -> np.ndarray:
+def row_space_split(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal bases (Ur, N) of the range of J's rows and of its left null space, the rank
+    from the SVD of J with unit columns (so it does not depend on the units of the DOFs)."""
     scale = np.linalg.norm(J, axis=0)
     scale[scale == 0] = 1.0
     U, s, _ = np.linalg.svd(J / scale, full_matrices=True)
     rank = int(np.sum(s > RANK_TOL * s.max())) if s.size else 0
-    return U[:, rank:]
+    return U[:, :rank], U[:, rank:]
+
+
+def _left_null_space(J: np.ndarray) -> np.ndarray:
+    return row_space_split(J)[1]
 
 
 def _scaled_nnls(E: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -247,4 +253,5 @@ __all__ = [
     "decoupled_impulse",
     "least_norm_split",
     "redundant",
+    "row_space_split",
 ]
