@@ -22,6 +22,16 @@ PLOT_SUFFIXES = (".png", ".svg")
 _ROD, _JOINT, _CONTACT, _EXTERNAL, _INTERNAL, _GROUND = "#4a6fa5", "#333333", "#c0392b", "#c0392b", "#27ae60", "#777777"
 
 
+def _coinciding(names: list[str], where: np.ndarray, extent: float) -> list[tuple[list[str], np.ndarray]]:
+    """Labels grouped by position: rods drawn on top of each other (identical planar toes) share
+    one label instead of printing their names over each other."""
+    groups: dict[tuple[float, float], tuple[list[str], np.ndarray]] = {}
+    for name, w in zip(names, where, strict=True):
+        key = (round(w[0] / extent, 6), round(w[1] / extent, 6))
+        groups.setdefault(key, ([], w))[0].append(name)
+    return list(groups.values())
+
+
 def _plot_path(path: str | Path) -> Path:
     """``path`` as a Path, refused (ConfigError) unless it ends in one of ``PLOT_SUFFIXES``."""
     path = Path(path)
@@ -90,8 +100,10 @@ def plot_touchdown(
 
     for o, t in zip(origins, tips, strict=True):
         ax.plot([o[0], t[0]], [o[1], t[1]], color=_ROD, lw=6, solid_capstyle="round", alpha=0.85, zorder=2)
-    for i, b in enumerate(tree.bodies):
-        ax.annotate(b.name, (coms[i] + tips[i]) / 2, fontsize=8, color=_ROD, xytext=(4, 4), textcoords="offset points")
+    extent0 = float(max(np.ptp(np.vstack(points), axis=0).max(), 1e-3))
+    for names, where in _coinciding([b.name for b in tree.bodies], (coms + tips) / 2, extent0):
+        label = names[0] if len(names) == 1 else f"{names[0]} (x{len(names)}, coinciding)"
+        ax.annotate(label, where, fontsize=8, color=_ROD, xytext=(4, 4), textcoords="offset points")
     ax.plot(coms[:, 0], coms[:, 1], "x", color="black", ms=5, zorder=4)
     ax.plot(origins[0, 0], origins[0, 1], "s", mfc="white", mec=_JOINT, ms=8, zorder=4)
     if len(origins) > 1:
@@ -109,9 +121,15 @@ def plot_touchdown(
     largest = max(float(np.max(np.abs(result.external), initial=0.0)), result.max_internal)
     scale = 0.35 * extent / largest if largest > 0 else 0.0  # m per N s
 
+    labelled: set[tuple[float, float, str]] = set()
+
     def arrow(start: np.ndarray, vector: np.ndarray, color: str, label: float) -> None:
         end = start + scale * vector
         points.append(end[None, :])
+        key = (round(end[0] / extent, 6), round(end[1] / extent, 6), f"{label:.3g}")
+        if key in labelled:  # coinciding rods (identical toes): one arrow, one label
+            return
+        labelled.add(key)
         ax.annotate(
             "",
             xy=end,

@@ -45,3 +45,15 @@ def test_leaves_pyplot_alone(tmp_path: Path, leg_tree: Tree, leg_scene: Scene) -
     result = evaluate(leg_tree, leg_scene)
     plot_touchdown(leg_tree, touchdown_geometry(leg_tree), result, tmp_path / "leg.png", "leg")
     assert plt.get_fignums() == before
+
+
+def test_coinciding_rods_share_one_label() -> None:
+    """Case 3's three identical toes lie on top of each other: one label each place, not three
+    printed over each other."""
+    import numpy as np
+
+    from optimizer.report.plot import _coinciding
+
+    where = np.array([[0.0, 0.0], [1.0, 0.5], [1.0, 0.5], [1.0, 0.5 + 1e-12], [2.0, 0.0]])
+    groups = _coinciding(["a", "t1", "t2", "t3", "b"], where, extent=2.0)
+    assert [names for names, _ in groups] == [["a"], ["t1", "t2", "t3"], ["b"]]
