@@ -46,6 +46,7 @@ from impulse_core.impact.laws import (
     redundant,
     row_space_split,
 )
+from impulse_core.impact.mode_derivatives import mode_impulse_function, slip_signs
 from impulse_core.impact.nnls import least_distance
 from impulse_core.kinematics.spatial import PLANAR, DofKind, Space, dof_layout
 from impulse_core.model.tree import ContactSelection, Scene, Topology, Tree, design_vector
@@ -463,6 +464,27 @@ __all__ = [
     "compiled_metric",
     "compiled_model",
     "evaluate",
+    "friction_derivatives",
     "pre_impact_velocity",
     "touchdown_geometry",
 ]
+
+
+def friction_derivatives(
+    tree: Tree, scene: Scene, space: Space = PLANAR
+) -> tuple[ImpactResult, np.ndarray, np.ndarray]:
+    """The exact-friction impact of ``tree`` and the Jacobians of its normal and tangential
+    impulses at the active contacts w.r.t. the design vector (:func:`impulse_core.model.tree.design_vector`),
+    exact along the reported contact modes (:mod:`impulse_core.impact.mode_derivatives`).
+
+    Returns:
+        (result, d_normal, d_tangential), the Jacobians n_active x n_values.
+    """
+    result = evaluate(tree, scene, ImpactModel.FRICTION, space)
+    topology = tree.topology(result.active)
+    modes = tuple(result.modes[i] for i in result.active)
+    f = mode_impulse_function(
+        compiled_metric(topology, space, True), len(result.active), modes, slip_signs(result.tangent_velocity)
+    )
+    out = f(p=design_vector(tree), v_minus=result.v_minus, restitution=scene.restitution, mu=scene.friction)
+    return result, np.array(out["d_normal"]), np.array(out["d_tangential"])

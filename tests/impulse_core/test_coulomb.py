@@ -175,3 +175,61 @@ def test_the_law_holds_for_oblique_approaches(seed: int) -> None:
             assert r.tangential[i] == pytest.approx(-mu * r.normal[i] * np.sign(vt[i]), abs=1e-10)
         elif r.modes[i] is ContactMode.STICKING:
             assert abs(vt[i]) <= 1e-8 * scale
+
+
+def _case3_variants(count: int, rng: np.random.Generator):
+    """Case 3 with its angles moved +-0.1 rad, masses x exp(+-0.3), random friction and approach."""
+    from impulse_core.model.tree import BODY_VALUES, design_vector, with_values
+
+    model = load_model_file(CONFIGS / "paper_case3.yaml")
+    tree, n_body = model.tree, len(BODY_VALUES)
+    for k in range(count):
+        p = design_vector(tree)
+        p[BODY_VALUES.index("angle") : n_body * tree.n_bodies : n_body] += rng.uniform(-0.1, 0.1, tree.n_bodies)
+        p[BODY_VALUES.index("mass") : n_body * tree.n_bodies : n_body] *= np.exp(rng.uniform(-0.3, 0.3, tree.n_bodies))
+        scene = dataclasses.replace(
+            model.scene,
+            friction=float(rng.choice([0.2, 0.5, 1.0, 3.0])),
+            velocity_x=float(rng.uniform(-1.5, 1.5)),
+            angular_velocity=float(rng.uniform(-1, 1)),
+        )
+        yield f"case3-{k}", with_values(tree, p), scene
+
+
+def test_derivatives_along_the_mode_equal_finite_differences() -> None:
+    """d(impulses)/d(design values) by the implicit function theorem on the reported modes, against
+    central differences of evaluate() where the modes stay the same on both sides."""
+    from impulse_core.evaluate import friction_derivatives
+    from impulse_core.model.tree import BODY_VALUES, design_vector, with_values
+
+    rng = np.random.default_rng(11)
+    checked, worst, modes = 0, 0.0, set()
+    for name, tree, scene in _case3_variants(8, rng):
+        res, d_normal, d_tangential = friction_derivatives(tree, scene)
+        assert res.split_unique, name
+        modes |= set(res.modes)
+        p = design_vector(tree)
+        inner = [
+            b * len(BODY_VALUES) + BODY_VALUES.index(v)
+            for b in range(tree.n_bodies)
+            for v in ("length", "mass", "angle")
+        ]
+        for k in rng.choice(inner, size=8, replace=False):  # values inside their bounds ("at" and contacts sit at 1)
+            h = 1e-6 * max(1.0, abs(p[k]))
+            hi, lo = p.copy(), p.copy()
+            hi[k] += h
+            lo[k] -= h
+            up, down = evaluate(with_values(tree, hi), scene), evaluate(with_values(tree, lo), scene)
+            if up.modes != res.modes or down.modes != res.modes or up.active != res.active:
+                continue
+            act = list(res.active)
+            fd_n = (up.external[act] - down.external[act]) / (2 * h)
+            fd_t = (up.tangential[act] - down.tangential[act]) / (2 * h)
+            scale = max(1.0, float(np.abs(d_normal).max()), float(np.abs(d_tangential).max()))
+            err = max(np.abs(fd_n - d_normal[:, k]).max(), np.abs(fd_t - d_tangential[:, k]).max()) / scale
+            worst = max(worst, err)
+            checked += 1
+            assert err < 1e-6, (name, k, err)
+    report("coulomb", f"derivatives along the mode vs central differences: {checked} columns, worst {worst:.1e}, "
+           f"modes {sorted(m.value for m in modes)}")  # fmt: skip
+    assert checked >= 40 and {ContactMode.STICKING, ContactMode.SLIDING} <= modes
