@@ -139,6 +139,11 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
         out.append(f"contacts {', '.join(never)} never touch the ground during the landing")
     r = result.result
     if isinstance(r, CompliantResult):
+        out.append(
+            "the compliant rung does not estimate its time-discretisation error (first order in the step; 1.5e-3 to "
+            "5e-3 relative at the default 120 steps per contact period in studies/fidelity/README.md): raise "
+            "--steps-per-period to check a result"
+        )
         if r.recontacting:
             out.append(
                 f"contacts {', '.join(names[i] for i in r.recontacting)} head back to the ground after releasing: "

@@ -212,3 +212,11 @@ def test_contact_law_choices_match_the_library() -> None:
 
     args = build_parser().parse_args(["evaluate", "x.yaml", "--law", "penalty"])
     assert ContactLaw(args.law) is ContactLaw.PENALTY and args.steps_per_period is None
+
+
+def test_the_compliant_rung_says_its_error_is_not_estimated(capsys) -> None:
+    """No tolerance yet (issue #12): the JSON's warnings say so instead of keeping quiet."""
+    assert main(["evaluate", "--json", "--model", "compliant", str(ROOT / "configs" / "uneven_terrain.yaml")]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["model"] == "compliant"
+    assert any("does not estimate its time-discretisation error" in w for w in record["warnings"])
