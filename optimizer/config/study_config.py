@@ -205,7 +205,10 @@ def _scene(data: Any) -> Scene:
         raise ConfigError(f"scene.restitution: must be in [0, 1], got {e!r}")
     friction = _number(m.get("friction", 0.0), "scene.friction")
     if friction != 0.0:
-        raise ConfigError(f"scene.friction: the impulse core models frictionless contact only (0), got {friction!r}")
+        raise ConfigError(
+            f"scene.friction: studies search frictionless landings only for now (0), got {friction!r}; "
+            "footopt evaluate runs the exact friction law on any design file"
+        )
     return Scene(speed=speed, restitution=e, friction=0.0)
 
 

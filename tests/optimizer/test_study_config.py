@@ -71,7 +71,7 @@ BAD = [
     ("search:\n  trails: 3\n", "search.trails: unknown key (did you mean 'trials'?"),
     ("scene: {speed: -1}\n", "scene.speed: must be > 0"),
     ("scene: {restitution: 1.5}\n", "scene.restitution: must be in [0, 1]"),
-    ("scene: {friction: 0.3}\n", "scene.friction: the impulse core models frictionless contact only"),
+    ("scene: {friction: 0.3}\n", "scene.friction: studies search frictionless landings only"),
     ("leg: {thigh: {mass: 0}}\n", "leg.thigh.mass: must be > 0"),
     ("leg: {shank: {angle: up}}\n", "leg.shank.angle: must be a number, got 'up'"),
     ("design_space: {toes: [3, 1]}\n", "design_space.toes: min 3 is above max 1"),
