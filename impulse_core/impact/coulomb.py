@@ -123,19 +123,84 @@ def coulomb_lcp(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: floa
         mu: Coulomb coefficient >= 0.
     """
     n = W.shape[0] // 2
+    return unilateral_lcp(W, v_minus, np.arange(n), np.full(n, float(restitution)), np.full(n, float(mu)))
+
+
+def unilateral_lcp(
+    W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The LCP (M, q) of n unilateral rows of which m have a friction (tangent) row.
+
+    The law of the module docstring, row by row: normal row i has its own restitution e_i; tangent
+    row k belongs to normal row ``owner[k]`` with coefficient ``mu[k]``; normal rows without a
+    tangent row are frictionless (a joint stop, a contact that slides with a given direction).
+
+    Args:
+        W: (n + m) square, velocity of each row per unit impulse of each row (normal rows first).
+            Not necessarily symmetric: a sliding contact's impulse direction is n - mu s t.
+        u: the rows' velocities before (n + m); at acceleration level, their free accelerations.
+        owner: (m,) normal row of each tangent row.
+        restitution: (n,) per normal row.
+        mu: (m,) per tangent row.
+    """
+    n, m = len(restitution), len(owner)
     Wnn, Wnt, Wtn, Wtt = W[:n, :n], W[:n, n:], W[n:, :n], W[n:, n:]
-    eye, zero = np.eye(n), np.zeros((n, n))
+    E = np.zeros((m, n))
+    E[np.arange(m), owner] = mu
+    eye, zero = np.eye(m), np.zeros((m, m))
     M = np.block(
         [
-            [Wnn, Wnt, -Wnt, zero],
+            [Wnn, Wnt, -Wnt, np.zeros((n, m))],
             [Wtn, Wtt, -Wtt, eye],
             [-Wtn, -Wtt, Wtt, eye],
-            [mu * eye, -eye, -eye, zero],
+            [E, -eye, -eye, zero],
         ]
     )
-    vn, vt = v_minus[:n], v_minus[n:]
-    q = np.concatenate([(1.0 + restitution) * vn, vt, -vt, np.zeros(n)])
+    un, ut = u[:n], u[n:]
+    q = np.concatenate([(1.0 + np.asarray(restitution)) * un, ut, -ut, np.zeros(m)])
     return M, q
+
+
+@dataclass(frozen=True)
+class UnilateralSolution:
+    """Impulses (or forces) of :func:`solve_unilateral`: per normal row, per tangent row, the
+    rows' velocities after (or accelerations), and the slip (beta) per tangent row."""
+
+    normal: np.ndarray
+    tangential: np.ndarray
+    velocity: np.ndarray
+    slip: np.ndarray
+
+
+def solve_unilateral(
+    W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray
+) -> UnilateralSolution:
+    """Solve :func:`unilateral_lcp` by Lemke's method, scaled and with retries.
+
+    Raises:
+        NumericalError: Lemke's method found no solution (a ray, or too many pivots).
+    """
+    n, m = len(restitution), len(owner)
+    M, q = unilateral_lcp(W, u, owner, restitution, mu)
+    # Diagonal scaling z = D z', w' = D w with D = (s, s, s, 1/s), s_i = 1/sqrt(W_nn,ii): the velocity
+    # blocks get a unit diagonal and the cone and slip blocks stay mu and 1, whatever the units.
+    s = 1.0 / np.sqrt(np.maximum(np.abs(np.diag(W)[:n]), np.finfo(float).tiny))
+    st = s[owner]
+    d = np.concatenate([s, st, st, 1.0 / st])
+    speed = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    Ms, qs = d[:, None] * M * d[None, :], d * q / speed
+    z = lemke(Ms, qs)
+    rng = np.random.default_rng(0)
+    for _ in range(RETRIES):  # a degenerate path (extreme conditioning): other covering vectors
+        if z is not None:
+            break
+        z = lemke(Ms, qs, cover=rng.uniform(0.5, 2.0, qs.size))
+    if z is None:
+        raise NumericalError("Lemke's method found no solution of the unilateral LCP (a secondary ray)")
+    z = d * z * speed
+    normal, tangential = z[:n], z[n : n + m] - z[n + m : n + 2 * m]
+    velocity = u + W @ np.concatenate([normal, tangential])
+    return UnilateralSolution(normal, tangential, velocity, z[n + 2 * m :])
 
 
 def coulomb_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: float) -> CoulombImpact:
@@ -148,26 +213,15 @@ def coulomb_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: f
         NumericalError: Lemke's method found no solution (a ray, or too many pivots).
     """
     n = W.shape[0] // 2
-    M, q = coulomb_lcp(W, v_minus, restitution, mu)
-    # Diagonal scaling z = D z', w' = D w with D = (s, s, s, 1/s), s_i = 1/sqrt(W_nn,ii): the velocity
-    # blocks get a unit diagonal and the cone and slip blocks stay mu and 1, whatever the units.
-    s = 1.0 / np.sqrt(np.maximum(np.diag(W)[:n], np.finfo(float).tiny))
-    d = np.concatenate([s, s, s, 1.0 / s])
-    speed = max(float(np.max(np.abs(v_minus))), np.finfo(float).tiny)
-    Ms, qs = d[:, None] * M * d[None, :], d * q / speed
-    z = lemke(Ms, qs)
-    rng = np.random.default_rng(0)
-    for _ in range(RETRIES):  # a degenerate path (extreme conditioning): other covering vectors
-        if z is not None:
-            break
-        z = lemke(Ms, qs, cover=rng.uniform(0.5, 2.0, qs.size))
-    if z is None:
-        raise NumericalError("Lemke's method found no solution of the Coulomb impact LCP (a secondary ray)")
-    z = d * z * speed
-    normal, tangential = z[:n], z[n : 2 * n] - z[2 * n : 3 * n]
+    try:
+        sol = solve_unilateral(W, v_minus, np.arange(n), np.full(n, float(restitution)), np.full(n, float(mu)))
+    except NumericalError:
+        raise NumericalError("Lemke's method found no solution of the Coulomb impact LCP (a secondary ray)") from None
+    normal, tangential = sol.normal, sol.tangential
     if mu == 0:
         tangential = np.zeros(n)  # not rounding's 1e-16: no friction, no tangential impulse
     velocity = v_minus + W @ np.concatenate([normal, tangential])
+    speed = max(float(np.max(np.abs(v_minus))), np.finfo(float).tiny)
     return CoulombImpact(normal, tangential, contact_modes(normal, velocity, speed), velocity)
 
 
@@ -187,4 +241,15 @@ def contact_modes(normal: np.ndarray, velocity: np.ndarray, speed: float) -> tup
     )
 
 
-__all__ = ["LEMKE_TOL", "ContactMode", "CoulombImpact", "contact_modes", "coulomb_impact", "coulomb_lcp", "lemke"]
+__all__ = [
+    "LEMKE_TOL",
+    "ContactMode",
+    "CoulombImpact",
+    "UnilateralSolution",
+    "contact_modes",
+    "coulomb_impact",
+    "coulomb_lcp",
+    "lemke",
+    "solve_unilateral",
+    "unilateral_lcp",
+]

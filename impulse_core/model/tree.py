@@ -177,6 +177,8 @@ class Scene:
         base_x: x (m) of the base origin at touchdown: the tree keeps its touchdown angles, sits
             with its base origin at ``base_x`` and is lowered straight down until the contact with
             the smallest vertical clearance touches the terrain. Irrelevant on flat ground.
+        gravity: m/s^2 along -y (acts between impacts: the whole landing).
+        duration: the whole landing's length (s) from the first touchdown, or None (first impact).
     """
 
     speed: float = 3.43
@@ -188,6 +190,8 @@ class Scene:
     base_x: float = 0.0
     velocity_x: float = 0.0
     angular_velocity: float = 0.0
+    gravity: float = 0.0
+    duration: float | None = None
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and self.speed > 0, "scene.speed", f"must be > 0, got {self.speed}")
@@ -221,6 +225,15 @@ class Scene:
             isinstance(self.base_x, (int, float)) and not isinstance(self.base_x, bool) and math.isfinite(self.base_x),
             "scene.base_x",
             f"must be a finite number (m), got {self.base_x!r}",
+        )
+
+        _require(
+            math.isfinite(self.gravity) and self.gravity >= 0.0, "scene.gravity", f"must be >= 0, got {self.gravity}"
+        )
+        _require(
+            self.duration is None or (math.isfinite(self.duration) and self.duration > 0.0),
+            "scene.duration",
+            f"must be > 0 (s), got {self.duration}",
         )
 
     @property

@@ -280,7 +280,7 @@ def configured_design(topology: Topology, p: ca.SX, q: ca.SX, space: Space = PLA
 
 
 @dataclass(frozen=True)
-class _Expressions:
+class Expressions:
     """Symbols (q, v, p, gravity) and the dynamics built from the core at configuration q."""
 
     q: ca.SX
@@ -295,9 +295,13 @@ class _Expressions:
     subtree_momentum: ca.SX  # 2 x bodies
     subtree_jacobian: ca.SX  # 2 bodies x nv: rows (x, y) of each subtree's momentum Jacobian
     subtree_bias: ca.SX  # 2 x bodies: d/dt (subtree momentum) at zero acceleration
+    mass_matrix: ca.SX  # nv x nv
+    force: ca.SX  # nv: gravity's generalized force - Coriolis and centrifugal terms
+    contact_bias: ca.SX  # 2 n_c: (dJ/dt) v, the contact accelerations at zero acceleration
+    com_height: ca.SX  # y of the whole tree's centre of mass
 
 
-def _expressions(topology: Topology, space: Space) -> _Expressions:
+def expressions(topology: Topology, space: Space) -> Expressions:
     _require_planar(space)
     layout = dof_layout(topology, space)
     nv = layout.nv
@@ -339,7 +343,13 @@ def _expressions(topology: Topology, space: Space) -> _Expressions:
         Jsub[parent] = Jsub[parent] + Jsub[b]
     momentum = ca.horzcat(*[J @ v for J in Jsub])
     bias = ca.jtimes(momentum, q, v)  # (dJ/dt) v of each subtree's momentum
-    return _Expressions(q, v, p, g, C, Jc, minv_jt, free, kinetic, momentum, ca.vertcat(*Jsub), bias)
+    contact_bias = ca.jtimes(Jc @ v, q, v) if rows else ca.SX(0, 1)
+    total = sum(val.mass for val in values)
+    com_height = sum(val.mass * (kin.W_p_G[b] + offset)[1] for b, val in enumerate(values)) / total
+    return Expressions(
+        q, v, p, g, C, Jc, minv_jt, free, kinetic, momentum, ca.vertcat(*Jsub), bias, M, tau_g - h, contact_bias,
+        com_height,
+    )
 
 
 def dynamics_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
@@ -352,7 +362,7 @@ def dynamics_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
     (M^-1 (tau_g - h), nv), ``kinetic_energy`` (v^T M v / 2), ``subtree_momentum`` (2 x bodies:
     linear momentum of each body's subtree; column 0 is the whole tree's).
     """
-    x = _expressions(topology, space)
+    x = expressions(topology, space)
     outs = [x.contacts, x.contact_jacobian, x.minv_jt, x.free_acceleration, x.kinetic_energy, x.subtree_momentum]
     return ca.Function(
         "compliant_dynamics", [x.q, x.v, x.p, x.gravity], outs, list(DYNAMICS_INPUTS), list(DYNAMICS_OUTPUTS)
@@ -371,7 +381,7 @@ def step_function(topology: Topology, terrain: Terrain, space: Space = PLANAR) -
     (dJ/dt) v): a subtree's momentum rate is ``subtree_jacobian @ a + subtree_bias`` for an
     acceleration a. Every output is dense.
     """
-    x = _expressions(topology, space)
+    x = expressions(topology, space)
     nc = x.contacts.shape[1]
     gaps, normals = [], []
     for c in range(nc):
@@ -596,10 +606,11 @@ class _State:
     subtree_bias: np.ndarray  # 2 x bodies
 
 
-class _Evaluator:
-    """Low-overhead numeric calls of a CasADi function through its buffer interface (a few us
-    per call instead of tens): inputs are copied into fixed arrays, outputs are views of fixed
-    arrays in CasADi's column-major order."""
+class BufferedCall:
+    """Low-overhead numeric calls of a CasADi function of (q, v, p, gravity) through its buffer
+    interface (a few us per call instead of tens): inputs are copied into fixed arrays, outputs
+    are views of fixed arrays, overwritten by the next call: ``self.flat`` (as vectors) and
+    ``self.out`` (shaped, CasADi's column-major order)."""
 
     def __init__(self, fn: ca.Function, p: np.ndarray, gravity: float) -> None:
         self._buf, self._eval = fn.buffer()
@@ -611,24 +622,25 @@ class _Evaluator:
             self._buf.set_res(i, memoryview(r))
         self._args[2][:] = p
         self._args[3][:] = gravity
-        self._out = [r.reshape(fn.size_out(i), order="F") for i, r in enumerate(self._res)]
-        self._state = _State(
-            gap=self._res[0],
-            normal=self._out[1],
-            rate=self._res[2],
-            Jn=self._out[3],
-            minv_jnt=self._out[4],
-            free=self._res[5],
-            kinetic=self._res[6],
-            momentum=self._out[7],
-            subtree_jacobian=self._out[8],
-            subtree_bias=self._out[9],
-        )
+        self.flat = self._res
+        self.out = [r.reshape(fn.size_out(i), order="F") for i, r in enumerate(self._res)]
 
-    def __call__(self, q: np.ndarray, v: np.ndarray) -> _State:
+    def call(self, q: np.ndarray, v: np.ndarray) -> None:
         self._args[0][:] = q
         self._args[1][:] = v
         self._eval()
+
+
+class _Evaluator(BufferedCall):
+    """:class:`BufferedCall` of :func:`step_function`, its outputs named (:class:`_State`)."""
+
+    def __init__(self, fn: ca.Function, p: np.ndarray, gravity: float) -> None:
+        super().__init__(fn, p, gravity)
+        o, f = self.out, self.flat
+        self._state = _State(f[0], o[1], f[2], o[3], o[4], f[5], f[6], o[7], o[8], o[9])
+
+    def __call__(self, q: np.ndarray, v: np.ndarray) -> _State:
+        self.call(q, v)
         return self._state
 
 

@@ -33,6 +33,7 @@ from typing import Any
 import yaml
 
 from impulse_core.errors import ModelError
+from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.terrain import FLAT, Terrain
 from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
 from optimizer.config.yaml_fields import describe as _describe
@@ -53,9 +54,13 @@ SCENE_KEYS = (
     "contact_tolerance",
     "terrain",
     "base_x",
+    "gravity",
+    "duration",
 )
 MODEL_KEYS = ("bodies",)
 BODY_KEYS = ("name", "parent", "at", "length", "mass", "angle", "joint", "contacts", "com", "inertia", "gyration")
+#: A revolute joint's spring, damper and stops (``impulse_core.model.joints.JointLaw``).
+JOINT_LAW_KEYS = ("stiffness", "damping", "rest", "limits", "stop_restitution")
 REFERENCE_KEYS = ("source", "external", "internal", "external_norm", "internal_norm", "note")
 
 _DEFAULT_TOLERANCE = Scene().contact_tolerance
@@ -209,6 +214,8 @@ class ModelFile:
     Attributes:
         tree: the floating tree of rods.
         scene: the landing.
+        joints: each body's joint law (spring, damper, stops; the base's entry is free), or ()
+            when no joint has one.
         reference: published values for comparison, or None.
         notes: free text (the top-level ``notes``), ignored by the evaluation.
         path: the file it was read from (not part of equality).
@@ -219,8 +226,11 @@ class ModelFile:
     reference: Reference | None = None
     notes: str | None = None
     path: Path | None = field(default=None, compare=False)
+    joints: tuple[JointLaw, ...] = ()
 
     def __post_init__(self) -> None:
+        if self.joints and len(self.joints) != self.tree.n_bodies:
+            raise ConfigError(f"joints: {len(self.joints)} joint laws for {self.tree.n_bodies} bodies")
         ref = self.reference
         if ref is None:
             return
@@ -285,9 +295,10 @@ def parse_model(data: Any, path: str | Path | None = None) -> ModelFile:
         top = _mapping(data, "", TOP_KEYS, what="the top level")
         scene = parse_scene(_required(top, "scene", ""))
         tree = parse_tree(_required(top, "model", ""))
+        joints = parse_joint_laws(top["model"], tree)
         reference = parse_reference(top["reference"]) if top.get("reference") is not None else None
         notes = _optional_string(top, "notes", "")
-        return ModelFile(tree=tree, scene=scene, reference=reference, notes=notes, path=source)
+        return ModelFile(tree=tree, scene=scene, reference=reference, notes=notes, path=source, joints=joints)
     except ModelError as e:  # the dataclasses' own checks, already named by field
         raise ConfigError(str(e), source) from None
     except ConfigError as e:
@@ -330,6 +341,10 @@ def parse_scene(data: Any, where: str = "scene") -> Scene:
     selection = _choice(m.get("contacts", ContactSelection.LOWEST.value), f"{where}.contacts", ContactSelection, "mode")
     terrain = parse_terrain(m["terrain"], f"{where}.terrain") if "terrain" in m else FLAT
     base_x = parse_base_x(m["base_x"], f"{where}.base_x") if "base_x" in m else 0.0
+    gravity = _number(m.get("gravity", 0.0), f"{where}.gravity")
+    if gravity < 0:
+        raise ConfigError(f"{where}.gravity: must be >= 0 (m/s^2 along -y, e.g. 9.81), got {gravity!r}")
+    duration = _positive(m["duration"], f"{where}.duration") if m.get("duration") is not None else None
     return Scene(
         speed=speed,
         velocity_x=velocity_x,
@@ -340,7 +355,47 @@ def parse_scene(data: Any, where: str = "scene") -> Scene:
         contact_tolerance=tolerance,
         terrain=terrain,
         base_x=base_x,
+        gravity=gravity,
+        duration=duration,
     )
+
+
+def parse_joint_laws(data: dict[str, Any], tree: Tree, where: str = "model") -> tuple[JointLaw, ...]:
+    """Each body's spring, damper and stops (``JOINT_LAW_KEYS``), or () when no body has any.
+
+    Raises:
+        ConfigError: naming the field: a bad value, or a joint law on the base or a fixed joint.
+    """
+    laws = []
+    for i, b in enumerate(data["bodies"]):
+        at = f"{where}.bodies[{i}]"
+        given = [k for k in JOINT_LAW_KEYS if k in b]
+        if given and (i == 0 or tree.bodies[i].joint is not JointKind.REVOLUTE):
+            what = "the floating base has no joint" if i == 0 else "a fixed joint does not move"
+            raise ConfigError(f"{at}.{given[0]}: applies to revolute joints only ({what})")
+        laws.append(_joint_law(b, at) if given else FREE)
+    return tuple(laws) if any(law != FREE for law in laws) else ()
+
+
+def _joint_law(b: dict[str, Any], where: str) -> JointLaw:
+    limits = None
+    if "limits" in b:
+        raw = b["limits"]
+        if not (isinstance(raw, list) and len(raw) == 2):
+            raise ConfigError(f"{where}.limits: must be [lo, hi] (rad), got {_describe(raw)}")
+        lo, hi = (_number(x, f"{where}.limits[{k}]") for k, x in enumerate(raw))
+        limits = (lo, hi)
+    law = JointLaw(
+        stiffness=_number(b.get("stiffness", 0.0), f"{where}.stiffness"),
+        damping=_number(b.get("damping", 0.0), f"{where}.damping"),
+        rest=None if b.get("rest") is None else _number(b["rest"], f"{where}.rest"),
+        limits=limits,
+        stop_restitution=_number(b.get("stop_restitution", 0.0), f"{where}.stop_restitution"),
+    )
+    law.validate(where)
+    if limits is not None and not limits[0] <= float(b["angle"]) <= limits[1]:
+        raise ConfigError(f"{where}.limits: the touchdown angle {b['angle']!r} lies outside [{limits[0]!r}, {limits[1]!r}]")
+    return law
 
 
 def parse_terrain(value: Any, where: str = "scene.terrain") -> Terrain:
@@ -377,7 +432,7 @@ def parse_tree(data: Any, where: str = "model") -> Tree:
         raise ConfigError(f"{path}: must be a list of bodies, got {_describe(raw)}")
     if not raw:
         raise ConfigError(f"{path}: must list at least one body")
-    entries = [_mapping(b, f"{path}[{i}]", BODY_KEYS) for i, b in enumerate(raw)]
+    entries = [_mapping(b, f"{path}[{i}]", BODY_KEYS + JOINT_LAW_KEYS) for i, b in enumerate(raw)]
 
     index: dict[str, int] = {}
     for i, b in enumerate(entries):
@@ -589,6 +644,10 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
         lines.append(f"  terrain: [{points}]  # ground profile y(x), world frame, m")
     if s.base_x != 0.0:
         lines.append(f"  base_x: {_float_text(s.base_x)}  # m, base origin at touchdown")
+    if s.gravity != 0.0:
+        lines.append(f"  gravity: {_float_text(s.gravity)}  # m/s^2 along -y")
+    if s.duration is not None:
+        lines.append(f"  duration: {_float_text(s.duration)}  # s: the whole landing")
     lines += ["model:", "  bodies:"]
     tree = model.tree
     for b in tree.bodies:
@@ -614,6 +673,8 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
                 lines.append(f"      gyration: {_float_text(b.gyration)}  # radius of gyration / length")
         if b.contacts:
             lines.append(f"      contacts: [{', '.join(_float_text(c) for c in b.contacts)}]")
+        if model.joints:
+            lines += _joint_law_lines(model.joints[tree.bodies.index(b)])
     ref = model.reference
     if ref is not None:
         lines.append("reference:" if any(getattr(ref, key) is not None for key in REFERENCE_KEYS) else "reference: {}")
@@ -631,6 +692,18 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
     if model.notes is not None:
         lines.append(f"notes: {_string_text(model.notes)}")
     return "\n".join(lines) + "\n"
+
+
+def _joint_law_lines(law: JointLaw) -> list[str]:
+    """The non-default fields of a joint law, as body lines of a model file."""
+    lines = []
+    for key in ("stiffness", "damping", "rest", "stop_restitution"):
+        value, default = getattr(law, key), getattr(FREE, key)
+        if value != default:
+            lines.append(f"      {key}: {_float_text(value)}")
+    if law.limits is not None:
+        lines.append(f"      limits: [{_float_text(law.limits[0])}, {_float_text(law.limits[1])}]  # rad")
+    return lines
 
 
 def dump_model_file(

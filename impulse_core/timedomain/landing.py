@@ -1,0 +1,801 @@
+"""The whole landing: every impact from the first touchdown until ``duration``, with resting
+contact, sticking and sliding, joint springs, dampers and stops in between (planar).
+
+An event-driven hybrid integration (Pfeiffer & Glocker, *Multibody Dynamics with Unilateral
+Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
+
+* Between events the contact modes are fixed: each contact is open, sticking or sliding (with a
+  known direction), each joint with stops is free or resting on one. The closed rows are
+  constraints on the acceleration, G a + b = 0, with forces F^T lambda (F = G except a sliding
+  contact, whose force is along n - mu s t); M a = f + F^T lambda with f = gravity + springs +
+  dampers - Coriolis. Classical Runge-Kutta 4 with a fixed step integrates it, with the contact
+  force integrals as quadrature states; after each step the closed rows are projected back onto
+  their constraints (positions, then velocities; the velocity projection's impulse is counted).
+* An event ends a mode: a touchdown (an open contact's gap crosses zero, or touches and leaves
+  within a step: a cubic Hermite fit of the gap over the step finds those), a joint reaching a
+  stop, a lift-off (lambda_n < 0), a stick-slip transition (|lambda_t| > mu lambda_n), a sliding
+  contact stopping (s v_t < 0), a stop releasing. Its time is located by the Illinois method on
+  the step length.
+* A touchdown or a stop is an impact by the same law as the first impact
+  (``impulse_core.impact.coulomb``: Newton's restitution with exact Coulomb friction) over every
+  contact that touches and every joint on a stop; an approach slower than
+  :data:`PLASTIC_SPEED` is plastic (e = 0) and the row rests from then on. After every event the
+  modes are chosen by the same LCP at the acceleration level (e = 0; sliding contacts keep their
+  direction).
+
+The error of a run at step h is estimated by comparing with the run at h / 2; the step is halved
+until that estimate meets ``tolerance`` (:func:`landing`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from impulse_core.errors import ModelError, NumericalError
+from impulse_core.evaluate import active_contacts, pre_impact_velocity
+from impulse_core.impact.coulomb import solve_unilateral
+from impulse_core.kinematics.spatial import PLANAR, dof_layout
+from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.model.terrain import Terrain
+from impulse_core.model.tree import Scene, Tree, design_vector
+from impulse_core.timedomain.compliant import (
+    DYNAMICS_INPUTS,
+    BufferedCall,
+    expressions,
+    joint_impulses,
+    subtree_incidence,
+    touchdown_configuration,
+)
+
+MODEL_NAME = "landing"
+#: An impact approaching slower than this (m/s at a contact, rad/s at a stop) is plastic.
+PLASTIC_SPEED = 1e-4
+#: The landing has settled once every generalized velocity stays below this.
+SETTLE_SPEED = 1e-3
+#: Events after which the landing is abandoned (a chattering contact).
+MAX_EVENTS = 20000
+
+
+@dataclass(frozen=True)
+class LandingSettings:
+    """Accuracy settings of :func:`landing`.
+
+    Attributes:
+        tolerance: the error a run must meet (relative difference of its peak impulses, total
+            external impulses and final posture from the refined limit, ``MODEL_FORMAT.md``).
+        step: the first Runge-Kutta step (s); None: duration / 200.
+        max_refinements: halvings of the step before giving up (the run then warns).
+        gap_tolerance: a contact this close to the ground (m) touches.
+    """
+
+    tolerance: float = 1e-3
+    step: float | None = None
+    max_refinements: int = 7
+    gap_tolerance: float = 1e-12
+
+
+@dataclass(frozen=True)
+class LandingEvent:
+    """One impact of the landing.
+
+    Attributes:
+        time: s from the first touchdown.
+        kind: "touchdown" (a contact touched or re-touched) or "stop" (a joint reached a stop).
+        external: normal impulse per declared contact (0 where not involved), N s.
+        tangential: tangential impulse per contact (along the ground tangent, +x on flat ground).
+        internal: force impulse through each joint, parent onto child (n_joints x 2).
+        internal_magnitude: |internal| per joint.
+        stop: torque impulse of each joint's stop (N m s; 0 where not involved), per non-base body.
+        v_minus, v_plus: generalized velocities before and after.
+    """
+
+    time: float
+    kind: str
+    external: np.ndarray
+    tangential: np.ndarray
+    internal: np.ndarray
+    internal_magnitude: np.ndarray
+    stop: np.ndarray
+    v_minus: np.ndarray
+    v_plus: np.ndarray
+
+    @property
+    def external_norm(self) -> float:
+        return float(np.linalg.norm(self.external))
+
+    @property
+    def internal_norm(self) -> float:
+        return float(np.linalg.norm(self.internal_magnitude))
+
+
+@dataclass(frozen=True)
+class LandingResult:
+    """The whole landing (world frame; SI units).
+
+    Attributes:
+        events: every impact, in time order; the first is at t = 0.
+        total_external: per contact, the normal impulse over [0, T], impulsive and continuous.
+        total_tangential: the same for the tangential impulse.
+        settled_at: the earliest t after which every generalized velocity stays below
+            :data:`SETTLE_SPEED`, or None.
+        q_final, v_final: the state at T (q: base x, y, angle, then joint angles).
+        final_angles: the base's absolute angle, then every joint's angle in file order (fixed
+            joints: their fixed angle).
+        energy_before: kinetic energy just before the first touchdown (J).
+        energy_final: kinetic plus spring energy at T (J).
+        gravity_work: work of gravity over [0, T] (J).
+        duration, step: the landing's length and the Runge-Kutta step of this run (s).
+        n_steps: accepted steps.
+        error_estimate: relative difference from the run at half the step (None: not estimated).
+        trajectory: (time, q) at every step end and event, for plots.
+    """
+
+    events: tuple[LandingEvent, ...]
+    total_external: np.ndarray
+    total_tangential: np.ndarray
+    settled_at: float | None
+    q_final: np.ndarray
+    v_final: np.ndarray
+    final_angles: np.ndarray
+    energy_before: float
+    energy_final: float
+    gravity_work: float
+    duration: float
+    step: float
+    n_steps: int
+    error_estimate: float | None = None
+    tolerance: float | None = None
+    trajectory: tuple[np.ndarray, np.ndarray] = field(default=(np.zeros(0), np.zeros((0, 0))), repr=False)
+    model: str = MODEL_NAME
+
+    @property
+    def peak_external_norm(self) -> float:
+        return max(e.external_norm for e in self.events)
+
+    @property
+    def peak_internal_norm(self) -> float:
+        return max(e.internal_norm for e in self.events)
+
+    @property
+    def peak_max_internal(self) -> float:
+        """The largest joint impulse magnitude of any event (N s)."""
+        return max((float(e.internal_magnitude.max()) for e in self.events if e.internal_magnitude.size), default=0.0)
+
+    @property
+    def final_base(self) -> np.ndarray:
+        return self.q_final[:2].copy()
+
+    @property
+    def energy_absorbed(self) -> float:
+        """Fraction of the energy brought in (kinetic at touchdown + gravity's work) that the
+        impacts, dampers and friction dissipated by T; the rest is kinetic or in the springs."""
+        brought = self.energy_before + self.gravity_work
+        return 1.0 - self.energy_final / brought if brought > 0 else 0.0
+
+    @property
+    def converged(self) -> bool:
+        return self.error_estimate is not None and self.tolerance is not None and self.error_estimate <= self.tolerance
+
+
+# --------------------------------------------------------------------------------------------
+# The dynamics at (q, v): one CasADi call
+
+
+LANDING_OUTPUTS = ("gap", "normal", "contact_jacobian", "contact_bias", "mass_matrix", "force", "kinetic_energy",
+                   "subtree_momentum", "com_height", "contacts")
+
+
+@functools.lru_cache(maxsize=64)
+def landing_function(topology, terrain: Terrain) -> ca.Function:
+    """What the landing needs at (q, v, p, gravity), one call per evaluation: ``gap`` (n_c),
+    ``normal`` (2 x n_c, outward at the nearest ground point), ``contact_jacobian`` (2 n_c x nv),
+    ``contact_bias`` ((dJ/dt) v, 2 n_c), ``mass_matrix``, ``force`` (gravity - Coriolis),
+    ``kinetic_energy``, ``subtree_momentum`` (2 x bodies), ``com_height``, ``contacts`` (2 x n_c)."""
+    from impulse_core.model.terrain import gap_expression
+
+    x = expressions(topology, PLANAR)
+    nc = x.contacts.shape[1]
+    pairs = [gap_expression(terrain, x.contacts[:, c]) for c in range(nc)]
+    outs = [
+        ca.vertcat(*[g for g, _ in pairs]),
+        ca.horzcat(*[n for _, n in pairs]),
+        x.contact_jacobian,
+        x.contact_bias,
+        x.mass_matrix,
+        x.force,
+        x.kinetic_energy,
+        x.subtree_momentum,
+        x.com_height,
+        x.contacts,
+    ]
+    return ca.Function(
+        "landing", [x.q, x.v, x.p, x.gravity], [ca.densify(o) for o in outs], list(DYNAMICS_INPUTS), list(LANDING_OUTPUTS)
+    )
+
+
+@dataclass
+class _Point:
+    """Numeric dynamics at one (q, v), spring and damper torques included."""
+
+    gap: np.ndarray
+    normal: np.ndarray  # n_c x 2
+    Jn: np.ndarray  # n_c x nv
+    Jt: np.ndarray
+    bn: np.ndarray  # (dJn/dt) v
+    bt: np.ndarray
+    M: np.ndarray
+    f: np.ndarray
+    kinetic: float
+    momentum: np.ndarray  # 2 x bodies
+    com_height: float
+    contacts: np.ndarray  # n_c x 2
+
+    def vn(self, v: np.ndarray) -> np.ndarray:
+        return self.Jn @ v
+
+    def vt(self, v: np.ndarray) -> np.ndarray:
+        return self.Jt @ v
+
+
+@dataclass(frozen=True)
+class _Joints:
+    """Joint laws as arrays over the generalized velocities (base entries inert)."""
+
+    stiffness: np.ndarray
+    damping: np.ndarray
+    rest: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    restitution: np.ndarray
+    dof_body: tuple[int, ...]
+
+    def torque(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return -self.stiffness * (q - self.rest) - self.damping * v
+
+    def energy(self, q: np.ndarray) -> float:
+        return float(0.5 * np.sum(self.stiffness * (q - self.rest) ** 2))
+
+
+def joint_arrays(tree: Tree, laws: tuple[JointLaw, ...], q0: np.ndarray) -> _Joints:
+    """:class:`_Joints` of ``laws`` (one per body; () = all free), rest angles defaulting to the
+    touchdown configuration ``q0``."""
+    layout = dof_layout(tree.topology(), PLANAR)
+    nv = layout.nv
+    k, c, e = np.zeros(nv), np.zeros(nv), np.zeros(nv)
+    rest, lo, hi = q0.copy(), np.full(nv, -np.inf), np.full(nv, np.inf)
+    for b, law in enumerate(laws or (FREE,) * tree.n_bodies):
+        j = layout.body_dof[b] if b > 0 else None
+        if j is None:
+            continue
+        k[j], c[j], e[j] = law.stiffness, law.damping, law.stop_restitution
+        if law.rest is not None:
+            rest[j] = law.rest
+        if law.limits is not None:
+            lo[j], hi[j] = law.limits
+    return _Joints(k, c, rest, lo, hi, e, layout.dof_body)
+
+
+# --------------------------------------------------------------------------------------------
+# Modes and constraint rows
+
+
+@dataclass
+class _Mode:
+    """Which rows are closed between two events."""
+
+    closed: np.ndarray  # bool per contact: resting on the ground
+    slip: np.ndarray  # int per contact: 0 sticking (or frictionless), +-1 sliding along +-t
+    stop: np.ndarray  # int per DOF: 0 free, -1 resting on its lower stop, +1 on its upper
+
+    def copy(self) -> _Mode:
+        return _Mode(self.closed.copy(), self.slip.copy(), self.stop.copy())
+
+
+@dataclass(frozen=True)
+class _Rows:
+    """Constraint rows of a mode: velocity rows G (normal rows first, then tangent rows), force
+    rows F (= G but for sliding contacts), (dG/dt) v, and what each row is."""
+
+    G: np.ndarray
+    F: np.ndarray
+    b: np.ndarray
+    contact: np.ndarray  # per normal row: its contact, or -1 for a stop
+    dof: np.ndarray  # per normal row: its DOF (stops), or -1
+    owner: np.ndarray  # per tangent row: its normal row
+    mu: np.ndarray  # per tangent row
+
+    @property
+    def n(self) -> int:
+        return len(self.contact)
+
+
+def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray, mu: float, nv: int) -> _Rows:
+    """Rows for the given contacts (indices; ``slip`` per contact), stops (DOF -> side, dict-like
+    array: 0 none) and friction coefficient; tangent rows for non-sliding contacts when mu > 0."""
+    dofs = np.flatnonzero(stops)
+    G_stop = np.zeros((len(dofs), nv))
+    G_stop[np.arange(len(dofs)), dofs] = -stops[dofs]
+    sliding = slip[contacts] if mu > 0 else np.zeros(len(contacts))
+    Fn = pt.Jn[contacts] - (mu * sliding)[:, None] * pt.Jt[contacts]
+    sticking = contacts[sliding == 0] if mu > 0 else contacts[:0]
+    G = np.vstack([pt.Jn[contacts], G_stop, pt.Jt[sticking]])
+    F = np.vstack([Fn, G_stop, pt.Jt[sticking]])
+    b = np.concatenate([pt.bn[contacts], np.zeros(len(dofs)), pt.bt[sticking]])
+    owner = np.searchsorted(contacts, sticking)
+    return _Rows(
+        G, F, b,
+        np.concatenate([contacts, -np.ones(len(dofs), int)]),
+        np.concatenate([-np.ones(len(contacts), int), dofs]),
+        owner, np.full(len(sticking), mu),
+    )
+
+
+def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
+    return _rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop, mu, pt.M.shape[0])
+
+
+def _accelerations(pt: _Point, rows: _Rows) -> tuple[np.ndarray, np.ndarray]:
+    """Accelerations and row forces of the mode: M a = f + F^T lambda, G a + b = 0."""
+    X = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
+    a0, minv_ft = X[:, 0], X[:, 1:]
+    if not rows.G.shape[0]:
+        return a0, np.zeros(0)
+    W = rows.G @ minv_ft
+    rhs = -(rows.G @ a0 + rows.b)
+    try:
+        lam = np.linalg.solve(W, rhs)
+    except np.linalg.LinAlgError:  # redundant rows (e.g. two sticking contacts on one rod)
+        lam = np.linalg.lstsq(W, rhs, rcond=None)[0]
+    return a0 + minv_ft @ lam, lam
+
+
+def _contact_forces(rows: _Rows, lam: np.ndarray, slip: np.ndarray, mu: float, nc: int) -> tuple[np.ndarray, np.ndarray]:
+    """Normal and tangential force (or impulse) per contact from the rows' multipliers; a sliding
+    contact's tangential force is -mu s lambda_n."""
+    fn, ft = np.zeros(nc), np.zeros(nc)
+    on = rows.contact >= 0
+    c = rows.contact[on]
+    fn[c] = lam[: rows.n][on]
+    ft[c] = -mu * slip[c] * fn[c]
+    ft[rows.contact[rows.owner]] = lam[rows.n :]
+    return fn, ft
+
+
+# --------------------------------------------------------------------------------------------
+# One run at a fixed step
+
+
+@dataclass
+class _Totals:
+    """What a run accumulates."""
+
+    normal: np.ndarray
+    tangential: np.ndarray
+    events: list[LandingEvent] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+    states: list[np.ndarray] = field(default_factory=list)
+    moving_until: float = 0.0
+    steps: int = 0
+
+
+class _Landing:
+    """The integration of one landing at one step length (module docstring)."""
+
+    def __init__(self, tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings) -> None:
+        self.tree, self.scene, self.settings = tree, scene, settings
+        self.topology = tree.topology()
+        fn = landing_function(self.topology, scene.terrain)
+        self.call = BufferedCall(fn, design_vector(tree), scene.gravity)
+        self.q0 = touchdown_configuration(tree, scene.terrain, scene.base_x)
+        self.joints = joint_arrays(tree, laws, self.q0)
+        self.nc, self.nv = len(tree.contacts), len(self.q0)
+        self.mu, self.e = scene.friction, scene.restitution
+        self.in_subtree = subtree_incidence(tree)
+        weight = sum(b.mass for b in tree.bodies) * max(scene.gravity, 1.0)
+        self.force_tol = 1e-9 * weight
+        self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
+
+    # ---- dynamics
+
+    def point(self, q: np.ndarray, v: np.ndarray) -> _Point:
+        self.call.call(q, v)
+        o, f = self.call.out, self.call.flat
+        normal = o[1].T.copy()
+        tangent = np.column_stack([normal[:, 1], -normal[:, 0]])
+        Jx, Jy = o[2][0::2], o[2][1::2]
+        bx, by = f[3][0::2], f[3][1::2]
+        return _Point(
+            gap=f[0].copy(),
+            normal=normal,
+            Jn=normal[:, :1] * Jx + normal[:, 1:] * Jy,
+            Jt=tangent[:, :1] * Jx + tangent[:, 1:] * Jy,
+            bn=normal[:, 0] * bx + normal[:, 1] * by,
+            bt=tangent[:, 0] * bx + tangent[:, 1] * by,
+            M=o[4].copy(),
+            f=f[5] + self.joints.torque(q, v),
+            kinetic=float(f[6][0]),
+            momentum=o[7].copy(),
+            com_height=float(f[8][0]),
+            contacts=o[9].T.copy(),
+        )
+
+    def derivative(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
+        """(acceleration, [normal forces, tangential forces]) in the fixed mode."""
+        pt = self.point(q, v)
+        rows = _mode_rows(pt, mode, self.mu)
+        a, lam = _accelerations(pt, rows)
+        fn, ft = _contact_forces(rows, lam, mode.slip, self.mu, self.nc)
+        return a, np.concatenate([fn, ft])
+
+    def step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One classical Runge-Kutta 4 step: (q, v, contact impulses [normal, tangential])."""
+        a1, f1 = self.derivative(q, v, mode)
+        a2, f2 = self.derivative(q + 0.5 * h * v, v + 0.5 * h * a1, mode)
+        v2 = v + 0.5 * h * a1
+        a3, f3 = self.derivative(q + 0.5 * h * v2, v + 0.5 * h * a2, mode)
+        v3 = v + 0.5 * h * a2
+        a4, f4 = self.derivative(q + h * v3, v + h * a3, mode)
+        v4 = v + h * a3
+        q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
+        v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+        return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
+
+    # ---- events
+
+    def witness(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
+        """Values that stay >= 0 while the mode holds (scaled to tolerances of 1): open gaps,
+        normal and cone margins of closed contacts, slip of sliding ones, joint-stop margins."""
+        pt = self.point(q, v)
+        rows = _mode_rows(pt, mode, self.mu)
+        _, lam = _accelerations(pt, rows)
+        fn, ft = _contact_forces(rows, lam, mode.slip, self.mu, self.nc)
+        closed, slip = mode.closed, mode.slip
+        sticking = closed & (slip == 0) & (self.mu > 0)
+        sliding = closed & (slip != 0) & (self.mu > 0)
+        gap_tol = self.settings.gap_tolerance
+        free = mode.stop == 0
+        stop_force = np.zeros(self.nv)
+        stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
+        return np.concatenate([
+            np.where(closed, np.inf, pt.gap / gap_tol + 1.0),
+            np.where(closed, fn / self.force_tol + 1.0, np.inf),
+            np.where(sticking, (self.mu * fn - np.abs(ft)) / self.force_tol + 1.0, np.inf),
+            np.where(sliding, slip * pt.vt(v) / self.speed_tol + 1.0, np.inf),
+            np.where(free, (q - self.joints.lo) / gap_tol + 1.0, np.inf),
+            np.where(free, (self.joints.hi - q) / gap_tol + 1.0, np.inf),
+            np.where(free, np.inf, stop_force / self.force_tol + 1.0),
+        ])
+
+    def grazing(self, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, h: float) -> float | None:
+        """The step fraction where an open contact's gap (cubic Hermite fit over the step) dips
+        below the ground and comes back, or None."""
+        p0, p1 = self.point(q0, v0), None
+        g0, d0 = p0.gap, p0.vn(v0) * h
+        p1 = self.point(q1, v1)
+        g1, d1 = p1.gap, p1.vn(v1) * h
+        s = np.linspace(0.0, 1.0, 17)[1:-1, None]
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        g = h00 * g0 + h10 * d0 + h01 * g1 + h11 * d1
+        dips = (g < -self.settings.gap_tolerance) & ~mode.closed
+        if not np.any(dips):
+            return None
+        return float(s[np.argmax(np.any(dips, axis=1)), 0])
+
+    def locate(self, q: np.ndarray, v: np.ndarray, mode: _Mode, hi: float, watch: np.ndarray) -> float:
+        """The first step length in (0, hi] at which a watched witness crosses its threshold
+        (Illinois method on their minimum). Witnesses are triggered at -1 (one tolerance below
+        zero) but located at -1e-3 tolerances (or just below the start's value), so that an
+        impact happens within a few 1e-3 tolerances of the true contact instant."""
+        raw0 = float(np.min(self.witness(q, v, mode)[watch])) - 1.0
+        offset = min(1.0, max(1e-3, 1e-3 - raw0))
+
+        def phi(tau: float) -> float:
+            q1, v1, _ = self.step(q, v, mode, tau)
+            return float(np.min(self.witness(q1, v1, mode)[watch])) - 1.0 + offset
+
+        lo, f_lo, f_hi = 0.0, raw0 + offset, phi(hi)
+        side = 0
+        for _ in range(100):
+            if hi - lo <= 1e-14 * max(1.0, hi) or f_hi >= -offset:  # within one location tolerance
+                break
+            mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_lo != f_hi else 0.5 * (lo + hi)
+            if not lo < mid < hi:
+                mid = 0.5 * (lo + hi)
+            f_mid = phi(mid)
+            if f_mid < 0:
+                hi, f_hi = mid, f_mid
+                f_lo = f_lo / 2 if side == -1 else f_lo
+                side = -1
+            else:
+                lo, f_lo = mid, f_mid
+                f_hi = f_hi / 2 if side == 1 else f_hi
+                side = 1
+        return hi
+
+    def impact(
+        self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, contacts: np.ndarray, kind: str
+    ) -> tuple[np.ndarray, LandingEvent, _Mode]:
+        """The rigid impact at (q, v) over ``contacts`` and every joint on or past a stop: the
+        velocities after, the event, and which rows rest afterwards."""
+        pt = self.point(q, v)
+        stops = self.stops_touching(q, mode)
+        rows = _rows(pt, contacts, np.zeros(self.nc, int), stops, self.mu, self.nv)
+        u = rows.G @ v
+        e = np.where(rows.contact >= 0, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
+        e = np.where(-u[: rows.n] > PLASTIC_SPEED, e, 0.0)
+        minv_gt = np.linalg.solve(pt.M, rows.G.T)
+        sol = solve_unilateral(rows.G @ minv_gt, u, rows.owner, e, rows.mu)
+        lam = np.concatenate([sol.normal, sol.tangential])
+        v_plus = v + minv_gt @ lam
+        fn, ft = _contact_forces(rows, lam, np.zeros(self.nc, int), self.mu, self.nc)
+        F = pt.normal.T * fn + np.vstack([pt.normal[:, 1], -pt.normal[:, 0]]) * ft
+        joint = self.point(q, v_plus).momentum - pt.momentum - F @ self.in_subtree.T
+        internal, magnitude = joint_impulses(joint)
+        stop = np.zeros(self.nv)
+        stop[rows.dof[rows.dof >= 0]] = (-stops[rows.dof[rows.dof >= 0]]) * sol.normal[rows.dof >= 0]
+        after = sol.velocity[: rows.n] <= self.speed_tol
+        new = mode.copy()
+        new.closed[:] = False
+        new.closed[rows.contact[(rows.contact >= 0) & after]] = True
+        new.stop[:] = 0
+        at = rows.dof[(rows.dof >= 0) & after]
+        new.stop[at] = stops[at]
+        event = LandingEvent(
+            time=t, kind=kind, external=fn, tangential=ft, internal=internal[:, :2], internal_magnitude=magnitude,
+            stop=self.per_joint(stop), v_minus=v.copy(), v_plus=v_plus.copy(),
+        )
+        return v_plus, event, new
+
+    def stops_touching(self, q: np.ndarray, mode: _Mode) -> np.ndarray:
+        """Per DOF: the stop it rests on or has reached (-1 lower, +1 upper), else 0."""
+        tol = self.settings.gap_tolerance
+        at = np.where(q <= self.joints.lo + tol, -1, np.where(q >= self.joints.hi - tol, 1, 0))
+        return np.where(mode.stop != 0, mode.stop, at)
+
+    def per_joint(self, per_dof: np.ndarray) -> np.ndarray:
+        """A per-DOF quantity as one entry per non-base body (0 for fixed joints)."""
+        layout = dof_layout(self.topology, PLANAR)
+        return np.array([0.0 if k is None else per_dof[k] for k in layout.body_dof[1:]])
+
+    def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
+        """Which resting rows stay closed, stick or slide: the contact LCP at the acceleration
+        level (e = 0; a contact already sliding keeps its direction)."""
+        pt = self.point(q, v)
+        vn, vt = pt.vn(v), pt.vt(v)
+        near = mode.closed | ((pt.gap <= self.settings.gap_tolerance) & (np.abs(vn) <= self.speed_tol))
+        contacts = np.flatnonzero(near)
+        slip = np.where(np.abs(vt) > self.speed_tol, np.sign(vt), 0).astype(int) if self.mu > 0 else np.zeros(self.nc, int)
+        stops = self.stops_touching(q, mode)
+        stops = np.where((mode.stop != 0) | (np.abs(v) <= self.speed_tol), stops, 0)
+        for attempt in range(2):
+            rows = _rows(pt, contacts, slip, stops, self.mu, self.nv)
+            minv = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
+            u = rows.G @ minv[:, 0] + rows.b
+            try:
+                sol = solve_unilateral(rows.G @ minv[:, 1:], u, rows.owner, np.zeros(rows.n), rows.mu)
+                break
+            except NumericalError:
+                if attempt or not np.any(slip[contacts]):
+                    raise NumericalError(
+                        f"no consistent contact forces at t with sliding contacts {list(contacts)} "
+                        "(Painleve's paradox: lower the friction)"
+                    ) from None
+                slip = np.zeros(self.nc, int)  # let the sliding contacts stick or slide afresh
+        acc_tol = 1e-9 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
+        rest = (sol.normal > self.force_tol) | (sol.velocity[: rows.n] <= acc_tol)
+        new = _Mode(np.zeros(self.nc, bool), np.zeros(self.nc, int), np.zeros(self.nv, int))
+        c = rows.contact >= 0
+        new.closed[rows.contact[c & rest]] = True
+        new.slip[:] = np.where(new.closed, slip, 0)
+        k = rows.contact[rows.owner]
+        starting = (sol.slip > acc_tol) & new.closed[k]
+        new.slip[k[starting]] = np.sign(sol.velocity[rows.n :][starting]).astype(int)
+        d = rows.dof >= 0
+        new.stop[rows.dof[d & rest]] = stops[rows.dof[d & rest]]
+        return new
+
+    def project(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Back onto the mode's constraints: closed gaps and stops to zero (positions), then the
+        closed rows' velocities to zero; returns (q, v, the projection's impulses [normal,
+        tangential] per contact)."""
+        pt = self.point(q, v)
+        rows = _mode_rows(pt, mode, self.mu)
+        if not rows.G.shape[0]:
+            return q, v, np.zeros(2 * self.nc)
+        n = rows.n
+        on = rows.contact >= 0
+        residual = np.zeros(n)
+        residual[on] = pt.gap[rows.contact[on]]
+        d = rows.dof[~on]
+        residual[~on] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, self.joints.hi[d], self.joints.lo[d]))
+        minv_gt = np.linalg.solve(pt.M, rows.G.T)
+        W = rows.G @ minv_gt
+        q = q - minv_gt[:, :n] @ np.linalg.lstsq(W[:n, :n], residual, rcond=None)[0]
+        impulse = -np.linalg.lstsq(W, rows.G @ v, rcond=None)[0]
+        v = v + minv_gt @ impulse
+        fn, ft = _contact_forces(rows, impulse, np.zeros(self.nc, int), 0.0, self.nc)
+        return q, v, np.concatenate([fn, ft])
+
+    # ---- the run
+
+    def first_impact(self) -> tuple[np.ndarray, np.ndarray, _Mode, _Totals]:
+        """t = 0: the first-impact law over the contacts the scene selects."""
+        q = self.q0.copy()
+        v = pre_impact_velocity(self.topology, self.scene)
+        none = _Mode(np.zeros(self.nc, bool), np.zeros(self.nc, int), np.zeros(self.nv, int))
+        hit = np.array(active_contacts(self.tree, self.scene), dtype=int)
+        v_plus, event, mode = self.impact(q, v, none, 0.0, hit, "touchdown")
+        totals = _Totals(event.external.copy(), event.tangential.copy(), [event])
+        totals.moving_until = 0.0 if np.max(np.abs(v_plus)) < SETTLE_SPEED else math.nan
+        mode = self.resolve(q, v_plus, mode)
+        q, v_plus, impulse = self.project(q, v_plus, mode)
+        self.add(totals, impulse)
+        return q, v_plus, mode, totals
+
+    def add(self, totals: _Totals, impulses: np.ndarray) -> None:
+        totals.normal += impulses[: self.nc]
+        totals.tangential += impulses[self.nc :]
+
+    def run(self, h: float) -> LandingResult:
+        """The landing at Runge-Kutta step ``h``."""
+        T = float(self.scene.duration)
+        q, v, mode, totals = self.first_impact()
+        energy_before = totals.events[0].v_minus @ self.point(self.q0, totals.events[0].v_minus).M @ totals.events[0].v_minus / 2
+        height0 = self.point(self.q0, v).com_height
+        t, stalled = 0.0, 0
+        self.record(totals, t, q, v, v)
+        while t < T * (1 - 1e-12):
+            dt = min(h, T - t)
+            q1, v1, impulse = self.step(q, v, mode, dt)
+            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
+                raise NumericalError(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
+            w = self.witness(q1, v1, mode)
+            graze = None if np.all(w >= 0) else dt
+            if graze is None:
+                fraction = self.grazing(q, v, q1, v1, mode, dt)
+                graze = None if fraction is None else fraction * dt
+                if graze is not None:
+                    qg, vg, _ = self.step(q, v, mode, graze)
+                    w = self.witness(qg, vg, mode)
+                    graze = graze if np.any(w < 0) else None
+            if graze is None:
+                q, v, p = self.project(q1, v1, mode)
+                self.add(totals, impulse + p)
+                t += dt
+                self.record(totals, t, q, v, v)
+                totals.steps += 1
+                continue
+            tau = self.locate(q, v, mode, graze, w < 0)
+            q_e, v_e, impulse = self.step(q, v, mode, tau)
+            self.add(totals, impulse)
+            t += tau
+            stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
+            if stalled > 100 or len(totals.events) > MAX_EVENTS:
+                raise NumericalError(f"the landing chatters at t = {t:.6g} s (events without progress)")
+            q, v, mode = self.event(q_e, v_e, mode, t, totals)
+        pt = self.point(q, v)
+        gravity_work = sum(b.mass for b in self.tree.bodies) * self.scene.gravity * (height0 - pt.com_height)
+        return self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
+
+    def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals) -> tuple[np.ndarray, np.ndarray, _Mode]:
+        """Handle the event at (q, v): an impact where a contact touches or a joint reaches a
+        stop, then the new modes."""
+        pt = self.point(q, v)
+        touching = ~mode.closed & (pt.gap <= self.settings.gap_tolerance) & (pt.vn(v) < 0)
+        reaching = (mode.stop == 0) & (((q <= self.joints.lo + self.settings.gap_tolerance) & (v < 0))
+                                        | ((q >= self.joints.hi - self.settings.gap_tolerance) & (v > 0)))
+        v_before = v
+        if np.any(touching) or np.any(reaching):
+            contacts = np.flatnonzero(mode.closed | touching)
+            v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if np.any(touching) else "stop")
+            totals.events.append(event)
+            self.add(totals, np.concatenate([event.external, event.tangential]))
+        mode = self.resolve(q, v, mode)
+        q, v, p = self.project(q, v, mode)
+        self.add(totals, p)
+        self.record(totals, t, q, v_before, v)
+        return q, v, mode
+
+    def record(self, totals: _Totals, t: float, q: np.ndarray, v_before: np.ndarray, v: np.ndarray) -> None:
+        """Keep the trajectory and when the model last moved (any |v| >= SETTLE_SPEED)."""
+        totals.times.append(t)
+        totals.states.append(q.copy())
+        if np.max(np.abs(v)) >= SETTLE_SPEED:
+            totals.moving_until = math.nan  # still moving at t
+        elif math.isnan(totals.moving_until):
+            totals.moving_until = t
+
+    def result(self, totals: _Totals, q: np.ndarray, v: np.ndarray, h: float, energy_before: float,
+               energy_final: float, gravity_work: float) -> LandingResult:
+        layout = dof_layout(self.topology, PLANAR)
+        angles = [q[2]] + [b.angle if k is None else q[k] for b, k in zip(self.tree.bodies[1:], layout.body_dof[1:])]
+        settled = None if math.isnan(totals.moving_until) else totals.moving_until
+        return LandingResult(
+            events=tuple(totals.events),
+            total_external=totals.normal.copy(),
+            total_tangential=totals.tangential.copy(),
+            settled_at=settled,
+            q_final=q.copy(),
+            v_final=v.copy(),
+            final_angles=np.array(angles, dtype=float),
+            energy_before=float(energy_before),
+            energy_final=float(energy_final),
+            gravity_work=float(gravity_work),
+            duration=float(self.scene.duration),
+            step=h,
+            n_steps=totals.steps,
+            trajectory=(np.array(totals.times), np.array(totals.states)),
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# The public function
+
+
+def landing_difference(a: LandingResult, b: LandingResult) -> float:
+    """Relative difference (``MODEL_FORMAT.md``: max |a_i - b_i| / max |b_i| per list, the
+    largest over the lists) of the peak impulses, total external impulses and final angles."""
+    lists = [
+        ([a.peak_external_norm, a.peak_internal_norm], [b.peak_external_norm, b.peak_internal_norm]),
+        (a.total_external, b.total_external),
+        (a.final_angles, b.final_angles),
+    ]
+    worst = 0.0
+    for x, y in lists:
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        scale = float(np.max(np.abs(y), initial=0.0))
+        if scale > 0:
+            worst = max(worst, float(np.max(np.abs(x - y))) / scale)
+    return worst
+
+
+def landing(
+    tree: Tree, scene: Scene, joints: tuple[JointLaw, ...] = (), settings: LandingSettings = LandingSettings()
+) -> LandingResult:
+    """The whole landing of ``tree`` (module docstring), to ``settings.tolerance``: the step is
+    halved from ``settings.step`` until two successive runs differ by at most the tolerance
+    (:func:`landing_difference`); the finer run is returned with that difference as its
+    ``error_estimate`` (an unmet tolerance: ``converged`` is False).
+
+    Raises:
+        ModelError: no ``scene.duration``, or joint laws that do not match the tree.
+        NumericalError: the integration diverged or chattered, or no consistent contact forces.
+    """
+    if scene.duration is None:
+        raise ModelError("scene.duration: the whole landing needs a duration (s)")
+    if joints and len(joints) != tree.n_bodies:
+        raise ModelError(f"joints: {len(joints)} joint laws for {tree.n_bodies} bodies")
+    run = _Landing(tree, scene, joints, settings)
+    h = settings.step or scene.duration / 200.0
+    previous = run.run(h)
+    error = math.inf
+    current = previous
+    for _ in range(settings.max_refinements):
+        h /= 2.0
+        current = run.run(h)
+        error = landing_difference(current, previous)
+        if error <= settings.tolerance:
+            break
+        previous = current
+    from dataclasses import replace
+
+    return replace(current, error_estimate=error, tolerance=settings.tolerance)
+
+
+__all__ = [
+    "MAX_EVENTS",
+    "MODEL_NAME",
+    "PLASTIC_SPEED",
+    "SETTLE_SPEED",
+    "LandingEvent",
+    "LandingResult",
+    "LandingSettings",
+    "landing",
+    "landing_difference",
+    "landing_function",
+]
