@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.model.rods import centre_of_mass, children, contact_point, inertia_tensor, joint_origin
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import JointKind, Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
@@ -49,6 +50,10 @@ FLAT_EXTENT = 20.0
 
 def _f(x: float) -> str:
     return repr(float(x))
+
+
+def _v(x: np.ndarray) -> str:
+    return " ".join(_f(v) for v in x)
 
 
 def contact_parameters(
@@ -126,10 +131,7 @@ def build_mjcf(
         "  <worldbody>",
         *[f"    {g}" for g in _terrain_geoms(terrain, radius, ground)],
     ]
-    children: dict[int, list[int]] = {}
-    for i, b in enumerate(tree.bodies):
-        if b.parent is not None:
-            children.setdefault(b.parent, []).append(i)
+    kids = children(tree)
     contact_index = {c: k for k, c in enumerate(tree.contacts)}
 
     def body(i: int, indent: str) -> list[str]:
@@ -142,28 +144,29 @@ def build_mjcf(
                 f'{indent}  <joint name="base_rz" type="hinge" axis="0 0 1"/>',
             ]
         else:
-            at = b.at * tree.bodies[b.parent].length
+            at = _v(joint_origin(tree, i))
             if b.joint is JointKind.REVOLUTE:
-                head = f'{indent}<body name="{b.name}" pos="{_f(at)} 0 0">'
+                head = f'{indent}<body name="{b.name}" pos="{at}">'
                 joints = [f'{indent}  <joint name="{b.name}" type="hinge" axis="0 0 1"/>']
             else:
-                head = f'{indent}<body name="{b.name}" pos="{_f(at)} 0 0" axisangle="0 0 1 {_f(b.angle)}">'
+                head = f'{indent}<body name="{b.name}" pos="{at}" axisangle="0 0 1 {_f(b.angle)}">'
                 joints = []
-        inertia = max(b.inertia, 1e-12)
         out = [
             head,
             *joints,
-            f'{indent}  <inertial pos="{_f(b.com * b.length)} 0 0" mass="{_f(b.mass)}" '
-            f'diaginertia="{_f(inertia)} {_f(inertia)} {_f(inertia)}"/>',
+            (
+                f'{indent}  <inertial pos="{_v(centre_of_mass(b))}" mass="{_f(b.mass)}" '
+                f'diaginertia="{_v(np.diag(inertia_tensor(b, floor=1e-12)))}"/>'
+            ),
         ]
-        for k, c in enumerate(b.contacts):
+        for k in range(len(b.contacts)):
             j = contact_index[(i, k)]
             out.append(
-                f'{indent}  <geom name="contact{j}" type="sphere" size="{_f(radius)}" pos="{_f(c * b.length)} 0 0" '
+                f'{indent}  <geom name="contact{j}" type="sphere" size="{_f(radius)}" pos="{_v(contact_point(b, k))}" '
                 f'contype="1" conaffinity="0" condim="1" solmix="1" mass="0" '
                 f'solref="{_f(-stiffness[j])} {_f(-damping[j])}" solimp="{solimp}"/>'
             )
-        for child in children.get(i, []):
+        for child in kids[i]:
             out += body(child, indent + "  ")
         out.append(f"{indent}</body>")
         return out
