@@ -137,9 +137,9 @@ def _urdf_link(b: Body, at: np.ndarray, turn: float) -> ET.Element:
     com, yaw = _placed((at, turn), centre_of_mass(b), 0.0)
     ET.SubElement(inertial, "origin", xyz=_xyz(com), rpy=_xyz((0.0, 0.0, yaw)))
     ET.SubElement(inertial, "mass", value=_f(b.mass))
-    I = inertia_tensor(b, INERTIA_FLOOR)
+    tensor = inertia_tensor(b, INERTIA_FLOOR)  # about the centre of mass, in the rod's frame (the origin's)
     axes = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
-    ET.SubElement(inertial, "inertia", {key: _f(I[r, c]) for key, (r, c) in axes.items()})
+    ET.SubElement(inertial, "inertia", {key: _f(tensor[r, c]) for key, (r, c) in axes.items()})
     visual = ET.SubElement(link, "visual")
     middle, _ = _placed((at, turn), np.array([0.5 * b.length, 0.0, 0.0]), 0.0)
     ET.SubElement(visual, "origin", xyz=_xyz(middle), rpy=_xyz((0.0, 0.5 * math.pi, turn)))  # cylinder z -> rod x

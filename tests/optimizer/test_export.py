@@ -148,6 +148,43 @@ def test_urdf_in_pinocchio_gives_footopts_impulses(name: str, tree: Tree, scene:
     assert e_at < TOL
 
 
+def moving_joint(tree: Tree, i: int) -> str | None:
+    """The joint that moves body ``i``: its own if revolute, else its parent's (None: the base's)."""
+    while i != 0 and tree.bodies[i].joint is JointKind.FIXED:
+        i = tree.bodies[i].parent
+    return None if i == 0 else tree.bodies[i].name
+
+
+@pytest.mark.parametrize("name, tree, scene", CASES, ids=IDS)
+def test_urdf_inertias_in_pinocchio_are_the_models(name: str, tree: Tree, scene: Scene):
+    """Each Pinocchio joint's rigid group (its rods welded together) at the touchdown pose, in the
+    world frame: mass, centre of mass and full inertia tensor equal the sum of the model's rods,
+    each turned by its absolute angle (out-of-plane terms too, which no planar impulse sees)."""
+    model = pin.buildModelFromXML(to_urdf(tree, scene), pin.JointModelFreeFlyer())
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    q = touchdown_configuration(tree, scene.terrain, scene.base_x, clearance=0.0)
+    coms = touchdown_geometry(tree).coms + q[:2]
+    turn = [b.angle for b in tree.bodies]
+    for i in range(1, tree.n_bodies):
+        turn[i] += turn[tree.bodies[i].parent]
+    expected: dict[str | None, pin.Inertia] = {}
+    for i, b in enumerate(tree.bodies):
+        R = pin.utils.rotate("z", turn[i])
+        rod = pin.Inertia(b.mass, np.array([*coms[i], 0.0]), R @ expected_inertia(b) @ R.T)
+        key = moving_joint(tree, i)
+        expected[key] = expected[key] + rod if key in expected else rod
+    worst = 0.0
+    for key, want in expected.items():
+        j = 1 if key is None else model.getJointId(key)
+        got = data.oMi[j].act(model.inertias[j])
+        assert got.mass == pytest.approx(want.mass, rel=TOL)
+        np.testing.assert_allclose(got.lever, want.lever, rtol=0, atol=TOL * max(1.0, np.abs(want.lever).max()))
+        worst = max(worst, np.abs(got.inertia - want.inertia).max() / np.abs(want.inertia).max())
+    report("export", f"{name}: URDF in Pinocchio: world inertia tensors of the joints' rigid groups {worst:.1e}")
+    assert worst < TOL
+
+
 # --------------------------------------------------------------------------------------------
 # MJCF in MuJoCo
 
@@ -180,8 +217,8 @@ def test_mjcf_in_mujoco_has_the_models_bodies_and_contacts(name: str, tree: Tree
     for b in tree.bodies:
         i = m.body(b.name).id
         assert m.body_mass[i] == pytest.approx(b.mass, rel=TOL)
-        I = inertia_in_body_frame(m, i)
-        worst = max(worst, np.abs(I - expected_inertia(b)).max() / np.abs(expected_inertia(b)).max())
+        tensor, want = inertia_in_body_frame(m, i), expected_inertia(b)
+        worst = max(worst, np.abs(tensor - want).max() / np.abs(want).max())
         np.testing.assert_allclose(m.body_ipos[i], [b.com * b.length, 0.0, 0.0], rtol=0, atol=TOL * b.length)
     where = touchdown_points(tree, scene)
     e_at = max(np.abs(d.site(n).xpos - p).max() for n, p in where.items())
