@@ -22,6 +22,7 @@ still couples them through its constraint-space solve, so the two laws differ by
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -94,7 +95,7 @@ def _terrain_geoms(terrain: Terrain, radius: float, contact_attrs: str) -> list[
         return [f'<geom name="ground" type="plane" size="0 0 1" pos="0 {_f(y)} 0" zaxis="0 1 0" {contact_attrs}/>']
     pts = list(terrain.points)
     pieces = [((pts[0][0] - FLAT_EXTENT, pts[0][1]), pts[0])]
-    pieces += list(zip(pts[:-1], pts[1:]))
+    pieces += list(itertools.pairwise(pts))
     pieces += [(pts[-1], (pts[-1][0] + FLAT_EXTENT, pts[-1][1]))]
     geoms = []
     for i, ((x0, y0), (x1, y1)) in enumerate(pieces):
@@ -126,8 +127,10 @@ def build_mjcf(
     lines = [
         '<mujoco model="footopt">',
         '  <compiler angle="radian"/>',
-        f'  <option timestep="{_f(timestep)}" gravity="0 {_f(-gravity)} 0" integrator="Euler" solver="Newton" '
-        'tolerance="1e-14" iterations="200" ls_tolerance="1e-12" cone="pyramidal" jacobian="dense"/>',
+        (
+            f'  <option timestep="{_f(timestep)}" gravity="0 {_f(-gravity)} 0" integrator="Euler" solver="Newton" '
+            'tolerance="1e-14" iterations="200" ls_tolerance="1e-12" cone="pyramidal" jacobian="dense"/>'
+        ),
         "  <worldbody>",
         *[f"    {g}" for g in _terrain_geoms(terrain, radius, ground)],
     ]

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from optimizer.cli.main import main
-from optimizer.design_space import FEASIBILITY_TOL, ConstraintValues
 from optimizer.config.model_file import load_model_file
-from optimizer.results.pareto import dominates
 from optimizer.config.study_config import load_study
+from optimizer.design_space import FEASIBILITY_TOL, ConstraintValues
+from optimizer.results.pareto import dominates
 from tests.optimizer.conftest import TINY_OUTER_YAML, TINY_STUDY_YAML
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
