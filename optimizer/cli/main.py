@@ -25,6 +25,7 @@ from impulse_core.evaluate import touchdown_geometry
 from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw
 from impulse_core.timedomain.sequential import SequentialSettings
 from optimizer.analysis.bench import SCALING_SIZES
+from optimizer.cli.export import add_export
 from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
@@ -158,6 +159,7 @@ SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_bench,
     add_optimize,
     add_pareto,
+    add_export,
 )
 
 

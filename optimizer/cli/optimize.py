@@ -28,7 +28,7 @@ def add_optimize(subparsers: argparse._SubParsersAction) -> None:
             "Search toe count, rods per toe and heel, joint angles and masses of a foot under the study's "
             "constraints, minimising its objectives (landing impulses, energy, ...). Every evaluated design is "
             "kept in an Optuna storage; the Pareto designs are written to the run directory as pareto.csv, "
-            "pareto.json, front.png and one model file each (designs/). An interrupted study resumes where it "
+            "pareto.json, front.png and one model file each (designs/), with its URDF and MJCF beside it. An interrupted study resumes where it "
             "stopped when the same command is run again."
         ),
     )

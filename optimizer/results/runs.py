@@ -8,7 +8,9 @@ A run directory holds (names fixed: outside checks read them):
 - ``pareto.csv``, ``pareto.json``: one row/entry per Pareto design: every objective, every
   constraint value, the design's values, and ``model_file``, the path of its model file
   relative to the run directory;
-- ``designs/trial_<n>.yaml``: each Pareto design as a ``MODEL_FORMAT.md`` model file;
+- ``designs/trial_<n>.yaml``: each Pareto design as a ``MODEL_FORMAT.md`` model file, and beside it
+  ``trial_<n>.urdf`` and ``trial_<n>.xml`` (MJCF), the same design at its touchdown
+  (:mod:`optimizer.results.export`);
 - ``front.png``: the front in the first two objectives, over every evaluated design.
 
 footopt never removes a file it did not write: a directory holding anything else is refused
@@ -45,6 +47,7 @@ from optimizer.design_space import (
     landing_scene,
 )
 from optimizer.errors import ConfigError
+from optimizer.results.export import ExportFormat, export_text
 from optimizer.results.pareto import non_dominated
 from optimizer.search.outer import RecordedTrial, recorded_trials
 
@@ -53,6 +56,8 @@ CSV_FILE, JSON_FILE, PLOT_FILE, DESIGNS_DIR = "pareto.csv", "pareto.json", "fron
 #: Files footopt writes in a run directory (and may replace).
 OWN_FILES = (STUDY_FILE, STORAGE_FILE, RUN_FILE, CSV_FILE, JSON_FILE, PLOT_FILE)
 OBJECTIVE_COLUMNS = tuple(o.value for o in Objective)
+#: The files of one Pareto design in ``designs/``: its model file, then its exports.
+DESIGN_SUFFIXES = (".yaml", *(f.suffix for f in ExportFormat))
 #: Seconds after which the journal's lock file counts as left behind by a killed run.
 JOURNAL_LOCK_GRACE_S = 3
 
@@ -142,12 +147,18 @@ def remove_own_files(run_dir: Path, config: StudyConfig) -> None:
             pass
     for p in run_dir.iterdir():
         if p.name == DESIGNS_DIR and p.is_dir():
-            for f in p.glob("trial_*.yaml"):
-                f.unlink()
+            _remove_designs(p)
             if not any(p.iterdir()):
                 p.rmdir()
         elif _own(p) and p.is_file():
             p.unlink()
+
+
+def _remove_designs(designs: Path) -> None:
+    """Remove the design files footopt wrote (``trial_*`` with a suffix of ``DESIGN_SUFFIXES``)."""
+    for f in designs.glob("trial_*"):
+        if f.suffix in DESIGN_SUFFIXES and f.is_file():
+            f.unlink()
 
 
 def write_study_file(run_dir: Path, config: StudyConfig) -> Path:
@@ -224,8 +235,7 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
     front = pareto_front(config, trials)
     designs = run_dir / DESIGNS_DIR
     designs.mkdir(exist_ok=True)
-    for f in designs.glob("trial_*.yaml"):
-        f.unlink()
+    _remove_designs(designs)
     points = []
     scene = landing_scene(config.scene, config.limits)
     for t in front:
@@ -245,6 +255,9 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
             "them, only on the angles and masses (and the touchdown constraints on the lengths)."
         )
         dump_model_file(tree, run_dir / rel, scene=scene, reference=reference, header_comment=header)
+        for fmt in ExportFormat:
+            text = export_text(tree, scene, fmt, name=rel.stem)
+            (run_dir / rel).with_suffix(fmt.suffix).write_text(text, encoding="utf-8")
         points.append(FrontPoint(t.number, t.method, t.evaluation, rel))
     (run_dir / CSV_FILE).write_text(front_csv(config, points), encoding="utf-8")
     (run_dir / JSON_FILE).write_text(json.dumps(front_json(config, points), indent=2) + "\n", encoding="utf-8")
@@ -434,6 +447,7 @@ def infeasible_summary(study: optuna.Study) -> str:
 __all__ = [
     "CSV_FILE",
     "DESIGNS_DIR",
+    "DESIGN_SUFFIXES",
     "JSON_FILE",
     "PLOT_FILE",
     "RUN_FILE",

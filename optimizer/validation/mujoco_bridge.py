@@ -22,12 +22,14 @@ still couples them through its constraint-space solve, so the two laws differ by
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.model.rods import centre_of_mass, children, contact_point, inertia_tensor, joint_origin
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import JointKind, Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
@@ -49,6 +51,10 @@ FLAT_EXTENT = 20.0
 
 def _f(x: float) -> str:
     return repr(float(x))
+
+
+def _v(x: np.ndarray) -> str:
+    return " ".join(_f(v) for v in x)
 
 
 def contact_parameters(
@@ -89,7 +95,7 @@ def _terrain_geoms(terrain: Terrain, radius: float, contact_attrs: str) -> list[
         return [f'<geom name="ground" type="plane" size="0 0 1" pos="0 {_f(y)} 0" zaxis="0 1 0" {contact_attrs}/>']
     pts = list(terrain.points)
     pieces = [((pts[0][0] - FLAT_EXTENT, pts[0][1]), pts[0])]
-    pieces += list(zip(pts[:-1], pts[1:]))
+    pieces += list(itertools.pairwise(pts))
     pieces += [(pts[-1], (pts[-1][0] + FLAT_EXTENT, pts[-1][1]))]
     geoms = []
     for i, ((x0, y0), (x1, y1)) in enumerate(pieces):
@@ -121,15 +127,14 @@ def build_mjcf(
     lines = [
         '<mujoco model="footopt">',
         '  <compiler angle="radian"/>',
-        f'  <option timestep="{_f(timestep)}" gravity="0 {_f(-gravity)} 0" integrator="Euler" solver="Newton" '
-        'tolerance="1e-14" iterations="200" ls_tolerance="1e-12" cone="pyramidal" jacobian="dense"/>',
+        (
+            f'  <option timestep="{_f(timestep)}" gravity="0 {_f(-gravity)} 0" integrator="Euler" solver="Newton" '
+            'tolerance="1e-14" iterations="200" ls_tolerance="1e-12" cone="pyramidal" jacobian="dense"/>'
+        ),
         "  <worldbody>",
         *[f"    {g}" for g in _terrain_geoms(terrain, radius, ground)],
     ]
-    children: dict[int, list[int]] = {}
-    for i, b in enumerate(tree.bodies):
-        if b.parent is not None:
-            children.setdefault(b.parent, []).append(i)
+    kids = children(tree)
     contact_index = {c: k for k, c in enumerate(tree.contacts)}
 
     def body(i: int, indent: str) -> list[str]:
@@ -142,28 +147,29 @@ def build_mjcf(
                 f'{indent}  <joint name="base_rz" type="hinge" axis="0 0 1"/>',
             ]
         else:
-            at = b.at * tree.bodies[b.parent].length
+            at = _v(joint_origin(tree, i))
             if b.joint is JointKind.REVOLUTE:
-                head = f'{indent}<body name="{b.name}" pos="{_f(at)} 0 0">'
+                head = f'{indent}<body name="{b.name}" pos="{at}">'
                 joints = [f'{indent}  <joint name="{b.name}" type="hinge" axis="0 0 1"/>']
             else:
-                head = f'{indent}<body name="{b.name}" pos="{_f(at)} 0 0" axisangle="0 0 1 {_f(b.angle)}">'
+                head = f'{indent}<body name="{b.name}" pos="{at}" axisangle="0 0 1 {_f(b.angle)}">'
                 joints = []
-        inertia = max(b.inertia, 1e-12)
         out = [
             head,
             *joints,
-            f'{indent}  <inertial pos="{_f(b.com * b.length)} 0 0" mass="{_f(b.mass)}" '
-            f'diaginertia="{_f(inertia)} {_f(inertia)} {_f(inertia)}"/>',
+            (
+                f'{indent}  <inertial pos="{_v(centre_of_mass(b))}" mass="{_f(b.mass)}" '
+                f'diaginertia="{_v(np.diag(inertia_tensor(b, floor=1e-12)))}"/>'
+            ),
         ]
-        for k, c in enumerate(b.contacts):
+        for k in range(len(b.contacts)):
             j = contact_index[(i, k)]
             out.append(
-                f'{indent}  <geom name="contact{j}" type="sphere" size="{_f(radius)}" pos="{_f(c * b.length)} 0 0" '
+                f'{indent}  <geom name="contact{j}" type="sphere" size="{_f(radius)}" pos="{_v(contact_point(b, k))}" '
                 f'contype="1" conaffinity="0" condim="1" solmix="1" mass="0" '
                 f'solref="{_f(-stiffness[j])} {_f(-damping[j])}" solimp="{solimp}"/>'
             )
-        for child in children.get(i, []):
+        for child in kids[i]:
             out += body(child, indent + "  ")
         out.append(f"{indent}</body>")
         return out

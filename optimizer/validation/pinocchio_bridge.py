@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from impulse_core.model.rods import centre_of_mass, contact_point, depth_first, inertia_tensor, joint_origin, rotation_z
 from impulse_core.model.tree import JointKind, Tree
 
 
@@ -52,20 +53,6 @@ class PinocchioTree:
         return self.from_pin_velocity(np.array(v_pin)), np.array(data.impulse_c).copy()
 
 
-def _depth_first(tree: Tree) -> list[int]:
-    """Pinocchio wants each subtree's DOFs contiguous: add bodies depth first."""
-    children: dict[int, list[int]] = {}
-    for i, b in enumerate(tree.bodies):
-        if b.parent is not None:
-            children.setdefault(b.parent, []).append(i)
-    order, stack = [], [0]
-    while stack:
-        i = stack.pop()
-        order.append(i)
-        stack.extend(reversed(children.get(i, [])))
-    return order
-
-
 def build(tree: Tree) -> PinocchioTree:
     """Rods as Pinocchio bodies: a planar base joint, revolute-z joints, fixed joints welded."""
     model = pin.Model()
@@ -73,26 +60,24 @@ def build(tree: Tree) -> PinocchioTree:
     joint_of: list[int] = [0] * n
     placement_in_joint: list[pin.SE3] = [pin.SE3.Identity()] * n
     q_of: dict[int, float] = {}
-    for i in _depth_first(tree):
+    for i in depth_first(tree):
         b = tree.bodies[i]
         if b.parent is None:
             joint_of[i] = model.addJoint(0, pin.JointModelPlanar(), pin.SE3.Identity(), "base")
         else:
-            parent = tree.bodies[b.parent]
-            offset = placement_in_joint[b.parent] * pin.SE3(np.eye(3), np.array([b.at * parent.length, 0.0, 0.0]))
+            offset = placement_in_joint[b.parent] * pin.SE3(np.eye(3), joint_origin(tree, i))
             if b.joint is JointKind.REVOLUTE:
                 joint_of[i] = model.addJoint(joint_of[b.parent], pin.JointModelRZ(), offset, b.name)
                 q_of[i] = b.angle
             else:
                 joint_of[i] = joint_of[b.parent]
-                placement_in_joint[i] = offset * pin.SE3(pin.utils.rotate("z", b.angle), np.zeros(3))
-        I = b.inertia
-        inertia = pin.Inertia(b.mass, np.array([b.com * b.length, 0.0, 0.0]), np.diag([0.0, I, I]))
+                placement_in_joint[i] = offset * pin.SE3(rotation_z(b.angle), np.zeros(3))
+        inertia = pin.Inertia(b.mass, centre_of_mass(b), inertia_tensor(b))
         model.appendBodyToJoint(joint_of[i], inertia, placement_in_joint[i])
     frames = []
     for i, b in enumerate(tree.bodies):
-        for k, c in enumerate(b.contacts):
-            placement = placement_in_joint[i] * pin.SE3(np.eye(3), np.array([c * b.length, 0.0, 0.0]))
+        for k in range(len(b.contacts)):
+            placement = placement_in_joint[i] * pin.SE3(np.eye(3), contact_point(b, k))
             frame = pin.Frame(f"{b.name}_c{k}", joint_of[i], 0, placement, pin.FrameType.OP_FRAME)
             frames.append(model.addFrame(frame, False))
     angle = tree.bodies[0].angle

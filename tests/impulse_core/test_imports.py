@@ -14,6 +14,7 @@ ROOT = Path(__file__).resolve().parents[2]
 CORE_MODULES = [
     "impulse_core",
     "impulse_core.model.tree",
+    "impulse_core.model.rods",
     "impulse_core.kinematics.spatial",
     "impulse_core.kinematics.dynamics",
     "impulse_core.impact.delassus",

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from optimizer.cli.main import main
-from optimizer.design_space import FEASIBILITY_TOL, ConstraintValues
 from optimizer.config.model_file import load_model_file
-from optimizer.results.pareto import dominates
 from optimizer.config.study_config import load_study
+from optimizer.design_space import FEASIBILITY_TOL, ConstraintValues
+from optimizer.results.pareto import dominates
 from tests.optimizer.conftest import TINY_OUTER_YAML, TINY_STUDY_YAML
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -90,6 +90,25 @@ def test_exported_model_files_reevaluate_to_their_objectives(run: Path, capsys):
             assert rec[key] == pytest.approx(float(row[key]), rel=1e-9, abs=1e-12), key
         assert len(rec["external"]) == int(row["toes"]) + 1  # every contact hit (contacts: lowest)
         assert min(rec["external"]) > 0
+
+
+def test_every_design_is_exported_and_pinocchio_gives_its_impulses(run: Path):
+    """Beside each design's model file, its URDF and MJCF: the URDF in Pinocchio lands with the
+    front's external impulse norm (1e-8), the MJCF loads in MuJoCo with the design's mass."""
+    mujoco = pytest.importorskip("mujoco")
+    from impulse_core.evaluate import evaluate
+    from tests.exported_models import pinocchio_landing
+
+    for row in rows(run):
+        yaml = run / row["model_file"]
+        model = load_model_file(yaml)
+        res = evaluate(model.tree, model.scene)
+        urdf = yaml.with_suffix(".urdf").read_text()
+        lam, *_ = pinocchio_landing(urdf, model.tree, model.scene, res.v_minus, res.active)
+        assert np.linalg.norm(lam) == pytest.approx(float(row["external_norm"]), rel=1e-8)
+        mj = mujoco.MjModel.from_xml_string(yaml.with_suffix(".xml").read_text())
+        assert mj.body_mass.sum() == pytest.approx(sum(b.mass for b in model.tree.bodies), rel=1e-12)
+    assert sorted(p.suffix for p in (run / "designs").iterdir()) == sorted([".urdf", ".xml", ".yaml"] * len(rows(run)))
 
 
 def test_pareto_command_prints_and_reexports(run: Path, capsys):

@@ -1,0 +1,76 @@
+"""Each rod's placement on its parent, centre of mass, inertia tensor and contact points, as numpy.
+
+These are the body-frame rules of ``MODEL_FORMAT.md`` for every description built from a tree
+outside the core: the URDF and MJCF exports (``optimizer.results.export``) and the Pinocchio and
+MuJoCo bridges (``optimizer.validation``). The kinematic core (``impulse_core.kinematics.spatial``)
+builds the same placements symbolically.
+
+Body frame: origin at the rod's joint, x along the rod (tip at x = length), z the planar joint
+axis. Every vector below is in the frame named in its docstring (m, kg, kg m^2).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from impulse_core.model.tree import Body, Tree
+
+
+def children(tree: Tree) -> tuple[tuple[int, ...], ...]:
+    """The children of every body, in file order."""
+    out: list[list[int]] = [[] for _ in tree.bodies]
+    for i, b in enumerate(tree.bodies):
+        if b.parent is not None:
+            out[b.parent].append(i)
+    return tuple(tuple(c) for c in out)
+
+
+def depth_first(tree: Tree) -> tuple[int, ...]:
+    """The bodies in depth-first order from the base, children in file order: each subtree is
+    contiguous (what Pinocchio needs of its joints, and the nesting of MJCF bodies)."""
+    kids = children(tree)
+    order: list[int] = []
+    stack = [0]
+    while stack:
+        i = stack.pop()
+        order.append(i)
+        stack.extend(reversed(kids[i]))
+    return tuple(order)
+
+
+def joint_origin(tree: Tree, i: int) -> np.ndarray:
+    """Where body ``i``'s joint sits on its parent, in the parent's frame: ``at`` x its length
+    along the parent's x axis. The child frame is there, turned by the body's ``angle`` about z."""
+    b = tree.bodies[i]
+    if b.parent is None:
+        raise ValueError(f"{b.name} is the floating base: it has no parent")
+    return np.array([b.at * tree.bodies[b.parent].length, 0.0, 0.0])
+
+
+def rotation_z(angle: float) -> np.ndarray:
+    """The rotation by ``angle`` (rad) about z: the parent-from-child rotation of a planar joint."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def centre_of_mass(body: Body) -> np.ndarray:
+    """The centre of mass in the body frame: ``com`` x length along x."""
+    return np.array([body.com * body.length, 0.0, 0.0])
+
+
+def contact_point(body: Body, k: int) -> np.ndarray:
+    """Contact ``k`` of the body (index in its ``contacts``), in the body frame."""
+    return np.array([body.contacts[k] * body.length, 0.0, 0.0])
+
+
+def inertia_tensor(body: Body, floor: float = 0.0) -> np.ndarray:
+    """The inertia tensor about the centre of mass, in the body frame (kg m^2): a slender rod,
+    nothing about its own axis (x) and ``body.inertia`` across it (y and z). ``floor`` raises each
+    principal moment to at least that value (for formats and engines that need it positive)."""
+    across = body.inertia
+    return np.diag([max(0.0, floor), max(across, floor), max(across, floor)])
+
+
+__all__ = ["centre_of_mass", "children", "contact_point", "depth_first", "inertia_tensor", "joint_origin", "rotation_z"]

@@ -1,0 +1,255 @@
+"""A model as URDF or MJCF, for simulators and robot tools (``footopt export``; every Pareto design).
+
+Pure functions: a tree and its scene in, XML text out, built with ``xml.etree.ElementTree`` (names
+are escaped, never pasted into text); the callers write the files. What the files hold
+(``docs/MODEL_FORMAT.md``, "Export"):
+
+- one link (URDF) or body (MJCF) per rod, named as the rod, with the rod's mass, centre of mass and
+  inertia tensor about it (``impulse_core.model.rods``); a slender rod has no inertia about its own
+  axis, written as :data:`INERTIA_FLOOR` (MuJoCo, and a floating base's mass matrix, need it
+  positive; planar motion never turns a rod about its own axis, so the impulses do not change);
+- one joint per other rod, named as the rod: revolute about z (URDF ``continuous``: the model has
+  no limits) or fixed; each joint's origin holds the rod's touchdown angle, so that the zero
+  configuration is the touchdown posture;
+- a floating base whose zero pose is the touchdown pose (base origin above ``scene.base_x``,
+  lowered until its first contact touches the scene's ground): MJCF, a ``freejoint`` on the base
+  body placed there; URDF, the root link (to be loaded with a free-flyer), whose frame is then the
+  world frame at touchdown, the base rod's frame sitting in it at the touchdown pose;
+- one frame per contact, ``<rod>_contact<k>``: a massless link on a fixed joint (URDF), a site
+  (MJCF);
+- footopt's axes: x forward, y up, z lateral; MJCF's gravity along -y.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from enum import Enum
+
+import numpy as np
+
+from impulse_core.model.rods import (
+    centre_of_mass,
+    children,
+    contact_point,
+    depth_first,
+    inertia_tensor,
+    joint_origin,
+    rotation_z,
+)
+from impulse_core.model.tree import Body, JointKind, Scene, Tree
+from impulse_core.timedomain.compliant import scene_ground, touchdown_configuration
+from optimizer.errors import ConfigError
+
+#: Each principal moment of inertia is written as at least this (kg m^2).
+INERTIA_FLOOR = 1e-9
+#: Gravity written into MJCF (m/s^2, along -y): MuJoCo's default magnitude.
+GRAVITY = 9.81
+#: Radius of the rods' visual cylinders and capsules (m): drawing only, no mass, no collision.
+VISUAL_RADIUS = 0.005
+#: Characters XML 1.0 cannot hold (control characters other than tab and line breaks, and non-characters).
+_NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+class ExportFormat(Enum):
+    """A robot description format footopt writes."""
+
+    URDF = "urdf"
+    MJCF = "mjcf"
+
+    @property
+    def suffix(self) -> str:
+        """The file suffix footopt gives it."""
+        return ".urdf" if self is ExportFormat.URDF else ".xml"
+
+
+def contact_frame_name(body: Body, k: int) -> str:
+    """The name of contact ``k`` of ``body`` (its index in the body's ``contacts``)."""
+    return f"{body.name}_contact{k}"
+
+
+def check_names(tree: Tree) -> None:
+    """Raise ConfigError naming ``model.bodies[i].name`` when a rod's name cannot be exported: a
+    character XML cannot hold, or the name of another rod's contact frame."""
+    frames = {contact_frame_name(b, k): b.name for b in tree.bodies for k in range(len(b.contacts))}
+    for i, b in enumerate(tree.bodies):
+        bad = _NOT_XML.search(b.name)
+        if bad:
+            raise ConfigError(f"model.bodies[{i}].name: character {ord(bad.group()):#x} cannot be written in XML")
+        if b.name in frames:
+            raise ConfigError(
+                f"model.bodies[{i}].name: '{b.name}' is also the name of a contact frame of '{frames[b.name]}' "
+                "in URDF and MJCF; rename one of the two rods"
+            )
+
+
+def base_pose(tree: Tree, scene: Scene) -> tuple[np.ndarray, float]:
+    """The base origin (world frame, m, z = 0) and the base's absolute angle at touchdown."""
+    q = touchdown_configuration(tree, *scene_ground(scene), clearance=0.0)
+    return np.array([q[0], q[1], 0.0]), float(q[2])
+
+
+def export_text(tree: Tree, scene: Scene, fmt: ExportFormat, name: str = "footopt") -> str:
+    """The description of ``tree`` at its touchdown in ``scene``, in ``fmt``."""
+    return to_urdf(tree, scene, name) if fmt is ExportFormat.URDF else to_mjcf(tree, scene, name)
+
+
+# --------------------------------------------------------------------------------------------
+# URDF
+
+
+def to_urdf(tree: Tree, scene: Scene, name: str = "footopt") -> str:
+    """The URDF of ``tree``: load it with a free-flyer root joint (Pinocchio:
+    ``pin.buildModelFromXML(text, pin.JointModelFreeFlyer())``); ``pin.neutral(model)`` is then
+    the touchdown pose, and the free-flyer's velocity that of the world frame's origin."""
+    check_names(tree)
+    robot = ET.Element("robot", name=_xml_safe(name))
+    robot.append(ET.Comment(_note(tree, scene, ExportFormat.URDF)))
+    base = base_pose(tree, scene)
+    # each rod's frame in its link's frame: the base rod's in the root link (the world at touchdown)
+    frames = [base if b.parent is None else (np.zeros(3), 0.0) for b in tree.bodies]
+    for i in depth_first(tree):
+        b = tree.bodies[i]
+        robot.append(_urdf_link(b, *frames[i]))
+        if b.parent is not None:
+            kind = "continuous" if b.joint is JointKind.REVOLUTE else "fixed"
+            placed = _placed(frames[b.parent], joint_origin(tree, i), b.angle)
+            robot.append(_urdf_joint(b.name, kind, tree.bodies[b.parent].name, b.name, *placed))
+        for k in range(len(b.contacts)):
+            frame = contact_frame_name(b, k)
+            robot.append(ET.Element("link", name=frame))
+            robot.append(_urdf_joint(frame, "fixed", b.name, frame, *_placed(frames[i], contact_point(b, k), 0.0)))
+    return _text(robot, declaration=True)
+
+
+def _placed(frame: tuple[np.ndarray, float], point: np.ndarray, yaw: float) -> tuple[np.ndarray, float]:
+    """A point (and a turn ``yaw`` about z) given in a rod's frame, in its link's frame, where the
+    rod's frame sits at ``frame = (origin, turn)``."""
+    origin, turn = frame
+    return origin + rotation_z(turn) @ point, turn + yaw
+
+
+def _urdf_link(b: Body, at: np.ndarray, turn: float) -> ET.Element:
+    """A rod's link: inertial and a visual cylinder, the rod's frame at ``at`` turned by ``turn``."""
+    link = ET.Element("link", name=b.name)
+    inertial = ET.SubElement(link, "inertial")
+    com, yaw = _placed((at, turn), centre_of_mass(b), 0.0)
+    ET.SubElement(inertial, "origin", xyz=_xyz(com), rpy=_xyz((0.0, 0.0, yaw)))
+    ET.SubElement(inertial, "mass", value=_f(b.mass))
+    tensor = inertia_tensor(b, INERTIA_FLOOR)  # about the centre of mass, in the rod's frame (the origin's)
+    axes = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
+    ET.SubElement(inertial, "inertia", {key: _f(tensor[r, c]) for key, (r, c) in axes.items()})
+    visual = ET.SubElement(link, "visual")
+    middle, _ = _placed((at, turn), np.array([0.5 * b.length, 0.0, 0.0]), 0.0)
+    ET.SubElement(visual, "origin", xyz=_xyz(middle), rpy=_xyz((0.0, 0.5 * math.pi, turn)))  # cylinder z -> rod x
+    geometry = ET.SubElement(visual, "geometry")
+    ET.SubElement(geometry, "cylinder", radius=_f(VISUAL_RADIUS), length=_f(b.length))
+    return link
+
+
+def _urdf_joint(name: str, kind: str, parent: str, child: str, xyz: np.ndarray, yaw: float) -> ET.Element:
+    joint = ET.Element("joint", name=name, type=kind)
+    ET.SubElement(joint, "parent", link=parent)
+    ET.SubElement(joint, "child", link=child)
+    ET.SubElement(joint, "origin", xyz=_xyz(xyz), rpy=_xyz((0.0, 0.0, yaw)))
+    if kind != "fixed":
+        ET.SubElement(joint, "axis", xyz="0 0 1")
+    return joint
+
+
+# --------------------------------------------------------------------------------------------
+# MJCF
+
+
+def to_mjcf(tree: Tree, scene: Scene, name: str = "footopt", gravity: float = GRAVITY) -> str:
+    """The MJCF of ``tree``: ``qpos0`` is the touchdown pose; gravity ``gravity`` (m/s^2) along -y."""
+    check_names(tree)
+    root = ET.Element("mujoco", model=_xml_safe(name))
+    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF)))
+    ET.SubElement(root, "compiler", angle="radian")
+    ET.SubElement(root, "option", gravity=_xyz((0.0, -gravity, 0.0)))
+    origin, angle = base_pose(tree, scene)
+    _mjcf_body(ET.SubElement(root, "worldbody"), tree, 0, origin, angle, children(tree))
+    return _text(root, declaration=False)
+
+
+def _mjcf_body(
+    parent: ET.Element, tree: Tree, i: int, pos: np.ndarray, angle: float, kids: tuple[tuple[int, ...], ...]
+) -> None:
+    """Body ``i`` (and its subtree) inside ``parent``, its frame at ``pos`` turned by ``angle`` about z."""
+    b = tree.bodies[i]
+    quat = (math.cos(0.5 * angle), 0.0, 0.0, math.sin(0.5 * angle))
+    body = ET.SubElement(parent, "body", name=b.name, pos=_xyz(pos), quat=_xyz(quat))
+    if b.parent is None:
+        ET.SubElement(body, "freejoint", name=b.name)
+    elif b.joint is JointKind.REVOLUTE:
+        ET.SubElement(body, "joint", name=b.name, type="hinge", axis="0 0 1")
+    inertia = np.diag(inertia_tensor(b, INERTIA_FLOOR))  # principal axes = body axes
+    ET.SubElement(body, "inertial", pos=_xyz(centre_of_mass(b)), mass=_f(b.mass), diaginertia=_xyz(inertia))
+    rod = {"type": "capsule", "fromto": _xyz((0, 0, 0, b.length, 0, 0)), "size": _f(VISUAL_RADIUS)}
+    ET.SubElement(body, "geom", rod, contype="0", conaffinity="0", group="1", mass="0")  # drawing only
+    for k in range(len(b.contacts)):
+        ET.SubElement(body, "site", name=contact_frame_name(b, k), pos=_xyz(contact_point(b, k)))
+    for child in kids[i]:
+        _mjcf_body(body, tree, child, joint_origin(tree, child), tree.bodies[child].angle, kids)
+
+
+# --------------------------------------------------------------------------------------------
+# Text
+
+
+def _note(tree: Tree, scene: Scene, fmt: ExportFormat) -> str:
+    """The comment at the top of a file: what it holds and where it departs from the model."""
+    origin, angle = base_pose(tree, scene)
+    thin = sum(b.inertia < INERTIA_FLOOR for b in tree.bodies)
+    needs = "MuJoCo needs" if fmt is ExportFormat.MJCF else "a floating base's mass matrix needs"
+    lines = [
+        f"footopt export: {tree.n_bodies} rods of a planar model (docs/MODEL_FORMAT.md, Export).",
+        "Axes as footopt's: x forward, y up, z lateral; planar joints turn about z. SI units.",
+        "The zero configuration is the touchdown posture: each joint's origin holds its touchdown angle;",
+        f"the base origin is at ({_f(origin[0])}, {_f(origin[1])}, 0) m, the base turned by {_f(angle)} rad about z.",
+        "Inertia: as the model, about each rod's centre of mass; a slender rod has none about its own axis (x),",
+        f"written here as {INERTIA_FLOOR:g} kg m^2 because {needs} positive inertia; planar motion never turns",
+        "a rod about its own axis, so the impulses do not change.",
+    ]
+    if thin:
+        lines.append(f"{thin} rod(s) have less than {INERTIA_FLOOR:g} kg m^2 across the rod too: raised to it.")
+    if fmt is ExportFormat.URDF:
+        lines += [
+            "Load with a free-flyer root joint (Pinocchio: buildModelFromXML(text, JointModelFreeFlyer())):",
+            "the root link's frame is the world frame at touchdown, and neutral(model) the touchdown pose.",
+            "Revolute joints are 'continuous': the model has no joint limits.",
+        ]
+    return "\n" + "\n".join(lines) + "\n"
+
+
+def _text(root: ET.Element, declaration: bool) -> str:
+    ET.indent(root, space="  ")
+    head = '<?xml version="1.0" encoding="utf-8"?>\n' if declaration else ""
+    return head + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _xml_safe(text: str) -> str:
+    return _NOT_XML.sub("_", text)
+
+
+def _f(x: float) -> str:
+    return repr(float(x))
+
+
+def _xyz(values) -> str:
+    return " ".join(_f(v) for v in values)
+
+
+__all__ = [
+    "GRAVITY",
+    "INERTIA_FLOOR",
+    "ExportFormat",
+    "base_pose",
+    "check_names",
+    "contact_frame_name",
+    "export_text",
+    "to_mjcf",
+    "to_urdf",
+]
