@@ -92,6 +92,7 @@ class LandingEvent:
         internal_magnitude: |internal| per joint.
         stop: torque impulse of each joint's stop (N m s; 0 where not involved), per non-base body.
         v_minus, v_plus: generalized velocities before and after.
+        energy_before, energy_after: kinetic energy before and after (J).
     """
 
     time: float
@@ -103,6 +104,8 @@ class LandingEvent:
     stop: np.ndarray
     v_minus: np.ndarray
     v_plus: np.ndarray
+    energy_before: float
+    energy_after: float
 
     @property
     def external_norm(self) -> float:
@@ -176,6 +179,71 @@ class LandingResult:
         impacts, dampers and friction dissipated by T; the rest is kinetic or in the springs."""
         brought = self.energy_before + self.gravity_work
         return 1.0 - self.energy_final / brought if brought > 0 else 0.0
+
+    # The first event under the names every impact result has (the first-impact answer), so that
+    # reports read a landing like any other result; the landing's own figures are above.
+
+    @property
+    def external(self) -> np.ndarray:
+        return self.events[0].external
+
+    @property
+    def tangential(self) -> np.ndarray:
+        return self.events[0].tangential
+
+    @property
+    def internal(self) -> np.ndarray:
+        e = self.events[0]
+        return np.column_stack([e.internal, np.zeros(len(e.internal))])
+
+    @property
+    def internal_magnitude(self) -> np.ndarray:
+        return self.events[0].internal_magnitude
+
+    @property
+    def external_norm(self) -> float:
+        return self.events[0].external_norm
+
+    @property
+    def internal_norm(self) -> float:
+        return self.events[0].internal_norm
+
+    @property
+    def max_internal(self) -> float:
+        m = self.events[0].internal_magnitude
+        return float(m.max()) if m.size else 0.0
+
+    @property
+    def v_plus(self) -> np.ndarray:
+        return self.events[0].v_plus
+
+    @property
+    def energy_after(self) -> float:
+        """Kinetic energy just after the first impact (J)."""
+        return self.events[0].energy_after
+
+    @property
+    def touchdown_time(self) -> np.ndarray:
+        """Per contact: the first event that pushed on it (s), NaN if none did."""
+        out = np.full(len(self.total_external), np.nan)
+        for e in reversed(self.events):
+            out[e.external > 0] = e.time
+        return out
+
+    @property
+    def touchdown_order(self) -> tuple[int, ...]:
+        t = self.touchdown_time
+        touched = np.flatnonzero(np.isfinite(t))
+        return tuple(int(i) for i in touched[np.argsort(t[touched], kind="stable")])
+
+    @property
+    def active(self) -> tuple[int, ...]:
+        return tuple(int(i) for i in np.flatnonzero(np.isfinite(self.touchdown_time)))
+
+    @property
+    def energy_gained(self) -> bool:
+        """True when some impact raised the kinetic energy (the law forbids it)."""
+        return any(e.energy_after > e.energy_before * (1 + 1e-9) + 1e-12 for e in self.events)
 
     @property
     def converged(self) -> bool:
@@ -548,6 +616,7 @@ class _Landing:
         event = LandingEvent(
             time=t, kind=kind, external=fn, tangential=ft, internal=internal[:, :2], internal_magnitude=magnitude,
             stop=self.per_joint(stop), v_minus=v.copy(), v_plus=v_plus.copy(),
+            energy_before=float(v @ pt.M @ v) / 2, energy_after=float(v_plus @ pt.M @ v_plus) / 2,
         )
         return v_plus, event, new
 
@@ -645,7 +714,7 @@ class _Landing:
         """The landing at Runge-Kutta step ``h``."""
         T = float(self.scene.duration)
         q, v, mode, totals = self.first_impact()
-        energy_before = totals.events[0].v_minus @ self.point(self.q0, totals.events[0].v_minus).M @ totals.events[0].v_minus / 2
+        energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
         t, stalled = 0.0, 0
         self.record(totals, t, q, v, v)

@@ -30,7 +30,8 @@ from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
-from optimizer.evaluation.model_choice import COMPLIANT, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
+from impulse_core.timedomain.landing import LandingSettings
+from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown
 from optimizer.report.text import Result, format_report, is_finite, result_record
 
@@ -65,11 +66,12 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         choices=IMPACT_MODEL_CHOICES,
         default="auto",
         help="the impact model (rung of the fidelity ladder): 'auto' (default) picks the cheapest exact one per "
-        "scene: on a terrain that is not flat, sequential; else friction if scene.friction > 0, else newton (paper "
+        "scene: with scene.duration, landing (the whole landing, see --tolerance); on a terrain that is not flat, sequential; else friction if scene.friction > 0, else newton (paper "
         "eq. 11) unless Newton's law would make a contact pull, then lcp (complementarity: the contact separates); "
         "'decoupled' is the paper's eq. 14 approximation; the rigid rungs refuse uneven terrain. 'sequential': a "
         "rigid (LCP) impact along the local ground normal at each touchdown, free flight between; 'compliant': "
-        "spring-damper contacts integrated through the landing (see --law, --stiffness, --steps-per-period)",
+        "spring-damper contacts integrated through the landing (see --law, --stiffness, --steps-per-period); "
+        "'landing': every impact until scene.duration, with resting contact, friction, joint springs and stops",
     )
     p.add_argument(
         "--law",
@@ -100,10 +102,19 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         "(default off: impact time scales); the rigid rungs are instantaneous, gravity gives them no impulse",
     )
     p.add_argument(
+        "--tolerance",
+        type=float,
+        default=None,
+        help=f"--model landing (or auto with scene.duration): the error the landing must meet, relative, in its "
+        f"peak impulses, total contact impulses and final angles (default {LandingSettings().tolerance:g}); the step "
+        "is halved until two runs agree to it, and the JSON reports the estimate as error_estimate",
+    )
+    p.add_argument(
         "--plot",
         metavar="PATH",
         help="draw the tree at touchdown with its impulses to PATH (.png or .svg); with several files, "
-        "PATH gets '_<file stem>' before its suffix",
+        "PATH gets '_<file stem>' before its suffix; a whole landing draws its impulses over time and the leg "
+        "at each event",
     )
     p.set_defaults(run=run_evaluate)
 
@@ -259,7 +270,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     return status
 
 
-def _time_domain_options(args: argparse.Namespace) -> tuple[CompliantSettings, SequentialSettings] | None:
+def _time_domain_options(
+    args: argparse.Namespace,
+) -> tuple[CompliantSettings, SequentialSettings, LandingSettings] | None:
     """The settings of the time-domain models from ``--law``, ``--stiffness``,
     ``--steps-per-period`` and ``--gravity``; None (after one line on stderr) when an option is
     bad or does not apply to ``--model``."""
@@ -270,6 +283,13 @@ def _time_domain_options(args: argparse.Namespace) -> tuple[CompliantSettings, S
             return None
     if args.gravity is not None and args.model not in ("auto", *TIME_DOMAIN_MODELS):
         _error("--gravity", f"applies to --model sequential or compliant only: the {args.model} rung is instantaneous")
+        return None
+    if args.tolerance is not None and args.model not in ("auto", LANDING):
+        _error("--tolerance", f"applies to --model landing (or auto with scene.duration), got --model {args.model}")
+        return None
+    tolerance = LandingSettings().tolerance if args.tolerance is None else args.tolerance
+    if not (np.isfinite(tolerance) and tolerance > 0):
+        _error("--tolerance", f"must be a finite number > 0 (relative), got {tolerance!r}")
         return None
     gravity = 0.0 if args.gravity is None else args.gravity
     if not (np.isfinite(gravity) and gravity >= 0):
@@ -286,7 +306,7 @@ def _time_domain_options(args: argparse.Namespace) -> tuple[CompliantSettings, S
         name = str(e).split(":", 1)[0].removeprefix("compliant.").replace("_", "-")
         _error(f"--{name}", str(e).split(":", 1)[-1].strip())
         return None
-    return compliant, SequentialSettings(gravity=gravity)
+    return compliant, SequentialSettings(gravity=gravity), LandingSettings(tolerance=tolerance)
 
 
 def _evaluate(
@@ -294,13 +314,14 @@ def _evaluate(
     choice: str = "auto",
     compliant: CompliantSettings | None = None,
     sequential: SequentialSettings | None = None,
+    whole: LandingSettings | None = None,
 ) -> Result | None:
     """The landing of one model file by the model named on the command line, or None when the
     numerics fail (overflow, a singular solve, a diverging integration): a status to report, not
     a traceback (the cause is printed once, as one line)."""
     with np.errstate(all="ignore"):
         try:
-            result = evaluate_landing(model.tree, model.scene, choice, compliant, sequential)
+            result = evaluate_landing(model.tree, model.scene, choice, compliant, sequential, model.joints, whole)
         except (np.linalg.LinAlgError, NumericalError):
             return None
     return result if is_finite(result) else None

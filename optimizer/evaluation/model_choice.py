@@ -11,20 +11,22 @@ stiffness, which is a modelling choice (studies/fidelity/README.md).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from impulse_core.errors import ModelError
-from impulse_core.evaluate import ImpactResult, approach_velocity, evaluate
+from impulse_core.evaluate import ImpactResult, approach_velocity, evaluate, pre_impact_velocity
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.model.tree import ContactSelection, Scene, Tree
+from impulse_core.model.joints import JointLaw
 from impulse_core.timedomain.compliant import CompliantResult, CompliantSettings, ContactLaw, simulate_impact
+from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from impulse_core.timedomain.sequential import SequentialResult, SequentialSettings, sequential_impacts
 
-SEQUENTIAL, COMPLIANT = "sequential", "compliant"
+SEQUENTIAL, COMPLIANT, LANDING = "sequential", "compliant", "landing"
 #: The models that integrate through the landing instead of one instantaneous impact.
-TIME_DOMAIN_MODELS = (SEQUENTIAL, COMPLIANT)
+TIME_DOMAIN_MODELS = (SEQUENTIAL, COMPLIANT, LANDING)
 #: Every model name ``footopt evaluate --model`` takes: 'auto', the rigid rungs, the time-domain models.
 MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel), *TIME_DOMAIN_MODELS)
 
@@ -32,6 +34,8 @@ _DESCRIPTIONS = {
     SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact along the local normal at each touchdown, "
     "free flight between)",
     COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal, semi-implicit Euler)",
+    LANDING: "the whole landing: every touchdown and joint stop an impact by the first-impact law, resting contact "
+    "with Coulomb friction, joint springs, dampers and gravity in between (event-driven RK4)",
 }
 
 
@@ -54,9 +58,9 @@ class TimeDomainResult:
 
     impact_model: str
     reason: str
-    result: SequentialResult | CompliantResult
+    result: SequentialResult | CompliantResult | LandingResult
     v_minus: np.ndarray
-    settings: SequentialSettings | CompliantSettings
+    settings: SequentialSettings | CompliantSettings | LandingSettings
 
     @property
     def description(self) -> str:
@@ -121,9 +125,12 @@ def evaluate_landing(
     model: str = "auto",
     compliant: CompliantSettings | None = None,
     sequential: SequentialSettings | None = None,
+    joints: tuple[JointLaw, ...] = (),
+    whole: LandingSettings | None = None,
 ) -> ImpactResult | TimeDomainResult:
     """The landing of ``tree`` as ``scene`` says, by ``model`` (one of :data:`MODEL_CHOICES`), the
-    time-domain models with their settings (default: the modules' defaults).
+    time-domain models with their settings (default: the modules' defaults). ``auto`` runs the
+    whole landing when the scene has a ``duration`` (with the joint laws ``joints``).
 
     Raises:
         ModelError: a rigid rung on a terrain that is not flat, friction under a time-domain model
@@ -131,6 +138,8 @@ def evaluate_landing(
         NumericalError: the solve or the integration failed.
     """
     flat = scene.terrain.is_flat
+    if model == LANDING or model == "auto" and scene.duration is not None:
+        return _whole_landing(tree, scene, joints, whole or LandingSettings(), requested=model == LANDING)
     if model == "auto" and flat or model in {m.value for m in ImpactModel}:
         return evaluate(tree, scene, None if model == "auto" else ImpactModel(model))
     notes = []
@@ -151,10 +160,10 @@ def evaluate_landing(
     settings: SequentialSettings | CompliantSettings
     result: SequentialResult | CompliantResult
     if model == SEQUENTIAL:
-        settings = sequential or SequentialSettings()
+        settings = _scene_gravity(sequential or SequentialSettings(), scene)
         result = sequential_impacts(tree, scene, settings)
     else:
-        settings = compliant or CompliantSettings()
+        settings = _scene_gravity(compliant or CompliantSettings(), scene)
         result = simulate_impact(tree, scene, settings)
         unit = "N/m" if settings.law is ContactLaw.PENALTY else "1/s^2"
         notes.append(
@@ -166,8 +175,28 @@ def evaluate_landing(
     return TimeDomainResult(model, "; ".join(notes), result, v_minus, settings)
 
 
+def _scene_gravity(settings, scene: Scene):  # type: ignore[no-untyped-def]
+    """The settings with the scene's gravity where they give none (``--gravity`` wins)."""
+    return replace(settings, gravity=scene.gravity) if settings.gravity == 0 and scene.gravity else settings
+
+
+def _whole_landing(
+    tree: Tree, scene: Scene, joints: tuple[JointLaw, ...], settings: LandingSettings, requested: bool
+) -> TimeDomainResult:
+    """The whole landing, with why it ran."""
+    if scene.duration is None:
+        raise ModelError("scene.duration: --model landing needs the landing's duration (s) in the scene")
+    why = "requested" if requested else "automatic: scene.duration is given, so the whole landing runs"
+    result = landing(tree, scene, joints, settings)
+    notes = [why, f"{len(result.events)} impacts over {scene.duration:g} s, Runge-Kutta step {result.step:.3g} s"]
+    if scene.gravity:
+        notes.append(f"gravity {scene.gravity:g} m/s^2")
+    return TimeDomainResult(LANDING, "; ".join(notes), result, pre_impact_velocity(tree.topology(), scene), settings)
+
+
 __all__ = [
     "COMPLIANT",
+    "LANDING",
     "MODEL_CHOICES",
     "SEQUENTIAL",
     "TIME_DOMAIN_MODELS",

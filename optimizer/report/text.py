@@ -19,6 +19,7 @@ from impulse_core.kinematics.spatial import PLANAR, dof_layout
 from impulse_core.model.terrain import FLAT
 from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import CompliantResult, CompliantStatus, ContactLaw
+from impulse_core.timedomain.landing import LandingResult
 from optimizer.config.model_file import ModelFile
 from optimizer.evaluation.model_choice import TimeDomainResult
 
@@ -138,6 +139,12 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
     if never:
         out.append(f"contacts {', '.join(never)} never touch the ground during the landing")
     r = result.result
+    if isinstance(r, LandingResult) and not r.converged:
+        out.append(
+            f"the landing did not converge to its tolerance: error estimate {r.error_estimate:.3g} > "
+            f"{r.tolerance:g} at a Runge-Kutta step of {r.step:.3g} s (the contacts may chatter; the answer is "
+            "the finest run)"
+        )
     if isinstance(r, CompliantResult):
         out.append(
             "the compliant rung does not estimate its time-discretisation error (first order in the step; 1.5e-3 to "
@@ -233,6 +240,8 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
             "touchdown_order": [names[i] for i in result.touchdown_order],
         }
         r = result.result
+        if isinstance(r, LandingResult):
+            record |= _landing_record(r)
         if isinstance(r, CompliantResult):
             record |= {
                 "status": r.status.value,
@@ -256,6 +265,42 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
     return record
 
 
+def _landing_record(r: LandingResult) -> dict[str, Any]:
+    """The contract's ``events`` and ``landing`` keys (``MODEL_FORMAT.md``), with ``tangential``
+    and ``modes``-free first-impact keys, and the accuracy (``error_estimate``, ``tolerance``)."""
+    events = [
+        {
+            "t": _f(e.time),
+            "kind": e.kind,
+            "external": _floats(e.external),
+            "tangential": _floats(e.tangential),
+            "internal": _floats(e.internal_magnitude),
+            "stop": _floats(e.stop),
+        }
+        for e in r.events
+    ]
+    settled = None if r.settled_at is None else _f(r.settled_at)
+    return {
+        "tangential": _floats(r.tangential),
+        "events": events,
+        "landing": {
+            "peak_external_norm": _f(r.peak_external_norm),
+            "peak_internal_norm": _f(r.peak_internal_norm),
+            "peak_max_internal": _f(r.peak_max_internal),
+            "total_external": _floats(r.total_external),
+            "settled_at": settled,
+            "final_angles": _floats(r.final_angles),
+            "final_base": _floats(r.final_base),
+            "final_velocity": _floats(r.v_final),
+            "energy_absorbed": _f(r.energy_absorbed),
+            "duration": _f(r.duration),
+            "step": _f(r.step),
+        },
+        "error_estimate": None if r.error_estimate is None or not math.isfinite(r.error_estimate) else _f(r.error_estimate),
+        "tolerance": _f(r.tolerance) if r.tolerance is not None else None,
+    }
+
+
 def _scene_record(scene: Scene) -> dict[str, Any]:
     return {
         "speed": _f(scene.speed),
@@ -267,6 +312,8 @@ def _scene_record(scene: Scene) -> dict[str, Any]:
         "contact_tolerance": _f(scene.contact_tolerance),
         "terrain": [[_f(x), _f(y)] for x, y in scene.terrain.points],
         "base_x": _f(scene.base_x),
+        "gravity": _f(scene.gravity),
+        "duration": None if scene.duration is None else _f(scene.duration),
     }
 
 
@@ -380,8 +427,44 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
         else f"energy gained: +{100 * (after - before) / before:.1f}%"
     )
     lines += ["", f"kinetic energy [J]: before {before:.4f}, after {after:.4f} ({change})"]
+    if not rigid and isinstance(result.result, LandingResult):
+        lines += _landing_lines(model, result.result)
     lines += [f"warning: {w}" for w in warnings(model, result)]
     return "\n".join(lines) + "\n"
+
+
+#: Events listed in the text report of a landing (the JSON has them all).
+SHOWN_EVENTS = 12
+
+
+def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
+    """The whole landing in the text report (the tables above are its first impact)."""
+    names, tree = contact_names(model.tree), model.tree
+    rows = [
+        [f"{1e3 * e.time:.3f}", e.kind, _num(e.external_norm), _num(e.internal_norm)]
+        + [_num(x) for x in e.external]
+        for e in r.events[:SHOWN_EVENTS]
+    ]
+    headers = ["t [ms]", "kind", "external_norm", "internal_norm"] + [f"{n} [N s]" for n in names]
+    more = len(r.events) - SHOWN_EVENTS
+    settled = "not within the landing" if r.settled_at is None else f"at {1e3 * r.settled_at:.3f} ms"
+    angle_names = [f"{tree.bodies[0].name} (absolute)"] + [b.name for b in tree.bodies[1:]]
+    estimate = "not estimated" if r.error_estimate is None else f"{r.error_estimate:.2g}"
+    return [
+        "",
+        f"Whole landing over {1e3 * r.duration:g} ms: {len(r.events)} impacts (the tables above are the first)",
+        *_table(headers, rows),
+        *([f"... {more} more events (footopt evaluate --json lists them all)"] if more > 0 else []),
+        f"peak external_norm {r.peak_external_norm:.4f} N s, peak internal_norm {r.peak_internal_norm:.4f} N s, "
+        f"largest joint impulse {r.peak_max_internal:.4f} N s",
+        "total normal impulse over the landing [N s]: "
+        + ", ".join(f"{n} {_num(x)}" for n, x in zip(names, r.total_external, strict=True)),
+        f"settled (every velocity below 1e-3) {settled}; energy absorbed {100 * r.energy_absorbed:.1f}% of "
+        "the touchdown kinetic energy plus gravity's work",
+        "final angles [rad]: " + ", ".join(f"{n} {a:.4f}" for n, a in zip(angle_names, r.final_angles, strict=True)),
+        f"final base origin [m]: x {r.final_base[0]:.4f}, y {r.final_base[1]:.4f}",
+        f"accuracy: error estimate {estimate} (tolerance {r.tolerance:g}), Runge-Kutta step {r.step:.3g} s",
+    ]
 
 
 def _table(headers: list[str], rows: list[list[str]]) -> list[str]:
