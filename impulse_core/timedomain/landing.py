@@ -606,7 +606,9 @@ class _Landing:
         internal, magnitude = joint_impulses(joint)
         stop = np.zeros(self.nv)
         stop[rows.dof[rows.dof >= 0]] = (-stops[rows.dof[rows.dof >= 0]]) * sol.normal[rows.dof >= 0]
-        after = sol.velocity[: rows.n] <= self.speed_tol
+        # resting afterwards: no bounce, or a plastic row left slower than the plastic speed (it
+        # rests unless the forces pull it away; the velocity projection takes the rest)
+        after = (sol.velocity[: rows.n] <= self.speed_tol) | ((e == 0) & (sol.velocity[: rows.n] < PLASTIC_SPEED))
         new = mode.copy()
         new.closed[:] = False
         new.closed[rows.contact[(rows.contact >= 0) & after]] = True
@@ -717,7 +719,7 @@ class _Landing:
         energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
         t, stalled = 0.0, 0
-        self.record(totals, t, q, v, v)
+        self.record(totals, t, v, t, q, v)
         while t < T * (1 - 1e-12):
             dt = min(h, T - t)
             q1, v1, impulse = self.step(q, v, mode, dt)
@@ -733,18 +735,20 @@ class _Landing:
                     w = self.witness(qg, vg, mode)
                     graze = graze if np.any(w < 0) else None
             if graze is None:
+                v0 = v
                 q, v, p = self.project(q1, v1, mode)
                 self.add(totals, impulse + p)
+                self.record(totals, t, v0, t + dt, q, v)
                 t += dt
-                self.record(totals, t, q, v, v)
                 totals.steps += 1
                 continue
             tau = self.locate(q, v, mode, graze, w < 0)
             q_e, v_e, impulse = self.step(q, v, mode, tau)
             self.add(totals, impulse)
+            self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
-            if stalled > 100 or len(totals.events) > MAX_EVENTS:
+            if stalled > 20 or len(totals.events) > MAX_EVENTS:
                 raise NumericalError(f"the landing chatters at t = {t:.6g} s (events without progress)")
             q, v, mode = self.event(q_e, v_e, mode, t, totals)
         pt = self.point(q, v)
@@ -760,24 +764,31 @@ class _Landing:
                                         | ((q >= self.joints.hi - self.settings.gap_tolerance) & (v > 0)))
         v_before = v
         if np.any(touching) or np.any(reaching):
-            contacts = np.flatnonzero(mode.closed | touching)
+            # every contact at the ground takes part (one just released may be pushed back down)
+            contacts = np.flatnonzero(mode.closed | (pt.gap <= self.settings.gap_tolerance))
             v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if np.any(touching) else "stop")
             totals.events.append(event)
             self.add(totals, np.concatenate([event.external, event.tangential]))
         mode = self.resolve(q, v, mode)
         q, v, p = self.project(q, v, mode)
         self.add(totals, p)
-        self.record(totals, t, q, v_before, v)
+        self.record(totals, t, v_before, t, q, v)
         return q, v, mode
 
-    def record(self, totals: _Totals, t: float, q: np.ndarray, v_before: np.ndarray, v: np.ndarray) -> None:
-        """Keep the trajectory and when the model last moved (any |v| >= SETTLE_SPEED)."""
-        totals.times.append(t)
-        totals.states.append(q.copy())
-        if np.max(np.abs(v)) >= SETTLE_SPEED:
-            totals.moving_until = math.nan  # still moving at t
+    def record(self, totals: _Totals, t0: float, v0: np.ndarray, t1: float, q1: np.ndarray, v1: np.ndarray) -> None:
+        """Keep the trajectory and when the model last moved (some |v| >= SETTLE_SPEED): a step
+        from (t0, v0) to (t1, v1), or a jump (t0 = t1) at an impact. Where every velocity falls
+        below SETTLE_SPEED within a step, the crossing is interpolated linearly (exact under
+        constant deceleration)."""
+        totals.times.append(t1)
+        totals.states.append(q1.copy())
+        if np.max(np.abs(v1)) >= SETTLE_SPEED:
+            totals.moving_until = math.nan  # still moving at t1
         elif math.isnan(totals.moving_until):
-            totals.moving_until = t
+            a0, a1 = np.abs(v0), np.abs(v1)
+            fast = a0 >= SETTLE_SPEED
+            s = float(np.max((a0[fast] - SETTLE_SPEED) / (a0[fast] - a1[fast]), initial=0.0))
+            totals.moving_until = t0 + s * (t1 - t0)
 
     def result(self, totals: _Totals, q: np.ndarray, v: np.ndarray, h: float, energy_before: float,
                energy_final: float, gravity_work: float) -> LandingResult:

@@ -55,3 +55,92 @@ def test_vertical_rod_bounces_as_derived_by_hand():
     assert r.total_external[0] == pytest.approx(m * v0 + m * G * T, rel=1e-9)
     assert abs(r.v_final).max() < 1e-9
     assert r.final_angles[0] == pytest.approx(-math.pi / 2, abs=1e-12)
+
+
+CASE3 = "configs/paper_case3.yaml"
+
+
+def _case3(friction: float, selection: ContactSelection = ContactSelection.ALL):
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file(CASE3)
+    scene = Scene(speed=m.scene.speed, restitution=m.scene.restitution, friction=friction, selection=selection,
+                  gravity=G, duration=0.004)
+    return m.tree, scene
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3, 1.0])
+def test_first_event_is_the_first_impact(friction):
+    """The event at t = 0 equals the first-impact model for the same file (lcp, or the exact
+    friction rung), springs and gravity notwithstanding."""
+    tree, scene = _case3(friction)
+    springs = tuple(FREE if i == 0 else JointLaw(stiffness=30.0, damping=0.3) for i in range(tree.n_bodies))
+    r = _Landing(tree, scene, springs, LandingSettings()).run(1e-3)
+    first = evaluate(tree, scene, ImpactModel.FRICTION if friction else ImpactModel.LCP)
+    e = r.events[0]
+    assert e.time == 0.0
+    scale = float(np.max(first.external))
+    assert np.max(np.abs(e.external - first.external)) <= 1e-9 * scale
+    assert np.max(np.abs(e.tangential - first.tangential)) <= 1e-9 * scale
+    assert np.max(np.abs(e.internal_magnitude - first.internal_magnitude)) <= 1e-9 * np.max(first.internal_magnitude)
+    assert np.max(np.abs(e.v_plus - first.v_plus)) <= 1e-9 * np.max(np.abs(first.v_plus))
+
+
+def _random_leg(seed: int) -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    """A thigh, a shank with a sprung, damped knee with stops, and 1-3 sprung toes and a heel."""
+    rng = np.random.default_rng(seed)
+    bodies = [Body("thigh", None, 0.4, 2.0, -1.2 + rng.uniform(-0.2, 0.2)),
+              Body("shank", 0, 0.4, 1.0, -0.6 + rng.uniform(-0.2, 0.2))]
+    laws = [FREE, JointLaw(stiffness=rng.uniform(50, 200), damping=rng.uniform(0.5, 3), limits=(-1.4, 0.2),
+                           stop_restitution=rng.uniform(0, 0.5))]
+    for k in range(int(rng.integers(1, 4))):
+        bodies.append(Body(f"toe{k}", 1, rng.uniform(0.08, 0.2), rng.uniform(0.03, 0.1),
+                           rng.uniform(1.0, 1.8), contacts=(1.0,)))
+        laws.append(JointLaw(stiffness=rng.uniform(2, 10), damping=rng.uniform(0.01, 0.1)))
+    bodies.append(Body("heel", 1, 0.1, 0.05, rng.uniform(-1.2, -0.6), contacts=(1.0,)))
+    laws.append(JointLaw(stiffness=rng.uniform(2, 10), damping=rng.uniform(0.01, 0.1)))
+    scene = Scene(speed=rng.uniform(1, 3), velocity_x=rng.uniform(-0.5, 0.5), restitution=rng.uniform(0, 0.6),
+                  friction=float(rng.choice([0.0, 0.4, 1.0])), gravity=G, duration=0.05)
+    return Tree(tuple(bodies)), tuple(laws), scene
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_legs_obey_the_laws(seed):
+    """Seeded random legs with springs, stops, gravity and friction: the momentum balance over the
+    landing (y: normal impulses minus weight; x: tangential impulses), and at every event
+    Newton's restitution (no contact approaching after; energy not gained), the friction cone,
+    and the subtree balance behind every joint impulse."""
+    tree, laws, scene = _random_leg(seed)
+    run = _Landing(tree, scene, laws, LandingSettings())
+    r = run.run(5e-4)
+    mass = sum(b.mass for b in tree.bodies)
+    p0 = run.point(run.q0, r.events[0].v_minus).momentum[:, 0]
+    p1 = run.point(r.q_final, r.v_final).momentum[:, 0]
+    impulse = np.array([r.total_tangential.sum(), r.total_external.sum() - mass * G * scene.duration])
+    assert np.max(np.abs(p1 - p0 - impulse)) <= 1e-6 * np.max(np.abs(p0))
+    for e in r.events:
+        assert np.all(e.external >= 0)
+        assert np.all(np.abs(e.tangential) <= scene.friction * e.external + 1e-12)
+        assert e.energy_after <= e.energy_before * (1 + 1e-9)
+    assert r.events[0].time == 0.0
+    assert all(b.time >= a.time for a, b in zip(r.events, r.events[1:]))
+
+
+def test_a_sliding_plank_stops_where_coulomb_says():
+    """A plank landing flat with forward speed vx, plastic (e = 0), friction mu: the touchdown
+    impulse takes mu m vy of vx (sliding impact), then friction mu m g decelerates it until it
+    sticks at t* = (vx - mu vy) / (mu g), having slid (vx - mu vy)^2 / (2 mu g)."""
+    m, vx, vy, mu, T = 3.0, 1.2, 0.5, 0.4, 0.6
+    plank = Tree((Body("plank", None, 0.6, m, 0.0, contacts=(0.0, 1.0)),))
+    scene = Scene(speed=vy, velocity_x=vx, restitution=0.0, friction=mu, gravity=G, duration=T)
+    r = _Landing(plank, scene, (), LandingSettings()).run(2e-3)
+    first = r.events[0]
+    assert first.external.sum() == pytest.approx(m * vy, rel=1e-9)
+    assert first.tangential.sum() == pytest.approx(-mu * m * vy, rel=1e-9)
+    v1 = vx - mu * vy
+    t_stop = v1 / (mu * G)
+    assert r.final_base[0] == pytest.approx(v1**2 / (2 * mu * G), rel=1e-6)
+    assert r.settled_at == pytest.approx(t_stop - SETTLE_SPEED / (mu * G), abs=1e-6)
+    assert r.total_tangential.sum() == pytest.approx(-m * vx, rel=1e-9)
+    assert r.total_external.sum() == pytest.approx(m * vy + m * G * T, rel=1e-9)
+    assert r.final_angles[0] == pytest.approx(0.0, abs=1e-9)
