@@ -482,3 +482,45 @@ def test_the_approach_keys_read_write_and_refuse(write, capsys) -> None:
         assert main(["evaluate", str(path)]) == 2
         err = capsys.readouterr().err
         assert message in err and "Traceback" not in err, err
+
+
+# --------------------------------------------------------------------------------------------
+# Joint laws, gravity and duration (the whole landing)
+
+_KNEE = "      angle: 0.5\n"
+_SPRUNG = (
+    "      angle: 0.5\n      stiffness: 120\n      damping: 2.5\n      rest: 0.4\n"
+    "      limits: [-1, 1e0]\n      stop_restitution: 0.2\n"
+)
+
+
+def test_joint_laws_gravity_and_duration_are_read_and_round_trip(write) -> None:
+    from impulse_core.model.joints import FREE, JointLaw
+
+    text = LEG_YAML.replace(_KNEE, _SPRUNG).replace("  contacts: all\n", "  contacts: all\n  gravity: 9.81\n  duration: 0.25\n")
+    model = load_model_file(write(text))
+    assert model.joints == (FREE, JointLaw(120.0, 2.5, 0.4, (-1.0, 1.0), 0.2), FREE)
+    assert model.scene.gravity == 9.81 and model.scene.duration == 0.25
+    again = parse_model(load_yaml(format_model_file(model)))
+    assert again.joints == model.joints and again.scene == model.scene
+    assert load_model_file(write(LEG_YAML)).joints == ()
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        (_KNEE, _KNEE + "      stiffness: -1\n", r"^model\.bodies\[1\]\.stiffness: must be a finite number >= 0"),
+        (_KNEE, _KNEE + "      damping: soft\n", r"^model\.bodies\[1\]\.damping: must be a number"),
+        (_KNEE, _KNEE + "      limits: [1, -1]\n", r"^model\.bodies\[1\]\.limits: must be \[lo, hi\] with lo < hi"),
+        (_KNEE, _KNEE + "      limits: [0.6, 1]\n", r"^model\.bodies\[1\]\.limits: the touchdown angle 0\.5 lies outside"),
+        (_KNEE, _KNEE + "      limits: 1\n", r"^model\.bodies\[1\]\.limits: must be \[lo, hi\]"),
+        (_KNEE, _KNEE + "      stop_restitution: 2\n", r"^model\.bodies\[1\]\.stop_restitution: must be in \[0, 1\]"),
+        ("      angle: -1.3\n", "      angle: -1.3\n      stiffness: 5\n", r"^model\.bodies\[0\]\.stiffness: applies to revolute joints only"),
+        (_KNEE, _KNEE + "      stifness: 5\n", r"^model\.bodies\[1\]\.stifness: unknown key \(did you mean 'stiffness'\?"),
+        ("  contacts: all\n", "  contacts: all\n  gravity: -9.81\n", r"^scene\.gravity: must be >= 0"),
+        ("  contacts: all\n", "  contacts: all\n  duration: 0\n", r"^scene\.duration: must be a finite number > 0"),
+    ],
+)
+def test_bad_joint_laws_are_named_by_their_path(write, old: str, new: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        load_model_file(write(LEG_YAML.replace(old, new, 1)))
