@@ -257,7 +257,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 print(json.dumps(result_record(model, result, file), allow_nan=False))
             else:
                 print(("\n" if n else "") + format_report(model, result, file), end="")
-            if n in plots:
+            if n in plots and _is_landing(result):
+                from optimizer.report.landing_plot import plot_landing
+
+                plot_landing(model.tree, result.result, plots[n], title=Path(file).name, scene=model.scene)
+                if not args.json:
+                    print(f"plot: {plots[n]}")
+            elif n in plots:
                 plot_touchdown(
                     model.tree, touchdown_geometry(model.tree), result, plots[n], title=Path(file).name, scene=model.scene
                 )
@@ -268,6 +274,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
             status = EXIT_USAGE
         sys.stdout.flush()
     return status
+
+
+def _is_landing(result: Result) -> bool:
+    from impulse_core.timedomain.landing import LandingResult
+
+    return isinstance(getattr(result, "result", None), LandingResult)
 
 
 def _time_domain_options(

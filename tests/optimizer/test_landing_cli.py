@@ -1,0 +1,69 @@
+"""`footopt evaluate` on a whole landing: the contract's JSON keys, the first event against the
+first-impact model of the same file, --tolerance, bad options and the landing plot."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optimizer.cli.main import main
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _landing_file(tmp_path: Path, friction: float, duration: float = 0.004) -> Path:
+    text = (REPO / "configs" / "landing_case3.yaml").read_text()
+    text = text.replace("  friction: 0.5 ", f"  friction: {friction} ").replace("  duration: 0.3 ", f"  duration: {duration} ")
+    path = tmp_path / "landing.yaml"
+    path.write_text(text)
+    return path
+
+
+def _json(capsys, *args: str) -> dict:
+    assert main(["evaluate", "--json", *args]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize(("friction", "rung"), [(0.0, "lcp"), (0.5, "friction")])
+def test_landing_json_keeps_the_contract(tmp_path, capsys, friction, rung):
+    path = _landing_file(tmp_path, friction)
+    d = _json(capsys, str(path))
+    assert d["model"] == "landing" and d["warnings"] == []
+    first = _json(capsys, "--model", rung, str(path))
+    e0 = d["events"][0]
+    assert e0["t"] == 0.0 and e0["kind"] == "touchdown"
+    for key in ("external", "internal", "tangential"):
+        scale = max(abs(x) for x in first[key]) or 1.0
+        assert np.max(np.abs(np.subtract(e0[key], first[key]))) <= 1e-9 * scale, key
+        assert d[key] == e0[key]  # the top-level keys are the first impact's
+    landing = d["landing"]
+    n_contacts, n_joints = len(d["contacts"]), len(d["joints"])
+    assert len(landing["total_external"]) == n_contacts
+    assert len(landing["final_angles"]) == n_joints + 1
+    assert len(landing["final_velocity"]) == len(d["velocities"]) and len(landing["final_base"]) == 2
+    assert landing["peak_external_norm"] == pytest.approx(max(np.linalg.norm(e["external"]) for e in d["events"]))
+    assert landing["peak_internal_norm"] == pytest.approx(max(np.linalg.norm(e["internal"]) for e in d["events"]))
+    assert all(len(e["external"]) == n_contacts and len(e["internal"]) == n_joints for e in d["events"])
+    assert [e["t"] for e in d["events"]] == sorted(e["t"] for e in d["events"])
+    assert d["error_estimate"] <= d["tolerance"] == 1e-3
+
+
+def test_tolerance_applies_to_the_landing_only(tmp_path, capsys):
+    path = _landing_file(tmp_path, 0.0)
+    assert main(["evaluate", "--model", "lcp", "--tolerance", "1e-4", str(path)]) == 2
+    assert "--tolerance: applies to --model landing" in capsys.readouterr().err
+    assert main(["evaluate", "--tolerance", "-1", str(path)]) == 2
+    assert "--tolerance: must be a finite number > 0" in capsys.readouterr().err
+    d = _json(capsys, "--tolerance", "1e-6", str(path))
+    assert d["tolerance"] == 1e-6 and d["error_estimate"] <= 1e-6
+
+
+def test_landing_plot_is_written(tmp_path, capsys):
+    path = _landing_file(tmp_path, 0.5)
+    out = tmp_path / "landing.png"
+    assert main(["evaluate", "--plot", str(out), str(path)]) == 0
+    assert out.stat().st_size > 10_000
+    assert f"plot: {out}" in capsys.readouterr().out
