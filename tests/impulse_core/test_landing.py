@@ -144,3 +144,66 @@ def test_a_sliding_plank_stops_where_coulomb_says():
     assert r.total_tangential.sum() == pytest.approx(-m * vx, rel=1e-9)
     assert r.total_external.sum() == pytest.approx(m * vy + m * G * T, rel=1e-9)
     assert r.final_angles[0] == pytest.approx(0.0, abs=1e-9)
+
+
+def _plank_and_pole() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    """A plank landing flat on both ends, an upright pole on a sprung, damped joint at its middle."""
+    tree = Tree((
+        Body("plank", None, 0.6, 2.0, 0.0, contacts=(0.0, 1.0)),
+        Body("pole", 0, 0.5, 0.5, 1.2, at=0.5),
+    ))
+    laws = (FREE, JointLaw(stiffness=5.0, damping=0.5, rest=1.4))
+    return tree, laws, Scene(speed=0.5, restitution=0.0, gravity=G, duration=2.0)
+
+
+def test_the_settled_pole_solves_the_static_equilibrium():
+    """Frictionless, the plank settles flat and the pole where spring and gravity balance:
+    k (theta - rest) + m g (L / 2) cos(theta) = 0."""
+    tree, laws, scene = _plank_and_pole()
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-6))
+    k, rest, m, half = 5.0, 1.4, 0.5, 0.25
+    theta = brentq(lambda th: k * (th - rest) + m * G * half * math.cos(th), 0.5, 1.6)
+    assert r.converged and r.settled_at is not None and r.settled_at < scene.duration
+    assert r.final_angles[0] == pytest.approx(0.0, abs=1e-9)
+    assert r.final_angles[1] == pytest.approx(theta, abs=1e-7)
+    total_mass = 2.5
+    assert r.total_external.sum() == pytest.approx(total_mass * (G * scene.duration) + 2.0 * 0.5 + m * 0.5, rel=1e-6)
+
+
+PLANK_MJCF = """
+<mujoco>
+  <compiler angle="radian"/>
+  <option timestep="2e-4" gravity="0 -9.81 0" integrator="implicitfast"/>
+  <worldbody>
+    <geom type="plane" size="5 5 0.1" pos="0 -0.002 0" quat="0.70710678 -0.70710678 0 0" condim="1"/>
+    <body name="plank" pos="0 0 0">
+      <joint name="x" type="slide" axis="1 0 0"/>
+      <joint name="y" type="slide" axis="0 1 0"/>
+      <joint name="rz" type="hinge" axis="0 0 1"/>
+      <inertial pos="0.3 0 0" mass="2" diaginertia="1e-9 0.06 0.06"/>
+      <geom type="sphere" size="0.002" pos="0 0 0" condim="1" solref="0.002 1"/>
+      <geom type="sphere" size="0.002" pos="0.6 0 0" condim="1" solref="0.002 1"/>
+      <body name="pole" pos="0.3 0 0">
+        <joint name="pole" type="hinge" axis="0 0 1" stiffness="5" springref="1.4" damping="0.5"/>
+        <inertial pos="0.25 0 0" mass="0.5" diaginertia="1e-9 0.0104166667 0.0104166667"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_the_settled_pole_matches_mujoco():
+    """MuJoCo (soft frictionless contacts, its own joint spring and damper) settles the same
+    pole to within 2e-3 rad of the landing model's final angle."""
+    mujoco = pytest.importorskip("mujoco")
+    tree, laws, scene = _plank_and_pole()
+    ours = landing(tree, scene, laws, LandingSettings())
+    m = mujoco.MjModel.from_xml_string(PLANK_MJCF)
+    d = mujoco.MjData(m)
+    d.qpos[m.joint("pole").qposadr[0]] = 1.2
+    d.qvel[m.joint("y").dofadr[0]] = -scene.speed
+    for _ in range(int(scene.duration / m.opt.timestep)):
+        mujoco.mj_step(m, d)
+    assert abs(d.qpos[m.joint("pole").qposadr[0]] - ours.final_angles[1]) < 2e-3
+    assert abs(d.qpos[m.joint("rz").qposadr[0]] - ours.final_angles[0]) < 2e-3
