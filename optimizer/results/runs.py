@@ -24,7 +24,9 @@ import csv
 import io
 import json
 import platform
+import signal
 import sys
+import threading
 from dataclasses import dataclass, replace
 from enum import Enum
 from importlib import metadata
@@ -79,8 +81,54 @@ def storage_url(run_dir: Path, config: StudyConfig) -> str | optuna.storages.Bas
     path = str(run_dir / STORAGE_FILE)
     # A killed run leaves its lock behind; a write holds it for milliseconds, so a lock older
     # than the grace period is stale (Optuna's default waits 30 s before breaking it).
-    lock = JournalFileSymlinkLock(path, grace_period=JOURNAL_LOCK_GRACE_S)
+    lock = _interrupt_safe(JournalFileSymlinkLock)(path, grace_period=JOURNAL_LOCK_GRACE_S)
     return JournalStorage(JournalFileBackend(path, lock_obj=lock))
+
+
+def _interrupt_safe(lock_type: type) -> type:
+    """``lock_type`` with Ctrl-C held back from acquire to release.
+
+    Optuna's lock release is not atomic under Ctrl-C: an interrupt between its rename and unlink
+    replaces the KeyboardInterrupt with a FileNotFoundError. While the lock is held (a journal
+    write: milliseconds) a SIGINT is only recorded, and raised again right after release. Signal
+    handlers belong to the main thread: elsewhere the lock is Optuna's own.
+    """
+
+    class InterruptSafeLock(lock_type):  # type: ignore[misc, valid-type]
+        _handler: object = None  # the SIGINT handler to restore; None when not deferring
+        _deferred = False
+
+        def _defer(self, signum: int, frame: object) -> None:
+            self._deferred = True
+
+        def acquire(self) -> bool:
+            handler = None
+            if threading.current_thread() is threading.main_thread():
+                self._deferred = False
+                handler = signal.signal(signal.SIGINT, self._defer)
+            try:
+                got = super().acquire()  # may call release() to break a stale lock
+            except BaseException:
+                self._handler = handler
+                self._restore()
+                raise
+            self._handler = handler
+            return got
+
+        def release(self) -> None:
+            try:
+                super().release()
+            finally:
+                self._restore()
+
+        def _restore(self) -> None:
+            handler, self._handler = self._handler, None
+            if handler is not None:
+                signal.signal(signal.SIGINT, handler)
+                if self._deferred:
+                    signal.raise_signal(signal.SIGINT)
+
+    return InterruptSafeLock
 
 
 def _own(path: Path) -> bool:

@@ -37,7 +37,7 @@ RIGID_CHOICES = ("auto", *(m.value for m in ImpactModel))
 
 
 def test_the_choices_are_auto_and_every_rung() -> None:
-    assert IMPACT_MODEL_CHOICES == ("auto", "decoupled", "newton", "lcp", "friction", "friction-relaxed", "sequential", "compliant")
+    assert IMPACT_MODEL_CHOICES == ("auto", "decoupled", "newton", "lcp", "friction", "friction-relaxed", "sequential", "compliant", "landing")
 
 
 @pytest.mark.parametrize("choice", RIGID_CHOICES)

@@ -152,3 +152,28 @@ def test_sigint_exits_130_quickly_with_a_complete_resume_command(tmp_path):
     assert time.time() - sent < 10
     resume = err.split("Resume: ", 1)[1].strip()
     assert "..." not in resume and "'" + str(study) + "'" in resume
+
+
+@pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="no POSIX signal masks here")
+def test_ctrl_c_while_the_journal_lock_is_held_arrives_after_its_release(tmp_path, tiny_study):
+    """Optuna's lock release is not atomic under Ctrl-C (rename, then unlink); the run's lock
+    holds SIGINT back while held, so the interrupt arrives after a clean release."""
+    from optimizer.results.runs import storage_url
+
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    storage = storage_url(run_dir, load_study(tiny_study))
+    lock = storage._backend._lock
+    arrived: list[bool] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: arrived.append(True))
+    try:
+        lock.acquire()
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
+        assert arrived == [] and Path(lock._lock_file).exists()  # held back: the lock is held
+        lock.release()
+        time.sleep(0.05)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert arrived == [True]  # delivered once, after the release
+    assert [p.name for p in run_dir.iterdir()] == ["study.journal"]  # no lock or rename file
