@@ -434,6 +434,23 @@ def _contact_forces(rows: _Rows, lam: np.ndarray, slip: np.ndarray, mu: float, n
     return fn, ft
 
 
+def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
+    """The first s in (0, 1) where the cubic Hermite fit of g(s) (values g0, g1 and slopes d0,
+    d1 at s = 0, 1) falls below 0; NaN when the slopes are unknown or it does not."""
+    if not (math.isfinite(d0) and math.isfinite(d1) and math.isfinite(g0) and math.isfinite(g1)):
+        return math.nan
+    s = np.linspace(0.0, 1.0, 65)
+    coeffs = np.array([2 * g0 + d0 - 2 * g1 + d1, -3 * g0 - 2 * d0 + 3 * g1 - d1, d0, g0])
+    below = np.flatnonzero(np.polyval(coeffs, s) < 0)
+    if not below.size or below[0] == 0:
+        return math.nan
+    a, b = s[below[0] - 1], s[below[0]]
+    for _ in range(40):  # bisection on the polynomial: cheap
+        m = 0.5 * (a + b)
+        a, b = (m, b) if np.polyval(coeffs, m) >= 0 else (a, m)
+    return float(b)
+
+
 # --------------------------------------------------------------------------------------------
 # One run at a fixed step
 
@@ -518,6 +535,11 @@ class _Landing:
     def witness(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
         """Values that stay >= 0 while the mode holds (scaled to tolerances of 1): open gaps,
         normal and cone margins of closed contacts, slip of sliding ones, joint-stop margins."""
+        return self.witness_and_rate(q, v, mode)[0]
+
+    def witness_and_rate(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`witness` and the time derivative of the geometric ones (gaps and stop margins;
+        NaN for the force and slip witnesses)."""
         pt = self.point(q, v)
         rows = _mode_rows(pt, mode, self.mu)
         _, lam = _accelerations(pt, rows)
@@ -529,7 +551,7 @@ class _Landing:
         free = mode.stop == 0
         stop_force = np.zeros(self.nv)
         stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
-        return np.concatenate([
+        values = np.concatenate([
             np.where(closed, np.inf, pt.gap / gap_tol + 1.0),
             np.where(closed, fn / self.force_tol + 1.0, np.inf),
             np.where(sticking, (self.mu * fn - np.abs(ft)) / self.force_tol + 1.0, np.inf),
@@ -538,6 +560,9 @@ class _Landing:
             np.where(free, (self.joints.hi - q) / gap_tol + 1.0, np.inf),
             np.where(free, np.inf, stop_force / self.force_tol + 1.0),
         ])
+        unknown = np.full(3 * self.nc, np.nan)
+        rates = np.concatenate([pt.vn(v) / gap_tol, unknown, v / gap_tol, -v / gap_tol, np.full(self.nv, np.nan)])
+        return values, rates
 
     def grazing(self, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, h: float) -> float | None:
         """The step fraction where an open contact's gap (cubic Hermite fit over the step) dips
@@ -555,32 +580,41 @@ class _Landing:
         return float(s[np.argmax(np.any(dips, axis=1)), 0])
 
     def locate(self, q: np.ndarray, v: np.ndarray, mode: _Mode, hi: float, watch: np.ndarray) -> float:
-        """The first step length in (0, hi] at which a watched witness crosses its threshold
-        (Illinois method on their minimum). Witnesses are triggered at -1 (one tolerance below
-        zero) but located at -1e-3 tolerances (or just below the start's value), so that an
-        impact happens within a few 1e-3 tolerances of the true contact instant."""
-        raw0 = float(np.min(self.witness(q, v, mode)[watch])) - 1.0
-        offset = min(1.0, max(1e-3, 1e-3 - raw0))
+        """The first step length in (0, hi] at which a watched witness crosses its threshold.
+        Witnesses are triggered at -1 (one tolerance below zero) but located at -0.1 tolerances
+        (or just below the start's value), so that an impact happens within a fraction of a
+        tolerance of the true contact instant. The next guess is the first root of the cubic
+        Hermite fit of the crossing witness over the bracket where its rate is known (gaps and
+        stop margins: the contact's or joint's speed), else the Illinois method."""
+        w0, r0 = self.witness_and_rate(q, v, mode)
+        raw0 = float(np.min(w0[watch])) - 1.0
+        offset = min(1.0, max(0.1, 0.1 - raw0))
 
-        def phi(tau: float) -> float:
+        def phi(tau: float) -> tuple[np.ndarray, np.ndarray]:
             q1, v1, _ = self.step(q, v, mode, tau)
-            return float(np.min(self.witness(q1, v1, mode)[watch])) - 1.0 + offset
+            w, r = self.witness_and_rate(q1, v1, mode)
+            return w[watch] - 1.0 + offset, r[watch]
 
-        lo, f_lo, f_hi = 0.0, raw0 + offset, phi(hi)
-        side = 0
+        lo, (w_lo, r_lo) = 0.0, (w0[watch] - 1.0 + offset, r0[watch])
+        w_hi, r_hi = phi(hi)
+        f_lo, f_hi, side = float(np.min(w_lo)), float(np.min(w_hi)), 0
         for _ in range(100):
             if hi - lo <= 1e-14 * max(1.0, hi) or f_hi >= -offset:  # within one location tolerance
                 break
-            mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_lo != f_hi else 0.5 * (lo + hi)
-            if not lo < mid < hi:
-                mid = 0.5 * (lo + hi)
-            f_mid = phi(mid)
+            i = int(np.argmin(w_hi))
+            mid = lo + (hi - lo) * _hermite_root(w_lo[i], r_lo[i] * (hi - lo), w_hi[i], r_hi[i] * (hi - lo))
+            if not lo < mid < hi:  # Illinois
+                mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_lo != f_hi else 0.5 * (lo + hi)
+                if not lo < mid < hi:
+                    mid = 0.5 * (lo + hi)
+            w_mid, r_mid = phi(mid)
+            f_mid = float(np.min(w_mid))
             if f_mid < 0:
-                hi, f_hi = mid, f_mid
+                hi, w_hi, r_hi, f_hi = mid, w_mid, r_mid, f_mid
                 f_lo = f_lo / 2 if side == -1 else f_lo
                 side = -1
             else:
-                lo, f_lo = mid, f_mid
+                lo, w_lo, r_lo, f_lo = mid, w_mid, r_mid, f_mid
                 f_hi = f_hi / 2 if side == 1 else f_hi
                 side = 1
         return hi
@@ -658,7 +692,7 @@ class _Landing:
                     ) from None
                 slip = np.zeros(self.nc, int)  # let the sliding contacts stick or slide afresh
         acc_tol = 1e-9 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
-        rest = (sol.normal > self.force_tol) | (sol.velocity[: rows.n] <= acc_tol)
+        rest = sol.normal > self.force_tol  # an unloaded row opens (if it sinks, it touches again)
         new = _Mode(np.zeros(self.nc, bool), np.zeros(self.nc, int), np.zeros(self.nv, int))
         c = rows.contact >= 0
         new.closed[rows.contact[c & rest]] = True
@@ -668,29 +702,56 @@ class _Landing:
         new.slip[k[starting]] = np.sign(sol.velocity[rows.n :][starting]).astype(int)
         d = rows.dof >= 0
         new.stop[rows.dof[d & rest]] = stops[rows.dof[d & rest]]
+        return self.slide_on_the_edge(q, v, new)
+
+    def slide_on_the_edge(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
+        """A sticking contact whose force, in the mode's own solve, lies within a force tolerance
+        of the cone's edge (or beyond, by rounding) slides against its friction force: the LCP's
+        answer at the edge (no slip acceleration) is the same in either mode, but sticking would
+        leave the cone at once and stall the run."""
+        if self.mu <= 0 or not np.any(mode.closed & (mode.slip == 0)):
+            return mode
+        pt = self.point(q, v)
+        rows = _mode_rows(pt, mode, self.mu)
+        _, lam = _accelerations(pt, rows)
+        fn, ft = _contact_forces(rows, lam, mode.slip, self.mu, self.nc)
+        edge = mode.closed & (mode.slip == 0) & (self.mu * fn - np.abs(ft) <= self.force_tol) & (ft != 0)
+        if not np.any(edge):
+            return mode
+        new = mode.copy()
+        new.slip[edge] = -np.sign(ft[edge]).astype(int)
         return new
 
     def project(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Back onto the mode's constraints: closed gaps and stops to zero (positions), then the
-        closed rows' velocities to zero; returns (q, v, the projection's impulses [normal,
-        tangential] per contact)."""
+        """Back onto the mode's constraints: closed gaps and stops, and open contacts below the
+        ground, to zero (positions), then the closed rows' velocities to zero; returns (q, v,
+        the projection's impulses [normal, tangential] per contact)."""
         pt = self.point(q, v)
+        place = mode.copy()
+        place.closed |= pt.gap < 0  # an open contact left below the ground (by rounding) is lifted
+        q = q - self.position_correction(pt, q, place)
         rows = _mode_rows(pt, mode, self.mu)
         if not rows.G.shape[0]:
             return q, v, np.zeros(2 * self.nc)
+        minv_gt = np.linalg.solve(pt.M, rows.G.T)
+        impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
+        v = v + minv_gt @ impulse
+        fn, ft = _contact_forces(rows, impulse, np.zeros(self.nc, int), 0.0, self.nc)
+        return q, v, np.concatenate([fn, ft])
+
+    def position_correction(self, pt: _Point, q: np.ndarray, mode: _Mode) -> np.ndarray:
+        """The smallest (kinetic-metric) change of q that zeroes the mode's closed gaps and stops."""
+        rows = _mode_rows(pt, mode, self.mu)
         n = rows.n
+        if not n:
+            return np.zeros_like(q)
         on = rows.contact >= 0
         residual = np.zeros(n)
         residual[on] = pt.gap[rows.contact[on]]
         d = rows.dof[~on]
         residual[~on] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, self.joints.hi[d], self.joints.lo[d]))
-        minv_gt = np.linalg.solve(pt.M, rows.G.T)
-        W = rows.G @ minv_gt
-        q = q - minv_gt[:, :n] @ np.linalg.lstsq(W[:n, :n], residual, rcond=None)[0]
-        impulse = -np.linalg.lstsq(W, rows.G @ v, rcond=None)[0]
-        v = v + minv_gt @ impulse
-        fn, ft = _contact_forces(rows, impulse, np.zeros(self.nc, int), 0.0, self.nc)
-        return q, v, np.concatenate([fn, ft])
+        minv_gt = np.linalg.solve(pt.M, rows.G[:n].T)
+        return minv_gt @ np.linalg.lstsq(rows.G[:n] @ minv_gt, residual, rcond=None)[0]
 
     # ---- the run
 
