@@ -32,6 +32,9 @@ import numpy as np
 from scipy.optimize import linprog
 
 from impulse_core.evaluate import ImpactResult, approach_velocity, compiled_model, evaluate
+from impulse_core.errors import NumericalError
+from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from impulse_core.model.tree import Body, ContactSelection, Scene, Tree, design_vector
 
 #: A constraint value (see :class:`ConstraintValues`) up to this counts as met: room for float
@@ -67,6 +70,7 @@ class Leg:
         thigh_angle: absolute angle of the thigh's x axis, hip to knee (rad).
         shank_length, shank_mass: the shank, m and kg.
         knee_angle: the shank's joint angle relative to the thigh (rad).
+        knee: the knee's spring, damper and stops (a whole landing; free by default).
     """
 
     thigh_length: float = 0.7
@@ -75,6 +79,7 @@ class Leg:
     shank_length: float = 0.7
     shank_mass: float = 1.0
     knee_angle: float = -0.3
+    knee: JointLaw = FREE
 
     @property
     def shank_angle(self) -> float:
@@ -111,11 +116,21 @@ class FootShape:
 
 @dataclass(frozen=True)
 class Segment:
-    """One foot rod: length (m), mass (kg) and touchdown joint angle relative to its parent (rad)."""
+    """One foot rod: length (m), mass (kg) and touchdown joint angle relative to its parent (rad);
+    for a whole landing, its joint's torsional spring (N m/rad, rest at the touchdown angle),
+    damper (N m s/rad) and stops (``stop`` rad either side of the touchdown angle; None: none)."""
 
     length: float
     mass: float
     joint_angle: float
+    stiffness: float = 0.0
+    damping: float = 0.0
+    stop: float | None = None
+
+    def joint_law(self, stop_restitution: float = 0.0) -> JointLaw:
+        """The joint's law for :mod:`impulse_core.timedomain.landing` (rest: the touchdown angle)."""
+        limits = None if self.stop is None else (self.joint_angle - self.stop, self.joint_angle + self.stop)
+        return JointLaw(self.stiffness, self.damping, None, limits, stop_restitution if limits else 0.0)
 
 
 @dataclass(frozen=True)
@@ -187,6 +202,12 @@ def foot_tree(leg: Leg, design: FootDesign) -> Tree:
     return Tree(tuple(bodies))
 
 
+def foot_joint_laws(leg: Leg, design: FootDesign, stop_restitution: float = 0.0) -> tuple[JointLaw, ...]:
+    """The joint law of every body of :func:`foot_tree`: the thigh (the base: free), the knee,
+    then each foot rod's joint."""
+    return (FREE, leg.knee, *(s.joint_law(stop_restitution) for s in design.segments))
+
+
 def intended_contacts(design: FootDesign) -> tuple[int, ...]:
     """Declared contacts of :func:`foot_tree` that must touch at once: every chain tip."""
     return tuple(range(len(design.chains)))
@@ -211,9 +232,49 @@ class ToeSymmetry(Enum):
     INDEPENDENT = "independent"  # each toe its own lengths, masses and angles
 
 
+#: The joint families: the heel's and the toes' joints at the ankle, and the joints inside a chain.
+JOINT_FAMILIES = ("heel_root", "heel_inner", "toe_root", "toe_inner")
+
+
+@dataclass(frozen=True)
+class JointRanges:
+    """Search ranges (inclusive) of one joint family's law; None: that part is absent (no
+    spring, no damper, no stops). A range [x, x] fixes it."""
+
+    stiffness: tuple[float, float] | None = None  # N m/rad
+    damping: tuple[float, float] | None = None  # N m s/rad
+    stop: tuple[float, float] | None = None  # rad either side of the touchdown angle
+
+    @property
+    def empty(self) -> bool:
+        return self.stiffness is None and self.damping is None and self.stop is None
+
+
+@dataclass(frozen=True)
+class JointLawSpace:
+    """The joint laws a whole-landing study searches, per family (``JOINT_FAMILIES``)."""
+
+    heel_root: JointRanges = JointRanges()
+    heel_inner: JointRanges = JointRanges()
+    toe_root: JointRanges = JointRanges()
+    toe_inner: JointRanges = JointRanges()
+    stop_restitution: float = 0.0
+
+    @property
+    def empty(self) -> bool:
+        return all(getattr(self, f).empty for f in JOINT_FAMILIES)
+
+    def ranges(self, shape: FootShape) -> tuple[tuple[JointRanges, ...], ...]:
+        """Ranges of every foot joint, per chain (heel first), as :meth:`FootLimits.joint_limits`."""
+        heel = (self.heel_root,) + (self.heel_inner,) * (shape.heel_segments - 1)
+        toe = (self.toe_root,) + (self.toe_inner,) * (shape.toe_segments - 1)
+        return (heel, *(toe,) * shape.n_toes)
+
+
 @dataclass(frozen=True)
 class DesignSpace:
-    """The discrete part of a study's design space (inclusive ranges).
+    """The discrete part of a study's design space (inclusive ranges), and the joint laws a
+    whole-landing study searches.
 
     Attributes:
         toes: (min, max) toe count.
@@ -221,12 +282,14 @@ class DesignSpace:
         heel_segments: (min, max) rods in the heel chain.
         toe_symmetry: identical toes (fewer values; the planar model cannot tell identical toes
             in one plane from one heavier toe) or independent ones.
+        joint_laws: the springs, dampers and stops searched per joint family.
     """
 
     toes: tuple[int, int] = (1, 3)
     toe_segments: tuple[int, int] = (1, 2)
     heel_segments: tuple[int, int] = (1, 1)
     toe_symmetry: ToeSymmetry = ToeSymmetry.IDENTICAL
+    joint_laws: JointLawSpace = JointLawSpace()
 
     def shapes(self) -> tuple[FootShape, ...]:
         """Every foot shape of the space, fewest toes first."""
@@ -286,18 +349,41 @@ class FootLimits:
 
 
 class Objective(Enum):
-    """What a study can minimise (all N s, rad/s or J; see :class:`Objectives`)."""
+    """What a study can optimise (see :class:`Objectives`): the first impact's figures, and the
+    whole landing's (those need ``scene.duration``). ``energy_absorbed`` is maximised, every
+    other one minimised."""
 
     EXTERNAL_NORM = "external_norm"
     INTERNAL_NORM = "internal_norm"
     MAX_INTERNAL = "max_internal"
     BASE_ANGULAR_VELOCITY = "base_angular_velocity"
     ENERGY_AFTER = "energy_after"
+    PEAK_EXTERNAL_NORM = "peak_external_norm"
+    PEAK_INTERNAL_NORM = "peak_internal_norm"
+    PEAK_MAX_INTERNAL = "peak_max_internal"
+    SETTLED_AT = "settled_at"
+    ENERGY_ABSORBED = "energy_absorbed"
+
+    @property
+    def landing(self) -> bool:
+        """True for the whole landing's objectives."""
+        return self in LANDING_OBJECTIVES
+
+    @property
+    def sign(self) -> float:
+        """+1 for a minimised objective, -1 for the maximised ``energy_absorbed``."""
+        return -1.0 if self is Objective.ENERGY_ABSORBED else 1.0
+
+
+LANDING_OBJECTIVES = frozenset(
+    {Objective.PEAK_EXTERNAL_NORM, Objective.PEAK_INTERNAL_NORM, Objective.PEAK_MAX_INTERNAL,
+     Objective.SETTLED_AT, Objective.ENERGY_ABSORBED}
+)
 
 
 @dataclass(frozen=True)
 class Objectives:
-    """The impact of one design, as a designer reads it.
+    """The impact of one design, as a designer reads it; the whole landing's figures when it ran.
 
     Attributes:
         external_norm: Euclidean norm of the contact impulses (N s; the paper's).
@@ -305,6 +391,11 @@ class Objectives:
         max_internal: the largest single joint impulse (N s).
         base_angular_velocity: |angular velocity| of the thigh just after the impact (rad/s).
         energy_after: kinetic energy just after the impact (J).
+        peak_external_norm, peak_internal_norm, peak_max_internal: the largest external_norm,
+            internal_norm and single joint impulse over the landing's impacts (N s).
+        settled_at: when every velocity stays below 1e-3 (s); the duration when it never does.
+        energy_absorbed: fraction of the energy brought in (touchdown kinetic energy and the
+            work of gravity) that impacts, dampers and friction dissipated by the end.
     """
 
     external_norm: float
@@ -312,9 +403,25 @@ class Objectives:
     max_internal: float
     base_angular_velocity: float
     energy_after: float
+    peak_external_norm: float | None = None
+    peak_internal_norm: float | None = None
+    peak_max_internal: float | None = None
+    settled_at: float | None = None
+    energy_absorbed: float | None = None
 
     def value(self, objective: Objective) -> float:
-        return float(getattr(self, objective.value))
+        x = getattr(self, objective.value)
+        if x is None:
+            raise ValueError(f"{objective.value}: not evaluated (a whole-landing objective needs scene.duration)")
+        return float(x)
+
+    def score(self, objective: Objective) -> float:
+        """The value as minimised (maximised objectives negated)."""
+        return objective.sign * self.value(objective)
+
+    def items(self) -> tuple[tuple[str, float], ...]:
+        """Every evaluated objective, as (name, value)."""
+        return tuple((f.name, float(getattr(self, f.name))) for f in fields(self) if getattr(self, f.name) is not None)
 
 
 @dataclass(frozen=True)
@@ -483,8 +590,11 @@ def assign_lengths(
     joint_angles: tuple[tuple[float, ...], ...],
     masses: tuple[tuple[float, ...], ...],
     limits: FootLimits,
+    reach: float | None = None,
 ) -> LengthAssignment | None:
-    """Rod lengths that put every chain tip on one ground line and keep the geometric limits.
+    """Rod lengths that put every chain tip on one ground line and keep the geometric limits
+    (and, given ``reach``, make the toes' mean heel-to-toe distance equal to it: lengths matter
+    over a whole landing, so a whole-landing search sets the foot's size).
 
     Given the angles, each tip's height below the ankle is sum_i L_i (-sin phi_i): linear in the
     lengths, as are the reaches, the clearances and the length bounds from mass per length. The
@@ -557,11 +667,16 @@ def assign_lengths(
     heel = np.zeros(n + 2)
     heel[: sizes[0]] = run[: sizes[0]]
     lo_f, hi_f = limits.foot_length
+    mean_reach = np.zeros(n + 2)
     for c, k in zip(starts[1:], sizes[1:], strict=True):
-        reach = -heel.copy()
-        reach[c : c + k] += run[c : c + k]
-        at_least(reach, lo_f)
-        at_most(reach, hi_f)
+        toe_reach = -heel.copy()
+        toe_reach[c : c + k] += run[c : c + k]
+        at_least(toe_reach, lo_f)
+        at_most(toe_reach, hi_f)
+        mean_reach += toe_reach / (len(sizes) - 1)
+    if reach is not None:
+        a_eq.append(mean_reach)
+        b_eq.append(reach)
     # Clearance: joints inside the chains, the ankle, the knee and the hip.
     for c, k in zip(starts, sizes, strict=True):
         for j in range(k - 1):
@@ -610,7 +725,7 @@ def assign_lengths(
 def with_lengths(design_angles_masses: FootDesign, assignment: LengthAssignment) -> FootDesign:
     """``design_angles_masses`` with the lengths of ``assignment``."""
     chains = [
-        tuple(Segment(L, s.mass, s.joint_angle) for s, L in zip(chain, lengths, strict=True))
+        tuple(replace(s, length=L) for s, L in zip(chain, lengths, strict=True))
         for chain, lengths in zip(design_angles_masses.chains, assignment.lengths, strict=True)
     ]
     return FootDesign(heel=chains[0], toes=tuple(chains[1:]))
@@ -621,10 +736,11 @@ def design_from(
     joint_angles: tuple[tuple[float, ...], ...],
     masses: tuple[tuple[float, ...], ...],
     limits: FootLimits,
+    reach: float | None = None,
 ) -> FootDesign:
     """The foot with these angles and masses (per chain, heel first) and lengths from
-    :func:`assign_lengths`; when no lengths level the tips, every rod gets 0.1 m (the
-    constraint values then say how far off the design is)."""
+    :func:`assign_lengths` (with its ``reach``); when no lengths level the tips, every rod gets
+    0.1 m (the constraint values then say how far off the design is)."""
     shape = FootShape(len(joint_angles) - 1, len(joint_angles[1]), len(joint_angles[0]))
     unit = FootDesign(
         heel=tuple(Segment(0.1, m, a) for m, a in zip(masses[0], joint_angles[0], strict=True)),
@@ -633,7 +749,7 @@ def design_from(
             for ms, js in zip(masses[1:], joint_angles[1:], strict=True)
         ),
     )
-    assignment = assign_lengths(leg, shape, joint_angles, masses, limits)
+    assignment = assign_lengths(leg, shape, joint_angles, masses, limits, reach)
     return unit if assignment is None else with_lengths(unit, assignment)
 
 
@@ -704,13 +820,53 @@ def newton_impulses(tree: Tree, scene: Scene) -> np.ndarray:
 def landing_scene(scene: Scene, limits: FootLimits) -> Scene:
     """The scene of an exported model file: the ground at the lowest contact, contacts within
     the touchdown tolerance hit (so re-evaluating a file re-checks simultaneous touchdown)."""
-    return Scene(
-        speed=scene.speed,
-        restitution=scene.restitution,
-        friction=scene.friction,
-        selection=ContactSelection.LOWEST,
-        contact_tolerance=limits.contact_tolerance,
+    return replace(scene, selection=ContactSelection.LOWEST, contact_tolerance=limits.contact_tolerance)
+
+
+#: A study's budget for one design's landing: a design that needs more impacts or finer steps
+#: than this is numerically too stiff (e.g. a millimetre rod with a damper) and its trial fails.
+STUDY_LANDING = LandingSettings(max_refinements=4, max_events=3000)
+
+
+def landing_objectives(result: LandingResult) -> Objectives:
+    """The designer's objectives from a whole landing: its first event's, and its own."""
+    first = result.events[0]
+    return Objectives(
+        external_norm=first.external_norm,
+        internal_norm=first.internal_norm,
+        max_internal=float(first.internal_magnitude.max(initial=0.0)),
+        base_angular_velocity=abs(float(first.v_plus[2])),
+        energy_after=first.energy_after,
+        peak_external_norm=result.peak_external_norm,
+        peak_internal_norm=result.peak_internal_norm,
+        peak_max_internal=result.peak_max_internal,
+        settled_at=result.duration if result.settled_at is None else result.settled_at,
+        energy_absorbed=result.energy_absorbed,
     )
+
+
+def evaluate_design_landing(
+    leg: Leg, design: FootDesign, scene: Scene, limits: FootLimits, stop_restitution: float, tolerance: float
+) -> DesignEvaluation:
+    """The whole landing of one design (``scene.duration``), its objectives and constraints.
+
+    The scene is that of the design's model file (:func:`landing_scene`), so that ``footopt
+    evaluate --tolerance tolerance`` on it gives the same figures. A landing that fails
+    numerically gives no objectives. ``energy_gain`` is the largest gain of any impact.
+    """
+    tree = foot_tree(leg, design)
+    laws = foot_joint_laws(leg, design, stop_restitution)
+    geometric = constraint_values(leg, design, limits)
+    try:
+        with np.errstate(all="ignore"):
+            result = landing(tree, landing_scene(scene, limits), laws, replace(STUDY_LANDING, tolerance=tolerance))
+    except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
+        return DesignEvaluation(design, None, geometric)
+    objectives = landing_objectives(result)
+    if not all(math.isfinite(v) for _, v in objectives.items()):
+        return DesignEvaluation(design, None, geometric)
+    gain = max(e.energy_after - e.energy_before for e in result.events)
+    return DesignEvaluation(design, objectives, replace(geometric, energy_gain=float(gain)))
 
 
 __all__ = [
@@ -722,6 +878,10 @@ __all__ = [
     "FootGeometry",
     "FootLimits",
     "FootShape",
+    "JOINT_FAMILIES",
+    "JointLawSpace",
+    "JointRanges",
+    "LANDING_OBJECTIVES",
     "Leg",
     "LengthAssignment",
     "MassMode",
@@ -735,7 +895,10 @@ __all__ = [
     "constraint_values",
     "design_from",
     "evaluate_design",
+    "evaluate_design_landing",
+    "landing_objectives",
     "foot_geometry",
+    "foot_joint_laws",
     "foot_tree",
     "intended_contacts",
     "landing_scene",

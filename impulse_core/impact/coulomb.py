@@ -75,6 +75,8 @@ def lemke(
     """
     M, q = np.asarray(M, dtype=float), np.asarray(q, dtype=float)
     n = q.size
+    if not (np.all(np.isfinite(M)) and np.all(np.isfinite(q))):
+        return None  # no pivoting on NaN (a diverged state upstream)
     if n == 0 or np.all(q >= 0):
         return np.zeros(n)
     cover = np.ones(n) if cover is None else np.asarray(cover, dtype=float)

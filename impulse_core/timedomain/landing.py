@@ -61,6 +61,10 @@ SETTLE_SPEED = 1e-3
 MAX_EVENTS = 20000
 
 
+class Diverged(NumericalError):
+    """The integration blew up: the step is too long for the model's fastest motion."""
+
+
 @dataclass(frozen=True)
 class LandingSettings:
     """Accuracy settings of :func:`landing`.
@@ -71,12 +75,14 @@ class LandingSettings:
         step: the first Runge-Kutta step (s); None: duration / 200.
         max_refinements: halvings of the step before giving up (the run then warns).
         gap_tolerance: a contact this close to the ground (m) touches.
+        max_events: impacts after which a run is abandoned (a chattering contact, or a budget).
     """
 
     tolerance: float = 1e-3
     step: float | None = None
     max_refinements: int = 7
     gap_tolerance: float = 1e-12
+    max_events: int = MAX_EVENTS
 
 
 @dataclass(frozen=True)
@@ -779,13 +785,18 @@ class _Landing:
         q, v, mode, totals = self.first_impact()
         energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
+        # No energy enters (passive joints, a fixed ground): the kinetic energy stays below what
+        # touchdown and gravity bring; far above it, the step is too long for a stiff joint.
+        weight = sum(b.mass for b in self.tree.bodies) * self.scene.gravity
+        reach = sum(b.length for b in self.tree.bodies)
+        cap = 10.0 * (energy_before + weight * (height0 + reach + 10.0 * T * self.scene.speed)) + 1e-6
         t, stalled = 0.0, 0
         self.record(totals, t, v, t, q, v)
         while t < T * (1 - 1e-12):
             dt = min(h, T - t)
             q1, v1, impulse = self.step(q, v, mode, dt)
-            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
-                raise NumericalError(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
+            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.point(q1, v1).kinetic <= cap):
+                raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
             w = self.witness(q1, v1, mode)
             graze = None if np.all(w >= 0) else dt
             if graze is None:
@@ -809,8 +820,10 @@ class _Landing:
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
-            if stalled > 20 or len(totals.events) > MAX_EVENTS:
+            if stalled > 20:
                 raise NumericalError(f"the landing chatters at t = {t:.6g} s (events without progress)")
+            if len(totals.events) > self.settings.max_events:
+                raise NumericalError(f"the landing took more than {self.settings.max_events} impacts by t = {t:.6g} s")
             q, v, mode = self.event(q_e, v_e, mode, t, totals)
         pt = self.point(q, v)
         gravity_work = sum(b.mass for b in self.tree.bodies) * self.scene.gravity * (height0 - pt.com_height)
@@ -913,7 +926,14 @@ def landing(
         raise ModelError(f"joints: {len(joints)} joint laws for {tree.n_bodies} bodies")
     run = _Landing(tree, scene, joints, settings)
     h = settings.step or scene.duration / 200.0
-    previous = run.run(h)
+    for halvings in range(settings.max_refinements + 1):  # a step too long for the stiffest joint diverges
+        try:
+            previous = run.run(h)
+            break
+        except Diverged:
+            if halvings == settings.max_refinements:
+                raise
+            h /= 2.0
     error = math.inf
     current = previous
     for _ in range(settings.max_refinements):

@@ -373,11 +373,17 @@ def parse_joint_laws(data: dict[str, Any], tree: Tree, where: str = "model") -> 
         if given and (i == 0 or tree.bodies[i].joint is not JointKind.REVOLUTE):
             what = "the floating base has no joint" if i == 0 else "a fixed joint does not move"
             raise ConfigError(f"{at}.{given[0]}: applies to revolute joints only ({what})")
-        laws.append(_joint_law(b, at) if given else FREE)
+        laws.append(joint_law(b, at) if given else FREE)
     return tuple(laws) if any(law != FREE for law in laws) else ()
 
 
-def _joint_law(b: dict[str, Any], where: str) -> JointLaw:
+def joint_law(b: dict[str, Any], where: str) -> JointLaw:
+    """A revolute joint's law from a body's (or a study's leg rod's) keys, validated; ``b``'s
+    ``angle`` is the touchdown angle the stops must admit.
+
+    Raises:
+        ConfigError: naming the field.
+    """
     limits = None
     if "limits" in b:
         raw = b["limits"]
@@ -392,7 +398,10 @@ def _joint_law(b: dict[str, Any], where: str) -> JointLaw:
         limits=limits,
         stop_restitution=_number(b.get("stop_restitution", 0.0), f"{where}.stop_restitution"),
     )
-    law.validate(where)
+    try:
+        law.validate(where)
+    except ModelError as e:
+        raise ConfigError(str(e)) from None
     if limits is not None and not limits[0] <= float(b["angle"]) <= limits[1]:
         raise ConfigError(f"{where}.limits: the touchdown angle {b['angle']!r} lies outside [{limits[0]!r}, {limits[1]!r}]")
     return law

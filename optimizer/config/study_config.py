@@ -16,13 +16,23 @@ from pathlib import Path
 from typing import Any
 
 from impulse_core.model.tree import Scene
-from optimizer.config.model_file import load_yaml, read_text
+from optimizer.config.model_file import joint_law, load_yaml, read_text
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import join as _join
 from optimizer.config.yaml_fields import mapping as _checked_mapping
 from optimizer.config.yaml_fields import number as _number
 from optimizer.config.yaml_fields import string as _string
-from optimizer.design_space import DesignSpace, FootLimits, Leg, MassMode, Objective, ToeSymmetry
+from optimizer.design_space import (
+    JOINT_FAMILIES,
+    DesignSpace,
+    FootLimits,
+    JointLawSpace,
+    JointRanges,
+    Leg,
+    MassMode,
+    Objective,
+    ToeSymmetry,
+)
 from optimizer.errors import ConfigError
 
 
@@ -52,6 +62,7 @@ class SearchSettings:
         population: NSGA-II: population size.
         front_points: inner: epsilon-constraint points per shape (besides the two anchors).
         starts: inner: random starts per shape.
+        landing_tolerance: the whole landing's accuracy (``footopt evaluate --tolerance``).
     """
 
     method: SearchMethod = SearchMethod.INNER
@@ -61,6 +72,7 @@ class SearchSettings:
     population: int = 24
     front_points: int = 8
     starts: int = 4
+    landing_tolerance: float = 1e-3
 
 
 @dataclass(frozen=True)
@@ -72,7 +84,8 @@ class StudyConfig:
         name: the study's name (the Optuna study name).
         seed: seeds every random choice of the search.
         storage: an Optuna storage URL, or None for a journal file in the run directory.
-        scene: the landing (straight down; frictionless).
+        scene: the landing (straight down; friction, gravity and a duration for whole-landing
+            objectives).
         leg: the fixed leg and its posture.
         space: toe count, rods per toe and per heel, toe symmetry.
         limits: the constraints.
@@ -92,12 +105,20 @@ class StudyConfig:
     search: SearchSettings
     source: Path | None = field(default=None, compare=False)
 
+    @property
+    def whole_landing(self) -> bool:
+        """True when an objective scores the whole landing (every design then lands in full)."""
+        return any(o.landing for o in self.objectives)
+
 
 TOP_KEYS = ("name", "seed", "storage", "scene", "leg", "design_space", "constraints", "objectives", "search", "notes")
-SCENE_KEYS = ("speed", "restitution", "friction")
+SCENE_KEYS = ("speed", "restitution", "friction", "gravity", "duration")
 LEG_KEYS = ("thigh", "shank")
 ROD_KEYS = ("length", "mass", "angle")
-SPACE_KEYS = ("toes", "toe_segments", "heel_segments", "toe_symmetry")
+KNEE_KEYS = ("stiffness", "damping", "limits", "stop_restitution")
+SPACE_KEYS = ("toes", "toe_segments", "heel_segments", "toe_symmetry", "joint_laws")
+JOINT_SPACE_KEYS = (*JOINT_FAMILIES, "stop_restitution")
+FAMILY_KEYS = ("stiffness", "damping", "stop")
 CONSTRAINT_KEYS = (
     "foot_mass",
     "foot_mass_mode",
@@ -109,7 +130,7 @@ CONSTRAINT_KEYS = (
     "contact_tolerance",
 )
 ANGLE_KEYS = ("heel_root", "heel_inner", "toe_root", "toe_inner")
-SEARCH_KEYS = ("method", "sampler", "trials", "startup_trials", "population", "inner")
+SEARCH_KEYS = ("method", "sampler", "trials", "startup_trials", "population", "inner", "landing_tolerance")
 INNER_KEYS = ("front_points", "starts")
 #: Most toes and most rods per chain a study may ask for (documented in configs/quick_study.yaml):
 #: beyond them a study is refused at once rather than enumerating shapes for ever.
@@ -165,7 +186,7 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
             f"constraints.min_link_mass: {fewest} foot rods of {limits.min_link_mass!r} kg exceed the foot mass "
             f"{limits.foot_mass!r} kg even for the smallest foot of the design space"
         )
-    return StudyConfig(
+    config = StudyConfig(
         name=name,
         seed=seed,
         storage=storage,
@@ -177,6 +198,32 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
         search=_search(top.get("search", {})),
         source=source,
     )
+    _check_whole_landing(config)
+    return config
+
+
+def _check_whole_landing(config: StudyConfig) -> None:
+    """What only a whole landing uses needs a landing objective, and the reverse."""
+    landing = [o.value for o in config.objectives if o.landing]
+    if landing and config.scene.duration is None:
+        raise ConfigError(f"scene.duration: missing: the objective {landing[0]} scores the whole landing (s)")
+    if landing and config.search.method is SearchMethod.INNER:
+        raise ConfigError(
+            f"search.method: the objective {landing[0]} needs the outer search (the inner search's exact "
+            "derivatives of a whole landing are not written yet)"
+        )
+    if landing:
+        return
+    if config.scene.friction != 0.0:
+        raise ConfigError(
+            f"scene.friction: first-impact studies search frictionless landings only for now (0), got "
+            f"{config.scene.friction!r}; a whole-landing objective (e.g. peak_external_norm) takes friction"
+        )
+    if not config.space.joint_laws.empty or config.leg.knee != Leg().knee:
+        where = "design_space.joint_laws" if not config.space.joint_laws.empty else "leg.shank"
+        raise ConfigError(f"{where}: springs, dampers and stops act only over a whole landing: add a landing "
+                          "objective (peak_external_norm, peak_internal_norm, peak_max_internal, settled_at, "
+                          "energy_absorbed)")
 
 
 def resolve_storage(url: str, folder: Path | None) -> str:
@@ -204,12 +251,13 @@ def _scene(data: Any) -> Scene:
     if not 0.0 <= e <= 1.0:
         raise ConfigError(f"scene.restitution: must be in [0, 1], got {e!r}")
     friction = _number(m.get("friction", 0.0), "scene.friction")
-    if friction != 0.0:
-        raise ConfigError(
-            f"scene.friction: studies search frictionless landings only for now (0), got {friction!r}; "
-            "footopt evaluate runs the exact friction law on any design file"
-        )
-    return Scene(speed=speed, restitution=e, friction=0.0)
+    if friction < 0:
+        raise ConfigError(f"scene.friction: must be >= 0, got {friction!r}")
+    gravity = _number(m.get("gravity", 0.0), "scene.gravity")
+    if gravity < 0:
+        raise ConfigError(f"scene.gravity: must be >= 0 (m/s^2, along -y), got {gravity!r}")
+    duration = None if m.get("duration") is None else _positive(m["duration"], "scene.duration")
+    return Scene(speed=speed, restitution=e, friction=friction, gravity=gravity, duration=duration)
 
 
 def _leg(data: Any) -> Leg:
@@ -218,13 +266,15 @@ def _leg(data: Any) -> Leg:
     values = {}
     for rod, angle_name in (("thigh", "thigh_angle"), ("shank", "knee_angle")):
         where = f"leg.{rod}"
-        r = _mapping(m.get(rod, {}), where, ROD_KEYS)
+        r = _mapping(m.get(rod, {}), where, ROD_KEYS if rod == "thigh" else ROD_KEYS + KNEE_KEYS)
         for key in ("length", "mass"):
             x = _number(r.get(key, getattr(d, f"{rod}_{key}")), f"{where}.{key}")
             if x <= 0:
                 raise ConfigError(f"{where}.{key}: must be > 0, got {x!r}")
             values[f"{rod}_{key}"] = x
         values[angle_name] = _number(r.get("angle", getattr(d, angle_name)), f"{where}.angle")
+        if any(k in r for k in KNEE_KEYS):
+            values["knee"] = joint_law({**r, "angle": values[angle_name]}, where)
     return Leg(**values)
 
 
@@ -235,7 +285,31 @@ def _space(data: Any) -> DesignSpace:
     toe_segments = _int_range(m.get("toe_segments", list(d.toe_segments)), "design_space.toe_segments", 1, MAX_SEGMENTS)
     heel = _int_range(m.get("heel_segments", list(d.heel_segments)), "design_space.heel_segments", 1, MAX_SEGMENTS)
     symmetry = _choice(m.get("toe_symmetry", d.toe_symmetry.value), "design_space.toe_symmetry", ToeSymmetry)
-    return DesignSpace(toes=toes, toe_segments=toe_segments, heel_segments=heel, toe_symmetry=symmetry)
+    laws = _joint_law_space(m.get("joint_laws", {}))
+    return DesignSpace(toes=toes, toe_segments=toe_segments, heel_segments=heel, toe_symmetry=symmetry, joint_laws=laws)
+
+
+def _joint_law_space(data: Any) -> JointLawSpace:
+    w = "design_space.joint_laws"
+    m = _mapping(data, w, JOINT_SPACE_KEYS)
+    families = {}
+    for name in JOINT_FAMILIES:
+        f = _mapping(m.get(name, {}), f"{w}.{name}", FAMILY_KEYS)
+        families[name] = JointRanges(**{k: _law_range(f[k], f"{w}.{name}.{k}") for k in FAMILY_KEYS if k in f})
+    e = _number(m.get("stop_restitution", 0.0), f"{w}.stop_restitution")
+    if not 0.0 <= e <= 1.0:
+        raise ConfigError(f"{w}.stop_restitution: must be in [0, 1], got {e!r}")
+    return JointLawSpace(**families, stop_restitution=e)
+
+
+def _law_range(value: Any, where: str) -> tuple[float, float]:
+    """[lo, hi] with 0 <= lo <= hi (lo = hi fixes the value); a stop's travel must be > 0."""
+    lo, hi = (_number(x, f"{where}[{k}]") for k, x in enumerate(_pair(value, where, "numbers")))
+    if lo < 0 or (where.endswith(".stop") and lo <= 0):
+        raise ConfigError(f"{where}[0]: must be {'> 0 (rad)' if where.endswith('.stop') else '>= 0'}, got {lo!r}")
+    if lo > hi:
+        raise ConfigError(f"{where}: min {lo!r} is above max {hi!r}")
+    return lo, hi
 
 
 def _limits(data: Any) -> FootLimits:
@@ -289,6 +363,7 @@ def _search(data: Any) -> SearchSettings:
         population=_integer(m.get("population", d.population), "search.population", minimum=2),
         front_points=_integer(inner.get("front_points", d.front_points), "search.inner.front_points", minimum=0),
         starts=_integer(inner.get("starts", d.starts), "search.inner.starts", minimum=1),
+        landing_tolerance=_positive(m.get("landing_tolerance", d.landing_tolerance), "search.landing_tolerance"),
     )
 
 
@@ -309,14 +384,17 @@ def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
         f"  speed: {f(s.speed)}",
         f"  restitution: {f(s.restitution)}",
         f"  friction: {f(s.friction)}",
+        f"  gravity: {f(s.gravity)}",
+        f"  duration: {'null' if s.duration is None else f(s.duration)}",
         "leg:",
         f"  thigh: {{length: {f(leg.thigh_length)}, mass: {f(leg.thigh_mass)}, angle: {f(leg.thigh_angle)}}}",
-        f"  shank: {{length: {f(leg.shank_length)}, mass: {f(leg.shank_mass)}, angle: {f(leg.knee_angle)}}}",
+        f"  shank: {{length: {f(leg.shank_length)}, mass: {f(leg.shank_mass)}, angle: {f(leg.knee_angle)}{_knee_text(leg)}}}",
         "design_space:",
         f"  toes: [{sp.toes[0]}, {sp.toes[1]}]",
         f"  toe_segments: [{sp.toe_segments[0]}, {sp.toe_segments[1]}]",
         f"  heel_segments: [{sp.heel_segments[0]}, {sp.heel_segments[1]}]",
         f"  toe_symmetry: {sp.toe_symmetry.value}",
+        *_joint_law_space_lines(sp.joint_laws),
         "constraints:",
         f"  foot_mass: {f(lim.foot_mass)}",
         f"  foot_mass_mode: {lim.mass_mode.value}",
@@ -337,8 +415,32 @@ def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
         "  inner:",
         f"    front_points: {se.front_points}",
         f"    starts: {se.starts}",
+        f"  landing_tolerance: {f(se.landing_tolerance)}",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _knee_text(leg: Leg) -> str:
+    """The knee law's keys inside the shank's flow mapping (empty when free)."""
+    k, f = leg.knee, _float_text
+    parts = [f"{key}: {f(getattr(k, key))}" for key in ("stiffness", "damping", "stop_restitution") if getattr(k, key)]
+    if k.limits is not None:
+        parts.append(f"limits: [{f(k.limits[0])}, {f(k.limits[1])}]")
+    return "".join(f", {p}" for p in parts)
+
+
+def _joint_law_space_lines(space: JointLawSpace) -> list[str]:
+    """``design_space.joint_laws`` (nothing when no family has a law)."""
+    if space.empty:
+        return []
+    lines = ["  joint_laws:"]
+    for name in JOINT_FAMILIES:
+        r = getattr(space, name)
+        parts = [f"{k}: [{_float_text(v[0])}, {_float_text(v[1])}]" for k in FAMILY_KEYS if (v := getattr(r, k)) is not None]
+        if parts:
+            lines.append(f"    {name}: {{{', '.join(parts)}}}")
+    lines.append(f"    stop_restitution: {_float_text(space.stop_restitution)}")
+    return lines
 
 
 def _float_text(x: float) -> str:

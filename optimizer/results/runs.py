@@ -37,7 +37,7 @@ import numpy as np
 import optuna
 
 from impulse_core.evaluate import evaluate
-from optimizer.config.model_file import Reference, dump_model_file
+from optimizer.config.model_file import ModelFile, Reference, dump_model_file
 from optimizer.config.study_config import StudyConfig, format_study, load_study
 from optimizer.design_space import (
     CONSTRAINT_FIELDS,
@@ -45,6 +45,7 @@ from optimizer.design_space import (
     Objective,
     chain_names,
     foot_geometry,
+    foot_joint_laws,
     foot_tree,
     landing_scene,
 )
@@ -57,7 +58,10 @@ STUDY_FILE, STORAGE_FILE, RUN_FILE = "study.yaml", "study.journal", "run.json"
 CSV_FILE, JSON_FILE, PLOT_FILE, DESIGNS_DIR = "pareto.csv", "pareto.json", "front.png", "designs"
 #: Files footopt writes in a run directory (and may replace).
 OWN_FILES = (STUDY_FILE, STORAGE_FILE, RUN_FILE, CSV_FILE, JSON_FILE, PLOT_FILE)
-OBJECTIVE_COLUMNS = tuple(o.value for o in Objective)
+#: The objective columns of every front file: the first impact's, and the whole landing's when
+#: the study scores it (:func:`objective_columns`).
+OBJECTIVE_COLUMNS = tuple(o.value for o in Objective if not o.landing)
+LANDING_COLUMNS = tuple(o.value for o in Objective if o.landing)
 #: The files of one Pareto design in ``designs/``: its model file, then its exports.
 DESIGN_SUFFIXES = (".yaml", *(f.suffix for f in ExportFormat))
 #: Seconds after which the journal's lock file counts as left behind by a killed run.
@@ -273,8 +277,13 @@ def pareto_front(config: StudyConfig, trials: list[RecordedTrial]) -> list[Recor
     feasible = [t for t in trials if t.evaluation.feasible]
     if not feasible:
         return []
-    values = np.array([[t.evaluation.objectives.value(o) for o in config.objectives] for t in feasible])
+    values = np.array([[t.evaluation.objectives.score(o) for o in config.objectives] for t in feasible])
     return [feasible[i] for i in non_dominated(values)]
+
+
+def objective_columns(config: StudyConfig) -> tuple[str, ...]:
+    """The objective columns of the study's front files."""
+    return OBJECTIVE_COLUMNS + (LANDING_COLUMNS if config.whole_landing else ())
 
 
 def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> list[FrontPoint]:
@@ -302,7 +311,14 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
             "Lengths were chosen by footopt's linear program; with uniform rods the impulses do not depend on\n"
             "them, only on the angles and masses (and the touchdown constraints on the lengths)."
         )
-        dump_model_file(tree, run_dir / rel, scene=scene, reference=reference, header_comment=header)
+        if config.whole_landing:
+            header += (
+                f"\nThe whole landing (scene.duration) at footopt evaluate --tolerance {config.search.landing_tolerance!r} "
+                "gives the front's landing figures."
+            )
+        joints = foot_joint_laws(config.leg, t.evaluation.design, config.space.joint_laws.stop_restitution)
+        model = ModelFile(tree, scene, reference, joints=joints if any(not j.is_default for j in joints) else ())
+        dump_model_file(model, run_dir / rel, header_comment=header)
         for fmt in ExportFormat:
             text = export_text(tree, scene, fmt, name=rel.stem)
             (run_dir / rel).with_suffix(fmt.suffix).write_text(text, encoding="utf-8")
@@ -325,6 +341,11 @@ def design_values(config: StudyConfig, evaluation: DesignEvaluation) -> dict[str
             out[f"{name}.length"] = s.length
             out[f"{name}.mass"] = s.mass
             out[f"{name}.joint_angle"] = s.joint_angle
+            if config.whole_landing:
+                out[f"{name}.stiffness"] = s.stiffness
+                out[f"{name}.damping"] = s.damping
+                if s.stop is not None:  # no stops: no column value
+                    out[f"{name}.stop"] = s.stop
     geo = foot_geometry(config.leg, design)
     out["ankle_height"] = -geo.ground
     out["foot_length"] = float(geo.reaches.max())
@@ -343,7 +364,7 @@ def _row(config: StudyConfig, p: FrontPoint) -> dict[str, Any]:
         "toe_segments": shape.toe_segments,
         "heel_segments": shape.heel_segments,
     }
-    row.update({name: ev.objectives.value(Objective(name)) for name in OBJECTIVE_COLUMNS})
+    row.update({name: ev.objectives.value(Objective(name)) for name in objective_columns(config)})
     row["model_file"] = p.model_file.as_posix()
     row.update({f"constraint.{name}": v for name, v in ev.constraints.items()})
     row.update(design_values(config, ev))
@@ -354,7 +375,7 @@ def front_csv(config: StudyConfig, points: list[FrontPoint]) -> str:
     """``pareto.csv``: one row per Pareto design; design columns are the union over shapes
     (empty where a design has no such rod)."""
     rows = [_row(config, p) for p in points]
-    columns: list[str] = ["trial", "method", "shape", "toes", "toe_segments", "heel_segments", *OBJECTIVE_COLUMNS]
+    columns: list[str] = ["trial", "method", "shape", "toes", "toe_segments", "heel_segments", *objective_columns(config)]
     columns += ["model_file"] + [f"constraint.{n}" for n in _constraint_names()]
     for row in rows:
         columns += [k for k in row if k not in columns]
@@ -389,7 +410,7 @@ def front_json(config: StudyConfig, points: list[FrontPoint]) -> dict[str, Any]:
                     "toe_segments": shape.toe_segments,
                     "heel_segments": shape.heel_segments,
                 },
-                "objectives": {name: ev.objectives.value(Objective(name)) for name in OBJECTIVE_COLUMNS},
+                "objectives": {name: ev.objectives.value(Objective(name)) for name in objective_columns(config)},
                 "constraints": dict(ev.constraints.items()),
                 "design": design_values(config, ev),
                 "model_file": p.model_file.as_posix(),
@@ -427,7 +448,7 @@ def plot_front(path: Path, config: StudyConfig, trials: list[RecordedTrial], poi
             sel = [xy(p.evaluation, p.trial) for p in points if p.evaluation.design.shape.n_toes == n]
             color = cmap((n - toes[0]) / max(1, toes[-1] - toes[0]))
             ax.scatter(*zip(*sel), s=42, color=color, edgecolor="black", zorder=3, label=f"Pareto, {n} toe(s)")
-        if two:
+        if two and objs[0].sign > 0 and objs[1].sign > 0:  # the staircase of a minimised pair
             line = sorted(xy(p.evaluation, p.trial) for p in points)
             ax.plot(*zip(*line), color="black", lw=0.8, zorder=2.5, drawstyle="steps-post")
     everything = np.array(feasible + [xy(p.evaluation, p.trial) for p in points])
@@ -437,7 +458,7 @@ def plot_front(path: Path, config: StudyConfig, trials: list[RecordedTrial], poi
             ax.set_xscale("log")
         if high[1] > 20 * low[1]:
             ax.set_yscale("log")
-    unit = {"energy_after": "J", "base_angular_velocity": "rad/s"}
+    unit = {"energy_after": "J", "base_angular_velocity": "rad/s", "settled_at": "s", "energy_absorbed": "fraction"}
     label = lambda o: f"{o.value} ({unit.get(o.value, 'N s')})"
     ax.set_xlabel(label(objs[0]) if two else "trial")
     ax.set_ylabel(label(objs[1]) if two else label(objs[0]))
@@ -451,14 +472,15 @@ def plot_front(path: Path, config: StudyConfig, trials: list[RecordedTrial], poi
 
 def format_front(config: StudyConfig, points: list[FrontPoint]) -> str:
     """The front as a text table: shape, every objective, model file."""
-    header = f"{'trial':>6} {'shape':>7} " + " ".join(f"{c:>21}" for c in OBJECTIVE_COLUMNS) + "  model_file"
+    columns = objective_columns(config)
+    header = f"{'trial':>6} {'shape':>7} " + " ".join(f"{c:>21}" for c in columns) + "  model_file"
     lines = [header]
     for p in points:
         o = p.evaluation.objectives
-        values = " ".join(f"{o.value(Objective(c)):>21.6g}" for c in OBJECTIVE_COLUMNS)
+        values = " ".join(f"{o.value(Objective(c)):>21.6g}" for c in columns)
         lines.append(f"{p.trial:>6} {p.evaluation.design.shape.label:>7} {values}  {p.model_file.as_posix()}")
-    minimised = ", ".join(o.value for o in config.objectives)
-    head = f"study '{config.name}': {plural(len(points), 'Pareto design')} (minimising {minimised})"
+    aims = ", ".join(("maximising " if o.sign < 0 else "") + o.value for o in config.objectives)
+    head = f"study '{config.name}': {plural(len(points), 'Pareto design')} (minimising {aims})"
     return head + "\n" + "\n".join(lines) + "\n"
 
 

@@ -40,9 +40,11 @@ from optimizer.design_space import (
     MassMode,
     Objectives,
     Segment,
+    JOINT_FAMILIES,
     ToeSymmetry,
     constraint_values,
     design_from,
+    evaluate_design_landing,
 )
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
 
@@ -57,19 +59,28 @@ ATTR_INTERRUPTED = "interrupted"
 
 
 def design_record(design: FootDesign) -> dict[str, Any]:
-    """The design as JSON-able data: ``{"heel": [[L, m, angle], ...], "toes": [[[...]]]}``."""
+    """The design as JSON-able data: ``{"heel": [[L, m, angle], ...], "toes": [[[...]]]}``; a
+    rod with a joint law adds ``stiffness, damping, stop`` (stop null: none)."""
 
-    def chain(c: tuple[Segment, ...]) -> list[list[float]]:
-        return [[float(s.length), float(s.mass), float(s.joint_angle)] for s in c]
+    def rod(s: Segment) -> list[float | None]:
+        values: list[float | None] = [float(s.length), float(s.mass), float(s.joint_angle)]
+        if s.stiffness or s.damping or s.stop is not None:
+            values += [float(s.stiffness), float(s.damping), None if s.stop is None else float(s.stop)]
+        return values
 
-    return {"heel": chain(design.heel), "toes": [chain(t) for t in design.toes]}
+    return {"heel": [rod(s) for s in design.heel], "toes": [[rod(s) for s in t] for t in design.toes]}
 
 
 def design_from_record(record: dict[str, Any]) -> FootDesign:
     """Inverse of :func:`design_record`."""
 
-    def chain(c: list[list[float]]) -> tuple[Segment, ...]:
-        return tuple(Segment(float(L), float(m), float(a)) for L, m, a in c)
+    def rod(values: list[Any]) -> Segment:
+        L, m, a, *law = values
+        k, c, stop = law or (0.0, 0.0, None)
+        return Segment(float(L), float(m), float(a), float(k), float(c), None if stop is None else float(stop))
+
+    def chain(c: list[list[Any]]) -> tuple[Segment, ...]:
+        return tuple(rod(v) for v in c)
 
     return FootDesign(heel=chain(record["heel"]), toes=tuple(chain(t) for t in record["toes"]))
 
@@ -106,7 +117,7 @@ def record_attrs(evaluation: DesignEvaluation, method: str) -> dict[str, Any]:
     return {
         ATTR_METHOD: method,
         ATTR_DESIGN: design_record(evaluation.design),
-        ATTR_OBJECTIVES: {k: float(v) for k, v in vars(evaluation.objectives).items()},
+        ATTR_OBJECTIVES: dict(evaluation.objectives.items()),
         ATTR_CONSTRAINTS: dict(evaluation.constraints.items()),
     }
 
@@ -168,11 +179,58 @@ def suggest_design(trial: optuna.Trial, config: StudyConfig) -> FootDesign:
     else:
         used = limits.foot_mass
     masses = masses_from_shares(shape, shares, limits, used)
-    return design_from(config.leg, angles, masses, limits)
+    if not config.whole_landing:
+        return design_from(config.leg, angles, masses, limits)
+    reach = trial.suggest_float("foot_reach", *limits.foot_length)
+    return with_joint_laws(design_from(config.leg, angles, masses, limits, reach), suggest_joint_laws(trial, config))
+
+
+@dataclass(frozen=True)
+class FamilyLaw:
+    """One joint family's spring (N m/rad), damper (N m s/rad) and stop travel (rad; None: none)."""
+
+    stiffness: float = 0.0
+    damping: float = 0.0
+    stop: float | None = None
+
+
+def suggest_joint_laws(trial: optuna.Trial, config: StudyConfig) -> dict[str, FamilyLaw]:
+    """One spring, damper and stop travel per joint family (``design_space.joint_laws``); a
+    fixed range [x, x] is not asked for."""
+    space = config.space.joint_laws
+
+    def value(name: str, key: str) -> float | None:
+        r = getattr(getattr(space, name), key)
+        if r is None:
+            return None
+        return r[0] if r[0] == r[1] else trial.suggest_float(f"joint_laws.{name}.{key}", *r)
+
+    out = {}
+    for name in JOINT_FAMILIES:
+        k, c, stop = (value(name, key) for key in ("stiffness", "damping", "stop"))
+        out[name] = FamilyLaw(k or 0.0, c or 0.0, stop)
+    return out
+
+
+def with_joint_laws(design: FootDesign, laws: dict[str, FamilyLaw]) -> FootDesign:
+    """``design`` with each rod's joint law from its family's."""
+
+    def chain(c: tuple[Segment, ...], root: str, inner: str) -> tuple[Segment, ...]:
+        return tuple(
+            replace(s, stiffness=t.stiffness, damping=t.damping, stop=t.stop)
+            for j, s in enumerate(c)
+            for t in (laws[root if j == 0 else inner],)
+        )
+
+    return FootDesign(
+        heel=chain(design.heel, "heel_root", "heel_inner"),
+        toes=tuple(chain(t, "toe_root", "toe_inner") for t in design.toes),
+    )
 
 
 def objective_values(config: StudyConfig, objectives: Objectives) -> list[float]:
-    return [objectives.value(o) for o in config.objectives]
+    """What the sampler minimises: each objective's score (``energy_absorbed`` negated)."""
+    return [objectives.score(o) for o in config.objectives]
 
 
 # --------------------------------------------------------------------------------------------
@@ -288,7 +346,12 @@ def tell(study: optuna.Study, config: StudyConfig, trial: optuna.Trial, evaluati
 def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[DesignEvaluation]:
     """Every design's objectives and constraint values: the impact of each kind of foot
     (:func:`optimizer.search.compiled.foot_kind`) from its compiled ``VALUE_OUTPUTS`` function,
-    one batched C loop per kind, cached on disk; the geometry from :func:`constraint_values`."""
+    one batched C loop per kind, cached on disk; the geometry from :func:`constraint_values`.
+    A whole-landing study lands each design in full instead (:func:`evaluate_design_landing`)."""
+    if config.whole_landing:
+        e = config.space.joint_laws.stop_restitution
+        tol = config.search.landing_tolerance
+        return [evaluate_design_landing(config.leg, d, config.scene, config.limits, e, tol) for d in designs]
     out: list[DesignEvaluation | None] = [None] * len(designs)
     groups: dict[FootKind, list[int]] = {}
     for i, design in enumerate(designs):

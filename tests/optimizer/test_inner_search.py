@@ -115,7 +115,7 @@ def test_recorded_values_are_the_cores(symmetry: ToeSymmetry):
     for t in trials:
         again = evaluate_design(config.leg, t.evaluation.design, config.scene, config.limits)
         assert again.feasible
-        for o in Objective:
+        for o in (o for o in Objective if not o.landing):
             assert again.objectives.value(o) == pytest.approx(t.evaluation.objectives.value(o), rel=1e-10, abs=1e-12)
         for (name, a), (_, b) in zip(t.evaluation.constraints.items(), again.constraints.items(), strict=True):
             assert a == pytest.approx(b, rel=1e-9, abs=1e-12), name
@@ -136,7 +136,7 @@ def test_impulses_do_not_depend_on_rod_lengths():
         base = evaluate_design(config.leg, design, config.scene, config.limits).objectives
         chains = [tuple(dataclasses.replace(s, length=rng.uniform(0.02, 0.4)) for s in c) for c in design.chains]
         other = evaluate_design(config.leg, FootDesign(chains[0], tuple(chains[1:])), config.scene, config.limits)
-        for o in Objective:
+        for o in (o for o in Objective if not o.landing):
             assert other.objectives.value(o) == pytest.approx(base.value(o), rel=1e-10)
 
 

@@ -30,7 +30,7 @@ def test_batched_values_are_evaluate_designs(tiny_outer_study: Path, write, symm
         if single.objectives is None or single.constraints.pulling > 0:
             continue  # a contact would pull: evaluate() lets it separate, Newton's law does not
         compared += 1
-        for o in Objective:
+        for o in (o for o in Objective if not o.landing):
             assert batched.objectives.value(o) == pytest.approx(single.objectives.value(o), rel=1e-10, abs=1e-12)
         for (name, a), (_, b) in zip(batched.constraints.items(), single.constraints.items(), strict=True):
             assert a == pytest.approx(b, rel=1e-9, abs=1e-12), name

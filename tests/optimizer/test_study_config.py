@@ -14,7 +14,8 @@ from optimizer.config.study_config import SamplerKind, SearchMethod, format_stud
 from optimizer.config.model_file import load_yaml
 
 REPO = Path(__file__).resolve().parents[2]
-STUDIES = sorted([REPO / "configs" / "quick_study.yaml", *(REPO / "studies").glob("*/study.yaml")])
+STUDIES = sorted([REPO / "configs" / "quick_study.yaml", REPO / "configs" / "landing_study.yaml",
+                  *(REPO / "studies").glob("*/study.yaml")])
 
 
 @pytest.mark.parametrize("path", STUDIES, ids=lambda p: str(p.relative_to(REPO)))
@@ -71,7 +72,16 @@ BAD = [
     ("search:\n  trails: 3\n", "search.trails: unknown key (did you mean 'trials'?"),
     ("scene: {speed: -1}\n", "scene.speed: must be > 0"),
     ("scene: {restitution: 1.5}\n", "scene.restitution: must be in [0, 1]"),
-    ("scene: {friction: 0.3}\n", "scene.friction: studies search frictionless landings only"),
+    ("scene: {friction: 0.3}\n", "scene.friction: first-impact studies search frictionless landings only"),
+    ("scene: {friction: -1}\n", "scene.friction: must be >= 0"),
+    ("scene: {gravity: -9.81}\n", "scene.gravity: must be >= 0"),
+    ("scene: {duration: 0}\n", "scene.duration: must be > 0"),
+    ("design_space: {joint_laws: {toe_root: {stiffness: [1, 2]}}}\n", "design_space.joint_laws: springs, dampers and stops act only over a whole landing"),
+    ("leg: {shank: {stiffness: 100}}\n", "leg.shank: springs, dampers and stops act only over a whole landing"),
+    ("design_space: {joint_laws: {toe_root: {stop: [0, 0.2]}}}\n", "design_space.joint_laws.toe_root.stop[0]: must be > 0"),
+    ("design_space: {joint_laws: {toe_root: {damping: [2, 1]}}}\n", "design_space.joint_laws.toe_root.damping: min 2"),
+    ("design_space: {joint_laws: {toe_tip: {damping: [1, 2]}}}\n", "design_space.joint_laws.toe_tip: unknown key"),
+    ("search: {landing_tolerance: 0}\n", "search.landing_tolerance: must be > 0"),
     ("leg: {thigh: {mass: 0}}\n", "leg.thigh.mass: must be > 0"),
     ("leg: {shank: {angle: up}}\n", "leg.shank.angle: must be a number, got 'up'"),
     ("design_space: {toes: [3, 1]}\n", "design_space.toes: min 3 is above max 1"),
@@ -106,6 +116,8 @@ def test_bad_values_name_their_path(text: str, message: str):
         ("objectives: [external_norm, speed]\n", "objectives[1]: must be one of external_norm"),
         ("objectives: [external_norm, external_norm]\n", "objectives[1]: 'external_norm' is listed twice"),
         ("- 1\n", "the top level: must be a mapping"),
+        ("objectives: [peak_external_norm]\n", "scene.duration: missing: the objective peak_external_norm"),
+        ("objectives: [settled_at]\nscene: {duration: 0.1}\n", "search.method: the objective settled_at needs the outer"),
     ],
 )
 def test_bad_objectives_and_top_level(text: str, message: str):

@@ -1,0 +1,131 @@
+"""Whole-landing studies: objectives over every impact of the landing, joint laws and the foot's
+reach in the design space, front files that ``footopt evaluate`` reproduces."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optimizer.cli.main import main
+from optimizer.config.study_config import load_study
+from optimizer.design_space import (
+    DesignSpace,
+    FootLimits,
+    FootShape,
+    JointLawSpace,
+    JointRanges,
+    Leg,
+    Objective,
+    Objectives,
+    assign_lengths,
+    foot_geometry,
+    design_from,
+)
+from optimizer.results.pareto import non_dominated
+from optimizer.search.outer import FamilyLaw, design_from_record, design_record, with_joint_laws
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: A landing study small enough for a test: 6 trials of a 0.02 s landing.
+TINY_LANDING_YAML = """\
+name: tiny_landing
+seed: 2
+scene: {speed: 2.0, restitution: 0.3, friction: 0.5, gravity: 9.81, duration: 0.02}
+leg: {shank: {stiffness: 150.0, damping: 3.0, limits: [-2.0, 0.0]}}
+design_space:
+  toes: [1, 2]
+  toe_segments: [1, 1]
+  joint_laws:
+    heel_root: {stiffness: [1.0, 20.0], damping: [0.05, 0.5], stop: [0.2, 0.6]}
+    toe_root: {stiffness: [1.0, 20.0], damping: [0.05, 0.5], stop: [0.2, 0.6]}
+constraints: {min_link_mass: 0.02}
+objectives: [peak_external_norm, energy_absorbed]
+search: {method: outer, trials: 6, startup_trials: 6, landing_tolerance: 1.0e-2}
+"""
+
+
+def test_energy_absorbed_is_maximised_and_the_rest_minimised():
+    assert Objective.ENERGY_ABSORBED.sign == -1.0
+    assert all(o.sign == 1.0 for o in Objective if o is not Objective.ENERGY_ABSORBED)
+    a = Objectives(1, 1, 1, 1, 1, peak_external_norm=2.0, energy_absorbed=0.9)
+    b = Objectives(1, 1, 1, 1, 1, peak_external_norm=2.0, energy_absorbed=0.5)
+    objs = (Objective.PEAK_EXTERNAL_NORM, Objective.ENERGY_ABSORBED)
+    scores = np.array([[o.score(x) for x in objs] for o in (a, b)])
+    assert list(non_dominated(scores)) == [0]  # the one absorbing more dominates
+    with pytest.raises(ValueError, match="settled_at: not evaluated"):
+        a.value(Objective.SETTLED_AT)
+
+
+def test_the_linear_program_meets_a_reach_target():
+    """Given a reach, the toes' mean heel-to-toe distance equals it and the tips stay level."""
+    leg, limits, shape = Leg(), FootLimits(), FootShape(2, 2)
+    angles = ((-0.6,), (0.9, -0.2), (1.1, -0.4))
+    masses = ((0.1,), (0.1, 0.1), (0.1, 0.1))
+    for reach in (0.15, 0.25, 0.35):
+        design = design_from(leg, angles, masses, limits, reach)
+        geo = foot_geometry(leg, design)
+        assert geo.reaches.mean() == pytest.approx(reach, abs=1e-9)
+        assert np.ptp(geo.tips[:, 1]) <= 1e-9
+    free = assign_lengths(leg, shape, angles, masses, limits)
+    assert free is not None  # without a target the program picks the reach itself
+
+
+def test_joint_laws_survive_the_trial_record():
+    design = design_from(Leg(), ((-0.6,), (0.9,)), ((0.2,), (0.3,)), FootLimits())
+    laws = {"heel_root": FamilyLaw(5.0, 0.2, 0.4), "heel_inner": FamilyLaw(), "toe_root": FamilyLaw(2.0, 0.1, None),
+            "toe_inner": FamilyLaw()}
+    sprung = with_joint_laws(design, laws)
+    assert sprung.heel[0].joint_law().limits == pytest.approx((-1.0, -0.2))
+    assert sprung.toes[0][0].joint_law().limits is None and sprung.toes[0][0].stiffness == 2.0
+    assert design_from_record(json.loads(json.dumps(design_record(sprung)))) == sprung
+    assert design_from_record(design_record(design)) == design
+
+
+def test_the_shipped_landing_study_searches_joint_laws():
+    config = load_study(REPO / "configs" / "landing_study.yaml")
+    assert config.whole_landing and config.scene.duration and config.scene.gravity > 0
+    assert not config.space.joint_laws.empty and config.leg.knee.stiffness > 0
+    assert config.space.joint_laws.ranges(FootShape(2, 2))[1][1] == config.space.joint_laws.toe_inner
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("landing_study")
+    study = folder / "tiny_landing.yaml"
+    study.write_text(TINY_LANDING_YAML, encoding="utf-8")
+    out = folder / "run"
+    assert main(["optimize", str(study), "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_a_landing_study_writes_landing_objectives_and_joint_laws(tiny_run: Path):
+    rows = list(csv.DictReader((tiny_run / "pareto.csv").open(encoding="utf-8")))
+    assert rows
+    for row in rows:
+        for name in ("peak_external_norm", "peak_internal_norm", "settled_at", "energy_absorbed"):
+            assert math.isfinite(float(row[name]))
+        assert float(row["peak_external_norm"]) >= float(row["external_norm"]) - 1e-12
+        assert 0.0 <= float(row["energy_absorbed"]) <= 1.0
+        assert float(row["heel.stiffness"]) > 0 and float(row["heel.stop"]) > 0
+    front = json.loads((tiny_run / "pareto.json").read_text(encoding="utf-8"))
+    assert front["objectives"] == ["peak_external_norm", "energy_absorbed"]
+
+
+def test_footopt_evaluate_reproduces_the_front(tiny_run: Path, capsys):
+    """Each Pareto design's model file, landed by ``footopt evaluate --tolerance`` (the study's),
+    gives the front's landing figures."""
+    rows = list(csv.DictReader((tiny_run / "pareto.csv").open(encoding="utf-8")))
+    for row in rows:
+        capsys.readouterr()
+        assert main(["evaluate", "--json", "--tolerance", "1e-2", str(tiny_run / row["model_file"])]) == 0
+        out = json.loads(capsys.readouterr().out)
+        assert out["model"] == "landing"
+        assert out["landing"]["peak_external_norm"] == pytest.approx(float(row["peak_external_norm"]), rel=1e-12)
+        assert out["landing"]["peak_internal_norm"] == pytest.approx(float(row["peak_internal_norm"]), rel=1e-12)
+        assert out["landing"]["energy_absorbed"] == pytest.approx(float(row["energy_absorbed"]), rel=1e-12)
