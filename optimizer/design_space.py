@@ -17,6 +17,8 @@ angles, every one of those is *linear* in the lengths and the ankle height, so
 :func:`assign_lengths` picks the lengths by a linear program: the foot that keeps every
 geometric inequality furthest inside its bounds (relative margin, capped), with each tip exactly
 on the ground line. The search then moves only the values that matter: joint angles and masses.
+Over a whole landing (gravity, springs, later impacts) lengths do matter: a whole-landing search
+also sets the toes' mean reach, which the linear program meets as one more equality.
 
 Conventions: SI units, radians, planar, x forward, y up, angles counter-clockwise; a joint angle
 is the child's angle relative to its parent (``MODEL_FORMAT.md``).

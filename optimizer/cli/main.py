@@ -30,6 +30,7 @@ from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
+from optimizer.errors import ConfigError
 from impulse_core.timedomain.landing import LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown
@@ -115,6 +116,11 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         help="draw the tree at touchdown with its impulses to PATH (.png or .svg); with several files, "
         "PATH gets '_<file stem>' before its suffix; a whole landing draws its impulses over time and the leg "
         "at each event",
+    )
+    p.add_argument(
+        "--animate",
+        metavar="PATH",
+        help="a whole landing as an animated GIF to PATH (.gif); with several files, PATH gets '_<file stem>'",
     )
     p.set_defaults(run=run_evaluate)
 
@@ -241,6 +247,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
             _error("--plot", f"{args.plot}: must end in {' or '.join(PLOT_SUFFIXES)}")
             return EXIT_USAGE
         plots = _plot_paths(Path(args.plot), files)
+    animations: dict[int, Path] = {}
+    if args.animate is not None:
+        if Path(args.animate).suffix.lower() != ".gif":
+            _error("--animate", f"{args.animate}: must end in .gif")
+            return EXIT_USAGE
+        animations = _plot_paths(Path(args.animate), files)
     options = _time_domain_options(args)
     if options is None:
         return EXIT_USAGE
@@ -269,11 +281,24 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 )
                 if not args.json:
                     print(f"plot: {plots[n]}")
+            if n in animations:
+                _animate(model, result, animations[n], quiet=args.json)
         except FootoptError as e:
             _error(file, str(e))
             status = EXIT_USAGE
         sys.stdout.flush()
     return status
+
+
+def _animate(model: ModelFile, result: Result, path: Path, quiet: bool) -> None:
+    """Write the landing's animation (ConfigError when the result is not a whole landing)."""
+    if not _is_landing(result):
+        raise ConfigError("--animate: only a whole landing moves (give scene.duration, or --model landing)")
+    from optimizer.report.landing_plot import animate_landing
+
+    animate_landing(model.tree, result.result, path, scene=model.scene)
+    if not quiet:
+        print(f"animation: {path}")
 
 
 def _is_landing(result: Result) -> bool:

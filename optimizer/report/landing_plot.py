@@ -12,6 +12,7 @@ from impulse_core.kinematics.spatial import PLANAR, dof_layout
 from impulse_core.model.terrain import height
 from impulse_core.model.tree import Scene, Tree
 from impulse_core.timedomain.landing import LandingResult
+from optimizer.errors import ConfigError
 from optimizer.report.plot import _GROUND, _plot_path, _save
 from optimizer.report.text import contact_names
 
@@ -77,3 +78,51 @@ def _draw_postures(ax, tree: Tree, result: LandingResult, scene: Scene) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title("the leg at the impacts (darker: later)")
+
+
+#: Frames of an animation (evenly spaced in time) and its frame rate.
+ANIMATION_FRAMES, ANIMATION_FPS = 100, 20
+
+
+def animate_landing(tree: Tree, result: LandingResult, path: str | Path, scene: Scene) -> Path:
+    """The landing as an animated GIF: the leg at ``ANIMATION_FRAMES`` evenly spaced times (the
+    last step's posture before each), the ground, and the time and impacts so far."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    path = Path(path)
+    if path.suffix.lower() != ".gif":
+        raise ConfigError(f"{path}: an animation is written as .gif (by its suffix)", path)
+    t_traj, q_traj = result.trajectory
+    times = np.linspace(0.0, result.duration, ANIMATION_FRAMES)
+    frames = [q_traj[min(int(np.searchsorted(t_traj, t, side="right")) - 1, len(q_traj) - 1)] for t in times]
+    points = np.vstack([np.vstack(posture(tree, q)) for q in frames])
+    lo, hi = points.min(axis=0) - 0.05, points.max(axis=0) + 0.05
+    fig, ax = plt.subplots(figsize=(6, 6 * (hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-9) + 0.5))
+    ground_x = np.linspace(lo[0], hi[0], 200)
+    ax.plot(ground_x, height(scene.terrain, ground_x), color=_GROUND, lw=1.5)
+    rods = [ax.plot([], [], "-", color="#4a6fa5", lw=2.5)[0] for _ in tree.bodies]
+    label = ax.set_title("")
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(min(lo[1], -0.02), hi[1])
+    ax.set_aspect("equal")
+    event_times = np.array([e.time for e in result.events])
+
+    def show(k: int) -> list:  # type: ignore[type-arg]
+        origins, tips = posture(tree, frames[k])
+        for rod, o, tip in zip(rods, origins, tips):
+            rod.set_data([o[0], tip[0]], [o[1], tip[1]])
+        label.set_text(f"t = {1e3 * times[k]:.1f} ms, {int(np.sum(event_times <= times[k]))} impacts")
+        return [*rods, label]
+
+    animation = FuncAnimation(fig, show, frames=len(frames), blit=False)
+    try:
+        animation.save(str(path), writer=PillowWriter(fps=ANIMATION_FPS))
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot write the animation ({e.strerror or e})", path) from None
+    finally:
+        plt.close(fig)
+    return path
