@@ -779,7 +779,8 @@ class DesignEvaluation:
 
 
 def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimits) -> DesignEvaluation:
-    """Impact, objectives and constraints of one design.
+    """Impact, objectives and constraints of one design (by the rung ``auto`` picks: the exact
+    Coulomb law when the scene has friction).
 
     Every chain tip is made to hit (``contacts: all``): whether they really touch at once is the
     ``touchdown`` constraint, measured on the geometry; the exported model files say
@@ -797,7 +798,7 @@ def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimi
         with np.errstate(all="ignore"):
             result = evaluate(tree, scene_all)
             newton = newton_impulses(tree, scene_all)
-    except (ArithmeticError, np.linalg.LinAlgError):
+    except (ArithmeticError, np.linalg.LinAlgError, NumericalError):
         return DesignEvaluation(design, None, constraint_values(leg, design, limits))
     if not (np.all(np.isfinite(newton)) and np.isfinite(result.external_norm) and np.isfinite(result.internal_norm)):
         return DesignEvaluation(design, None, constraint_values(leg, design, limits))

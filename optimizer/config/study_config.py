@@ -214,10 +214,10 @@ def _check_whole_landing(config: StudyConfig) -> None:
         )
     if landing:
         return
-    if config.scene.friction != 0.0:
+    if config.scene.friction != 0.0 and config.search.method is SearchMethod.INNER:
         raise ConfigError(
-            f"scene.friction: first-impact studies search frictionless landings only for now (0), got "
-            f"{config.scene.friction!r}; a whole-landing objective (e.g. peak_external_norm) takes friction"
+            f"scene.friction: the inner search optimises frictionless landings only (0), got "
+            f"{config.scene.friction!r}; search.method: outer takes friction (the exact Coulomb law per design)"
         )
     if not config.space.joint_laws.empty or config.leg.knee != Leg().knee:
         where = "design_space.joint_laws" if not config.space.joint_laws.empty else "leg.shank"

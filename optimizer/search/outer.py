@@ -44,6 +44,7 @@ from optimizer.design_space import (
     ToeSymmetry,
     constraint_values,
     design_from,
+    evaluate_design,
     evaluate_design_landing,
 )
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
@@ -347,11 +348,14 @@ def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[Des
     """Every design's objectives and constraint values: the impact of each kind of foot
     (:func:`optimizer.search.compiled.foot_kind`) from its compiled ``VALUE_OUTPUTS`` function,
     one batched C loop per kind, cached on disk; the geometry from :func:`constraint_values`.
-    A whole-landing study lands each design in full instead (:func:`evaluate_design_landing`)."""
+    A whole-landing study lands each design in full instead (:func:`evaluate_design_landing`), and
+    a study with friction solves each design's impact by the exact Coulomb law (:func:`evaluate_design`)."""
     if config.whole_landing:
         e = config.space.joint_laws.stop_restitution
         tol = config.search.landing_tolerance
         return [evaluate_design_landing(config.leg, d, config.scene, config.limits, e, tol) for d in designs]
+    if config.scene.friction > 0:  # the exact Coulomb law: not in the compiled (frictionless) model
+        return [evaluate_design(config.leg, d, config.scene, config.limits) for d in designs]
     out: list[DesignEvaluation | None] = [None] * len(designs)
     groups: dict[FootKind, list[int]] = {}
     for i, design in enumerate(designs):

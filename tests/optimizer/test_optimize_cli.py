@@ -175,3 +175,23 @@ def test_sqlite_storage_url(tmp_path: Path):
     assert load_study(out / "study.yaml").storage == url
     assert main(["optimize", str(study), "--out", str(out), "--quiet", "--trials", "6", "--storage", url]) == 0
     assert json.loads((out / "run.json").read_text())["finished_trials"] == 6
+
+
+def test_an_outer_study_with_friction_optimises_the_exact_coulomb_law(tmp_path: Path, capsys):
+    """scene.friction > 0: each design's impact by the exact friction rung; the front's model
+    files re-evaluate (footopt evaluate, auto = friction) to its objectives."""
+    from tests.optimizer.conftest import TINY_OUTER_YAML
+
+    study = tmp_path / "friction.yaml"
+    study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 8") + "scene: {friction: 0.6}\n", encoding="utf-8")
+    out = tmp_path / "run"
+    assert main(["optimize", str(study), "--out", str(out), "--quiet"]) == 0
+    rows = list(csv.DictReader((out / "pareto.csv").open(encoding="utf-8")))
+    assert rows
+    for row in rows:
+        capsys.readouterr()
+        assert main(["evaluate", "--json", str(out / row["model_file"])]) == 0
+        got = json.loads(capsys.readouterr().out)
+        assert got["model"] == "friction"
+        assert got["external_norm"] == pytest.approx(float(row["external_norm"]), rel=1e-9)
+        assert got["internal_norm"] == pytest.approx(float(row["internal_norm"]), rel=1e-9)

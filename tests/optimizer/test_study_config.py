@@ -72,7 +72,7 @@ BAD = [
     ("search:\n  trails: 3\n", "search.trails: unknown key (did you mean 'trials'?"),
     ("scene: {speed: -1}\n", "scene.speed: must be > 0"),
     ("scene: {restitution: 1.5}\n", "scene.restitution: must be in [0, 1]"),
-    ("scene: {friction: 0.3}\n", "scene.friction: first-impact studies search frictionless landings only"),
+    ("scene: {friction: 0.3}\n", "scene.friction: the inner search optimises frictionless landings only"),
     ("scene: {friction: -1}\n", "scene.friction: must be >= 0"),
     ("scene: {gravity: -9.81}\n", "scene.gravity: must be >= 0"),
     ("scene: {duration: 0}\n", "scene.duration: must be > 0"),
