@@ -26,6 +26,7 @@ from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw
 from impulse_core.timedomain.sequential import SequentialSettings
 from optimizer.analysis.bench import SCALING_SIZES
 from optimizer.cli.export import add_export
+from optimizer.cli.init import add_init
 from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
@@ -177,6 +178,7 @@ SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     add_optimize,
     add_pareto,
     add_export,
+    add_init,
 )
 
 

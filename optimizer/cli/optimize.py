@@ -32,7 +32,12 @@ def add_optimize(subparsers: argparse._SubParsersAction) -> None:
             "stopped when the same command is run again."
         ),
     )
-    p.add_argument("study", metavar="STUDY.yaml", help="the study file (see configs/quick_study.yaml)")
+    p.add_argument(
+        "study",
+        metavar="STUDY.yaml",
+        nargs="?",
+        help="the study file (see configs/quick_study.yaml); none: the quick study shipped with footopt",
+    )
     p.add_argument("--out", metavar="DIR", help="run directory (default: runs/<study name>)")
     p.add_argument(
         "--trials", type=int, metavar="N", help="outer search: finished trials to reach (default: the study's)"
@@ -64,12 +69,14 @@ def add_pareto(subparsers: argparse._SubParsersAction) -> None:
 
 def run_optimize(args: argparse.Namespace) -> int:
     """``footopt optimize``."""
+    from optimizer.cli.init import DEFAULT_STUDY, example_path
     from optimizer.config.study_config import SearchMethod, load_study, redact_url
 
+    study_file = args.study or str(example_path(DEFAULT_STUDY))
     try:
-        config = load_study(args.study)
+        config = load_study(study_file)
     except FootoptError as e:
-        _error(args.study, str(e))
+        _error(study_file, str(e))
         return EXIT_USAGE
     if args.trials is not None:
         if args.trials < 1:
@@ -81,7 +88,8 @@ def run_optimize(args: argparse.Namespace) -> int:
     if args.storage is not None:
         config = replace(config, storage=args.storage)
     run_dir = Path(args.out) if args.out else Path("runs") / config.name
-    resume = " ".join(shlex.quote(a) for a in ["footopt", "optimize", args.study, "--out", str(run_dir)])
+    words = ["footopt", "optimize", *([args.study] if args.study else []), "--out", str(run_dir)]
+    resume = " ".join(shlex.quote(a) for a in words)
     if args.storage is not None:
         resume += " --storage " + shlex.quote(redact_url(args.storage))
     return optimize(config, run_dir, force=args.force, quiet=args.quiet, resume=resume)
