@@ -11,7 +11,9 @@ A run directory holds (names fixed: outside checks read them):
 - ``designs/trial_<n>.yaml``: each Pareto design as a ``MODEL_FORMAT.md`` model file, and beside it
   ``trial_<n>.urdf`` and ``trial_<n>.xml`` (MJCF), the same design at its touchdown
   (:mod:`optimizer.results.export`);
-- ``front.png``: the front in the first two objectives, over every evaluated design.
+- ``front.png``: the front in the first two objectives, over every evaluated design;
+- ``report.html``: the same front as a self-contained page: each Pareto design's values, leg
+  drawing (``designs/trial_<n>.png``) and files a click away, the objectives table, the study.
 
 footopt never removes a file it did not write: a directory holding anything else is refused
 unless it is a run of the same study (then the run resumes) or ``force`` is given (then this
@@ -36,7 +38,7 @@ from typing import Any
 import numpy as np
 import optuna
 
-from impulse_core.evaluate import evaluate
+from impulse_core.evaluate import evaluate, touchdown_geometry
 from optimizer.config.model_file import ModelFile, Reference, dump_model_file
 from optimizer.config.study_config import StudyConfig, format_study, load_study
 from optimizer.design_space import (
@@ -51,19 +53,22 @@ from optimizer.design_space import (
 )
 from optimizer.errors import ConfigError
 from optimizer.results.export import ExportFormat, export_text
+from optimizer.report.html import REPORT_FILE, ReportPoint, write_report
+from optimizer.report.plot import plot_touchdown
 from optimizer.results.pareto import non_dominated
 from optimizer.search.outer import RecordedTrial, recorded_trials
 
 STUDY_FILE, STORAGE_FILE, RUN_FILE = "study.yaml", "study.journal", "run.json"
 CSV_FILE, JSON_FILE, PLOT_FILE, DESIGNS_DIR = "pareto.csv", "pareto.json", "front.png", "designs"
 #: Files footopt writes in a run directory (and may replace).
-OWN_FILES = (STUDY_FILE, STORAGE_FILE, RUN_FILE, CSV_FILE, JSON_FILE, PLOT_FILE)
+OWN_FILES = (STUDY_FILE, STORAGE_FILE, RUN_FILE, CSV_FILE, JSON_FILE, PLOT_FILE, REPORT_FILE)
 #: The objective columns of every front file: the first impact's, and the whole landing's when
 #: the study scores it (:func:`objective_columns`).
 OBJECTIVE_COLUMNS = tuple(o.value for o in Objective if not o.landing)
 LANDING_COLUMNS = tuple(o.value for o in Objective if o.landing)
 #: The files of one Pareto design in ``designs/``: its model file, then its exports.
-DESIGN_SUFFIXES = (".yaml", *(f.suffix for f in ExportFormat))
+DRAWING_SUFFIX = ".png"  # each Pareto design's leg at touchdown, beside its files
+DESIGN_SUFFIXES = (".yaml", *(f.suffix for f in ExportFormat), DRAWING_SUFFIX)
 #: Seconds after which the journal's lock file counts as left behind by a killed run.
 JOURNAL_LOCK_GRACE_S = 3
 
@@ -322,14 +327,41 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
         for fmt in ExportFormat:
             text = export_text(tree, scene, fmt, name=rel.stem)
             (run_dir / rel).with_suffix(fmt.suffix).write_text(text, encoding="utf-8")
+        title = f"trial {t.number} ({t.evaluation.design.shape.label})"
+        plot_touchdown(tree, touchdown_geometry(tree), result, run_dir / rel.with_suffix(DRAWING_SUFFIX), title, scene)
         points.append(FrontPoint(t.number, t.method, t.evaluation, rel))
     (run_dir / CSV_FILE).write_text(front_csv(config, points), encoding="utf-8")
     (run_dir / JSON_FILE).write_text(json.dumps(front_json(config, points), indent=2) + "\n", encoding="utf-8")
     if points:
         plot_front(run_dir / PLOT_FILE, config, trials, points)
-    else:  # no empty plot: the command says why nothing is shown
+        write_front_report(run_dir, config, trials, points)
+    else:  # no empty plot or page: the command says why nothing is shown
         (run_dir / PLOT_FILE).unlink(missing_ok=True)
+        (run_dir / REPORT_FILE).unlink(missing_ok=True)
     return points
+
+
+def write_front_report(run_dir: Path, config: StudyConfig, trials: list[RecordedTrial], points: list[FrontPoint]) -> Path:
+    """``report.html``: the front's page (:mod:`optimizer.report.html`)."""
+    names = [o.value for o in config.objectives]
+    columns = objective_columns(config)
+    front = {p.trial for p in points}
+
+    def xy(t: RecordedTrial) -> tuple[float, float]:
+        o = t.evaluation.objectives
+        return (o.value(config.objectives[0]), o.value(config.objectives[1])) if len(names) > 1 else (
+            float(t.number), o.value(config.objectives[0]))
+
+    others = [xy(t) for t in trials if t.evaluation.feasible and t.number not in front]
+    shown = []
+    for p in points:
+        ev = p.evaluation
+        values = {n: ev.objectives.value(Objective(n)) for n in names + [c for c in columns if c not in names]}
+        files = {"model file": p.model_file.as_posix()}
+        files |= {f.name.upper(): p.model_file.with_suffix(f.suffix).as_posix() for f in ExportFormat}
+        files["drawing"] = p.model_file.with_suffix(DRAWING_SUFFIX).as_posix()
+        shown.append(ReportPoint(p.trial, ev.design.shape.label, values, design_values(config, ev), files))
+    return write_report(run_dir / REPORT_FILE, config.name, names, shown, others, format_study(config))
 
 
 def design_values(config: StudyConfig, evaluation: DesignEvaluation) -> dict[str, float]:

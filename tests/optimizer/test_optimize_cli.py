@@ -108,7 +108,7 @@ def test_every_design_is_exported_and_pinocchio_gives_its_impulses(run: Path):
         assert np.linalg.norm(lam) == pytest.approx(float(row["external_norm"]), rel=1e-8)
         mj = mujoco.MjModel.from_xml_string(yaml.with_suffix(".xml").read_text())
         assert mj.body_mass.sum() == pytest.approx(sum(b.mass for b in model.tree.bodies), rel=1e-12)
-    assert sorted(p.suffix for p in (run / "designs").iterdir()) == sorted([".urdf", ".xml", ".yaml"] * len(rows(run)))
+    assert sorted(p.suffix for p in (run / "designs").iterdir()) == sorted([".png", ".urdf", ".xml", ".yaml"] * len(rows(run)))
 
 
 def test_pareto_command_prints_and_reexports(run: Path, capsys):
