@@ -37,6 +37,7 @@ from impulse_core.evaluate import ImpactResult, approach_velocity, compiled_mode
 from impulse_core.errors import NumericalError
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
+from optimizer.config.model_file import ModelFile
 from impulse_core.model.tree import Body, ContactSelection, Scene, Tree, design_vector
 
 #: A constraint value (see :class:`ConstraintValues`) up to this counts as met: room for float
@@ -826,9 +827,16 @@ def landing_scene(scene: Scene, limits: FootLimits) -> Scene:
     return replace(scene, selection=ContactSelection.LOWEST, contact_tolerance=limits.contact_tolerance)
 
 
+def design_model(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimits, stop_restitution: float = 0.0) -> ModelFile:
+    """The design's model file (its scene: :func:`landing_scene`; joint laws where any acts)."""
+    joints = foot_joint_laws(leg, design, stop_restitution)
+    laws = joints if any(not j.is_default for j in joints) else ()
+    return ModelFile(foot_tree(leg, design), landing_scene(scene, limits), joints=laws)
+
+
 #: A study's budget for one design's landing: a design that needs more impacts or finer steps
 #: than this is numerically too stiff (e.g. a millimetre rod with a damper) and its trial fails.
-STUDY_LANDING = LandingSettings(max_refinements=4, max_events=3000)
+STUDY_LANDING = LandingSettings(max_refinements=4, max_events=1000)
 
 
 def landing_objectives(result: LandingResult) -> Objectives:
@@ -897,6 +905,7 @@ __all__ = [
     "chain_names",
     "constraint_values",
     "design_from",
+    "design_model",
     "evaluate_design",
     "evaluate_design_landing",
     "landing_objectives",

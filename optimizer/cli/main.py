@@ -31,6 +31,7 @@ from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
+from optimizer.design_space import Objective
 from optimizer.errors import ConfigError
 from impulse_core.timedomain.landing import LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
@@ -117,6 +118,12 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         help="draw the tree at touchdown with its impulses to PATH (.png or .svg); with several files, "
         "PATH gets '_<file stem>' before its suffix; a whole landing draws its impulses over time and the leg "
         "at each event",
+    )
+    p.add_argument(
+        "--landings",
+        metavar="STUDY.yaml",
+        help="score each file over a study's landings (its landings: and statistic: blocks): each objective's "
+        "statistic over the scenarios (--json: an object with 'statistics')",
     )
     p.add_argument(
         "--animate",
@@ -255,6 +262,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
             _error("--animate", f"{args.animate}: must end in .gif")
             return EXIT_USAGE
         animations = _plot_paths(Path(args.animate), files)
+    if args.landings is not None:
+        return _evaluate_over_landings(args)
     options = _time_domain_options(args)
     if options is None:
         return EXIT_USAGE
@@ -289,6 +298,43 @@ def run_evaluate(args: argparse.Namespace) -> int:
             _error(file, str(e))
             status = EXIT_USAGE
         sys.stdout.flush()
+    return status
+
+
+def _evaluate_over_landings(args: argparse.Namespace) -> int:
+    """``footopt evaluate --landings STUDY.yaml MODEL.yaml...``: each file's statistics over the
+    study's landings (each scenario by the model ``auto`` picks)."""
+    from optimizer.config.study_config import load_study
+    from optimizer.evaluation.robust import evaluate_over_landings
+
+    try:
+        config = load_study(args.landings)
+    except FootoptError as e:
+        _error(args.landings, str(e))
+        return EXIT_USAGE
+    if config.landings is None:
+        _error("--landings", f"{args.landings}: the study has no landings: block")
+        return EXIT_USAGE
+    status = EXIT_OK
+    for file in args.files:
+        try:
+            robust = evaluate_over_landings(load_model_file(file), config.landings, config.statistic_of)
+        except FootoptError as e:
+            _error(file, str(e))
+            status = EXIT_USAGE
+            continue
+        failed = sum(r.objectives is None for r in robust.rows)
+        if robust.statistics is None:
+            _error(file, f"{failed} of {len(robust.rows)} landings failed numerically: no statistics")
+            status = max(status, EXIT_FAILURE)
+            continue
+        stats = dict(robust.statistics.items())
+        names = {k: config.statistic_of(Objective(k)).text for k in stats}
+        if args.json:
+            print(json.dumps({"file": file, "scenarios": len(robust.rows), "statistic": names, "statistics": stats}))
+        else:
+            print(f"{file}: over {len(robust.rows)} landings of {args.landings}")
+            print("\n".join(f"  {k:<22} {names[k]:<14} {v:.6g}" for k, v in stats.items()))
     return status
 
 

@@ -9,11 +9,14 @@ with defaults, is ``configs/quick_study.yaml``; :func:`format_study` writes a re
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from impulse_core.model.tree import Scene
 from optimizer.config.model_file import joint_law, load_yaml, read_text
@@ -34,6 +37,8 @@ from optimizer.design_space import (
     ToeSymmetry,
 )
 from optimizer.errors import ConfigError
+from optimizer.evaluation.scenarios import PARAMETERS, Distribution, DistributionKind, Landings
+from optimizer.evaluation.statistics import Statistic, parse_statistic
 
 
 class SearchMethod(Enum):
@@ -92,6 +97,8 @@ class StudyConfig:
         objectives: what to minimise (at least one; the first two span the plotted front).
         search: how to search.
         source: the file it was read from (not part of equality).
+        landings: a distribution of landings every design is scored over (None: the scene only).
+        statistic: per objective, its statistic over the landings (absent: the mean).
     """
 
     name: str
@@ -104,6 +111,12 @@ class StudyConfig:
     objectives: tuple[Objective, ...]
     search: SearchSettings
     source: Path | None = field(default=None, compare=False)
+    landings: Landings | None = None
+    statistic: tuple[tuple[Objective, Statistic], ...] = ()
+
+    def statistic_of(self, objective: Objective) -> Statistic:
+        """The statistic the study reports for ``objective`` over its landings (default mean)."""
+        return dict(self.statistic).get(objective, Statistic())
 
     @property
     def whole_landing(self) -> bool:
@@ -111,7 +124,9 @@ class StudyConfig:
         return any(o.landing for o in self.objectives)
 
 
-TOP_KEYS = ("name", "seed", "storage", "scene", "leg", "design_space", "constraints", "objectives", "search", "notes")
+TOP_KEYS = ("name", "seed", "storage", "scene", "leg", "design_space", "constraints", "objectives", "search", "notes",
+            "landings", "statistic")
+LANDINGS_KEYS = ("count", "seed", *PARAMETERS)
 SCENE_KEYS = ("speed", "restitution", "friction", "gravity", "duration")
 LEG_KEYS = ("thigh", "shank")
 ROD_KEYS = ("length", "mass", "angle")
@@ -197,9 +212,74 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
         objectives=objectives,
         search=_search(top.get("search", {})),
         source=source,
+        landings=None if top.get("landings") is None else _landings(top["landings"]),
+        statistic=_statistic(top.get("statistic", {})),
     )
     _check_whole_landing(config)
+    if config.landings is not None:
+        _check_landings(config, config.landings)
     return config
+
+
+def _check_landings(config: StudyConfig, landings: Landings) -> None:
+    """What the landings need of the rest of the study."""
+    if config.search.method is SearchMethod.INNER:
+        raise ConfigError("landings: a distribution of landings needs search.method: outer (the inner search's "
+                          "gradients of the statistics are not written yet)")
+    draws = dict(zip(landings.names, landings.draw().T, strict=True))
+    frictional = config.scene.friction > 0 or np.any(draws.get("friction", np.zeros(1)) > 0)
+    if "terrain_step" in draws and frictional and config.scene.duration is None:
+        raise ConfigError("landings.terrain_step: a step with friction needs scene.duration (the whole landing): "
+                          "the sequential model that lands on a step is frictionless")
+
+
+def _landings(data: Any) -> Landings:
+    m = _mapping(data, "landings", LANDINGS_KEYS)
+    count = _integer(m.get("count", 64), "landings.count", minimum=1)
+    if count > 100_000:
+        raise ConfigError(f"landings.count: at most 100000 scenarios, got {count}")
+    seed = _integer(m.get("seed", 0), "landings.seed", minimum=0)
+    given = tuple((name, _distribution(m[name], f"landings.{name}")) for name in PARAMETERS if name in m)
+    landings = Landings(count, seed, given)
+    _check_draws(landings)
+    return landings
+
+
+def _distribution(value: Any, where: str) -> Distribution:
+    """``{uniform: [lo, hi]}``, ``{normal: [mean, sd]}`` or a non-empty list of values."""
+    if isinstance(value, list):
+        if not value:
+            raise ConfigError(f"{where}: an empty list of values")
+        return Distribution(DistributionKind.VALUES, tuple(_number(x, f"{where}[{i}]") for i, x in enumerate(value)))
+    m = _mapping(value, where, ("uniform", "normal"))
+    if len(m) != 1:
+        raise ConfigError(f"{where}: must be {{uniform: [lo, hi]}}, {{normal: [mean, sd]}} or a list of values")
+    (kind, pair), = m.items()
+    a, b = (_number(x, f"{where}.{kind}[{i}]") for i, x in enumerate(_pair(pair, f"{where}.{kind}", "numbers")))
+    if kind == "uniform" and a > b:
+        raise ConfigError(f"{where}.uniform: lo {a!r} is above hi {b!r}")
+    if kind == "normal" and b < 0:
+        raise ConfigError(f"{where}.normal[1]: the standard deviation must be >= 0, got {b!r}")
+    return Distribution(DistributionKind(kind), (a, b))
+
+
+def _check_draws(landings: Landings) -> None:
+    """Every drawn landing must be a valid scene: speed > 0, restitution in [0, 1], friction >= 0."""
+    draws = landings.draw()
+    bounds = {"speed": (0.0, math.inf, False), "restitution": (0.0, 1.0, True), "friction": (0.0, math.inf, True)}
+    for j, name in enumerate(landings.names):
+        if name not in bounds:
+            continue
+        lo, hi, closed = bounds[name]
+        x = draws[:, j]
+        bad = x[(x < lo) | (x > hi) | ((x == lo) & (not closed))]
+        if bad.size:
+            raise ConfigError(f"landings.{name}: draws {bad[0]!r}, outside its range; narrow the distribution")
+
+
+def _statistic(data: Any) -> tuple[tuple[Objective, Statistic], ...]:
+    m = _mapping(data, "statistic", tuple(o.value for o in Objective))
+    return tuple((Objective(k), parse_statistic(v, f"statistic.{k}")) for k, v in m.items())
 
 
 def _check_whole_landing(config: StudyConfig) -> None:
@@ -416,8 +496,24 @@ def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
         f"    front_points: {se.front_points}",
         f"    starts: {se.starts}",
         f"  landing_tolerance: {f(se.landing_tolerance)}",
+        *_landings_lines(config),
     ]
     return "\n".join(lines) + "\n"
+
+
+def _landings_lines(config: StudyConfig) -> list[str]:
+    """``landings:`` and ``statistic:`` (nothing when the study has none)."""
+    lines = []
+    if config.landings is not None:
+        lines += ["landings:", f"  count: {config.landings.count}", f"  seed: {config.landings.seed}"]
+        for name, d in config.landings.distributions:
+            values = ", ".join(_float_text(v) for v in d.values)
+            text = f"[{values}]" if d.kind is DistributionKind.VALUES else f"{{{d.kind.value}: [{values}]}}"
+            lines.append(f"  {name}: {text}")
+    if config.statistic:
+        lines.append("statistic:")
+        lines += [f"  {o.value}: {_string_text(st.text)}" for o, st in config.statistic]
+    return lines
 
 
 def _knee_text(leg: Leg) -> str:

@@ -12,6 +12,8 @@ A run directory holds (names fixed: outside checks read them):
   ``trial_<n>.urdf`` and ``trial_<n>.xml`` (MJCF), the same design at its touchdown
   (:mod:`optimizer.results.export`);
 - ``front.png``: the front in the first two objectives, over every evaluated design;
+- ``scenarios.csv``, ``scenarios.png`` (a study with ``landings``): each front design on each
+  landing, and its distribution of each objective (:mod:`optimizer.results.scenarios`);
 - ``report.html``: the same front as a self-contained page: each Pareto design's values, leg
   drawing (``designs/trial_<n>.png``) and files a click away, the objectives table, the study.
 
@@ -39,7 +41,7 @@ import numpy as np
 import optuna
 
 from impulse_core.evaluate import evaluate, touchdown_geometry
-from optimizer.config.model_file import ModelFile, Reference, dump_model_file
+from optimizer.config.model_file import Reference, dump_model_file
 from optimizer.config.study_config import StudyConfig, format_study, load_study
 from optimizer.design_space import (
     CONSTRAINT_FIELDS,
@@ -47,7 +49,7 @@ from optimizer.design_space import (
     Objective,
     chain_names,
     foot_geometry,
-    foot_joint_laws,
+    design_model,
     foot_tree,
     landing_scene,
 )
@@ -56,12 +58,14 @@ from optimizer.results.export import ExportFormat, export_text
 from optimizer.report.html import REPORT_FILE, ReportPoint, write_report
 from optimizer.report.plot import plot_touchdown
 from optimizer.results.pareto import non_dominated
+from optimizer.results.scenarios import SCENARIOS_FILE, SCENARIOS_PLOT, write_scenarios
 from optimizer.search.outer import RecordedTrial, recorded_trials
 
 STUDY_FILE, STORAGE_FILE, RUN_FILE = "study.yaml", "study.journal", "run.json"
 CSV_FILE, JSON_FILE, PLOT_FILE, DESIGNS_DIR = "pareto.csv", "pareto.json", "front.png", "designs"
 #: Files footopt writes in a run directory (and may replace).
-OWN_FILES = (STUDY_FILE, STORAGE_FILE, RUN_FILE, CSV_FILE, JSON_FILE, PLOT_FILE, REPORT_FILE)
+OWN_FILES = (STUDY_FILE, STORAGE_FILE, RUN_FILE, CSV_FILE, JSON_FILE, PLOT_FILE, REPORT_FILE, SCENARIOS_FILE,
+             SCENARIOS_PLOT)
 #: The objective columns of every front file: the first impact's, and the whole landing's when
 #: the study scores it (:func:`objective_columns`).
 OBJECTIVE_COLUMNS = tuple(o.value for o in Objective if not o.landing)
@@ -321,8 +325,8 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
                 f"\nThe whole landing (scene.duration) at footopt evaluate --tolerance {config.search.landing_tolerance!r} "
                 "gives the front's landing figures."
             )
-        joints = foot_joint_laws(config.leg, t.evaluation.design, config.space.joint_laws.stop_restitution)
-        model = ModelFile(tree, scene, reference, joints=joints if any(not j.is_default for j in joints) else ())
+        model = replace(design_model(config.leg, t.evaluation.design, config.scene, config.limits,
+                                     config.space.joint_laws.stop_restitution), reference=reference)
         dump_model_file(model, run_dir / rel, header_comment=header)
         for fmt in ExportFormat:
             text = export_text(tree, scene, fmt, name=rel.stem)
@@ -332,6 +336,9 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
         points.append(FrontPoint(t.number, t.method, t.evaluation, rel))
     (run_dir / CSV_FILE).write_text(front_csv(config, points), encoding="utf-8")
     (run_dir / JSON_FILE).write_text(json.dumps(front_json(config, points), indent=2) + "\n", encoding="utf-8")
+    if points and config.landings is not None:
+        designs = [(p.model_file.stem, p.evaluation.design) for p in points]
+        write_scenarios(run_dir, config, objective_columns(config), designs)
     if points:
         plot_front(run_dir / PLOT_FILE, config, trials, points)
         write_front_report(run_dir, config, trials, points)

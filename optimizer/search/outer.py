@@ -44,9 +44,11 @@ from optimizer.design_space import (
     ToeSymmetry,
     constraint_values,
     design_from,
+    design_model,
     evaluate_design,
     evaluate_design_landing,
 )
+from optimizer.evaluation.robust import evaluate_over_landings
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
 
 #: User attributes every recorded trial carries.
@@ -350,6 +352,8 @@ def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[Des
     one batched C loop per kind, cached on disk; the geometry from :func:`constraint_values`.
     A whole-landing study lands each design in full instead (:func:`evaluate_design_landing`), and
     a study with friction solves each design's impact by the exact Coulomb law (:func:`evaluate_design`)."""
+    if config.landings is not None:
+        return [evaluate_design_over_landings(config, d) for d in designs]
     if config.whole_landing:
         e = config.space.joint_laws.stop_restitution
         tol = config.search.landing_tolerance
@@ -372,6 +376,16 @@ def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[Des
         for i, row in zip(rows, values, strict=True):
             out[i] = _evaluation(config, designs[i], dict(zip(VALUE_OUTPUTS, (float(v) for v in row), strict=True)))
     return [e for e in out if e is not None]
+
+
+def evaluate_design_over_landings(config: StudyConfig, design: FootDesign) -> DesignEvaluation:
+    """A design's statistics over the study's landings (each scenario as ``footopt evaluate`` on
+    its overridden model file); no objectives when a scenario fails. ``energy_gain``: the
+    nominal impact's."""
+    model = design_model(config.leg, design, config.scene, config.limits, config.space.joint_laws.stop_restitution)
+    assert config.landings is not None
+    robust = evaluate_over_landings(model, config.landings, config.statistic_of)
+    return DesignEvaluation(design, robust.statistics, constraint_values(config.leg, design, config.limits))
 
 
 def _evaluation(config: StudyConfig, design: FootDesign, values: dict[str, float]) -> DesignEvaluation:

@@ -1,0 +1,183 @@
+"""Robust studies: statistics against their definitions, the landings block validated, common
+random numbers, and scenarios.csv rows that ``footopt evaluate`` reproduces exactly."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from optimizer.cli.main import main
+from optimizer.config.model_file import load_model_file, load_yaml
+from optimizer.config.study_config import load_study, parse_study
+from optimizer.design_space import FootLimits, Leg, Objective, design_from, design_model
+from optimizer.errors import ConfigError
+from optimizer.evaluation.scenarios import Landings, apply_overrides, overrides
+from optimizer.evaluation.statistics import Statistic, StatisticKind, cvar, parse_statistic
+
+ROBUST_YAML = """\
+name: robust_tiny
+seed: 3
+design_space: {toes: [1, 2], toe_segments: [1, 2]}
+constraints: {min_link_mass: 0.02}
+objectives: [external_norm, internal_norm]
+search: {method: outer, trials: 8, startup_trials: 8}
+landings:
+  count: 7
+  seed: 5
+  speed: {uniform: [2.5, 4.0]}
+  velocity_x: {normal: [0.0, 0.3]}
+  pitch: {uniform: [-0.1, 0.1]}
+  angular_velocity: [-0.5, 0.0, 0.5]
+  restitution: {uniform: [0.5, 0.9]}
+  terrain_step: {uniform: [0.0, 0.01]}
+statistic: {external_norm: "cvar:0.8", internal_norm: "quantile:0.5", energy_after: std}
+"""
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_statistics_follow_their_definitions(seed):
+    rng = np.random.default_rng(seed)
+    x = rng.lognormal(size=int(rng.integers(3, 40)))
+    assert Statistic(StatisticKind.MEAN).of(x) == pytest.approx(x.sum() / x.size, rel=1e-14)
+    assert Statistic(StatisticKind.STD).of(x) == pytest.approx(np.sqrt(((x - x.mean()) ** 2).mean()), rel=1e-12)
+    assert Statistic(StatisticKind.MAX).of(x) == x.max()
+    for q in (0.0, 0.3, 0.75, 0.9):
+        assert Statistic(StatisticKind.QUANTILE, q).of(x) == pytest.approx(np.quantile(x, q), rel=1e-14)
+        t = np.linspace(x.min() - 1, x.max() + 1, 200001)  # Rockafellar-Uryasev by brute force over t
+        brute = np.min(t + np.maximum(0.0, x[None, :] - t[:, None]).sum(axis=1) / ((1 - q) * x.size))
+        assert cvar(x, q) == pytest.approx(brute, abs=1e-4 * (x.max() - x.min()))
+        assert cvar(x, q) <= brute + 1e-12  # the exact minimum is never above a sampled one
+
+
+def test_cvar_counts_the_boundary_scenario_fractionally():
+    """n = 4, q = 0.6: the worst 1.6 scenarios: the worst whole and 0.6 of the next."""
+    x = np.array([1.0, 2.0, 3.0, 10.0])
+    assert cvar(x, 0.6) == pytest.approx((10.0 + 0.6 * 3.0) / 1.6, rel=1e-14)
+    assert cvar(x, 0.0) == pytest.approx(x.mean(), rel=1e-14)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("median", "statistic.external_norm: must be one of mean, std, max, quantile:q or cvar:q"),
+        ("cvar", "statistic.external_norm: cvar needs a level"),
+        ("cvar:1", "statistic.external_norm: the level of cvar must be in [0, 1)"),
+        ("mean:0.3", "statistic.external_norm: mean takes no level"),
+    ],
+)
+def test_bad_statistics_name_their_path(text, message):
+    with pytest.raises(ConfigError, match=message.replace("[", r"\[").replace("(", r"\(").replace(")", r"\)")):
+        parse_statistic(text, "statistic.external_norm")
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        ("landings: {speed: {normal: [1.0, 2.0]}}", "landings.speed: draws"),
+        ("landings: {restitution: {uniform: [0.5, 1.5]}}", "landings.restitution: draws"),
+        ("landings: {speed: {uniform: [3, 2]}}", "landings.speed.uniform: lo 3.0 is above hi 2.0"),
+        ("landings: {speed: {gauss: [3, 1]}}", "landings.speed.gauss: unknown key"),
+        ("landings: {pitch: []}", "landings.pitch: an empty list"),
+        ("landings: {count: 0}", "landings.count: must be an integer >= 1"),
+        ("landings: {yaw: [0.1]}", "landings.yaw: unknown key"),
+        ("landings: {terrain_step: [0.01], friction: [0.5]}", "landings.terrain_step: a step with friction needs"),
+        ("statistic: {speed: mean}", "statistic.speed: unknown key"),
+    ],
+)
+def test_bad_landings_name_their_path(extra, message):
+    base = ROBUST_YAML.split("landings:")[0]
+    with pytest.raises(ConfigError) as info:
+        parse_study(load_yaml(base + extra + "\n"))
+    assert str(info.value).startswith(message), str(info.value)
+
+
+def test_landings_need_the_outer_search():
+    text = ROBUST_YAML.replace("method: outer", "method: inner")
+    with pytest.raises(ConfigError, match="landings: a distribution of landings needs search.method: outer"):
+        parse_study(load_yaml(text))
+
+
+def test_the_landings_block_round_trips(tmp_path):
+    from optimizer.config.study_config import format_study
+
+    config = parse_study(load_yaml(ROBUST_YAML))
+    again = tmp_path / "again.yaml"
+    again.write_text(format_study(config), encoding="utf-8")
+    assert load_study(again) == config
+    assert config.statistic_of(Objective.ENERGY_AFTER) == Statistic(StatisticKind.STD)
+    assert config.statistic_of(Objective.MAX_INTERNAL) == Statistic()
+
+
+def test_every_design_meets_the_same_landings():
+    """Common random numbers: two different feet get the same speeds, tilts, restitutions and
+    step heights (the step sits under each foot's own toes)."""
+    config = parse_study(load_yaml(ROBUST_YAML))
+    landings: Landings = config.landings
+    a = design_from(Leg(), ((-0.5,), (1.0,)), ((0.2,), (0.3,)), FootLimits())
+    b = design_from(Leg(), ((-0.9,), (0.6, 0.2)), ((0.1,), (0.2, 0.2)), FootLimits())
+    for values in landings.draw():
+        oa, ob = (overrides(design_model(Leg(), d, config.scene, FootLimits()), landings.names, values) for d in (a, b))
+        for key in ("scene.velocity", "scene.angular_velocity", "scene.restitution", "model.bodies.0.angle"):
+            assert oa[key] == ob[key]
+        assert oa["scene.terrain"][1][1] == ob["scene.terrain"][1][1] == values[landings.names.index("terrain_step")]
+    assert np.array_equal(landings.draw(), landings.draw())
+
+
+def test_overrides_follow_the_contract():
+    data = {"scene": {"speed": 3.0, "restitution": 0.8}, "model": {"bodies": [{"angle": -1.0}]}}
+    out = apply_overrides(data, {"scene.velocity": [0.3, -3.1], "model.bodies.0.angle": -1.2})
+    assert out == {"scene": {"velocity": [0.3, -3.1], "restitution": 0.8}, "model": {"bodies": [{"angle": -1.2}]}}
+    assert apply_overrides(out, {"scene.speed": 2.0})["scene"] == {"speed": 2.0, "restitution": 0.8}
+    assert data["scene"] == {"speed": 3.0, "restitution": 0.8}  # the input is left alone
+
+
+@pytest.fixture(scope="module")
+def robust_run(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("robust")
+    study = folder / "robust.yaml"
+    study.write_text(ROBUST_YAML, encoding="utf-8")
+    assert main(["optimize", str(study), "--out", str(folder / "run"), "--quiet"]) == 0
+    return folder / "run"
+
+
+def test_scenario_rows_are_reproduced_by_footopt_evaluate(robust_run: Path, tmp_path, capsys):
+    """Apply a row's overrides to the design's model file (as YAML data), run footopt evaluate:
+    the row's objectives come back exactly; the statistics of the rows are the front's values."""
+    rows = list(csv.DictReader((robust_run / "scenarios.csv").open(encoding="utf-8")))
+    front = {r["model_file"]: r for r in csv.DictReader((robust_run / "pareto.csv").open(encoding="utf-8"))}
+    assert len(rows) == 7 * len(front) > 0
+    for row in rows[:3] + rows[-2:]:
+        model = robust_run / "designs" / f"{row['design']}.yaml"
+        data = apply_overrides(yaml.safe_load(model.read_text(encoding="utf-8")), json.loads(row["overrides"]))
+        path = tmp_path / f"{row['design']}_{row['scenario']}.yaml"
+        path.write_text(yaml.safe_dump(data), encoding="utf-8")
+        capsys.readouterr()
+        assert main(["evaluate", "--json", str(path)]) == 0
+        got = json.loads(capsys.readouterr().out)
+        for key in ("external_norm", "internal_norm"):
+            assert got[key] == pytest.approx(float(row[key]), rel=1e-12, abs=1e-15), key
+    config = load_study(robust_run / "study.yaml")
+    for model_file, point in front.items():
+        mine = [r for r in rows if f"designs/{r['design']}.yaml" == model_file]
+        for objective in (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM, Objective.ENERGY_AFTER):
+            values = np.array([float(r[objective.value]) for r in mine])
+            expected = config.statistic_of(objective).of(values)
+            assert float(point[objective.value]) == pytest.approx(expected, rel=1e-9)
+
+
+def test_evaluate_landings_prints_the_statistics(robust_run: Path, capsys):
+    point = next(csv.DictReader((robust_run / "pareto.csv").open(encoding="utf-8")))
+    capsys.readouterr()
+    study = str(robust_run / "study.yaml")
+    assert main(["evaluate", "--json", "--landings", study, str(robust_run / point["model_file"])]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["statistic"]["external_norm"] == "cvar:0.8"
+    for key in ("external_norm", "internal_norm", "energy_after"):
+        assert got["statistics"][key] == pytest.approx(float(point[key]), rel=1e-12)
+    assert (robust_run / "scenarios.png").stat().st_size > 0
+    assert load_model_file(robust_run / point["model_file"]).scene.speed == 3.43  # the nominal file is untouched
