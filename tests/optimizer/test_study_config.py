@@ -15,6 +15,7 @@ from optimizer.config.model_file import load_yaml
 
 REPO = Path(__file__).resolve().parents[2]
 STUDIES = sorted([REPO / "configs" / "quick_study.yaml", REPO / "configs" / "landing_study.yaml",
+                  REPO / "configs" / "robust_study.yaml",
                   *(REPO / "studies").glob("*/study.yaml")])
 
 
