@@ -53,6 +53,14 @@ def add_optimize(subparsers: argparse._SubParsersAction) -> None:
         help="start over in a DIR that holds other files or another study's run: this run's own files (and the "
         "study in its storage) are replaced; other files are left alone",
     )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="outer search: N processes sharing the study's storage (default 1); several machines share a "
+        "PostgreSQL storage (--storage postgresql://...) by each running footopt optimize",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar and no front table")
     p.set_defaults(run=run_optimize)
 
@@ -87,15 +95,24 @@ def run_optimize(args: argparse.Namespace) -> int:
         config = replace(config, search=replace(config.search, trials=args.trials))
     if args.storage is not None:
         config = replace(config, storage=args.storage)
+    if args.workers < 1:
+        _error("--workers", f"must be >= 1, got {args.workers}")
+        return EXIT_USAGE
+    if args.workers > 1 and config.search.method is SearchMethod.INNER:
+        _error("--workers", "the inner search runs in one process (its shapes share one compiled model); "
+               "several workers need search.method: outer")
+        return EXIT_USAGE
     run_dir = Path(args.out) if args.out else Path("runs") / config.name
     words = ["footopt", "optimize", *([args.study] if args.study else []), "--out", str(run_dir)]
     resume = " ".join(shlex.quote(a) for a in words)
     if args.storage is not None:
         resume += " --storage " + shlex.quote(redact_url(args.storage))
-    return optimize(config, run_dir, force=args.force, quiet=args.quiet, resume=resume)
+    return optimize(config, run_dir, force=args.force, quiet=args.quiet, resume=resume, workers=args.workers)
 
 
-def optimize(config, run_dir: Path, force: bool = False, quiet: bool = False, resume: str | None = None) -> int:
+def optimize(
+    config, run_dir: Path, force: bool = False, quiet: bool = False, resume: str | None = None, workers: int = 1
+) -> int:
     """Run ``config`` into ``run_dir`` (the body of ``footopt optimize``); returns the exit status.
     ``resume`` is the command that resumes it (printed when interrupted)."""
     import optuna
@@ -123,8 +140,8 @@ def optimize(config, run_dir: Path, force: bool = False, quiet: bool = False, re
     except FootoptError as e:
         _error(str(run_dir), str(e))
         return EXIT_USAGE
-    except (ValueError, ImportError, RuntimeError) as e:  # a bad storage URL
-        _error("--storage", f"{config.storage}: {e}")
+    except (ValueError, ImportError, RuntimeError, OSError, _storage_errors()) as e:  # a bad or unreachable storage
+        _error("--storage", f"{config.storage}: {str(e).splitlines()[0] if str(e) else type(e).__name__}")
         return EXIT_USAGE
     write_study_file(run_dir, config)
     inner = config.search.method is SearchMethod.INNER
@@ -149,8 +166,10 @@ def optimize(config, run_dir: Path, force: bool = False, quiet: bool = False, re
     try:
         if inner:
             run_inner(study, config, progress)
-        else:
+        elif workers == 1:
             run_outer(study, config, config.search.trials, progress)
+        else:
+            run_workers(study, config, run_dir, workers, progress)
     except KeyboardInterrupt:
         status = EXIT_INTERRUPTED
     finally:
@@ -177,6 +196,38 @@ def optimize(config, run_dir: Path, force: bool = False, quiet: bool = False, re
         print(format_front(config, points), end="")
     print(f"{plural(len(points), 'Pareto design')} in {run_dir} ({wall:.1f} s)")
     return EXIT_OK
+
+
+def _storage_errors() -> type[Exception]:
+    """What an unreachable database storage raises (SQLAlchemy's errors, when it is installed)."""
+    try:
+        from sqlalchemy.exc import SQLAlchemyError
+    except ImportError:
+        return RuntimeError
+    return SQLAlchemyError
+
+
+def run_workers(study, config, run_dir: Path, workers: int, progress) -> None:  # type: ignore[no-untyped-def]
+    """``workers`` processes on one study: this one and ``workers - 1`` started here (each
+    :func:`optimizer.search.outer.run_worker`); trials RUNNING from a killed earlier run are marked
+    first. A Ctrl-C reaches every process of the terminal; each marks its own trials."""
+    import multiprocessing
+
+    from optimizer.search.outer import mark_interrupted, run_outer, run_worker
+
+    mark_interrupted(study)
+    context = multiprocessing.get_context("spawn")
+    others = [context.Process(target=run_worker, args=(config, str(run_dir), config.search.trials, workers))
+              for _ in range(workers - 1)]
+    for p in others:
+        p.start()
+    try:
+        run_outer(study, config, config.search.trials, progress, workers)
+    finally:
+        for p in others:
+            p.join()
+    if any(p.exitcode for p in others):
+        warn(f"{sum(1 for p in others if p.exitcode)} of {workers - 1} worker processes failed; resume to finish")
 
 
 def run_pareto(args: argparse.Namespace) -> int:

@@ -42,7 +42,7 @@ import optuna
 
 from impulse_core.evaluate import evaluate, touchdown_geometry
 from optimizer.config.model_file import Reference, dump_model_file
-from optimizer.config.study_config import StudyConfig, format_study, load_study
+from optimizer.config.study_config import StudyConfig, format_study, load_study, redact_url
 from optimizer.design_space import (
     CONSTRAINT_FIELDS,
     DesignEvaluation,
@@ -249,9 +249,9 @@ def write_run_file(run_dir: Path, config: StudyConfig, **extra: Any) -> Path:
         "seed": config.seed,
         "method": config.search.method.value,
         "sampler": config.search.sampler.value,
-        "storage": config.storage or STORAGE_FILE,
+        "storage": redact_url(config.storage) if config.storage else STORAGE_FILE,
         "versions": versions(),
-        "command": " ".join(sys.argv),
+        "command": " ".join(redact_url(a) for a in sys.argv),  # a storage URL's password never lands here
         **extra,
     }
     path = run_dir / RUN_FILE

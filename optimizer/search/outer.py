@@ -295,28 +295,40 @@ def run_outer(
     config: StudyConfig,
     trials: int,
     progress: Callable[[int, int], None] | None = None,
+    workers: int = 1,
 ) -> int:
     """Run trials until ``trials`` have finished (resuming counts what is there): ask for up to
-    ``OUTER_BATCH`` at once (the sampler reseeded before each ask from the study's seed and the
-    trial's place), evaluate their designs together (:func:`evaluate_designs`), tell each.
+    ``OUTER_BATCH`` at once, evaluate their designs together (:func:`evaluate_designs`), tell each.
+
+    One process (``workers`` 1) reseeds the sampler before each ask from the study's seed and the
+    trial's place, so a study run in one go or resumed asks the same questions. One of several
+    processes sharing the storage (``workers`` > 1, see :func:`run_worker`) reseeds from the
+    batch's first trial number instead (unique, so no two workers draw the same values), asks no
+    more than the trials not yet finished or in flight, shared out between the workers (at most
+    ``workers - 1`` trials beyond ``trials`` when they ask at the same moment), and leaves the
+    trials of the others alone.
 
     Args:
         study: from :func:`open_study`.
         config: the study.
         trials: target number of finished trials.
-        progress: called as ``progress(done, target)`` after each batch.
+        progress: called as ``progress(done, target)`` after each batch (done: by every process).
+        workers: processes sharing the study.
 
     Returns:
-        The number of trials run now.
+        The number of trials run by this process.
     """
-    mark_interrupted(study)
-    done = finished_trials(study)
-    ran = 0
+    if workers == 1:
+        mark_interrupted(study)
+    done, ran = finished_trials(study), 0
     while done < trials:
-        asked = []
-        for j in range(min(OUTER_BATCH, trials - done)):
-            study.sampler = make_sampler(config.search, trial_seed(config.seed, done + j))
-            asked.append(study.ask())
+        size = min(OUTER_BATCH, trials - done)
+        if workers > 1:
+            remaining = trials - done - in_flight(study)
+            if remaining <= 0:  # the other workers are finishing the last ones
+                break
+            size = min(size, max(1, remaining // workers))
+        asked = ask_batch(study, config, size, done, workers)
         try:
             evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked])
         except BaseException:
@@ -326,10 +338,43 @@ def run_outer(
             raise
         for trial, evaluation in zip(asked, evaluations, strict=True):
             tell(study, config, trial, evaluation)
-        done, ran = done + len(asked), ran + len(asked)
+        ran += len(asked)
+        done = done + len(asked) if workers == 1 else finished_trials(study)
         if progress is not None:
             progress(done, trials)
     return ran
+
+
+def ask_batch(study: optuna.Study, config: StudyConfig, size: int, done: int, workers: int) -> list[optuna.Trial]:
+    """Ask for ``size`` trials with the sampler seeded as :func:`run_outer` says."""
+    asked = []
+    for j in range(size):
+        if workers == 1:
+            study.sampler = make_sampler(config.search, trial_seed(config.seed, done + j))
+        asked.append(study.ask())
+    if workers > 1:  # suggestions are drawn after the asks: seed them by a number no other worker has
+        study.sampler = make_sampler(config.search, trial_seed(config.seed, asked[0].number))
+    return asked
+
+
+def in_flight(study: optuna.Study) -> int:
+    """Trials asked for and not yet told (by any process)."""
+    return len(study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)))
+
+
+def run_worker(config: StudyConfig, run_dir: str, trials: int, workers: int) -> int:
+    """One extra worker process of ``footopt optimize --workers``: opens the run's study (its
+    storage) and runs :func:`run_outer` in it; a Ctrl-C stops it quietly (its trials are marked)."""
+    import logging
+    from pathlib import Path
+
+    from optimizer.results.runs import storage_url  # here: the run folder module imports this one
+
+    optuna.logging.set_verbosity(logging.WARNING)
+    try:
+        return run_outer(open_study(config, storage_url(Path(run_dir), config)), config, trials, None, workers)
+    except KeyboardInterrupt:
+        return 0
 
 
 def tell(study: optuna.Study, config: StudyConfig, trial: optuna.Trial, evaluation: DesignEvaluation) -> FrozenTrial:
@@ -441,6 +486,7 @@ __all__ = [
     "record_attrs",
     "recorded_trials",
     "run_outer",
+    "run_worker",
     "suggest_design",
     "tell",
     "trial_seed",
