@@ -1,0 +1,134 @@
+"""``footopt drop``: a design dropped in MuJoCo, its impulses beside footopt's. Registered in
+:data:`optimizer.cli.main.SUBCOMMANDS`.
+
+MuJoCo's contacts are soft: the drop uses its direct contact parameters (``solref = (-k, -b)``,
+a constant impedance; :mod:`optimizer.validation.mujoco_bridge`) with footopt's compliant rung's
+law of the same stiffness, its time step and its impact window, so that the three columns are the
+rigid answer (what ``footopt evaluate`` reports), the compliant rung and MuJoCo. The two soft
+ones agree to MuJoCo's integration; both approach the rigid one as the stiffness grows.
+
+Exit status: 0 shown; 2 a bad file or option, or MuJoCo not installed (one line on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from impulse_core.errors import FootoptError, NumericalError
+from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact
+from optimizer.cli.status import EXIT_FAILURE, EXIT_OK, EXIT_USAGE, warn
+from optimizer.cli.status import error as _error
+from optimizer.report.text import contact_names, joint_names
+
+#: MuJoCo contact stiffness footopt drops with by default (1/s^2, mass-normalised): stiff enough
+#: for about 1 % from the rigid answer on the paper's feet (studies/fidelity/).
+DEFAULT_STIFFNESS = 1e8
+
+
+def add_drop(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "drop",
+        help="drop a design in MuJoCo and print its impulses beside footopt's",
+        description=(
+            "Drop a model file's leg in MuJoCo with the scene's approach (speed or velocity, angular velocity), "
+            "frictionless soft contacts of the given stiffness, and print each contact's normal impulse and each "
+            "joint's impulse: footopt's rigid answer, footopt's compliant rung with the same contact law, and "
+            "MuJoCo's, with the contact settings used. Needs the mujoco package (pip install mujoco)."
+        ),
+    )
+    p.add_argument("model", metavar="MODEL.yaml", help="a model file (a design from a run folder's designs/)")
+    p.add_argument("--stiffness", type=float, default=DEFAULT_STIFFNESS,
+                   help=f"MuJoCo's contact stiffness, 1/s^2 (solref -k; default {DEFAULT_STIFFNESS:g})")
+    p.add_argument("--json", action="store_true", help="one JSON object instead of the table")
+    p.set_defaults(run=run_drop)
+
+
+def run_drop(args: argparse.Namespace) -> int:
+    """``footopt drop``."""
+    from optimizer.config.model_file import load_model_file
+    from optimizer.evaluation.model_choice import evaluate_landing
+
+    try:
+        import mujoco  # noqa: F401 - only to say clearly when it is missing
+    except ImportError:
+        _error("footopt drop", "needs MuJoCo: pip install mujoco")
+        return EXIT_USAGE
+    if not (args.stiffness > 0 and np.isfinite(args.stiffness)):
+        _error("--stiffness", f"must be a finite number > 0 (1/s^2), got {args.stiffness}")
+        return EXIT_USAGE
+    try:
+        model = load_model_file(args.model)
+        scene = model.scene
+        if scene.friction > 0:
+            warn(f"{args.model}: scene.friction {scene.friction:g} is left out: MuJoCo's contacts here are frictionless")
+            from dataclasses import replace
+
+            scene = replace(scene, friction=0.0)
+        rigid = evaluate_landing(model.tree, replace_duration(scene), "auto")
+        record = drop_record(model.tree, scene, args.stiffness, rigid)
+    except NumericalError as e:
+        _error(args.model, f"numerical failure: {e}")
+        return EXIT_FAILURE
+    except FootoptError as e:
+        _error(args.model, str(e))
+        return EXIT_USAGE
+    print(json.dumps(record) if args.json else format_drop(args.model, record))
+    return EXIT_OK
+
+
+def replace_duration(scene):  # type: ignore[no-untyped-def]
+    """The scene of the first impact (a whole landing's duration dropped)."""
+    from dataclasses import replace
+
+    return replace(scene, duration=None)
+
+
+def drop_record(tree, scene, stiffness: float, rigid) -> dict:  # type: ignore[no-untyped-def]
+    """The three answers and the settings, as JSON-able data."""
+    from optimizer.validation.mujoco_bridge import drop
+
+    settings = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=stiffness, gravity=scene.gravity)
+    soft = simulate_impact(tree, scene, settings)
+    steps = int(round(soft.duration / soft.timestep))
+    mj = drop(tree, scene, settings, steps, soft.timestep)
+    b = float(np.mean(soft.damping))
+    return {
+        "contacts": list(contact_names(tree)),
+        "joints": list(joint_names(tree)),
+        "external": {"footopt": _floats(rigid.external), "compliant": _floats(soft.external),
+                     "mujoco": _floats(mj.external)},
+        "internal": {"footopt": _floats(rigid.internal_magnitude), "compliant": _floats(soft.internal_magnitude),
+                     "mujoco": _floats(mj.internal_magnitude)},
+        "settings": {"solref": [-stiffness, -b], "solimp_d": settings.impedance, "timestep": soft.timestep,
+                     "steps": steps, "window": soft.duration, "gravity": scene.gravity, "friction": 0.0,
+                     "rigid_model": _model_name(rigid)},
+    }
+
+
+def _model_name(result) -> str:  # type: ignore[no-untyped-def]
+    model = getattr(result, "model", None) or getattr(result, "impact_model", "auto")
+    return str(getattr(model, "value", model))
+
+
+def _floats(x) -> list[float]:  # type: ignore[no-untyped-def]
+    return [float(v) for v in np.asarray(x, dtype=float).ravel()]
+
+
+def format_drop(path: str, r: dict) -> str:
+    """The table: one row per contact and per joint, the three answers side by side."""
+    s = r["settings"]
+    lines = [f"{path} dropped in MuJoCo: solref ({s['solref'][0]:g}, {s['solref'][1]:.4g}), solimp d {s['solimp_d']:g}, "
+             f"timestep {s['timestep']:.3g} s x {s['steps']} steps ({1e3 * s['window']:.3g} ms), frictionless",
+             f"{'':<24}{'footopt (' + str(s['rigid_model']) + ')':>22}{'compliant':>14}{'MuJoCo':>14}"]
+    for kind, names in (("external", r["contacts"]), ("internal", r["joints"])):
+        lines.append(f"{kind} impulse (N s)")
+        for k, name in enumerate(names):
+            a, b, c = (r[kind][who][k] for who in ("footopt", "compliant", "mujoco"))
+            lines.append(f"  {name:<22}{a:>22.6g}{b:>14.6g}{c:>14.6g}")
+    return "\n".join(lines)
+
+
+__all__ = ["DEFAULT_STIFFNESS", "add_drop", "drop_record", "format_drop", "run_drop"]

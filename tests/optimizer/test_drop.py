@@ -1,0 +1,55 @@
+"""``footopt drop``: a design in MuJoCo beside footopt (its soft contacts of the same law as the
+compliant rung: they agree to MuJoCo's integration; both near the rigid answer at 1e8 1/s^2)."""
+
+from __future__ import annotations
+
+import builtins
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optimizer.cli.main import main
+
+REPO = Path(__file__).resolve().parents[2]
+pytest.importorskip("mujoco", reason="mujoco is a test dependency")
+
+
+@pytest.mark.parametrize("case", ["paper_case2", "paper_case3"])
+def test_mujoco_matches_the_compliant_rung_and_nears_the_rigid_answer(case, capsys):
+    assert main(["drop", str(REPO / "configs" / f"{case}.yaml"), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    ext, internal = r["external"], r["internal"]
+    assert len(ext["mujoco"]) == len(r["contacts"]) and len(internal["mujoco"]) == len(r["joints"])
+    mj, soft, rigid = (np.array(ext[k]) for k in ("mujoco", "compliant", "footopt"))
+    assert np.max(np.abs(mj - soft)) <= 1e-4 * np.max(soft)  # same law, same step: MuJoCo's own integration
+    assert np.max(np.abs(mj - rigid)) <= 1e-2 * np.max(rigid)  # 1e8 1/s^2 is near the rigid limit
+    assert r["settings"]["solref"][0] == -1e8 and r["settings"]["steps"] > 10
+
+
+def test_the_table_names_the_contact_settings(capsys):
+    assert main(["drop", str(REPO / "configs" / "paper_case2.yaml"), "--stiffness", "1e7"]) == 0
+    out = capsys.readouterr().out
+    assert "solref (-1e+07" in out and "heel[0]" in out and "MuJoCo" in out
+
+
+@pytest.mark.parametrize("args, where", [(["--stiffness", "-1"], "--stiffness"), ([], "nothere.yaml")])
+def test_bad_input_exits_2_naming_it(args, where, capsys, tmp_path):
+    model = str(tmp_path / "nothere.yaml") if not args else str(REPO / "configs" / "paper_case2.yaml")
+    assert main(["drop", model, *args]) == 2
+    err = capsys.readouterr().err
+    assert where in err and err.count("\n") == 1
+
+
+def test_without_mujoco_it_says_how_to_get_it(monkeypatch, capsys):
+    real_import = builtins.__import__
+
+    def no_mujoco(name, *a, **k):
+        if name == "mujoco":
+            raise ImportError("no mujoco")
+        return real_import(name, *a, **k)
+
+    monkeypatch.setattr(builtins, "__import__", no_mujoco)
+    assert main(["drop", str(REPO / "configs" / "paper_case2.yaml")]) == 2
+    assert "pip install mujoco" in capsys.readouterr().err
