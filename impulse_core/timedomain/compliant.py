@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import casadi as ca
@@ -541,6 +541,9 @@ class CompliantResult:
         timestep, n_steps, duration: the contact step, the number of contact steps, and the
             integrated time; n_flight_steps: Runge-Kutta steps of free flight between touchdowns.
         status: how it ended; law: the contact law; model: a one-line description.
+        steps_per_period: the discretisation of this run (None: a fixed ``timestep``).
+        error_estimate, tolerance: from :func:`simulate_to_tolerance` (relative difference from
+            the run at half the step), else None.
     """
 
     external: np.ndarray
@@ -574,6 +577,9 @@ class CompliantResult:
     status: CompliantStatus
     law: ContactLaw
     model: str
+    steps_per_period: float | None = None
+    error_estimate: float | None = None
+    tolerance: float | None = None
 
     @property
     def max_internal(self) -> float:
@@ -903,6 +909,37 @@ def simulate_impact(
     )
 
 
+def compliant_difference(a: CompliantResult, b: CompliantResult) -> float:
+    """Relative difference (``MODEL_FORMAT.md``: max |a_i - b_i| / max |b_i| per list, the largest
+    over the lists) of the external and internal impulses."""
+    worst = 0.0
+    for x, y in ((a.external, b.external), (a.internal_magnitude, b.internal_magnitude)):
+        scale = float(np.max(np.abs(y), initial=0.0))
+        if scale > 0:
+            worst = max(worst, float(np.max(np.abs(np.asarray(x) - np.asarray(y)))) / scale)
+    return worst
+
+
+def simulate_to_tolerance(
+    tree: Tree, scene: Scene, settings: CompliantSettings, tolerance: float, max_doublings: int = 7
+) -> CompliantResult:
+    """:func:`simulate_impact` with the steps per contact period doubled from ``settings``' until
+    two runs differ by at most ``tolerance`` (the method is first order, so that difference
+    estimates the finer run's error); the finer run, with the estimate. An unmet tolerance after
+    ``max_doublings``: the estimate says so (the caller warns)."""
+    n = settings.steps_per_period
+    previous = simulate_impact(tree, scene, settings)
+    error = math.inf
+    for _ in range(max_doublings):
+        n *= 2.0
+        current = simulate_impact(tree, scene, replace(settings, steps_per_period=n))
+        error = compliant_difference(current, previous)
+        previous = current
+        if error <= tolerance:
+            break
+    return replace(previous, steps_per_period=n, error_estimate=error, tolerance=tolerance)
+
+
 __all__ = [
     "TOUCHDOWN_CLEARANCE",
     "CompliantResult",
@@ -916,6 +953,8 @@ __all__ = [
     "dynamics_function",
     "scene_ground",
     "simulate_impact",
+    "simulate_to_tolerance",
+    "compliant_difference",
     "subtree_incidence",
     "subtree_masses",
     "touchdown_configuration",

@@ -111,7 +111,9 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help=f"--model landing (or auto with scene.duration): the error the landing must meet, relative, in its "
         f"peak impulses, total contact impulses and final angles (default {LandingSettings().tolerance:g}); the step "
-        "is halved until two runs agree to it, and the JSON reports the estimate as error_estimate",
+        "is halved until two runs agree to it, and the JSON reports the estimate as error_estimate; --model "
+        "compliant: the same for its external and internal impulses, its steps per contact period doubled from 120 "
+        "(unless --steps-per-period fixes them)",
     )
     p.add_argument(
         "--plot",
@@ -359,7 +361,7 @@ def _is_landing(result: Result) -> bool:
 
 def _time_domain_options(
     args: argparse.Namespace,
-) -> tuple[CompliantSettings, SequentialSettings, LandingSettings] | None:
+) -> tuple[CompliantSettings, SequentialSettings, LandingSettings, float | None] | None:
     """The settings of the time-domain models from ``--law``, ``--stiffness``,
     ``--steps-per-period`` and ``--gravity``; None (after one line on stderr) when an option is
     bad or does not apply to ``--model``."""
@@ -371,8 +373,12 @@ def _time_domain_options(
     if args.gravity is not None and args.model not in ("auto", *TIME_DOMAIN_MODELS):
         _error("--gravity", f"applies to --model sequential or compliant only: the {args.model} rung is instantaneous")
         return None
-    if args.tolerance is not None and args.model not in ("auto", LANDING):
-        _error("--tolerance", f"applies to --model landing (or auto with scene.duration), got --model {args.model}")
+    if args.tolerance is not None and args.model not in ("auto", LANDING, COMPLIANT):
+        _error("--tolerance", f"applies to --model landing or compliant (or auto with scene.duration), "
+               f"got --model {args.model}")
+        return None
+    if args.tolerance is not None and args.steps_per_period is not None:
+        _error("--tolerance", "give --tolerance (refined steps) or --steps-per-period (fixed steps), not both")
         return None
     tolerance = LandingSettings().tolerance if args.tolerance is None else args.tolerance
     if not (np.isfinite(tolerance) and tolerance > 0):
@@ -393,7 +399,8 @@ def _time_domain_options(
         name = str(e).split(":", 1)[0].removeprefix("compliant.").replace("_", "-")
         _error(f"--{name}", str(e).split(":", 1)[-1].strip())
         return None
-    return compliant, SequentialSettings(gravity=gravity), LandingSettings(tolerance=tolerance)
+    refine = tolerance if args.steps_per_period is None else None  # fixed steps when given
+    return compliant, SequentialSettings(gravity=gravity), LandingSettings(tolerance=tolerance), refine
 
 
 def _evaluate(
@@ -402,13 +409,16 @@ def _evaluate(
     compliant: CompliantSettings | None = None,
     sequential: SequentialSettings | None = None,
     whole: LandingSettings | None = None,
+    compliant_tolerance: float | None = None,
 ) -> Result | None:
     """The landing of one model file by the model named on the command line, or None when the
     numerics fail (overflow, a singular solve, a diverging integration): a status to report, not
     a traceback (the cause is printed once, as one line)."""
     with np.errstate(all="ignore"):
         try:
-            result = evaluate_landing(model.tree, model.scene, choice, compliant, sequential, model.joints, whole)
+            result = evaluate_landing(
+                model.tree, model.scene, choice, compliant, sequential, model.joints, whole, compliant_tolerance
+            )
         except (np.linalg.LinAlgError, NumericalError):
             return None
     return result if is_finite(result) else None

@@ -20,7 +20,13 @@ from impulse_core.evaluate import ImpactResult, approach_velocity, evaluate, pre
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.model.joints import JointLaw
-from impulse_core.timedomain.compliant import CompliantResult, CompliantSettings, ContactLaw, simulate_impact
+from impulse_core.timedomain.compliant import (
+    CompliantResult,
+    CompliantSettings,
+    ContactLaw,
+    simulate_impact,
+    simulate_to_tolerance,
+)
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from impulse_core.timedomain.sequential import SequentialResult, SequentialSettings, sequential_impacts
 
@@ -127,10 +133,12 @@ def evaluate_landing(
     sequential: SequentialSettings | None = None,
     joints: tuple[JointLaw, ...] = (),
     whole: LandingSettings | None = None,
+    compliant_tolerance: float | None = None,
 ) -> ImpactResult | TimeDomainResult:
     """The landing of ``tree`` as ``scene`` says, by ``model`` (one of :data:`MODEL_CHOICES`), the
     time-domain models with their settings (default: the modules' defaults). ``auto`` runs the
-    whole landing when the scene has a ``duration`` (with the joint laws ``joints``).
+    whole landing when the scene has a ``duration`` (with the joint laws ``joints``). The compliant
+    rung refines its steps to ``compliant_tolerance`` when given (else runs ``compliant`` as set).
 
     Raises:
         ModelError: a rigid rung on a terrain that is not flat, friction under a time-domain model
@@ -164,11 +172,16 @@ def evaluate_landing(
         result = sequential_impacts(tree, scene, settings)
     else:
         settings = _scene_gravity(compliant or CompliantSettings(), scene)
-        result = simulate_impact(tree, scene, settings)
+        if compliant_tolerance is None:
+            result = simulate_impact(tree, scene, settings)
+        else:
+            result = simulate_to_tolerance(tree, scene, settings, compliant_tolerance)
         unit = "N/m" if settings.law is ContactLaw.PENALTY else "1/s^2"
+        steps = result.steps_per_period or settings.steps_per_period
         notes.append(
             f"{settings.law.value} law, stiffness {settings.stiffness:g} {unit}, "
-            f"{settings.steps_per_period:g} steps per contact period (step {result.timestep:.3g} s)"
+            f"{steps:g} steps per contact period (step {result.timestep:.3g} s)"
+            + ("" if compliant_tolerance is None else f", refined to a tolerance of {compliant_tolerance:g}")
         )
     if settings.gravity:
         notes.append(f"gravity {settings.gravity:g} m/s^2")

@@ -145,12 +145,18 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
             f"{r.tolerance:g} at a Runge-Kutta step of {r.step:.3g} s (the contacts may chatter; the answer is "
             "the finest run)"
         )
-    if isinstance(r, CompliantResult):
+    if isinstance(r, CompliantResult) and r.error_estimate is None:
         out.append(
-            "the compliant rung does not estimate its time-discretisation error (first order in the step; 1.5e-3 to "
-            "5e-3 relative at the default 120 steps per contact period in studies/fidelity/README.md): raise "
-            "--steps-per-period to check a result"
+            "fixed steps (--steps-per-period): the time-discretisation error is not estimated (first order in the "
+            "step; 1.5e-3 to 5e-3 relative at 120 steps per contact period in studies/fidelity/README.md); "
+            "--tolerance refines the steps until it is met"
         )
+    elif isinstance(r, CompliantResult) and not r.error_estimate <= r.tolerance:
+        out.append(
+            f"the compliant rung did not meet its tolerance: error estimate {r.error_estimate:.3g} > {r.tolerance:g} "
+            f"at {r.steps_per_period:g} steps per contact period (the finest run is reported)"
+        )
+    if isinstance(r, CompliantResult):
         if r.recontacting:
             out.append(
                 f"contacts {', '.join(names[i] for i in r.recontacting)} head back to the ground after releasing: "
@@ -249,6 +255,10 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
                 "law": r.law.value,
                 "stiffness": _f(result.settings.stiffness),
                 "timestep": _f(r.timestep),
+                "steps_per_period": None if r.steps_per_period is None else _f(r.steps_per_period),
+                "error_estimate": None if r.error_estimate is None or not math.isfinite(r.error_estimate)
+                else _f(r.error_estimate),
+                "tolerance": None if r.tolerance is None else _f(r.tolerance),
             }
     record["reference"] = (
         None

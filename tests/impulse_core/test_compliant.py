@@ -348,3 +348,27 @@ def test_a_slow_landing_under_gravity_settles():
     assert abs(c.v_plus[1]) < 1e-4
     assert c.external[0] == pytest.approx(0.01 + g * c.duration, rel=2e-2)  # m v0 + m g T
     assert c.max_penetration[0] > g / k  # at least the static deflection
+
+
+def test_the_compliant_rung_meets_its_tolerance_and_estimates_its_error():
+    """simulate_to_tolerance at 1e-4 on the uneven-terrain example: its error against the limit of
+    the same model (Richardson from 30,720 and 61,440 steps per period) is below 2e-4, and its
+    estimate is that error within a factor of 2 (first order: the last difference)."""
+    from dataclasses import replace
+
+    from impulse_core.timedomain.compliant import CompliantSettings, simulate_impact, simulate_to_tolerance
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file("configs/uneven_terrain.yaml")
+    base = CompliantSettings(steps_per_period=120.0)
+    ours = simulate_to_tolerance(m.tree, m.scene, base, 1e-4)
+    fine, finer = (simulate_impact(m.tree, m.scene, replace(base, steps_per_period=n)) for n in (30720.0, 61440.0))
+    errors = []
+    for a, b, c in ((ours.external, fine.external, finer.external),
+                    (ours.internal_magnitude, fine.internal_magnitude, finer.internal_magnitude)):
+        limit = 2 * c - b
+        errors.append(np.max(np.abs(a - limit)) / np.max(np.abs(limit)))
+    true_error = max(errors)
+    assert ours.error_estimate <= 1e-4 and true_error <= 2e-4
+    assert 0.5 * true_error <= ours.error_estimate <= 2.0 * true_error
+    assert ours.steps_per_period > 120.0 and ours.tolerance == 1e-4

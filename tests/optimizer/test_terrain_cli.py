@@ -214,9 +214,11 @@ def test_contact_law_choices_match_the_library() -> None:
     assert ContactLaw(args.law) is ContactLaw.PENALTY and args.steps_per_period is None
 
 
-def test_the_compliant_rung_says_its_error_is_not_estimated(capsys) -> None:
-    """No tolerance yet (issue #12): the JSON's warnings say so instead of keeping quiet."""
+def test_the_compliant_rung_meets_its_default_tolerance(capsys) -> None:
+    """Without --steps-per-period the compliant rung refines its steps to the default 1e-3 and
+    reports its estimate; with fixed steps the warnings say the error is not estimated."""
     assert main(["evaluate", "--json", "--model", "compliant", str(ROOT / "configs" / "uneven_terrain.yaml")]) == 0
     record = json.loads(capsys.readouterr().out)
     assert record["model"] == "compliant"
-    assert any("does not estimate its time-discretisation error" in w for w in record["warnings"])
+    assert record["tolerance"] == 1e-3 and record["error_estimate"] <= 1e-3
+    assert not any("not estimated" in w for w in record["warnings"])
