@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,11 +14,8 @@ import pytest
 from optimizer.cli.main import main
 from optimizer.config.study_config import load_study
 from optimizer.design_space import (
-    DesignSpace,
     FootLimits,
     FootShape,
-    JointLawSpace,
-    JointRanges,
     Leg,
     Objective,
     Objectives,
