@@ -21,7 +21,7 @@ from impulse_core.timedomain.landing import LandingResult
 from optimizer.config.model_file import ModelFile
 from optimizer.design_space import Objective, Objectives, landing_objectives, objectives
 from optimizer.evaluation.model_choice import evaluate_landing
-from optimizer.evaluation.scenarios import Landings, overrides, scenario_model
+from optimizer.evaluation.scenarios import Landings, model_data, overrides, scenario_model
 from optimizer.evaluation.statistics import Statistic
 
 
@@ -65,10 +65,10 @@ def evaluate_over_landings(
     model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic]
 ) -> RobustEvaluation:
     """``model`` on every scenario of ``landings``, and the statistics."""
-    rows = []
+    rows, data = [], model_data(model)
     for k, values in enumerate(landings.draw()):
         changes = overrides(model, landings.names, values)
-        rows.append(ScenarioRow(k, changes, scenario_objectives(scenario_model(model, changes))))
+        rows.append(ScenarioRow(k, changes, scenario_objectives(scenario_model(data, changes))))
     scored = [r.objectives for r in rows if r.objectives is not None]
     stats = statistics_of(scored, statistic) if len(scored) == len(rows) and scored else None
     return RobustEvaluation(tuple(rows), stats)

@@ -106,9 +106,15 @@ def apply_overrides(data: dict[str, Any], changes: dict[str, Any]) -> dict[str, 
     return out
 
 
-def scenario_model(model: ModelFile, changes: dict[str, Any]) -> ModelFile:
-    """``model`` with ``changes`` applied to its file's data (as an outside check would)."""
-    return parse_model(apply_overrides(load_yaml(format_model_file(model)), changes))
+def model_data(model: ModelFile) -> dict[str, Any]:
+    """``model``'s file as data (what :func:`scenario_model` overrides; read once per design)."""
+    return load_yaml(format_model_file(model))
+
+
+def scenario_model(data: dict[str, Any], changes: dict[str, Any]) -> ModelFile:
+    """The model of file data ``data`` (:func:`model_data`) with ``changes`` applied, as an outside
+    check would apply them to the file."""
+    return parse_model(apply_overrides(data, changes))
 
 
 __all__ = [
@@ -117,6 +123,7 @@ __all__ = [
     "DistributionKind",
     "Landings",
     "apply_overrides",
+    "model_data",
     "overrides",
     "scenario_model",
 ]
