@@ -19,7 +19,8 @@ Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
 * A touchdown or a stop is an impact by the same law as the first impact
   (``impulse_core.impact.coulomb``: Newton's restitution with exact Coulomb friction) over every
   contact that touches and every joint on a stop; an approach slower than
-  :data:`PLASTIC_SPEED` is plastic (e = 0) and the row rests from then on. After every event the
+  :data:`PLASTIC_SPEED` is plastic (e = 0), as is one whose rebound the row's free acceleration
+  would end within :data:`MIN_BOUNCE` of the duration, and the row rests from then on. After every event the
   modes are chosen by the same LCP at the acceleration level (e = 0; sliding contacts keep their
   direction).
 
@@ -55,6 +56,10 @@ from impulse_core.timedomain.compliant import (
 MODEL_NAME = "landing"
 #: An impact approaching slower than this (m/s at a contact, rad/s at a stop) is plastic.
 PLASTIC_SPEED = 1e-4
+#: A rebound that the row's free acceleration would end within this fraction of the landing's
+#: duration is plastic too: a contact driven into the ground (a fast-spinning light rod, a stiff
+#: spring) would otherwise chatter at nanosecond intervals without end.
+MIN_BOUNCE = 1e-6
 #: The landing has settled once every generalized velocity stays below this.
 SETTLE_SPEED = 1e-3
 #: Events after which the landing is abandoned (a chattering contact).
@@ -636,6 +641,7 @@ class _Landing:
         u = rows.G @ v
         e = np.where(rows.contact >= 0, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
         e = np.where(-u[: rows.n] > PLASTIC_SPEED, e, 0.0)
+        e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < MIN_BOUNCE * self.scene.duration, 0.0, e)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
         sol = solve_unilateral(rows.G @ minv_gt, u, rows.owner, e, rows.mu)
         lam = np.concatenate([sol.normal, sol.tangential])
@@ -661,6 +667,13 @@ class _Landing:
             energy_before=float(v @ pt.M @ v) / 2, energy_after=float(v_plus @ pt.M @ v_plus) / 2,
         )
         return v_plus, event, new
+
+    def bounce_time(self, pt: _Point, rows: _Rows, rebound: np.ndarray) -> np.ndarray:
+        """Per normal row: how long a rebound at speed ``rebound`` would last before the row's
+        free acceleration (springs, gravity, spin) brings it back (inf where it pulls away)."""
+        free = rows.G[: rows.n] @ np.linalg.solve(pt.M, pt.f) + rows.b[: rows.n]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(free < 0, 2.0 * rebound / -free, np.inf)
 
     def stops_touching(self, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """Per DOF: the stop it rests on or has reached (-1 lower, +1 upper), else 0."""
@@ -951,6 +964,7 @@ def landing(
 __all__ = [
     "MAX_EVENTS",
     "MODEL_NAME",
+    "MIN_BOUNCE",
     "PLASTIC_SPEED",
     "SETTLE_SPEED",
     "LandingEvent",

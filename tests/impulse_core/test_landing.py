@@ -62,6 +62,23 @@ def test_vertical_rod_bounces_as_derived_by_hand():
     assert r.final_angles[0] == pytest.approx(-math.pi / 2, abs=1e-12)
 
 
+def test_a_rebound_shorter_than_min_bounce_is_plastic():
+    """Under strong gravity (g = 2000 m/s^2, T = 0.3 s) a bounce that gravity ends within
+    MIN_BOUNCE * T is plastic: the rod bounces while 2 e v_k / g >= MIN_BOUNCE T, then rests at
+    the first impact below (before the plastic speed would end it)."""
+    from impulse_core.timedomain.landing import MIN_BOUNCE
+
+    m, v0, e, T, g = 2.0, 1.5, 0.5, 0.3, 2000.0
+    r = _Landing(_rod(m), Scene(speed=v0, restitution=e, gravity=g, duration=T), (), LandingSettings()).run(1e-3)
+    approach = v0 * e ** np.arange(40)
+    elastic = (approach > PLASTIC_SPEED) & (2 * e * approach / g >= MIN_BOUNCE * T)
+    n = int(np.argmin(elastic))  # the first plastic one
+    assert approach[n] > PLASTIC_SPEED  # the new rule, not the plastic speed, ends the bouncing here
+    assert len(r.events) == n + 1
+    assert r.events[-1].v_plus[1] == 0.0  # plastic
+    assert r.events[-2].v_plus[1] == pytest.approx(e * approach[n - 1], rel=1e-2)  # located 0.1-0.2 gap tolerances deep
+
+
 CASE3 = "configs/paper_case3.yaml"
 
 
