@@ -8,9 +8,12 @@ are escaped, never pasted into text); the callers write the files. What the file
   inertia tensor about it (``impulse_core.model.rods``); a slender rod has no inertia about its own
   axis, written as :data:`INERTIA_FLOOR` (MuJoCo, and a floating base's mass matrix, need it
   positive; planar motion never turns a rod about its own axis, so the impulses do not change);
-- one joint per other rod, named as the rod: revolute about z (URDF ``continuous``: the model has
-  no limits) or fixed; each joint's origin holds the rod's touchdown angle, so that the zero
-  configuration is the touchdown posture;
+- one joint per other rod, named as the rod: revolute about z (URDF ``continuous``, or
+  ``revolute`` with its stops as limits) or fixed; each joint's origin holds the rod's touchdown
+  angle, so that the zero configuration is the touchdown posture; a joint law (stops, spring,
+  damper) is carried over where the format has it, relative to that zero: URDF ``<limit>`` and
+  ``<dynamics damping>`` (URDF has no springs: the file says so), MJCF ``range``, ``stiffness``,
+  ``springref`` and ``damping``; a stop's restitution has no counterpart (the file says so);
 - a floating base whose zero pose is the touchdown pose (base origin above ``scene.base_x``,
   lowered until its first contact touches the scene's ground): MJCF, a ``freejoint`` on the base
   body placed there; URDF, the root link (to be loaded with a free-flyer), whose frame is then the
@@ -38,6 +41,7 @@ from impulse_core.model.rods import (
     joint_origin,
     rotation_z,
 )
+from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, JointKind, Scene, Tree
 from impulse_core.timedomain.compliant import scene_ground, touchdown_configuration
 from optimizer.errors import ConfigError
@@ -48,6 +52,8 @@ INERTIA_FLOOR = 1e-9
 GRAVITY = 9.81
 #: Radius of the rods' visual cylinders and capsules (m): drawing only, no mass, no collision.
 VISUAL_RADIUS = 0.005
+#: URDF's effort and velocity limits of a joint with stops (the model has no motors: unbounded).
+UNBOUNDED = 1e9
 #: Characters XML 1.0 cannot hold (control characters other than tab and line breaks, and non-characters).
 _NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
 
@@ -90,22 +96,36 @@ def base_pose(tree: Tree, scene: Scene) -> tuple[np.ndarray, float]:
     return np.array([q[0], q[1], 0.0]), float(q[2])
 
 
-def export_text(tree: Tree, scene: Scene, fmt: ExportFormat, name: str = "footopt") -> str:
-    """The description of ``tree`` at its touchdown in ``scene``, in ``fmt``."""
-    return to_urdf(tree, scene, name) if fmt is ExportFormat.URDF else to_mjcf(tree, scene, name)
+def export_text(
+    tree: Tree, scene: Scene, fmt: ExportFormat, name: str = "footopt", joints: tuple[JointLaw, ...] = ()
+) -> str:
+    """The description of ``tree`` (and its joint laws) at its touchdown in ``scene``, in ``fmt``."""
+    if fmt is ExportFormat.URDF:
+        return to_urdf(tree, scene, name, joints)
+    return to_mjcf(tree, scene, name, joints=joints)
+
+
+def _law(joints: tuple[JointLaw, ...], i: int) -> JointLaw:
+    return joints[i] if joints else FREE
+
+
+def _relative(law: JointLaw, angle: float) -> tuple[tuple[float, float] | None, float]:
+    """The law's stops and spring rest relative to the touchdown angle (the exported zero)."""
+    limits = None if law.limits is None else (law.limits[0] - angle, law.limits[1] - angle)
+    return limits, 0.0 if law.rest is None else law.rest - angle
 
 
 # --------------------------------------------------------------------------------------------
 # URDF
 
 
-def to_urdf(tree: Tree, scene: Scene, name: str = "footopt") -> str:
+def to_urdf(tree: Tree, scene: Scene, name: str = "footopt", joints: tuple[JointLaw, ...] = ()) -> str:
     """The URDF of ``tree``: load it with a free-flyer root joint (Pinocchio:
     ``pin.buildModelFromXML(text, pin.JointModelFreeFlyer())``); ``pin.neutral(model)`` is then
     the touchdown pose, and the free-flyer's velocity that of the world frame's origin."""
     check_names(tree)
     robot = ET.Element("robot", name=_xml_safe(name))
-    robot.append(ET.Comment(_note(tree, scene, ExportFormat.URDF)))
+    robot.append(ET.Comment(_note(tree, scene, ExportFormat.URDF, joints)))
     base = base_pose(tree, scene)
     # each rod's frame in its link's frame: the base rod's in the root link (the world at touchdown)
     frames = [base if b.parent is None else (np.zeros(3), 0.0) for b in tree.bodies]
@@ -113,9 +133,12 @@ def to_urdf(tree: Tree, scene: Scene, name: str = "footopt") -> str:
         b = tree.bodies[i]
         robot.append(_urdf_link(b, *frames[i]))
         if b.parent is not None:
-            kind = "continuous" if b.joint is JointKind.REVOLUTE else "fixed"
+            law = _law(joints, i)
+            kind = "fixed" if b.joint is not JointKind.REVOLUTE else "continuous" if law.limits is None else "revolute"
             placed = _placed(frames[b.parent], joint_origin(tree, i), b.angle)
-            robot.append(_urdf_joint(b.name, kind, tree.bodies[b.parent].name, b.name, *placed))
+            joint = _urdf_joint(b.name, kind, tree.bodies[b.parent].name, b.name, *placed)
+            _urdf_law(joint, law, b.angle)
+            robot.append(joint)
         for k in range(len(b.contacts)):
             frame = contact_frame_name(b, k)
             robot.append(ET.Element("link", name=frame))
@@ -158,24 +181,38 @@ def _urdf_joint(name: str, kind: str, parent: str, child: str, xyz: np.ndarray, 
     return joint
 
 
+def _urdf_law(joint: ET.Element, law: JointLaw, angle: float) -> None:
+    """Stops as ``<limit>`` (effort and velocity unbounded: the model has no motors), the damper as
+    ``<dynamics>``."""
+    limits, _ = _relative(law, angle)
+    if limits is not None:
+        ET.SubElement(joint, "limit", lower=_f(limits[0]), upper=_f(limits[1]), effort=_f(UNBOUNDED),
+                      velocity=_f(UNBOUNDED))
+    if law.damping:
+        ET.SubElement(joint, "dynamics", damping=_f(law.damping), friction="0.0")
+
+
 # --------------------------------------------------------------------------------------------
 # MJCF
 
 
-def to_mjcf(tree: Tree, scene: Scene, name: str = "footopt", gravity: float = GRAVITY) -> str:
+def to_mjcf(
+    tree: Tree, scene: Scene, name: str = "footopt", gravity: float = GRAVITY, joints: tuple[JointLaw, ...] = ()
+) -> str:
     """The MJCF of ``tree``: ``qpos0`` is the touchdown pose; gravity ``gravity`` (m/s^2) along -y."""
     check_names(tree)
     root = ET.Element("mujoco", model=_xml_safe(name))
-    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF)))
+    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints)))
     ET.SubElement(root, "compiler", angle="radian")
     ET.SubElement(root, "option", gravity=_xyz((0.0, -gravity, 0.0)))
     origin, angle = base_pose(tree, scene)
-    _mjcf_body(ET.SubElement(root, "worldbody"), tree, 0, origin, angle, children(tree))
+    _mjcf_body(ET.SubElement(root, "worldbody"), tree, 0, origin, angle, children(tree), joints)
     return _text(root, declaration=False)
 
 
 def _mjcf_body(
-    parent: ET.Element, tree: Tree, i: int, pos: np.ndarray, angle: float, kids: tuple[tuple[int, ...], ...]
+    parent: ET.Element, tree: Tree, i: int, pos: np.ndarray, angle: float, kids: tuple[tuple[int, ...], ...],
+    joints: tuple[JointLaw, ...] = (),
 ) -> None:
     """Body ``i`` (and its subtree) inside ``parent``, its frame at ``pos`` turned by ``angle`` about z."""
     b = tree.bodies[i]
@@ -184,7 +221,7 @@ def _mjcf_body(
     if b.parent is None:
         ET.SubElement(body, "freejoint", name=b.name)
     elif b.joint is JointKind.REVOLUTE:
-        ET.SubElement(body, "joint", name=b.name, type="hinge", axis="0 0 1")
+        ET.SubElement(body, "joint", name=b.name, type="hinge", axis="0 0 1", **_mjcf_law(_law(joints, i), b.angle))
     inertia = np.diag(inertia_tensor(b, INERTIA_FLOOR))  # principal axes = body axes
     ET.SubElement(body, "inertial", pos=_xyz(centre_of_mass(b)), mass=_f(b.mass), diaginertia=_xyz(inertia))
     rod = {"type": "capsule", "fromto": _xyz((0, 0, 0, b.length, 0, 0)), "size": _f(VISUAL_RADIUS)}
@@ -192,14 +229,26 @@ def _mjcf_body(
     for k in range(len(b.contacts)):
         ET.SubElement(body, "site", name=contact_frame_name(b, k), pos=_xyz(contact_point(b, k)))
     for child in kids[i]:
-        _mjcf_body(body, tree, child, joint_origin(tree, child), tree.bodies[child].angle, kids)
+        _mjcf_body(body, tree, child, joint_origin(tree, child), tree.bodies[child].angle, kids, joints)
+
+
+def _mjcf_law(law: JointLaw, angle: float) -> dict[str, str]:
+    """A hinge's attributes for a joint law: ``range`` (limited), ``stiffness`` about
+    ``springref``, ``damping``."""
+    limits, rest = _relative(law, angle)
+    out = {} if limits is None else {"limited": "true", "range": _xyz(limits)}
+    if law.stiffness:
+        out |= {"stiffness": _f(law.stiffness), "springref": _f(rest)}
+    if law.damping:
+        out["damping"] = _f(law.damping)
+    return out
 
 
 # --------------------------------------------------------------------------------------------
 # Text
 
 
-def _note(tree: Tree, scene: Scene, fmt: ExportFormat) -> str:
+def _note(tree: Tree, scene: Scene, fmt: ExportFormat, joints: tuple[JointLaw, ...] = ()) -> str:
     """The comment at the top of a file: what it holds and where it departs from the model."""
     origin, angle = base_pose(tree, scene)
     thin = sum(b.inertia < INERTIA_FLOOR for b in tree.bodies)
@@ -219,8 +268,17 @@ def _note(tree: Tree, scene: Scene, fmt: ExportFormat) -> str:
         lines += [
             "Load with a free-flyer root joint (Pinocchio: buildModelFromXML(text, JointModelFreeFlyer())):",
             "the root link's frame is the world frame at touchdown, and neutral(model) the touchdown pose.",
-            "Revolute joints are 'continuous': the model has no joint limits.",
+            "Revolute joints without stops are 'continuous'; stops are 'revolute' limits (effort and velocity",
+            f"unbounded: {_f(UNBOUNDED)}), dampers <dynamics damping>, relative to the touchdown angle.",
         ]
+    sprung = [tree.bodies[i].name for i, law in enumerate(joints) if law.stiffness]
+    if sprung and fmt is ExportFormat.URDF:
+        lines.append(f"URDF has no joint springs: the torsional springs of {', '.join(sprung)} are not written.")
+    elif sprung:
+        lines.append("Joint springs: stiffness about springref (the rest angle less the touchdown angle).")
+    bouncy = [tree.bodies[i].name for i, law in enumerate(joints) if law.limits is not None and law.stop_restitution]
+    if bouncy:
+        lines.append(f"The stops' restitution of {', '.join(bouncy)} has no counterpart in the format: not written.")
     return "\n" + "\n".join(lines) + "\n"
 
 

@@ -329,7 +329,7 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
                                      config.space.joint_laws.stop_restitution), reference=reference)
         dump_model_file(model, run_dir / rel, header_comment=header)
         for fmt in ExportFormat:
-            text = export_text(tree, scene, fmt, name=rel.stem)
+            text = export_text(tree, scene, fmt, name=rel.stem, joints=model.joints)
             (run_dir / rel).with_suffix(fmt.suffix).write_text(text, encoding="utf-8")
         title = f"trial {t.number} ({t.evaluation.design.shape.label})"
         plot_touchdown(tree, touchdown_geometry(tree), result, run_dir / rel.with_suffix(DRAWING_SUFFIX), title, scene)

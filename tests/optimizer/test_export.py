@@ -338,3 +338,33 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path: Path, capsys, args: list[str
     err = capsys.readouterr().err
     assert err.startswith(start.format(**fill)) and err.count("\n") == 1
     assert not list(tmp_path.glob("leg.*"))
+
+
+def test_joint_laws_are_carried_over_relative_to_the_touchdown_angle(tmp_path):
+    """configs/landing_case3.yaml (a knee with stops, springs and dampers everywhere): MuJoCo reads
+    each hinge's range, stiffness, spring rest and damping, Pinocchio each stop and damper, all
+    relative to the touchdown angle (the exported zero); URDF's missing springs are said."""
+    pin = pytest.importorskip("pinocchio")
+    mujoco = pytest.importorskip("mujoco")
+    model = load_model_file(REPO / "configs" / "landing_case3.yaml")
+    tree, laws = model.tree, model.joints
+    m = mujoco.MjModel.from_xml_string(to_mjcf(tree, model.scene, joints=laws))
+    urdf = to_urdf(tree, model.scene, joints=laws)
+    p = pin.buildModelFromXML(urdf, pin.JointModelFreeFlyer())
+    assert "URDF has no joint springs" in urdf
+    for i, (b, law) in enumerate(zip(tree.bodies, laws)):
+        if i == 0 or b.joint is not JointKind.REVOLUTE:
+            continue
+        j = m.joint(b.name)
+        rest = 0.0 if law.rest is None else law.rest - b.angle
+        assert m.jnt_stiffness[j.id] == law.stiffness and m.dof_damping[j.dofadr[0]] == law.damping
+        assert m.qpos_spring[j.qposadr[0]] == pytest.approx(rest, abs=1e-15) if law.stiffness else True
+        k = p.getJointId(b.name)
+        assert p.damping[p.joints[k].idx_v] == law.damping
+        if law.limits is not None:
+            expected = (law.limits[0] - b.angle, law.limits[1] - b.angle)
+            assert bool(m.jnt_limited[j.id]) and tuple(m.jnt_range[j.id]) == pytest.approx(expected, abs=1e-15)
+            q = p.joints[k].idx_q
+            assert (p.lowerPositionLimit[q], p.upperPositionLimit[q]) == pytest.approx(expected, abs=1e-15)
+        else:
+            assert not m.jnt_limited[j.id]
