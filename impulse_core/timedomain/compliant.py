@@ -66,6 +66,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, replace
+from typing import Any
 from enum import Enum
 
 import casadi as ca
@@ -909,15 +910,21 @@ def simulate_impact(
     )
 
 
-def compliant_difference(a: CompliantResult, b: CompliantResult) -> float:
-    """Relative difference (``MODEL_FORMAT.md``: max |a_i - b_i| / max |b_i| per list, the largest
-    over the lists) of the external and internal impulses."""
+def relative_difference(pairs: list[tuple[Any, Any]]) -> float:
+    """``MODEL_FORMAT.md``'s relative difference: max |a_i - b_i| / max |b_i| per pair of lists
+    (a, b), the largest over the pairs (a pair whose reference is all zero is skipped)."""
     worst = 0.0
-    for x, y in ((a.external, b.external), (a.internal_magnitude, b.internal_magnitude)):
+    for x, y in pairs:
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
         scale = float(np.max(np.abs(y), initial=0.0))
         if scale > 0:
-            worst = max(worst, float(np.max(np.abs(np.asarray(x) - np.asarray(y)))) / scale)
+            worst = max(worst, float(np.max(np.abs(x - y))) / scale)
     return worst
+
+
+def compliant_difference(a: CompliantResult, b: CompliantResult) -> float:
+    """Relative difference of the external and internal impulses (:func:`relative_difference`)."""
+    return relative_difference([(a.external, b.external), (a.internal_magnitude, b.internal_magnitude)])
 
 
 def simulate_to_tolerance(
@@ -955,6 +962,7 @@ __all__ = [
     "simulate_impact",
     "simulate_to_tolerance",
     "compliant_difference",
+    "relative_difference",
     "subtree_incidence",
     "subtree_masses",
     "touchdown_configuration",

@@ -48,6 +48,7 @@ from impulse_core.timedomain.compliant import (
     DYNAMICS_INPUTS,
     BufferedCall,
     expressions,
+    relative_difference,
     joint_impulses,
     subtree_incidence,
     touchdown_configuration,
@@ -907,18 +908,11 @@ class _Landing:
 def landing_difference(a: LandingResult, b: LandingResult) -> float:
     """Relative difference (``MODEL_FORMAT.md``: max |a_i - b_i| / max |b_i| per list, the
     largest over the lists) of the peak impulses, total external impulses and final angles."""
-    lists = [
+    return relative_difference([
         ([a.peak_external_norm, a.peak_internal_norm], [b.peak_external_norm, b.peak_internal_norm]),
         (a.total_external, b.total_external),
         (a.final_angles, b.final_angles),
-    ]
-    worst = 0.0
-    for x, y in lists:
-        x, y = np.asarray(x, float), np.asarray(y, float)
-        scale = float(np.max(np.abs(y), initial=0.0))
-        if scale > 0:
-            worst = max(worst, float(np.max(np.abs(x - y))) / scale)
-    return worst
+    ])
 
 
 def landing(

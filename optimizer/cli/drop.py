@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 
 import numpy as np
 
@@ -61,13 +62,11 @@ def run_drop(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     try:
         model = load_model_file(args.model)
-        scene = model.scene
-        if scene.friction > 0:
-            warn(f"{args.model}: scene.friction {scene.friction:g} is left out: MuJoCo's contacts here are frictionless")
-            from dataclasses import replace
-
-            scene = replace(scene, friction=0.0)
-        rigid = evaluate_landing(model.tree, replace_duration(scene), "auto")
+        if model.scene.friction > 0:
+            warn(f"{args.model}: scene.friction {model.scene.friction:g} is left out: MuJoCo's contacts here are "
+                 "frictionless")
+        scene = replace(model.scene, friction=0.0, duration=None)  # the first impact, frictionless
+        rigid = evaluate_landing(model.tree, scene, "auto")
         record = drop_record(model.tree, scene, args.stiffness, rigid)
     except NumericalError as e:
         _error(args.model, f"numerical failure: {e}")
@@ -77,13 +76,6 @@ def run_drop(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     print(json.dumps(record) if args.json else format_drop(args.model, record))
     return EXIT_OK
-
-
-def replace_duration(scene):  # type: ignore[no-untyped-def]
-    """The scene of the first impact (a whole landing's duration dropped)."""
-    from dataclasses import replace
-
-    return replace(scene, duration=None)
 
 
 def drop_record(tree, scene, stiffness: float, rigid) -> dict:  # type: ignore[no-untyped-def]
