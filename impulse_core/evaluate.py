@@ -28,6 +28,7 @@ import numpy as np
 
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.impact.coulomb import ContactMode, coulomb_impact
+from impulse_core.impact.cone import POLYGON, cone_impact
 from impulse_core.impact.delassus import (
     friction_response_function,
     geometry_function,
@@ -93,7 +94,8 @@ def compiled_geometry(topology: Topology, space: Space = PLANAR) -> ca.Function:
 
 @dataclass(frozen=True)
 class Geometry:
-    """World positions at touchdown (n x 2 in the plane; the ground is ``ground_height``)."""
+    """World positions at touchdown (n x 2 in the plane, n x 3 in space; the ground is
+    ``ground_height``)."""
 
     origins: np.ndarray
     tips: np.ndarray
@@ -104,18 +106,21 @@ class Geometry:
 
 def touchdown_geometry(tree: Tree, space: Space = PLANAR) -> Geometry:
     """Where every body, centre of mass and contact point is at touchdown."""
-    out = compiled_geometry(tree.topology(), space)(p=design_vector(tree))
-    pts = {k: np.array(out[k]).T[:, :2] for k in ("origins", "tips", "coms", "contacts")}
+    out = compiled_geometry(tree.topology(), space)(p=design_vector(tree, space.body_values))
+    dims = 2 if space.joint_axis is not None else 3
+    pts = {k: np.array(out[k]).T[:, :dims] for k in ("origins", "tips", "coms", "contacts")}
     return Geometry(**pts, ground_height=float(pts["contacts"][:, 1].min()))
 
 
-def active_contacts(tree: Tree, scene: Scene, geometry: Geometry | None = None) -> tuple[int, ...]:
+def active_contacts(
+    tree: Tree, scene: Scene, geometry: Geometry | None = None, space: Space = PLANAR
+) -> tuple[int, ...]:
     """Indices of the declared contacts that hit: all of them, or those within
     ``scene.contact_tolerance`` of the lowest one."""
     n = len(tree.contacts)
     if scene.selection is ContactSelection.ALL:
         return tuple(range(n))
-    geometry = geometry or touchdown_geometry(tree)
+    geometry = geometry or touchdown_geometry(tree, space)
     heights = geometry.contacts[:, 1]
     return tuple(int(i) for i in np.flatnonzero(heights <= heights.min() + scene.contact_tolerance))
 
@@ -131,13 +136,12 @@ def approach_velocity(topology: Topology, speed: float, space: Space = PLANAR) -
 
 def pre_impact_velocity(topology: Topology, scene: Scene, space: Space = PLANAR) -> np.ndarray:
     """Generalized velocity of the whole tree moving as one rigid body as ``scene`` says: base
-    origin at (velocity_x, -speed), every body turning at angular_velocity about z, joints at rest."""
-    v = approach_velocity(topology, scene.speed, space)
+    origin at ``scene.velocity``, every body turning at ``scene.angular_velocity_3d``, joints at
+    rest (each base DOF takes the component along its axis)."""
+    v = np.zeros(dof_layout(topology, space).nv)
+    linear, angular = np.array(scene.velocity), np.array(scene.angular_velocity_3d)
     for k, (kind, axis) in enumerate(space.base_dofs):
-        if kind is DofKind.TRANSLATION:
-            v[k] += scene.velocity_x * axis[0]
-        else:
-            v[k] += scene.angular_velocity * axis[2]
+        v[k] = np.dot(linear if kind is DofKind.TRANSLATION else angular, axis)
     return v
 
 
@@ -169,6 +173,9 @@ class ImpactResult:
         separating: active contacts that leave the ground with zero normal impulse.
         modes: each declared contact's mode with exact friction (FRICTION only, else None):
             separating (also a contact that does not hit), sticking or sliding.
+        notes: warnings of the rung that ran (e.g. an approximation it fell back on).
+
+    In space ``tangential`` and ``tangent_velocity`` have two columns (x, z) per contact.
     """
 
     external: np.ndarray
@@ -191,6 +198,7 @@ class ImpactResult:
     tangent_velocity: np.ndarray | None
     separating: tuple[int, ...]
     modes: tuple[ContactMode, ...] | None = None
+    notes: tuple[str, ...] = ()
 
     @property
     def max_internal(self) -> float:
@@ -220,6 +228,7 @@ class _Solution:
     split_unique: bool
     out: dict
     modes: tuple[ContactMode, ...] | None = None
+    notes: tuple[str, ...] = ()
 
 
 def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: Space = PLANAR) -> ImpactResult:
@@ -246,10 +255,11 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
             "terrain is not flat; use the sequential rigid model (--model sequential, "
             "impulse_core.timedomain.sequential.sequential_impacts) or the compliant one (--model compliant)"
         )
-    active = active_contacts(tree, scene)
+    _check_space(tree, scene, model, space)
+    active = active_contacts(tree, scene, space=space)
     topology = tree.topology(active)
     v_minus = pre_impact_velocity(topology, scene, space)
-    impact = _Impact(tree, scene, topology, space, design_vector(tree), v_minus)
+    impact = _Impact(tree, scene, topology, space, design_vector(tree, space.body_values), v_minus)
     if model is None:
         solution, reason = _automatic(impact)
     else:
@@ -258,13 +268,33 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
     return _result(impact, solution, reason)
 
 
+def _check_space(tree: Tree, scene: Scene, model: ImpactModel | None, space: Space) -> None:
+    """A planar evaluation of a body or an approach out of the plane, or the friction relaxation
+    in space, is refused naming the field."""
+    if space.joint_axis is not None:
+        for i, b in enumerate(tree.bodies):
+            if not b.is_planar:
+                raise ModelError(f"model.bodies[{i}]: rpy, axis and radius need 'model.space: spatial'")
+        if scene.out_of_plane:
+            raise ModelError("scene.velocity: a lateral velocity or a turn about x or y needs 'model.space: spatial'")
+        return
+    if model is ImpactModel.FRICTION_RELAXED:
+        raise ModelError("model: friction-relaxed is planar only; spatial models run the exact law (--model friction)")
+
+
 def _automatic(c: _Impact) -> tuple[_Solution, str]:
     """The cheapest rung that is exact for the scene, and why it was chosen."""
     mu = c.scene.friction
     if mu > 0:
+        how = (
+            "by Lemke's method"
+            if c.space.joint_axis is not None
+            else "on the circular cone: a polyhedral LCP by Lemke's method, then Newton's method on the exact "
+            "equations of its contact modes, checked at every contact"
+        )
         return _friction(c), (
             f"automatic: scene.friction = {mu:g} > 0, so Coulomb friction acts at the contacts (exact law: "
-            "Newton restitution and Coulomb's law on the impulses, by Lemke's method)"
+            f"Newton restitution and Coulomb's law on the impulses, {how})"
         )
     newton = _newton(c)
     pulling = np.flatnonzero(newton.normal < 0)
@@ -341,8 +371,32 @@ def _lcp(c: _Impact) -> _Solution:
     return _Solution(ImpactModel.LCP, lam, None, split_unique, out)
 
 
+def _spatial_friction(c: _Impact) -> _Solution:
+    """Exact Newton-Coulomb law on the circular cone (:func:`impulse_core.impact.cone.cone_impact`);
+    tangential impulses (n, 2) along x and z."""
+    n = len(c.topology.active)
+    J, A, _, _ = _metric(c, tangent=True)
+    law = cone_impact(A, J @ c.v_minus, c.scene.restitution, c.scene.friction)
+    split_unique = not redundant(J, A)
+    tangential = law.tangential if c.scene.friction > 0 else np.zeros((n, 2))
+    out = compiled_friction(c.topology, c.space)(
+        p=c.p, v_minus=c.v_minus, external=law.normal, tangential=tangential.T.ravel()
+    )
+    modes = [ContactMode.SEPARATING] * len(c.tree.contacts)
+    for k, i in enumerate(c.topology.active):
+        modes[i] = law.modes[k]
+    notes = () if law.exact else (
+        f"the exact circular-cone law was not met; the polyhedral answer ({POLYGON}-gon cone) is shown: its friction "
+        f"may fall short of the cone's by up to {100 * (1 - np.cos(np.pi / POLYGON)):.1f}% and its slip direction "
+        f"by up to {np.degrees(np.pi / POLYGON):.1f} degrees",
+    )
+    return _Solution(ImpactModel.FRICTION, law.normal, tangential, split_unique, out, tuple(modes), notes)
+
+
 def _friction(c: _Impact) -> _Solution:
     """Exact Newton-Coulomb impact law (:func:`impulse_core.impact.coulomb.coulomb_impact`)."""
+    if c.space.joint_axis is None:
+        return _spatial_friction(c)
     n = len(c.topology.active)
     J, A, _, _ = _metric(c, tangent=True)
     law = coulomb_impact(A, J @ c.v_minus, c.scene.restitution, c.scene.friction)
@@ -404,7 +458,7 @@ def _result(c: _Impact, s: _Solution, reason: str) -> ImpactResult:
     n_declared = len(c.tree.contacts)
     external = np.zeros(n_declared)
     external[list(active)] = s.normal
-    tangential = np.zeros(n_declared)
+    tangential = np.zeros(n_declared if c.space.joint_axis is not None else (n_declared, 2))
     if s.tangential is not None:
         tangential[list(active)] = s.tangential
     magnitude = np.array(out["internal_magnitude"]).ravel()
@@ -427,10 +481,17 @@ def _result(c: _Impact, s: _Solution, reason: str) -> ImpactResult:
         model=s.model,
         reason=reason,
         tangential=tangential,
-        tangent_velocity=None if s.tangential is None else np.array(out["tangent_velocity"]).ravel(),
+        tangent_velocity=None if s.tangential is None else _per_contact(np.array(out["tangent_velocity"]), c.space),
         separating=tuple(active[i] for i in np.flatnonzero(np.abs(s.normal) <= ZERO_IMPULSE * momentum)),
         modes=s.modes,
+        notes=s.notes,
     )
+
+
+def _per_contact(rows: np.ndarray, space: Space) -> np.ndarray:
+    """Tangent-row values per contact: (n,) in the plane, (n, 2) in space (x rows, then z rows)."""
+    rows = rows.ravel()
+    return rows if space.joint_axis is not None else rows.reshape(2, -1).T
 
 
 def _redundant_split(J: np.ndarray, A: np.ndarray, rhs: np.ndarray) -> np.ndarray | None:

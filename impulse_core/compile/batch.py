@@ -27,7 +27,7 @@ from impulse_core.errors import ModelError
 from impulse_core.evaluate import approach_velocity
 from impulse_core.impact.delassus import GRADIENT_OUTPUTS, LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
 from impulse_core.impact.laws import PIVOT_TOL
-from impulse_core.kinematics.spatial import PLANAR, Space
+from impulse_core.kinematics.spatial import PLANAR, Space, n_values
 from impulse_core.model.tree import BODY_VALUES, CONTACT_BOUNDS, VALUE_BOUNDS, Topology
 
 #: Rows -> one array per output (rows of designs in, rows out).
@@ -80,7 +80,7 @@ class BatchEvaluator:
         """The impact of every design.
 
         Args:
-            p: design vectors, one per row (n x ``topology.n_values``, layout of
+            p: design vectors, one per row (n x ``n_values(topology, space)``, layout of
                 :func:`impulse_core.model.tree.design_vector`); a single vector is one row.
             speed: approach speed (m/s, > 0), one for all rows or one per row.
             restitution: Newton's coefficient in [0, 1], one for all rows or one per row.
@@ -90,9 +90,10 @@ class BatchEvaluator:
         """
         P = np.atleast_2d(np.asarray(p, dtype=float))
         n = P.shape[0]
-        if P.ndim != 2 or P.shape[1] != self.topology.n_values:
-            raise ModelError(f"p: must have {self.topology.n_values} values per row, got shape {np.shape(p)}")
-        _check_values(self.topology, P)
+        width = n_values(self.topology, self.space)
+        if P.ndim != 2 or P.shape[1] != width:
+            raise ModelError(f"p: must have {width} values per row, got shape {np.shape(p)}")
+        _check_values(self.topology, P, self.space.body_values)
         speeds = _per_row("speed", speed, n)
         if not np.all(speeds > 0):
             raise ModelError("speed: must be > 0")
@@ -165,11 +166,11 @@ def _runner(f: ca.Function, cache_dir: str | Path | None, parallel: bool, fallba
     return on_vm, Backend.VIRTUAL_MACHINE.value
 
 
-def _check_values(topology: Topology, P: np.ndarray) -> None:
+def _check_values(topology: Topology, P: np.ndarray, body_values: tuple[str, ...] = BODY_VALUES) -> None:
     """Raise ModelError naming the first value of ``P`` that no tree may have (the checks of
     :func:`impulse_core.model.tree.validate_tree`): one pass for each column's extremes, the rows
     searched only when a column is out of bounds."""
-    names = [(b, name) for b in range(topology.n_bodies) for name in BODY_VALUES]
+    names = [(b, name) for b in range(topology.n_bodies) for name in body_values]
     names += [(c, "contact") for c in range(sum(topology.n_contacts))]
     bounds = np.array([VALUE_BOUNDS.get(name, CONTACT_BOUNDS) for _, name in names], dtype=float)
     low, closed, high = bounds[:, 0], bounds[:, 1].astype(bool), bounds[:, 2]

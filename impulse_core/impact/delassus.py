@@ -27,6 +27,7 @@ from impulse_core.kinematics.spatial import (
     contact_bodies,
     dof_layout,
     forward_kinematics,
+    n_values,
     point_jacobian,
     unpack_values,
 )
@@ -34,10 +35,17 @@ from impulse_core.model.tree import Topology
 
 #: Ground tangent (world frame): the direction of the tangential (friction) impulse in the plane.
 GROUND_TANGENT = ca.DM([1.0, 0.0, 0.0])
+#: The second ground tangent of a spatial model (lateral, z).
+LATERAL_TANGENT = ca.DM([0.0, 0.0, 1.0])
+
+
+def ground_tangents(space: Space) -> tuple[ca.DM, ...]:
+    """The tangent directions of the friction impulse: x in the plane; x, then z, in space."""
+    return (GROUND_TANGENT,) if space.joint_axis is not None else (GROUND_TANGENT, LATERAL_TANGENT)
 
 
 def _contact_jacobian(topology: Topology, p: ca.SX, space: Space):
-    values = unpack_values(topology, p)
+    values = unpack_values(topology, p, space)
     kin = forward_kinematics(topology, values, space)
     layout = dof_layout(topology, space)
     return values, kin, layout, _direction_jacobian(topology, kin, layout, space, GROUND_NORMAL)
@@ -88,6 +96,7 @@ def internal_impulse(
     delta_v: ca.SX,
     external: ca.SX,
     tangential: ca.SX | None = None,
+    tangents: tuple[ca.DM, ...] = (GROUND_TANGENT,),
 ) -> tuple[ca.SX, ca.SX]:
     """Impulse each joint transmits from parent to child: (force, torque about the joint), world
     frame, one column per non-base body (3 x (n_bodies - 1) each).
@@ -107,8 +116,9 @@ def internal_impulse(
     for i, c in enumerate(topology.active):
         b = bodies[c]
         f_ext = external[i] * GROUND_NORMAL
-        if tangential is not None:
-            f_ext = f_ext + tangential[i] * GROUND_TANGENT
+        if tangential is not None:  # all contacts' x components, then (in space) their z components
+            for k, direction in enumerate(tangents):
+                f_ext = f_ext + tangential[k * len(topology.active) + i] * direction
         force[b] = force[b] - f_ext
         moment[b] = moment[b] - ca.cross(kin.W_p_C[c], f_ext)
     for b in reversed(range(1, n)):
@@ -146,12 +156,14 @@ def _model(topology: Topology, space: Space, p: ca.SX):
     return values, kin, layout, J, jac, M, f
 
 
-def _response_outputs(topology, kin, jac, values, J, M, M_inv_JT, v_minus, external, tangential=None):
+def _response_outputs(
+    topology, kin, jac, values, J, M, M_inv_JT, v_minus, external, tangential=None, tangents=(GROUND_TANGENT,)
+):
     """Outputs named ``RESPONSE_OUTPUTS``. ``M_inv_JT`` has one column per normal impulse, then,
     with ``tangential``, one per tangential impulse."""
     delta_v = M_inv_JT @ (external if tangential is None else ca.vertcat(external, tangential))
     v_plus = v_minus + delta_v
-    F, T = internal_impulse(topology, kin, jac, values, delta_v, external, tangential)
+    F, T = internal_impulse(topology, kin, jac, values, delta_v, external, tangential, tangents)
     magnitude = ca.sqrt(ca.sum1(F**2)).T if F.shape[1] else ca.SX(0, 1)
     return (
         v_plus,
@@ -179,7 +191,7 @@ def impact_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
     (normal velocity of each active contact after impact).
     """
     nv = dof_layout(topology, space).nv
-    p = ca.SX.sym("p", topology.n_values)
+    p = ca.SX.sym("p", n_values(topology, space))
     v_minus = ca.SX.sym("v_minus", nv)
     e = ca.SX.sym("restitution")
     values, kin, layout, J, jac, M, f = _model(topology, space, p)
@@ -195,7 +207,7 @@ def response_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
     contact Jacobian as ``delassus`` and ``contact_jacobian``: the path for contact sets whose
     impulse split the Newton law leaves open."""
     nv = dof_layout(topology, space).nv
-    p = ca.SX.sym("p", topology.n_values)
+    p = ca.SX.sym("p", n_values(topology, space))
     v_minus = ca.SX.sym("v_minus", nv)
     lam = ca.SX.sym("external", len(topology.active))
     values, kin, layout, J, jac, M, f = _model(topology, space, p)
@@ -211,20 +223,22 @@ def response_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
 
 
 def friction_response_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
-    """Given normal and tangential (x direction) impulses at the active contacts, everything that
-    follows from them: the outputs of :func:`response_function` (``contact_velocity`` normal;
-    ``internal`` includes the tangential impulses' share) plus ``tangent_velocity`` (tangential
-    velocity of each active contact after impact, m/s). Built only for scenes with friction."""
+    """Given normal and tangential impulses at the active contacts (x components; in space, x
+    components then z components), everything that follows from them: the outputs of
+    :func:`response_function` (``contact_velocity`` normal; ``internal`` includes the tangential
+    impulses' share) plus ``tangent_velocity`` (the active contacts' tangential velocities after
+    the impact, same layout, m/s). Built only for scenes with friction."""
     nv = dof_layout(topology, space).nv
     n = len(topology.active)
-    p = ca.SX.sym("p", topology.n_values)
+    p = ca.SX.sym("p", n_values(topology, space))
     v_minus = ca.SX.sym("v_minus", nv)
     lam = ca.SX.sym("external", n)
-    lam_t = ca.SX.sym("tangential", n)
+    tangents = ground_tangents(space)
+    lam_t = ca.SX.sym("tangential", n * len(tangents))
     values, kin, layout, J, jac, M, f = _model(topology, space, p)
-    Jt = _direction_jacobian(topology, kin, layout, space, GROUND_TANGENT)
+    Jt = ca.vertcat(*[_direction_jacobian(topology, kin, layout, space, t) for t in tangents])
     _, M_inv_JT = delassus_matrix(ca.vertcat(J, Jt), f)
-    outs = _response_outputs(topology, kin, jac, values, J, M, M_inv_JT, v_minus, lam, lam_t)
+    outs = _response_outputs(topology, kin, jac, values, J, M, M_inv_JT, v_minus, lam, lam_t, tangents)
     return ca.Function(
         "friction_response",
         [p, v_minus, lam, lam_t],
@@ -310,7 +324,7 @@ def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus:
        impulses by one backward pass (subtree momentum change minus the external impulses on
        the subtree: the impulsive Newton-Euler pass of paper eqs. 15-27).
     """
-    values = unpack_values(topology, p)
+    values = unpack_values(topology, p, space)
     kin = forward_kinematics(topology, values, space)
     layout = dof_layout(topology, space)
     motions = dyn.joint_motions(kin, layout, space)
@@ -375,7 +389,7 @@ def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: c
 
     Cost O(n d^2) for depth d: the cheaper choice for shallow trees (few divisions).
     """
-    values = unpack_values(topology, p)
+    values = unpack_values(topology, p, space)
     kin = forward_kinematics(topology, values, space)
     layout = dof_layout(topology, space)
     S = dyn.joint_motions(kin, layout, space)
@@ -454,7 +468,7 @@ def lean_impact_function(
     tree-structured algorithms of ``algorithm`` (:class:`LeanAlgorithm`), with common
     subexpression elimination."""
     nv = dof_layout(topology, space).nv
-    p = ca.SX.sym("p", topology.n_values)
+    p = ca.SX.sym("p", n_values(topology, space))
     v_minus = ca.SX.sym("v_minus", nv)
     e = ca.SX.sym("restitution")
     outs = _lean_graph(topology, space, p, v_minus, e, algorithm).outputs
@@ -486,7 +500,7 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
     """
     nc, nv = len(topology.active), g.layout.nv
     if nc == 0:  # no impact: both norms are zero whatever the design
-        return ca.SX.zeros(topology.n_values, 1), ca.SX.zeros(topology.n_values, 1)
+        return ca.SX.zeros(p.shape[0], 1), ca.SX.zeros(p.shape[0], 1)
     lam, pivots, dv = g.outputs[0], g.outputs[1], g.delta_v
     held = [ca.SX.sym(name, k) for name, k in (("lam", nc), ("dv", nv), ("a", nv), ("nu", nc), ("u", nv))]
     lam_h, dv_h, a_h, nu_h, u_h = held
@@ -534,7 +548,7 @@ def norms_gradient_function(
     differentiation of the whole graph (the independent check of the first).
     """
     nv = dof_layout(topology, space).nv
-    p = ca.SX.sym("p", topology.n_values)
+    p = ca.SX.sym("p", n_values(topology, space))
     v_minus = ca.SX.sym("v_minus", nv)
     e = ca.SX.sym("restitution")
     g = _lean_graph(topology, space, p, v_minus, e, algorithm)
@@ -568,11 +582,11 @@ def metric_function(topology: Topology, space: Space = PLANAR, tangent: bool = F
     x tangents), ``delassus`` A, ``metric_factor`` E (nv x rows) and ``u_minus`` (D^1/2 L v_minus).
     """
     nv = dof_layout(topology, space).nv
-    p = ca.SX.sym("p", topology.n_values)
+    p = ca.SX.sym("p", n_values(topology, space))
     v_minus = ca.SX.sym("v_minus", nv)
     values, kin, layout, J, jac, M, f = _model(topology, space, p)
     if tangent:
-        J = ca.vertcat(J, _direction_jacobian(topology, kin, layout, space, GROUND_TANGENT))
+        J = ca.vertcat(J, *[_direction_jacobian(topology, kin, layout, space, t) for t in ground_tangents(space)])
     sqrt_d = ca.vertcat(*[ca.sqrt(d) for d in f.D])
     E = dyn.solve_lt(f, J.T) / ca.repmat(sqrt_d, 1, J.shape[0])
     A = E.T @ E
@@ -588,8 +602,8 @@ def metric_function(topology: Topology, space: Space = PLANAR, tangent: bool = F
 def geometry_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
     """World positions at touchdown: ``origins``, ``tips``, ``coms`` (3 x bodies) and
     ``contacts`` (3 x declared contacts)."""
-    p = ca.SX.sym("p", topology.n_values)
-    kin = forward_kinematics(topology, unpack_values(topology, p), space)
+    p = ca.SX.sym("p", n_values(topology, space))
+    kin = forward_kinematics(topology, unpack_values(topology, p, space), space)
     cat = lambda xs: ca.horzcat(*xs) if xs else ca.SX(3, 0)
     return ca.Function(
         "geometry",
@@ -602,7 +616,7 @@ def geometry_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
 
 def mass_matrix_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
     """``M(p)``, for checks against independent implementations."""
-    p = ca.SX.sym("p", topology.n_values)
+    p = ca.SX.sym("p", n_values(topology, space))
     values, kin, layout, J = _contact_jacobian(topology, p, space)
     jac = dyn.body_jacobians(kin, layout, values, space)
     return ca.Function("mass_matrix", [p], [dyn.mass_matrix(jac, values), J], ["p"], ["M", "contact_jacobian"])

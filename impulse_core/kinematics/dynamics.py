@@ -32,15 +32,15 @@ def body_jacobians(
 ) -> BodyJacobians:
     """Jacobians of every body's centre of mass, and its world-frame inertia.
 
-    A rod's inertia about its centre of mass in its own frame is diag(0, I, I) with
-    I = mass * (gyration * length)^2 (slender rod: none about its own axis).
+    A rod's inertia about its centre of mass in its own frame is diag(I_axial, I, I) with
+    I = mass * (gyration * length)^2 and I_axial = ``BodyValues.axial_inertia`` (0 in the plane).
     """
     Jv, Jw, inertia = [], [], []
     for b, v in enumerate(values):
         jv, jw = point_jacobian(kin, layout, b, kin.W_p_G[b], space)
         Jv.append(jv)
         Jw.append(jw)
-        B_I = ca.diag(ca.vertcat(0, v.inertia, v.inertia))
+        B_I = ca.diag(ca.vertcat(v.axial_inertia, v.inertia, v.inertia))
         inertia.append(kin.W_R_B[b] @ B_I @ kin.W_R_B[b].T)
     return BodyJacobians(tuple(Jv), tuple(Jw), tuple(inertia))
 
@@ -236,11 +236,11 @@ class SpatialInertia:
 
 def body_inertias(kin: Kinematics, values: tuple[BodyValues, ...]) -> tuple[SpatialInertia, ...]:
     """Each rod's inertia about its own joint origin. In its own frame a rod's inertia about its
-    centre of mass is diag(0, I, I), I = mass * (gyration * length)^2."""
+    centre of mass is diag(I_axial, I, I), I = mass * (gyration * length)^2."""
     out = []
     for b, v in enumerate(values):
         R = kin.W_R_B[b]
-        W_I_G = v.inertia * (R[:, 1] @ R[:, 1].T + R[:, 2] @ R[:, 2].T)
+        W_I_G = v.inertia * (R[:, 1] @ R[:, 1].T + R[:, 2] @ R[:, 2].T) + v.axial_inertia * (R[:, 0] @ R[:, 0].T)
         about_G = SpatialInertia(v.mass, ca.SX.zeros(3, 1), W_I_G)
         out.append(about_G.shifted(kin.W_p_G[b] - kin.W_p_O[b]))
     return tuple(out)

@@ -15,7 +15,7 @@ from enum import Enum
 
 import casadi as ca
 
-from impulse_core.model.tree import BODY_VALUES, JointKind, Topology
+from impulse_core.model.tree import BODY_VALUES, SPATIAL_BODY_VALUES, JointKind, Topology
 
 
 class DofKind(Enum):
@@ -30,12 +30,15 @@ class Space:
     Attributes:
         base_dofs: the base's generalized velocities, as (kind, world axis); a rotation is about
             the base's origin.
-        joint_axis: the axis of every revolute joint, in the child's frame.
+        joint_axis: the axis of every revolute joint, in the child's frame, when all share it
+            (the plane); None when each body carries its own ``rpy`` and ``axis`` (space).
+        body_values: each body's entries in the design vector (``tree.design_vector``).
     """
 
     name: str
     base_dofs: tuple[tuple[DofKind, tuple[float, float, float]], ...]
-    joint_axis: tuple[float, float, float]
+    joint_axis: tuple[float, float, float] | None
+    body_values: tuple[str, ...] = BODY_VALUES
 
 
 #: The planar restriction: x forward, y up, rotations about z.
@@ -49,13 +52,35 @@ PLANAR = Space(
     joint_axis=(0.0, 0.0, 1.0),
 )
 
+#: Space (MODEL_FORMAT "Spatial models"): the base free in six directions (its origin's
+#: velocity, then its angular velocity, world frame); each joint about its own axis.
+SPATIAL = Space(
+    name="spatial",
+    base_dofs=tuple((DofKind.TRANSLATION, e) for e in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)))
+    + tuple((DofKind.ROTATION, e) for e in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))),
+    joint_axis=None,
+    body_values=SPATIAL_BODY_VALUES,
+)
+
+#: A spatial rod's inertia about its own axis is at least mass * (AXIAL_GYRATION_FLOOR *
+#: length)^2 (MODEL_FORMAT: at radius 0 a straight chain has none, and the mass matrix would be
+#: singular along a motion that moves no mass and no contact). The floor changes the impulses by
+#: a relative 1e-12 or less where that inertia matters; the null motion's impulses stay unique.
+AXIAL_GYRATION_FLOOR = 1e-6
+
+
+def n_values(topology: Topology, space: Space = PLANAR) -> int:
+    """Length of the design vector of ``topology`` in ``space``."""
+    return len(space.body_values) * topology.n_bodies + sum(topology.n_contacts)
+
 #: Ground normal (world frame): the ground is horizontal, y is up.
 GROUND_NORMAL = ca.DM([0.0, 1.0, 0.0])
 
 
 @dataclass(frozen=True)
 class BodyValues:
-    """The symbolic values of one body (see ``BODY_VALUES``) and its contact fractions."""
+    """The symbolic values of one body (see ``Space.body_values``) and its contact fractions;
+    in the plane ``rpy``, ``axis`` and ``radius`` are the constants of a planar body."""
 
     length: ca.SX
     mass: ca.SX
@@ -64,23 +89,41 @@ class BodyValues:
     com: ca.SX
     gyration: ca.SX
     contacts: tuple[ca.SX, ...]
+    rpy: tuple[ca.SX | float, ...] = (0.0, 0.0, 0.0)
+    axis: tuple[ca.SX | float, ...] = (0.0, 0.0, 1.0)
+    radius: ca.SX | float = 0.0
 
     @property
     def inertia(self) -> ca.SX:
-        """Moment of inertia about the centre of mass, about the body's z axis (kg m^2)."""
+        """Moment of inertia about the centre of mass, across the rod (kg m^2)."""
         return self.mass * (self.gyration * self.length) ** 2
 
+    @property
+    def axial_inertia(self) -> ca.SX | float:
+        """Moment of inertia about the rod's own axis: m r^2 / 2, floored (``AXIAL_GYRATION_FLOOR``)
+        in space; 0 in the plane, where no DOF turns a rod about its axis."""
+        if isinstance(self.radius, float) and self.radius == 0.0:
+            return 0.0
+        return self.mass * (0.5 * self.radius**2 + (AXIAL_GYRATION_FLOOR * self.length) ** 2)
 
-def unpack_values(topology: Topology, p: ca.SX) -> tuple[BodyValues, ...]:
+
+def unpack_values(topology: Topology, p: ca.SX, space: Space = PLANAR) -> tuple[BodyValues, ...]:
     """Split the flat design vector ``p`` (layout: ``tree.design_vector``) per body."""
-    n = len(BODY_VALUES)
+    n = len(space.body_values)
     offset = n * topology.n_bodies
     out = []
     for i, nc in enumerate(topology.n_contacts):
-        vals = {name: p[n * i + j] for j, name in enumerate(BODY_VALUES)}
+        vals = {name: p[n * i + j] for j, name in enumerate(space.body_values)}
         contacts = tuple(p[offset + k] for k in range(nc))
         offset += nc
-        out.append(BodyValues(contacts=contacts, **vals))
+        spatial = {}
+        if space.joint_axis is None:
+            spatial = {
+                "rpy": tuple(vals.pop(k) for k in ("roll", "pitch", "yaw")),
+                "axis": tuple(vals.pop(k) for k in ("axis_x", "axis_y", "axis_z")),
+                "radius": vals.pop("radius"),
+            }
+        out.append(BodyValues(contacts=contacts, **vals, **spatial))
     return tuple(out)
 
 
@@ -157,14 +200,62 @@ class Kinematics:
     joint_axis: tuple[ca.SX | None, ...]
 
 
+def rpy_rotation(rpy: tuple[ca.SX | float, ...]) -> ca.SX:
+    """Rz(yaw) Ry(pitch) Rx(roll), as URDF's ``rpy``."""
+    a, b, c = rpy
+    return axis_rotation((0.0, 0.0, 1.0), c) @ axis_rotation((0.0, 1.0, 0.0), b) @ axis_rotation((1.0, 0.0, 0.0), a)
+
+
+def unit_axis_rotation(axis: ca.SX, angle: ca.SX) -> ca.SX:
+    """Rotation by ``angle`` about the unit vector ``axis`` (a symbolic 3-vector), Rodrigues."""
+    kk = axis @ axis.T
+    return kk + ca.cos(angle) * (ca.SX.eye(3) - kk) + ca.sin(angle) * ca.skew(axis)
+
+
+def _spatial_kinematics(topology: Topology, values: tuple[BodyValues, ...]) -> Kinematics:
+    """Place every body in space: body frame = parent frame at ``at`` x R(rpy) x R(axis, angle)
+    (MODEL_FORMAT "Spatial models"); the base's origin is the world origin."""
+    R: list[ca.SX] = []
+    O: list[ca.SX] = []
+    axes: list[ca.SX | None] = []
+    e_x = ca.DM([1.0, 0.0, 0.0])
+    for i, v in enumerate(values):
+        k = ca.vertcat(*v.axis)
+        k = k / ca.norm_2(k)
+        parent = topology.parents[i]
+        frame = rpy_rotation(v.rpy)
+        if parent < 0:
+            O.append(ca.SX.zeros(3, 1))
+            axes.append(None)
+        else:
+            P = values[parent]
+            O.append(O[parent] + R[parent] @ (v.at * P.length * e_x))
+            frame = R[parent] @ frame
+            axes.append(frame @ k)
+        R.append(frame @ unit_axis_rotation(k, v.angle))
+    return _placed(values, tuple(R), tuple(O), tuple(axes))
+
+
+def _placed(values: tuple[BodyValues, ...], R: tuple, O: tuple, axes: tuple) -> Kinematics:
+    """The kinematics given each body's rotation, joint origin and joint axis."""
+    e_x = ca.DM([1.0, 0.0, 0.0])
+    G = [O[i] + R[i] @ (v.com * v.length * e_x) for i, v in enumerate(values)]
+    T = [O[i] + R[i] @ (v.length * e_x) for i, v in enumerate(values)]
+    C = [O[i] + R[i] @ (c * v.length * e_x) for i, v in enumerate(values) for c in v.contacts]
+    return Kinematics(R, O, tuple(G), tuple(T), tuple(C), axes)
+
+
 def forward_kinematics(topology: Topology, values: tuple[BodyValues, ...], space: Space = PLANAR) -> Kinematics:
     """Place every body: a child's joint sits at ``at * length`` along its parent's x axis and
     turns by ``angle`` about ``space.joint_axis``; the base's origin is the world origin.
 
-    Every rotation of the tree (the base's and the joints') is about the same axis, so rotations
-    commute and each body's rotation is one :func:`axis_rotation` of its absolute angle (the sum
-    of the angles along its chain): trig once per absolute angle, no 3 x 3 products.
+    In the plane every rotation of the tree (the base's and the joints') is about the same axis,
+    so rotations commute and each body's rotation is one :func:`axis_rotation` of its absolute
+    angle (the sum of the angles along its chain): trig once per absolute angle, no 3 x 3
+    products. In space (``joint_axis`` None) each body carries its own ``rpy`` and ``axis``.
     """
+    if space.joint_axis is None:
+        return _spatial_kinematics(topology, values)
     R: list[ca.SX] = []
     O: list[ca.SX] = []
     theta: list[ca.SX] = []
@@ -182,10 +273,7 @@ def forward_kinematics(topology: Topology, values: tuple[BodyValues, ...], space
             O.append(O[parent] + R[parent] @ (v.at * P.length * e_x))
             axes.append(ca.SX(ca.DM(space.joint_axis)))  # the common axis is fixed in every frame
         R.append(axis_rotation(space.joint_axis, theta[i]))
-    G = [O[i] + R[i] @ (v.com * v.length * e_x) for i, v in enumerate(values)]
-    T = [O[i] + R[i] @ (v.length * e_x) for i, v in enumerate(values)]
-    C = [O[i] + R[i] @ (c * v.length * e_x) for i, v in enumerate(values) for c in v.contacts]
-    return Kinematics(tuple(R), tuple(O), tuple(G), tuple(T), tuple(C), tuple(axes))
+    return _placed(values, tuple(R), tuple(O), tuple(axes))
 
 
 def point_jacobian(

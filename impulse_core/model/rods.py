@@ -55,6 +55,34 @@ def rotation_z(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def rotation_rpy(rpy: tuple[float, float, float]) -> np.ndarray:
+    """Rz(yaw) Ry(pitch) Rx(roll), as URDF's ``rpy``."""
+    a, b, c = rpy
+    ca_, sa, cb, sb, cc, sc = math.cos(a), math.sin(a), math.cos(b), math.sin(b), math.cos(c), math.sin(c)
+    Rx = np.array([[1.0, 0.0, 0.0], [0.0, ca_, -sa], [0.0, sa, ca_]])
+    Ry = np.array([[cb, 0.0, sb], [0.0, 1.0, 0.0], [-sb, 0.0, cb]])
+    Rz = np.array([[cc, -sc, 0.0], [sc, cc, 0.0], [0.0, 0.0, 1.0]])
+    return Rz @ Ry @ Rx
+
+
+def unit_axis(body: Body) -> np.ndarray:
+    """The body's joint axis made unit length (the frame after ``rpy``)."""
+    k = np.array(body.axis, dtype=float)
+    return k / np.linalg.norm(k)
+
+
+def rotation_axis(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation by ``angle`` about the unit vector ``axis`` (Rodrigues)."""
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+
+
+def body_rotation(body: Body) -> np.ndarray:
+    """The body frame in its parent's frame at the joint (the base: in the world), at touchdown:
+    R(rpy) R(axis, angle); in the plane the rotation by ``angle`` about z."""
+    return rotation_rpy(body.rpy) @ rotation_axis(unit_axis(body), body.angle)
+
+
 def centre_of_mass(body: Body) -> np.ndarray:
     """The centre of mass in the body frame: ``com`` x length along x."""
     return np.array([body.com * body.length, 0.0, 0.0])
@@ -66,11 +94,17 @@ def contact_point(body: Body, k: int) -> np.ndarray:
 
 
 def inertia_tensor(body: Body, floor: float = 0.0) -> np.ndarray:
-    """The inertia tensor about the centre of mass, in the body frame (kg m^2): a slender rod,
-    nothing about its own axis (x) and ``body.inertia`` across it (y and z). ``floor`` raises each
-    principal moment to at least that value (for formats and engines that need it positive)."""
+    """The inertia tensor about the centre of mass, in the body frame (kg m^2): ``axial_inertia``
+    (m r^2 / 2; 0 for a slender planar rod) about its own axis (x) and ``body.inertia`` across it
+    (y and z). ``floor`` raises each principal moment to at least that value (for formats and
+    engines that need it positive)."""
     across = body.inertia
-    return np.diag([max(0.0, floor), max(across, floor), max(across, floor)])
+    return np.diag([max(body.axial_inertia, floor), max(across, floor), max(across, floor)])
 
 
-__all__ = ["centre_of_mass", "children", "contact_point", "depth_first", "inertia_tensor", "joint_origin", "rotation_z"]
+__all__ = [
+    "body_rotation",
+    "rotation_axis",
+    "rotation_rpy",
+    "unit_axis",
+    "centre_of_mass", "children", "contact_point", "depth_first", "inertia_tensor", "joint_origin", "rotation_z"]

@@ -27,6 +27,9 @@ UNIFORM_GYRATION = 1.0 / math.sqrt(12.0)
 
 #: Values per body in the design vector, in this order.
 BODY_VALUES = ("length", "mass", "angle", "at", "com", "gyration")
+#: A spatial model's values per body: the planar ones, then the fixed rotation ``rpy`` (roll,
+#: pitch, yaw: Rz(yaw) Ry(pitch) Rx(roll), as in URDF), the joint ``axis`` and the rod's ``radius``.
+SPATIAL_BODY_VALUES = BODY_VALUES + ("roll", "pitch", "yaw", "axis_x", "axis_y", "axis_z", "radius")
 #: Where each body value may lie: (lowest, whether the lowest itself is allowed, highest); every
 #: value is also finite. :func:`validate_tree` enforces them one tree at a time, the batch
 #: evaluator (``impulse_core.compile.batch``) on whole arrays of design vectors.
@@ -37,6 +40,13 @@ VALUE_BOUNDS = {
     "at": (0.0, True, 1.0),
     "com": (0.0, True, 1.0),
     "gyration": (0.0, True, math.inf),
+    "roll": (-math.inf, False, math.inf),
+    "pitch": (-math.inf, False, math.inf),
+    "yaw": (-math.inf, False, math.inf),
+    "axis_x": (-math.inf, False, math.inf),
+    "axis_y": (-math.inf, False, math.inf),
+    "axis_z": (-math.inf, False, math.inf),
+    "radius": (0.0, True, math.inf),
 }
 #: The same for every contact fraction.
 CONTACT_BOUNDS = (0.0, True, 1.0)
@@ -71,7 +81,13 @@ class Body:
         contacts: contact points on this body, as fractions of its length.
         com: centre of mass along the rod, as a fraction of its length (0.5: uniform rod).
         gyration: radius of gyration about the centre of mass, as a fraction of the length;
-            inertia about the centre of mass (z axis) = mass * (gyration * length)**2.
+            inertia about the centre of mass across the rod = mass * (gyration * length)**2.
+        rpy: spatial models: the fixed rotation (roll, pitch, yaw) between the parent's frame
+            at the joint and the joint (Rz(yaw) Ry(pitch) Rx(roll)); planar: zero.
+        axis: spatial models: the joint's axis in the frame after ``rpy`` (any length but
+            zero; made unit); planar: z.
+        radius: spatial models: the rod's radius (a solid cylinder: m r^2 / 2 about its own
+            axis); planar: 0.
     """
 
     name: str
@@ -84,11 +100,31 @@ class Body:
     contacts: tuple[float, ...] = ()
     com: float = UNIFORM_COM
     gyration: float = UNIFORM_GYRATION
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    radius: float = 0.0
 
     @property
     def inertia(self) -> float:
-        """Moment of inertia about the centre of mass, z axis (kg m^2)."""
+        """Moment of inertia about the centre of mass, across the rod (kg m^2)."""
         return self.mass * (self.gyration * self.length) ** 2
+
+    @property
+    def axial_inertia(self) -> float:
+        """Moment of inertia about the rod's own axis (kg m^2): m r^2 / 2."""
+        return 0.5 * self.mass * self.radius**2
+
+    @property
+    def is_planar(self) -> bool:
+        """True when the body turns about z with no fixed rotation and no radius."""
+        return self.rpy == (0.0, 0.0, 0.0) and self.axis == (0.0, 0.0, 1.0) and self.radius == 0.0
+
+    roll = property(lambda self: self.rpy[0])
+    pitch = property(lambda self: self.rpy[1])
+    yaw = property(lambda self: self.rpy[2])
+    axis_x = property(lambda self: self.axis[0])
+    axis_y = property(lambda self: self.axis[1])
+    axis_z = property(lambda self: self.axis[2])
 
 
 @dataclass(frozen=True)
@@ -151,6 +187,7 @@ class Topology:
 
     @property
     def n_values(self) -> int:
+        """Length of a planar design vector (spatial: ``kinematics.spatial.n_values``)."""
         return len(BODY_VALUES) * self.n_bodies + sum(self.n_contacts)
 
     def with_active(self, active: tuple[int, ...]) -> Topology:
@@ -167,6 +204,8 @@ class Scene:
         speed: downward speed of the base origin (m/s), > 0.
         velocity_x: horizontal (+x) velocity of the base origin (m/s).
         angular_velocity: the base's (and every body's) angular velocity about z (rad/s).
+        velocity_z, angular_velocity_x, angular_velocity_y: the rest of a spatial approach
+            (lateral velocity; angular velocity about x and y), world frame; 0 in the plane.
         restitution: Newton's coefficient e in [0, 1].
         friction: Coulomb coefficient (0: frictionless; > 0: the FRICTION rung of contact_models).
         selection: which contacts hit (rigid rungs; the time-domain models let the geometry decide).
@@ -190,12 +229,18 @@ class Scene:
     base_x: float = 0.0
     velocity_x: float = 0.0
     angular_velocity: float = 0.0
+    velocity_z: float = 0.0
+    angular_velocity_x: float = 0.0
+    angular_velocity_y: float = 0.0
     gravity: float = 0.0
     duration: float | None = None
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and self.speed > 0, "scene.speed", f"must be > 0, got {self.speed}")
         _require(math.isfinite(self.velocity_x), "scene.velocity", f"must be finite, got {self.velocity_x}")
+        for name in ("velocity_z", "angular_velocity_x", "angular_velocity_y"):
+            value = getattr(self, name)
+            _require(math.isfinite(value), f"scene.{name}", f"must be finite, got {value}")
         _require(
             math.isfinite(self.angular_velocity),
             "scene.angular_velocity",
@@ -239,7 +284,22 @@ class Scene:
     @property
     def straight_down(self) -> bool:
         """True when the approach is a pure downward translation (the paper's landing)."""
-        return self.velocity_x == 0.0 and self.angular_velocity == 0.0
+        return self.velocity_x == 0.0 and self.angular_velocity == 0.0 and not self.out_of_plane
+
+    @property
+    def out_of_plane(self) -> bool:
+        """True when the approach has a lateral velocity or turns about x or y (spatial only)."""
+        return (self.velocity_z, self.angular_velocity_x, self.angular_velocity_y) != (0.0, 0.0, 0.0)
+
+    @property
+    def velocity(self) -> tuple[float, float, float]:
+        """The base origin's velocity at touchdown (world frame, m/s)."""
+        return (self.velocity_x, -self.speed, self.velocity_z)
+
+    @property
+    def angular_velocity_3d(self) -> tuple[float, float, float]:
+        """The base's angular velocity at touchdown (world frame, rad/s)."""
+        return (self.angular_velocity_x, self.angular_velocity_y, self.angular_velocity)
 
 
 def _require(ok: bool, where: str, problem: str) -> None:
@@ -276,6 +336,22 @@ def validate_tree(tree: Tree) -> None:
         _require(0.0 <= b.at <= 1.0, f"{where}.at", f"must be in [0, 1] (a point on the parent), got {b.at}")
         _require(0.0 <= b.com <= 1.0, f"{where}.com", f"must be in [0, 1] (a point on the rod), got {b.com}")
         _require(b.gyration >= 0.0, f"{where}.gyration", f"must be >= 0, got {b.gyration}")
+        _require(
+            len(b.rpy) == 3 and all(math.isfinite(x) for x in b.rpy), f"{where}.rpy", f"must be 3 finite numbers, got {b.rpy}"
+        )
+        _require(
+            len(b.axis) == 3 and all(math.isfinite(x) for x in b.axis) and math.hypot(*b.axis) > 1e-12,
+            f"{where}.axis",
+            f"must be a non-zero finite 3-vector, got {b.axis}",
+        )
+        _require(math.isfinite(b.radius) and b.radius >= 0.0, f"{where}.radius", f"must be >= 0 (m), got {b.radius}")
+        _require(
+            b.axial_inertia <= 2.0 * b.inertia * (1 + 1e-12),
+            f"{where}.radius",
+            f"{b.radius} m gives m r^2/2 = {b.axial_inertia:.6g} kg m^2 about the rod's axis, more than twice its "
+            f"inertia across ({b.inertia:.6g}): no rigid body has that (the triangle inequality of principal "
+            "moments); lower the radius or raise inertia/gyration",
+        )
         for k, c in enumerate(b.contacts):
             _require(
                 math.isfinite(c) and 0.0 <= c <= 1.0,
@@ -286,41 +362,49 @@ def validate_tree(tree: Tree) -> None:
         raise ModelError("model.bodies: no body declares a contact point")
 
 
-def design_vector(tree: Tree) -> np.ndarray:
+def design_vector(tree: Tree, body_values: tuple[str, ...] = BODY_VALUES) -> np.ndarray:
     """The values of a tree as the flat vector ``p`` the compiled functions take.
 
-    Layout: for each body, ``BODY_VALUES`` in order; then every declared contact fraction.
+    Layout: for each body, ``body_values`` in order (``BODY_VALUES`` in the plane,
+    ``SPATIAL_BODY_VALUES`` in space); then every declared contact fraction.
     """
-    per_body = [[getattr(b, name) for name in BODY_VALUES] for b in tree.bodies]
+    per_body = [[getattr(b, name) for name in body_values] for b in tree.bodies]
     contacts = [c for b in tree.bodies for c in b.contacts]
     return np.array([v for row in per_body for v in row] + contacts, dtype=float)
 
 
-def value_names(tree: Tree) -> tuple[str, ...]:
+def value_names(tree: Tree, body_values: tuple[str, ...] = BODY_VALUES) -> tuple[str, ...]:
     """Names of the entries of :func:`design_vector`, e.g. ``shank.length``, ``heel.contacts[0]``."""
-    names = [f"{b.name}.{v}" for b in tree.bodies for v in BODY_VALUES]
+    names = [f"{b.name}.{v}" for b in tree.bodies for v in body_values]
     names += [f"{b.name}.contacts[{k}]" for b in tree.bodies for k in range(len(b.contacts))]
     return tuple(names)
 
 
-def with_values(tree: Tree, p: np.ndarray) -> Tree:
-    """A copy of ``tree`` with the values taken from the flat vector ``p``."""
+def with_values(tree: Tree, p: np.ndarray, body_values: tuple[str, ...] = BODY_VALUES) -> Tree:
+    """A copy of ``tree`` with the values taken from the flat vector ``p`` (layout of
+    :func:`design_vector` with the same ``body_values``)."""
     p = np.asarray(p, dtype=float).ravel()
-    n = len(BODY_VALUES)
+    n = len(body_values)
     offset = n * tree.n_bodies
     bodies = []
     for i, b in enumerate(tree.bodies):
-        vals = dict(zip(BODY_VALUES, (float(x) for x in p[n * i : n * (i + 1)])))
+        vals = dict(zip(body_values, (float(x) for x in p[n * i : n * (i + 1)])))
         k = len(b.contacts)
         contacts = tuple(float(x) for x in p[offset : offset + k])
         offset += k
-        bodies.append(Body(name=b.name, parent=b.parent, joint=b.joint, contacts=contacts, **vals))
+        spatial = {
+            "rpy": tuple(vals.pop(name, old) for name, old in zip(("roll", "pitch", "yaw"), b.rpy)),
+            "axis": tuple(vals.pop(name, old) for name, old in zip(("axis_x", "axis_y", "axis_z"), b.axis)),
+            "radius": vals.pop("radius", b.radius),
+        }
+        bodies.append(Body(name=b.name, parent=b.parent, joint=b.joint, contacts=contacts, **vals, **spatial))
     return Tree(tuple(bodies))
 
 
 __all__ = [
     "BODY_VALUES",
     "CONTACT_BOUNDS",
+    "SPATIAL_BODY_VALUES",
     "VALUE_BOUNDS",
     "Body",
     "ContactSelection",

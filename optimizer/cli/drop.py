@@ -19,6 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from impulse_core.errors import FootoptError, NumericalError
+from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact
 from optimizer.cli.status import EXIT_FAILURE, EXIT_OK, EXIT_USAGE, warn
 from optimizer.cli.status import error as _error
@@ -49,7 +50,7 @@ def add_drop(subparsers: argparse._SubParsersAction) -> None:
 
 def run_drop(args: argparse.Namespace) -> int:
     """``footopt drop``."""
-    from optimizer.config.model_file import load_model_file
+    from optimizer.config.model_file import load_model_file, require_planar
     from optimizer.evaluation.model_choice import evaluate_landing
 
     try:
@@ -61,7 +62,7 @@ def run_drop(args: argparse.Namespace) -> int:
         _error("--stiffness", f"must be a finite number > 0 (1/s^2), got {args.stiffness}")
         return EXIT_USAGE
     try:
-        model = load_model_file(args.model)
+        model = require_planar(load_model_file(args.model), "footopt drop")
         if model.scene.friction > 0:
             warn(f"{args.model}: scene.friction {model.scene.friction:g} is left out: MuJoCo's contacts here are "
                  "frictionless")
@@ -85,7 +86,7 @@ def drop_record(tree, scene, stiffness: float, rigid) -> dict:  # type: ignore[n
     settings = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=stiffness, gravity=scene.gravity)
     soft = simulate_impact(tree, scene, settings)
     steps = int(round(soft.duration / soft.timestep))
-    mj = drop(tree, scene, settings, steps, soft.timestep)
+    mj = drop(tree, scene, settings, steps, soft.timestep, v_minus=pre_impact_velocity(tree.topology(), scene))
     b = float(np.mean(soft.damping))
     return {
         "contacts": list(contact_names(tree)),

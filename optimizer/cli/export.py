@@ -54,7 +54,7 @@ def run_export(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     try:
         model = load_model_file(args.model)
-        text = export_text(model.tree, model.scene, ExportFormat(name), Path(args.model).stem, model.joints)
+        text = export_text(model.tree, model.scene, ExportFormat(name), Path(args.model).stem, model.joints, model.space)
     except FootoptError as e:
         _error(args.model, str(e))
         return EXIT_USAGE

@@ -31,12 +31,13 @@ from optimizer.cli.init import add_init
 from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
-from optimizer.config.model_file import ModelFile, load_model_file
+from optimizer.config.model_file import ModelFile, load_model_file, require_planar
 from optimizer.design_space import Objective
 from optimizer.errors import ConfigError
 from impulse_core.timedomain.landing import LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
-from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown
+from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown, plot_views
+from impulse_core.kinematics.spatial import PLANAR
 from optimizer.report.text import Result, format_report, is_finite, result_record
 
 #: The paper's three-toed foot, evaluated when no file is given.
@@ -290,9 +291,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 plot_landing(model.tree, result.result, plots[n], title=Path(file).name, scene=model.scene)
                 if not args.json:
                     print(f"plot: {plots[n]}")
+            elif n in plots and model.space is not PLANAR:
+                plot_views(model.tree, touchdown_geometry(model.tree, model.space), result, plots[n], Path(file).name)
+                if not args.json:
+                    print(f"plot: {plots[n]}")
             elif n in plots:
                 plot_touchdown(
-                    model.tree, touchdown_geometry(model.tree), result, plots[n], title=Path(file).name, scene=model.scene
+                    model.tree, touchdown_geometry(model.tree, model.space), result, plots[n], title=Path(file).name, scene=model.scene
                 )
                 if not args.json:
                     print(f"plot: {plots[n]}")
@@ -322,7 +327,7 @@ def _evaluate_over_landings(args: argparse.Namespace) -> int:
     status = EXIT_OK
     for file in args.files:
         try:
-            robust = evaluate_over_landings(load_model_file(file), config.landings, config.statistic_of)
+            robust = evaluate_over_landings(require_planar(load_model_file(file), "footopt evaluate --landings"), config.landings, config.statistic_of)
         except FootoptError as e:
             _error(file, str(e))
             status = EXIT_USAGE
@@ -417,7 +422,15 @@ def _evaluate(
     with np.errstate(all="ignore"):
         try:
             result = evaluate_landing(
-                model.tree, model.scene, choice, compliant, sequential, model.joints, whole, compliant_tolerance
+                model.tree,
+                model.scene,
+                choice,
+                compliant,
+                sequential,
+                model.joints,
+                whole,
+                compliant_tolerance,
+                model.space,
             )
         except (np.linalg.LinAlgError, NumericalError):
             return None
@@ -452,7 +465,7 @@ def run_bench(args: argparse.Namespace) -> int:
     cache = None if args.no_compile else Path(args.cache_dir)
     for n, file in enumerate(files):
         try:
-            model = load_model_file(file)
+            model = require_planar(load_model_file(file), "footopt bench")
         except FootoptError as e:
             _error(file, str(e))
             return EXIT_USAGE

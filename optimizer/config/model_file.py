@@ -33,6 +33,7 @@ from typing import Any
 import yaml
 
 from impulse_core.errors import ModelError
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.terrain import FLAT, Terrain
 from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
@@ -57,8 +58,12 @@ SCENE_KEYS = (
     "gravity",
     "duration",
 )
-MODEL_KEYS = ("bodies",)
+MODEL_KEYS = ("bodies", "space")
 BODY_KEYS = ("name", "parent", "at", "length", "mass", "angle", "joint", "contacts", "com", "inertia", "gyration")
+#: A spatial model's body keys (MODEL_FORMAT "Spatial models").
+SPATIAL_BODY_KEYS = ("rpy", "axis", "radius")
+#: ``model.space``.
+SPACES = {"planar": PLANAR, "spatial": SPATIAL}
 #: A revolute joint's spring, damper and stops (``impulse_core.model.joints.JointLaw``).
 JOINT_LAW_KEYS = ("stiffness", "damping", "rest", "limits", "stop_restitution")
 REFERENCE_KEYS = ("source", "external", "internal", "external_norm", "internal_norm", "note")
@@ -219,6 +224,7 @@ class ModelFile:
         reference: published values for comparison, or None.
         notes: free text (the top-level ``notes``), ignored by the evaluation.
         path: the file it was read from (not part of equality).
+        space: ``model.space`` (PLANAR or SPATIAL).
     """
 
     tree: Tree
@@ -227,6 +233,7 @@ class ModelFile:
     notes: str | None = None
     path: Path | None = field(default=None, compare=False)
     joints: tuple[JointLaw, ...] = ()
+    space: Space = PLANAR
 
     def __post_init__(self) -> None:
         if self.joints and len(self.joints) != self.tree.n_bodies:
@@ -264,6 +271,13 @@ def load_model_file(path: str | Path) -> ModelFile:
         raise
 
 
+def require_planar(model: ModelFile, what: str) -> ModelFile:
+    """``model`` if it is planar; else ConfigError naming ``model.space`` and what refused it."""
+    if model.space is not PLANAR:
+        raise ConfigError(f"model.space: {what} takes planar models so far (spatial: footopt evaluate)", model.path)
+    return model
+
+
 def read_text(path: Path, what: str) -> str:
     """The UTF-8 text of a config file, or ConfigError saying why it cannot be read."""
     try:
@@ -293,12 +307,15 @@ def parse_model(data: Any, path: str | Path | None = None) -> ModelFile:
         if data is None:
             raise ConfigError("empty file: expected a mapping with 'scene' and 'model'")
         top = _mapping(data, "", TOP_KEYS, what="the top level")
-        scene = parse_scene(_required(top, "scene", ""))
-        tree = parse_tree(_required(top, "model", ""))
+        space = parse_space(_required(top, "model", ""))
+        scene = parse_scene(_required(top, "scene", ""), spatial=space is SPATIAL)
+        tree = parse_tree(top["model"])
         joints = parse_joint_laws(top["model"], tree)
         reference = parse_reference(top["reference"]) if top.get("reference") is not None else None
         notes = _optional_string(top, "notes", "")
-        return ModelFile(tree=tree, scene=scene, reference=reference, notes=notes, path=source, joints=joints)
+        return ModelFile(
+            tree=tree, scene=scene, reference=reference, notes=notes, path=source, joints=joints, space=space
+        )
     except ModelError as e:  # the dataclasses' own checks, already named by field
         raise ConfigError(str(e), source) from None
     except ConfigError as e:
@@ -306,29 +323,56 @@ def parse_model(data: Any, path: str | Path | None = None) -> ModelFile:
         raise
 
 
-def _approach(m: dict[str, Any], where: str) -> tuple[float, float]:
-    """(velocity_x, speed) from ``speed: s`` (straight down) or ``velocity: [vx, vy]``, vy < 0."""
+def parse_space(data: Any, where: str = "model") -> Space:
+    """``model.space``: planar (default) or spatial."""
+    m = _mapping(data, where, MODEL_KEYS)
+    raw = m.get("space", "planar")
+    if raw not in SPACES:
+        raise ConfigError(f"{where}.space: must be one of {', '.join(SPACES)}, got {_describe(raw)}")
+    return SPACES[raw]
+
+
+def _vector(value: Any, where: str, names: str, spatial: bool = True, unit: str = " (m/s)") -> tuple[float, ...]:
+    """A list of numbers named ``names`` (e.g. "vx, vy"); ``spatial`` False adds the hint that
+    a 3-vector needs a spatial model."""
+    n = names.count(",") + 1
+    if not isinstance(value, list) or len(value) != n:
+        hint = "" if spatial else " (a 3-vector needs 'model.space: spatial')"
+        raise ConfigError(f"{where}: must be [{names}]{unit}{hint}, got {_describe(value)}")
+    return tuple(_number(x, f"{where}[{i}]") for i, x in enumerate(value))
+
+
+def _approach(m: dict[str, Any], where: str, spatial: bool = False) -> tuple[float, float, float]:
+    """(velocity_x, speed, velocity_z) from ``speed: s`` (straight down) or ``velocity: [vx, vy]``
+    (spatial: ``[vx, vy, vz]``), vy < 0."""
     if "velocity" in m and "speed" in m:
         raise ConfigError(f"{where}.velocity: give speed (straight down) or velocity, not both")
     if "velocity" not in m:
         speed = _number(_required(m, "speed", where), f"{where}.speed")
         if speed <= 0:
             raise ConfigError(f"{where}.speed: must be > 0 (m/s, straight down), got {speed!r}")
-        return 0.0, speed
-    v = m["velocity"]
-    if not isinstance(v, list) or len(v) != 2:
-        raise ConfigError(f"{where}.velocity: must be [vx, vy] (m/s), got {_describe(v)}")
-    vx, vy = (_number(x, f"{where}.velocity[{i}]") for i, x in enumerate(v))
-    if vy >= 0:
-        raise ConfigError(f"{where}.velocity[1]: must be < 0 (the model comes down onto the ground), got {vy!r}")
-    return vx, -vy
+        return 0.0, speed, 0.0
+    v = _vector(m["velocity"], f"{where}.velocity", "vx, vy, vz" if spatial else "vx, vy", spatial) + (0.0,)
+    if v[1] >= 0:
+        raise ConfigError(f"{where}.velocity[1]: must be < 0 (the model comes down onto the ground), got {v[1]!r}")
+    return v[0], -v[1], v[2]
 
 
-def parse_scene(data: Any, where: str = "scene") -> Scene:
-    """Validate the ``scene`` block into a core ``Scene``."""
+def _angular_velocity(m: dict[str, Any], where: str, spatial: bool) -> tuple[float, float, float]:
+    """(wx, wy, wz): one number about z in the plane, ``[wx, wy, wz]`` in space."""
+    raw = m.get("angular_velocity", [0.0, 0.0, 0.0] if spatial else 0.0)
+    if spatial:
+        return _vector(raw, where, "wx, wy, wz", unit=" (rad/s)")  # type: ignore[return-value]
+    if isinstance(raw, list):
+        raise ConfigError(f"{where}: a planar model turns about z only: one number (rad/s); [wx, wy, wz] needs 'model.space: spatial'")
+    return 0.0, 0.0, _number(raw, where)
+
+
+def parse_scene(data: Any, where: str = "scene", spatial: bool = False) -> Scene:
+    """Validate the ``scene`` block into a core ``Scene`` (``spatial``: 3-vector velocities)."""
     m = _mapping(data, where, SCENE_KEYS)
-    velocity_x, speed = _approach(m, where)
-    angular_velocity = _number(m.get("angular_velocity", 0.0), f"{where}.angular_velocity")
+    velocity_x, speed, velocity_z = _approach(m, where, spatial)
+    wx, wy, angular_velocity = _angular_velocity(m, f"{where}.angular_velocity", spatial)
     restitution = _number(_required(m, "restitution", where), f"{where}.restitution")
     if not 0.0 <= restitution <= 1.0:
         raise ConfigError(f"{where}.restitution: must be in [0, 1], got {restitution!r}")
@@ -349,6 +393,9 @@ def parse_scene(data: Any, where: str = "scene") -> Scene:
         speed=speed,
         velocity_x=velocity_x,
         angular_velocity=angular_velocity,
+        velocity_z=velocity_z,
+        angular_velocity_x=wx,
+        angular_velocity_y=wy,
         restitution=restitution,
         friction=friction,
         selection=selection,
@@ -441,7 +488,13 @@ def parse_tree(data: Any, where: str = "model") -> Tree:
         raise ConfigError(f"{path}: must be a list of bodies, got {_describe(raw)}")
     if not raw:
         raise ConfigError(f"{path}: must list at least one body")
-    entries = [_mapping(b, f"{path}[{i}]", BODY_KEYS + JOINT_LAW_KEYS) for i, b in enumerate(raw)]
+    spatial = parse_space(data, where) is SPATIAL
+    keys = BODY_KEYS + JOINT_LAW_KEYS + SPATIAL_BODY_KEYS
+    entries = [_mapping(b, f"{path}[{i}]", keys) for i, b in enumerate(raw)]
+    for i, b in enumerate(entries):
+        for key in SPATIAL_BODY_KEYS:
+            if key in b and not spatial:
+                raise ConfigError(f"{path}[{i}].{key}: needs 'model.space: spatial' (a planar body turns about z)")
 
     index: dict[str, int] = {}
     for i, b in enumerate(entries):
@@ -451,13 +504,15 @@ def parse_tree(data: Any, where: str = "model") -> Tree:
         index[name] = i
     names = list(index)
 
-    bodies = [_parse_body(b, i, names, entries, path) for i, b in enumerate(entries)]
+    bodies = [_parse_body(b, i, names, entries, path, spatial) for i, b in enumerate(entries)]
     if not any(b.contacts for b in bodies):
         raise ConfigError(f"{path}: no body declares a contact point (add e.g. 'contacts: [1.0]' to a body)")
     return Tree(tuple(bodies))
 
 
-def _parse_body(b: dict[str, Any], i: int, names: list[str], entries: list[dict[str, Any]], path: str) -> Body:
+def _parse_body(
+    b: dict[str, Any], i: int, names: list[str], entries: list[dict[str, Any]], path: str, spatial: bool = False
+) -> Body:
     where = f"{path}[{i}]"
     parent = _parse_parent(b, i, names, entries, where)
     length = _positive(_required(b, "length", where), f"{where}.length")
@@ -482,7 +537,9 @@ def _parse_body(b: dict[str, Any], i: int, names: list[str], entries: list[dict[
         contacts.append(x)
     if "inertia" in b and "gyration" in b:
         raise ConfigError(f"{where}.gyration: give 'inertia' or 'gyration', not both")
-    gyration = UNIFORM_GYRATION
+    rpy, axis, radius = _spatial_fields(b, where) if spatial else ((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 0.0)
+    # a solid cylinder's m (3 r^2 + L^2) / 12 across the rod (a uniform rod's m L^2 / 12 at r = 0)
+    gyration = math.sqrt(UNIFORM_GYRATION**2 + 0.25 * (radius / length) ** 2) if radius else UNIFORM_GYRATION
     if "inertia" in b:
         inertia = _number(b["inertia"], f"{where}.inertia")
         if inertia < 0:
@@ -503,7 +560,22 @@ def _parse_body(b: dict[str, Any], i: int, names: list[str], entries: list[dict[
         contacts=tuple(contacts),
         com=com,
         gyration=gyration,
+        rpy=rpy,
+        axis=axis,
+        radius=radius,
     )
+
+
+def _spatial_fields(b: dict[str, Any], where: str) -> tuple[tuple[float, ...], tuple[float, ...], float]:
+    """A spatial body's ``rpy`` (default 0), ``axis`` (default z, non-zero) and ``radius`` (>= 0)."""
+    rpy = _vector(b.get("rpy", [0.0, 0.0, 0.0]), f"{where}.rpy", "a, b, c", unit=" (rad)")
+    axis = _vector(b.get("axis", [0.0, 0.0, 1.0]), f"{where}.axis", "x, y, z", unit="")
+    if math.hypot(*axis) <= 1e-12:
+        raise ConfigError(f"{where}.axis: must be a non-zero vector (the joint's axis), got {list(axis)}")
+    radius = _number(b.get("radius", 0.0), f"{where}.radius")
+    if radius < 0:
+        raise ConfigError(f"{where}.radius: must be >= 0 (m), got {radius!r}")
+    return rpy, axis, radius
 
 
 def _parse_parent(b: dict[str, Any], i: int, names: list[str], entries: list[dict[str, Any]], where: str) -> int | None:
@@ -635,16 +707,20 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
     """
     lines = [f"# {line}".rstrip() for line in header_comment.splitlines()] if header_comment else []
     s = model.scene
+    spatial = model.space is SPATIAL
+    velocity = s.velocity if spatial else s.velocity[:2]
     lines += [
         "scene:",
         f"  speed: {_float_text(s.speed)}  # m/s, straight down"
-        if s.velocity_x == 0.0
-        else f"  velocity: [{_float_text(s.velocity_x)}, {_float_text(-s.speed)}]  # m/s, base origin",
+        if s.velocity_x == 0.0 and s.velocity_z == 0.0
+        else f"  velocity: {_list_text(velocity)}  # m/s, base origin",
         f"  restitution: {_float_text(s.restitution)}",
         f"  friction: {_float_text(s.friction)}",
         f"  contacts: {s.selection.value}",
     ]
-    if s.angular_velocity != 0.0:
+    if spatial and s.angular_velocity_3d != (0.0, 0.0, 0.0):
+        lines.append(f"  angular_velocity: {_list_text(s.angular_velocity_3d)}  # rad/s, world frame")
+    elif s.angular_velocity != 0.0:
         lines.append(f"  angular_velocity: {_float_text(s.angular_velocity)}  # rad/s, about z")
     if s.contact_tolerance != _DEFAULT_TOLERANCE:
         lines.append(f"  contact_tolerance: {_float_text(s.contact_tolerance)}  # m")
@@ -657,7 +733,7 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
         lines.append(f"  gravity: {_float_text(s.gravity)}  # m/s^2 along -y")
     if s.duration is not None:
         lines.append(f"  duration: {_float_text(s.duration)}  # s: the whole landing")
-    lines += ["model:", "  bodies:"]
+    lines += ["model:"] + (["  space: spatial"] if spatial else []) + ["  bodies:"]
     tree = model.tree
     for b in tree.bodies:
         lines.append(f"    - name: {_string_text(b.name)}")
@@ -672,6 +748,12 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
         ]
         if b.joint is not JointKind.REVOLUTE:
             lines.append(f"      joint: {b.joint.value}")
+        if b.rpy != (0.0, 0.0, 0.0):
+            lines.append(f"      rpy: {_list_text(b.rpy)}  # rad: Rz(c) Ry(b) Rx(a)")
+        if b.axis != (0.0, 0.0, 1.0):
+            lines.append(f"      axis: {_list_text(b.axis)}")
+        if b.radius != 0.0:
+            lines.append(f"      radius: {_float_text(b.radius)}  # m")
         if b.com != UNIFORM_COM:
             lines.append(f"      com: {_float_text(b.com)}")
         if b.gyration != UNIFORM_GYRATION:
@@ -771,6 +853,10 @@ def _float_text(x: float) -> str:
     return text
 
 
+def _list_text(xs: tuple[float, ...]) -> str:
+    return "[" + ", ".join(_float_text(x) for x in xs) + "]"
+
+
 def _string_text(s: str) -> str:
     """A YAML scalar that reads back as ``s``: plain when that is safe, else double-quoted."""
     if _PLAIN.fullmatch(s) and s.lower() not in _RESERVED:
@@ -808,6 +894,7 @@ __all__ = [
     "dump_model_file",
     "format_model_file",
     "load_model_file",
+    "require_planar",
     "load_yaml",
     "parse_base_x",
     "parse_model",

@@ -18,6 +18,7 @@ import numpy as np
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import ImpactResult, approach_velocity, evaluate, pre_impact_velocity
 from impulse_core.impact.laws import ImpactModel
+from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.model.joints import JointLaw
 from impulse_core.timedomain.compliant import (
@@ -134,6 +135,7 @@ def evaluate_landing(
     joints: tuple[JointLaw, ...] = (),
     whole: LandingSettings | None = None,
     compliant_tolerance: float | None = None,
+    space: Space = PLANAR,
 ) -> ImpactResult | TimeDomainResult:
     """The landing of ``tree`` as ``scene`` says, by ``model`` (one of :data:`MODEL_CHOICES`), the
     time-domain models with their settings (default: the modules' defaults). ``auto`` runs the
@@ -146,6 +148,8 @@ def evaluate_landing(
         NumericalError: the solve or the integration failed.
     """
     flat = scene.terrain.is_flat
+    if space is not PLANAR:
+        return _spatial(tree, scene, model, space)
     if model == LANDING or model == "auto" and scene.duration is not None:
         return _whole_landing(tree, scene, joints, whole or LandingSettings(), requested=model == LANDING)
     if model == "auto" and flat or model in {m.value for m in ImpactModel}:
@@ -186,6 +190,18 @@ def evaluate_landing(
     if settings.gravity:
         notes.append(f"gravity {settings.gravity:g} m/s^2")
     return TimeDomainResult(model, "; ".join(notes), result, v_minus, settings)
+
+
+def _spatial(tree: Tree, scene: Scene, model: str, space: Space) -> ImpactResult:
+    """A spatial model's first impact; the time-domain models are planar so far (refused)."""
+    if model in TIME_DOMAIN_MODELS or model == "auto" and (scene.duration is not None or not scene.terrain.is_flat):
+        raise ModelError(
+            "model.space: spatial models run the first-impact rungs (newton, lcp, decoupled) so far; the "
+            "time-domain models (landing, sequential, compliant), scene.duration and scene.terrain are planar only"
+        )
+    if model not in {"auto"} | {m.value for m in ImpactModel}:
+        raise ModelError(f"model: unknown model {model!r} (choices: {', '.join(MODEL_CHOICES)})")
+    return evaluate(tree, scene, None if model == "auto" else ImpactModel(model), space)
 
 
 def _scene_gravity(settings, scene: Scene):  # type: ignore[no-untyped-def]

@@ -250,3 +250,51 @@ def plot_speed(report: SpeedReport, path: str | Path) -> Path:
 
 
 __all__ = ["PLOT_SUFFIXES", "plot_speed", "plot_touchdown"]
+
+
+#: The three views of a spatial foot: (title, horizontal world axis, vertical world axis).
+VIEWS = (("side (x forward, y up)", 0, 1), ("front (z lateral, y up)", 2, 1), ("top (x forward, z lateral)", 0, 2))
+
+
+def plot_views(tree: Tree, geometry: Geometry, result: ImpactResult, path: str | Path, title: str) -> Path:
+    """A spatial tree at touchdown in three views (side, front, top): rods, joints, contacts
+    (filled when they hit) and the external impulses as arrows along the ground normal (drawn in
+    the side and front views; seen end-on from above, the top view marks them with their value).
+
+    Raises:
+        ConfigError: an unsupported suffix, or the file cannot be written.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    path = _plot_path(path)
+    fig = Figure(figsize=(14, 5))
+    FigureCanvasAgg(fig)
+    points = np.vstack([geometry.origins, geometry.tips, geometry.contacts])
+    extent = float(max(np.ptp(points, axis=0).max(), 1e-3))
+    largest = float(np.max(np.abs(result.external), initial=0.0))
+    scale = 0.3 * extent / largest if largest > 0 else 0.0
+    active = np.zeros(len(geometry.contacts), dtype=bool)
+    active[list(result.active)] = True
+    for k, (name, h, v) in enumerate(VIEWS):
+        ax = fig.add_subplot(1, 3, k + 1)
+        for o, t in zip(geometry.origins, geometry.tips, strict=True):
+            ax.plot([o[h], t[h]], [o[v], t[v]], color=_ROD, lw=5, solid_capstyle="round", alpha=0.85)
+        ax.plot(geometry.origins[:, h], geometry.origins[:, v], "o", mfc="white", mec=_JOINT, ms=6)
+        c = geometry.contacts
+        ax.plot(c[active, h], c[active, v], "o", color=_CONTACT, ms=6)
+        ax.plot(c[~active, h], c[~active, v], "o", mfc="white", mec=_CONTACT, ms=6)
+        for i in np.flatnonzero(active):
+            if v == 1:  # the normal (y) lies in this view
+                ax.annotate("", xy=(c[i, h], c[i, v] + scale * result.external[i]), xytext=(c[i, h], c[i, v]),
+                            arrowprops=dict(arrowstyle="-|>", color=_EXTERNAL, lw=2, shrinkA=0, shrinkB=0))
+            ax.annotate(f"{result.external[i]:.3g}", (c[i, h], c[i, v]), fontsize=8, color=_EXTERNAL,
+                        xytext=(3, -10), textcoords="offset points")
+        if v == 1:
+            ax.axhline(geometry.ground_height, color=_GROUND, lw=1)
+        ax.set_title(name, fontsize=9)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{title}\nexternal_norm {result.external_norm:.4f} N s, internal_norm {result.internal_norm:.4f} N s"
+                 " (external impulses in red, N s)")
+    return _save(fig, path)

@@ -15,7 +15,7 @@ import numpy as np
 
 from impulse_core.evaluate import ImpactResult
 from impulse_core.impact.laws import ImpactModel
-from impulse_core.kinematics.spatial import PLANAR, dof_layout
+from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
 from impulse_core.model.terrain import FLAT
 from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import CompliantResult, CompliantStatus, ContactLaw
@@ -41,12 +41,15 @@ def joint_names(tree: Tree) -> tuple[str, ...]:
     return tuple(b.name for b in tree.bodies[1:])
 
 
-def velocity_names(tree: Tree) -> tuple[tuple[str, str], ...]:
-    """(name, unit) of each generalized velocity: the base's vx, vy, omega, then the rate of
-    each revolute joint (named by its child body) in file order."""
-    layout = dof_layout(tree.topology(), PLANAR)
-    n_base = len(PLANAR.base_dofs)
-    base = (("base vx", "m/s"), ("base vy", "m/s"), ("base omega", "rad/s"))
+def velocity_names(tree: Tree, space: Space = PLANAR) -> tuple[tuple[str, str], ...]:
+    """(name, unit) of each generalized velocity: the base's vx, vy, omega (spatial: vx, vy, vz,
+    wx, wy, wz, world frame), then the rate of each revolute joint (named by its child body) in
+    file order."""
+    layout = dof_layout(tree.topology(), space)
+    n_base = len(space.base_dofs)
+    base: tuple[tuple[str, str], ...] = (("base vx", "m/s"), ("base vy", "m/s"), ("base omega", "rad/s"))
+    if space is not PLANAR:
+        base = tuple((f"base v{a}", "m/s") for a in "xyz") + tuple((f"base w{a}", "rad/s") for a in "xyz")
     joints = tuple((f"{tree.bodies[layout.dof_body[k]].name} rate", "rad/s") for k in range(n_base, layout.nv))
     return base + joints
 
@@ -87,7 +90,7 @@ def warnings(model: ModelFile, result: Result) -> tuple[str, ...]:
 
 def _rigid_warnings(model: ModelFile, result: ImpactResult) -> list[str]:
     names = contact_names(model.tree)
-    out = []
+    out = list(result.notes)
     if result.model is ImpactModel.DECOUPLED:
         out.append(
             "decoupled (paper eq. 14) approximates Newton's law (eq. 11) with no error bound: it equals eq. 11 "
@@ -205,25 +208,27 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
     active = set(result.active)
     mags = result.internal_magnitude
     name, description = rung(result)
+    planar = model.space is PLANAR
+    dims = 2 if planar else 3
     record: dict[str, Any] = {
         "file": file,
         "model": name,
         "model_description": description,
         "impact_model": name,
         "impact_reason": result.reason,
-        "scene": _scene_record(model.scene),
+        "scene": _scene_record(model.scene, model.space),
         "contacts": list(names),
         "active": [i in active for i in range(len(names))],
         "external": _floats(result.external),
         "joints": list(joints),
         "joint_kinds": [b.joint.value for b in tree.bodies[1:]],
         "internal": _floats(mags),
-        "internal_vector": [_floats(row[:2]) for row in result.internal],
+        "internal_vector": [_floats(row[:dims]) for row in result.internal],
         "external_norm": _f(result.external_norm),
         "internal_norm": _f(result.internal_norm),
         "max_internal": _f(result.max_internal),
         "max_internal_joint": joints[int(np.argmax(mags))] if mags.size else None,
-        "velocities": [name for name, _ in velocity_names(tree)],
+        "velocities": [name for name, _ in velocity_names(tree, model.space)],
         "v_minus": _floats(result.v_minus),
         "v_plus": _floats(result.v_plus),
         "energy_before": _f(result.energy_before),
@@ -233,10 +238,14 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
     }
     if isinstance(result, ImpactResult):
         record |= {
-            "tangential": _floats(result.tangential),
+            "tangential": _floats(result.tangential) if planar else [_floats(row) for row in result.tangential],
             "modes": None if result.modes is None else [m.value for m in result.modes],
             "separating": [names[i] for i in result.separating],
-            "internal_torque": _floats(result.internal_torque[:, 2]) if len(joints) else [],
+            "internal_torque": (
+                [] if not len(joints)
+                else _floats(result.internal_torque[:, 2]) if planar
+                else [_floats(row) for row in result.internal_torque]
+            ),
             "split_unique": bool(result.split_unique),
             "pulling": [names[i] for i in result.pulling],
         }
@@ -311,11 +320,22 @@ def _landing_record(r: LandingResult) -> dict[str, Any]:
     }
 
 
-def _scene_record(scene: Scene) -> dict[str, Any]:
+def _cell(x: Any) -> str:
+    """A table cell: a number, or [x, z] for a spatial tangential value."""
+    a = np.asarray(x, dtype=float)
+    return _num(float(a)) if a.ndim == 0 else "[" + ", ".join(_num(float(v)).strip() for v in a) + "]"
+
+
+def _vec(xs: tuple[float, ...]) -> str:
+    return "[" + ", ".join(f"{x:g}" for x in xs) + "]"
+
+
+def _scene_record(scene: Scene, space: Space = PLANAR) -> dict[str, Any]:
+    planar = space is PLANAR
     return {
         "speed": _f(scene.speed),
-        "velocity": [_f(scene.velocity_x), _f(-scene.speed)],
-        "angular_velocity": _f(scene.angular_velocity),
+        "velocity": _floats(scene.velocity[:2] if planar else scene.velocity),
+        "angular_velocity": _f(scene.angular_velocity) if planar else _floats(scene.angular_velocity_3d),
         "restitution": _f(scene.restitution),
         "friction": _f(scene.friction),
         "contacts": scene.selection.value,
@@ -354,6 +374,8 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
                 ""
                 if scene.straight_down
                 else f", {scene.velocity_x:g} m/s along x, turning {scene.angular_velocity:g} rad/s"
+                if not scene.out_of_plane
+                else f", velocity {_vec(scene.velocity)} m/s, angular velocity {_vec(scene.angular_velocity_3d)} rad/s"
             )
             + f", restitution e = {scene.restitution:g}, "
             f"friction {scene.friction:g}, contacts: {selection}"
@@ -377,12 +399,13 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
     rows = []
     for i, cname in enumerate(names):
         row = [cname, "yes" if i in active else "no", _num(result.external[i])]
-        row += [_num(result.tangential[i]), _num(slip[i]) if i in slip else "-"] if friction else []
+        row += [_cell(result.tangential[i]), _cell(slip[i]) if i in slip else "-"] if friction else []
         if show_ref_ext:
             assert ref is not None and ref.external is not None
             row += _ref_cells(result.external[i], ref.external[i])
         rows.append(row)
-    kind = "normal and tangential along +x" if friction else "normal" if rigid else "along the local ground normal"
+    along = "along +x" if model.space is PLANAR else "[x, z]"
+    kind = f"normal and tangential {along}" if friction else "normal" if rigid else "along the local ground normal"
     lines += ["", f"External impulses ({kind}, on the contacts)"] + _table(headers, rows)
 
     if not rigid:
@@ -402,12 +425,13 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
 
     if joints:
         show_ref_int = ref is not None and ref.internal is not None
-        headers = ["joint (child)", "kind", "x [N s]", "y [N s]", "|impulse| [N s]"]
+        dims = 2 if model.space is PLANAR else 3
+        headers = ["joint (child)", "kind"] + [f"{a} [N s]" for a in "xyz"[:dims]] + ["|impulse| [N s]"]
         headers += ["reference [N s]", "diff"] if show_ref_int else []
         rows = []
         for j, jname in enumerate(joints):
-            x, y = result.internal[j, :2]
-            row = [jname, tree.bodies[j + 1].joint.value, _num(x), _num(y), _num(result.internal_magnitude[j])]
+            components = [_num(x) for x in result.internal[j, :dims]]
+            row = [jname, tree.bodies[j + 1].joint.value, *components, _num(result.internal_magnitude[j])]
             if show_ref_int:
                 assert ref is not None and ref.internal is not None
                 row += _ref_cells(result.internal_magnitude[j], ref.internal[j])
@@ -426,7 +450,9 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
 
     rows = [
         [f"{vname} [{unit}]", _num(before), _num(after)]
-        for (vname, unit), before, after in zip(velocity_names(tree), result.v_minus, result.v_plus, strict=True)
+        for (vname, unit), before, after in zip(
+            velocity_names(tree, model.space), result.v_minus, result.v_plus, strict=True
+        )
     ]
     lines += ["", "Velocities"] + _table(["velocity", "before", "after"], rows)
 

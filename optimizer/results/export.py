@@ -30,16 +30,20 @@ import re
 import xml.etree.ElementTree as ET
 from enum import Enum
 
+from dataclasses import replace
+
 import numpy as np
 
+from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.rods import (
+    body_rotation,
     centre_of_mass,
     children,
     contact_point,
     depth_first,
     inertia_tensor,
     joint_origin,
-    rotation_z,
+    unit_axis,
 )
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, JointKind, Scene, Tree
@@ -90,19 +94,34 @@ def check_names(tree: Tree) -> None:
             )
 
 
-def base_pose(tree: Tree, scene: Scene) -> tuple[np.ndarray, float]:
-    """The base origin (world frame, m, z = 0) and the base's absolute angle at touchdown."""
-    q = touchdown_configuration(tree, *scene_ground(scene), clearance=0.0)
-    return np.array([q[0], q[1], 0.0]), float(q[2])
+#: A frame: its origin and its rotation (3 x 3), in the frame that holds it.
+Frame = tuple[np.ndarray, np.ndarray]
+
+
+def base_pose(tree: Tree, scene: Scene, space: Space = PLANAR) -> Frame:
+    """The base rod's frame at touchdown in the world: origin (m) and rotation. Planar: above
+    ``scene.base_x``, lowered until the first contact touches the scene's ground; spatial (flat
+    ground): above the world origin, its lowest contact on y = 0."""
+    if space is PLANAR:
+        q = touchdown_configuration(tree, *scene_ground(scene), clearance=0.0)
+        return np.array([q[0], q[1], 0.0]), body_rotation(replace(tree.bodies[0], angle=float(q[2])))
+    from impulse_core.evaluate import touchdown_geometry
+
+    return np.array([0.0, -touchdown_geometry(tree, space).ground_height, 0.0]), body_rotation(tree.bodies[0])
 
 
 def export_text(
-    tree: Tree, scene: Scene, fmt: ExportFormat, name: str = "footopt", joints: tuple[JointLaw, ...] = ()
+    tree: Tree,
+    scene: Scene,
+    fmt: ExportFormat,
+    name: str = "footopt",
+    joints: tuple[JointLaw, ...] = (),
+    space: Space = PLANAR,
 ) -> str:
     """The description of ``tree`` (and its joint laws) at its touchdown in ``scene``, in ``fmt``."""
     if fmt is ExportFormat.URDF:
-        return to_urdf(tree, scene, name, joints)
-    return to_mjcf(tree, scene, name, joints=joints)
+        return to_urdf(tree, scene, name, joints, space)
+    return to_mjcf(tree, scene, name, joints=joints, space=space)
 
 
 def _law(joints: tuple[JointLaw, ...], i: int) -> JointLaw:
@@ -119,65 +138,105 @@ def _relative(law: JointLaw, angle: float) -> tuple[tuple[float, float] | None, 
 # URDF
 
 
-def to_urdf(tree: Tree, scene: Scene, name: str = "footopt", joints: tuple[JointLaw, ...] = ()) -> str:
+def to_urdf(
+    tree: Tree, scene: Scene, name: str = "footopt", joints: tuple[JointLaw, ...] = (), space: Space = PLANAR
+) -> str:
     """The URDF of ``tree``: load it with a free-flyer root joint (Pinocchio:
     ``pin.buildModelFromXML(text, pin.JointModelFreeFlyer())``); ``pin.neutral(model)`` is then
     the touchdown pose, and the free-flyer's velocity that of the world frame's origin."""
     check_names(tree)
     robot = ET.Element("robot", name=_xml_safe(name))
-    robot.append(ET.Comment(_note(tree, scene, ExportFormat.URDF, joints)))
-    base = base_pose(tree, scene)
+    robot.append(ET.Comment(_note(tree, scene, ExportFormat.URDF, joints, space)))
     # each rod's frame in its link's frame: the base rod's in the root link (the world at touchdown)
-    frames = [base if b.parent is None else (np.zeros(3), 0.0) for b in tree.bodies]
+    identity: Frame = (np.zeros(3), np.eye(3))
+    frames = [base_pose(tree, scene, space) if b.parent is None else identity for b in tree.bodies]
     for i in depth_first(tree):
         b = tree.bodies[i]
-        robot.append(_urdf_link(b, *frames[i]))
+        robot.append(_urdf_link(b, frames[i]))
         if b.parent is not None:
             law = _law(joints, i)
             kind = "fixed" if b.joint is not JointKind.REVOLUTE else "continuous" if law.limits is None else "revolute"
-            placed = _placed(frames[b.parent], joint_origin(tree, i), b.angle)
-            joint = _urdf_joint(b.name, kind, tree.bodies[b.parent].name, b.name, *placed)
+            placed = _placed(frames[b.parent], joint_origin(tree, i), body_rotation(b))
+            joint = _urdf_joint(b.name, kind, tree.bodies[b.parent].name, b.name, placed, _axis_text(b))
             _urdf_law(joint, law, b.angle)
             robot.append(joint)
         for k in range(len(b.contacts)):
             frame = contact_frame_name(b, k)
             robot.append(ET.Element("link", name=frame))
-            robot.append(_urdf_joint(frame, "fixed", b.name, frame, *_placed(frames[i], contact_point(b, k), 0.0)))
+            placed = _placed(frames[i], contact_point(b, k), np.eye(3))
+            robot.append(_urdf_joint(frame, "fixed", b.name, frame, placed))
     return _text(robot, declaration=True)
 
 
-def _placed(frame: tuple[np.ndarray, float], point: np.ndarray, yaw: float) -> tuple[np.ndarray, float]:
-    """A point (and a turn ``yaw`` about z) given in a rod's frame, in its link's frame, where the
-    rod's frame sits at ``frame = (origin, turn)``."""
-    origin, turn = frame
-    return origin + rotation_z(turn) @ point, turn + yaw
+def _placed(frame: Frame, point: np.ndarray, turn: np.ndarray) -> Frame:
+    """A point and a rotation ``turn`` given in a rod's frame, in its link's frame, where the rod's
+    frame sits at ``frame``."""
+    origin, R = frame
+    return origin + R @ point, R @ turn
 
 
-def _urdf_link(b: Body, at: np.ndarray, turn: float) -> ET.Element:
-    """A rod's link: inertial and a visual cylinder, the rod's frame at ``at`` turned by ``turn``."""
+def rpy_of(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF's (roll, pitch, yaw) of a rotation: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+    if math.hypot(R[0, 0], R[1, 0]) < 1e-12:  # gimbal lock: yaw 0, roll takes the rest
+        return math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0
+    return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
+
+
+def quaternion_of(R: np.ndarray) -> tuple[float, float, float, float]:
+    """MJCF's (w, x, y, z) of a rotation (Shepperd's method: the largest component first)."""
+    t = np.trace(R)
+    cases = [t, R[0, 0], R[1, 1], R[2, 2]]
+    k = int(np.argmax(cases))
+    if k == 0:
+        w = 0.5 * math.sqrt(1 + t)
+        q = (w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w))
+    elif k == 1:
+        x = 0.5 * math.sqrt(1 + 2 * R[0, 0] - t)
+        q = ((R[2, 1] - R[1, 2]) / (4 * x), x, (R[0, 1] + R[1, 0]) / (4 * x), (R[0, 2] + R[2, 0]) / (4 * x))
+    elif k == 2:
+        y = 0.5 * math.sqrt(1 + 2 * R[1, 1] - t)
+        q = ((R[0, 2] - R[2, 0]) / (4 * y), (R[0, 1] + R[1, 0]) / (4 * y), y, (R[1, 2] + R[2, 1]) / (4 * y))
+    else:
+        z = 0.5 * math.sqrt(1 + 2 * R[2, 2] - t)
+        q = ((R[1, 0] - R[0, 1]) / (4 * z), (R[0, 2] + R[2, 0]) / (4 * z), (R[1, 2] + R[2, 1]) / (4 * z), z)
+    return q if q[0] >= 0 else tuple(-c for c in q)  # type: ignore[return-value]
+
+
+#: A cylinder's axis (its z) turned onto a rod's x axis.
+_CYLINDER_ON_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+def _urdf_link(b: Body, frame: Frame) -> ET.Element:
+    """A rod's link: inertial and a visual cylinder, the rod's frame at ``frame`` in the link."""
     link = ET.Element("link", name=b.name)
     inertial = ET.SubElement(link, "inertial")
-    com, yaw = _placed((at, turn), centre_of_mass(b), 0.0)
-    ET.SubElement(inertial, "origin", xyz=_xyz(com), rpy=_xyz((0.0, 0.0, yaw)))
+    com, R = _placed(frame, centre_of_mass(b), np.eye(3))
+    ET.SubElement(inertial, "origin", xyz=_xyz(com), rpy=_xyz(rpy_of(R)))
     ET.SubElement(inertial, "mass", value=_f(b.mass))
     tensor = inertia_tensor(b, INERTIA_FLOOR)  # about the centre of mass, in the rod's frame (the origin's)
     axes = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
     ET.SubElement(inertial, "inertia", {key: _f(tensor[r, c]) for key, (r, c) in axes.items()})
     visual = ET.SubElement(link, "visual")
-    middle, _ = _placed((at, turn), np.array([0.5 * b.length, 0.0, 0.0]), 0.0)
-    ET.SubElement(visual, "origin", xyz=_xyz(middle), rpy=_xyz((0.0, 0.5 * math.pi, turn)))  # cylinder z -> rod x
+    middle, R = _placed(frame, np.array([0.5 * b.length, 0.0, 0.0]), _CYLINDER_ON_X)
+    ET.SubElement(visual, "origin", xyz=_xyz(middle), rpy=_xyz(rpy_of(R)))
     geometry = ET.SubElement(visual, "geometry")
-    ET.SubElement(geometry, "cylinder", radius=_f(VISUAL_RADIUS), length=_f(b.length))
+    ET.SubElement(geometry, "cylinder", radius=_f(max(b.radius, VISUAL_RADIUS)), length=_f(b.length))
     return link
 
 
-def _urdf_joint(name: str, kind: str, parent: str, child: str, xyz: np.ndarray, yaw: float) -> ET.Element:
+def _axis_text(b: Body) -> str:
+    """A joint's axis in its frame: ``0 0 1`` in the plane, the unit ``axis`` in space."""
+    return "0 0 1" if b.axis == (0.0, 0.0, 1.0) else _xyz(unit_axis(b))
+
+
+def _urdf_joint(name: str, kind: str, parent: str, child: str, frame: Frame, axis: str = "0 0 1") -> ET.Element:
     joint = ET.Element("joint", name=name, type=kind)
     ET.SubElement(joint, "parent", link=parent)
     ET.SubElement(joint, "child", link=child)
-    ET.SubElement(joint, "origin", xyz=_xyz(xyz), rpy=_xyz((0.0, 0.0, yaw)))
+    ET.SubElement(joint, "origin", xyz=_xyz(frame[0]), rpy=_xyz(rpy_of(frame[1])))
     if kind != "fixed":
-        ET.SubElement(joint, "axis", xyz="0 0 1")
+        ET.SubElement(joint, "axis", xyz=axis)
     return joint
 
 
@@ -197,39 +256,44 @@ def _urdf_law(joint: ET.Element, law: JointLaw, angle: float) -> None:
 
 
 def to_mjcf(
-    tree: Tree, scene: Scene, name: str = "footopt", gravity: float = GRAVITY, joints: tuple[JointLaw, ...] = ()
+    tree: Tree,
+    scene: Scene,
+    name: str = "footopt",
+    gravity: float = GRAVITY,
+    joints: tuple[JointLaw, ...] = (),
+    space: Space = PLANAR,
 ) -> str:
     """The MJCF of ``tree``: ``qpos0`` is the touchdown pose; gravity ``gravity`` (m/s^2) along -y."""
     check_names(tree)
     root = ET.Element("mujoco", model=_xml_safe(name))
-    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints)))
+    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints, space)))
     ET.SubElement(root, "compiler", angle="radian")
     ET.SubElement(root, "option", gravity=_xyz((0.0, -gravity, 0.0)))
-    origin, angle = base_pose(tree, scene)
-    _mjcf_body(ET.SubElement(root, "worldbody"), tree, 0, origin, angle, children(tree), joints)
+    _mjcf_body(ET.SubElement(root, "worldbody"), tree, 0, base_pose(tree, scene, space), children(tree), joints)
     return _text(root, declaration=False)
 
 
 def _mjcf_body(
-    parent: ET.Element, tree: Tree, i: int, pos: np.ndarray, angle: float, kids: tuple[tuple[int, ...], ...],
+    parent: ET.Element, tree: Tree, i: int, frame: Frame, kids: tuple[tuple[int, ...], ...],
     joints: tuple[JointLaw, ...] = (),
 ) -> None:
-    """Body ``i`` (and its subtree) inside ``parent``, its frame at ``pos`` turned by ``angle`` about z."""
+    """Body ``i`` (and its subtree) inside ``parent``, its frame at ``frame`` in the parent's."""
     b = tree.bodies[i]
-    quat = (math.cos(0.5 * angle), 0.0, 0.0, math.sin(0.5 * angle))
-    body = ET.SubElement(parent, "body", name=b.name, pos=_xyz(pos), quat=_xyz(quat))
+    body = ET.SubElement(parent, "body", name=b.name, pos=_xyz(frame[0]), quat=_xyz(quaternion_of(frame[1])))
     if b.parent is None:
         ET.SubElement(body, "freejoint", name=b.name)
     elif b.joint is JointKind.REVOLUTE:
-        ET.SubElement(body, "joint", name=b.name, type="hinge", axis="0 0 1", **_mjcf_law(_law(joints, i), b.angle))
+        law = _mjcf_law(_law(joints, i), b.angle)
+        ET.SubElement(body, "joint", name=b.name, type="hinge", axis=_axis_text(b), **law)
     inertia = np.diag(inertia_tensor(b, INERTIA_FLOOR))  # principal axes = body axes
     ET.SubElement(body, "inertial", pos=_xyz(centre_of_mass(b)), mass=_f(b.mass), diaginertia=_xyz(inertia))
-    rod = {"type": "capsule", "fromto": _xyz((0, 0, 0, b.length, 0, 0)), "size": _f(VISUAL_RADIUS)}
+    rod = {"type": "capsule", "fromto": _xyz((0, 0, 0, b.length, 0, 0)), "size": _f(max(b.radius, VISUAL_RADIUS))}
     ET.SubElement(body, "geom", rod, contype="0", conaffinity="0", group="1", mass="0")  # drawing only
     for k in range(len(b.contacts)):
         ET.SubElement(body, "site", name=contact_frame_name(b, k), pos=_xyz(contact_point(b, k)))
     for child in kids[i]:
-        _mjcf_body(body, tree, child, joint_origin(tree, child), tree.bodies[child].angle, kids, joints)
+        placed = (joint_origin(tree, child), body_rotation(tree.bodies[child]))
+        _mjcf_body(body, tree, child, placed, kids, joints)
 
 
 def _mjcf_law(law: JointLaw, angle: float) -> dict[str, str]:
@@ -248,19 +312,26 @@ def _mjcf_law(law: JointLaw, angle: float) -> dict[str, str]:
 # Text
 
 
-def _note(tree: Tree, scene: Scene, fmt: ExportFormat, joints: tuple[JointLaw, ...] = ()) -> str:
+def _note(
+    tree: Tree, scene: Scene, fmt: ExportFormat, joints: tuple[JointLaw, ...] = (), space: Space = PLANAR
+) -> str:
     """The comment at the top of a file: what it holds and where it departs from the model."""
-    origin, angle = base_pose(tree, scene)
+    origin, R = base_pose(tree, scene, space)
     thin = sum(b.inertia < INERTIA_FLOOR for b in tree.bodies)
     needs = "MuJoCo needs" if fmt is ExportFormat.MJCF else "a floating base's mass matrix needs"
+    planar = space is PLANAR
     lines = [
-        f"footopt export: {tree.n_bodies} rods of a planar model (docs/MODEL_FORMAT.md, Export).",
-        "Axes as footopt's: x forward, y up, z lateral; planar joints turn about z. SI units.",
+        f"footopt export: {tree.n_bodies} rods of a {space.name} model (docs/MODEL_FORMAT.md, Export).",
+        "Axes as footopt's: x forward, y up, z lateral; "
+        + ("planar joints turn about z. SI units." if planar else "each joint turns about its own axis. SI units."),
         "The zero configuration is the touchdown posture: each joint's origin holds its touchdown angle;",
-        f"the base origin is at ({_f(origin[0])}, {_f(origin[1])}, 0) m, the base turned by {_f(angle)} rad about z.",
+        f"the base origin is at ({_f(origin[0])}, {_f(origin[1])}, 0) m, the base turned by "
+        + (f"{_f(math.atan2(R[1, 0], R[0, 0]))} rad about z." if planar else f"rpy {_xyz(rpy_of(R))} rad."),
         "Inertia: as the model, about each rod's centre of mass; a slender rod has none about its own axis (x),",
-        f"written here as {INERTIA_FLOOR:g} kg m^2 because {needs} positive inertia; planar motion never turns",
-        "a rod about its own axis, so the impulses do not change.",
+        f"written here as {INERTIA_FLOOR:g} kg m^2 because {needs} positive inertia; "
+        + ("planar motion never turns" if planar else "a rod with a radius has m r^2 / 2. Where that"),
+        "a rod about its own axis, so the impulses do not change." if planar
+        else "floor stands in, the model's own axial floor (docs/MODEL_FORMAT.md) differs by < 1e-12.",
     ]
     if thin:
         lines.append(f"{thin} rod(s) have less than {INERTIA_FLOOR:g} kg m^2 across the rod too: raised to it.")
@@ -308,6 +379,8 @@ __all__ = [
     "check_names",
     "contact_frame_name",
     "export_text",
+    "quaternion_of",
+    "rpy_of",
     "to_mjcf",
     "to_urdf",
 ]

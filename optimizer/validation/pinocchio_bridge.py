@@ -8,7 +8,18 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from impulse_core.model.rods import centre_of_mass, contact_point, depth_first, inertia_tensor, joint_origin, rotation_z
+from impulse_core.model.rods import (
+    body_rotation,
+    centre_of_mass,
+    contact_point,
+    depth_first,
+    inertia_tensor,
+    joint_origin,
+    rotation_axis,
+    rotation_rpy,
+    rotation_z,
+    unit_axis,
+)
 from impulse_core.model.tree import JointKind, Tree
 
 
@@ -100,3 +111,73 @@ def velocity_map(base_angle: float, nv: int) -> np.ndarray:
     c, s = np.cos(base_angle), np.sin(base_angle)
     T[:2, :2] = [[c, -s], [s, c]]
     return T
+
+
+def build_spatial(tree: Tree) -> PinocchioTree:
+    """A spatial tree (MODEL_FORMAT "Spatial models") in Pinocchio: a free-flyer base, each
+    revolute joint a ``JointModelRevoluteUnaligned`` about its axis, placed at ``at`` on its
+    parent and turned by ``rpy``; fixed joints welded. Our base velocity is the base origin's
+    velocity and the angular velocity in the world frame, Pinocchio's in the base frame."""
+    model = pin.Model()
+    n = tree.n_bodies
+    joint_of: list[int] = [0] * n
+    placement_in_joint: list[pin.SE3] = [pin.SE3.Identity()] * n
+    q_of: dict[int, float] = {}
+    for i in depth_first(tree):
+        b = tree.bodies[i]
+        if b.parent is None:
+            joint_of[i] = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "base")
+        else:
+            offset = placement_in_joint[b.parent] * pin.SE3(rotation_rpy(b.rpy), joint_origin(tree, i))
+            if b.joint is JointKind.REVOLUTE:
+                joint = pin.JointModelRevoluteUnaligned(*unit_axis(b))
+                joint_of[i] = model.addJoint(joint_of[b.parent], joint, offset, b.name)
+                q_of[i] = b.angle
+            else:
+                joint_of[i] = joint_of[b.parent]
+                placement_in_joint[i] = offset * pin.SE3(rotation_axis(unit_axis(b), b.angle), np.zeros(3))
+        inertia = pin.Inertia(b.mass, centre_of_mass(b), inertia_tensor(b))
+        model.appendBodyToJoint(joint_of[i], inertia, placement_in_joint[i])
+    frames = []
+    for i, b in enumerate(tree.bodies):
+        for k in range(len(b.contacts)):
+            placement = placement_in_joint[i] * pin.SE3(np.eye(3), contact_point(b, k))
+            frame = pin.Frame(f"{b.name}_c{k}", joint_of[i], 0, placement, pin.FrameType.OP_FRAME)
+            frames.append(model.addFrame(frame, False))
+    R0 = body_rotation(tree.bodies[0])
+    q = np.zeros(model.nq)
+    q[3:7] = pin.Quaternion(R0).coeffs()  # x, y, z, w
+    revolute = [i for i in range(1, n) if tree.bodies[i].joint is JointKind.REVOLUTE]
+    T = np.eye(model.nv)
+    T[:3, :3] = R0
+    T[3:6, 3:6] = R0
+    P = np.zeros((model.nv, model.nv))
+    P[:6, :6] = np.eye(6)
+    for k, i in enumerate(revolute):
+        jm = model.joints[joint_of[i]]
+        q[jm.idx_q] = q_of[i]
+        P[6 + k, jm.idx_v] = 1.0
+    return PinocchioTree(model, q, tuple(frames), P @ T)
+
+
+def joint_force_impulses(tree: PinocchioTree, v_minus: np.ndarray, v_plus: np.ndarray, active: tuple[int, ...],
+                         impulses: np.ndarray) -> dict[str, float]:
+    """|force part| of the impulse each Pinocchio joint transmits (its subtree's momentum change
+    minus the contact impulses on it, by ``pinocchio.rnea`` with a = v+ - v-, v = 0, no gravity),
+    by joint (= body) name. Contact impulses are along world +y."""
+    model = tree.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, tree.q)
+    fext = [pin.Force.Zero() for _ in range(model.njoints)]
+    for c, lam in zip(active, impulses):
+        frame = model.frames[tree.contact_frames[c]]
+        oMj = data.oMi[frame.parentJoint]
+        f_local = oMj.rotation.T @ np.array([0.0, lam, 0.0])
+        p_local = frame.placement.translation
+        fext[frame.parentJoint] += pin.Force(f_local, np.cross(p_local, f_local))
+    gravity = model.gravity.linear.copy()
+    model.gravity.linear[:] = 0.0
+    dv = tree.to_pin_velocity(v_plus - v_minus)
+    pin.rnea(model, data, tree.q, np.zeros(model.nv), dv, fext)
+    model.gravity.linear[:] = gravity
+    return {model.names[j]: float(np.linalg.norm(data.f[j].linear)) for j in range(2, model.njoints)}

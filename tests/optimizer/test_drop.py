@@ -28,6 +28,24 @@ def test_mujoco_matches_the_compliant_rung_and_nears_the_rigid_answer(case, caps
     assert r["settings"]["solref"][0] == -1e8 and r["settings"]["steps"] > 10
 
 
+def test_an_oblique_turning_approach_reaches_mujoco(capsys, tmp_path):
+    """velocity_x and angular_velocity reach MuJoCo's initial state: with them the three answers
+    still agree, and they differ from the straight-down drop's."""
+    text = (REPO / "configs" / "paper_case2.yaml").read_text(encoding="utf-8")
+    text = text.replace("  speed: 3.43", "  velocity: [1.2, -3.43]\n  angular_velocity: -2.0", 1)
+    assert "velocity: [1.2" in text
+    oblique = tmp_path / "oblique.yaml"
+    oblique.write_text(text, encoding="utf-8")
+    assert main(["drop", str(oblique), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert main(["drop", str(REPO / "configs" / "paper_case2.yaml"), "--json"]) == 0
+    straight = json.loads(capsys.readouterr().out)
+    mj, soft, rigid = (np.array(r["external"][k]) for k in ("mujoco", "compliant", "footopt"))
+    assert np.max(np.abs(mj - soft)) <= 1e-4 * np.max(soft)
+    assert np.max(np.abs(mj - rigid)) <= 2e-2 * np.max(rigid)
+    assert np.max(np.abs(mj - np.array(straight["external"]["mujoco"]))) > 0.05 * np.max(mj)
+
+
 def test_the_table_names_the_contact_settings(capsys):
     assert main(["drop", str(REPO / "configs" / "paper_case2.yaml"), "--stiffness", "1e7"]) == 0
     out = capsys.readouterr().out

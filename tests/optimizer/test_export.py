@@ -39,7 +39,8 @@ pin = pytest.importorskip("pinocchio")
 mujoco = pytest.importorskip("mujoco")
 
 REPO = Path(__file__).resolve().parents[2]
-CONFIGS = sorted(p for p in (REPO / "configs").glob("*.yaml") if "bodies:" in p.read_text())
+# Spatial models are not exported yet (refused with exit 2: tests/optimizer/test_spatial_cli.py).
+CONFIGS = sorted(p for p in (REPO / "configs").glob("*.yaml") if "bodies:" in (t := p.read_text()) and "space: spatial" not in t)
 TOL = 1e-8
 SEED = 20261125
 

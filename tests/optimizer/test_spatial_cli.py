@@ -1,0 +1,129 @@
+"""Spatial model files (MODEL_FORMAT "Spatial models") through the file format and the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from impulse_core.evaluate import evaluate
+from impulse_core.kinematics.spatial import SPATIAL
+from optimizer.config.model_file import format_model_file, load_model_file, parse_model
+from optimizer.errors import ConfigError
+from optimizer.config.model_file import load_yaml
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLE = REPO / "configs" / "spatial_case3.yaml"
+PLANAR_CASE = REPO / "configs" / "paper_case3.yaml"
+
+
+def _footopt(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "optimizer", *args], capture_output=True, text=True, cwd=REPO)
+
+
+def _json(*args: str) -> dict:
+    proc = _footopt("evaluate", "--json", *args)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def test_a_spatial_file_reads_with_its_fields_and_writes_back_equal() -> None:
+    model = load_model_file(EXAMPLE)
+    assert model.space is SPATIAL
+    assert model.scene.velocity == (0.0, -3.43, 0.3) and model.scene.angular_velocity_3d == (0.5, 0.0, 0.0)
+    toe1 = next(b for b in model.tree.bodies if b.name == "toe1_proximal")
+    assert toe1.rpy == (-0.35, 0.0, 0.0) and toe1.radius == 0.01
+    # a solid cylinder's inertia across the rod: m (3 r^2 + L^2) / 12
+    assert toe1.inertia == pytest.approx(toe1.mass * (3 * 0.01**2 + toe1.length**2) / 12, rel=1e-14)
+    again = parse_model(load_yaml(format_model_file(model)))
+    assert again == model
+
+
+def test_a_planar_file_marked_spatial_gives_the_same_answers(tmp_path: Path) -> None:
+    text = PLANAR_CASE.read_text(encoding="utf-8").replace("model:\n", "model:\n  space: spatial\n", 1)
+    spatial_file = tmp_path / "case3_spatial.yaml"
+    spatial_file.write_text(text, encoding="utf-8")
+    planar, spatial = _json(str(PLANAR_CASE)), _json(str(spatial_file))
+    for key in ("external", "internal"):
+        assert np.allclose(spatial[key], planar[key], rtol=1e-10, atol=1e-12), key
+    assert spatial["model"] == planar["model"]
+    assert len(spatial["v_plus"]) == len(planar["v_plus"]) + 3
+
+
+def test_evaluate_json_of_a_spatial_file_is_the_core_answer() -> None:
+    record = _json(str(EXAMPLE))
+    model = load_model_file(EXAMPLE)
+    result = evaluate(model.tree, model.scene, space=SPATIAL)
+    assert record["external"] == pytest.approx(list(result.external), rel=1e-12)
+    assert record["internal"] == pytest.approx(list(result.internal_magnitude), rel=1e-12)
+    assert record["velocities"][:6] == ["base vx", "base vy", "base vz", "base wx", "base wy", "base wz"]
+    assert record["scene"]["velocity"] == [0.0, -3.43, 0.3]
+    assert all(len(v) == 3 for v in record["internal_vector"])
+    assert record["warnings"] == []
+
+
+@pytest.mark.parametrize(
+    ("edit", "field"),
+    [
+        (lambda t: t.replace("      radius: 0.01\n", "      radius: -0.01\n", 1), "model.bodies[0].radius"),
+        (lambda t: t.replace("  space: spatial\n", ""), "scene.velocity"),
+        (lambda t: t.replace("  space: spatial\n", "  space: curved\n"), "model.space"),
+        (lambda t: t.replace("      radius: 0.01\n", "      radius: 0.05\n      gyration: 0.01\n", 1), "model.bodies[0].radius"),
+        (lambda t: t.replace("[-0.35, 0.0, 0.0]", "[-0.35, 0.0]"), "model.bodies[3].rpy"),
+        (lambda t: t.replace("  velocity: [0.0, -3.43, 0.3]", "  velocity: [0.0, -3.43]"), "scene.velocity"),
+    ],
+)
+def test_bad_spatial_fields_exit_2_naming_the_field(tmp_path: Path, edit, field: str) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(edit(EXAMPLE.read_text(encoding="utf-8")), encoding="utf-8")
+    proc = _footopt("evaluate", str(bad))
+    assert proc.returncode == 2
+    assert field in proc.stderr and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_axis_zero_is_refused() -> None:
+    text = EXAMPLE.read_text(encoding="utf-8").replace("      radius: 0.01\n", "      radius: 0.01\n      axis: [0, 0, 0]\n", 1)
+    with pytest.raises(ConfigError, match=r"model.bodies\[0\].axis"):
+        parse_model(load_yaml(text))
+
+
+def test_time_domain_models_are_refused_for_spatial_files_with_exit_2() -> None:
+    proc = _footopt("evaluate", "--model", "landing", str(EXAMPLE))
+    assert proc.returncode == 2 and "model.space" in proc.stderr
+
+
+def test_plot_of_a_spatial_file_draws_three_views(tmp_path: Path) -> None:
+    out = tmp_path / "foot.png"
+    proc = _footopt("evaluate", str(EXAMPLE), "--plot", str(out))
+    assert proc.returncode == 0, proc.stderr
+    from matplotlib.image import imread
+
+    image = imread(out)
+    assert image.shape[1] > 2 * image.shape[0]  # three views side by side
+
+
+@pytest.mark.parametrize("command", [("drop",), ("bench",)])
+def test_commands_not_yet_spatial_refuse_a_spatial_file_with_exit_2(command: tuple[str, ...]) -> None:
+    proc = _footopt(*command, str(EXAMPLE))
+    assert proc.returncode == 2
+    assert "model.space" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_spatial_friction_json_has_xz_tangential_impulses_and_modes(tmp_path: Path) -> None:
+    text = EXAMPLE.read_text(encoding="utf-8").replace("friction: 0.0", "friction: 0.5")
+    (tmp_path / "f.yaml").write_text(text, encoding="utf-8")
+    record = _json(str(tmp_path / "f.yaml"))
+    model = load_model_file(tmp_path / "f.yaml")
+    result = evaluate(model.tree, model.scene, space=SPATIAL)
+    assert record["model"] == "friction" and record["warnings"] == []
+    assert np.allclose(record["tangential"], result.tangential, rtol=1e-12)
+    assert all(len(t) == 2 for t in record["tangential"])
+    assert record["modes"] == [m.value for m in result.modes]
+    # the cone at each contact, from the printed numbers
+    for lam, t in zip(record["external"], record["tangential"], strict=True):
+        assert np.hypot(*t) <= 0.5 * lam * (1 + 1e-9)
