@@ -31,6 +31,13 @@ N = 2000
 ROUNDS = 5
 
 
+def fractions(topology, space) -> np.ndarray:
+    """Indices of the design vector's fractions (at, com, contacts), which stay <= 1."""
+    n = len(space.body_values)
+    per_body = [b * n + space.body_values.index(k) for b in range(topology.n_bodies) for k in ("at", "com")]
+    return np.array(per_body + list(range(n * topology.n_bodies, n * topology.n_bodies + sum(topology.n_contacts))))
+
+
 def case(file: str, space, builder):
     """(batched evaluator, with gradients, design rows, Pinocchio call) for one model file."""
     m = load_model_file(REPO / "configs" / file)
@@ -43,6 +50,7 @@ def case(file: str, space, builder):
     rng = np.random.default_rng(0)
     p = design_vector(m.tree, space.body_values)
     P = p * (1 + 0.01 * rng.uniform(-1, 1, (N, p.size)))
+    P = np.minimum(P, np.where(np.isin(np.arange(p.size), fractions(topology, space)), 1.0, np.inf))
     first = plain(p[None, :], scene.speed, scene.restitution).external[0]
     assert np.allclose(first, r.external[list(r.active)], rtol=1e-10), "batched != evaluate"
     pt = builder(m.tree)
