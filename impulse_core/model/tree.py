@@ -345,13 +345,6 @@ def validate_tree(tree: Tree) -> None:
             f"must be a non-zero finite 3-vector, got {b.axis}",
         )
         _require(math.isfinite(b.radius) and b.radius >= 0.0, f"{where}.radius", f"must be >= 0 (m), got {b.radius}")
-        _require(
-            b.axial_inertia <= 2.0 * b.inertia * (1 + 1e-12),
-            f"{where}.radius",
-            f"{b.radius} m gives m r^2/2 = {b.axial_inertia:.6g} kg m^2 about the rod's axis, more than twice its "
-            f"inertia across ({b.inertia:.6g}): no rigid body has that (the triangle inequality of principal "
-            "moments); lower the radius or raise inertia/gyration",
-        )
         for k, c in enumerate(b.contacts):
             _require(
                 math.isfinite(c) and 0.0 <= c <= 1.0,

@@ -79,6 +79,19 @@ def contact_frame_name(body: Body, k: int) -> str:
     return f"{body.name}_contact{k}"
 
 
+def check_inertias(tree: Tree) -> None:
+    """Raise ConfigError naming ``model.bodies[i].radius`` where a rod's m r^2 / 2 about its axis
+    exceeds twice its inertia across: no rigid body has such principal moments (their triangle
+    inequality), and MuJoCo refuses them. The model file allows them (the impulses are defined)."""
+    for i, b in enumerate(tree.bodies):
+        if b.axial_inertia > 2.0 * b.inertia * (1 + 1e-12):
+            raise ConfigError(
+                f"model.bodies[{i}].radius: {b.radius} m gives m r^2/2 = {b.axial_inertia:.6g} kg m^2 about the rod's "
+                f"axis, more than twice its inertia across ({b.inertia:.6g}): MuJoCo refuses such a body (the "
+                "triangle inequality of principal moments); lower the radius or raise inertia/gyration"
+            )
+
+
 def check_names(tree: Tree) -> None:
     """Raise ConfigError naming ``model.bodies[i].name`` when a rod's name cannot be exported: a
     character XML cannot hold, or the name of another rod's contact frame."""
@@ -265,6 +278,7 @@ def to_mjcf(
 ) -> str:
     """The MJCF of ``tree``: ``qpos0`` is the touchdown pose; gravity ``gravity`` (m/s^2) along -y."""
     check_names(tree)
+    check_inertias(tree)
     root = ET.Element("mujoco", model=_xml_safe(name))
     root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints, space)))
     ET.SubElement(root, "compiler", angle="radian")
@@ -376,6 +390,7 @@ __all__ = [
     "INERTIA_FLOOR",
     "ExportFormat",
     "base_pose",
+    "check_inertias",
     "check_names",
     "contact_frame_name",
     "export_text",

@@ -72,7 +72,6 @@ def test_evaluate_json_of_a_spatial_file_is_the_core_answer() -> None:
         (lambda t: t.replace("      radius: 0.01\n", "      radius: -0.01\n", 1), "model.bodies[0].radius"),
         (lambda t: t.replace("  space: spatial\n", ""), "scene.velocity"),
         (lambda t: t.replace("  space: spatial\n", "  space: curved\n"), "model.space"),
-        (lambda t: t.replace("      radius: 0.01\n", "      radius: 0.05\n      gyration: 0.01\n", 1), "model.bodies[0].radius"),
         (lambda t: t.replace("[-0.35, 0.0, 0.0]", "[-0.35, 0.0]"), "model.bodies[3].rpy"),
         (lambda t: t.replace("  velocity: [0.0, -3.43, 0.3]", "  velocity: [0.0, -3.43]"), "scene.velocity"),
     ],
@@ -127,3 +126,14 @@ def test_spatial_friction_json_has_xz_tangential_impulses_and_modes(tmp_path: Pa
     # the cone at each contact, from the printed numbers
     for lam, t in zip(record["external"], record["tangential"], strict=True):
         assert np.hypot(*t) <= 0.5 * lam * (1 + 1e-9)
+
+
+def test_mjcf_export_refuses_a_rod_no_rigid_body_has_but_evaluate_takes_it(tmp_path: Path) -> None:
+    text = EXAMPLE.read_text(encoding="utf-8").replace("      radius: 0.01\n", "      radius: 0.05\n      gyration: 0.01\n", 1)
+    bad = tmp_path / "thin.yaml"
+    bad.write_text(text, encoding="utf-8")
+    proc = _footopt("export", str(bad), "-o", str(tmp_path / "thin.xml"))
+    assert proc.returncode == 2 and "model.bodies[0].radius" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "thin.xml").exists()
+    assert _footopt("export", str(bad), "-o", str(tmp_path / "thin.urdf")).returncode == 0
+    assert _json(str(bad))["external_norm"] > 0
