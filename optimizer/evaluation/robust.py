@@ -4,7 +4,8 @@ objective's statistic over the scenarios (:mod:`optimizer.evaluation.scenarios`,
 
 Each scenario is the design's model file with the scenario's overrides, evaluated by the model
 ``auto`` picks for it, as ``footopt evaluate`` does (a terrain step: the sequential model; a
-scene with ``duration``: the whole landing). The scenarios are evaluated one after another.
+scene with ``duration``: the whole landing). Frictionless first impacts on flat ground are
+evaluated together, the rest one after another.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from impulse_core.errors import NumericalError
 from impulse_core.timedomain.landing import LandingResult
 from optimizer.config.model_file import ModelFile
 from optimizer.design_space import Objective, Objectives, landing_objectives, objectives
+from optimizer.evaluation.batched import first_impacts
 from optimizer.evaluation.model_choice import evaluate_landing
 from optimizer.evaluation.scenarios import Landings, model_data, overrides, scenario_model
 from optimizer.evaluation.statistics import Statistic
@@ -64,11 +66,14 @@ def statistics_of(rows: list[Objectives], statistic: Callable[[Objective], Stati
 def evaluate_over_landings(
     model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic]
 ) -> RobustEvaluation:
-    """``model`` on every scenario of ``landings``, and the statistics."""
-    rows, data = [], model_data(model)
-    for k, values in enumerate(landings.draw()):
+    """``model`` on every scenario of ``landings``, and the statistics. Frictionless first impacts
+    on flat ground are evaluated together (:mod:`optimizer.evaluation.batched`), the rest one by one."""
+    rows, data, draws = [], model_data(model), landings.draw()
+    fast = first_impacts(model, landings.names, draws)
+    for k, values in enumerate(draws):
         changes = overrides(model, landings.names, values)
-        rows.append(ScenarioRow(k, changes, scenario_objectives(scenario_model(data, changes))))
+        found = fast[k] if fast[k] is not None else scenario_objectives(scenario_model(data, changes))
+        rows.append(ScenarioRow(k, changes, found))
     scored = [r.objectives for r in rows if r.objectives is not None]
     stats = statistics_of(scored, statistic) if len(scored) == len(rows) and scored else None
     return RobustEvaluation(tuple(rows), stats)
