@@ -302,7 +302,10 @@ class Expressions:
     com_height: ca.SX  # y of the whole tree's centre of mass
 
 
+@functools.lru_cache(maxsize=64)
 def expressions(topology: Topology, space: Space) -> Expressions:
+    """The tree's planar dynamics as SX expressions of (q, v, p, gravity), built once per
+    topology: every terrain's step function (:func:`step_function`) shares them."""
     _require_planar(space)
     layout = dof_layout(topology, space)
     nv = layout.nv
