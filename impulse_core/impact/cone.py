@@ -24,8 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impulse_core.errors import NumericalError
-from impulse_core.impact.coulomb import RETRIES, ContactMode, lemke
+from impulse_core.impact.coulomb import ContactMode, scaled_lemke
 
 #: Sides of the polygon that stands for the cone in stage 1.
 POLYGON = 16
@@ -80,18 +79,7 @@ def polyhedral_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu
     )
     q = np.concatenate([(1.0 + restitution) * v_minus[N], G.T @ v_minus[T], np.zeros(n)])
     s = 1.0 / np.sqrt(np.maximum(np.abs(np.diag(Wnn)), np.finfo(float).tiny))  # unit velocity diagonals
-    d = np.concatenate([s, np.repeat(s, k), 1.0 / s])
-    speed = max(float(np.max(np.abs(v_minus), initial=0.0)), np.finfo(float).tiny)
-    Ms, qs = d[:, None] * M * d[None, :], d * q / speed
-    z = lemke(Ms, qs)
-    rng = np.random.default_rng(0)
-    for _ in range(RETRIES):
-        if z is not None:
-            break
-        z = lemke(Ms, qs, cover=rng.uniform(0.5, 2.0, qs.size))
-    if z is None:
-        raise NumericalError("Lemke's method found no solution of the polyhedral Coulomb impact LCP (a secondary ray)")
-    z = d * z * speed
+    z = scaled_lemke(M, q, np.concatenate([s, np.repeat(s, k), 1.0 / s]), v_minus, "the polyhedral Coulomb impact LCP")
     t = G @ z[n : n + n * k]
     return z[:n], np.column_stack([t[:n], t[n:]])
 

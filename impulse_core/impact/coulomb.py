@@ -174,6 +174,26 @@ class UnilateralSolution:
     slip: np.ndarray
 
 
+def scaled_lemke(M: np.ndarray, q: np.ndarray, d: np.ndarray, u: np.ndarray, what: str) -> np.ndarray:
+    """Lemke's method on the LCP (M, q) scaled by the diagonal ``d`` (z = D z', w' = D w) and by
+    the largest approach speed in ``u``; other covering vectors on a degenerate path.
+
+    Raises:
+        NumericalError: no solution (a secondary ray, or too many pivots), naming ``what``.
+    """
+    speed = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    Ms, qs = d[:, None] * M * d[None, :], d * q / speed
+    z = lemke(Ms, qs)
+    rng = np.random.default_rng(0)
+    for _ in range(RETRIES):  # a degenerate path (extreme conditioning): other covering vectors
+        if z is not None:
+            break
+        z = lemke(Ms, qs, cover=rng.uniform(0.5, 2.0, qs.size))
+    if z is None:
+        raise NumericalError(f"Lemke's method found no solution of {what} (a secondary ray)")
+    return d * z * speed
+
+
 def solve_unilateral(
     W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray
 ) -> UnilateralSolution:
@@ -188,18 +208,7 @@ def solve_unilateral(
     # blocks get a unit diagonal and the cone and slip blocks stay mu and 1, whatever the units.
     s = 1.0 / np.sqrt(np.maximum(np.abs(np.diag(W)[:n]), np.finfo(float).tiny))
     st = s[owner]
-    d = np.concatenate([s, st, st, 1.0 / st])
-    speed = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
-    Ms, qs = d[:, None] * M * d[None, :], d * q / speed
-    z = lemke(Ms, qs)
-    rng = np.random.default_rng(0)
-    for _ in range(RETRIES):  # a degenerate path (extreme conditioning): other covering vectors
-        if z is not None:
-            break
-        z = lemke(Ms, qs, cover=rng.uniform(0.5, 2.0, qs.size))
-    if z is None:
-        raise NumericalError("Lemke's method found no solution of the unilateral LCP (a secondary ray)")
-    z = d * z * speed
+    z = scaled_lemke(M, q, np.concatenate([s, st, st, 1.0 / st]), u, "the unilateral LCP")
     normal, tangential = z[:n], z[n : n + m] - z[n + m : n + 2 * m]
     velocity = u + W @ np.concatenate([normal, tangential])
     return UnilateralSolution(normal, tangential, velocity, z[n + 2 * m :])
@@ -252,6 +261,7 @@ __all__ = [
     "coulomb_impact",
     "coulomb_lcp",
     "lemke",
+    "scaled_lemke",
     "solve_unilateral",
     "unilateral_lcp",
 ]

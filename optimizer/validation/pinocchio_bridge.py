@@ -64,8 +64,10 @@ class PinocchioTree:
         return self.from_pin_velocity(np.array(v_pin)), np.array(data.impulse_c).copy()
 
 
-def build(tree: Tree) -> PinocchioTree:
-    """Rods as Pinocchio bodies: a planar base joint, revolute-z joints, fixed joints welded."""
+def _bodies(tree: Tree, base_joint: pin.JointModel) -> tuple[pin.Model, list[int], dict[int, float], tuple[int, ...]]:
+    """The rods as Pinocchio bodies on ``base_joint``: each revolute joint about its axis (RZ in
+    the plane), placed at ``at`` on its parent and turned by its ``rpy``; fixed joints welded.
+    Returns the model, each body's joint, each revolute body's touchdown angle, the contact frames."""
     model = pin.Model()
     n = tree.n_bodies
     joint_of: list[int] = [0] * n
@@ -74,15 +76,17 @@ def build(tree: Tree) -> PinocchioTree:
     for i in depth_first(tree):
         b = tree.bodies[i]
         if b.parent is None:
-            joint_of[i] = model.addJoint(0, pin.JointModelPlanar(), pin.SE3.Identity(), "base")
+            joint_of[i] = model.addJoint(0, base_joint, pin.SE3.Identity(), "base")
         else:
-            offset = placement_in_joint[b.parent] * pin.SE3(np.eye(3), joint_origin(tree, i))
+            offset = placement_in_joint[b.parent] * pin.SE3(rotation_rpy(b.rpy), joint_origin(tree, i))
             if b.joint is JointKind.REVOLUTE:
-                joint_of[i] = model.addJoint(joint_of[b.parent], pin.JointModelRZ(), offset, b.name)
+                joint = pin.JointModelRZ() if b.axis == (0.0, 0.0, 1.0) else pin.JointModelRevoluteUnaligned(*unit_axis(b))
+                joint_of[i] = model.addJoint(joint_of[b.parent], joint, offset, b.name)
                 q_of[i] = b.angle
             else:
                 joint_of[i] = joint_of[b.parent]
-                placement_in_joint[i] = offset * pin.SE3(rotation_z(b.angle), np.zeros(3))
+                turn = rotation_z(b.angle) if b.axis == (0.0, 0.0, 1.0) else rotation_axis(unit_axis(b), b.angle)
+                placement_in_joint[i] = offset * pin.SE3(turn, np.zeros(3))
         inertia = pin.Inertia(b.mass, centre_of_mass(b), inertia_tensor(b))
         model.appendBodyToJoint(joint_of[i], inertia, placement_in_joint[i])
     frames = []
@@ -91,19 +95,34 @@ def build(tree: Tree) -> PinocchioTree:
             placement = placement_in_joint[i] * pin.SE3(np.eye(3), contact_point(b, k))
             frame = pin.Frame(f"{b.name}_c{k}", joint_of[i], 0, placement, pin.FrameType.OP_FRAME)
             frames.append(model.addFrame(frame, False))
-    angle = tree.bodies[0].angle
+    return model, joint_of, q_of, tuple(frames)
+
+
+def _tree(tree: Tree, model, joint_of, q_of, frames, q_base: np.ndarray, T_base: np.ndarray) -> PinocchioTree:
+    """The PinocchioTree: the base's configuration ``q_base`` and velocity map ``T_base`` (ours =
+    T Pinocchio's), then one DOF per revolute body in file order."""
+    n_base = T_base.shape[0]
     q = np.zeros(model.nq)
-    q[:4] = [0.0, 0.0, np.cos(angle), np.sin(angle)]
-    # our DOFs: base (3), then revolute bodies in file order
-    revolute = [i for i in range(1, n) if tree.bodies[i].joint is JointKind.REVOLUTE]
-    T = velocity_map(angle, model.nv)
+    q[: q_base.size] = q_base
+    T = np.eye(model.nv)
+    T[:n_base, :n_base] = T_base
     P = np.zeros((model.nv, model.nv))
-    P[:3, :3] = np.eye(3)
+    P[:n_base, :n_base] = np.eye(n_base)
+    revolute = [i for i in range(1, tree.n_bodies) if tree.bodies[i].joint is JointKind.REVOLUTE]
     for k, i in enumerate(revolute):
         jm = model.joints[joint_of[i]]
         q[jm.idx_q] = q_of[i]
-        P[3 + k, jm.idx_v] = 1.0
-    return PinocchioTree(model, q, tuple(frames), P @ T)
+        P[n_base + k, jm.idx_v] = 1.0
+    return PinocchioTree(model, q, frames, P @ T)
+
+
+def build(tree: Tree) -> PinocchioTree:
+    """Rods as Pinocchio bodies: a planar base joint, revolute-z joints, fixed joints welded."""
+    model, joint_of, q_of, frames = _bodies(tree, pin.JointModelPlanar())
+    angle = tree.bodies[0].angle
+    q_base = np.array([0.0, 0.0, np.cos(angle), np.sin(angle)])
+    return _tree(tree, model, joint_of, q_of, frames, q_base, velocity_map(angle, 3))
+
 
 def velocity_map(base_angle: float, nv: int) -> np.ndarray:
     """T with v_ours = T v_pinocchio (the base's linear velocity rotated to the world frame)."""
@@ -115,49 +134,14 @@ def velocity_map(base_angle: float, nv: int) -> np.ndarray:
 
 def build_spatial(tree: Tree) -> PinocchioTree:
     """A spatial tree (MODEL_FORMAT "Spatial models") in Pinocchio: a free-flyer base, each
-    revolute joint a ``JointModelRevoluteUnaligned`` about its axis, placed at ``at`` on its
-    parent and turned by ``rpy``; fixed joints welded. Our base velocity is the base origin's
-    velocity and the angular velocity in the world frame, Pinocchio's in the base frame."""
-    model = pin.Model()
-    n = tree.n_bodies
-    joint_of: list[int] = [0] * n
-    placement_in_joint: list[pin.SE3] = [pin.SE3.Identity()] * n
-    q_of: dict[int, float] = {}
-    for i in depth_first(tree):
-        b = tree.bodies[i]
-        if b.parent is None:
-            joint_of[i] = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "base")
-        else:
-            offset = placement_in_joint[b.parent] * pin.SE3(rotation_rpy(b.rpy), joint_origin(tree, i))
-            if b.joint is JointKind.REVOLUTE:
-                joint = pin.JointModelRevoluteUnaligned(*unit_axis(b))
-                joint_of[i] = model.addJoint(joint_of[b.parent], joint, offset, b.name)
-                q_of[i] = b.angle
-            else:
-                joint_of[i] = joint_of[b.parent]
-                placement_in_joint[i] = offset * pin.SE3(rotation_axis(unit_axis(b), b.angle), np.zeros(3))
-        inertia = pin.Inertia(b.mass, centre_of_mass(b), inertia_tensor(b))
-        model.appendBodyToJoint(joint_of[i], inertia, placement_in_joint[i])
-    frames = []
-    for i, b in enumerate(tree.bodies):
-        for k in range(len(b.contacts)):
-            placement = placement_in_joint[i] * pin.SE3(np.eye(3), contact_point(b, k))
-            frame = pin.Frame(f"{b.name}_c{k}", joint_of[i], 0, placement, pin.FrameType.OP_FRAME)
-            frames.append(model.addFrame(frame, False))
+    revolute joint a ``JointModelRevoluteUnaligned`` about its axis. Our base velocity is the base
+    origin's velocity and the angular velocity in the world frame, Pinocchio's in the base frame."""
+    model, joint_of, q_of, frames = _bodies(tree, pin.JointModelFreeFlyer())
     R0 = body_rotation(tree.bodies[0])
-    q = np.zeros(model.nq)
-    q[3:7] = pin.Quaternion(R0).coeffs()  # x, y, z, w
-    revolute = [i for i in range(1, n) if tree.bodies[i].joint is JointKind.REVOLUTE]
-    T = np.eye(model.nv)
-    T[:3, :3] = R0
-    T[3:6, 3:6] = R0
-    P = np.zeros((model.nv, model.nv))
-    P[:6, :6] = np.eye(6)
-    for k, i in enumerate(revolute):
-        jm = model.joints[joint_of[i]]
-        q[jm.idx_q] = q_of[i]
-        P[6 + k, jm.idx_v] = 1.0
-    return PinocchioTree(model, q, tuple(frames), P @ T)
+    q_base = np.concatenate([np.zeros(3), pin.Quaternion(R0).coeffs()])  # x, y, z, w
+    T_base = np.zeros((6, 6))
+    T_base[:3, :3] = T_base[3:, 3:] = R0
+    return _tree(tree, model, joint_of, q_of, frames, q_base, T_base)
 
 
 def joint_force_impulses(tree: PinocchioTree, v_minus: np.ndarray, v_plus: np.ndarray, active: tuple[int, ...],
