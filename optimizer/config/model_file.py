@@ -344,7 +344,7 @@ def _vector(value: Any, where: str, names: str, spatial: bool = True, unit: str 
 
 def _approach(m: dict[str, Any], where: str, spatial: bool = False) -> tuple[float, float, float]:
     """(velocity_x, speed, velocity_z) from ``speed: s`` (straight down) or ``velocity: [vx, vy]``
-    (spatial: ``[vx, vy, vz]``), vy < 0."""
+    (spatial: ``[vx, vy, vz]``, or a planar file's ``[vx, vy]``), vy < 0."""
     if "velocity" in m and "speed" in m:
         raise ConfigError(f"{where}.velocity: give speed (straight down) or velocity, not both")
     if "velocity" not in m:
@@ -352,16 +352,18 @@ def _approach(m: dict[str, Any], where: str, spatial: bool = False) -> tuple[flo
         if speed <= 0:
             raise ConfigError(f"{where}.speed: must be > 0 (m/s, straight down), got {speed!r}")
         return 0.0, speed, 0.0
-    v = _vector(m["velocity"], f"{where}.velocity", "vx, vy, vz" if spatial else "vx, vy", spatial) + (0.0,)
+    raw = m["velocity"]
+    names = "vx, vy, vz" if spatial and not (isinstance(raw, list) and len(raw) == 2) else "vx, vy"
+    v = _vector(raw, f"{where}.velocity", names, spatial) + (0.0,)  # a planar [vx, vy] is also spatial
     if v[1] >= 0:
         raise ConfigError(f"{where}.velocity[1]: must be < 0 (the model comes down onto the ground), got {v[1]!r}")
     return v[0], -v[1], v[2]
 
 
 def _angular_velocity(m: dict[str, Any], where: str, spatial: bool) -> tuple[float, float, float]:
-    """(wx, wy, wz): one number about z in the plane, ``[wx, wy, wz]`` in space."""
-    raw = m.get("angular_velocity", [0.0, 0.0, 0.0] if spatial else 0.0)
-    if spatial:
+    """(wx, wy, wz): one number about z in the plane; in space ``[wx, wy, wz]`` or that number."""
+    raw = m.get("angular_velocity", 0.0)
+    if spatial and isinstance(raw, list):  # a planar file's number (about z) stays valid in space
         return _vector(raw, where, "wx, wy, wz", unit=" (rad/s)")  # type: ignore[return-value]
     if isinstance(raw, list):
         raise ConfigError(f"{where}: a planar model turns about z only: one number (rad/s); [wx, wy, wz] needs 'model.space: spatial'")

@@ -43,11 +43,18 @@ def test_a_spatial_file_reads_with_its_fields_and_writes_back_equal() -> None:
     assert again == model
 
 
-def test_a_planar_file_marked_spatial_gives_the_same_answers(tmp_path: Path) -> None:
-    text = PLANAR_CASE.read_text(encoding="utf-8").replace("model:\n", "model:\n  space: spatial\n", 1)
+@pytest.mark.parametrize("approach", ["", "  velocity: [0.4, -3.0]\n  angular_velocity: -1.5\n"])
+def test_a_planar_file_marked_spatial_gives_the_same_answers(tmp_path: Path, approach: str) -> None:
+    """With its planar approach too ([vx, vy] and a number about z, as MODEL_FORMAT's planar files)."""
+    text = PLANAR_CASE.read_text(encoding="utf-8")
+    if approach:
+        text = text.replace("  speed: 3.43", approach.rstrip("\n"), 1)
+        (tmp_path / "planar.yaml").write_text(text, encoding="utf-8")
+    planar_file = tmp_path / "planar.yaml" if approach else PLANAR_CASE
+    text = text.replace("model:\n", "model:\n  space: spatial\n", 1)
     spatial_file = tmp_path / "case3_spatial.yaml"
     spatial_file.write_text(text, encoding="utf-8")
-    planar, spatial = _json(str(PLANAR_CASE)), _json(str(spatial_file))
+    planar, spatial = _json(str(planar_file)), _json(str(spatial_file))
     for key in ("external", "internal"):
         assert np.allclose(spatial[key], planar[key], rtol=1e-10, atol=1e-12), key
     assert spatial["model"] == planar["model"]
@@ -73,7 +80,8 @@ def test_evaluate_json_of_a_spatial_file_is_the_core_answer() -> None:
         (lambda t: t.replace("  space: spatial\n", ""), "scene.velocity"),
         (lambda t: t.replace("  space: spatial\n", "  space: curved\n"), "model.space"),
         (lambda t: t.replace("[-0.35, 0.0, 0.0]", "[-0.35, 0.0]"), "model.bodies[3].rpy"),
-        (lambda t: t.replace("  velocity: [0.0, -3.43, 0.3]", "  velocity: [0.0, -3.43]"), "scene.velocity"),
+        (lambda t: t.replace("  velocity: [0.0, -3.43, 0.3]", "  velocity: [0.0, -3.43, 0.3, 1.0]"), "scene.velocity"),
+        (lambda t: t.replace("  angular_velocity: [0.5, 0.0, 0.0]", "  angular_velocity: [0.5, 0.0]"), "scene.angular_velocity"),
     ],
 )
 def test_bad_spatial_fields_exit_2_naming_the_field(tmp_path: Path, edit, field: str) -> None:
