@@ -28,6 +28,8 @@ from optimizer.report.text import contact_names, joint_names
 #: MuJoCo contact stiffness footopt drops with by default (1/s^2, mass-normalised): stiff enough
 #: for about 1 % from the rigid answer on the paper's feet (studies/fidelity/).
 DEFAULT_STIFFNESS = 1e8
+#: With friction a drop lasts this many compliant impact windows (sliding contacts stay longer).
+FRICTION_WINDOW = 3
 
 
 def add_drop(subparsers: argparse._SubParsersAction) -> None:
@@ -63,10 +65,9 @@ def run_drop(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     try:
         model = require_planar(load_model_file(args.model), "footopt drop")
-        if model.scene.friction > 0:
-            warn(f"{args.model}: scene.friction {model.scene.friction:g} is left out: MuJoCo's contacts here are "
-                 "frictionless")
-        scene = replace(model.scene, friction=0.0, duration=None)  # the first impact, frictionless
+        if model.scene.duration is not None:
+            warn(f"{args.model}: scene.duration is left out: the drop compares the first impact")
+        scene = replace(model.scene, duration=None)  # the first impact
         rigid = evaluate_landing(model.tree, scene, "auto")
         record = drop_record(model.tree, scene, args.stiffness, rigid)
     except NumericalError as e:
@@ -84,21 +85,27 @@ def drop_record(tree, scene, stiffness: float, rigid) -> dict:  # type: ignore[n
     from optimizer.validation.mujoco_bridge import drop
 
     settings = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=stiffness, gravity=scene.gravity)
-    soft = simulate_impact(tree, scene, settings)
-    steps = int(round(soft.duration / soft.timestep))
+    frictional = scene.friction > 0  # the compliant rung is frictionless: no column then
+    soft = simulate_impact(tree, replace(scene, friction=0.0), settings)
+    steps = int(round(soft.duration / soft.timestep)) * (FRICTION_WINDOW if frictional else 1)
     mj = drop(tree, scene, settings, steps, soft.timestep, v_minus=pre_impact_velocity(tree.topology(), scene))
     b = float(np.mean(soft.damping))
-    return {
+    record = {
         "contacts": list(contact_names(tree)),
         "joints": list(joint_names(tree)),
-        "external": {"footopt": _floats(rigid.external), "compliant": _floats(soft.external),
+        "external": {"footopt": _floats(rigid.external), "compliant": None if frictional else _floats(soft.external),
                      "mujoco": _floats(mj.external)},
-        "internal": {"footopt": _floats(rigid.internal_magnitude), "compliant": _floats(soft.internal_magnitude),
+        "internal": {"footopt": _floats(rigid.internal_magnitude),
+                     "compliant": None if frictional else _floats(soft.internal_magnitude),
                      "mujoco": _floats(mj.internal_magnitude)},
         "settings": {"solref": [-stiffness, -b], "solimp_d": settings.impedance, "timestep": soft.timestep,
-                     "steps": steps, "window": soft.duration, "gravity": scene.gravity, "friction": 0.0,
+                     "steps": steps, "window": steps * soft.timestep, "gravity": scene.gravity,
+                     "friction": scene.friction, "cone": "elliptic" if frictional else None,
                      "rigid_model": _model_name(rigid)},
     }
+    if frictional:
+        record["tangential"] = {"footopt": _floats(rigid.tangential), "mujoco": _floats(mj.external_vector[:, 0])}
+    return record
 
 
 def _model_name(result) -> str:  # type: ignore[no-untyped-def]
@@ -113,15 +120,23 @@ def _floats(x) -> list[float]:  # type: ignore[no-untyped-def]
 def format_drop(path: str, r: dict) -> str:
     """The table: one row per contact and per joint, the three answers side by side."""
     s = r["settings"]
+    contact = "frictionless" if not s["friction"] else f"friction {s['friction']:g} on elliptic cones"
     lines = [f"{path} dropped in MuJoCo: solref ({s['solref'][0]:g}, {s['solref'][1]:.4g}), solimp d {s['solimp_d']:g}, "
-             f"timestep {s['timestep']:.3g} s x {s['steps']} steps ({1e3 * s['window']:.3g} ms), frictionless",
+             f"timestep {s['timestep']:.3g} s x {s['steps']} steps ({1e3 * s['window']:.3g} ms), {contact}",
              f"{'':<24}{'footopt (' + str(s['rigid_model']) + ')':>22}{'compliant':>14}{'MuJoCo':>14}"]
-    for kind, names in (("external", r["contacts"]), ("internal", r["joints"])):
-        lines.append(f"{kind} impulse (N s)")
+    kinds = [("external", r["contacts"]), ("tangential", r["contacts"]), ("internal", r["joints"])]
+    for kind, names in kinds:
+        if kind not in r:
+            continue
+        lines.append(f"{kind} impulse (N s)" + ("  (compliant rung: frictionless, not shown)" if kind == "tangential" else ""))
         for k, name in enumerate(names):
-            a, b, c = (r[kind][who][k] for who in ("footopt", "compliant", "mujoco"))
-            lines.append(f"  {name:<22}{a:>22.6g}{b:>14.6g}{c:>14.6g}")
+            cells = [_cell(r[kind].get(who), k) for who in ("footopt", "compliant", "mujoco")]
+            lines.append(f"  {name:<22}{cells[0]:>22}{cells[1]:>14}{cells[2]:>14}")
     return "\n".join(lines)
+
+
+def _cell(values: list[float] | None, k: int) -> str:
+    return "-" if values is None else f"{values[k]:.6g}"
 
 
 __all__ = ["DEFAULT_STIFFNESS", "add_drop", "drop_record", "format_drop", "run_drop"]

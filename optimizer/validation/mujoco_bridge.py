@@ -120,16 +120,21 @@ def build_mjcf(
     gravity: float = 0.0,
     impedance: float = 0.9999,
     radius: float = CONTACT_RADIUS,
+    friction: float = 0.0,
 ) -> str:
-    """The MJCF text of ``tree`` over ``terrain`` with per-contact direct contact parameters."""
+    """The MJCF text of ``tree`` over ``terrain`` with per-contact direct contact parameters;
+    with ``friction`` > 0, Coulomb friction on MuJoCo's elliptic cones (condim 3), else
+    frictionless contacts (condim 1)."""
     solimp = f"{_f(impedance)} {_f(impedance)} 0.001 0.5 2"
-    ground = 'contype="0" conaffinity="1" condim="1" solmix="0"'
+    condim = f'condim="3" friction="{_f(friction)} 0 0"' if friction > 0 else 'condim="1"'
+    ground = f'contype="0" conaffinity="1" {condim} solmix="0"'
+    cone = "elliptic" if friction > 0 else "pyramidal"
     lines = [
         '<mujoco model="footopt">',
         '  <compiler angle="radian"/>',
         (
             f'  <option timestep="{_f(timestep)}" gravity="0 {_f(-gravity)} 0" integrator="Euler" solver="Newton" '
-            'tolerance="1e-14" iterations="200" ls_tolerance="1e-12" cone="pyramidal" jacobian="dense"/>'
+            f'tolerance="1e-14" iterations="200" ls_tolerance="1e-12" cone="{cone}" jacobian="dense"/>'
         ),
         "  <worldbody>",
         *[f"    {g}" for g in _terrain_geoms(terrain, radius, ground)],
@@ -166,7 +171,7 @@ def build_mjcf(
             j = contact_index[(i, k)]
             out.append(
                 f'{indent}  <geom name="contact{j}" type="sphere" size="{_f(radius)}" pos="{_v(contact_point(b, k))}" '
-                f'contype="1" conaffinity="0" condim="1" solmix="1" mass="0" '
+                f'contype="1" conaffinity="0" {condim} solmix="1" mass="0" '
                 f'solref="{_f(-stiffness[j])} {_f(-damping[j])}" solimp="{solimp}"/>'
             )
         for child in kids[i]:
@@ -232,7 +237,9 @@ def drop(
     terrain, base_x = scene_ground(scene, terrain, base_x)
 
     stiffness, damping = contact_parameters(tree, scene, settings, terrain, base_x, effective_mass)
-    text = build_mjcf(tree, terrain, timestep, stiffness, damping, settings.gravity, settings.impedance)
+    text = build_mjcf(
+        tree, terrain, timestep, stiffness, damping, settings.gravity, settings.impedance, friction=scene.friction
+    )
     m = mujoco.MjModel.from_xml_string(text)
     d = mujoco.MjData(m)
     topology = tree.topology()
@@ -272,9 +279,10 @@ def drop(
                 continue
             if math.isnan(touchdown[j]):
                 touchdown[j] = step * timestep
-            mujoco.mj_contactForce(m, d, i, f6)
+            mujoco.mj_contactForce(m, d, i, f6)  # contact frame: normal, then the two tangents
             impulse[j] += timestep * f6[0]
-            F[j] += sign * f6[0] * np.array(con.frame[:2])
+            frame = np.array(con.frame).reshape(3, 3)
+            F[j] += sign * (f6[:3] @ frame)[:2]
         impulse_vec += timestep * F
         if np.any(F != 0.0):  # the force the parent exerts on each body (world axes)
             joint_impulse += timestep * np.array([d.cfrc_int[i, 3:5] for i in body_ids])

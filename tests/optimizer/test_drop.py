@@ -71,3 +71,19 @@ def test_without_mujoco_it_says_how_to_get_it(monkeypatch, capsys):
     monkeypatch.setattr(builtins, "__import__", no_mujoco)
     assert main(["drop", str(REPO / "configs" / "paper_case2.yaml")]) == 2
     assert "pip install mujoco" in capsys.readouterr().err
+
+
+def test_with_friction_mujoco_meets_the_exact_law_not_the_relaxation(capsys, tmp_path):
+    """Case 3 at friction 0.3 (every contact slides): MuJoCo's elliptic cones at 1e8 1/s^2 land
+    within 2 % of the exact Newton-Coulomb impulses (heel normal and tangential), where the convex
+    relaxation is 20 % high (studies/fidelity/exact_friction.md)."""
+    text = (REPO / "configs" / "paper_case3.yaml").read_text(encoding="utf-8").replace("friction: 0.0", "friction: 0.3", 1)
+    model = tmp_path / "case3_mu03.yaml"
+    model.write_text(text, encoding="utf-8")
+    assert main(["drop", str(model), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["settings"]["cone"] == "elliptic" and r["external"]["compliant"] is None
+    for kind in ("external", "tangential"):
+        exact, mj = r[kind]["footopt"][0], r[kind]["mujoco"][0]
+        assert abs(mj - exact) <= 0.02 * abs(exact), kind
+    assert r["settings"]["rigid_model"] == "friction"
