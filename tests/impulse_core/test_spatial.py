@@ -368,3 +368,41 @@ def test_planar_trees_with_friction_read_as_spatial_give_the_planar_answers() ->
         assert spatial.modes == planar.modes
         compared += 1
     assert compared >= 20
+
+
+# --- extremes --------------------------------------------------------------------------------
+
+
+def _scaled_condition(A: np.ndarray) -> float:
+    d = 1.0 / np.sqrt(np.abs(np.diag(A)))
+    return float(np.linalg.cond(A * d[:, None] * d[None, :]))
+
+
+@pytest.mark.parametrize("kind", ["mass", "length"])
+def test_extreme_spatial_trees_stay_finite_and_match_pinocchio(kind: str) -> None:
+    """Mass ratios to 1e6, or lengths from 1 mm to 3 m, in space: finite impulses that agree with
+    Pinocchio to 2e3 eps kappa_M kappa_A (both backward stable, losing the digits the conditioning
+    takes: tests/impulse_core/test_extremes.py), and the LCP law at every contact."""
+    from impulse_core.impact.delassus import mass_matrix_function
+    from optimizer.validation.pinocchio_bridge import build_spatial
+
+    rng = np.random.default_rng({"mass": 201, "length": 202}[kind])
+    options = {"mass": dict(mass_ratio=1e6), "length": dict(length_range=(1e-3, 3.0))}[kind]
+    worst = 0.0
+    for _ in range(15):
+        tree = spatialize(rng, random_tree(rng, int(rng.integers(2, 8)), p_contact=0.5, **options))
+        r = evaluate(tree, SCENE, ImpactModel.NEWTON, space=SPATIAL)
+        assert np.all(np.isfinite(r.external)) and np.all(np.isfinite(r.v_plus))
+        topology = tree.topology()
+        M, J = (np.array(x) for x in mass_matrix_function(topology, SPATIAL)(design_vector(tree, SPATIAL_BODY_VALUES)))
+        bound = max(1e-12, 2e3 * np.finfo(float).eps * _scaled_condition(M) * _scaled_condition(_delassus(tree, SCENE)))
+        _, lam = build_spatial(tree).impulse(r.v_minus, SCENE.restitution, r.active)
+        error = np.abs(lam - r.external).max() / np.abs(lam).max()
+        assert error <= bound, (error, bound)
+        worst = max(worst, error / bound)
+        lcp = evaluate(tree, SCENE, ImpactModel.LCP, space=SPATIAL)
+        gap = J @ lcp.v_plus + SCENE.restitution * (J @ lcp.v_minus)  # every contact hits (selection all)
+        speed = np.abs(J @ lcp.v_minus).max()
+        assert lcp.external.min() >= 0.0 and gap.min() >= -1e-6 * speed
+        assert np.abs(lcp.external * gap).max() <= 1e-6 * speed * lcp.external.max()
+    report("spatial", f"extreme {kind}: 15 spatial trees, impulse error vs Pinocchio at most {worst:.1e} of eps kappa_M kappa_A")
