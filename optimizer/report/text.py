@@ -351,10 +351,21 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
     """A plain-text report of one evaluation: contacts, (time-domain models) touchdowns, joints,
     norms, velocities, energy, warnings, with the file's reference values beside ours where it
     gives them."""
+    lines = _header_lines(model, result, file) + _external_lines(model, result)
+    if not isinstance(result, ImpactResult):
+        lines += _touchdown_lines(model, result)
+    if joint_names(model.tree):
+        lines += _internal_lines(model, result)
+    lines += _norm_lines(model, result) + _velocity_lines(model, result)
+    if not isinstance(result, ImpactResult) and isinstance(result.result, LandingResult):
+        lines += _landing_lines(model, result.result)
+    lines += [f"warning: {w}" for w in warnings(model, result)]
+    return "\n".join(lines) + "\n"
+
+
+def _header_lines(model: ModelFile, result: Result, file: str) -> list[str]:
+    """What ran and why, the scene, the ground, the tree."""
     tree, scene, ref = model.tree, model.scene, model.reference
-    names = contact_names(tree)
-    joints = joint_names(tree)
-    active = set(result.active)
     rigid = isinstance(result, ImpactResult)
     name, description = rung(result)
     selection = (
@@ -364,109 +375,126 @@ def format_report(model: ModelFile, result: Result, file: str) -> str:
         if scene.selection is ContactSelection.ALL
         else f"lowest (contacts within {scene.contact_tolerance:g} m of the lowest hit)"
     )
+    approach = (
+        ""
+        if scene.straight_down
+        else f", {scene.velocity_x:g} m/s along x, turning {scene.angular_velocity:g} rad/s"
+        if not scene.out_of_plane
+        else f", velocity {_vec(scene.velocity)} m/s, angular velocity {_vec(scene.angular_velocity_3d)} rad/s"
+    )
     lines = [
         f"== {file} ==",
         f"model:   {name}: {description}",
         f"why:     {result.reason}",
-        (
-            f"scene:   speed {scene.speed:g} m/s down"
-            + (
-                ""
-                if scene.straight_down
-                else f", {scene.velocity_x:g} m/s along x, turning {scene.angular_velocity:g} rad/s"
-                if not scene.out_of_plane
-                else f", velocity {_vec(scene.velocity)} m/s, angular velocity {_vec(scene.angular_velocity_3d)} rad/s"
-            )
-            + f", restitution e = {scene.restitution:g}, "
-            f"friction {scene.friction:g}, contacts: {selection}"
-        ),
+        f"scene:   speed {scene.speed:g} m/s down{approach}, restitution e = {scene.restitution:g}, "
+        f"friction {scene.friction:g}, contacts: {selection}",
     ]
     if scene.terrain != FLAT or scene.base_x != 0.0:
         points = ", ".join(f"[{x:g}, {y:g}]" for x, y in scene.terrain.points)
         lines.append(f"ground:  terrain [{points}] (m), base origin at x = {scene.base_x:g} m")
     verb = "hit" if rigid else "touch down"
+    n_declared = len(contact_names(tree))
     lines.append(
-        f"tree:    {_count(tree.n_bodies, 'body', 'bodies')}, {len(active)} of {len(names)} declared contacts {verb}"
+        f"tree:    {_count(tree.n_bodies, 'body', 'bodies')}, {len(set(result.active))} of {n_declared} declared "
+        f"contacts {verb}"
     )
     if ref is not None and (ref.source or ref.note):
         lines.append("reference: " + "; ".join(s for s in (ref.source, ref.note) if s))
+    return lines
 
-    show_ref_ext = ref is not None and ref.external is not None
+
+def _external_lines(model: ModelFile, result: Result) -> list[str]:
+    """The contacts' impulses (and with friction their tangential impulses and slip)."""
+    names, ref, active = contact_names(model.tree), model.reference, set(result.active)
+    rigid = isinstance(result, ImpactResult)
+    show_ref = ref is not None and ref.external is not None
     friction = rigid and result.tangent_velocity is not None
     slip = dict(zip(result.active, result.tangent_velocity, strict=True)) if friction else {}
     headers = ["contact", "touches", "impulse [N s]"] + (["tangential [N s]", "slip after [m/s]"] if friction else [])
-    headers += ["reference [N s]", "diff"] if show_ref_ext else []
+    headers += ["reference [N s]", "diff"] if show_ref else []
     rows = []
     for i, cname in enumerate(names):
         row = [cname, "yes" if i in active else "no", _num(result.external[i])]
         row += [_cell(result.tangential[i]), _cell(slip[i]) if i in slip else "-"] if friction else []
-        if show_ref_ext:
+        if show_ref:
             assert ref is not None and ref.external is not None
             row += _ref_cells(result.external[i], ref.external[i])
         rows.append(row)
     along = "along +x" if model.space is PLANAR else "[x, z]"
     kind = f"normal and tangential {along}" if friction else "normal" if rigid else "along the local ground normal"
-    lines += ["", f"External impulses ({kind}, on the contacts)"] + _table(headers, rows)
+    return ["", f"External impulses ({kind}, on the contacts)"] + _table(headers, rows)
 
-    if not rigid:
-        order = {c: k + 1 for k, c in enumerate(result.touchdown_order)}
-        rows = [
-            [cname, "-" if math.isnan(t) else f"{1e3 * t:.3f}", str(order[i]) if i in order else "-"]
-            for i, (cname, t) in enumerate(zip(names, result.touchdown_time, strict=True))
-        ]
-        lines += ["", "Touchdowns (time after the first one)"] + _table(["contact", "touchdown [ms]", "order"], rows)
-        r = result.result
-        if isinstance(r, CompliantResult):
-            unit = "N/m" if r.law is ContactLaw.PENALTY else "1/s^2"
-            lines.append(
-                f"integration: {r.status.value} after {1e3 * r.duration:.3f} ms, {r.n_steps} contact steps of "
-                f"{r.timestep:.3g} s and {r.n_flight_steps} flight steps; stiffness {result.settings.stiffness:g} {unit}"
-            )
 
-    if joints:
-        show_ref_int = ref is not None and ref.internal is not None
-        dims = 2 if model.space is PLANAR else 3
-        headers = ["joint (child)", "kind"] + [f"{a} [N s]" for a in "xyz"[:dims]] + ["|impulse| [N s]"]
-        headers += ["reference [N s]", "diff"] if show_ref_int else []
-        rows = []
-        for j, jname in enumerate(joints):
-            components = [_num(x) for x in result.internal[j, :dims]]
-            row = [jname, tree.bodies[j + 1].joint.value, *components, _num(result.internal_magnitude[j])]
-            if show_ref_int:
-                assert ref is not None and ref.internal is not None
-                row += _ref_cells(result.internal_magnitude[j], ref.internal[j])
-            rows.append(row)
-        lines += ["", "Internal impulses (through each joint, parent onto child)"] + _table(headers, rows)
+def _touchdown_lines(model: ModelFile, result: TimeDomainResult) -> list[str]:
+    """When each contact touched down (time-domain models), and the integration's summary."""
+    names = contact_names(model.tree)
+    order = {c: k + 1 for k, c in enumerate(result.touchdown_order)}
+    rows = [
+        [cname, "-" if math.isnan(t) else f"{1e3 * t:.3f}", str(order[i]) if i in order else "-"]
+        for i, (cname, t) in enumerate(zip(names, result.touchdown_time, strict=True))
+    ]
+    lines = ["", "Touchdowns (time after the first one)"] + _table(["contact", "touchdown [ms]", "order"], rows)
+    r = result.result
+    if isinstance(r, CompliantResult):
+        unit = "N/m" if r.law is ContactLaw.PENALTY else "1/s^2"
+        lines.append(
+            f"integration: {r.status.value} after {1e3 * r.duration:.3f} ms, {r.n_steps} contact steps of "
+            f"{r.timestep:.3g} s and {r.n_flight_steps} flight steps; stiffness {result.settings.stiffness:g} {unit}"
+        )
+    return lines
 
+
+def _internal_lines(model: ModelFile, result: Result) -> list[str]:
+    """The joints' impulses (components and magnitude), beside the reference's."""
+    tree, ref, joints = model.tree, model.reference, joint_names(model.tree)
+    show_ref = ref is not None and ref.internal is not None
+    dims = 2 if model.space is PLANAR else 3
+    headers = ["joint (child)", "kind"] + [f"{a} [N s]" for a in "xyz"[:dims]] + ["|impulse| [N s]"]
+    headers += ["reference [N s]", "diff"] if show_ref else []
+    rows = []
+    for j, jname in enumerate(joints):
+        components = [_num(x) for x in result.internal[j, :dims]]
+        row = [jname, tree.bodies[j + 1].joint.value, *components, _num(result.internal_magnitude[j])]
+        if show_ref:
+            assert ref is not None and ref.internal is not None
+            row += _ref_cells(result.internal_magnitude[j], ref.internal[j])
+        rows.append(row)
+    return ["", "Internal impulses (through each joint, parent onto child)"] + _table(headers, rows)
+
+
+def _norm_lines(model: ModelFile, result: Result) -> list[str]:
+    """Both norms (beside the reference's) and the largest joint impulse."""
+    ref, joints = model.reference, joint_names(model.tree)
     headers = ["norm", "ours [N s]"] + (["reference [N s]", "diff"] if ref is not None else [])
     rows = []
     for key in ("external_norm", "internal_norm"):
         ours = getattr(result, key)
         rows.append([key, _num(ours)] + (_ref_cells(ours, getattr(ref, key)) if ref is not None else []))
-    lines += [""] + _table(headers, rows)
+    lines = [""] + _table(headers, rows)
     if joints:
         j = int(np.argmax(result.internal_magnitude))
         lines.append(f"largest joint impulse: {result.max_internal:.4f} N s, through the joint of {joints[j]}")
+    return lines
 
+
+def _velocity_lines(model: ModelFile, result: Result) -> list[str]:
+    """The generalized velocities before and after, and the kinetic energy."""
     rows = [
         [f"{vname} [{unit}]", _num(before), _num(after)]
         for (vname, unit), before, after in zip(
-            velocity_names(tree, model.space), result.v_minus, result.v_plus, strict=True
+            velocity_names(model.tree, model.space), result.v_minus, result.v_plus, strict=True
         )
     ]
-    lines += ["", "Velocities"] + _table(["velocity", "before", "after"], rows)
-
     before, after = result.energy_before, result.energy_after
     change = (
         f"lost {100 * (before - after) / before:.1f}%"
         if after <= before
         else f"energy gained: +{100 * (after - before) / before:.1f}%"
     )
-    lines += ["", f"kinetic energy [J]: before {before:.4f}, after {after:.4f} ({change})"]
-    if not rigid and isinstance(result.result, LandingResult):
-        lines += _landing_lines(model, result.result)
-    lines += [f"warning: {w}" for w in warnings(model, result)]
-    return "\n".join(lines) + "\n"
+    return ["", "Velocities"] + _table(["velocity", "before", "after"], rows) + [
+        "",
+        f"kinetic energy [J]: before {before:.4f}, after {after:.4f} ({change})",
+    ]
 
 
 #: Events listed in the text report of a landing (the JSON has them all).
