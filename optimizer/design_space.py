@@ -27,7 +27,7 @@ is the child's angle relative to its parent (``MODEL_FORMAT.md``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from enum import Enum
 
 import numpy as np
@@ -629,100 +629,132 @@ def assign_lengths(
     )
     if design0.shape != shape:
         raise ValueError(f"assign_lengths: angles and masses do not have the shape {shape}")
-    angles = absolute_angles(leg, design0)
-    sizes = [len(c) for c in angles]
-    n = sum(sizes)
-    starts = np.cumsum([0] + sizes[:-1])
-    i_h, i_t = n, n + 1
-    flat_phi = np.array([phi for c in angles for phi in c])
-    flat_m = np.array([m for c in masses for m in c])
-    drop = -np.sin(flat_phi)  # height lost per metre of rod
-    run = np.cos(flat_phi)  # forward distance per metre of rod
+    lp = _LengthRows.of(absolute_angles(leg, design0))
+    lp.level_tips()
+    lp.mass_per_length(np.array([m for c in masses for m in c]), limits.mass_per_length)
+    lp.reaches(limits.foot_length, reach)
+    lp.clearances(limits.min_clearance, foot_geometry(leg, design0).leg_points[:, 1])
+    return lp.solve()
 
-    a_eq, b_eq = [], []
-    for c, k in zip(starts, sizes, strict=True):
-        row = np.zeros(n + 2)
-        row[c : c + k] = drop[c : c + k]
-        row[i_h] = -1.0
-        a_eq.append(row)
-        b_eq.append(0.0)
 
-    a_ub, b_ub = [], []
+@dataclass
+class _LengthRows:
+    """The linear program of :func:`assign_lengths`, row by row: variables z = (L, h, t)."""
 
-    def at_least(row: np.ndarray, bound: float) -> None:  # row . z >= bound, with margin t
+    drop: np.ndarray  # height lost per metre of each rod
+    run: np.ndarray  # forward distance per metre of each rod
+    sizes: list[int]
+    a_eq: list[np.ndarray] = field(default_factory=list)
+    b_eq: list[float] = field(default_factory=list)
+    a_ub: list[np.ndarray] = field(default_factory=list)
+    b_ub: list[float] = field(default_factory=list)
+
+    @classmethod
+    def of(cls, angles: tuple[tuple[float, ...], ...]) -> _LengthRows:
+        phi = np.array([a for c in angles for a in c])
+        return cls(-np.sin(phi), np.cos(phi), [len(c) for c in angles])
+
+    @property
+    def n(self) -> int:
+        return len(self.drop)
+
+    @property
+    def starts(self) -> np.ndarray:
+        return np.cumsum([0] + self.sizes[:-1])
+
+    def row(self) -> np.ndarray:
+        return np.zeros(self.n + 2)
+
+    def at_least(self, row: np.ndarray, bound: float) -> None:  # row . z >= bound, with margin t
         r = -row / bound
-        r[i_t] = 1.0
-        a_ub.append(r)
-        b_ub.append(-1.0)
+        r[self.n + 1] = 1.0
+        self.a_ub.append(r)
+        self.b_ub.append(-1.0)
 
-    def at_most(row: np.ndarray, bound: float) -> None:  # row . z <= bound, with margin t
+    def at_most(self, row: np.ndarray, bound: float) -> None:  # row . z <= bound, with margin t
         r = row / bound
-        r[i_t] = 1.0
-        a_ub.append(r)
-        b_ub.append(1.0)
+        r[self.n + 1] = 1.0
+        self.a_ub.append(r)
+        self.b_ub.append(1.0)
 
-    lo_rho, hi_rho = limits.mass_per_length
-    for i in range(n):
-        e = np.zeros(n + 2)
-        e[i] = 1.0
-        at_least(e, flat_m[i] / hi_rho)  # m / L <= hi_rho
-        at_most(e, flat_m[i] / lo_rho)  # m / L >= lo_rho
-    heel = np.zeros(n + 2)
-    heel[: sizes[0]] = run[: sizes[0]]
-    lo_f, hi_f = limits.foot_length
-    mean_reach = np.zeros(n + 2)
-    for c, k in zip(starts[1:], sizes[1:], strict=True):
-        toe_reach = -heel.copy()
-        toe_reach[c : c + k] += run[c : c + k]
-        at_least(toe_reach, lo_f)
-        at_most(toe_reach, hi_f)
-        mean_reach += toe_reach / (len(sizes) - 1)
-    if reach is not None:
-        a_eq.append(mean_reach)
-        b_eq.append(reach)
-    # Clearance: joints inside the chains, the ankle, the knee and the hip.
-    for c, k in zip(starts, sizes, strict=True):
-        for j in range(k - 1):
-            row = np.zeros(n + 2)
-            row[i_h] = 1.0
-            row[c : c + j + 1] = -drop[c : c + j + 1]
-            at_least(row, limits.min_clearance)
-    geo_leg = foot_geometry(leg, design0).leg_points
-    for y in (0.0, *geo_leg[:, 1]):
-        # height above ground = h + y (y: the point's height above the ankle)
-        row = np.zeros(n + 2)
-        row[i_h] = 1.0
-        a_ub.append(np.where(np.arange(n + 2) == i_t, 1.0, -row / limits.min_clearance))
-        b_ub.append(-1.0 + y / limits.min_clearance)
+    def level_tips(self) -> None:
+        """Every chain's tip at the ankle height h below the ankle."""
+        for c, k in zip(self.starts, self.sizes, strict=True):
+            row = self.row()
+            row[c : c + k] = self.drop[c : c + k]
+            row[self.n] = -1.0
+            self.a_eq.append(row)
+            self.b_eq.append(0.0)
 
-    cost = np.zeros(n + 2)
-    cost[:n] = 1e-6
-    cost[i_t] = -1.0
-    bounds = [(LENGTH_FLOOR, None)] * n + [(None, None), (None, MARGIN_CAP)]
-    sol = linprog(
-        cost,
-        A_ub=np.array(a_ub),
-        b_ub=np.array(b_ub),
-        A_eq=np.array(a_eq),
-        b_eq=np.array(b_eq),
-        bounds=bounds,
-        method="highs",
-        options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10},
-    )
-    if sol.status != 0:
-        return None
-    z = sol.x
-    h = float(z[i_h])
-    lengths = []
-    for c, k in zip(starts, sizes, strict=True):
-        chain = [float(x) for x in z[c : c + k]]
-        # Level the tip exactly: the last rod takes up the LP's rounding.
-        d_last = float(drop[c + k - 1])
-        last = (h - float(np.dot(chain[:-1], drop[c : c + k - 1]))) / d_last if d_last > 1e-9 else 0.0
+    def mass_per_length(self, masses: np.ndarray, bounds: tuple[float, float]) -> None:
+        lo_rho, hi_rho = bounds
+        for i in range(self.n):
+            e = self.row()
+            e[i] = 1.0
+            self.at_least(e, masses[i] / hi_rho)  # m / L <= hi_rho
+            self.at_most(e, masses[i] / lo_rho)  # m / L >= lo_rho
+
+    def reaches(self, bounds: tuple[float, float], reach: float | None) -> None:
+        """Each toe's heel-to-toe distance within ``bounds``; their mean = ``reach`` if given."""
+        heel = self.row()
+        heel[: self.sizes[0]] = self.run[: self.sizes[0]]
+        mean_reach = self.row()
+        for c, k in zip(self.starts[1:], self.sizes[1:], strict=True):
+            toe_reach = -heel.copy()
+            toe_reach[c : c + k] += self.run[c : c + k]
+            self.at_least(toe_reach, bounds[0])
+            self.at_most(toe_reach, bounds[1])
+            mean_reach += toe_reach / (len(self.sizes) - 1)
+        if reach is not None:
+            self.a_eq.append(mean_reach)
+            self.b_eq.append(reach)
+
+    def clearances(self, min_clearance: float, leg_heights: np.ndarray) -> None:
+        """Joints inside the chains, the ankle, the knee and the hip above the ground."""
+        for c, k in zip(self.starts, self.sizes, strict=True):
+            for j in range(k - 1):
+                row = self.row()
+                row[self.n] = 1.0
+                row[c : c + j + 1] = -self.drop[c : c + j + 1]
+                self.at_least(row, min_clearance)
+        for y in (0.0, *leg_heights):  # height above ground = h + y (y: above the ankle)
+            row = self.row()
+            row[self.n] = 1.0
+            self.a_ub.append(np.where(np.arange(self.n + 2) == self.n + 1, 1.0, -row / min_clearance))
+            self.b_ub.append(-1.0 + y / min_clearance)
+
+    def solve(self) -> LengthAssignment | None:
+        """HiGHS on the rows; each chain's last rod then levels its tip to rounding."""
+        n = self.n
+        cost = self.row()
+        cost[:n] = 1e-6
+        cost[n + 1] = -1.0
+        bounds = [(LENGTH_FLOOR, None)] * n + [(None, None), (None, MARGIN_CAP)]
+        sol = linprog(
+            cost,
+            A_ub=np.array(self.a_ub),
+            b_ub=np.array(self.b_ub),
+            A_eq=np.array(self.a_eq),
+            b_eq=np.array(self.b_eq),
+            bounds=bounds,
+            method="highs",
+            options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10},
+        )
+        if sol.status != 0:
+            return None
+        h = float(sol.x[n])
+        lengths = tuple(self.levelled(sol.x[c : c + k], c, h) for c, k in zip(self.starts, self.sizes, strict=True))
+        return LengthAssignment(lengths, h, float(sol.x[n + 1]))
+
+    def levelled(self, chain_lengths: np.ndarray, c: int, h: float) -> tuple[float, ...]:
+        """A chain's lengths with the last rod taking up the LP's rounding (the tip exactly at h)."""
+        chain = [float(x) for x in chain_lengths]
+        k = len(chain)
+        d_last = float(self.drop[c + k - 1])
+        last = (h - float(np.dot(chain[:-1], self.drop[c : c + k - 1]))) / d_last if d_last > 1e-9 else 0.0
         if last > LENGTH_FLOOR and abs(last - chain[-1]) <= 1e-6 * max(1.0, chain[-1]):
             chain[-1] = last
-        lengths.append(tuple(chain))
-    return LengthAssignment(tuple(lengths), h, float(z[i_t]))
+        return tuple(chain)
 
 
 def with_lengths(design_angles_masses: FootDesign, assignment: LengthAssignment) -> FootDesign:
