@@ -706,6 +706,327 @@ def _constraint_forces(s: _State, active: np.ndarray, k: float, b: float, d: flo
     return f
 
 
+@dataclass(frozen=True)
+class _Run:
+    """What the integration of one impact keeps fixed: the step function, the settings, the contact
+    law's constants and the subtrees' contact incidence and gravity forces."""
+
+    evaluate_step: _Evaluator
+    settings: CompliantSettings
+    penalty: bool
+    zeta: float
+    k: np.ndarray  # stiffness per contact
+    dt: float  # contact step
+    settle_steps: int
+    settle_speed: float
+    in_subtree: np.ndarray  # bodies x contacts
+    gravity_force: np.ndarray  # on each subtree, 2 x bodies
+    zeros: np.ndarray  # the force of no contact (n_c), shared by every step that has none
+
+
+@dataclass(frozen=True)
+class _Tally:
+    """What the integration records per contact and accumulates, updated in place step by step
+    (the arrays are reused: numpy's per-call overhead on these tiny arrays dominates the step)."""
+
+    c: np.ndarray  # damping per contact, tuned at each touchdown (penalty)
+    effective_mass: np.ndarray  # 1 / A_ii, updated at each contact's own touchdown
+    untouched: np.ndarray  # contacts that have not touched yet
+    prev_gap: np.ndarray  # gaps at the start of the last step
+    touchdown: np.ndarray
+    release: np.ndarray
+    max_penetration: np.ndarray
+    impulse: np.ndarray  # n_c
+    impulse_vector: np.ndarray  # 2 x n_c
+    joint_impulse: np.ndarray  # 2 x bodies
+    times: list[float]
+    forces: list[np.ndarray]
+
+
+@dataclass(frozen=True)
+class _End:
+    """Where the integration stopped: the state, its normal velocities and kinetic energy, the time,
+    the step counts and how it ended."""
+
+    q: np.ndarray
+    v: np.ndarray
+    rate: np.ndarray
+    kinetic: float
+    t: float
+    n_steps: int
+    n_flight: int
+    status: CompliantStatus
+
+
+def _touchdown_state(
+    tree: Tree,
+    scene: Scene,
+    settings: CompliantSettings,
+    terrain: Terrain | None,
+    base_x: float | None,
+    v_minus: np.ndarray | None,
+) -> tuple[_Evaluator, np.ndarray, np.ndarray]:
+    """The step function on the ground and the state (q, v) at the first touchdown
+    (:func:`simulate_impact`'s arguments)."""
+    terrain, base_x = scene_ground(scene, terrain, base_x)
+    topology = tree.topology()
+    layout = dof_layout(topology)
+    p = design_vector(tree)
+    g = settings.gravity
+    evaluate_step = _Evaluator(compiled_step(topology, terrain), p, g)
+    q = touchdown_configuration(tree, terrain, base_x)
+    if v_minus is None:
+        v = pre_impact_velocity(topology, scene)
+    else:
+        v = np.array(v_minus, dtype=float).ravel()
+        if v.shape != (layout.nv,):
+            raise ModelError(f"v_minus: expected {layout.nv} generalized velocities, got {v.shape}")
+    return evaluate_step, q, v
+
+
+def _contact_parameters(
+    s: _State, settings: CompliantSettings, zeta: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Stiffness k, damping c and effective mass 1 / A_ii of each contact at the first touchdown
+    ``s``, and the fastest contact frequency omega_max (module docstring)."""
+    nc = len(s.gap)
+    A0 = s.Jn @ s.minv_jnt
+    k = np.full(nc, settings.stiffness)
+    effective_mass = 1.0 / np.diag(A0)  # updated at each contact's own touchdown
+    if settings.law is ContactLaw.PENALTY:
+        c = 2.0 * zeta * np.sqrt(k * effective_mass)
+        omega_max = math.sqrt(settings.stiffness * float(np.max(np.linalg.eigvalsh(0.5 * (A0 + A0.T)))))
+    else:
+        c = np.full(nc, 2.0 * zeta * math.sqrt(settings.stiffness))
+        omega_max = math.sqrt(settings.stiffness)
+    return k, c, effective_mass, omega_max
+
+
+def _setup(
+    tree: Tree,
+    scene: Scene,
+    settings: CompliantSettings,
+    evaluate_step: _Evaluator,
+    s: _State,
+    v: np.ndarray,
+    zeta: float,
+) -> tuple[_Run, _Tally]:
+    """The run's constants (step, settling test) and empty tallies, at the first touchdown ``s``
+    with velocity ``v``."""
+    k, c, effective_mass, omega_max = _contact_parameters(s, settings, zeta)
+    nc = len(k)
+    dt = settings.timestep or 2.0 * math.pi / (omega_max * settings.steps_per_period)
+    period = 2.0 * math.pi / omega_max
+    run = _Run(
+        evaluate_step=evaluate_step,
+        settings=settings,
+        penalty=settings.law is ContactLaw.PENALTY,
+        zeta=zeta,
+        k=k,
+        dt=dt,
+        settle_steps=max(1, int(math.ceil(period / dt))),
+        settle_speed=settings.settle_fraction * max(abs(scene.speed), float(np.max(np.abs(v))), 1e-12),
+        in_subtree=subtree_incidence(tree),
+        gravity_force=np.outer([0.0, -settings.gravity], subtree_masses(tree)),
+        zeros=np.zeros(nc),
+    )
+    tally = _Tally(
+        c=c,
+        effective_mass=effective_mass,
+        untouched=np.ones(nc, dtype=bool),
+        prev_gap=s.gap.copy(),
+        touchdown=np.full(nc, np.nan),
+        release=np.full(nc, np.nan),
+        max_penetration=np.zeros(nc),
+        impulse=np.zeros(nc),
+        impulse_vector=np.zeros((2, nc)),
+        joint_impulse=np.zeros((2, tree.n_bodies)),
+        times=[],
+        forces=[],
+    )
+    return run, tally
+
+
+def _touch_down(s: _State, touching: np.ndarray, t: float, prev_t: float, run: _Run, tally: _Tally) -> bool:
+    """Record the contacts that touch at ``s`` for the first time: touchdown time (linear
+    interpolation of the crossing within the last step, ``prev_t`` to ``t``), effective mass and,
+    penalty law, the damping tuned to e on it. True when some did."""
+    new = touching & tally.untouched
+    if not new.any():
+        return False
+    frac = -s.gap[new] / np.maximum(tally.prev_gap[new] - s.gap[new], 1e-300)
+    tally.touchdown[new] = t - (t - prev_t) * np.minimum(frac, 1.0)
+    tally.untouched[new] = False
+    # damping tuned to e on the effective mass the contact meets when it lands
+    tally.effective_mass[new] = 1.0 / np.einsum("cv,vc->c", s.Jn[new], s.minv_jnt[:, new])
+    if run.penalty:
+        tally.c[new] = 2.0 * run.zeta * np.sqrt(run.k[new] * tally.effective_mass[new])
+    return True
+
+
+def _normal_forces(s: _State, touching: np.ndarray, any_touching: bool, run: _Run, c: np.ndarray) -> np.ndarray:
+    """The contact law's normal forces at ``s`` (damping ``c``); zero off the ground."""
+    if not any_touching:
+        return run.zeros
+    if run.penalty:
+        f = -run.k * s.gap - c * s.rate
+        f[(f < 0.0) | ~touching] = 0.0
+        return f
+    return _constraint_forces(s, touching, run.settings.stiffness, c[0] if len(c) else 0.0, run.settings.impedance)
+
+
+def _impact_over(
+    s: _State, touching: np.ndarray, any_loaded: bool, untouched: np.ndarray, still: int, run: _Run
+) -> tuple[CompliantStatus | None, int]:
+    """After the first touchdown, whether the impact has ended at ``s``: ``SEPARATED`` when nothing
+    pushes and no contact approaches the ground that is touching or has not touched yet (any
+    contact, with ``follow_recontacts``); ``SETTLED`` when the loaded contacts have moved slower
+    than the settling speed for ``settle_steps`` steps (``still``: so far); else None. With the
+    updated ``still``."""
+    if not any_loaded:
+        approaching = s.rate < 0.0
+        if run.settings.follow_recontacts:
+            blocking = approaching
+        else:
+            blocking = approaching & (touching | untouched)
+        if not blocking.any():
+            return CompliantStatus.SEPARATED, still
+        return None, 0
+    if np.abs(s.rate[touching]).max() < run.settle_speed:
+        still += 1
+        return (CompliantStatus.SETTLED if still >= run.settle_steps else None), still
+    return None, 0
+
+
+def _loaded_acceleration(
+    s: _State, f: np.ndarray, loaded: np.ndarray, t: float, run: _Run, tally: _Tally
+) -> np.ndarray:
+    """The acceleration under the contact forces ``f`` at ``s``; their impulses and the joint
+    impulses over the step starting at ``t`` are added to the tally, the loaded contacts' release
+    time moved to its end."""
+    dt = run.dt
+    a = s.free + s.minv_jnt @ f
+    F = s.normal * f  # 2 x contacts
+    # joint forces (parent onto child) at this state: Newton's law for each subtree
+    momentum_rate = (s.subtree_jacobian @ a).reshape(-1, 2).T + s.subtree_bias
+    joint_force = momentum_rate - F @ run.in_subtree.T - run.gravity_force
+    np.add(tally.joint_impulse, dt * joint_force, out=tally.joint_impulse)
+    np.add(tally.impulse, dt * f, out=tally.impulse)
+    np.add(tally.impulse_vector, dt * F, out=tally.impulse_vector)
+    tally.release[loaded] = t + dt
+    return a
+
+
+def _record(settings: CompliantSettings, tally: _Tally, t: float, f: np.ndarray) -> None:
+    """Keep a step's start time and forces when ``settings.record``."""
+    if settings.record:
+        tally.times.append(t)
+        tally.forces.append(f)
+
+
+def _check_finite(q: np.ndarray, v: np.ndarray, t: float, run: _Run) -> None:
+    """Raise NumericalError when the state (q, v) at ``t`` is no longer finite."""
+    if not (math.isfinite(v.sum()) and math.isfinite(q.sum())):
+        raise NumericalError(
+            f"the compliant integration diverged at t = {t:.3g} s (step {run.dt:.3g} s for stiffness "
+            f"{run.settings.stiffness:.3g}): lower the step"
+        )
+
+
+def _integrate(run: _Run, tally: _Tally, s: _State, q: np.ndarray, v: np.ndarray) -> _End:
+    """Integrate from the first touchdown (``s`` at (q, v)): semi-implicit Euler contact steps,
+    Runge-Kutta flight steps between touchdowns, until the impact ends or ``max_time``."""
+    settings, evaluate_step = run.settings, run.evaluate_step
+    status = CompliantStatus.TIMEOUT
+    still = 0
+    t = prev_t = 0.0
+    n_steps = n_flight = 0
+    any_touched = False
+    # The loop runs a few hundred to tens of thousands of times: flags are kept as Python bools and
+    # arrays are reused, since numpy's per-call overhead on these tiny arrays dominates the step.
+    while True:
+        touching = s.gap < 0.0
+        any_touching = bool(touching.any())
+        if n_steps and any_touching and not any_touched or (any_touched and tally.untouched.any() and any_touching):
+            any_touched = _touch_down(s, touching, t, prev_t, run, tally) or any_touched
+        f = _normal_forces(s, touching, any_touching, run, tally.c)
+        loaded = f > 0.0
+        any_loaded = any_touching and bool(loaded.any())
+        if any_touched:  # stop: nothing pushes and nothing approaches, or at rest
+            ended, still = _impact_over(s, touching, any_loaded, tally.untouched, still, run)
+            if ended is not None:
+                status = ended
+                break
+        if t >= settings.max_time:
+            break
+        tally.prev_gap[:] = s.gap
+        prev_t = t
+        if settings.flight_step and not any_touching:
+            flown = _flight(evaluate_step, q, v, settings.flight_step, 2.0 * run.dt)
+            if flown is not None:
+                q, v, h = flown
+                t += h
+                n_flight += 1
+                _record(settings, tally, prev_t, run.zeros)
+                s = evaluate_step(q, v)
+                continue
+            s = evaluate_step(q, v)  # the trial flight overwrote the evaluator's state
+        a = _loaded_acceleration(s, f, loaded, t, run, tally) if any_loaded else s.free
+        if any_touching:
+            np.maximum(tally.max_penetration, -s.gap, out=tally.max_penetration)
+        v = v + run.dt * a
+        q = q + run.dt * v
+        _record(settings, tally, t, f)
+        t += run.dt
+        n_steps += 1
+        _check_finite(q, v, t, run)
+        s = evaluate_step(q, v)
+    return _End(q, v, s.rate.copy(), float(s.kinetic[0]), t, n_steps, n_flight, status)
+
+
+def _result(
+    run: _Run, tally: _Tally, end: _End, q0: np.ndarray, v0: np.ndarray, energy_before: float
+) -> CompliantResult:
+    """The :class:`CompliantResult` of a finished integration (``q0``, ``v0``: at the first
+    touchdown, with kinetic energy ``energy_before``)."""
+    settings, touchdown = run.settings, tally.touchdown
+    internal, magnitude = joint_impulses(tally.joint_impulse)
+    energy_after = end.kinetic
+    return CompliantResult(
+        external=tally.impulse,
+        external_vector=tally.impulse_vector.T.copy(),
+        internal=internal,
+        internal_magnitude=magnitude,
+        external_norm=float(np.linalg.norm(tally.impulse)),
+        internal_norm=float(np.linalg.norm(magnitude)),
+        touchdown_time=touchdown,
+        release_time=tally.release,
+        touchdown_order=touchdown_order(touchdown, run.dt),
+        recontacting=tuple(int(i) for i in np.flatnonzero(np.isfinite(touchdown) & (end.rate < 0.0))),
+        max_penetration=tally.max_penetration,
+        time=np.array(tally.times),
+        force=np.array(tally.forces).reshape(len(tally.forces), len(touchdown)),
+        q_minus=q0,
+        q_plus=end.q,
+        v_minus=v0,
+        v_plus=end.v,
+        energy_before=energy_before,
+        energy_after=energy_after,
+        energy_gain=energy_after > energy_before * (1.0 + 1e-9),
+        stiffness=run.k,
+        damping=tally.c,
+        effective_mass=tally.effective_mass,
+        damping_ratio=run.zeta,
+        timestep=run.dt,
+        n_steps=end.n_steps,
+        n_flight_steps=end.n_flight,
+        duration=end.t,
+        status=end.status,
+        law=settings.law,
+        model=f"compliant ({settings.law.value}, semi-implicit Euler), planar",
+    )
+
+
 def simulate_impact(
     tree: Tree,
     scene: Scene,
@@ -733,184 +1054,16 @@ def simulate_impact(
     """
     if scene.friction > 0:
         raise ModelError("scene.friction: the compliant rung models frictionless contact only (friction: 0)")
-    terrain, base_x = scene_ground(scene, terrain, base_x)
-    topology = tree.topology()
-    layout = dof_layout(topology)
-    p = design_vector(tree)
-    g = settings.gravity
-    evaluate_step = _Evaluator(compiled_step(topology, terrain), p, g)
-    q = touchdown_configuration(tree, terrain, base_x)
-    if v_minus is None:
-        v = pre_impact_velocity(topology, scene)
-    else:
-        v = np.array(v_minus, dtype=float).ravel()
-        if v.shape != (layout.nv,):
-            raise ModelError(f"v_minus: expected {layout.nv} generalized velocities, got {v.shape}")
+    evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus)
     zeta = (
         damping_ratio_for_restitution(scene.restitution) if settings.damping_ratio is None else settings.damping_ratio
     )
-
     s = evaluate_step(q, v)
-    nc = len(s.gap)
-    A0 = s.Jn @ s.minv_jnt
-    k = np.full(nc, settings.stiffness)
-    penalty = settings.law is ContactLaw.PENALTY
-    effective_mass = 1.0 / np.diag(A0)  # updated at each contact's own touchdown
-    if penalty:
-        c = 2.0 * zeta * np.sqrt(k * effective_mass)
-        omega_max = math.sqrt(settings.stiffness * float(np.max(np.linalg.eigvalsh(0.5 * (A0 + A0.T)))))
-    else:
-        c = np.full(nc, 2.0 * zeta * math.sqrt(settings.stiffness))
-        omega_max = math.sqrt(settings.stiffness)
-    dt = settings.timestep or 2.0 * math.pi / (omega_max * settings.steps_per_period)
-    period = 2.0 * math.pi / omega_max
-    settle_steps = max(1, int(math.ceil(period / dt)))
-    settle_speed = settings.settle_fraction * max(abs(scene.speed), float(np.max(np.abs(v))), 1e-12)
-
-    in_subtree = subtree_incidence(tree)  # bodies x contacts
-    gravity_force = np.outer([0.0, -g], subtree_masses(tree))  # on each subtree, 2 x bodies
-
+    run, tally = _setup(tree, scene, settings, evaluate_step, s, v, zeta)
     q0, v0 = q.copy(), v.copy()
     energy_before = float(s.kinetic[0])
-    joint_impulse = np.zeros((2, tree.n_bodies))
-    impulse = np.zeros(nc)
-    impulse_vec = np.zeros((2, nc))
-    touchdown = np.full(nc, np.nan)
-    release = np.full(nc, np.nan)
-    max_pen = np.zeros(nc)
-    times: list[float] = []
-    forces: list[np.ndarray] = []
-    prev_gap = s.gap.copy()
-    status = CompliantStatus.TIMEOUT
-    still = 0
-    t = prev_t = 0.0
-    n_steps = n_flight = 0
-    untouched = np.ones(nc, dtype=bool)  # contacts that have not touched yet
-    any_touched = False
-    zeros = np.zeros(nc)
-    # The loop runs a few hundred to tens of thousands of times: flags are kept as Python bools and
-    # arrays are reused, since numpy's per-call overhead on these tiny arrays dominates the step.
-    while True:
-        touching = s.gap < 0.0
-        any_touching = bool(touching.any())
-        if n_steps and any_touching and not any_touched or (any_touched and untouched.any() and any_touching):
-            new = touching & untouched
-            if new.any():  # linear interpolation of the crossing within the last step
-                frac = -s.gap[new] / np.maximum(prev_gap[new] - s.gap[new], 1e-300)
-                touchdown[new] = t - (t - prev_t) * np.minimum(frac, 1.0)
-                untouched &= ~new
-                any_touched = True
-                # damping tuned to e on the effective mass the contact meets when it lands
-                effective_mass[new] = 1.0 / np.einsum("cv,vc->c", s.Jn[new], s.minv_jnt[:, new])
-                if penalty:
-                    c[new] = 2.0 * zeta * np.sqrt(k[new] * effective_mass[new])
-        if not any_touching:
-            f = zeros
-        elif penalty:
-            f = -k * s.gap - c * s.rate
-            f[(f < 0.0) | ~touching] = 0.0
-        else:
-            f = _constraint_forces(s, touching, settings.stiffness, c[0] if nc else 0.0, settings.impedance)
-        loaded = f > 0.0
-        any_loaded = any_touching and bool(loaded.any())
-        # stop: nothing pushes and nothing approaches (after the first touch), or at rest
-        if any_touched:
-            if not any_loaded:
-                approaching = s.rate < 0.0
-                if settings.follow_recontacts:
-                    blocking = approaching
-                else:
-                    blocking = approaching & (touching | untouched)
-                if not blocking.any():
-                    status = CompliantStatus.SEPARATED
-                    break
-                still = 0
-            elif np.abs(s.rate[touching]).max() < settle_speed:
-                still += 1
-                if still >= settle_steps:
-                    status = CompliantStatus.SETTLED
-                    break
-            else:
-                still = 0
-        if t >= settings.max_time:
-            break
-        prev_gap[:] = s.gap
-        prev_t = t
-        if settings.flight_step and not any_touching:
-            flown = _flight(evaluate_step, q, v, settings.flight_step, 2.0 * dt)
-            if flown is not None:
-                q, v, h = flown
-                t += h
-                n_flight += 1
-                if settings.record:
-                    times.append(prev_t)
-                    forces.append(zeros)
-                s = evaluate_step(q, v)
-                continue
-            s = evaluate_step(q, v)  # the trial flight overwrote the evaluator's state
-        if any_loaded:
-            a = s.free + s.minv_jnt @ f
-            F = s.normal * f  # 2 x contacts
-            # joint forces (parent onto child) at this state: Newton's law for each subtree
-            momentum_rate = (s.subtree_jacobian @ a).reshape(-1, 2).T + s.subtree_bias
-            joint_impulse += dt * (momentum_rate - F @ in_subtree.T - gravity_force)
-            impulse += dt * f
-            impulse_vec += dt * F
-            release[loaded] = t + dt
-        else:
-            a = s.free
-        if any_touching:
-            np.maximum(max_pen, -s.gap, out=max_pen)
-        v = v + dt * a
-        q = q + dt * v
-        if settings.record:
-            times.append(t)
-            forces.append(f)
-        t += dt
-        n_steps += 1
-        if not (math.isfinite(v.sum()) and math.isfinite(q.sum())):
-            raise NumericalError(
-                f"the compliant integration diverged at t = {t:.3g} s (step {dt:.3g} s for stiffness "
-                f"{settings.stiffness:.3g}): lower the step"
-            )
-        s = evaluate_step(q, v)
-
-    internal, magnitude = joint_impulses(joint_impulse)
-    order = touchdown_order(touchdown, dt)
-    energy_after = float(s.kinetic[0])
-    return CompliantResult(
-        external=impulse,
-        external_vector=impulse_vec.T.copy(),
-        internal=internal,
-        internal_magnitude=magnitude,
-        external_norm=float(np.linalg.norm(impulse)),
-        internal_norm=float(np.linalg.norm(magnitude)),
-        touchdown_time=touchdown,
-        release_time=release,
-        touchdown_order=order,
-        recontacting=tuple(int(i) for i in np.flatnonzero(np.isfinite(touchdown) & (s.rate < 0.0))),
-        max_penetration=max_pen,
-        time=np.array(times),
-        force=np.array(forces).reshape(len(forces), nc),
-        q_minus=q0,
-        q_plus=q,
-        v_minus=v0,
-        v_plus=v,
-        energy_before=energy_before,
-        energy_after=energy_after,
-        energy_gain=energy_after > energy_before * (1.0 + 1e-9),
-        stiffness=k,
-        damping=c,
-        effective_mass=effective_mass,
-        damping_ratio=zeta,
-        timestep=dt,
-        n_steps=n_steps,
-        n_flight_steps=n_flight,
-        duration=t,
-        status=status,
-        law=settings.law,
-        model=f"compliant ({settings.law.value}, semi-implicit Euler), planar",
-    )
+    end = _integrate(run, tally, s, q, v)
+    return _result(run, tally, end, q0, v0, energy_before)
 
 
 def relative_difference(pairs: list[tuple[Any, Any]]) -> float:

@@ -24,6 +24,7 @@ from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
     _Evaluator,
+    _State,
     compiled_step,
     joint_impulses,
     scene_ground,
@@ -109,6 +110,157 @@ def _lcp_impulse(A: np.ndarray, u: np.ndarray, e: float) -> np.ndarray:
     return nnls(L.T, np.linalg.solve(L, -(1.0 + e) * u))
 
 
+def _touchdown_state(
+    tree: Tree,
+    scene: Scene,
+    settings: SequentialSettings,
+    terrain: Terrain | None,
+    base_x: float | None,
+    v_minus: np.ndarray | None,
+) -> tuple[_Evaluator, np.ndarray, np.ndarray]:
+    """The step function on the ground and the state (q, v) at the first touchdown
+    (:func:`sequential_impacts`' arguments)."""
+    terrain, base_x = scene_ground(scene, terrain, base_x)
+    topology = tree.topology()
+    evaluate_step = _Evaluator(compiled_step(topology, terrain), design_vector(tree), settings.gravity)
+    q = touchdown_configuration(tree, terrain, base_x)
+    if v_minus is None:
+        v = pre_impact_velocity(topology, scene)
+    else:
+        v = np.array(v_minus, dtype=float).ravel()
+    return evaluate_step, q, v
+
+
+def _rk4_flight(evaluate_step: _Evaluator, q0: np.ndarray, v0: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """One RK4 step of the free flight (contact forces off)."""
+
+    def accel(qq, vv):
+        return evaluate_step(qq, vv).free.copy()
+
+    k1q, k1v = v0, accel(q0, v0)
+    k2q, k2v = v0 + 0.5 * dt * k1v, accel(q0 + 0.5 * dt * k1q, v0 + 0.5 * dt * k1v)
+    k3q, k3v = v0 + 0.5 * dt * k2v, accel(q0 + 0.5 * dt * k2q, v0 + 0.5 * dt * k2v)
+    k4q, k4v = v0 + dt * k3v, accel(q0 + dt * k3q, v0 + dt * k3v)
+    return (
+        q0 + dt / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
+        v0 + dt / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v),
+    )
+
+
+def _fly(
+    evaluate_step: _Evaluator, q: np.ndarray, v: np.ndarray, settings: SequentialSettings
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """One flight step from (q, v): ``settings.flight_step`` long or, when a contact crosses the
+    ground within it, up to that contact's touchdown (bisection on the step length); the state
+    after it and its length."""
+    h = settings.flight_step
+    q1, v1 = _rk4_flight(evaluate_step, q, v, h)
+    g1 = evaluate_step(q1, v1).gap.copy()
+    crossing = g1 < -settings.contact_tolerance
+    if not np.any(crossing):
+        return q1, v1, h
+    lo, hi = 0.0, h  # bisect the step length for the first touchdown
+    while hi - lo > settings.time_tolerance:
+        mid = 0.5 * (lo + hi)
+        qm, vm = _rk4_flight(evaluate_step, q, v, mid)
+        if np.min(evaluate_step(qm, vm).gap[crossing]) < 0.0:
+            hi = mid
+        else:
+            lo = mid
+    q1, v1 = _rk4_flight(evaluate_step, q, v, hi)
+    return q1, v1, hi
+
+
+def _rigid_impact(
+    evaluate_step: _Evaluator,
+    s: _State,
+    q: np.ndarray,
+    v: np.ndarray,
+    idx: np.ndarray,
+    e: float,
+    in_subtree: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One rigid impact of the contacts ``idx`` at (q, v), ``s`` evaluated there: the velocity
+    after it, their normal impulses (:func:`_lcp_impulse`), the impulse vectors of every contact
+    (2 x n_c) and the joint impulses (2 x bodies: each subtree's momentum change minus the contact
+    impulses on it)."""
+    A = s.Jn[idx] @ s.minv_jnt[:, idx]
+    lam = _lcp_impulse(A, s.rate[idx], e)
+    momentum = s.momentum.copy()
+    F = np.zeros((2, len(s.gap)))
+    F[:, idx] = s.normal[:, idx] * lam
+    v = v + s.minv_jnt[:, idx] @ lam
+    s = evaluate_step(q, v)
+    return v, lam, F, s.momentum - momentum - F @ in_subtree.T
+
+
+def _impacts_over(s: _State, touchdown: np.ndarray) -> bool:
+    """Some contact has touched and none approaches the ground that has not touched yet or is
+    below it (as the compliant rung's ``SEPARATED``)."""
+    untouched = np.isnan(touchdown)
+    return bool(np.any(np.isfinite(touchdown)) and np.all((s.rate >= 0.0) | ~(untouched | (s.gap < 0.0))))
+
+
+@dataclass(frozen=True)
+class _Impacts:
+    """The impacts so far, accumulated in place (:func:`_add_impact`): normal impulse per contact,
+    impulse vectors (2 x n_c), joint impulses (2 x bodies), touchdown times and the events."""
+
+    external: np.ndarray
+    external_vector: np.ndarray
+    joint: np.ndarray
+    touchdown: np.ndarray
+    events: list[ImpactEvent]
+
+
+def _no_impacts(nc: int, n_bodies: int) -> _Impacts:
+    """No impact yet: zero impulses, no touchdown (NaN), no events."""
+    return _Impacts(np.zeros(nc), np.zeros((2, nc)), np.zeros((2, n_bodies)), np.full(nc, np.nan), [])
+
+
+def _add_impact(
+    impacts: _Impacts, t: float, idx: np.ndarray, lam: np.ndarray, F: np.ndarray, joint_impulse: np.ndarray
+) -> None:
+    """Add one rigid impact at ``t`` (:func:`_rigid_impact`'s output) to ``impacts``; the first
+    impact of a contact is its touchdown.
+
+    Raises:
+        NumericalError: more than 1000 impacts (the contacts chatter).
+    """
+    impacts.external[idx] += lam
+    np.add(impacts.external_vector, F, out=impacts.external_vector)
+    touchdown = impacts.touchdown
+    touchdown[idx[np.isnan(touchdown[idx])]] = t
+    impacts.events.append(ImpactEvent(t, tuple(int(i) for i in idx), lam))
+    np.add(impacts.joint, joint_impulse, out=impacts.joint)
+    if len(impacts.events) > 1000:
+        raise NumericalError("more than 1000 rigid impacts: the contacts chatter (lower the restitution?)")
+
+
+def _sequential_result(
+    impacts: _Impacts, q: np.ndarray, v: np.ndarray, energy_before: float, energy_after: float
+) -> SequentialResult:
+    """The :class:`SequentialResult` of the accumulated impacts, ending at (q, v)."""
+    internal, magnitude = joint_impulses(impacts.joint)
+    external, touchdown = impacts.external, impacts.touchdown
+    return SequentialResult(
+        external=external,
+        external_vector=impacts.external_vector.T.copy(),
+        internal=internal,
+        internal_magnitude=magnitude,
+        external_norm=float(np.linalg.norm(external)),
+        internal_norm=float(np.linalg.norm(magnitude)),
+        touchdown_time=touchdown,
+        touchdown_order=touchdown_order(touchdown, 0.0),
+        events=tuple(impacts.events),
+        q_plus=q,
+        v_plus=v,
+        energy_before=energy_before,
+        energy_after=energy_after,
+        energy_gain=energy_after > energy_before * (1.0 + 1e-9),
+    )
+
+
 def sequential_impacts(
     tree: Tree,
     scene: Scene,
@@ -129,107 +281,28 @@ def sequential_impacts(
     """
     if scene.friction > 0:
         raise ModelError("scene.friction: the sequential rigid model is frictionless (friction: 0)")
-    terrain, base_x = scene_ground(scene, terrain, base_x)
-    topology = tree.topology()
-    evaluate_step = _Evaluator(compiled_step(topology, terrain), design_vector(tree), settings.gravity)
-    q = touchdown_configuration(tree, terrain, base_x)
-    if v_minus is None:
-        v = pre_impact_velocity(topology, scene)
-    else:
-        v = np.array(v_minus, dtype=float).ravel()
-    e = scene.restitution
+    evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus)
     in_subtree = subtree_incidence(tree)
     s = evaluate_step(q, v)
-    nc = len(s.gap)
     energy_before = float(s.kinetic[0])
-    external = np.zeros(nc)
-    external_vec = np.zeros((2, nc))
-    joint = np.zeros((2, tree.n_bodies))
-    touchdown = np.full(nc, np.nan)
-    events: list[ImpactEvent] = []
+    impacts = _no_impacts(len(s.gap), tree.n_bodies)
     t = 0.0
-    h = settings.flight_step
-
-    def flight(q0: np.ndarray, v0: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """One RK4 step of the free flight (contact forces off)."""
-
-        def accel(qq, vv):
-            return evaluate_step(qq, vv).free.copy()
-
-        k1q, k1v = v0, accel(q0, v0)
-        k2q, k2v = v0 + 0.5 * dt * k1v, accel(q0 + 0.5 * dt * k1q, v0 + 0.5 * dt * k1v)
-        k3q, k3v = v0 + 0.5 * dt * k2v, accel(q0 + 0.5 * dt * k2q, v0 + 0.5 * dt * k2v)
-        k4q, k4v = v0 + dt * k3v, accel(q0 + dt * k3q, v0 + dt * k3v)
-        return (
-            q0 + dt / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
-            v0 + dt / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v),
-        )
-
     approaching = -1e-12 * max(abs(scene.speed), float(np.max(np.abs(v))), 1.0)  # m/s: below this, a contact hits
     while True:
         s = evaluate_step(q, v)
         hitting = (s.gap <= settings.contact_tolerance) & (s.rate < approaching)
         if np.any(hitting):
             idx = np.flatnonzero(hitting)
-            A = s.Jn[idx] @ s.minv_jnt[:, idx]
-            lam = _lcp_impulse(A, s.rate[idx], e)
-            momentum = s.momentum.copy()
-            F = np.zeros((2, nc))
-            F[:, idx] = s.normal[:, idx] * lam
-            v = v + s.minv_jnt[:, idx] @ lam
-            external[idx] += lam
-            external_vec += F
-            fresh = idx[np.isnan(touchdown[idx])]
-            touchdown[fresh] = t
-            events.append(ImpactEvent(t, tuple(int(i) for i in idx), lam))
-            s = evaluate_step(q, v)
-            joint += s.momentum - momentum - F @ in_subtree.T
-            if len(events) > 1000:
-                raise NumericalError("more than 1000 rigid impacts: the contacts chatter (lower the restitution?)")
+            v, lam, F, joint_impulse = _rigid_impact(evaluate_step, s, q, v, idx, scene.restitution, in_subtree)
+            _add_impact(impacts, t, idx, lam, F, joint_impulse)
             continue
-        untouched = np.isnan(touchdown)
-        if np.any(np.isfinite(touchdown)) and np.all((s.rate >= 0.0) | ~(untouched | (s.gap < 0.0))):
+        if _impacts_over(s, impacts.touchdown) or t >= settings.max_time:
             break
-        if t >= settings.max_time:
-            break
-        q1, v1 = flight(q, v, h)
-        g1 = evaluate_step(q1, v1).gap.copy()
-        crossing = g1 < -settings.contact_tolerance
-        if np.any(crossing):
-            lo, hi = 0.0, h  # bisect the step length for the first touchdown
-            while hi - lo > settings.time_tolerance:
-                mid = 0.5 * (lo + hi)
-                qm, vm = flight(q, v, mid)
-                if np.min(evaluate_step(qm, vm).gap[crossing]) < 0.0:
-                    hi = mid
-                else:
-                    lo = mid
-            q1, v1 = flight(q, v, hi)
-            t += hi
-        else:
-            t += h
-        q, v = q1, v1
+        q, v, step = _fly(evaluate_step, q, v, settings)
+        t += step
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise NumericalError(f"the free flight diverged at t = {t:.3g} s")
-    s = evaluate_step(q, v)
-    internal, magnitude = joint_impulses(joint)
-    energy_after = float(s.kinetic[0])
-    return SequentialResult(
-        external=external,
-        external_vector=external_vec.T.copy(),
-        internal=internal,
-        internal_magnitude=magnitude,
-        external_norm=float(np.linalg.norm(external)),
-        internal_norm=float(np.linalg.norm(magnitude)),
-        touchdown_time=touchdown,
-        touchdown_order=touchdown_order(touchdown, 0.0),
-        events=tuple(events),
-        q_plus=q,
-        v_plus=v,
-        energy_before=energy_before,
-        energy_after=energy_after,
-        energy_gain=energy_after > energy_before * (1.0 + 1e-9),
-    )
+    return _sequential_result(impacts, q, v, energy_before, float(evaluate_step(q, v).kinetic[0]))
 
 
 __all__ = ["ImpactEvent", "SequentialResult", "SequentialSettings", "sequential_impacts"]
