@@ -33,7 +33,8 @@ import numpy as np
 from impulse_core.compile.codegen import Backend, Compiled, batch_kernel, compile_function, has_openmp, simd_lanes
 from impulse_core.evaluate import active_contacts, approach_velocity, compiled_model
 from impulse_core.impact.delassus import LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
-from impulse_core.model.tree import Body, ContactSelection, Scene, Tree, design_vector
+from impulse_core.kinematics.spatial import PLANAR, Space
+from impulse_core.model.tree import Body, ContactSelection, Scene, Topology, Tree, design_vector
 
 #: Body counts of the scaling series (more toes and more segments per toe).
 SCALING_SIZES = (5, 10, 20, 50, 100, 200)
@@ -144,6 +145,7 @@ def speed_report(
     threads: int = 2,
     pinocchio: bool = True,
     rounds: int = 5,
+    space: Space = PLANAR,
 ) -> SpeedReport:
     """Time the hot path (external + internal impulses + norms) on ``tree``.
 
@@ -157,100 +159,145 @@ def speed_report(
             and the compiled C loop split by OpenMP (``OMP_NUM_THREADS``, default all cores).
         pinocchio: time ``pinocchio.impulseDynamics`` on the same model (if installed).
         rounds: every path is timed this many times, interleaved; the best round counts.
+        space: the model's space (a spatial model: Pinocchio with a free-flyer base).
     """
-    active = active_contacts(tree, scene)
-    topology = tree.topology(active)
-    t0 = time.perf_counter()
-    lean = lean_impact_function(topology)
-    build_ms = (time.perf_counter() - t0) * 1e3
-    full = compiled_model(topology).impact
-    p = design_vector(tree)
-    v = approach_velocity(topology, scene.speed)
-    e = scene.restitution
-    rng = np.random.default_rng(seed)
-    P = ca.DM(p[:, None] * (1 + 0.01 * rng.standard_normal((p.size, batch))))
-    args = (P, ca.DM(np.repeat(v[:, None], batch, axis=1)), ca.DM.ones(1, batch) * e)
-
-    # Correctness first: batched == single calls, lean == the full model.
-    out_map = lean.map(batch)(*args)
-    idx = sorted({0, batch - 1, *(int(i) for i in rng.integers(0, batch, 3))})
-    same, lean_full = True, True
-    for i in idx:
-        col = (P[:, i], ca.DM(v), ca.DM(e))
-        one = lean(*col)
-        ref = full.call(dict(zip(("p", "v_minus", "restitution"), col)))
-        for k in CHECKED_OUTPUTS:
-            j = LEAN_OUTPUTS.index(k)
-            same &= _close(out_map[j][:, i], one[j], 1e-12)
-            lean_full &= _close(one[j], ref[k], 1e-9)
-
-    col0 = tuple(a[:, 0] for a in args)
-    single = _median_us(lambda: lean(*col0))
-    fns: dict[str, Callable[[], object]] = {"vm": _mapped(lean, args, batch)}
-    compile_s = None
-    backend = Backend.VIRTUAL_MACHINE.value
-    fast = lean
-    rows = tuple(np.ascontiguousarray(np.array(a).T) for a in args)  # one design per row
-    openmp = False
-    lanes = 0
-    if cache_dir is not None:
-        compiled, compile_s = _compile(lean, cache_dir)
-        backend = compiled.backend.value
-        if compiled.backend is Backend.COMPILED:
-            backend = "compiled C, " + (
-                "compiled in this run" if compiled.compiled_now else "loaded from the disk cache"
-            )
-            fast = compiled.function
-            fns["compiled"] = _mapped(fast, args, batch)
-            paths, outs, twins_same = _batch_paths("", compiled, lean, rows, threads)
-            fns |= paths
-            same &= twins_same and all(
-                _close(out[j][i], out_map[j][:, i], 1e-12)
-                for out in outs.values()
-                for i in idx
-                for j in (LEAN_OUTPUTS.index(k) for k in CHECKED_OUTPUTS)
-            )
-            openmp = threads > 1 and has_openmp(compiled, lean)
-            lanes = simd_lanes(compiled, lean)
-        else:
-            compile_s = None
+    b = _Bench.of(tree, scene, batch, seed, space)
+    same, lean_full, out_map = b.checked()
+    fns: dict[str, Callable[[], object]] = {"vm": _mapped(b.lean, b.args, batch)}
+    compiled = _compiled_paths(b, out_map, cache_dir, threads, fns) if cache_dir is not None else None
+    same &= compiled.same if compiled is not None else True
+    fast = compiled.fast if compiled is not None else b.lean
     if threads > 1:
-        fns["threads"] = _mapped(fast, args, batch, threads)
-    n_grad: dict[str, int] = {}
-    grad_same = None
+        fns["threads"] = _mapped(fast, b.args, batch, threads)
+    n_grad, grad_same = ({}, None)
     if gradient:
-        grads = {
-            "gradient": norms_gradient_function(topology),
-            "gradient_autodiff": norms_gradient_function(topology, adjoint=False),
-        }
-        n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
-        singles = {k: [g(*(x[:, i] for x in args)) for i in idx] for k, g in grads.items()}
-        grad_same = all(
-            _close(a, b, 1e-8)
-            for one, ref in zip(singles["gradient"], singles["gradient_autodiff"])
-            for a, b in zip(one, ref)
-        )
-        for key, grad in grads.items():
-            grad_compiled = None if fast is lean else _compile(grad, cache_dir)[0]
-            fns[f"{key}_map"] = _mapped(grad if grad_compiled is None else grad_compiled.function, args, batch)
-            if grad_compiled is not None:
-                paths, outs, twins_same = _batch_paths(f"{key}_", grad_compiled, grad, rows, 1)
-                fns |= paths
-                same &= twins_same and all(
-                    _close(out[j][i], singles[key][n][j], 1e-10)
-                    for out in outs.values()
-                    for n, i in enumerate(idx)
-                    for j in range(grad.n_out())
-                )
-        if fast is not lean:
-            fns["full"] = _mapped(_compile(full, cache_dir)[0].function, args, batch)
+        n_grad, grad_same, grad_twins = _gradient_paths(b, cache_dir if fast is not b.lean else None, fns)
+        same &= grad_twins
+        if fast is not b.lean:
+            fns["full"] = _mapped(_compile(b.full, cache_dir)[0].function, b.args, batch)
     if pinocchio:
         try:
-            fns["pinocchio"] = _pinocchio_call(tree, scene, active)
+            fns["pinocchio"] = _pinocchio_call(tree, scene, b.active, space)
         except ImportError:
             pass
-    us = _best_us(fns, rounds)
-    per_design = {k: t / batch for k, t in us.items() if k != "pinocchio"}
+    return _report(name, b, _best_us(fns, rounds), compiled, n_grad, grad_same, same, lean_full)
+
+
+@dataclass(frozen=True)
+class _Bench:
+    """What every timed path of :func:`speed_report` shares: the functions and the designs."""
+
+    tree: Tree
+    active: tuple[int, ...]
+    lean: ca.Function
+    full: ca.Function
+    build_ms: float
+    v: np.ndarray
+    args: tuple  # (P, V, E) as DM, one design per column
+    rows: tuple  # the same as NumPy rows
+    idx: list[int]  # the columns checked against single calls
+    batch: int
+    topology: Topology
+    space: Space
+
+    @classmethod
+    def of(cls, tree: Tree, scene: Scene, batch: int, seed: int, space: Space) -> _Bench:
+        active = active_contacts(tree, scene, space=space)
+        topology = tree.topology(active)
+        t0 = time.perf_counter()
+        lean = lean_impact_function(topology, space)
+        build_ms = (time.perf_counter() - t0) * 1e3
+        p = design_vector(tree, space.body_values)
+        v = approach_velocity(topology, scene.speed, space)
+        rng = np.random.default_rng(seed)
+        P = ca.DM(p[:, None] * (1 + 0.01 * rng.standard_normal((p.size, batch))))
+        args = (P, ca.DM(np.repeat(v[:, None], batch, axis=1)), ca.DM.ones(1, batch) * scene.restitution)
+        idx = sorted({0, batch - 1, *(int(i) for i in rng.integers(0, batch, 3))})
+        rows = tuple(np.ascontiguousarray(np.array(a).T) for a in args)
+        full = compiled_model(topology, space).impact
+        return cls(tree, active, lean, full, build_ms, v, args, rows, idx, batch, topology, space)
+
+    def checked(self) -> tuple[bool, bool, list]:
+        """Correctness first: (batched == single calls to 1e-12, lean == the full model to 1e-9,
+        the batched outputs)."""
+        out_map = self.lean.map(self.batch)(*self.args)
+        same, lean_full = True, True
+        for i in self.idx:
+            col = tuple(a[:, i] for a in self.args)
+            one = self.lean(*col)
+            ref = self.full.call(dict(zip(("p", "v_minus", "restitution"), col)))
+            for k in CHECKED_OUTPUTS:
+                j = LEAN_OUTPUTS.index(k)
+                same &= _close(out_map[j][:, i], one[j], 1e-12)
+                lean_full &= _close(one[j], ref[k], 1e-9)
+        return bool(same), bool(lean_full), out_map
+
+
+@dataclass(frozen=True)
+class _CompiledPaths:
+    backend: str
+    compile_s: float | None
+    fast: ca.Function
+    same: bool
+    openmp: bool
+    lanes: int
+
+
+def _compiled_paths(b: _Bench, out_map: list, cache_dir: Path, threads: int, fns: dict) -> _CompiledPaths:
+    """Compile the lean function and add its batched paths to ``fns`` (checked against the map)."""
+    compiled, compile_s = _compile(b.lean, cache_dir)
+    if compiled.backend is not Backend.COMPILED:
+        return _CompiledPaths(compiled.backend.value, None, b.lean, True, False, 0)
+    backend = "compiled C, " + ("compiled in this run" if compiled.compiled_now else "loaded from the disk cache")
+    fns["compiled"] = _mapped(compiled.function, b.args, b.batch)
+    paths, outs, twins_same = _batch_paths("", compiled, b.lean, b.rows, threads)
+    fns |= paths
+    same = twins_same and all(
+        _close(out[j][i], out_map[j][:, i], 1e-12)
+        for out in outs.values()
+        for i in b.idx
+        for j in (LEAN_OUTPUTS.index(k) for k in CHECKED_OUTPUTS)
+    )
+    openmp = threads > 1 and has_openmp(compiled, b.lean)
+    return _CompiledPaths(backend, compile_s, compiled.function, same, openmp, simd_lanes(compiled, b.lean))
+
+
+def _gradient_paths(b: _Bench, cache_dir: Path | None, fns: dict) -> tuple[dict[str, int], bool, bool]:
+    """Add the adjoint's and CasADi's reverse mode's batched paths to ``fns``: (instructions, the
+    two agree to 1e-8, every batched path equals single calls)."""
+    grads = {
+        "gradient": norms_gradient_function(b.topology, b.space),
+        "gradient_autodiff": norms_gradient_function(b.topology, b.space, adjoint=False),
+    }
+    n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
+    singles = {k: [g(*(x[:, i] for x in b.args)) for i in b.idx] for k, g in grads.items()}
+    grad_same = all(
+        _close(x, y, 1e-8)
+        for one, ref in zip(singles["gradient"], singles["gradient_autodiff"])
+        for x, y in zip(one, ref)
+    )
+    same = True
+    for key, grad in grads.items():
+        grad_compiled = None if cache_dir is None else _compile(grad, cache_dir)[0]
+        fns[f"{key}_map"] = _mapped(grad if grad_compiled is None else grad_compiled.function, b.args, b.batch)
+        if grad_compiled is not None:
+            paths, outs, twins_same = _batch_paths(f"{key}_", grad_compiled, grad, b.rows, 1)
+            fns |= paths
+            same &= twins_same and all(
+                _close(out[j][i], singles[key][n][j], 1e-10)
+                for out in outs.values()
+                for n, i in enumerate(b.idx)
+                for j in range(grad.n_out())
+            )
+    return n_grad, grad_same, same
+
+
+def _report(
+    name: str, b: _Bench, us: dict[str, float], compiled: _CompiledPaths | None, n_grad: dict[str, int],
+    grad_same: bool | None, same: bool, lean_full: bool,
+) -> SpeedReport:
+    """The report from the best round of each path (microseconds per batch, Pinocchio per call)."""
+    per_design = {k: t / b.batch for k, t in us.items() if k != "pinocchio"}
     map_path = "compiled" if "compiled" in per_design else "vm"
     one_core_paths = ("vm", "compiled", "kernel", "simd")
     batched = min(
@@ -267,25 +314,25 @@ def speed_report(
     pin_us = us.get("pinocchio")
     return SpeedReport(
         model=name,
-        n_bodies=tree.n_bodies,
-        n_dof=int(v.size),
-        n_contacts=len(active),
-        n_instructions=int(lean.n_instructions()),
-        n_instructions_full=int(full.n_instructions()),
+        n_bodies=b.tree.n_bodies,
+        n_dof=int(b.v.size),
+        n_contacts=len(b.active),
+        n_instructions=int(b.lean.n_instructions()),
+        n_instructions_full=int(b.full.n_instructions()),
         n_instructions_gradient=n_grad.get("gradient"),
         n_instructions_gradient_autodiff=n_grad.get("gradient_autodiff"),
-        build_ms=build_ms,
-        compile_s=compile_s,
-        backend=backend,
-        simd_lanes=lanes,
-        us_per_design_single=single,
+        build_ms=b.build_ms,
+        compile_s=None if compiled is None else compiled.compile_s,
+        backend=Backend.VIRTUAL_MACHINE.value if compiled is None else compiled.backend,
+        simd_lanes=0 if compiled is None else compiled.lanes,
+        us_per_design_single=_median_us(lambda: b.lean(*(a[:, 0] for a in b.args))),
         us_per_design_batched_vm=per_design["vm"],
         us_per_design_batched_compiled=per_design.get("compiled"),
         us_per_design_batched_kernel=per_design.get("kernel"),
         us_per_design_batched_kernel_threads=per_design.get("kernel_threads"),
         us_per_design_batched_simd=per_design.get("simd"),
         us_per_design_batched_simd_threads=per_design.get("simd_threads"),
-        openmp=openmp,
+        openmp=False if compiled is None else compiled.openmp,
         us_per_design_batched_threads=per_design.get("threads"),
         us_per_design_batched=batched,
         us_per_design_full_batched=per_design.get("full"),
@@ -300,9 +347,9 @@ def speed_report(
         pinocchio_us_per_call=pin_us,
         ratio=None if pin_us is None else batched / pin_us,
         ratio_one_core=None if pin_us is None else one_core / pin_us,
-        batch=batch,
+        batch=b.batch,
         batched_equals_single=bool(same),
-        lean_equals_full=bool(lean_full),
+        lean_equals_full=lean_full,
     )
 
 
@@ -343,16 +390,16 @@ def _kernel_call(
     return lambda: kernel(*rows, out=out)
 
 
-def _pinocchio_call(tree: Tree, scene: Scene, active: tuple[int, ...]) -> Callable[[], object]:
+def _pinocchio_call(tree: Tree, scene: Scene, active: tuple[int, ...], space: Space = PLANAR) -> Callable[[], object]:
     """One call of ``pinocchio.impulseDynamics`` on the same model (raises ImportError without it)."""
     import pinocchio as pin
 
-    from optimizer.validation.pinocchio_bridge import build
+    from optimizer.validation.pinocchio_bridge import build, build_spatial
 
-    ref = build(tree)
+    ref = build(tree) if space is PLANAR else build_spatial(tree)
     data = ref.model.createData()
     J = ref.normal_jacobian(active)
-    v = ref.to_pin_velocity(approach_velocity(tree.topology(active), scene.speed))
+    v = ref.to_pin_velocity(approach_velocity(tree.topology(active), scene.speed, space))
     q, model, e = ref.q, ref.model, scene.restitution
     return lambda: pin.impulseDynamics(model, data, q, v, J, e, 0.0)
 

@@ -465,12 +465,14 @@ def run_bench(args: argparse.Namespace) -> int:
     cache = None if args.no_compile else Path(args.cache_dir)
     for n, file in enumerate(files):
         try:
-            model = require_planar(load_model_file(file), "footopt bench")
+            model = load_model_file(file)
         except FootoptError as e:
             _error(file, str(e))
             return EXIT_USAGE
         print(f"timing {file} ...", file=sys.stderr)
-        report = speed_report(Path(file).stem, model.tree, model.scene, batch=args.batch, cache_dir=cache)
+        report = speed_report(
+            Path(file).stem, model.tree, model.scene, batch=args.batch, cache_dir=cache, space=model.space
+        )
         if n == 0 and sizes:
             report = replace(report, scaling=_scaling_with_progress(sizes, min(args.batch, 500), cache))
         if n == 0 and args.plot is not None:

@@ -114,7 +114,7 @@ def test_plot_of_a_spatial_file_draws_three_views(tmp_path: Path) -> None:
     assert image.shape[1] > 2 * image.shape[0]  # three views side by side
 
 
-@pytest.mark.parametrize("command", [("drop",), ("bench",)])
+@pytest.mark.parametrize("command", [("drop",)])
 def test_commands_not_yet_spatial_refuse_a_spatial_file_with_exit_2(command: tuple[str, ...]) -> None:
     proc = _footopt(*command, str(EXAMPLE))
     assert proc.returncode == 2
@@ -145,3 +145,14 @@ def test_mjcf_export_refuses_a_rod_no_rigid_body_has_but_evaluate_takes_it(tmp_p
     assert not (tmp_path / "thin.xml").exists()
     assert _footopt("export", str(bad), "-o", str(tmp_path / "thin.urdf")).returncode == 0
     assert _json(str(bad))["external_norm"] > 0
+
+
+def test_bench_times_a_spatial_file_beside_pinocchio(tmp_path: Path) -> None:
+    """footopt bench on a spatial model: the batched paths equal single calls and the full model,
+    and Pinocchio (free-flyer) is timed beside them."""
+    proc = _footopt("bench", str(EXAMPLE), "--json", "--batch", "64", "--no-compile")  # the VM: no C compile here
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert report["batched_equals_single"] and report["lean_equals_full"]
+    assert report["n_dof"] == 6 + 8 and report["pinocchio_us_per_call"] > 0
+    assert report["gradient_equals_autodiff"]
