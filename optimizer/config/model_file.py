@@ -41,6 +41,8 @@ from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import join as _join
 from optimizer.config.yaml_fields import mapping as _mapping
 from optimizer.config.yaml_fields import number as _number
+from optimizer.config.yaml_fields import positive as _positive
+from optimizer.config.yaml_fields import required as _required
 from optimizer.config.yaml_fields import string as _string
 from optimizer.errors import ConfigError
 
@@ -635,19 +637,8 @@ def parse_reference(data: Any, where: str = "reference") -> Reference:
 # Field helpers: each raises ConfigError naming the YAML path
 
 
-def _required(m: dict[str, Any], key: str, where: str) -> Any:
-    if key not in m:
-        raise ConfigError(f"{_join(where, key)}: missing (required)")
-    if m[key] is None:
-        raise ConfigError(f"{_join(where, key)}: required, got null")
-    return m[key]
 
 
-def _positive(value: Any, where: str) -> float:
-    x = _number(value, where)
-    if x <= 0:
-        raise ConfigError(f"{where}: must be a finite number > 0, got {x!r}")
-    return x
 
 
 def _fraction(value: Any, where: str, what: str) -> float:

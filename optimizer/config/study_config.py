@@ -24,6 +24,8 @@ from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import join as _join
 from optimizer.config.yaml_fields import mapping as _checked_mapping
 from optimizer.config.yaml_fields import number as _number
+from optimizer.config.yaml_fields import positive as _positive
+from optimizer.config.yaml_fields import required as _required
 from optimizer.config.yaml_fields import string as _string
 from optimizer.design_space import (
     JOINT_FAMILIES,
@@ -564,17 +566,8 @@ def _mapping(value: Any, where: str, allowed: tuple[str, ...], what: str | None 
     return {} if value is None else _checked_mapping(value, where, allowed, what)
 
 
-def _required(m: dict[str, Any], key: str, where: str) -> Any:
-    if m.get(key) is None:
-        raise ConfigError(f"{_join(where, key)}: missing (required)")
-    return m[key]
 
 
-def _positive(value: Any, where: str) -> float:
-    x = _number(value, where)
-    if x <= 0:
-        raise ConfigError(f"{where}: must be > 0, got {x!r}")
-    return x
 
 
 def _integer(value: Any, where: str, minimum: int) -> int:

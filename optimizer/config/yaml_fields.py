@@ -76,3 +76,21 @@ def string(value: Any, where: str) -> str:
     if not isinstance(value, str) or not value.strip():
         raise ConfigError(f"{where}: must be a non-empty string, got {describe(value)}")
     return value
+
+
+def required(m: dict[str, Any], key: str, where: str) -> Any:
+    """``m[key]``, or ConfigError naming ``where.key`` when it is missing or null."""
+    if key not in m:
+        raise ConfigError(f"{join(where, key)}: missing (required)")
+    if m[key] is None:
+        raise ConfigError(f"{join(where, key)}: required, got null")
+    return m[key]
+
+
+def positive(value: Any, where: str) -> float:
+    """A finite number > 0, or ConfigError naming ``where``."""
+    x = number(value, where)
+    if x <= 0:
+        raise ConfigError(f"{where}: must be a finite number > 0, got {x!r}")
+    return x
+
