@@ -23,4 +23,17 @@ class ConfigError(FootoptError, ValueError):
         self.source = source
 
 
-__all__ = ["ConfigError", "FootoptError"]
+def interrupted(exc: BaseException) -> bool:
+    """True when ``exc`` is a Ctrl-C: a KeyboardInterrupt, or an error a C extension raised
+    because a KeyboardInterrupt arrived inside its call (CasADi's and NumPy's conversions then
+    raise ``SystemError: ... returned a result with an exception set``, caused by it)."""
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+    return False
+
+
+__all__ = ["ConfigError", "FootoptError", "interrupted"]

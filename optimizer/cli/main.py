@@ -33,7 +33,7 @@ from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_U
 from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file, require_planar
 from optimizer.design_space import Objective
-from optimizer.errors import ConfigError
+from optimizer.errors import ConfigError, interrupted
 from impulse_core.timedomain.landing import LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown, plot_views
@@ -233,6 +233,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(devnull, sys.stdout.fileno())  # Python would complain again when flushing at exit
         return EXIT_FAILURE
     except Exception as exc:
+        if interrupted(exc):  # a Ctrl-C that surfaced inside a C extension's call
+            print("footopt: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
         if args.debug:
             raise
         return _internal_error(exc)

@@ -18,6 +18,7 @@ from pathlib import Path
 from impulse_core.errors import FootoptError
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, warn
 from optimizer.cli.status import error as _error
+from optimizer.errors import interrupted
 
 
 def add_optimize(subparsers: argparse._SubParsersAction) -> None:
@@ -171,6 +172,10 @@ def optimize(
         else:
             run_workers(study, config, run_dir, workers, progress)
     except KeyboardInterrupt:
+        status = EXIT_INTERRUPTED
+    except Exception as e:  # a Ctrl-C that surfaced inside a C extension's call
+        if not interrupted(e):
+            raise
         status = EXIT_INTERRUPTED
     finally:
         bar.close()

@@ -54,6 +54,7 @@ from optimizer.design_space import (
     constraint_values,
 )
 from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, NlpCache, foot_kind
+from optimizer.errors import interrupted
 from optimizer.search.outer import objective_values, record_attrs
 
 #: Weights of the two anchors: each objective first, the other as a tie-break.
@@ -279,6 +280,10 @@ def interruptible() -> Iterator[None]:
     previous = signal.signal(signal.SIGINT, on_sigint)
     try:
         yield
+    except (SystemError, RuntimeError) as e:  # the KeyboardInterrupt surfaced inside a C call
+        if _INTERRUPTED.is_set() or interrupted(e):
+            raise KeyboardInterrupt from e
+        raise
     finally:
         signal.signal(signal.SIGINT, previous)
         _INTERRUPTED.clear()

@@ -177,3 +177,41 @@ def test_ctrl_c_while_the_journal_lock_is_held_arrives_after_its_release(tmp_pat
         signal.signal(signal.SIGINT, previous)
     assert arrived == [True]  # delivered once, after the release
     assert [p.name for p in run_dir.iterdir()] == ["study.journal"]  # no lock or rename file
+
+
+def test_a_ctrl_c_inside_a_c_extension_call_is_an_interrupt():
+    """A KeyboardInterrupt raised by a signal handler inside a C extension's call (CasADi's DM to
+    NumPy conversion) surfaces as SystemError caused by it: footopt treats it as the Ctrl-C it is
+    (exit 130), inside the inner search too; other errors stay errors."""
+    from optimizer.errors import interrupted
+    from optimizer.search.inner import interruptible
+
+    def surfaced() -> None:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as e:
+            raise SystemError("<function DM.__array__> returned a result with an exception set") from e
+
+    with pytest.raises(SystemError) as info:
+        surfaced()
+    assert interrupted(info.value) and not interrupted(SystemError("plain"))
+    with pytest.raises(KeyboardInterrupt):
+        with interruptible():
+            surfaced()
+    with pytest.raises(SystemError):
+        with interruptible():
+            raise SystemError("not an interrupt")
+
+
+def test_the_command_line_exits_130_on_a_surfaced_interrupt(monkeypatch, capsys):
+    import optimizer.cli.main as cli
+
+    def run(args):  # noqa: ANN001
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as e:
+            raise SystemError("returned a result with an exception set") from e
+
+    monkeypatch.setattr(cli, "run_evaluate", run)
+    assert cli.main(["evaluate", "x.yaml"]) == 130
+    assert "interrupted" in capsys.readouterr().err
