@@ -103,9 +103,12 @@ class BatchEvaluator:
         V = speeds[:, None] * approach_velocity(self.topology, 1.0, self.space)[None, :]
         out = dict(zip(LEAN_OUTPUTS, self.run_impact(P, V, E[:, None]), strict=True))
         external = out["external"]
-        failed = ~np.logical_and.reduce([np.isfinite(o).all(axis=1) for o in out.values()])
-        newton = ~failed & np.all(external >= 0, axis=1)
-        newton &= np.min(out["delassus_pivots"], axis=1, initial=1.0) >= PIVOT_TOL
+        finite = np.ones(n, dtype=bool)
+        for o in out.values():  # column by column: NumPy's row reductions are slow on narrow rows
+            for j in range(o.shape[1]):
+                finite &= np.isfinite(o[:, j])
+        newton = finite & (_row_min(external, 0.0) >= 0) & (_row_min(out["delassus_pivots"], 1.0) >= PIVOT_TOL)
+        failed = ~finite
         grads = {}
         if self.run_gradient is not None:
             grads = dict(zip(GRADIENT_OUTPUTS, self.run_gradient(P, V, E[:, None]), strict=True))
@@ -185,6 +188,14 @@ def _check_values(topology: Topology, P: np.ndarray, body_values: tuple[str, ...
     where = f"contact {k}" if name == "contact" else f"body {k} {name}"
     lo, hi = ("[" if closed[col] else "(") + f"{low[col]:g}", f"{high[col]:g}]"
     raise ModelError(f"p[{row}]: {where} must be finite and in {lo}, {hi}, got {P[row, col]}")
+
+
+def _row_min(a: np.ndarray, empty: float) -> np.ndarray:
+    """Each row's minimum (``empty`` for rows of no columns), a column at a time."""
+    out = np.full(a.shape[0], empty)
+    for j in range(a.shape[1]):
+        np.minimum(out, a[:, j], out=out)
+    return out
 
 
 def _per_row(name: str, value: float | np.ndarray, n: int) -> np.ndarray:
