@@ -101,3 +101,21 @@ def test_fuzzed_study_files(seed: int, tmp_path: Path, capsys) -> None:
             assert status == 2
             invalid += 1
     assert invalid >= 20
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fuzzed_spatial_model_files(seed: int, tmp_path: Path, capsys) -> None:
+    """The same on spatial files (rpy, axis, radius, 3-vector approaches; with and without
+    friction: the circular cone's solver meets the fuzz too)."""
+    rng = random.Random(200 + seed)
+    base = yaml.safe_load((REPO / "configs" / "spatial_case3.yaml").read_text())
+    frictional = copy.deepcopy(base)
+    frictional["scene"]["friction"] = 0.6
+    invalid = 0
+    for k in range(40):
+        f = tmp_path / f"sp{k}.yaml"
+        f.write_text(_dump(_mutate(rng.choice([base, frictional]), rng)), encoding="utf-8")
+        status = main(["evaluate", "--json", str(f)])
+        _check(status, capsys.readouterr().err)
+        invalid += status == 2
+    assert invalid >= 10
