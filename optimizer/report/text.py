@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from impulse_core.evaluate import ImpactResult
+from impulse_core.evaluate import ImpactResult, touchdown_geometry
+from impulse_core.model.support import support_margin
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
 from impulse_core.model.terrain import FLAT
@@ -236,6 +237,8 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
         "energy_gained": energy_gained(result),
         "warnings": list(warnings(model, result)),
     }
+    if not planar:
+        record["support_margin"] = _f(foot_support_margin(model))
     if isinstance(result, ImpactResult):
         record |= {
             "tangential": _floats(result.tangential) if planar else [_floats(row) for row in result.tangential],
@@ -326,6 +329,15 @@ def _cell(x: Any) -> str:
     return _num(float(a)) if a.ndim == 0 else "[" + ", ".join(_num(float(v)).strip() for v in a) + "]"
 
 
+def foot_support_margin(model: ModelFile) -> float:
+    """A spatial model's support margin at touchdown (m, ``impulse_core.model.support``): the
+    whole tree's centre of mass over the declared contacts' convex hull, on the ground (x, z)."""
+    geometry = touchdown_geometry(model.tree, model.space)
+    masses = np.array([b.mass for b in model.tree.bodies])
+    com = masses @ geometry.coms / masses.sum()
+    return support_margin(geometry.contacts[:, [0, 2]], com[[0, 2]])
+
+
 def _vec(xs: tuple[float, ...]) -> str:
     return "[" + ", ".join(f"{x:g}" for x in xs) + "]"
 
@@ -393,6 +405,9 @@ def _header_lines(model: ModelFile, result: Result, file: str) -> list[str]:
         points = ", ".join(f"[{x:g}, {y:g}]" for x, y in scene.terrain.points)
         lines.append(f"ground:  terrain [{points}] (m), base origin at x = {scene.base_x:g} m")
     verb = "hit" if rigid else "touch down"
+    if model.space is not PLANAR:
+        margin = 1e3 * foot_support_margin(model)
+        lines.append(f"support: margin {margin:+.1f} mm (the centre of mass inside the contacts' hull on the ground; < 0: outside)")
     n_declared = len(contact_names(tree))
     lines.append(
         f"tree:    {_count(tree.n_bodies, 'body', 'bodies')}, {len(set(result.active))} of {n_declared} declared "

@@ -156,3 +156,23 @@ def test_bench_times_a_spatial_file_beside_pinocchio(tmp_path: Path) -> None:
     assert report["batched_equals_single"] and report["lean_equals_full"]
     assert report["n_dof"] == 6 + 8 and report["pinocchio_us_per_call"] > 0
     assert report["gradient_equals_autodiff"]
+
+
+def test_support_margin_matches_pinocchio_and_qhull() -> None:
+    """The JSON's support_margin: the centre of mass (Pinocchio's centerOfMass) inside the hull
+    (scipy's Qhull) of the contact frames' ground projections, the smallest facet distance."""
+    pin = pytest.importorskip("pinocchio")
+    from scipy.spatial import ConvexHull
+
+    from optimizer.validation.pinocchio_bridge import build_spatial
+
+    model = load_model_file(EXAMPLE)
+    pt = build_spatial(model.tree)
+    data = pt.model.createData()
+    com = pin.centerOfMass(pt.model, data, pt.q)
+    pin.framesForwardKinematics(pt.model, data, pt.q)
+    ground = np.array([data.oMf[f].translation[[0, 2]] for f in pt.contact_frames])
+    hull = ConvexHull(ground)
+    expected = float(np.min(-(hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2])))
+    assert expected > 0
+    assert _json(str(EXAMPLE))["support_margin"] == pytest.approx(expected, abs=1e-12)
