@@ -24,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from impulse_core.evaluate import evaluate
+from impulse_core.evaluate import evaluate, touchdown_geometry
 from impulse_core.kinematics.spatial import SPATIAL
+from impulse_core.model.support import support_margin
 from impulse_core.model.tree import ContactSelection, Tree
 from optimizer.config.model_file import load_model_file
 
@@ -84,12 +85,23 @@ def scores(tree: Tree, cases) -> dict[str, float]:
     }
 
 
+def margin(tree: Tree) -> float:
+    """The support margin at the nominal posture (m): the centre of mass inside the contacts' hull."""
+    g = touchdown_geometry(tree, SPATIAL)
+    masses = np.array([b.mass for b in tree.bodies])
+    com = masses @ g.coms / masses.sum()
+    return support_margin(g.contacts[:, [0, 2]], com[[0, 2]])
+
+
 def main() -> None:
     model = load_model_file(REPO / "configs" / "spatial_case3.yaml")
     plain = Tree(tuple(dataclasses.replace(b, rpy=(0.0, 0.0, 0.0)) for b in model.tree.bodies))
     cases = landings(model.scene, np.random.default_rng(SEED))
     t0 = time.perf_counter()
-    rows = [{"splay": float(s), **scores(splayed(plain, float(s)), cases)} for s in SPLAYS]
+    rows = [
+        {"splay": float(s), **scores(splayed(plain, float(s)), cases), "support_margin": margin(splayed(plain, float(s)))}
+        for s in SPLAYS
+    ]
     seconds = time.perf_counter() - t0
     with (HERE / "splay.csv").open("w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -99,12 +111,12 @@ def main() -> None:
     best = min(rows, key=lambda r: r["mean_internal"])
     plot(rows, best)
     table = ["| foot | splay [rad] | mean external_norm | worst external_norm | mean internal_norm | worst internal_norm "
-             "| contacts hit (mean) | landings with a non-unique split |",
-             "|---|---|---|---|---|---|---|---|"]
+             "| contacts hit (mean) | landings with a non-unique split | support margin [mm] |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for name, r in (("planar (toes in the plane)", planar), ("best splayed", best)):
         table.append(f"| {name} | {r['splay']:.2f} | {r['mean_external']:.4f} | {r['max_external']:.4f} | "
                      f"{r['mean_internal']:.4f} | {r['max_internal']:.4f} | {r['mean_contacts_hit']:.2f} | "
-                     f"{r['non_unique']} |")
+                     f"{r['non_unique']} | {1e3 * r['support_margin'] + 0.0:+.1f} |")
     ratio = {k: best[k] / planar[k] for k in ("mean_external", "max_external", "mean_internal", "max_internal")}
     text = "\n".join([
         "# Splayed toes against planar toes (issue #15)",
@@ -127,7 +139,10 @@ def main() -> None:
         "one toe first. The first impact then takes one toe's impulse, and the other toes' later impacts are",
         "not scored. So on first impacts a splayed foot looks better on average and no better in the worst",
         "landing (the heel-first ones); whether splay spreads the whole landing's impulses needs the whole",
-        "landing in space (issue #13's model is planar so far). Every splay's scores are in `splay.csv`; one",
+        "landing in space (issue #13's model is planar so far). What splay does give is a foot that stands: the",
+        f"support margin (the centre of mass inside the contacts' hull) is {1e3 * planar['support_margin'] + 0.0:+.1f} mm for the",
+        f"planar foot (its contacts on one line) and {1e3 * best['support_margin']:+.1f} mm at the best splay.",
+        "Every splay's scores are in `splay.csv`; one",
         "leg geometry (only the splay varies); the landings' ranges are a choice.",
         "",
     ])
