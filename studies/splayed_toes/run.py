@@ -116,7 +116,7 @@ def main() -> None:
     for name, r in (("planar (toes in the plane)", planar), ("best splayed", best)):
         table.append(f"| {name} | {r['splay']:.2f} | {r['mean_external']:.4f} | {r['max_external']:.4f} | "
                      f"{r['mean_internal']:.4f} | {r['max_internal']:.4f} | {r['mean_contacts_hit']:.2f} | "
-                     f"{r['non_unique']} | {1e3 * r['support_margin'] + 0.0:+.1f} |")
+                     f"{r['non_unique']} | {round(1e3 * r['support_margin'], 1) + 0.0:+.1f} |")
     ratio = {k: best[k] / planar[k] for k in ("mean_external", "max_external", "mean_internal", "max_internal")}
     text = "\n".join([
         "# Splayed toes against planar toes (issue #15)",
@@ -140,7 +140,7 @@ def main() -> None:
         "not scored. So on first impacts a splayed foot looks better on average and no better in the worst",
         "landing (the heel-first ones); whether splay spreads the whole landing's impulses needs the whole",
         "landing in space (issue #13's model is planar so far). What splay does give is a foot that stands: the",
-        f"support margin (the centre of mass inside the contacts' hull) is {1e3 * planar['support_margin'] + 0.0:+.1f} mm for the",
+        f"support margin (the centre of mass inside the contacts' hull) is {round(1e3 * planar['support_margin'], 1) + 0.0:+.1f} mm for the",
         f"planar foot (its contacts on one line) and {1e3 * best['support_margin']:+.1f} mm at the best splay.",
         "Every splay's scores are in `splay.csv`; one",
         "leg geometry (only the splay varies); the landings' ranges are a choice.",
