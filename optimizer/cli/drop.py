@@ -1,5 +1,6 @@
 """``footopt drop``: a design dropped in MuJoCo, its impulses beside footopt's. Registered in
-:data:`optimizer.cli.main.SUBCOMMANDS`.
+:data:`optimizer.cli.main.SUBCOMMANDS`. On flat ground the model dropped is ``footopt export``'s
+MJCF with contact spheres and the ground added (``mujoco_bridge.exported_for_drop``).
 
 MuJoCo's contacts are soft: the drop uses its direct contact parameters (``solref = (-k, -b)``,
 a constant impedance; :mod:`optimizer.validation.mujoco_bridge`) with footopt's compliant rung's
@@ -82,13 +83,16 @@ def run_drop(args: argparse.Namespace) -> int:
 
 def drop_record(tree, scene, stiffness: float, rigid) -> dict:  # type: ignore[no-untyped-def]
     """The three answers and the settings, as JSON-able data."""
+    from optimizer.results.export import to_mjcf
     from optimizer.validation.mujoco_bridge import drop
 
     settings = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=stiffness, gravity=scene.gravity)
     frictional = scene.friction > 0  # the compliant rung is frictionless: no column then
     soft = simulate_impact(tree, replace(scene, friction=0.0), settings)
     steps = int(round(soft.duration / soft.timestep)) * (FRICTION_WINDOW if frictional else 1)
-    mj = drop(tree, scene, settings, steps, soft.timestep, v_minus=pre_impact_velocity(tree.topology(), scene))
+    exported = to_mjcf(tree, scene)  # footopt export's MJCF (its joint laws give no impulse: left out)
+    mj = drop(tree, scene, settings, steps, soft.timestep, v_minus=pre_impact_velocity(tree.topology(), scene),
+              exported=exported if scene.terrain.is_flat else None)
     b = float(np.mean(soft.damping))
     record = {
         "contacts": list(contact_names(tree)),
@@ -101,7 +105,9 @@ def drop_record(tree, scene, stiffness: float, rigid) -> dict:  # type: ignore[n
         "settings": {"solref": [-stiffness, -b], "solimp_d": settings.impedance, "timestep": soft.timestep,
                      "steps": steps, "window": steps * soft.timestep, "gravity": scene.gravity,
                      "friction": scene.friction, "cone": "elliptic" if frictional else None,
-                     "rigid_model": _model_name(rigid)},
+                     "rigid_model": _model_name(rigid),
+                     "mjcf": "footopt export's, with contact spheres and ground" if scene.terrain.is_flat
+                     else "the bridge's (terrain)"},
     }
     if frictional:
         record["tangential"] = {"footopt": _floats(rigid.tangential), "mujoco": _floats(mj.external_vector[:, 0])}

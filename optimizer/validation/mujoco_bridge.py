@@ -38,6 +38,7 @@ from impulse_core.timedomain.compliant import (
     compiled_step,
     damping_ratio_for_restitution,
     scene_ground,
+    TOUCHDOWN_CLEARANCE,
     touchdown_configuration,
 )
 
@@ -184,6 +185,37 @@ def build_mjcf(
     return "\n".join(lines)
 
 
+def exported_for_drop(
+    mjcf: str,
+    tree: Tree,
+    terrain: Terrain,
+    timestep: float,
+    stiffness: np.ndarray,
+    damping: np.ndarray,
+    settings: CompliantSettings,
+    friction: float = 0.0,
+) -> str:
+    """An exported MJCF (``optimizer.results.export.to_mjcf``) made droppable: the bridge's
+    integration options, its ground (flat only) and, at each contact site, the bridge's contact
+    sphere ``contact<j>`` with the contact's direct solref; nothing else of the file changes."""
+    import xml.etree.ElementTree as ET
+
+    if not terrain.is_flat:
+        raise ValueError("exported_for_drop: the exported MJCF is dropped on flat ground only")
+    reference = ET.fromstring(build_mjcf(tree, terrain, timestep, stiffness, damping, settings.gravity,
+                                         settings.impedance, friction=friction))
+    root = ET.fromstring(mjcf)
+    root.find("option").attrib.update(reference.find("option").attrib)
+    world = root.find("worldbody")
+    world.insert(0, reference.find("worldbody/geom[@name='ground']"))
+    spheres = {g.get("name"): g for g in reference.iter("geom") if (g.get("name") or "").startswith("contact")}
+    for j, (b, k) in enumerate(tree.contacts):
+        site = root.find(f".//site[@name='{tree.bodies[b].name}_contact{k}']")
+        body = next(e for e in root.iter("body") if site in list(e))
+        body.append(spheres[f"contact{j}"])
+    return ET.tostring(root, encoding="unicode")
+
+
 @dataclass(frozen=True)
 class MujocoDrop:
     """The same landing simulated by MuJoCo. World frame; N s, m/s, s. Contacts in declaration order.
@@ -224,6 +256,7 @@ def drop(
     base_x: float | None = None,
     v_minus: np.ndarray | None = None,
     effective_mass: np.ndarray | None = None,
+    exported: str | None = None,
 ) -> MujocoDrop:
     """Drop ``tree`` in MuJoCo from the touchdown configuration for ``n_steps`` steps of
     ``timestep``, integrating each contact's force (``mj_contactForce``). Pass the compliant
@@ -231,30 +264,37 @@ def drop(
     with the same semi-implicit Euler step; for a step-by-step match run the rung with
     ``flight_step=None`` (MuJoCo takes its contact step in free flight too).
     ``effective_mass``: see :func:`contact_parameters` (penalty law only). ``terrain`` and
-    ``base_x`` override the scene's own."""
+    ``base_x`` override the scene's own. ``exported``: drop this MJCF text (``footopt export``'s,
+    on the scene's flat ground) with the same contacts added (:func:`exported_for_drop`) instead
+    of the bridge's own model (slides and a hinge for the base)."""
     import mujoco  # lazy: a test and study dependency only
 
     terrain, base_x = scene_ground(scene, terrain, base_x)
 
     stiffness, damping = contact_parameters(tree, scene, settings, terrain, base_x, effective_mass)
-    text = build_mjcf(
-        tree, terrain, timestep, stiffness, damping, settings.gravity, settings.impedance, friction=scene.friction
-    )
-    m = mujoco.MjModel.from_xml_string(text)
-    d = mujoco.MjData(m)
-    topology = tree.topology()
-    layout = dof_layout(topology)
-    q0 = touchdown_configuration(tree, terrain, base_x)
+    layout = dof_layout(tree.topology())
     if v_minus is None:
         v0 = np.zeros(layout.nv)
         v0[1] = -scene.speed
     else:
         v0 = np.asarray(v_minus, dtype=float)
-    # our DOF k -> MuJoCo joint address
-    names = ["base_x", "base_y", "base_rz"] + [tree.bodies[layout.dof_body[k]].name for k in range(3, layout.nv)]
-    qadr = np.array([m.joint(name).qposadr[0] for name in names])
-    vadr = np.array([m.joint(name).dofadr[0] for name in names])
-    d.qpos[qadr] = q0
+    joints = [tree.bodies[layout.dof_body[k]].name for k in range(3, layout.nv)]
+    if exported is not None:  # the exported file: a freejoint at the touchdown pose (qpos0)
+        text = exported_for_drop(exported, tree, terrain, timestep, stiffness, damping, settings, scene.friction)
+        m = mujoco.MjModel.from_xml_string(text)
+        d = mujoco.MjData(m)
+        base = m.joint(tree.bodies[0].name).dofadr[0]  # world linear velocity, then body-frame angular
+        d.qpos[m.joint(tree.bodies[0].name).qposadr[0] + 1] += TOUCHDOWN_CLEARANCE  # as the compliant rung
+        vadr = np.array([base, base + 1, base + 5] + [m.joint(name).dofadr[0] for name in joints])
+    else:
+        text = build_mjcf(
+            tree, terrain, timestep, stiffness, damping, settings.gravity, settings.impedance, friction=scene.friction
+        )
+        m = mujoco.MjModel.from_xml_string(text)
+        d = mujoco.MjData(m)
+        names = ["base_x", "base_y", "base_rz"] + joints  # our DOF k -> MuJoCo joint address
+        d.qpos[[m.joint(name).qposadr[0] for name in names]] = touchdown_configuration(tree, terrain, base_x)
+        vadr = np.array([m.joint(name).dofadr[0] for name in names])
     d.qvel[vadr] = v0
     geom_contact = {m.geom(f"contact{j}").id: j for j in range(len(tree.contacts))}
     body_ids = [m.body(b.name).id for b in tree.bodies]

@@ -87,3 +87,25 @@ def test_with_friction_mujoco_meets_the_exact_law_not_the_relaxation(capsys, tmp
         exact, mj = r[kind]["footopt"][0], r[kind]["mujoco"][0]
         assert abs(mj - exact) <= 0.02 * abs(exact), kind
     assert r["settings"]["rigid_model"] == "friction"
+
+
+def test_the_exported_mjcf_drops_as_the_bridges_model():
+    """footopt drop drops footopt export's MJCF (a freejoint base, contact spheres added at its
+    sites): its impulses equal those of the bridge's own model (slides and a hinge) to 1e-6."""
+    from impulse_core.evaluate import pre_impact_velocity
+    from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact
+    from optimizer.config.model_file import load_model_file
+    from optimizer.results.export import to_mjcf
+    from optimizer.validation.mujoco_bridge import drop
+
+    model = load_model_file(REPO / "configs" / "paper_case3.yaml")
+    tree, scene = model.tree, model.scene
+    settings = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=1e8)
+    soft = simulate_impact(tree, scene, settings)
+    steps = int(round(soft.duration / soft.timestep))
+    v = pre_impact_velocity(tree.topology(), scene)
+    bridge = drop(tree, scene, settings, steps, soft.timestep, v_minus=v)
+    exported = drop(tree, scene, settings, steps, soft.timestep, v_minus=v, exported=to_mjcf(tree, scene))
+    for a, b in ((exported.external, bridge.external), (exported.internal_magnitude, bridge.internal_magnitude)):
+        assert np.abs(a - b).max() <= 1e-6 * np.abs(b).max()
+    assert "<freejoint" in exported.mjcf and "<freejoint" not in bridge.mjcf
