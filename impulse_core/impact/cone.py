@@ -172,7 +172,7 @@ def _newton(W, v_minus, e, mu, modes, start_n, start_t):
     return lam[:n], np.column_stack([lam[n : 2 * n], lam[2 * n :]])
 
 
-def modes_of(normal, tangential, velocity, mu, scale_v) -> tuple[ContactMode, ...]:
+def modes_of(normal, tangential, velocity, scale_v) -> tuple[ContactMode, ...]:
     """Each contact's mode from its impulses and its slip after the impact."""
     n = normal.size
     N, X, Z = _rows(n)
@@ -208,7 +208,7 @@ def cone_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: floa
         return v_minus + W @ np.concatenate([nrm, tan[:, 0], tan[:, 1]])
 
     n = normal.size
-    modes = list(modes_of(normal, tangential, velocity(normal, tangential), mu, scale_v))
+    modes = list(modes_of(normal, tangential, velocity(normal, tangential), scale_v))
     for _ in range(ROUNDS):
         polished = _newton(W, v_minus, restitution, mu, modes, normal, tangential)
         if polished is None:  # a sliding guess lost its slip: it sticks on the circle
@@ -222,7 +222,7 @@ def cone_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: floa
         nrm, tan = polished
         if max(law_residuals(W, v_minus, restitution, mu, nrm, tan).values()) <= LAW_TOL:
             v = velocity(nrm, tan)
-            return ConeImpact(nrm, tan, v, modes_of(nrm, tan, v, mu, scale_v), True)
+            return ConeImpact(nrm, tan, v, modes_of(nrm, tan, v, scale_v), True)
         changed = False
         v = velocity(nrm, tan)
         for i, m in enumerate(modes):
@@ -237,7 +237,7 @@ def cone_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: floa
         if not changed:
             break
     v = velocity(normal, tangential)
-    return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, mu, scale_v), False)
+    return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, scale_v), False)
 
 
 __all__ = ["POLYGON", "ConeImpact", "cone_impact", "law_residuals", "polygon_directions", "polyhedral_impact"]

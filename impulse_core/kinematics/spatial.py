@@ -75,6 +75,9 @@ def n_values(topology: Topology, space: Space = PLANAR) -> int:
     """Length of the design vector of ``topology`` in ``space``."""
     return len(space.body_values) * topology.n_bodies + sum(topology.n_contacts)
 
+#: A rod's own axis, in its frame.
+E_X = ca.DM([1.0, 0.0, 0.0])
+
 #: Ground normal (world frame): the ground is horizontal, y is up.
 GROUND_NORMAL = ca.DM([0.0, 1.0, 0.0])
 
@@ -220,7 +223,6 @@ def _spatial_kinematics(topology: Topology, values: tuple[BodyValues, ...]) -> K
     R: list[ca.SX] = []
     O: list[ca.SX] = []
     axes: list[ca.SX | None] = []
-    e_x = ca.DM([1.0, 0.0, 0.0])
     for i, v in enumerate(values):
         k = ca.vertcat(*v.axis)
         k = k / ca.norm_2(k)
@@ -231,7 +233,7 @@ def _spatial_kinematics(topology: Topology, values: tuple[BodyValues, ...]) -> K
             axes.append(None)
         else:
             P = values[parent]
-            O.append(O[parent] + R[parent] @ (v.at * P.length * e_x))
+            O.append(O[parent] + R[parent] @ (v.at * P.length * E_X))
             frame = R[parent] @ frame
             axes.append(frame @ k)
         R.append(frame @ unit_axis_rotation(k, v.angle))
@@ -240,10 +242,9 @@ def _spatial_kinematics(topology: Topology, values: tuple[BodyValues, ...]) -> K
 
 def _placed(values: tuple[BodyValues, ...], R: tuple, O: tuple, axes: tuple) -> Kinematics:
     """The kinematics given each body's rotation, joint origin and joint axis."""
-    e_x = ca.DM([1.0, 0.0, 0.0])
-    G = [O[i] + R[i] @ (v.com * v.length * e_x) for i, v in enumerate(values)]
-    T = [O[i] + R[i] @ (v.length * e_x) for i, v in enumerate(values)]
-    C = [O[i] + R[i] @ (c * v.length * e_x) for i, v in enumerate(values) for c in v.contacts]
+    G = [O[i] + R[i] @ (v.com * v.length * E_X) for i, v in enumerate(values)]
+    T = [O[i] + R[i] @ (v.length * E_X) for i, v in enumerate(values)]
+    C = [O[i] + R[i] @ (c * v.length * E_X) for i, v in enumerate(values) for c in v.contacts]
     return Kinematics(R, O, tuple(G), tuple(T), tuple(C), axes)
 
 
@@ -262,7 +263,6 @@ def forward_kinematics(topology: Topology, values: tuple[BodyValues, ...], space
     O: list[ca.SX] = []
     theta: list[ca.SX] = []
     axes: list[ca.SX | None] = []
-    e_x = ca.DM([1.0, 0.0, 0.0])
     for i, v in enumerate(values):
         parent = topology.parents[i]
         if parent < 0:
@@ -272,7 +272,7 @@ def forward_kinematics(topology: Topology, values: tuple[BodyValues, ...], space
         else:
             P = values[parent]
             theta.append(theta[parent] + v.angle)
-            O.append(O[parent] + R[parent] @ (v.at * P.length * e_x))
+            O.append(O[parent] + R[parent] @ (v.at * P.length * E_X))
             axes.append(ca.SX(ca.DM(space.joint_axis)))  # the common axis is fixed in every frame
         R.append(axis_rotation(space.joint_axis, theta[i]))
     return _placed(values, tuple(R), tuple(O), tuple(axes))
