@@ -40,7 +40,7 @@ from optimizer.design_space import (
 )
 from optimizer.errors import ConfigError
 from optimizer.evaluation.scenarios import PARAMETERS, Distribution, DistributionKind, Landings
-from optimizer.evaluation.statistics import Statistic, parse_statistic
+from optimizer.evaluation.statistics import Statistic, StatisticKind, parse_statistic
 
 
 class SearchMethod(Enum):
@@ -226,13 +226,33 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
 def _check_landings(config: StudyConfig, landings: Landings) -> None:
     """What the landings need of the rest of the study."""
     if config.search.method is SearchMethod.INNER:
-        raise ConfigError("landings: a distribution of landings needs search.method: outer (the inner search's "
-                          "gradients of the statistics are not written yet)")
+        _check_inner_landings(config, landings)
     draws = dict(zip(landings.names, landings.draw().T, strict=True))
     frictional = config.scene.friction > 0 or np.any(draws.get("friction", np.zeros(1)) > 0)
     if "terrain_step" in draws and frictional and config.scene.duration is None:
         raise ConfigError("landings.terrain_step: a step with friction needs scene.duration (the whole landing): "
                           "the sequential model that lands on a step is frictionless")
+
+
+#: What the inner search's landings may vary: the approach and the restitution of one level
+#: first impact (a pitch, a step or friction changes which contacts hit, or the law).
+INNER_PARAMETERS = ("speed", "velocity_x", "angular_velocity", "restitution")
+
+
+def _check_inner_landings(config: StudyConfig, landings: Landings) -> None:
+    """The inner search takes landings whose statistics its NLP can differentiate exactly."""
+    for name in landings.names:
+        if name not in INNER_PARAMETERS:
+            raise ConfigError(f"landings.{name}: the inner search varies {', '.join(INNER_PARAMETERS)} only "
+                              "(a level first impact); search.method: outer takes every parameter")
+    for objective in config.objectives[:2]:
+        stat = config.statistic_of(objective)
+        if stat.kind is StatisticKind.QUANTILE:
+            raise ConfigError(f"statistic.{objective.value}: the inner search takes mean, std, max or cvar:q "
+                              "(a quantile is neither smooth nor convex); use cvar:q or search.method: outer")
+        if stat.kind is StatisticKind.STD and objective in (Objective.MAX_INTERNAL, Objective.BASE_ANGULAR_VELOCITY):
+            raise ConfigError(f"statistic.{objective.value}: the inner search cannot take the std of a maximum "
+                              "(its epigraph would not be tight); use mean, max or cvar:q, or search.method: outer")
 
 
 def _landings(data: Any) -> Landings:

@@ -52,6 +52,7 @@ from optimizer.design_space import (
     foot_geometry,
     foot_tree,
 )
+from optimizer.evaluation.statistics import Statistic, StatisticKind
 
 #: Inequalities of the NLP are tightened by this (in their own units) so that the realised
 #: design meets them with room for rounding.
@@ -152,6 +153,7 @@ def nlp_key(config: StudyConfig, kind: FootKind, compiler: str) -> str:
         repr(config.limits),
         repr((config.scene.speed, config.scene.restitution)),
         repr(tuple(o.value for o in config.objectives)),
+        repr((config.landings, tuple(config.statistic_of(o) for o in config.objectives))),
         repr(kind),
         _source_hash(),
         ca.__version__,
@@ -273,63 +275,108 @@ class _Graph:
 
 
 def _graph(config: StudyConfig, kind: FootKind) -> _Graph:
-    """The symbolic NLP of a kind (see the inner search's module docstring for its rows)."""
+    """The symbolic NLP of a kind (see the inner search's module docstring for its rows). With
+    ``landings``, each objective is its statistic over the scenarios (:func:`_statistic`), the
+    impact is one mapped call over the scenarios, and the NLP is an MX graph (its derivatives
+    are maps too, so the library grows with the impact, not with the scenario count)."""
     lim = config.limits
     sizes = kind.sizes
     n = sum(sizes)
     starts = np.cumsum((0, *sizes[:-1]))
     distinct = [list(range(s, s + k)) for s, k in zip(starts, sizes, strict=True)]
-    a, m, L = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n), ca.SX.sym("length", n)
-    h = ca.SX.sym("ankle_height")
-    params = ca.SX.sym("params", 3)  # w1, w2, toe count
-    n_toes = params[2] if kind.distinct_toes == 1 else ca.SX(1)
-    mult = [ca.SX(1)] + [n_toes] * kind.distinct_toes
-    impact = _merged_impact(config, kind, a, m, mult)
+    sym = ca.SX if config.landings is None else ca.MX
+    a, m, L = sym.sym("joint_angle", n), sym.sym("mass", n), sym.sym("length", n)
+    h = sym.sym("ankle_height")
+    params = sym.sym("params", 3)  # w1, w2, toe count
+    n_toes = params[2] if kind.distinct_toes == 1 else sym(1)
+    mult = [sym(1)] + [n_toes] * kind.distinct_toes
+    if config.landings is None:
+        impact = _merged_impact(config, kind, a, m, mult)
+    else:
+        impact = _scenario_impacts(config, kind, a, m, L, n_toes)
 
-    extra: list[ca.SX] = []
+    extra: list = []
     g, lbg, ubg = [], [], []
 
-    def add(expr: ca.SX, lo: float, hi: float) -> None:
+    def add(expr, lo: float, hi: float) -> None:
         g.append(expr)
-        lbg.append(lo)
-        ubg.append(hi)
+        lbg.extend([lo] * expr.numel())
+        ubg.extend([hi] * expr.numel())
 
-    def objective(o: Objective) -> ca.SX:
-        if o in (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM, Objective.ENERGY_AFTER):
-            return impact[o.value]
-        s = ca.SX.sym(f"epigraph_{o.value}")
-        extra.append(s)
-        if o is Objective.MAX_INTERNAL:
-            for j in range(impact["scaled_magnitude"].shape[0]):
-                add(s - impact["scaled_magnitude"][j], 0.0, math.inf)
-        else:  # base angular velocity: |omega| <= s
-            add(s - impact["omega"], 0.0, math.inf)
-            add(s + impact["omega"], 0.0, math.inf)
-        return s
+    def variable(name: str, size: int = 1):
+        extra.append(sym.sym(name, size))
+        return extra[-1]
+
+    def objective(o: Objective):
+        per_scenario = _per_scenario(o, impact, variable, add)
+        return per_scenario if config.landings is None else _statistic(config.statistic_of(o), per_scenario, variable, add)
 
     primary = config.objectives[:2]
     f1 = objective(primary[0])
-    f2 = objective(primary[1]) if len(primary) > 1 else ca.SX(0)
-    add(f2, -math.inf, math.inf)  # the epsilon row
+    f2 = objective(primary[1]) if len(primary) > 1 else sym(0)
+    g.insert(0, f2)  # the epsilon row comes first
+    lbg.insert(0, -math.inf)
+    ubg.insert(0, math.inf)
     _geometric_rows(config, distinct, a, m, L, h, mult, add)
-    lam = impact["external"]
-    for c in range(lam.shape[0]):
-        add(lam[c], TIGHTEN, math.inf)
-    # No energy row: every contact approaches at the landing speed v, so Newton's law gives
-    # E_after - E_before = -(1 - e) v sum(lambda) / 2 <= 0 once every lambda >= 0 (the realised
-    # design's energy_gain is still checked, from the model).
+    add(ca.vec(impact["external"]), TIGHTEN, math.inf)
+    # No energy row: Newton's law gives E_after - E_before = (1 - e) sum(lambda_c v-_c) / 2 <= 0
+    # once every lambda >= 0 and every contact approaches (v-_c < 0); the realised design is
+    # evaluated by the model ``auto`` picks, which checks both.
 
     x = ca.vertcat(a, m, L, h, *extra)
     a_lo, a_hi = [], []
     for chain, bounds in zip(distinct, _chain_limits(config, kind), strict=True):
         a_lo += [bounds[j][0] for j in range(len(chain))]
         a_hi += [bounds[j][1] for j in range(len(chain))]
-    k = len(extra)
+    k = sum(e.numel() for e in extra)
     lbx = np.concatenate([a_lo, [lim.min_link_mass * (1 + 1e-6)] * n, [LENGTH_FLOOR] * n, [0.0], [0.0] * k])
     ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n, [math.inf], [math.inf] * k])
     nlp = {"x": x, "p": params, "f": params[0] * f1 + params[1] * f2, "g": ca.vertcat(*g)}
-    values = _values(impact, ca.vertcat(a, m), params[2], "foot_values")
+    if config.landings is None:
+        values = _values(impact, ca.vertcat(a, m), params[2], "foot_values")
+    else:  # the nominal scene's values, on SX symbols of their own
+        values = values_function(config, kind, "foot_values")
     return _Graph(nlp, values, lbx, ubx, np.array(lbg), np.array(ubg))
+
+
+def _per_scenario(o: Objective, impact: dict, variable, add):
+    """Objective ``o`` per scenario (1 x S; S = 1 without landings). ``max_internal`` and
+    ``base_angular_velocity`` get one epigraph variable per scenario."""
+    if o in (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM, Objective.ENERGY_AFTER):
+        return impact[o.value]
+    u = variable(f"epigraph_{o.value}", impact["omega"].numel())
+    if o is Objective.MAX_INTERNAL:
+        for j in range(impact["scaled_magnitude"].shape[0]):
+            add(u - impact["scaled_magnitude"][j, :].T, 0.0, math.inf)
+    else:  # base angular velocity: |omega| <= u
+        add(u - impact["omega"].T, 0.0, math.inf)
+        add(u + impact["omega"].T, 0.0, math.inf)
+    return u.T
+
+
+def _statistic(statistic: Statistic, u, variable, add):
+    """The statistic of ``u`` (1 x S), as :mod:`optimizer.evaluation.statistics` defines it, in a
+    form IPOPT's exact derivatives serve: ``mean`` and ``std`` as written (smooth while the values
+    differ); ``max`` by an epigraph variable t >= u_s; ``cvar:q`` by Rockafellar and Uryasev's
+    reformulation, t + sum z_s / ((1 - q) S) with z_s >= u_s - t, z_s >= 0 (exact at the NLP's
+    optimum over t and z, and an upper bound elsewhere, so an epsilon row on it is exact too).
+    ``max`` and ``cvar`` are nondecreasing in every u_s, so per-scenario epigraph variables stay
+    tight; ``quantile`` (neither smooth nor convex) is refused when the study is read."""
+    size = u.numel()
+    mean = ca.sum2(u) / size
+    if statistic.kind is StatisticKind.MEAN:
+        return mean
+    if statistic.kind is StatisticKind.STD:
+        return ca.sqrt(ca.sum2((u - mean) ** 2) / size)
+    t = variable(f"{statistic.kind.value}_level")
+    if statistic.kind is StatisticKind.MAX:
+        add(t - u.T, 0.0, math.inf)
+        return t
+    if statistic.kind is StatisticKind.CVAR:
+        z = variable("cvar_excess", size)
+        add(z - u.T + t, 0.0, math.inf)
+        return t + ca.sum1(z) / ((1.0 - float(statistic.q)) * size)
+    raise ValueError(f"the inner search takes no {statistic.text} statistic")
 
 
 def _values(impact: dict[str, ca.SX], angles_masses: ca.SX, n_toes: ca.SX, name: str) -> ca.Function:
@@ -339,12 +386,53 @@ def _values(impact: dict[str, ca.SX], angles_masses: ca.SX, n_toes: ca.SX, name:
     return ca.Function(name, [angles_masses, n_toes], outs, ["angles_masses", "n_toes"], list(VALUE_OUTPUTS))
 
 
-def values_function(config: StudyConfig, kind: FootKind) -> ca.Function:
+def values_function(config: StudyConfig, kind: FootKind, name: str | None = None) -> ca.Function:
     """The kind's ``VALUE_OUTPUTS`` alone (the outer search's evaluation), named after the kind."""
     n = sum(kind.sizes)
     a, m, n_toes = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n), ca.SX.sym("n_toes")
     mult = [ca.SX(1)] + [n_toes if kind.distinct_toes == 1 else ca.SX(1)] * kind.distinct_toes
-    return _values(_merged_impact(config, kind, a, m, mult), ca.vertcat(a, m), n_toes, f"values_{kind.name}")
+    return _values(_merged_impact(config, kind, a, m, mult), ca.vertcat(a, m), n_toes, name or f"values_{kind.name}")
+
+
+#: Per-scenario outputs of :func:`_scenario_function` (rows x scenarios once mapped).
+SCENARIO_OUTPUTS = ("external", "scaled_magnitude", "omega", "external_norm", "internal_norm", "energy_after")
+
+
+def scenario_approach(config: StudyConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Each scenario's base velocity before the impact ([vx, vy, omega] columns, 3 x S) and
+    restitution (1 x S), as :func:`optimizer.evaluation.batched.scenario_inputs` sets them."""
+    assert config.landings is not None
+    s, draws = config.scene, config.landings.draw()
+    column = dict(zip(config.landings.names, draws.T, strict=True))
+    ones = np.ones(len(draws))
+    base = np.vstack([
+        column.get("velocity_x", 0.0) * ones,
+        -column.get("speed", s.speed) * ones,
+        column.get("angular_velocity", 0.0) * ones,
+    ])
+    return base, (column.get("restitution", s.restitution) * ones)[None, :]
+
+
+def _scenario_function(config: StudyConfig, kind: FootKind) -> ca.Function:
+    """``(angles, masses, lengths, toe count, base velocity, restitution)`` -> ``SCENARIO_OUTPUTS``
+    of one landing of the merged foot."""
+    n = sum(kind.sizes)
+    a, m, L = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n), ca.SX.sym("length", n)
+    n_toes = ca.SX.sym("n_toes")
+    base, e = ca.SX.sym("base_velocity", 3), ca.SX.sym("restitution")
+    mult = [ca.SX(1)] + [n_toes if kind.distinct_toes == 1 else ca.SX(1)] * kind.distinct_toes
+    impact = _merged_impact(config, kind, a, m, mult, (base, e), L)
+    outs = [impact[k] for k in SCENARIO_OUTPUTS]
+    names = ["a", "m", "L", "n_toes", "base", "e"]
+    return ca.Function("scenario", [a, m, L, n_toes, base, e], outs, names, list(SCENARIO_OUTPUTS))
+
+
+def _scenario_impacts(config: StudyConfig, kind: FootKind, a, m, L, n_toes) -> dict:
+    """``SCENARIO_OUTPUTS`` over the study's landings: one mapped call (rows x S, symbolic in
+    the NLP's variables)."""
+    base, e = scenario_approach(config)
+    mapped = _scenario_function(config, kind).map(base.shape[1])
+    return dict(zip(SCENARIO_OUTPUTS, mapped(a, m, L, n_toes, ca.DM(base), ca.DM(e)), strict=True))
 
 
 def _chain_limits(config: StudyConfig, kind: FootKind) -> tuple:
@@ -352,9 +440,12 @@ def _chain_limits(config: StudyConfig, kind: FootKind) -> tuple:
     return config.limits.joint_limits(shape)
 
 
-def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult) -> dict[str, ca.SX]:
+def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult, approach=None, lengths=None) -> dict[str, ca.SX]:
     """The impact of the merged tree (each distinct toe's rods carry ``mult`` times their mass)
-    and the real foot's objectives (see the module docstring)."""
+    and the real foot's objectives (see the module docstring). ``approach``: (base velocity
+    [vx, vy, omega], restitution), symbolic; None: the study's scene, straight down.
+    ``lengths``: the rods' lengths (a turning approach's contact speeds depend on them); None:
+    fixed ones, which a straight-down approach does not see."""
     template = FootDesign(
         heel=tuple(Segment(0.1, 0.1, 0.0) for _ in range(kind.heel_segments)),
         toes=tuple(tuple(Segment(0.1, 0.1, 0.0) for _ in range(kind.toe_segments)) for _ in range(kind.distinct_toes)),
@@ -366,16 +457,23 @@ def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult) -> dict[str,
     for c, k in enumerate(kind.sizes):
         for _ in range(k):
             i = body - 2
-            # The impulses do not depend on the rods' lengths (rods scale with their length:
-            # com and radius of gyration are fractions of it), so the impact sees fixed ones
-            # and its derivatives skip the lengths (tested against evaluate() on real lengths).
+            # The impulses of a straight-down approach do not depend on the rods' lengths (rods
+            # scale with their length: com and radius of gyration are fractions of it), so that
+            # impact sees fixed ones and its derivatives skip the lengths (tested against
+            # evaluate() on real lengths); a turning approach's contact speeds need them.
+            if lengths is not None:
+                p[width * body] = lengths[i]
             p[width * body + 1] = mult[c] * m[i]
             p[width * body + 2] = a[i]
             body_mult.append(mult[c])
             body += 1
     topology = tree.topology()
-    v_minus = approach_velocity(topology, config.scene.speed)
-    out = compiled_model(topology).impact(p=p, v_minus=ca.DM(v_minus), restitution=config.scene.restitution)
+    if approach is None:
+        v_minus, e = ca.DM(approach_velocity(topology, config.scene.speed)), config.scene.restitution
+    else:
+        base, e = approach
+        v_minus = ca.vertcat(base, ca.SX(len(approach_velocity(topology, 0.0)) - base.numel(), 1))
+    out = compiled_model(topology).impact(p=p, v_minus=v_minus, restitution=e)
     lam, mag = out["external"], out["internal_magnitude"]
     contact_mult = ca.vertcat(*mult)
     joint_mult = ca.vertcat(*body_mult)

@@ -55,7 +55,7 @@ from optimizer.design_space import (
 )
 from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, NlpCache, foot_kind
 from optimizer.errors import interrupted
-from optimizer.search.outer import objective_values, record_attrs
+from optimizer.search.outer import evaluate_design_over_landings, objective_values, record_attrs
 
 #: Weights of the two anchors: each objective first, the other as a tie-break.
 ANCHOR_WEIGHTS = ((1.0, 1e-4), (1e-4, 1.0))
@@ -183,17 +183,21 @@ def realise(config: StudyConfig, nlp: ShapeNlp, x: np.ndarray) -> DesignEvaluati
 
 def _evaluate(config: StudyConfig, nlp: ShapeNlp, angles, masses, lengths) -> DesignEvaluation | None:
     """Objectives and constraint values of a design given per distinct chain: the impact from
-    the compiled ``foot_values``, the geometry from :func:`constraint_values`."""
-    c = nlp.compiled
-    angles_masses = np.array([v for block in (angles, masses) for ch in block for v in ch], dtype=float)
-    out = dict(zip(VALUE_OUTPUTS, (float(v) for v in c.values(angles_masses, nlp.shape.n_toes)), strict=True))
-    if not all(math.isfinite(v) for v in out.values()):
-        return None
+    the compiled ``foot_values``, the geometry from :func:`constraint_values`. With landings, the
+    statistics as the outer search scores them (every scenario by the model ``auto`` picks), not
+    the NLP's own values."""
     chains = [
         tuple(Segment(L, m, a) for a, m, L in zip(ac, mc, lc, strict=True))
         for ac, mc, lc in zip(nlp.expand(angles), nlp.expand(masses), nlp.expand(tuple(lengths)), strict=True)
     ]
     design = FootDesign(heel=chains[0], toes=tuple(chains[1:]))
+    if config.landings is not None:
+        return evaluate_design_over_landings(config, design)
+    c = nlp.compiled
+    angles_masses = np.array([v for block in (angles, masses) for ch in block for v in ch], dtype=float)
+    out = dict(zip(VALUE_OUTPUTS, (float(v) for v in c.values(angles_masses, nlp.shape.n_toes)), strict=True))
+    if not all(math.isfinite(v) for v in out.values()):
+        return None
     values = replace(
         constraint_values(config.leg, design, config.limits),
         pulling=-out["min_external"],

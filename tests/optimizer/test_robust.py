@@ -99,9 +99,10 @@ def test_bad_landings_name_their_path(extra, message):
     assert str(info.value).startswith(message), str(info.value)
 
 
-def test_landings_need_the_outer_search():
+def test_landings_the_inner_search_cannot_differentiate_need_the_outer_search():
     text = ROBUST_YAML.replace("method: outer", "method: inner")
-    with pytest.raises(ConfigError, match="landings: a distribution of landings needs search.method: outer"):
+    with pytest.raises(ConfigError, match="landings.pitch: the inner search varies speed, velocity_x, "
+                                          "angular_velocity, restitution only"):
         parse_study(load_yaml(text))
 
 
