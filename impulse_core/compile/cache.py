@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
 import shutil
 import subprocess
 import tempfile
@@ -24,6 +25,13 @@ from pathlib import Path
 from impulse_core.errors import FootoptError
 
 MANIFEST = "manifest.json"
+#: Where compiled libraries are cached unless ``FOOTOPT_CACHE_DIR`` says otherwise.
+DEFAULT_ROOT = Path.home() / ".cache" / "footopt"
+
+
+def default_root() -> Path:
+    """The cache root: ``FOOTOPT_CACHE_DIR`` if set, else :data:`DEFAULT_ROOT`."""
+    return Path(os.environ.get("FOOTOPT_CACHE_DIR", str(DEFAULT_ROOT))).expanduser()
 
 
 class CompileError(FootoptError, RuntimeError):

@@ -479,6 +479,30 @@ def lean_impact_function(
     )
 
 
+#: Outputs of :func:`scenario_impact_function`.
+SCENARIO_IMPACT_OUTPUTS = LEAN_OUTPUTS + ("v_plus", "energy_after")
+
+
+def scenario_impact_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
+    """``LEAN_OUTPUTS`` and the motion after the impact (``v_plus``; ``energy_after`` =
+    sum over bodies of (omega . L + v . p) / 2 at v_plus): what the first-impact objectives of
+    one landing need, on the lean graph (many landings of one design, batched)."""
+    nv = dof_layout(topology, space).nv
+    p = ca.SX.sym("p", n_values(topology, space))
+    v_minus = ca.SX.sym("v_minus", nv)
+    e = ca.SX.sym("restitution")
+    g = _lean_graph(topology, space, p, v_minus, e)
+    v_plus = v_minus + g.delta_v
+    omega, vel = dyn.body_velocities(topology.parents, g.kin, g.layout, g.motions, v_plus)
+    twice = ca.SX(0)
+    for b in range(topology.n_bodies):
+        L, P = g.inertias[b].momentum(omega[b], vel[b])
+        twice = twice + omega[b].T @ L + vel[b].T @ P
+    outs = [*g.outputs, v_plus, 0.5 * twice]
+    return ca.Function("impact_scenario", [p, v_minus, e], outs, list(IMPACT_INPUTS), list(SCENARIO_IMPACT_OUTPUTS),
+                       LEAN_OPTIONS)
+
+
 def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g: _LeanGraph) -> tuple[ca.SX, ca.SX]:
     """Gradients of ``external_norm`` and ``internal_norm`` w.r.t. ``p`` (n_values x 1 each) by
     the adjoint of the impact equations, not by differentiating through the factorizations.

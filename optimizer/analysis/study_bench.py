@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from impulse_core.compile.cache import default_root
+
 REPO = Path(__file__).resolve().parents[2]
 #: The study and the commit the targets of issue 10 are measured against.
 DEFAULT_STUDY = REPO / "studies" / "toe_count" / "study.yaml"
@@ -139,7 +141,7 @@ def batch_api_cost(cache_dir: Path | None = None, repeats: int = 7) -> tuple[flo
     design = FootDesign(heel=(Segment(0.1, 0.05, -0.5),), toes=((Segment(0.1, 0.1, 1.0),) * 3,))
     tree = foot_tree(Leg(), design)
     topology = tree.topology()
-    cache = cache_dir or Path(os.environ.get("FOOTOPT_CACHE_DIR", str(Path.home() / ".cache" / "footopt")))
+    cache = cache_dir or default_root()
     evaluator = batch_evaluator(topology, cache)
     rng = np.random.default_rng(0)
     P = np.tile(design_vector(tree), (BATCH_DESIGNS, 1))

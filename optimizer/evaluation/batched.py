@@ -3,23 +3,31 @@
 A scenario that lands on flat ground, without friction and without ``duration`` is one first
 impact, and what changes between such scenarios is numeric: the base angle (``pitch``), the
 approach (``speed``, ``velocity_x``, ``angular_velocity``) and ``restitution``. They are
-evaluated as columns of one call of the topology's impact function (CasADi's ``map``), grouped
-by which contacts hit (the lowest within ``contact_tolerance``, from the touchdown geometry of
-every scenario at once). The values are the ones ``footopt evaluate`` computes for the
-scenario's file, operation for operation: the same compiled function on the same inputs.
-Where that function's answer is not the one ``auto`` would report (a contact pulls, so ``lcp``
-runs; a singular Delassus matrix, so the redundant-contact path runs), the scenario is left to
-the caller (None in the mask).
+evaluated as rows of one call of the topology's lean impact function
+(:func:`impulse_core.impact.delassus.scenario_impact_function`: the hot path's algorithm plus the
+motion after the impact), grouped by which contacts hit (the lowest within
+``contact_tolerance``, from the touchdown geometry of every scenario at once). From
+:data:`COMPILE_ROWS` rows on, the call runs as compiled C from the trusted cache, below on
+CasADi's virtual machine (the same operations; the SIMD lanes' sine and cosine differ from
+libm's in the last bits: 1e-13 relative, tested). The values equal
+``footopt evaluate``'s (the full impact function) to rounding (1e-12 relative, tested). Where
+Newton's answer is not the one ``auto`` would report (a contact pulls, so ``lcp`` runs; a singular
+Delassus matrix, so the redundant-contact path runs), the scenario is left to the caller (a NaN
+row).
 """
 
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from impulse_core.evaluate import compiled_geometry, compiled_model
+from impulse_core.compile.cache import default_root
+from impulse_core.compile.codegen import batch_kernel, compile_function, simd_lanes
+from impulse_core.evaluate import compiled_geometry
+from impulse_core.impact.delassus import SCENARIO_IMPACT_OUTPUTS, scenario_impact_function
 from impulse_core.impact.laws import PIVOT_TOL
 from impulse_core.kinematics.spatial import dof_layout
 from impulse_core.model.tree import ContactSelection, Topology, design_vector
@@ -55,15 +63,22 @@ def scenario_inputs(model: ModelFile, names: tuple[str, ...], values: np.ndarray
     return P, V, E
 
 
-def active_sets(model: ModelFile, P: np.ndarray) -> list[tuple[int, ...]]:
-    """Each scenario's hitting contacts (``impulse_core.evaluate.active_contacts``, all rows at once)."""
+def active_sets(model: ModelFile, P: np.ndarray, pitched: bool = True) -> list[tuple[int, ...]]:
+    """Each scenario's hitting contacts (``impulse_core.evaluate.active_contacts``, all rows at
+    once; without ``pitched`` every row has the file's geometry, computed once)."""
+    return [tuple(int(i) for i in np.flatnonzero(row)) for row in _hitting(model, P, pitched)]
+
+
+def _hitting(model: ModelFile, P: np.ndarray, pitched: bool) -> np.ndarray:
+    """Which declared contacts hit in each scenario (scenarios x declared, boolean)."""
     n_declared = len(model.tree.contacts)
     if model.scene.selection is ContactSelection.ALL:
-        return [tuple(range(n_declared))] * len(P)
-    geometry = _mapped(compiled_geometry(model.tree.topology()), len(P))
-    heights = np.array(geometry(P.T)[3])[1].reshape(len(P), n_declared)  # contacts: 3 x (declared x rows)
-    low = heights.min(axis=1, keepdims=True) + model.scene.contact_tolerance
-    return [tuple(int(i) for i in np.flatnonzero(row <= lim)) for row, lim in zip(heights, low[:, 0], strict=True)]
+        return np.ones((len(P), n_declared), dtype=bool)
+    rows = P if pitched else P[:1]
+    contacts = _rows(compiled_geometry(model.tree.topology()), rows)[3]  # 3 x declared, column-major
+    heights = contacts.reshape(len(rows), n_declared, 3)[:, :, 1]
+    hit = heights <= heights.min(axis=1, keepdims=True) + model.scene.contact_tolerance
+    return hit if pitched else np.repeat(hit, len(P), axis=0)
 
 
 @functools.lru_cache(maxsize=64)
@@ -71,47 +86,84 @@ def _mapped(f: ca.Function, n: int) -> ca.Function:
     return f.map(n)
 
 
-def first_impacts(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> list[Objectives | None]:
-    """Each batchable scenario's objectives (``batchable``), None where the caller must evaluate
-    the scenario itself (not batchable, or not the Newton answer ``auto`` reports)."""
-    out: list[Objectives | None] = [None] * len(values)
+#: The first impact's objectives, in the columns of :func:`first_impact_values`.
+FIRST_IMPACT = ("external_norm", "internal_norm", "max_internal", "base_angular_velocity", "energy_after")
+#: From this many rows of one contact set on, the impact runs as compiled C (cached on disk).
+COMPILE_ROWS = 256
+
+
+def first_impact_values(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> np.ndarray:
+    """Each scenario's ``FIRST_IMPACT`` objectives (scenarios x 5), NaN rows where the caller
+    must evaluate the scenario itself (not batchable, or not the Newton answer ``auto`` reports)."""
+    out = np.full((len(values), len(FIRST_IMPACT)), np.nan)
     rows = np.flatnonzero(batchable(model, names, values))
     if rows.size == 0:
         return out
     P, V, E = scenario_inputs(model, names, values[rows])
-    groups: dict[tuple[int, ...], list[int]] = {}
-    for k, active in enumerate(active_sets(model, P)):
-        groups.setdefault(active, []).append(k)
-    for active, members in groups.items():
-        found = _newton_rows(model.tree.topology(active), P[members], V[members], E[members])
-        for k, objectives in zip(members, found, strict=True):
-            out[int(rows[k])] = objectives
+    hit = _hitting(model, P, "pitch" in names)
+    for members in _groups(hit):
+        active = tuple(int(i) for i in np.flatnonzero(hit[members[0]]))
+        out[rows[members]] = _newton_rows(model.tree.topology(active), P[members], V[members], E[members])
     return out
 
 
-def _newton_rows(topology: Topology, P: np.ndarray, V: np.ndarray, E: np.ndarray) -> list[Objectives | None]:
-    """The impact function on every row; Objectives where its Newton answer is ``auto``'s."""
-    impact = compiled_model(topology).impact
-    res = dict(zip(impact.name_out(), _mapped(impact, len(P))(P.T, V.T, E[None, :]), strict=True))
-    arrays = {k: np.array(v) for k, v in res.items()}
-    out: list[Objectives | None] = []
-    for j in range(len(P)):
-        lam, pivots, v_plus = arrays["external"][:, j], arrays["delassus_pivots"][:, j], arrays["v_plus"][:, j]
-        magnitude, energy = arrays["internal_magnitude"][:, j], arrays["energy_after"][:, j]
-        finite = all(np.isfinite(x).all() for x in (lam, v_plus, magnitude, energy))
-        if not finite or lam.min(initial=0.0) < 0 or pivots.min(initial=1.0) < PIVOT_TOL:
-            out.append(None)
-            continue
-        out.append(  # as impulse_core.evaluate's result and design_space.objectives compute them
-            Objectives(
-                external_norm=float(np.linalg.norm(lam)),
-                internal_norm=float(np.linalg.norm(magnitude)),
-                max_internal=float(magnitude.max()) if magnitude.size else 0.0,
-                base_angular_velocity=abs(float(v_plus[2])),
-                energy_after=float(energy[0]),
-            )
-        )
-    return out
+def first_impacts(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> list[Objectives | None]:
+    """:func:`first_impact_values` as one ``Objectives`` (or None) per scenario."""
+    table = first_impact_values(model, names, values)
+    return [None if np.isnan(row).any() else Objectives(**dict(zip(FIRST_IMPACT, map(float, row), strict=True)))
+            for row in table]
 
 
-__all__ = ["active_sets", "batchable", "first_impacts", "scenario_inputs"]
+def _groups(hit: np.ndarray) -> list[np.ndarray]:
+    """The rows of each distinct contact set (rows of ``hit`` that are equal)."""
+    if hit.shape[1] <= 62:  # one integer per set: far cheaper than comparing rows
+        codes = hit @ (1 << np.arange(hit.shape[1], dtype=np.int64))
+    else:
+        codes = np.unique(hit, axis=0, return_inverse=True)[1].ravel()
+    return [np.flatnonzero(codes == c) for c in np.unique(codes)]
+
+
+def _newton_rows(topology: Topology, P: np.ndarray, V: np.ndarray, E: np.ndarray) -> np.ndarray:
+    """The objectives of every row (rows x 5); NaN where Newton's answer is not ``auto``'s."""
+    out = dict(zip(SCENARIO_IMPACT_OUTPUTS, _rows(_scenario_function(topology), P, V, E[:, None]), strict=True))
+    lam, magnitude = out["external"], out["internal_magnitude"]
+    table = np.column_stack([
+        out["external_norm"][:, 0],
+        out["internal_norm"][:, 0],
+        magnitude.max(axis=1) if magnitude.shape[1] else np.zeros(len(P)),
+        np.abs(out["v_plus"][:, 2]),
+        out["energy_after"][:, 0],
+    ])
+    finite = np.all([np.isfinite(o).all(axis=1) for o in out.values()], axis=0)
+    pulls = lam.min(axis=1, initial=0.0) < 0
+    singular = out["delassus_pivots"].min(axis=1, initial=1.0) < PIVOT_TOL
+    table[~finite | pulls | singular] = np.nan
+    return table
+
+
+def _rows(f: ca.Function, *inputs: np.ndarray) -> list[np.ndarray]:
+    """``f`` on every row of its inputs (one row per call, one array per output, rows out):
+    compiled C from :data:`COMPILE_ROWS` rows on (or where no compiler runs, the VM), else the VM."""
+    n = inputs[0].shape[0]
+    run = _batch_kernel(f, default_root()) if n >= COMPILE_ROWS else None
+    if run is not None:
+        return run(*inputs)
+    outs = _mapped(f, n)(*(x.T for x in inputs))
+    return [np.array(o, dtype=float).T.reshape(n, -1) for o in outs]
+
+
+@functools.lru_cache(maxsize=64)
+def _scenario_function(topology: Topology) -> ca.Function:
+    return scenario_impact_function(topology)
+
+
+@functools.lru_cache(maxsize=64)
+def _batch_kernel(f: ca.Function, root: Path):
+    """``f``'s compiled C loop, SIMD where the library has it (None where no compiler runs: a
+    warning says so)."""
+    compiled = compile_function(f, root, fallback=True)
+    return batch_kernel(compiled, f, simd=simd_lanes(compiled, f) > 0)
+
+
+__all__ = ["COMPILE_ROWS", "FIRST_IMPACT", "active_sets", "batchable", "first_impact_values", "first_impacts",
+           "scenario_inputs"]

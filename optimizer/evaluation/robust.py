@@ -21,7 +21,7 @@ from impulse_core.errors import NumericalError
 from impulse_core.timedomain.landing import LandingResult
 from optimizer.config.model_file import ModelFile
 from optimizer.design_space import Objective, Objectives, landing_objectives, objectives
-from optimizer.evaluation.batched import first_impacts
+from optimizer.evaluation.batched import FIRST_IMPACT, first_impact_values
 from optimizer.evaluation.model_choice import evaluate_landing
 from optimizer.evaluation.scenarios import Landings, model_data, overrides, scenario_model
 from optimizer.evaluation.statistics import Statistic
@@ -57,26 +57,60 @@ def scenario_objectives(model: ModelFile) -> Objectives | None:
     return found if all(math.isfinite(v) for _, v in found.items()) else None
 
 
-def statistics_of(rows: list[Objectives], statistic: Callable[[Objective], Statistic]) -> Objectives:
-    """Each evaluated objective's statistic over the rows (``statistic`` picks it per objective)."""
-    names = [f.name for f in fields(Objectives) if getattr(rows[0], f.name) is not None]
-    return Objectives(**{n: statistic(Objective(n)).of(np.array([getattr(r, n) for r in rows])) for n in names})
+def scenario_table(model: ModelFile, names: tuple[str, ...], draws: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """Every scenario's objectives: their names and one row per scenario (NaN: the evaluation
+    failed). Batchable first impacts together (:func:`first_impact_values`), the rest one by one."""
+    table = first_impact_values(model, names, draws)
+    todo = np.flatnonzero(np.isnan(table).any(axis=1))
+    if todo.size == 0:
+        return FIRST_IMPACT, table
+    data = model_data(model)
+    found = {int(k): scenario_objectives(scenario_model(data, overrides(model, names, draws[k]))) for k in todo}
+    done = [o for o in found.values() if o is not None]
+    keys = tuple(f.name for f in fields(Objectives) if done and getattr(done[0], f.name) is not None) or FIRST_IMPACT
+    if keys != FIRST_IMPACT:
+        table = np.full((len(draws), len(keys)), np.nan)
+    for k, o in found.items():
+        if o is not None:
+            table[k] = [getattr(o, n) for n in keys]
+    return keys, table
+
+
+def statistics_of(keys: tuple[str, ...], table: np.ndarray, statistic: Callable[[Objective], Statistic]) -> Objectives | None:
+    """Each objective's statistic over the table's rows (None if a row failed)."""
+    if np.isnan(table).any() or len(table) == 0:
+        return None
+    return Objectives(**{n: statistic(Objective(n)).of(table[:, j]) for j, n in enumerate(keys)})
+
+
+def statistics_over_landings(
+    model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic]
+) -> Objectives | None:
+    """``evaluate_over_landings(...).statistics`` without the rows (the searches' path)."""
+    return statistics_of(*scenario_table(model, landings.names, landings.draw()), statistic)
 
 
 def evaluate_over_landings(
     model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic]
 ) -> RobustEvaluation:
-    """``model`` on every scenario of ``landings``, and the statistics. Frictionless first impacts
-    on flat ground are evaluated together (:mod:`optimizer.evaluation.batched`), the rest one by one."""
-    rows, data, draws = [], model_data(model), landings.draw()
-    fast = first_impacts(model, landings.names, draws)
-    for k, values in enumerate(draws):
-        changes = overrides(model, landings.names, values)
-        found = fast[k] if fast[k] is not None else scenario_objectives(scenario_model(data, changes))
-        rows.append(ScenarioRow(k, changes, found))
-    scored = [r.objectives for r in rows if r.objectives is not None]
-    stats = statistics_of(scored, statistic) if len(scored) == len(rows) and scored else None
-    return RobustEvaluation(tuple(rows), stats)
+    """``model`` on every scenario of ``landings`` (:func:`scenario_table`), each row with its
+    overrides, and the statistics."""
+    draws = landings.draw()
+    keys, table = scenario_table(model, landings.names, draws)
+    rows = tuple(
+        ScenarioRow(k, overrides(model, landings.names, values),
+                    None if np.isnan(row).any() else Objectives(**dict(zip(keys, map(float, row), strict=True))))
+        for k, (values, row) in enumerate(zip(draws, table, strict=True))
+    )
+    return RobustEvaluation(rows, statistics_of(keys, table, statistic))
 
 
-__all__ = ["RobustEvaluation", "ScenarioRow", "evaluate_over_landings", "scenario_objectives", "statistics_of"]
+__all__ = [
+    "RobustEvaluation",
+    "ScenarioRow",
+    "evaluate_over_landings",
+    "scenario_objectives",
+    "scenario_table",
+    "statistics_of",
+    "statistics_over_landings",
+]

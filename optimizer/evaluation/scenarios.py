@@ -16,6 +16,7 @@ foremost contact at touchdown, a 2 mm ramp; under a footopt foot: under the toes
 from __future__ import annotations
 
 import copy
+import functools
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any
@@ -64,10 +65,18 @@ class Landings:
         return tuple(name for name, _ in self.distributions)
 
     def draw(self) -> np.ndarray:
-        """The scenarios' values: ``count`` x one column per distribution (the same every call)."""
-        rng = np.random.default_rng(self.seed)
-        columns = [d.draw(rng, self.count) for _, d in self.distributions]
-        return np.column_stack(columns) if columns else np.zeros((self.count, 0))
+        """The scenarios' values: ``count`` x one column per distribution (the same every call;
+        drawn once per process, read-only)."""
+        return _drawn(self)
+
+
+@functools.lru_cache(maxsize=16)
+def _drawn(landings: Landings) -> np.ndarray:
+    rng = np.random.default_rng(landings.seed)
+    columns = [d.draw(rng, landings.count) for _, d in landings.distributions]
+    out = np.column_stack(columns) if columns else np.zeros((landings.count, 0))
+    out.setflags(write=False)
+    return out
 
 
 def overrides(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> dict[str, Any]:

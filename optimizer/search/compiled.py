@@ -25,7 +25,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import math
-import os
 import tempfile
 import warnings
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -37,6 +36,7 @@ import numpy as np
 
 import impulse_core
 from impulse_core.compile.cache import CompileError, compiler_identity, entry_key, lookup, run_compilers, store
+from impulse_core.compile.cache import default_root as cache_dir
 from impulse_core.compile.codegen import find_compiler
 from impulse_core.evaluate import approach_velocity, compiled_model
 from impulse_core.model.tree import BODY_VALUES, design_vector
@@ -71,8 +71,6 @@ VALUE_OUTPUTS = (
     "energy_before",
     "min_external",
 )
-#: Where libraries are cached unless ``FOOTOPT_CACHE_DIR`` says otherwise.
-DEFAULT_CACHE = Path.home() / ".cache" / "footopt"
 
 
 @dataclass(frozen=True)
@@ -127,10 +125,6 @@ class CompiledNlp:
     @property
     def n_x(self) -> int:
         return int(self.lbx.size)
-
-
-def cache_dir() -> Path:
-    return Path(os.environ.get("FOOTOPT_CACHE_DIR", str(DEFAULT_CACHE))).expanduser()
 
 
 def _source_hash() -> str:

@@ -48,7 +48,7 @@ from optimizer.design_space import (
     evaluate_design,
     evaluate_design_landing,
 )
-from optimizer.evaluation.robust import evaluate_over_landings
+from optimizer.evaluation.robust import statistics_over_landings
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
 
 #: User attributes every recorded trial carries.
@@ -429,8 +429,8 @@ def evaluate_design_over_landings(config: StudyConfig, design: FootDesign) -> De
     nominal impact's."""
     model = design_model(config.leg, design, config.scene, config.limits, config.space.joint_laws.stop_restitution)
     assert config.landings is not None
-    robust = evaluate_over_landings(model, config.landings, config.statistic_of)
-    return DesignEvaluation(design, robust.statistics, constraint_values(config.leg, design, config.limits))
+    statistics = statistics_over_landings(model, config.landings, config.statistic_of)
+    return DesignEvaluation(design, statistics, constraint_values(config.leg, design, config.limits))
 
 
 def _evaluation(config: StudyConfig, design: FootDesign, values: dict[str, float]) -> DesignEvaluation:
