@@ -28,11 +28,9 @@ LEGS = [
 
 
 def _world(leg):
-    """Each rod's joint position, joint axis and the ankle in the description's world (the root
-    link's frame), from the model file's rods alone (footopt's frame rules, rods.py)."""
+    """A spatial leg's joint positions and axes and its ankle in the description's world (the
+    root link's frame), from the model file's rods alone (footopt's frame rules, rods.py)."""
     tree = leg.model.tree
-    if leg.space is PLANAR:  # footopt's plane (x, y) -> the description's, through the importer's basis
-        return None
     R = [None] * tree.n_bodies
     p = [None] * tree.n_bodies
     out = []
@@ -62,7 +60,7 @@ def test_real_leg_against_pinocchio(robot, root, ankle, rods, space, bound):
     # the ankle and the joints, from the model file's rods, in the description's frame
     if space is SPATIAL:
         joints, foot = _world(leg)
-        np.testing.assert_allclose(foot, ref.ankle() if space is SPATIAL else None, atol=1e-12)
+        np.testing.assert_allclose(foot, ref.ankle(), atol=1e-12)
         for (anchor, axis), (ref_anchor, ref_axis) in zip(joints, ref.joints(), strict=True):
             np.testing.assert_allclose(anchor, ref_anchor, atol=1e-12)
             np.testing.assert_allclose(axis, ref_axis, atol=1e-12)
