@@ -38,7 +38,7 @@ from impulse_core.errors import NumericalError
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from optimizer.config.model_file import ModelFile
-from impulse_core.model.tree import Body, ContactSelection, Scene, Tree, design_vector
+from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, Scene, Tree, design_vector
 
 #: A constraint value (see :class:`ConstraintValues`) up to this counts as met: room for float
 #: rounding (sums of masses, the linear program's tolerance).
@@ -74,6 +74,10 @@ class Leg:
         shank_length, shank_mass: the shank, m and kg.
         knee_angle: the shank's joint angle relative to the thigh (rad).
         knee: the knee's spring, damper and stops (a whole landing; free by default).
+        thigh_com, shank_com: centre of mass as a fraction of the length (default 0.5, uniform).
+        thigh_gyration, shank_gyration: radius of gyration about it, as a fraction of the
+            length (default a uniform rod's, 1/sqrt(12)); a leg read from a model file
+            (``leg: {file: ...}``, e.g. ``footopt import``) carries its own.
     """
 
     thigh_length: float = 0.7
@@ -83,6 +87,10 @@ class Leg:
     shank_mass: float = 1.0
     knee_angle: float = -0.3
     knee: JointLaw = FREE
+    thigh_com: float = UNIFORM_COM
+    thigh_gyration: float = UNIFORM_GYRATION
+    shank_com: float = UNIFORM_COM
+    shank_gyration: float = UNIFORM_GYRATION
 
     @property
     def shank_angle(self) -> float:
@@ -193,8 +201,10 @@ def foot_tree(leg: Leg, design: FootDesign) -> Tree:
     hanging from the shank's tip; one contact at each chain's tip. Every declared contact is
     one that must touch at touchdown (see :func:`intended_contacts`)."""
     bodies = [
-        Body("thigh", None, leg.thigh_length, leg.thigh_mass, leg.thigh_angle),
-        Body("shank", 0, leg.shank_length, leg.shank_mass, leg.knee_angle),
+        Body("thigh", None, leg.thigh_length, leg.thigh_mass, leg.thigh_angle, com=leg.thigh_com,
+             gyration=leg.thigh_gyration),
+        Body("shank", 0, leg.shank_length, leg.shank_mass, leg.knee_angle, com=leg.shank_com,
+             gyration=leg.shank_gyration),
     ]
     for names, chain in zip(chain_names(design.shape), design.chains, strict=True):
         parent = 1

@@ -27,6 +27,7 @@ from impulse_core.timedomain.sequential import SequentialSettings
 from optimizer.analysis.bench import SCALING_SIZES
 from optimizer.cli.export import add_export
 from optimizer.cli.drop import add_drop
+from optimizer.cli.importer import add_import
 from optimizer.cli.init import add_init
 from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
@@ -191,6 +192,7 @@ SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     add_export,
     add_init,
     add_drop,
+    add_import,
 )
 
 

@@ -130,8 +130,8 @@ TOP_KEYS = ("name", "seed", "storage", "scene", "leg", "design_space", "constrai
             "landings", "statistic")
 LANDINGS_KEYS = ("count", "seed", *PARAMETERS)
 SCENE_KEYS = ("speed", "restitution", "friction", "gravity", "duration")
-LEG_KEYS = ("thigh", "shank")
-ROD_KEYS = ("length", "mass", "angle")
+LEG_KEYS = ("thigh", "shank", "file")
+ROD_KEYS = ("length", "mass", "angle", "com", "gyration")
 KNEE_KEYS = ("stiffness", "damping", "limits", "stop_restitution")
 SPACE_KEYS = ("toes", "toe_segments", "heel_segments", "toe_symmetry", "joint_laws")
 JOINT_SPACE_KEYS = (*JOINT_FAMILIES, "stop_restitution")
@@ -208,7 +208,7 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
         seed=seed,
         storage=storage,
         scene=_scene(top.get("scene", {})),
-        leg=_leg(top.get("leg", {})),
+        leg=_leg(top.get("leg", {}), None if source is None else source.parent),
         space=space,
         limits=limits,
         objectives=objectives,
@@ -362,8 +362,13 @@ def _scene(data: Any) -> Scene:
     return Scene(speed=speed, restitution=e, friction=friction, gravity=gravity, duration=duration)
 
 
-def _leg(data: Any) -> Leg:
+def _leg(data: Any, folder: Path | None = None) -> Leg:
     m = _mapping(data, "leg", LEG_KEYS)
+    if "file" in m:
+        if len(m) > 1:
+            raise ConfigError(f"leg.file: give the leg as a file or as thigh and shank, not both (also: "
+                              f"{', '.join(k for k in m if k != 'file')})")
+        return _leg_file(m["file"], folder)
     d = Leg()
     values = {}
     for rod, angle_name in (("thigh", "thigh_angle"), ("shank", "knee_angle")):
@@ -375,9 +380,47 @@ def _leg(data: Any) -> Leg:
                 raise ConfigError(f"{where}.{key}: must be > 0, got {x!r}")
             values[f"{rod}_{key}"] = x
         values[angle_name] = _number(r.get("angle", getattr(d, angle_name)), f"{where}.angle")
+        com = _number(r.get("com", d.thigh_com), f"{where}.com")
+        if not 0.0 <= com <= 1.0:
+            raise ConfigError(f"{where}.com: must be in [0, 1] (a fraction of the length), got {com!r}")
+        gyration = _number(r.get("gyration", d.thigh_gyration), f"{where}.gyration")
+        if gyration < 0:
+            raise ConfigError(f"{where}.gyration: must be >= 0 (a fraction of the length), got {gyration!r}")
+        values[f"{rod}_com"], values[f"{rod}_gyration"] = com, gyration
         if any(k in r for k in KNEE_KEYS):
             values["knee"] = joint_law({**r, "angle": values[angle_name]}, where)
     return Leg(**values)
+
+
+def _leg_file(value: Any, folder: Path | None) -> Leg:
+    """``leg: {file: F}``: a planar model file of two rods (``footopt import`` of a hip-knee-ankle
+    chain): the base is the thigh, its child the shank, whose tip is the ankle where the design
+    space hangs the foot. Its scene and contacts are the model file's own and not used."""
+    from optimizer.config.model_file import load_model_file
+    from impulse_core.kinematics.spatial import PLANAR
+    from impulse_core.model.tree import JointKind
+
+    path = Path(_string(value, "leg.file"))
+    if folder is not None and not path.is_absolute():
+        path = folder / path
+    try:
+        model = load_model_file(path)
+    except ConfigError as e:
+        raise ConfigError(f"leg.file: {path}: {e}") from None
+    bodies = model.tree.bodies
+    if model.space is not PLANAR:
+        raise ConfigError(f"leg.file: {path} is a spatial model: the design space hangs a planar foot on a planar "
+                          "leg (footopt import --space planar, when the leg's joint axes are parallel)")
+    if len(bodies) != 2:
+        raise ConfigError(f"leg.file: {path} has {len(bodies)} rods: the design space hangs the foot on a two-rod "
+                          "leg (thigh: the floating base, shank: its child; import from the thigh to the ankle)")
+    thigh, shank = bodies
+    if shank.joint is not JointKind.REVOLUTE or shank.at != 1.0:
+        raise ConfigError(f"leg.file: {path}: the shank must hang from the thigh's tip (at: 1.0) by a revolute joint")
+    knee = model.joints[1] if model.joints else Leg().knee
+    return Leg(thigh_length=thigh.length, thigh_mass=thigh.mass, thigh_angle=thigh.angle, shank_length=shank.length,
+               shank_mass=shank.mass, knee_angle=shank.angle, knee=knee, thigh_com=thigh.com,
+               thigh_gyration=thigh.gyration, shank_com=shank.com, shank_gyration=shank.gyration)
 
 
 def _space(data: Any) -> DesignSpace:
@@ -489,8 +532,10 @@ def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
         f"  gravity: {f(s.gravity)}",
         f"  duration: {'null' if s.duration is None else f(s.duration)}",
         "leg:",
-        f"  thigh: {{length: {f(leg.thigh_length)}, mass: {f(leg.thigh_mass)}, angle: {f(leg.thigh_angle)}}}",
-        f"  shank: {{length: {f(leg.shank_length)}, mass: {f(leg.shank_mass)}, angle: {f(leg.knee_angle)}{_knee_text(leg)}}}",
+        f"  thigh: {{length: {f(leg.thigh_length)}, mass: {f(leg.thigh_mass)}, angle: {f(leg.thigh_angle)}"
+        f"{_mass_text(leg, 'thigh')}}}",
+        f"  shank: {{length: {f(leg.shank_length)}, mass: {f(leg.shank_mass)}, angle: {f(leg.knee_angle)}"
+        f"{_mass_text(leg, 'shank')}{_knee_text(leg)}}}",
         "design_space:",
         f"  toes: [{sp.toes[0]}, {sp.toes[1]}]",
         f"  toe_segments: [{sp.toe_segments[0]}, {sp.toe_segments[1]}]",
@@ -536,6 +581,16 @@ def _landings_lines(config: StudyConfig) -> list[str]:
         lines.append("statistic:")
         lines += [f"  {o.value}: {_string_text(st.text)}" for o, st in config.statistic]
     return lines
+
+
+def _mass_text(leg: Leg, rod: str) -> str:
+    """A rod's ``com`` and ``gyration`` inside its flow mapping (empty when a uniform rod's)."""
+    d, parts = Leg(), []
+    for key in ("com", "gyration"):
+        value = getattr(leg, f"{rod}_{key}")
+        if value != getattr(d, f"{rod}_{key}"):
+            parts.append(f", {key}: {_float_text(value)}")
+    return "".join(parts)
 
 
 def _knee_text(leg: Leg) -> str:

@@ -135,3 +135,51 @@ def test_missing_and_unreadable_files(tmp_path: Path):
     with pytest.raises(ConfigError) as info:
         load_study(bad)
     assert info.value.source == bad and "YAML syntax error" in str(info.value)
+
+
+def test_leg_from_an_imported_model_file(tmp_path: Path):
+    """``leg: {file: F}``: a two-rod planar leg from ``footopt import`` (solo12's front left
+    upper and lower leg) becomes the study's thigh and shank with their own mass properties."""
+    from optimizer.config.model_file import format_model_file
+    from optimizer.design_space import FootDesign, Segment, foot_tree
+    from optimizer.imports.leg import import_leg
+    from optimizer.imports.read import read_description
+    from tests.optimizer.imports.peers import robot_file
+
+    leg = import_leg(read_description(robot_file("solo_description/robots/solo12.urdf")), "FL_UPPER_LEG", "FL_FOOT")
+    (tmp_path / "legs").mkdir()
+    (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(leg.model))
+    study = tmp_path / "s.yaml"
+    study.write_text("leg: {file: legs/solo.yaml}\nobjectives: [external_norm, internal_norm]\n")
+    config = load_study(study)
+    thigh, shank = leg.model.tree.bodies
+    assert (config.leg.thigh_length, config.leg.thigh_mass, config.leg.thigh_angle) == (thigh.length, thigh.mass, thigh.angle)
+    assert (config.leg.shank_com, config.leg.shank_gyration, config.leg.knee_angle) == (shank.com, shank.gyration, shank.angle)
+    tree = foot_tree(config.leg, FootDesign(heel=(Segment(0.05, 0.01, -0.5),), toes=((Segment(0.08, 0.02, 1.0),),)))
+    assert tree.bodies[0].inertia == thigh.inertia and tree.bodies[1].com == shank.com
+    again = tmp_path / "again.yaml"
+    again.write_text(format_study(config))
+    assert load_study(again) == config and "com: " in again.read_text()
+
+
+def test_leg_file_is_refused_when_the_design_space_cannot_hang_a_foot_on_it(tmp_path: Path):
+    from optimizer.config.model_file import format_model_file
+    from optimizer.imports.leg import import_leg
+    from optimizer.imports.read import read_description
+    from tests.optimizer.imports.peers import robot_file
+
+    desc = read_description(robot_file("solo_description/robots/solo12.urdf"))
+    (tmp_path / "three.yaml").write_text(format_model_file(import_leg(desc, "FL_SHOULDER", "FL_FOOT").model))
+    (tmp_path / "spatial.yaml").write_text(format_model_file(import_leg(desc, "base_link", "FL_FOOT").model))
+    cases = {
+        "{file: three.yaml}": "leg.file: .* has 3 rods: the design space hangs the foot on a two-rod leg",
+        "{file: spatial.yaml}": "leg.file: .* is a spatial model",
+        "{file: missing.yaml}": "leg.file: .*missing.yaml: file not found",
+        "{file: three.yaml, thigh: {length: 1.0}}": "leg.file: give the leg as a file or as thigh and shank, not both",
+        "{file: 3}": "leg.file: ",
+    }
+    for leg, message in cases.items():
+        study = tmp_path / "s.yaml"
+        study.write_text(f"leg: {leg}\nobjectives: [external_norm]\n")
+        with pytest.raises(ConfigError, match=message):
+            load_study(study)

@@ -1,0 +1,71 @@
+"""``footopt import``: the leg above the ankle from a URDF or MJCF file, as a model file.
+Registered in :data:`optimizer.cli.main.SUBCOMMANDS`; the work is in :mod:`optimizer.imports`.
+
+Exit status as the rest of ``footopt``: 0 written; 2 a bad description, link or option, or an OUT
+that exists (without ``--force``), one line on stderr naming the option, link or joint.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from impulse_core.errors import FootoptError
+from optimizer.cli.export import _write
+from optimizer.cli.status import EXIT_OK, EXIT_USAGE
+from optimizer.cli.status import error as _error
+
+
+def add_import(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "import",
+        help="the leg above the ankle from a URDF or MJCF file, as a model file",
+        description=(
+            "Read a robot description (URDF, or MJCF compiled by MuJoCo) and write the leg from --root (the "
+            "floating base) down to --ankle as a footopt model file: one rod per link, fixed joints merged into "
+            "their parent, each revolute joint as in the description, a contact at the ankle (or at --foot). "
+            "Planar when every joint axis of the chain is parallel, else spatial. Each rod carries its link's "
+            "mass exactly and its centre of mass and inertia as a rod can (the file's comments and this "
+            "command's output say what is approximated). See MODEL_FORMAT.md, 'Import'."
+        ),
+    )
+    p.add_argument("description", metavar="ROBOT", help="a URDF (.urdf) or MJCF (.xml) file")
+    p.add_argument("--root", required=True, metavar="LINK", help="the first link of the leg (the floating base)")
+    p.add_argument("--ankle", required=True, metavar="LINK", help="the link where a foot attaches (the chain's end)")
+    p.add_argument("--foot", metavar="NAME", default=None,
+                   help="the contact point: a link welded to the ankle, or an MJCF site or geom on it "
+                   "(default: the ankle link's origin)")
+    p.add_argument("--space", choices=("auto", "planar", "spatial"), default="auto",
+                   help="auto (default): planar when every joint axis is parallel, else spatial")
+    p.add_argument("-o", "--out", metavar="OUT", required=True, help="the model file to write ('-': standard output)")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+    p.set_defaults(run=run_import)
+
+
+def run_import(args: argparse.Namespace) -> int:
+    """``footopt import``."""
+    from optimizer.config.model_file import format_model_file
+    from optimizer.imports.read import read_description
+    from optimizer.imports.leg import import_leg
+
+    if args.out != "-" and Path(args.out).exists() and not args.force:
+        _error(args.out, "already exists; not overwriting it (pass --force to replace it)")
+        return EXIT_USAGE
+    try:
+        leg = import_leg(read_description(Path(args.description)), args.root, args.ankle, args.foot, args.space)
+    except FootoptError as e:
+        _error(str(getattr(e, "source", None) or args.description), str(e))
+        return EXIT_USAGE
+    summary = leg.summary()
+    text = format_model_file(leg.model, header_comment=summary)
+    if args.out == "-":
+        print(text, end="")
+        return EXIT_OK
+    status = _write(Path(args.out), text, args.force)
+    if status == EXIT_OK:
+        print(summary)
+        print(f"wrote {args.out}")
+    return status
+
+
+__all__ = ["add_import", "run_import"]

@@ -1,0 +1,364 @@
+"""The leg between two links of a description, as footopt rods (``footopt import``).
+
+The chain: the links from ``root`` down to ``ankle``. Fixed joints are merged into their parent
+(their links' mass properties added, about the merged centre of mass); each revolute joint on the
+chain starts a rod; any other kind of joint on the chain is refused. Links hanging off the chain
+by a fixed joint are merged too; those hanging by a moving joint (other legs, a foot beyond the
+ankle) are left out, and the report names them. The root is the floating base.
+
+Each rod runs from its joint (the base: from the root link's origin) to the next joint on the
+chain; the last one to the ankle: the ankle link's origin, or the ``foot`` point when given (a
+link welded to the ankle, or an MJCF site or geom on it). The contact is at its tip. The touchdown
+posture is the description's zero configuration (every joint angle 0) with the root's frame as
+the world's.
+
+What a rod carries and what it cannot (docs/MODEL_FORMAT.md, "Import"): mass exactly; the centre
+of mass on the rod's axis: it is moved to the nearest point of the rod (``com`` in [0, 1]) and the
+inertia tensor is taken about that point (parallel axes), so the rod keeps the link's second
+moments there but loses the first moment of the offset; planar, the inertia about the joint axis
+(exact), spatial, the tensor's entry along the rod (``radius``: m r^2 / 2) and the mean of the two
+across it (``inertia``), the rest of the tensor dropped. The joints' placement and axes are exact.
+
+Planar (every revolute axis of the chain parallel, the default then): the plane is normal to the
+axes, which become footopt's z; offsets along the axis drop out (planar motion does not see them);
+a joint whose axis points along -z has its angle counted the other way. Spatial: the description's
+frame (x forward, y left, z up, as URDF and MJCF use) is turned onto footopt's (x forward, y up,
+z lateral): x -> x, z -> y, y -> -z.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
+from impulse_core.model.tree import Body, JointKind, Scene, Tree
+from optimizer.config.model_file import ModelFile
+from optimizer.errors import ConfigError
+from optimizer.imports.description import FIXED, REVOLUTE, Description
+from optimizer.results.export import rpy_of
+
+#: footopt's world from the description's (rows: footopt's x, y, z in the description's axes).
+TO_FOOTOPT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+#: Joint axes within this angle (rad) count as parallel (a planar chain).
+PARALLEL = 1e-6
+#: A rod shorter than this (m) has no direction.
+SHORTEST = 1e-9
+#: The placeholder landing of an imported leg (edit it): 1 m/s straight down, plastic, frictionless.
+IMPORT_SCENE = Scene(speed=1.0, restitution=0.0, friction=0.0)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One rod of the chain in the description's world frame at the zero configuration."""
+
+    name: str  # the link that owns the rod's frame
+    merged: tuple[str, ...]  # links welded into it (itself first)
+    joint: str | None  # the revolute joint above it (None: the base)
+    mass: float
+    com: np.ndarray  # world
+    inertia: np.ndarray  # about com, world axes
+    start: np.ndarray  # world: the joint (base: the root link's origin)
+    tip: np.ndarray  # world: the next joint, or the ankle
+    axis: np.ndarray | None  # world, unit (None: the base)
+
+
+@dataclass(frozen=True)
+class Rod:
+    """What one rod of the model file loses against its segment."""
+
+    name: str
+    merged: tuple[str, ...]
+    com_offset: float  # m: distance of the centre of mass from the rod's axis (dropped)
+    com_clamped: bool  # the centre of mass lay beyond an end of the rod (moved onto it)
+    inertia_residual: float  # relative Frobenius norm of the inertia tensor's part not carried
+    flipped: bool = False  # planar: the joint turns about -z (its angle counted the other way)
+
+
+@dataclass(frozen=True)
+class ImportedLeg:
+    """A leg read from a description: the model file, per rod what it loses, what was left out."""
+
+    model: ModelFile
+    segments: tuple[Segment, ...]
+    rods: tuple[Rod, ...]
+    dropped: tuple[tuple[str, float], ...]  # (link hanging off the chain by a moving joint, its subtree's mass)
+    source: Description
+    root: str
+    ankle: str
+    foot: str | None
+    reason: str  # why planar or spatial
+
+    @property
+    def space(self) -> Space:
+        return self.model.space
+
+    def summary(self) -> str:
+        """What was imported and every approximation, one line each (the file's header too)."""
+        d = self.source
+        lines = [
+            f"footopt import of {d.path.name} ({d.format}): the leg from '{self.root}' to '{self.ankle}'"
+            + (f", foot point '{self.foot}'" if self.foot else "") + f": {len(self.rods)} rods, {self.space.name}"
+            f" ({self.reason}).",
+            "Touchdown posture: the description's zero configuration, the root link's frame as the world's;",
+            "the scene (1 m/s straight down, restitution 0, frictionless) is a placeholder: edit it.",
+            f"Contact: the tip of '{self.rods[-1].name}' (the ankle). Total mass {sum(s.mass for s in self.segments):.6g} kg.",
+        ]
+        for r, s in zip(self.rods, self.segments, strict=True):
+            welded = f" (merged: {', '.join(r.merged[1:])})" if len(r.merged) > 1 else ""
+            joint = "base" if s.joint is None else f"joint '{s.joint}'"
+            lines.append(
+                f"  {r.name}: {joint}, {s.mass:.6g} kg{welded}; "
+                + (f"centre of mass {1000 * r.com_offset:.3g} mm off the rod's axis (moved onto it"
+                   + (", past an end of the rod" if r.com_clamped else "") + ")"
+                   if r.com_offset > 1e-12 else "centre of mass on the rod's axis")
+                + (f", {100 * r.inertia_residual:.3g} % of the inertia tensor (Frobenius norm) not carried"
+                   if self.space is SPATIAL else "")
+                + ("; its joint turns about -z (the description's angle is minus footopt's)" if r.flipped else "")
+            )
+        if self.dropped:
+            lines.append("Left out (hanging off the chain by a moving joint): "
+                         + ", ".join(f"{n} ({m:.6g} kg with its subtree)" for n, m in self.dropped) + ".")
+        lines.append("Exact: masses, joint placements and axes, the ankle; approximated as above: each rod carries its")
+        lines.append("centre of mass on its axis and the inertia " + (
+            "about the joint axis through it (exact about that point)."
+            if self.space is PLANAR else "along the rod (radius) and the mean across it (inertia).")
+            + " Joint limits, damping and motors are not imported.")
+        return "\n".join(lines)
+
+
+def import_leg(desc: Description, root: str, ankle: str, foot: str | None = None, space: str = "auto") -> ImportedLeg:
+    """The leg from ``root`` to ``ankle`` of ``desc`` as a model file (see the module docstring).
+
+    Raises:
+        ConfigError: naming the option (``--root``, ``--ankle``, ``--foot``, ``--space``) or the
+            link or joint that cannot be imported.
+    """
+    for option, name in (("--root", root), ("--ankle", ankle)):
+        if name not in desc.links:
+            raise desc.error(option, f"no link named '{name}' in the file ({_some(desc.links)})")
+    path = _path(desc, root, ankle)
+    groups = _groups(desc, root, path)
+    segments, dropped = _segments(desc, groups, path, ankle, foot)
+    axes = [s.axis for s in segments if s.axis is not None]
+    parallel = all(np.linalg.norm(np.cross(axes[0], a)) <= PARALLEL for a in axes)
+    if space == "planar" and not parallel:
+        raise desc.error("--space", "planar needs every revolute joint axis of the chain parallel; these are not")
+    planar = space == "planar" or (space == "auto" and parallel)
+    reason = ("every joint axis parallel" if parallel else "joint axes not parallel") if space == "auto" else "--space"
+    tree, rods = _planar_tree(desc, segments) if planar else _spatial_tree(desc, segments)
+    model = ModelFile(tree=tree, scene=IMPORT_SCENE, space=PLANAR if planar else SPATIAL)
+    return ImportedLeg(model, tuple(segments), tuple(rods), tuple(dropped), desc, root, ankle, foot, reason)
+
+
+def _some(names) -> str:
+    names = list(names)
+    return "links: " + ", ".join(names[:12]) + (f", ... ({len(names)} in all)" if len(names) > 12 else "")
+
+
+def _path(desc: Description, root: str, ankle: str) -> list[str]:
+    """The links from root to ankle, both included."""
+    path = [ankle]
+    while path[-1] != root:
+        joint = desc.joints.get(path[-1])
+        if joint is None:
+            raise desc.error("--ankle", f"'{ankle}' does not hang below '{root}' (--root): the chain is not connected")
+        path.append(joint.parent)
+    return path[::-1]
+
+
+def _groups(desc: Description, root: str, path: list[str]) -> list[list[str]]:
+    """The chain's links grouped into rods: a revolute joint starts a new group."""
+    groups = [[root]]
+    for link in path[1:]:
+        j = desc.joints[link]
+        if j.kind == REVOLUTE:
+            groups.append([link])
+        elif j.kind == FIXED:
+            groups[-1].append(link)
+        else:
+            raise desc.error(f"joint '{j.name}'", f"is {j.kind} (from '{j.parent}' to '{j.child}'): footopt imports "
+                             "revolute and fixed joints only")
+    if len(groups) < 2:
+        raise desc.error("--ankle", f"no revolute joint between '{path[0]}' (--root) and '{path[-1]}': nothing turns")
+    return groups
+
+
+def _subtree_mass(desc: Description, link: str) -> float:
+    return desc.links[link].mass + sum(_subtree_mass(desc, j.child) for j in desc.children(link))
+
+
+def _segments(desc, groups, path, ankle, foot):
+    """Each group's rigid body (its owner's frame, every link welded to it) as a Segment in the
+    world frame, the links left out, and the rods' tips."""
+    dropped: list[tuple[str, float]] = []
+    world: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # link -> (origin, rotation) in the world, zero configuration
+    bodies = []
+    for k, group in enumerate(groups):
+        owner = group[0]
+        top = owner
+        if k == 0:
+            world[owner] = (np.zeros(3), np.eye(3))
+            while top in desc.joints and desc.joints[top].kind == FIXED:  # links the root is welded to
+                j = desc.joints[top]
+                p, R = world[top]
+                world[j.parent] = (p - R @ j.rotation.T @ j.origin, R @ j.rotation.T)
+                top = j.parent
+        else:
+            j = desc.joints[owner]
+            p, R = world[j.parent]
+            world[owner] = (p + R @ j.origin, R @ j.rotation)
+        # every link welded to the owner, depth first; moving children off the chain are left out
+        members, stack = [], [top]
+        next_start = groups[k + 1][0] if k + 1 < len(groups) else None
+        while stack:
+            link = stack.pop()
+            members.append(link)
+            for j in desc.children(link):
+                if j.child == next_start:
+                    continue
+                if j.kind == FIXED:
+                    if j.child not in world:  # (the root and the links above it are placed already)
+                        p, R = world[link]
+                        world[j.child] = (p + R @ j.origin, R @ j.rotation)
+                    stack.append(j.child)
+                else:
+                    dropped.append((j.child, _subtree_mass(desc, j.child)))
+        members.remove(owner)
+        bodies.append((owner, [owner, *members]))
+    segments = []
+    for k, (owner, members) in enumerate(bodies):
+        mass = sum(desc.links[n].mass for n in members)
+        if mass <= 0:
+            raise desc.error(f"link '{owner}'", f"has no mass (with {', '.join(members[1:]) or 'nothing'} welded to "
+                             "it): a footopt rod needs mass > 0")
+        coms = [world[n][0] + world[n][1] @ desc.links[n].com for n in members]
+        com = sum(desc.links[n].mass * c for n, c in zip(members, coms, strict=True)) / mass
+        inertia = np.zeros((3, 3))
+        for n, c in zip(members, coms, strict=True):
+            R, link = world[n][1], desc.links[n]
+            r = c - com
+            inertia += R @ link.inertia @ R.T + link.mass * (r @ r * np.eye(3) - np.outer(r, r))
+        if k + 1 < len(bodies):
+            tip = world[bodies[k + 1][0]][0]
+        else:
+            tip = _ankle_point(desc, ankle, foot, members, world)
+        start = world[owner][0]
+        joint = None if k == 0 else desc.joints[owner]
+        if k == 0 and np.linalg.norm(tip - start) < SHORTEST:
+            start = com  # the root's origin is the first joint: the base rod starts at its centre of mass
+        if np.linalg.norm(tip - start) < SHORTEST:
+            where = "--ankle" if k + 1 == len(bodies) else f"link '{owner}'"
+            hint = (" name the foot point with --foot (a link welded to it, or an MJCF site or geom)"
+                    if k + 1 == len(bodies) else " the next joint sits at its own joint")
+            raise desc.error(where, f"the rod of '{owner}' would have no length:{hint}")
+        axis = None if joint is None else world[owner][1] @ joint.axis
+        segments.append(Segment(owner, tuple(members), None if joint is None else joint.name, mass, com, inertia,
+                                start, tip, axis))
+    return segments, dropped
+
+
+def _ankle_point(desc, ankle, foot, members, world) -> np.ndarray:
+    """The last rod's tip: the foot point, else the ankle link's origin (world)."""
+    if foot is None:
+        return world[ankle][0]
+    if foot in desc.links:
+        if foot not in members:
+            raise desc.error("--foot", f"'{foot}' is not welded to the ankle's rod ({', '.join(members)})")
+        return world[foot][0]
+    if foot in desc.points:
+        link, p = desc.points[foot]
+        if link not in members:
+            raise desc.error("--foot", f"'{foot}' is on '{link}', not on the ankle's rod ({', '.join(members)})")
+        return world[link][0] + world[link][1] @ p
+    raise desc.error("--foot", f"no link, site or geom named '{foot}' in the file")
+
+
+def _onto_rod(s: Segment, x: np.ndarray, length: float) -> tuple[float, np.ndarray, bool]:
+    """The centre of mass moved onto the rod (start + f L x): f, the offset dropped, clamped?"""
+    r = s.com - s.start
+    along = float(r @ x) / length
+    f = min(max(along, 0.0), 1.0)
+    return f, r - f * length * x, f != along and abs(f - along) > 1e-12
+
+
+def _spatial_tree(desc: Description, segments: list[Segment]) -> tuple[Tree, list[Rod]]:
+    bodies, rods, frames = [], [], []
+    for k, s in enumerate(segments):
+        length = float(np.linalg.norm(s.tip - s.start))
+        x = (s.tip - s.start) / length
+        ref = s.axis if s.axis is not None else segments[1].axis
+        z = ref - (ref @ x) * x
+        if np.linalg.norm(z) < 1e-9:  # the axis along the rod: any frame across it
+            e = np.eye(3)[int(np.argmin(np.abs(x)))]
+            z = e - (e @ x) * x
+        z /= np.linalg.norm(z)
+        S_world = np.column_stack([x, np.cross(z, x), z])  # rod frame in the description's world
+        S = TO_FOOTOPT @ S_world  # in footopt's world
+        f, offset, clamped = _onto_rod(s, x, length)
+        J = S_world.T @ (s.inertia + s.mass * (offset @ offset * np.eye(3) - np.outer(offset, offset))) @ S_world
+        axial, across = float(J[0, 0]), float(0.5 * (J[1, 1] + J[2, 2]))
+        kept = np.diag([axial, across, across])
+        residual = float(np.linalg.norm(J - kept) / max(np.linalg.norm(J), 1e-300))
+        if k == 0:
+            rpy, axis, parent = rpy_of(S), (0.0, 0.0, 1.0), None
+        else:
+            rpy, parent = rpy_of(frames[-1].T @ S), k - 1
+            axis = _clean(S_world.T @ s.axis)
+        frames.append(S)
+        bodies.append(Body(
+            name=s.name, parent=parent, length=length, mass=s.mass, angle=0.0, com=f,
+            gyration=math.sqrt(across / s.mass) / length, contacts=(1.0,) if k + 1 == len(segments) else (),
+            rpy=_clean(np.array(rpy)), axis=axis, radius=math.sqrt(2.0 * axial / s.mass), joint=JointKind.REVOLUTE,
+        ))
+        rods.append(Rod(s.name, s.merged, float(np.linalg.norm(offset)), clamped, residual))
+    return Tree(tuple(bodies)), rods
+
+
+def _planar_tree(desc: Description, segments: list[Segment]) -> tuple[Tree, list[Rod]]:
+    n = segments[1].axis
+    up = np.array([0.0, 0.0, 1.0])
+    y = up - (up @ n) * n
+    if np.linalg.norm(y) < 1e-9:  # the joints turn about the vertical: the plane is horizontal
+        y = np.array([0.0, 1.0, 0.0]) - n[1] * n
+    y /= np.linalg.norm(y)
+    if np.cross(y, n)[0] < 0:  # keep the description's forward (x) forward
+        n = -n
+    x = np.cross(y, n)
+    plane = np.vstack([x, y])  # footopt's (x, y) from the description's world
+    bodies, rods, angles = [], [], []
+    for k, s in enumerate(segments):
+        a, b = plane @ s.start, plane @ s.tip
+        if k == 0 and np.linalg.norm(b - a) < SHORTEST:  # the root's origin sits on the first joint's axis
+            a = plane @ s.com
+            segments[0] = replace(s, start=s.com)
+        length = float(np.linalg.norm(b - a))
+        if length < SHORTEST:
+            raise desc.error(f"link '{s.name}'", "its rod lies along the joint axes (no length in their plane): "
+                             "the chain is not planar; pass --space spatial")
+        u = (b - a) / length
+        theta = math.atan2(u[1], u[0])
+        r = plane @ s.com - a
+        along = float(r @ u) / length
+        f = min(max(along, 0.0), 1.0)
+        offset = float(np.linalg.norm(r - f * length * u))
+        across = float(n @ s.inertia @ n) + s.mass * offset**2
+        flipped = s.axis is not None and float(s.axis @ n) < 0
+        angle = theta if k == 0 else math.remainder(theta - angles[-1], 2 * math.pi)
+        angles.append(theta)
+        bodies.append(Body(
+            name=s.name, parent=None if k == 0 else k - 1, length=length, mass=s.mass, angle=angle, com=f,
+            gyration=math.sqrt(across / s.mass) / length, contacts=(1.0,) if k + 1 == len(segments) else (),
+        ))
+        rods.append(Rod(s.name, s.merged, offset, abs(f - along) > 1e-12, 0.0, flipped))
+    return Tree(tuple(bodies)), rods
+
+
+def _clean(v: np.ndarray) -> tuple[float, ...]:
+    """Round-off below 1e-15 written as 0 (readable files; far below any tolerance)."""
+    return tuple(0.0 if abs(x) < 1e-15 else float(x) for x in v)
+
+
+__all__ = ["IMPORT_SCENE", "TO_FOOTOPT", "ImportedLeg", "Rod", "Segment", "import_leg"]

@@ -1,0 +1,83 @@
+"""MJCF as a :class:`~optimizer.imports.description.Description`, compiled by MuJoCo itself
+(``mujoco.MjModel.from_xml_path``: defaults, classes, includes and the inertia rules exactly as
+MuJoCo simulates the file), then read from the compiled model. Needs the ``mujoco`` package
+(``pip install 'footopt[mjcf]'``), imported only here.
+
+MuJoCo places a hinge anywhere in its body (``jnt_pos``): each link's frame here is its body frame
+moved to that point, so that the joint turns the link about its frame's origin as in URDF. A body
+without joints is welded to its parent (fixed); one hinge is revolute; a free joint on the root
+is the root's own and ignored; anything else (slide, ball, several joints) keeps MuJoCo's name.
+Sites and geoms are named points on their body.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from optimizer.errors import ConfigError
+from optimizer.imports.description import FIXED, REVOLUTE, Description, Joint, Link, unit
+
+
+def _rotation(quat: np.ndarray) -> np.ndarray:
+    w, x, y, z = quat / np.linalg.norm(quat)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def read_mjcf(path: Path) -> Description:
+    """The links and joints of an MJCF file, as MuJoCo compiles it."""
+    try:
+        import mujoco
+    except ImportError:
+        raise ConfigError("reading MJCF needs the mujoco package: pip install 'footopt[mjcf]' (or mujoco)", path) from None
+    try:
+        m = mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as e:  # MuJoCo's compiler errors
+        raise ConfigError(f"MuJoCo cannot compile it: {' '.join(str(e).split())}", path) from None
+    body_name = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}" for b in range(m.nbody)]
+    kinds = {int(mujoco.mjtJoint.mjJNT_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball",
+             int(mujoco.mjtJoint.mjJNT_SLIDE): "slide", int(mujoco.mjtJoint.mjJNT_HINGE): REVOLUTE}
+    anchor = np.zeros((m.nbody, 3))
+    kind = [FIXED] * m.nbody
+    axis = [np.array([1.0, 0.0, 0.0])] * m.nbody
+    joint_name = list(body_name)
+    for b in range(1, m.nbody):
+        n, adr = int(m.body_jntnum[b]), int(m.body_jntadr[b])
+        if n == 1:
+            kind[b] = kinds.get(int(m.jnt_type[adr]), "unknown")
+            joint_name[b] = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, adr) or f"{body_name[b]} joint"
+            if kind[b] == REVOLUTE:
+                anchor[b] = m.jnt_pos[adr]
+                axis[b] = unit(np.array(m.jnt_axis[adr], dtype=float), f"joint '{joint_name[b]}'.axis", path)
+        elif n > 1:
+            kind[b] = f"{n} joints"
+            joint_name[b] = f"{body_name[b]}'s {n} joints"
+    links: dict[str, Link] = {}
+    joints: dict[str, Joint] = {}
+    for b in range(m.nbody):
+        Ri = _rotation(np.array(m.body_iquat[b], dtype=float))
+        inertia = Ri @ np.diag(np.array(m.body_inertia[b], dtype=float)) @ Ri.T
+        links[body_name[b]] = Link(body_name[b], float(m.body_mass[b]), np.array(m.body_ipos[b]) - anchor[b], inertia)
+        if b == 0:
+            continue
+        p = int(m.body_parentid[b])
+        R = _rotation(np.array(m.body_quat[b], dtype=float))
+        origin = np.array(m.body_pos[b], dtype=float) + R @ anchor[b] - anchor[p]
+        joints[body_name[b]] = Joint(joint_name[b], kind[b], body_name[p], body_name[b], origin, R, axis[b])
+    points: dict[str, tuple[str, np.ndarray]] = {}
+    for obj, count, body_of, pos in ((mujoco.mjtObj.mjOBJ_GEOM, m.ngeom, m.geom_bodyid, m.geom_pos),
+                                     (mujoco.mjtObj.mjOBJ_SITE, m.nsite, m.site_bodyid, m.site_pos)):
+        for k in range(count):
+            name = mujoco.mj_id2name(m, obj, k)
+            if name:
+                b = int(body_of[k])
+                points[name] = (body_name[b], np.array(pos[k], dtype=float) - anchor[b])
+    return Description(path, "MJCF", links, joints, points)
+
+
+__all__ = ["read_mjcf"]

@@ -1,0 +1,94 @@
+"""footopt import on real URDFs (example-robot-data), checked against Pinocchio's own parse of the
+same file: masses, the joints' placement and axes and the ankle exactly; the impulse at the
+ankle against pinocchio.impulseDynamics on the same chain (planar: on a planar joint; spatial: on
+a free-flyer), where the rods' approximation (centre of mass on the rod, inertia about it) is
+measured."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL
+from impulse_core.model.rods import body_rotation, unit_axis
+from optimizer.imports.leg import TO_FOOTOPT, import_leg
+from optimizer.imports.read import read_description
+from tests.optimizer.imports.peers import footopt_impulse, footopt_joint_mass_matrix, reference, robot_file
+
+SOLO = "solo_description/robots/solo12.urdf"
+# (file, root, ankle, rods, space, |impulse / Pinocchio's - 1| at most: the rods' approximation, measured)
+LEGS = [
+    (SOLO, "FL_UPPER_LEG", "FL_FOOT", 2, PLANAR, 1e-7),  # HFE -> KFE: parallel axes (measured 4.7e-8)
+    (SOLO, "FL_SHOULDER", "FL_FOOT", 3, PLANAR, 1e-7),  # the shoulder as base (measured 1.8e-8)
+    (SOLO, "base_link", "FL_FOOT", 4, SPATIAL, 0.25),  # HAA too (measured +22 %: the shoulder's com 79 mm off its rod)
+    ("anymal_c_simple_description/urdf/anymal.urdf", "base", "LF_FOOT", 4, SPATIAL, 0.1),  # measured -7.8 %
+    ("go1_description/urdf/go1.urdf", "trunk", "FL_foot", 4, SPATIAL, 0.15),  # measured +12 %
+    ("a1_description/urdf/a1.urdf", "trunk", "FL_foot", 4, SPATIAL, 0.12),  # measured +9.9 %
+]
+
+
+def _world(leg):
+    """A spatial leg's joint positions and axes and its ankle in the description's world (the
+    root link's frame), from the model file's rods alone (footopt's frame rules, rods.py)."""
+    tree = leg.model.tree
+    R = [None] * tree.n_bodies
+    p = [None] * tree.n_bodies
+    out = []
+    start = leg.segments[0].start
+    for i, b in enumerate(tree.bodies):
+        if b.parent is None:
+            R[i], p[i] = body_rotation(b), TO_FOOTOPT @ start
+        else:
+            q = tree.bodies[b.parent]
+            p[i] = p[b.parent] + R[b.parent] @ np.array([b.at * q.length, 0.0, 0.0])
+            R[i] = R[b.parent] @ body_rotation(b)
+            out.append((TO_FOOTOPT.T @ p[i], TO_FOOTOPT.T @ R[i] @ unit_axis(b)))
+    last = tree.bodies[-1]
+    ankle = TO_FOOTOPT.T @ (p[-1] + R[-1] @ np.array([last.length, 0.0, 0.0]))
+    return out, ankle
+
+
+@pytest.mark.parametrize("robot, root, ankle, rods, space, bound", LEGS, ids=[f"{r.split('/')[0]}:{a}" for r, a, *_ in LEGS])
+def test_real_leg_against_pinocchio(robot, root, ankle, rods, space, bound):
+    path = robot_file(robot)
+    leg = import_leg(read_description(path), root, ankle)
+    assert leg.space is space and leg.model.tree.n_bodies == rods
+    ref = reference(path, root, ankle, planar_basis=TO_FOOTOPT if space is PLANAR else None)
+    # masses: every link of the chain, fixed joints merged (Pinocchio merges them on its own)
+    masses = [i.mass for i in ref.model.inertias[1:]]
+    assert [b.mass for b in leg.model.tree.bodies] == pytest.approx(masses, rel=1e-14)
+    # the ankle and the joints, from the model file's rods, in the description's frame
+    if space is SPATIAL:
+        joints, foot = _world(leg)
+        np.testing.assert_allclose(foot, ref.ankle(), atol=1e-12)
+        for (anchor, axis), (ref_anchor, ref_axis) in zip(joints, ref.joints(), strict=True):
+            np.testing.assert_allclose(anchor, ref_anchor, atol=1e-12)
+            np.testing.assert_allclose(axis, ref_axis, atol=1e-12)
+    else:
+        np.testing.assert_allclose(leg.segments[-1].tip, ref.ankle(), atol=1e-12)
+        for s, (ref_anchor, ref_axis) in zip(leg.segments[1:], ref.joints(), strict=True):
+            np.testing.assert_allclose(s.start, ref_anchor, atol=1e-12)
+            np.testing.assert_allclose(s.axis, ref_axis, atol=1e-12)
+        # the planar rods: lengths and angles are the joints' in-plane distances and directions
+        tree, plane = leg.model.tree, TO_FOOTOPT[:2]
+        tip, phi = plane @ leg.segments[0].start, 0.0
+        for b, s in zip(tree.bodies, leg.segments, strict=True):
+            phi += b.angle
+            tip = tip + b.length * np.array([np.cos(phi), np.sin(phi)])
+        np.testing.assert_allclose(tip, plane @ ref.ankle(), atol=1e-12)
+    # the impact: footopt's answer on the file against Pinocchio's on the source's chain
+    ours, theirs = footopt_impulse(leg), ref.impulse()
+    assert abs(ours / theirs - 1) <= bound, (ours, theirs)
+    # the joints' mass matrix block (the planar angles as the description counts them)
+    s = np.array([-1.0 if r.flipped else 1.0 for r in leg.rods[1:]])
+    M, M_ref = footopt_joint_mass_matrix(leg) * np.outer(s, s), ref.joint_mass_matrix()
+    assert np.abs(M - M_ref).max() / np.abs(M_ref).max() <= (1e-6 if space is PLANAR else 0.5)
+
+
+def test_solo_planar_leg_is_the_exact_rods_where_the_offsets_vanish():
+    """solo12's lower leg carries its centre of mass on the knee-foot line (the upper leg 0.014 mm
+    off it): the lower leg's rod is exact, so its impulse alone (root at the knee) is Pinocchio's."""
+    path = robot_file(SOLO)
+    leg = import_leg(read_description(path), "FL_UPPER_LEG", "FL_FOOT")
+    assert leg.rods[1].com_offset == 0.0 and leg.rods[0].com_offset == pytest.approx(1.377e-5, rel=1e-3)
+    assert leg.rods[1].merged == ("FL_LOWER_LEG", "FL_FOOT")
