@@ -336,7 +336,7 @@ def plot_top_views(feet: list[tuple[str, Tree]], path: str | Path, space: Space 
             ax.plot([o[0], t[0]], [o[2], t[2]], color=_ROD, lw=4, solid_capstyle="round", alpha=0.85)
         ax.plot(g.contacts[:, 0], g.contacts[:, 2], "o", color=_CONTACT, ms=6, label="contacts")
         ax.plot(com[0], com[2], "x", color=_EXTERNAL, ms=10, mew=2, label="centre of mass")
-        ax.set_title(f"{title}\nsupport margin {1e3 * margin:+.1f} mm", fontsize=9)
+        ax.set_title(f"{title}\nsupport margin {round(1e3 * margin, 1) + 0.0:+.1f} mm", fontsize=9)
         ax.set_xlabel("x forward [m]")
         ax.set_ylabel("z lateral [m]")
         ax.set_aspect("equal", adjustable="datalim")
