@@ -22,6 +22,14 @@ also sets the toes' mean reach, which the linear program meets as one more equal
 
 Conventions: SI units, radians, planar, x forward, y up, angles counter-clockwise; a joint angle
 is the child's angle relative to its parent (``MODEL_FORMAT.md``).
+
+Splayed toes (a spatial foot, ``FootDesign.toe_yaws``): toe i is the same planar chain turned by
+its yaw psi_i about the vertical (+y, right-handed) through the ankle: its rods stay in the
+vertical plane through the ankle along (cos psi_i, 0, -sin psi_i), so a point of the chain at
+(x, y) from the ankle in the plane lies at (x cos psi_i, y, -x sin psi_i). Heights are those of the
+planar chain, so the same linear program levels the tips; a toe's reach is its forward (x)
+distance, x cos psi_i. The heel stays in the sagittal plane (yaw 0). The model file says it by the
+toe's root rod's ``rpy``: Rz(-phi_s) Ry(psi_i) Rz(phi_s), phi_s the shank's absolute angle.
 """
 
 from __future__ import annotations
@@ -33,8 +41,10 @@ from enum import Enum
 import numpy as np
 from scipy.optimize import linprog
 
-from impulse_core.evaluate import ImpactResult, approach_velocity, compiled_model, evaluate
+from impulse_core.evaluate import ImpactResult, approach_velocity, compiled_model, evaluate, touchdown_geometry
 from impulse_core.errors import NumericalError
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
+from impulse_core.model.support import support_margin as hull_margin
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from optimizer.config.model_file import ModelFile
@@ -155,12 +165,29 @@ class FootDesign:
 
     heel: tuple[Segment, ...]
     toes: tuple[tuple[Segment, ...], ...]
+    toe_yaws: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if not self.heel or not self.toes or any(not toe for toe in self.toes):
             raise ValueError("FootDesign: the heel and every toe need at least one rod")
         if len({len(toe) for toe in self.toes}) != 1:
             raise ValueError("FootDesign: every toe has the same number of rods")
+        if self.toe_yaws is not None and len(self.toe_yaws) != len(self.toes):
+            raise ValueError("FootDesign: one yaw per toe")
+
+    @property
+    def spatial(self) -> bool:
+        """True for a splayed (spatial) foot: its toes have yaws (module docstring)."""
+        return self.toe_yaws is not None
+
+    @property
+    def space(self) -> Space:
+        return SPATIAL if self.spatial else PLANAR
+
+    @property
+    def chain_yaws(self) -> tuple[float, ...]:
+        """Yaw of every chain about the vertical (rad), heel (0) first."""
+        return (0.0, *(self.toe_yaws or (0.0,) * len(self.toes)))
 
     @property
     def shape(self) -> FootShape:
@@ -199,20 +226,40 @@ def segment_names(shape: FootShape) -> tuple[str, ...]:
 def foot_tree(leg: Leg, design: FootDesign) -> Tree:
     """The design as the impulse core's tree: thigh (base), shank, then each chain (heel first),
     hanging from the shank's tip; one contact at each chain's tip. Every declared contact is
-    one that must touch at touchdown (see :func:`intended_contacts`)."""
+    one that must touch at touchdown (see :func:`intended_contacts`). A splayed foot's toe roots
+    carry the ``rpy`` of :func:`yaw_rpy` (evaluate such a tree with ``space=SPATIAL``)."""
     bodies = [
         Body("thigh", None, leg.thigh_length, leg.thigh_mass, leg.thigh_angle, com=leg.thigh_com,
              gyration=leg.thigh_gyration),
         Body("shank", 0, leg.shank_length, leg.shank_mass, leg.knee_angle, com=leg.shank_com,
              gyration=leg.shank_gyration),
     ]
-    for names, chain in zip(chain_names(design.shape), design.chains, strict=True):
+    for names, chain, yaw in zip(chain_names(design.shape), design.chains, design.chain_yaws, strict=True):
         parent = 1
         for k, (name, s) in enumerate(zip(names, chain, strict=True)):
             tip = (1.0,) if k == len(chain) - 1 else ()
-            bodies.append(Body(name, parent, s.length, s.mass, s.joint_angle, contacts=tip))
+            body = Body(name, parent, s.length, s.mass, s.joint_angle, contacts=tip)
+            if k == 0 and yaw != 0.0:  # a splayed toe's root (a toe at yaw 0 stays in the plane)
+                body = replace(body, rpy=yaw_rpy(leg.shank_angle, yaw))
+            bodies.append(body)
             parent = len(bodies) - 1
     return Tree(tuple(bodies))
+
+
+def yaw_rpy(shank_angle: float, yaw: float) -> tuple[float, float, float]:
+    """The ``rpy`` (URDF: Rz(c) Ry(b) Rx(a)) of a toe root hanging from a shank at absolute angle
+    ``shank_angle`` (about z, the base without ``rpy``) that turns the toe's chain by ``yaw`` about
+    the world's vertical: Rz(-phi) Ry(yaw) Rz(phi)."""
+
+    def rz(a: float) -> np.ndarray:
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    c, s = math.cos(yaw), math.sin(yaw)
+    ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    R = rz(-shank_angle) @ ry @ rz(shank_angle)
+    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+    return (math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0]))
 
 
 def foot_joint_laws(leg: Leg, design: FootDesign, stop_restitution: float = 0.0) -> tuple[JointLaw, ...]:
@@ -284,6 +331,29 @@ class JointLawSpace:
         return (heel, *(toe,) * shape.n_toes)
 
 
+class SplayMode(Enum):
+    """How a spatial design space turns its toes about the vertical."""
+
+    SYMMETRIC = "symmetric"  # one splay s: toe i of n at yaw -s + 2 s i / (n - 1) (one toe: 0)
+    PER_TOE = "per_toe"  # each toe its own yaw within the range
+
+
+def symmetric_yaws(n_toes: int, splay: float) -> tuple[float, ...]:
+    """Yaws of ``n_toes`` toes spread evenly from -splay (toe 1) to +splay (toe n); one toe: 0."""
+    if n_toes == 1:
+        return (0.0,)
+    return tuple(-splay + 2.0 * splay * i / (n_toes - 1) for i in range(n_toes))
+
+
+@dataclass(frozen=True)
+class SplaySpace:
+    """A spatial foot's splay: ``splay`` (rad) is the range of the symmetric splay s (0 <= lo)
+    or, per toe, of each toe's yaw."""
+
+    splay: tuple[float, float] = (0.0, 0.6)
+    mode: SplayMode = SplayMode.SYMMETRIC
+
+
 @dataclass(frozen=True)
 class DesignSpace:
     """The discrete part of a study's design space (inclusive ranges), and the joint laws a
@@ -296,6 +366,7 @@ class DesignSpace:
         toe_symmetry: identical toes (fewer values; the planar model cannot tell identical toes
             in one plane from one heavier toe) or independent ones.
         joint_laws: the springs, dampers and stops searched per joint family.
+        splay: a spatial foot's splay (None: the planar foot).
     """
 
     toes: tuple[int, int] = (1, 3)
@@ -303,6 +374,11 @@ class DesignSpace:
     heel_segments: tuple[int, int] = (1, 1)
     toe_symmetry: ToeSymmetry = ToeSymmetry.IDENTICAL
     joint_laws: JointLawSpace = JointLawSpace()
+    splay: SplaySpace | None = None
+
+    @property
+    def spatial(self) -> bool:
+        return self.splay is not None
 
     def shapes(self) -> tuple[FootShape, ...]:
         """Every foot shape of the space, fewest toes first."""
@@ -340,6 +416,8 @@ class FootLimits:
         heel_root, heel_inner, toe_root, toe_inner: joint angle limits (rad): the heel's and the
             toes' joints at the ankle (relative to the shank) and the joints inside a chain.
         contact_tolerance: every chain tip lies within this height of the ground at touchdown (m).
+        support_margin: a spatial foot's centre of mass, projected on the ground, lies at least
+            this far inside the convex hull of its contacts (m; None: not constrained).
     """
 
     foot_mass: float = 0.5
@@ -353,6 +431,7 @@ class FootLimits:
     toe_root: tuple[float, float] = (0.3, 1.6)
     toe_inner: tuple[float, float] = (-1.0, 0.6)
     contact_tolerance: float = 1e-6
+    support_margin: float | None = None
 
     def joint_limits(self, shape: FootShape) -> tuple[tuple[tuple[float, float], ...], ...]:
         """Angle limits of every foot joint, per chain (heel first)."""
@@ -476,6 +555,25 @@ class ConstraintValues:
         return tuple((name, max(0.0, v - FEASIBILITY_TOL)) for name, v in self.items())
 
 
+@dataclass(frozen=True)
+class SupportConstraintValues(ConstraintValues):
+    """The constraint values of a study that constrains the support polygon
+    (``constraints.support_margin``): those of :class:`ConstraintValues`, and
+
+    Attributes:
+        support_margin: the bound - the support margin (:func:`foot_support_margin`), m.
+    """
+
+    support_margin: float = 0.0
+
+
+def constraint_record(values: dict[str, float]) -> ConstraintValues:
+    """Constraint values from their ``items()`` (a trial's record): with ``support_margin``, the
+    support-constrained kind."""
+    kind = SupportConstraintValues if "support_margin" in values else ConstraintValues
+    return kind(**values)
+
+
 #: The study-file field behind each constraint value (None: a law of physics, not a setting).
 CONSTRAINT_FIELDS = {
     "foot_mass": "constraints.foot_mass",
@@ -487,6 +585,7 @@ CONSTRAINT_FIELDS = {
     "clearance": "constraints.min_clearance",
     "pulling": None,
     "energy_gain": None,
+    "support_margin": "constraints.support_margin",
 }
 
 
@@ -498,11 +597,13 @@ class FootGeometry:
         tips: (x, y) of each chain tip, heel first.
         joints: (x, y) of the joints inside the chains (not the ankle).
         leg_points: (x, y) of the hip and the knee.
+        tips_z: lateral position (z) of each chain tip (zeros for a planar foot).
     """
 
     tips: np.ndarray
     joints: np.ndarray
     leg_points: np.ndarray
+    tips_z: np.ndarray | None = None
 
     @property
     def ground(self) -> float:
@@ -522,26 +623,44 @@ class FootGeometry:
 
 def foot_geometry(leg: Leg, design: FootDesign) -> FootGeometry:
     """Where the chain tips and joints are at touchdown, the ankle at the origin."""
-    tips, joints = [], []
-    for chain, angles in zip(design.chains, absolute_angles(leg, design), strict=True):
+    tips, joints, lateral = [], [], []
+    for chain, angles, yaw in zip(design.chains, absolute_angles(leg, design), design.chain_yaws, strict=True):
         p = np.zeros(2)
         for k, (s, phi) in enumerate(zip(chain, angles, strict=True)):
             p = p + s.length * np.array([math.cos(phi), math.sin(phi)])
-            (tips if k == len(chain) - 1 else joints).append(p)
+            turned = np.array([p[0] * math.cos(yaw), p[1]]) if design.spatial else p
+            (tips if k == len(chain) - 1 else joints).append(turned)
+        if design.spatial:  # the chain's plane turned by its yaw (module docstring)
+            lateral.append(-p[0] * math.sin(yaw))
     u_shank = np.array([math.cos(leg.shank_angle), math.sin(leg.shank_angle)])
     u_thigh = np.array([math.cos(leg.thigh_angle), math.sin(leg.thigh_angle)])
     knee = -leg.shank_length * u_shank
     hip = knee - leg.thigh_length * u_thigh
-    return FootGeometry(np.array(tips), np.array(joints).reshape(-1, 2), np.array([hip, knee]))
+    tips_z = np.array(lateral) if design.spatial else None
+    return FootGeometry(np.array(tips), np.array(joints).reshape(-1, 2), np.array([hip, knee]), tips_z)
 
 
-def objectives(result: ImpactResult) -> Objectives:
-    """The designer's objectives from the core's result (base: the thigh, DOF 2 is its rate)."""
+def foot_support_margin(leg: Leg, design: FootDesign) -> float:
+    """The support margin of the design's model (m): the signed distance from the whole tree's
+    centre of mass, projected on the ground (x, z), to the boundary of the convex hull of its
+    contacts' projections, > 0 inside (:mod:`impulse_core.model.support`; as ``footopt evaluate``
+    reports it for the model file)."""
+    tree = foot_tree(leg, design)
+    geometry = touchdown_geometry(tree, SPATIAL)
+    masses = np.array([b.mass for b in tree.bodies])
+    com = masses @ geometry.coms / masses.sum()
+    return hull_margin(geometry.contacts[:, [0, 2]], com[[0, 2]])
+
+
+def objectives(result: ImpactResult, space: Space = PLANAR) -> Objectives:
+    """The designer's objectives from the core's result (base: the thigh; in the plane DOF 2 is
+    its rate, in space DOFs 3-5 its angular velocity, whose norm is taken)."""
+    turn = abs(float(result.v_plus[2])) if space is PLANAR else float(np.linalg.norm(result.v_plus[3:6]))
     return Objectives(
         external_norm=result.external_norm,
         internal_norm=result.internal_norm,
         max_internal=result.max_internal,
-        base_angular_velocity=abs(float(result.v_plus[2])),
+        base_angular_velocity=turn,
         energy_after=result.energy_after,
     )
 
@@ -563,7 +682,7 @@ def constraint_values(
             excursions.append(max(lo - s.joint_angle, s.joint_angle - hi))
     mass_excess = design.foot_mass - limits.foot_mass
     heights = geo.tips[:, 1]
-    return ConstraintValues(
+    values = ConstraintValues(
         foot_mass=abs(mass_excess) if limits.mass_mode is MassMode.EQUAL else mass_excess,
         min_link_mass=float(limits.min_link_mass - masses.min()),
         mass_per_length=float(max((density - hi_rho).max(), (lo_rho - density).max())),
@@ -574,6 +693,10 @@ def constraint_values(
         pulling=0.0 if result is None else float(-result.external.min()),
         energy_gain=0.0 if result is None else float(result.energy_after - result.energy_before),
     )
+    if limits.support_margin is None:
+        return values
+    return SupportConstraintValues(**dict(values.items()),
+                                   support_margin=float(limits.support_margin - foot_support_margin(leg, design)))
 
 
 # --------------------------------------------------------------------------------------------
@@ -604,10 +727,12 @@ def assign_lengths(
     masses: tuple[tuple[float, ...], ...],
     limits: FootLimits,
     reach: float | None = None,
+    toe_yaws: tuple[float, ...] | None = None,
 ) -> LengthAssignment | None:
     """Rod lengths that put every chain tip on one ground line and keep the geometric limits
     (and, given ``reach``, make the toes' mean heel-to-toe distance equal to it: lengths matter
-    over a whole landing, so a whole-landing search sets the foot's size).
+    over a whole landing, so a whole-landing search sets the foot's size). Splayed toes
+    (``toe_yaws``) reach forward by cos(yaw) of their run in their plane.
 
     Given the angles, each tip's height below the ankle is sum_i L_i (-sin phi_i): linear in the
     lengths, as are the reaches, the clearances and the length bounds from mass per length. The
@@ -639,7 +764,7 @@ def assign_lengths(
     )
     if design0.shape != shape:
         raise ValueError(f"assign_lengths: angles and masses do not have the shape {shape}")
-    lp = _LengthRows.of(absolute_angles(leg, design0))
+    lp = _LengthRows.of(absolute_angles(leg, design0), toe_yaws)
     lp.level_tips()
     lp.mass_per_length(np.array([m for c in masses for m in c]), limits.mass_per_length)
     lp.reaches(limits.foot_length, reach)
@@ -660,9 +785,13 @@ class _LengthRows:
     b_ub: list[float] = field(default_factory=list)
 
     @classmethod
-    def of(cls, angles: tuple[tuple[float, ...], ...]) -> _LengthRows:
+    def of(cls, angles: tuple[tuple[float, ...], ...], toe_yaws: tuple[float, ...] | None = None) -> _LengthRows:
         phi = np.array([a for c in angles for a in c])
-        return cls(-np.sin(phi), np.cos(phi), [len(c) for c in angles])
+        run = np.cos(phi)
+        if toe_yaws is not None:  # a splayed toe's forward run: its run in its plane x cos(yaw)
+            yaws = (0.0, *toe_yaws)
+            run = run * np.array([math.cos(yaws[i]) for i, c in enumerate(angles) for _ in c])
+        return cls(-np.sin(phi), run, [len(c) for c in angles])
 
     @property
     def n(self) -> int:
@@ -773,7 +902,7 @@ def with_lengths(design_angles_masses: FootDesign, assignment: LengthAssignment)
         tuple(replace(s, length=L) for s, L in zip(chain, lengths, strict=True))
         for chain, lengths in zip(design_angles_masses.chains, assignment.lengths, strict=True)
     ]
-    return FootDesign(heel=chains[0], toes=tuple(chains[1:]))
+    return FootDesign(heel=chains[0], toes=tuple(chains[1:]), toe_yaws=design_angles_masses.toe_yaws)
 
 
 def design_from(
@@ -782,10 +911,11 @@ def design_from(
     masses: tuple[tuple[float, ...], ...],
     limits: FootLimits,
     reach: float | None = None,
+    toe_yaws: tuple[float, ...] | None = None,
 ) -> FootDesign:
-    """The foot with these angles and masses (per chain, heel first) and lengths from
-    :func:`assign_lengths` (with its ``reach``); when no lengths level the tips, every rod gets
-    0.1 m (the constraint values then say how far off the design is)."""
+    """The foot with these angles and masses (per chain, heel first), toe yaws (a splayed foot;
+    None: planar) and lengths from :func:`assign_lengths` (with its ``reach``); when no lengths
+    level the tips, every rod gets 0.1 m (the constraint values then say how far off the design is)."""
     shape = FootShape(len(joint_angles) - 1, len(joint_angles[1]), len(joint_angles[0]))
     unit = FootDesign(
         heel=tuple(Segment(0.1, m, a) for m, a in zip(masses[0], joint_angles[0], strict=True)),
@@ -793,8 +923,9 @@ def design_from(
             tuple(Segment(0.1, m, a) for m, a in zip(ms, js, strict=True))
             for ms, js in zip(masses[1:], joint_angles[1:], strict=True)
         ),
+        toe_yaws=toe_yaws,
     )
-    assignment = assign_lengths(leg, shape, joint_angles, masses, limits, reach)
+    assignment = assign_lengths(leg, shape, joint_angles, masses, limits, reach, toe_yaws)
     return unit if assignment is None else with_lengths(unit, assignment)
 
 
@@ -839,8 +970,8 @@ def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimi
     )
     try:
         with np.errstate(all="ignore"):
-            result = evaluate(tree, scene_all)
-            newton = newton_impulses(tree, scene_all)
+            result = evaluate(tree, scene_all, space=design.space)
+            newton = newton_impulses(tree, scene_all, design.space)
     except (ArithmeticError, np.linalg.LinAlgError, NumericalError):
         return DesignEvaluation(design, None, constraint_values(leg, design, limits))
     if not (np.all(np.isfinite(newton)) and np.isfinite(result.external_norm) and np.isfinite(result.internal_norm)):
@@ -850,16 +981,18 @@ def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimi
     # the complementarity answer (the contact separates): a foot whose intended contact does not
     # take part is not the design asked for.
     values = replace(values, pulling=max(values.pulling, float(-newton.min())))
-    return DesignEvaluation(design, objectives(result), values)
+    return DesignEvaluation(design, objectives(result, design.space), values)
 
 
-def newton_impulses(tree: Tree, scene: Scene) -> np.ndarray:
+def newton_impulses(tree: Tree, scene: Scene, space: Space = PLANAR) -> np.ndarray:
     """The normal impulses of Newton's law at every declared contact (paper eq. 11), from the
     core's compiled model: negative where the law would make a contact pull."""
     topology = tree.topology()
-    out = compiled_model(topology).impact(
-        p=design_vector(tree), v_minus=approach_velocity(topology, scene.speed), restitution=scene.restitution
-    )
+    if space is PLANAR:
+        v_minus, p = approach_velocity(topology, scene.speed), design_vector(tree)
+    else:
+        v_minus, p = approach_velocity(topology, scene.speed, space), design_vector(tree, space.body_values)
+    out = compiled_model(topology, space).impact(p=p, v_minus=v_minus, restitution=scene.restitution)
     return np.array(out["external"]).ravel()
 
 
@@ -873,7 +1006,7 @@ def design_model(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimits,
     """The design's model file (its scene: :func:`landing_scene`; joint laws where any acts)."""
     joints = foot_joint_laws(leg, design, stop_restitution)
     laws = joints if any(not j.is_default for j in joints) else ()
-    return ModelFile(foot_tree(leg, design), landing_scene(scene, limits), joints=laws)
+    return ModelFile(foot_tree(leg, design), landing_scene(scene, limits), joints=laws, space=design.space)
 
 
 #: A study's budget for one design's landing: a design that needs more impacts or finer steps
@@ -925,12 +1058,16 @@ def evaluate_design_landing(
 __all__ = [
     "FEASIBILITY_TOL",
     "ConstraintValues",
+    "SupportConstraintValues",
+    "constraint_record",
     "DesignEvaluation",
     "DesignSpace",
     "FootDesign",
     "FootGeometry",
     "FootLimits",
     "FootShape",
+    "SplayMode",
+    "SplaySpace",
     "JOINT_FAMILIES",
     "JointLawSpace",
     "JointRanges",
@@ -953,6 +1090,9 @@ __all__ = [
     "landing_objectives",
     "foot_geometry",
     "foot_joint_laws",
+    "foot_support_margin",
+    "symmetric_yaws",
+    "yaw_rpy",
     "foot_tree",
     "intended_contacts",
     "landing_scene",

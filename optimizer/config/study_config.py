@@ -36,6 +36,8 @@ from optimizer.design_space import (
     Leg,
     MassMode,
     Objective,
+    SplayMode,
+    SplaySpace,
     ToeSymmetry,
 )
 from optimizer.errors import ConfigError
@@ -133,7 +135,9 @@ SCENE_KEYS = ("speed", "restitution", "friction", "gravity", "duration")
 LEG_KEYS = ("thigh", "shank", "file")
 ROD_KEYS = ("length", "mass", "angle", "com", "gyration")
 KNEE_KEYS = ("stiffness", "damping", "limits", "stop_restitution")
-SPACE_KEYS = ("toes", "toe_segments", "heel_segments", "toe_symmetry", "joint_laws")
+SPACE_KEYS = ("toes", "toe_segments", "heel_segments", "toe_symmetry", "joint_laws", "space", "splay", "splay_mode")
+#: ``design_space.space``: the planar foot, or a spatial one with splayed toes.
+SPACES = ("planar", "spatial")
 JOINT_SPACE_KEYS = (*JOINT_FAMILIES, "stop_restitution")
 FAMILY_KEYS = ("stiffness", "damping", "stop")
 CONSTRAINT_KEYS = (
@@ -145,6 +149,7 @@ CONSTRAINT_KEYS = (
     "min_clearance",
     "joint_angles",
     "contact_tolerance",
+    "support_margin",
 )
 ANGLE_KEYS = ("heel_root", "heel_inner", "toe_root", "toe_inner")
 SEARCH_KEYS = ("method", "sampler", "trials", "startup_trials", "population", "inner", "landing_tolerance")
@@ -218,9 +223,28 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
         statistic=_statistic(top.get("statistic", {})),
     )
     _check_whole_landing(config)
+    _check_spatial(config)
     if config.landings is not None:
         _check_landings(config, config.landings)
     return config
+
+
+def _check_spatial(config: StudyConfig) -> None:
+    """What a spatial design space (splayed toes) needs, and what only it takes."""
+    if not config.space.spatial:
+        if config.limits.support_margin is not None:
+            raise ConfigError("constraints.support_margin: needs design_space.space: spatial (a planar foot's "
+                              "contacts lie on one line: its margin is at most 0)")
+        return
+    if config.search.method is SearchMethod.INNER:
+        raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only; "
+                          "search.method: outer searches spatial ones")
+    if config.whole_landing:
+        raise ConfigError("design_space.space: the whole landing is planar so far: a spatial design space takes "
+                          "first-impact objectives only")
+    if config.landings is not None:
+        raise ConfigError("landings: a distribution of landings takes planar design spaces only so far "
+                          "(design_space.space: spatial)")
 
 
 def _check_landings(config: StudyConfig, landings: Landings) -> None:
@@ -431,7 +455,32 @@ def _space(data: Any) -> DesignSpace:
     heel = _int_range(m.get("heel_segments", list(d.heel_segments)), "design_space.heel_segments", 1, MAX_SEGMENTS)
     symmetry = _choice(m.get("toe_symmetry", d.toe_symmetry.value), "design_space.toe_symmetry", ToeSymmetry)
     laws = _joint_law_space(m.get("joint_laws", {}))
-    return DesignSpace(toes=toes, toe_segments=toe_segments, heel_segments=heel, toe_symmetry=symmetry, joint_laws=laws)
+    return DesignSpace(toes=toes, toe_segments=toe_segments, heel_segments=heel, toe_symmetry=symmetry, joint_laws=laws,
+                       splay=_splay(m))
+
+
+def _splay(m: dict[str, Any]) -> SplaySpace | None:
+    """``design_space.space`` and, for a spatial foot, ``splay`` and ``splay_mode``."""
+    w = "design_space"
+    space = m.get("space", "planar")
+    if space not in SPACES:
+        raise ConfigError(f"{w}.space: must be one of {', '.join(SPACES)}, got {_describe(space)}")
+    if space == "planar":
+        for key in ("splay", "splay_mode"):
+            if key in m:
+                raise ConfigError(f"{w}.{key}: needs design_space.space: spatial (a planar foot has no splay)")
+        return None
+    d = SplaySpace()
+    mode = _choice(m.get("splay_mode", d.mode.value), f"{w}.splay_mode", SplayMode)
+    lo, hi = (_number(x, f"{w}.splay[{k}]") for k, x in enumerate(_pair(m.get("splay", list(d.splay)), f"{w}.splay", "numbers")))
+    if mode is SplayMode.SYMMETRIC and lo < 0:
+        raise ConfigError(f"{w}.splay[0]: the symmetric splay is >= 0 (rad; toes spread from -splay to +splay), got {lo!r}")
+    if lo > hi:
+        raise ConfigError(f"{w}.splay: min {lo!r} is above max {hi!r}")
+    if max(abs(lo), abs(hi)) >= math.pi / 2:
+        raise ConfigError(f"{w}.splay: a toe's yaw must stay within (-pi/2, pi/2) rad (it would point backwards), "
+                          f"got [{lo!r}, {hi!r}]")
+    return SplaySpace((lo, hi), mode)
 
 
 def _joint_law_space(data: Any) -> JointLawSpace:
@@ -470,6 +519,7 @@ def _limits(data: Any) -> FootLimits:
     tol = _number(m.get("contact_tolerance", d.contact_tolerance), f"{w}.contact_tolerance")
     if tol < 0:
         raise ConfigError(f"{w}.contact_tolerance: must be >= 0 (m), got {tol!r}")
+    margin = None if m.get("support_margin") is None else _number(m["support_margin"], f"{w}.support_margin")
     a = _mapping(m.get("joint_angles", {}), f"{w}.joint_angles", ANGLE_KEYS)
     angles = {k: _float_range(a.get(k, list(getattr(d, k))), f"{w}.joint_angles.{k}") for k in ANGLE_KEYS}
     return FootLimits(
@@ -480,6 +530,7 @@ def _limits(data: Any) -> FootLimits:
         foot_length=length,
         min_clearance=clearance,
         contact_tolerance=tol,
+        support_margin=margin,
         **angles,
     )
 
@@ -542,6 +593,7 @@ def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
         f"  heel_segments: [{sp.heel_segments[0]}, {sp.heel_segments[1]}]",
         f"  toe_symmetry: {sp.toe_symmetry.value}",
         *_joint_law_space_lines(sp.joint_laws),
+        *_splay_lines(sp.splay),
         "constraints:",
         f"  foot_mass: {f(lim.foot_mass)}",
         f"  foot_mass_mode: {lim.mass_mode.value}",
@@ -552,6 +604,7 @@ def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
         "  joint_angles:",
         *(f"    {k}: [{f(getattr(lim, k)[0])}, {f(getattr(lim, k)[1])}]" for k in ANGLE_KEYS),
         f"  contact_tolerance: {f(lim.contact_tolerance)}",
+        *([] if lim.support_margin is None else [f"  support_margin: {f(lim.support_margin)}"]),
         f"objectives: [{', '.join(o.value for o in config.objectives)}]",
         "search:",
         f"  method: {se.method.value}",
@@ -591,6 +644,14 @@ def _mass_text(leg: Leg, rod: str) -> str:
         if value != getattr(d, f"{rod}_{key}"):
             parts.append(f", {key}: {_float_text(value)}")
     return "".join(parts)
+
+
+def _splay_lines(splay: SplaySpace | None) -> list[str]:
+    """``design_space.space`` and its splay (nothing for the planar foot)."""
+    if splay is None:
+        return []
+    lo, hi = (_float_text(x) for x in splay.splay)
+    return ["  space: spatial", f"  splay: [{lo}, {hi}]", f"  splay_mode: {splay.mode.value}"]
 
 
 def _knee_text(leg: Leg) -> str:

@@ -8,7 +8,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from impulse_core.evaluate import Geometry, ImpactResult
+from impulse_core.evaluate import Geometry, ImpactResult, touchdown_geometry
+from impulse_core.kinematics.spatial import SPATIAL, Space
+from impulse_core.model.support import convex_hull, support_margin
 from impulse_core.model.terrain import FLAT, height, slope_normal, vertical_clearance
 from impulse_core.model.tree import Scene, Tree
 from optimizer.errors import ConfigError
@@ -249,7 +251,7 @@ def plot_speed(report: SpeedReport, path: str | Path) -> Path:
     return _save(fig, path)
 
 
-__all__ = ["PLOT_SUFFIXES", "plot_speed", "plot_touchdown"]
+__all__ = ["PLOT_SUFFIXES", "plot_speed", "plot_top_views", "plot_touchdown", "plot_views"]
 
 
 #: The three views of a spatial foot: (title, horizontal world axis, vertical world axis).
@@ -297,4 +299,50 @@ def plot_views(tree: Tree, geometry: Geometry, result: ImpactResult, path: str |
         ax.grid(alpha=0.3)
     fig.suptitle(f"{title}\nexternal_norm {result.external_norm:.4f} N s, internal_norm {result.internal_norm:.4f} N s"
                  " (external impulses in red, N s)")
+    return _save(fig, path)
+
+
+def plot_top_views(feet: list[tuple[str, Tree]], path: str | Path, space: Space = SPATIAL) -> Path:
+    """Each foot seen from above (x forward, z lateral), one panel per foot: its rods, its
+    contacts, the support polygon (the convex hull of the contacts on the ground) and the whole
+    tree's centre of mass projected on the ground, with the support margin
+    (:mod:`impulse_core.model.support`: > 0 inside) in the panel's title.
+
+    Raises:
+        ConfigError: an unsupported suffix, or the file cannot be written.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    path = _plot_path(path)
+    n = max(len(feet), 1)
+    cols = min(n, 4)
+    rows = (n + cols - 1) // cols
+    fig = Figure(figsize=(4.2 * cols, 4.2 * rows))
+    FigureCanvasAgg(fig)
+    for k, (title, tree) in enumerate(feet):
+        g = touchdown_geometry(tree, space)
+        masses = np.array([b.mass for b in tree.bodies])
+        com = masses @ g.coms / masses.sum()
+        ground = g.contacts[:, [0, 2]]
+        margin = support_margin(ground, com[[0, 2]])
+        ax = fig.add_subplot(rows, cols, k + 1)
+        hull = convex_hull(ground)
+        if len(hull) >= 3:
+            ax.fill(hull[:, 0], hull[:, 1], color=_CONTACT, alpha=0.15, lw=0)
+        closed = np.vstack([hull, hull[:1]])
+        ax.plot(closed[:, 0], closed[:, 1], "--", color=_CONTACT, lw=1, label="support polygon")
+        for o, t in zip(g.origins, g.tips, strict=True):
+            ax.plot([o[0], t[0]], [o[2], t[2]], color=_ROD, lw=4, solid_capstyle="round", alpha=0.85)
+        ax.plot(g.contacts[:, 0], g.contacts[:, 2], "o", color=_CONTACT, ms=6, label="contacts")
+        ax.plot(com[0], com[2], "x", color=_EXTERNAL, ms=10, mew=2, label="centre of mass")
+        ax.set_title(f"{title}\nsupport margin {round(1e3 * margin, 1) + 0.0:+.1f} mm", fontsize=9)
+        ax.set_xlabel("x forward [m]")
+        ax.set_ylabel("z lateral [m]")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        if k == 0:
+            ax.legend(fontsize=7, loc="best")
+    fig.suptitle("top views (from above): rods, contacts, support polygon, centre of mass on the ground")
+    fig.tight_layout()
     return _save(fig, path)

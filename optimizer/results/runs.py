@@ -49,6 +49,7 @@ from optimizer.design_space import (
     Objective,
     chain_names,
     foot_geometry,
+    foot_support_margin,
     design_model,
     foot_tree,
     landing_scene,
@@ -56,16 +57,18 @@ from optimizer.design_space import (
 from optimizer.errors import ConfigError
 from optimizer.results.export import ExportFormat, export_text
 from optimizer.report.html import REPORT_FILE, ReportPoint, write_report
-from optimizer.report.plot import plot_touchdown
+from optimizer.report.plot import plot_top_views, plot_touchdown, plot_views
 from optimizer.results.pareto import non_dominated
 from optimizer.results.scenarios import SCENARIOS_FILE, SCENARIOS_PLOT, write_scenarios
 from optimizer.search.outer import RecordedTrial, recorded_trials
 
 STUDY_FILE, STORAGE_FILE, RUN_FILE = "study.yaml", "study.journal", "run.json"
 CSV_FILE, JSON_FILE, PLOT_FILE, DESIGNS_DIR = "pareto.csv", "pareto.json", "front.png", "designs"
+#: A spatial study's front designs seen from above (support polygons, centres of mass).
+TOP_VIEW_FILE = "top_views.png"
 #: Files footopt writes in a run directory (and may replace).
 OWN_FILES = (STUDY_FILE, STORAGE_FILE, RUN_FILE, CSV_FILE, JSON_FILE, PLOT_FILE, REPORT_FILE, SCENARIOS_FILE,
-             SCENARIOS_PLOT)
+             SCENARIOS_PLOT, TOP_VIEW_FILE)
 #: The objective columns of every front file: the first impact's, and the whole landing's when
 #: the study scores it (:func:`objective_columns`).
 OBJECTIVE_COLUMNS = tuple(o.value for o in Objective if not o.landing)
@@ -306,8 +309,9 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
     scene = landing_scene(config.scene, config.limits)
     for t in front:
         rel = Path(DESIGNS_DIR) / f"trial_{t.number:05d}.yaml"
-        tree = foot_tree(config.leg, t.evaluation.design)
-        result = evaluate(tree, scene)
+        design = t.evaluation.design
+        tree = foot_tree(config.leg, design)
+        result = evaluate(tree, scene, space=design.space)
         reference = Reference(
             source=f"footopt optimize, study '{config.name}', trial {t.number} ({t.method} search)",
             external=tuple(float(x) for x in result.external),
@@ -329,10 +333,15 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
                                      config.space.joint_laws.stop_restitution), reference=reference)
         dump_model_file(model, run_dir / rel, header_comment=header)
         for fmt in ExportFormat:
-            text = export_text(tree, scene, fmt, name=rel.stem, joints=model.joints)
+            extra = {"space": design.space} if design.spatial else {}
+            text = export_text(tree, scene, fmt, name=rel.stem, joints=model.joints, **extra)
             (run_dir / rel).with_suffix(fmt.suffix).write_text(text, encoding="utf-8")
         title = f"trial {t.number} ({t.evaluation.design.shape.label})"
-        plot_touchdown(tree, touchdown_geometry(tree), result, run_dir / rel.with_suffix(DRAWING_SUFFIX), title, scene)
+        drawing = run_dir / rel.with_suffix(DRAWING_SUFFIX)
+        if design.spatial:
+            plot_views(tree, touchdown_geometry(tree, design.space), result, drawing, title)
+        else:
+            plot_touchdown(tree, touchdown_geometry(tree), result, drawing, title, scene)
         points.append(FrontPoint(t.number, t.method, t.evaluation, rel))
     (run_dir / CSV_FILE).write_text(front_csv(config, points), encoding="utf-8")
     (run_dir / JSON_FILE).write_text(json.dumps(front_json(config, points), indent=2) + "\n", encoding="utf-8")
@@ -345,6 +354,12 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
     else:  # no empty plot or page: the command says why nothing is shown
         (run_dir / PLOT_FILE).unlink(missing_ok=True)
         (run_dir / REPORT_FILE).unlink(missing_ok=True)
+    if points and config.space.spatial:
+        feet = [(f"trial {p.trial} ({p.evaluation.design.shape.label})", foot_tree(config.leg, p.evaluation.design))
+                for p in points]
+        plot_top_views(feet, run_dir / TOP_VIEW_FILE)
+    else:
+        (run_dir / TOP_VIEW_FILE).unlink(missing_ok=True)
     return points
 
 
@@ -389,6 +404,9 @@ def design_values(config: StudyConfig, evaluation: DesignEvaluation) -> dict[str
     out["ankle_height"] = -geo.ground
     out["foot_length"] = float(geo.reaches.max())
     out["foot_mass"] = design.foot_mass
+    if design.toe_yaws is not None:  # a splayed foot: each toe's yaw (rad) and its support margin (m)
+        out.update({f"toe{i + 1}.yaw": float(y) for i, y in enumerate(design.toe_yaws)})
+        out["support_margin"] = foot_support_margin(config.leg, design)
     return out
 
 
@@ -415,7 +433,7 @@ def front_csv(config: StudyConfig, points: list[FrontPoint]) -> str:
     (empty where a design has no such rod)."""
     rows = [_row(config, p) for p in points]
     columns: list[str] = ["trial", "method", "shape", "toes", "toe_segments", "heel_segments", *objective_columns(config)]
-    columns += ["model_file"] + [f"constraint.{n}" for n in _constraint_names()]
+    columns += ["model_file"] + [f"constraint.{n}" for n in _constraint_names(config)]
     for row in rows:
         columns += [k for k in row if k not in columns]
     buffer = io.StringIO()
@@ -426,12 +444,15 @@ def front_csv(config: StudyConfig, points: list[FrontPoint]) -> str:
     return buffer.getvalue()
 
 
-def _constraint_names() -> list[str]:
+def _constraint_names(config: StudyConfig) -> list[str]:
+    """The constraint columns: every constraint value, ``support_margin`` only where the study
+    constrains it."""
     from dataclasses import fields
 
-    from optimizer.design_space import ConstraintValues
+    from optimizer.design_space import ConstraintValues, SupportConstraintValues
 
-    return [f.name for f in fields(ConstraintValues)]
+    kind = ConstraintValues if config.limits.support_margin is None else SupportConstraintValues
+    return [f.name for f in fields(kind)]
 
 
 def front_json(config: StudyConfig, points: list[FrontPoint]) -> dict[str, Any]:

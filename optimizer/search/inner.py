@@ -54,7 +54,7 @@ from optimizer.design_space import (
     constraint_values,
 )
 from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, NlpCache, foot_kind
-from optimizer.errors import interrupted
+from optimizer.errors import ConfigError, interrupted
 from optimizer.search.outer import evaluate_design_over_landings, objective_values, record_attrs
 
 #: Weights of the two anchors: each objective first, the other as a tie-break.
@@ -329,7 +329,14 @@ def run_inner(
 
     Returns:
         The number of shapes swept now.
+
+    Raises:
+        ConfigError: a spatial design space (splayed toes): the inner search's compiled NLPs are
+            planar; the outer search takes it (the study file's validation says so first).
     """
+    if config.space.spatial:
+        raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only; "
+                          "search.method: outer searches spatial ones")
     shapes = config.space.shapes()
     sp = config.space
     distributions = {

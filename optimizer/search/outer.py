@@ -32,7 +32,6 @@ from optuna.trial import FrozenTrial, TrialState
 from impulse_core.compile.codegen import batch_kernel, compile_function
 from optimizer.config.study_config import SamplerKind, SearchSettings, StudyConfig
 from optimizer.design_space import (
-    ConstraintValues,
     DesignEvaluation,
     FootDesign,
     FootLimits,
@@ -41,12 +40,15 @@ from optimizer.design_space import (
     Objectives,
     Segment,
     JOINT_FAMILIES,
+    SplayMode,
     ToeSymmetry,
+    constraint_record,
     constraint_values,
     design_from,
     design_model,
     evaluate_design,
     evaluate_design_landing,
+    symmetric_yaws,
 )
 from optimizer.evaluation.robust import statistics_over_landings
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
@@ -71,7 +73,10 @@ def design_record(design: FootDesign) -> dict[str, Any]:
             values += [float(s.stiffness), float(s.damping), None if s.stop is None else float(s.stop)]
         return values
 
-    return {"heel": [rod(s) for s in design.heel], "toes": [[rod(s) for s in t] for t in design.toes]}
+    record: dict[str, Any] = {"heel": [rod(s) for s in design.heel], "toes": [[rod(s) for s in t] for t in design.toes]}
+    if design.toe_yaws is not None:  # a splayed foot: each toe's yaw about the vertical (rad)
+        record["toe_yaws"] = [float(y) for y in design.toe_yaws]
+    return record
 
 
 def design_from_record(record: dict[str, Any]) -> FootDesign:
@@ -85,7 +90,9 @@ def design_from_record(record: dict[str, Any]) -> FootDesign:
     def chain(c: list[list[Any]]) -> tuple[Segment, ...]:
         return tuple(rod(v) for v in c)
 
-    return FootDesign(heel=chain(record["heel"]), toes=tuple(chain(t) for t in record["toes"]))
+    yaws = record.get("toe_yaws")
+    return FootDesign(heel=chain(record["heel"]), toes=tuple(chain(t) for t in record["toes"]),
+                      toe_yaws=None if yaws is None else tuple(float(y) for y in yaws))
 
 
 @dataclass(frozen=True)
@@ -109,7 +116,7 @@ def read_trial(trial: FrozenTrial) -> RecordedTrial | None:
     if trial.state is not TrialState.COMPLETE or ATTR_DESIGN not in attrs:
         return None
     objectives = Objectives(**attrs[ATTR_OBJECTIVES])
-    constraints = ConstraintValues(**attrs[ATTR_CONSTRAINTS])
+    constraints = constraint_record(attrs[ATTR_CONSTRAINTS])
     evaluation = DesignEvaluation(design_from_record(attrs[ATTR_DESIGN]), objectives, constraints)
     return RecordedTrial(trial.number, str(attrs.get(ATTR_METHOD, "outer")), evaluation)
 
@@ -182,10 +189,27 @@ def suggest_design(trial: optuna.Trial, config: StudyConfig) -> FootDesign:
     else:
         used = limits.foot_mass
     masses = masses_from_shares(shape, shares, limits, used)
+    if config.space.spatial:
+        return design_from(config.leg, angles, masses, limits, toe_yaws=suggest_yaws(trial, config, shape))
     if not config.whole_landing:
         return design_from(config.leg, angles, masses, limits)
     reach = trial.suggest_float("foot_reach", *limits.foot_length)
     return with_joint_laws(design_from(config.leg, angles, masses, limits, reach), suggest_joint_laws(trial, config))
+
+
+def suggest_yaws(trial: optuna.Trial, config: StudyConfig, shape: FootShape) -> tuple[float, ...]:
+    """A spatial foot's toe yaws: one ``splay`` spread symmetrically, or ``toe<i>.yaw`` per toe
+    (a fixed range [x, x] is not asked for)."""
+    splay = config.space.splay
+    assert splay is not None
+    lo, hi = splay.splay
+
+    def value(name: str) -> float:
+        return lo if lo == hi else trial.suggest_float(name, lo, hi)
+
+    if splay.mode is SplayMode.SYMMETRIC:
+        return symmetric_yaws(shape.n_toes, value("splay")) if shape.n_toes > 1 else (0.0,)
+    return tuple(value(f"toe{i + 1}.yaw") for i in range(shape.n_toes))
 
 
 @dataclass(frozen=True)
@@ -396,14 +420,15 @@ def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[Des
     (:func:`optimizer.search.compiled.foot_kind`) from its compiled ``VALUE_OUTPUTS`` function,
     one batched C loop per kind, cached on disk; the geometry from :func:`constraint_values`.
     A whole-landing study lands each design in full instead (:func:`evaluate_design_landing`), and
-    a study with friction solves each design's impact by the exact Coulomb law (:func:`evaluate_design`)."""
+    a study with friction or a spatial design space (splayed toes) solves each design's impact by the
+    core's ``evaluate`` (:func:`evaluate_design`; the exact Coulomb law with friction)."""
     if config.landings is not None:
         return [evaluate_design_over_landings(config, d) for d in designs]
     if config.whole_landing:
         e = config.space.joint_laws.stop_restitution
         tol = config.search.landing_tolerance
         return [evaluate_design_landing(config.leg, d, config.scene, config.limits, e, tol) for d in designs]
-    if config.scene.friction > 0:  # the exact Coulomb law: not in the compiled (frictionless) model
+    if config.space.spatial or config.scene.friction > 0:  # spatial feet, the exact Coulomb law: one by one
         return [evaluate_design(config.leg, d, config.scene, config.limits) for d in designs]
     out: list[DesignEvaluation | None] = [None] * len(designs)
     groups: dict[FootKind, list[int]] = {}
