@@ -95,16 +95,30 @@ COMPILE_ROWS = 256
 def first_impact_values(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> np.ndarray:
     """Each scenario's ``FIRST_IMPACT`` objectives (scenarios x 5), NaN rows where the caller
     must evaluate the scenario itself (not batchable, or not the Newton answer ``auto`` reports)."""
-    out = np.full((len(values), len(FIRST_IMPACT)), np.nan)
-    rows = np.flatnonzero(batchable(model, names, values))
-    if rows.size == 0:
-        return out
-    P, V, E = scenario_inputs(model, names, values[rows])
-    hit = _hitting(model, P, "pitch" in names)
-    for members in _groups(hit):
-        active = tuple(int(i) for i in np.flatnonzero(hit[members[0]]))
-        out[rows[members]] = _newton_rows(model.tree.topology(active), P[members], V[members], E[members])
-    return out
+    return first_impact_values_many([model], names, values)[0]
+
+
+def first_impact_values_many(models: list[ModelFile], names: tuple[str, ...], values: np.ndarray) -> list[np.ndarray]:
+    """:func:`first_impact_values` of every model on the same scenarios: designs x scenarios in
+    one call per structure and contact set (designs of one shape share it)."""
+    tables = [np.full((len(values), len(FIRST_IMPACT)), np.nan) for _ in models]
+    groups: dict[Topology, list[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
+    for i, model in enumerate(models):
+        rows = np.flatnonzero(batchable(model, names, values))
+        if rows.size == 0:
+            continue
+        P, V, E = scenario_inputs(model, names, values[rows])
+        hit = _hitting(model, P, "pitch" in names)
+        for members in _groups(hit):
+            active = tuple(int(c) for c in np.flatnonzero(hit[members[0]]))
+            groups.setdefault(model.tree.topology(active), []).append((i, rows[members], P[members], V[members], E[members]))
+    for topology, parts in groups.items():
+        found = _newton_rows(topology, *(np.concatenate([part[k] for part in parts]) for k in (2, 3, 4)))
+        start = 0
+        for i, rows, P, _, _ in parts:
+            tables[i][rows] = found[start : start + len(P)]
+            start += len(P)
+    return tables
 
 
 def first_impacts(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> list[Objectives | None]:
@@ -165,5 +179,13 @@ def _batch_kernel(f: ca.Function, root: Path):
     return batch_kernel(compiled, f, simd=simd_lanes(compiled, f) > 0)
 
 
-__all__ = ["COMPILE_ROWS", "FIRST_IMPACT", "active_sets", "batchable", "first_impact_values", "first_impacts",
-           "scenario_inputs"]
+__all__ = [
+    "COMPILE_ROWS",
+    "FIRST_IMPACT",
+    "active_sets",
+    "batchable",
+    "first_impact_values",
+    "first_impact_values_many",
+    "first_impacts",
+    "scenario_inputs",
+]

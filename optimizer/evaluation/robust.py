@@ -21,7 +21,7 @@ from impulse_core.errors import NumericalError
 from impulse_core.timedomain.landing import LandingResult
 from optimizer.config.model_file import ModelFile
 from optimizer.design_space import Objective, Objectives, landing_objectives, objectives
-from optimizer.evaluation.batched import FIRST_IMPACT, first_impact_values
+from optimizer.evaluation.batched import FIRST_IMPACT, first_impact_values, first_impact_values_many
 from optimizer.evaluation.model_choice import evaluate_landing
 from optimizer.evaluation.scenarios import Landings, model_data, overrides, scenario_model
 from optimizer.evaluation.statistics import Statistic
@@ -57,10 +57,13 @@ def scenario_objectives(model: ModelFile) -> Objectives | None:
     return found if all(math.isfinite(v) for _, v in found.items()) else None
 
 
-def scenario_table(model: ModelFile, names: tuple[str, ...], draws: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+def scenario_table(
+    model: ModelFile, names: tuple[str, ...], draws: np.ndarray, batched: np.ndarray | None = None
+) -> tuple[tuple[str, ...], np.ndarray]:
     """Every scenario's objectives: their names and one row per scenario (NaN: the evaluation
-    failed). Batchable first impacts together (:func:`first_impact_values`), the rest one by one."""
-    table = first_impact_values(model, names, draws)
+    failed). Batchable first impacts together (:func:`first_impact_values`, or ``batched`` when
+    the caller evaluated them already), the rest one by one."""
+    table = first_impact_values(model, names, draws) if batched is None else batched.copy()
     todo = np.flatnonzero(np.isnan(table).any(axis=1))
     if todo.size == 0:
         return FIRST_IMPACT, table
@@ -90,6 +93,16 @@ def statistics_over_landings(
     return statistics_of(*scenario_table(model, landings.names, landings.draw()), statistic)
 
 
+def statistics_over_landings_many(
+    models: list[ModelFile], landings: Landings, statistic: Callable[[Objective], Statistic]
+) -> list[Objectives | None]:
+    """:func:`statistics_over_landings` of many designs: their batchable scenarios in one call
+    per structure and contact set (:func:`first_impact_values_many`)."""
+    draws = landings.draw()
+    batched = first_impact_values_many(models, landings.names, draws)
+    return [statistics_of(*scenario_table(m, landings.names, draws, b), statistic) for m, b in zip(models, batched, strict=True)]
+
+
 def evaluate_over_landings(
     model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic]
 ) -> RobustEvaluation:
@@ -113,4 +126,5 @@ __all__ = [
     "scenario_table",
     "statistics_of",
     "statistics_over_landings",
+    "statistics_over_landings_many",
 ]

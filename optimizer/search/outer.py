@@ -50,7 +50,7 @@ from optimizer.design_space import (
     evaluate_design_landing,
     symmetric_yaws,
 )
-from optimizer.evaluation.robust import statistics_over_landings
+from optimizer.evaluation.robust import statistics_over_landings_many
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
 
 #: User attributes every recorded trial carries.
@@ -423,7 +423,7 @@ def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[Des
     a study with friction or a spatial design space (splayed toes) solves each design's impact by the
     core's ``evaluate`` (:func:`evaluate_design`; the exact Coulomb law with friction)."""
     if config.landings is not None:
-        return [evaluate_design_over_landings(config, d) for d in designs]
+        return evaluate_designs_over_landings(config, designs)
     if config.whole_landing:
         e = config.space.joint_laws.stop_restitution
         tol = config.search.landing_tolerance
@@ -450,12 +450,18 @@ def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[Des
 
 def evaluate_design_over_landings(config: StudyConfig, design: FootDesign) -> DesignEvaluation:
     """A design's statistics over the study's landings (each scenario as ``footopt evaluate`` on
-    its overridden model file); no objectives when a scenario fails. ``energy_gain``: the
-    nominal impact's."""
-    model = design_model(config.leg, design, config.scene, config.limits, config.space.joint_laws.stop_restitution)
+    its overridden model file); no objectives when a scenario fails."""
+    return evaluate_designs_over_landings(config, [design])[0]
+
+
+def evaluate_designs_over_landings(config: StudyConfig, designs: list[FootDesign]) -> list[DesignEvaluation]:
+    """:func:`evaluate_design_over_landings` of a batch of designs: designs x scenarios in one
+    compiled call per shape and contact set."""
     assert config.landings is not None
-    statistics = statistics_over_landings(model, config.landings, config.statistic_of)
-    return DesignEvaluation(design, statistics, constraint_values(config.leg, design, config.limits))
+    e = config.space.joint_laws.stop_restitution
+    models = [design_model(config.leg, d, config.scene, config.limits, e) for d in designs]
+    found = statistics_over_landings_many(models, config.landings, config.statistic_of)
+    return [DesignEvaluation(d, s, constraint_values(config.leg, d, config.limits)) for d, s in zip(designs, found, strict=True)]
 
 
 def _evaluation(config: StudyConfig, design: FootDesign, values: dict[str, float]) -> DesignEvaluation:

@@ -249,3 +249,39 @@ def test_batched_rows_in_compiled_c_equal_the_virtual_machine(monkeypatch):
     assert kernels and all(k is not None for k in kernels)  # C ran (geometry and impacts)
     assert np.isfinite(on_vm).all()
     np.testing.assert_allclose(compiled, on_vm, rtol=1e-13, atol=0.0)
+
+
+def test_designs_times_scenarios_in_one_call_per_shape_and_contact_set(monkeypatch):
+    """A batch of designs over the landings: one impact call per (shape, contact set), not one
+    per design, and each design's statistics as each scenario's ``footopt evaluate`` gives them
+    (1e-12 relative)."""
+    from optimizer.evaluation import batched
+    from optimizer.evaluation.robust import scenario_objectives
+    from optimizer.evaluation.scenarios import model_data, scenario_model
+    from optimizer.search.outer import evaluate_designs_over_landings
+
+    config = parse_study(load_yaml(ROBUST_YAML.replace("  pitch: {uniform: [-0.1, 0.1]}\n", "")
+                                   .replace("  terrain_step: {uniform: [0.0, 0.01]}\n", "")))
+    rng = np.random.default_rng(11)
+    designs = []
+    for toes, rods in ((1, 1), (2, 1), (1, 1), (2, 1), (1, 2)):
+        angles = ((-1.2,), *((tuple(rng.uniform(0.9, 1.4, rods)),) * toes))
+        masses = ((0.05,), *((tuple(np.full(rods, 0.4 / (toes * rods))),) * toes))
+        designs.append(design_from(config.leg, angles, masses, config.limits))
+    calls = []
+    original = batched._newton_rows
+
+    def spy(topology, P, V, E):
+        calls.append(len(P))
+        return original(topology, P, V, E)
+
+    monkeypatch.setattr(batched, "_newton_rows", spy)
+    found = evaluate_designs_over_landings(config, designs)
+    assert len(calls) == 3 and sum(calls) == len(designs) * config.landings.count  # three shapes
+    for design, evaluation in zip(designs, found, strict=True):
+        model = design_model(config.leg, design, config.scene, config.limits)
+        data, draws = model_data(model), config.landings.draw()
+        alone = [scenario_objectives(scenario_model(data, overrides(model, config.landings.names, v))) for v in draws]
+        for objective in (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM):
+            expected = config.statistic_of(objective).of(np.array([a.value(objective) for a in alone]))
+            assert evaluation.objectives.value(objective) == pytest.approx(expected, rel=1e-12)
