@@ -14,13 +14,11 @@ Usage: python studies/robust/gradients.py [--landings N] [--rerun]
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import time
 from pathlib import Path
 
-import numpy as np
-from robust import HERE, OBJECTIVES, STATISTICS, best_design, describe, out_of_sample, plot_cdf
+from robust import HERE, best_design, describe, out_of_sample, plot_cdf, statistics_table, write_landings
 
 from optimizer.config.study_config import load_study
 from optimizer.design_space import design_model
@@ -51,18 +49,9 @@ def main() -> None:
     TIMES.write_text(json.dumps(times, indent=1) + "\n")
     config = load_study(HERE / "robust_inner.yaml")
     values = {f"{STUDIES[n]} (trial {t})": out_of_sample(config, d, args.landings) for n, (_, d, t) in winners.items()}
-    with (HERE / "gradients.csv").open("w", newline="", encoding="utf-8") as f:
-        writer = csv.writer(f, lineterminator="\n")
-        writer.writerow(["design", "landing", *(o.value for o in OBJECTIVES)])
-        for name, v in zip(STUDIES, values.values(), strict=True):
-            writer.writerows([name, k, *map(repr, row)] for k, row in enumerate(v.tolist()))
+    write_landings(values, list(STUDIES), HERE / "gradients.csv")
     plot_cdf(values, HERE / "cdf_gradients.png")
-    lines = ["| design | objective | " + " | ".join(STATISTICS) + " | failed |", "|---" * (len(STATISTICS) + 3) + "|"]
-    for label, v in values.items():
-        for j, objective in enumerate(OBJECTIVES):
-            ok = v[:, j][np.isfinite(v[:, j])]
-            cells = " | ".join(f"{s.of(ok):.4f}" for s in STATISTICS.values())
-            lines.append(f"| {label} | {objective.value} | {cells} | {v.shape[0] - ok.size} |")
+    lines = statistics_table(values)
     notes = []
     for name, (_, design, _) in winners.items():
         model = design_model(config.leg, design, config.scene, config.limits)

@@ -66,6 +66,26 @@ def describe(design: FootDesign) -> str:
             f"{masses} kg at {angles} rad")
 
 
+def write_landings(values: dict[str, np.ndarray], names: list[str], path: Path) -> None:
+    """Every fresh landing's objectives, one row per (design, landing); designs as ``names``."""
+    with path.open("w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(["design", "landing", *(o.value for o in OBJECTIVES)])
+        for name, v in zip(names, values.values(), strict=True):
+            writer.writerows([name, k, *map(repr, row)] for k, row in enumerate(v.tolist()))
+
+
+def statistics_table(values: dict[str, np.ndarray]) -> list[str]:
+    """A markdown table: each design's statistics of each objective over its landings."""
+    lines = ["| design | objective | " + " | ".join(STATISTICS) + " | failed |", "|---" * (len(STATISTICS) + 3) + "|"]
+    for label, v in values.items():
+        for j, objective in enumerate(OBJECTIVES):
+            ok = v[:, j][np.isfinite(v[:, j])]
+            cells = " | ".join(f"{s.of(ok):.4f}" for s in STATISTICS.values())
+            lines.append(f"| {label} | {objective.value} | {cells} | {v.shape[0] - ok.size} |")
+    return lines
+
+
 def plot_cdf(values: dict[str, np.ndarray], path: Path) -> None:
     import matplotlib
 
@@ -98,18 +118,9 @@ def main() -> None:
         f"nominal-optimal (trial {nominal_trial})": out_of_sample(robust_config, nominal_design, args.landings),
         f"robust-optimal (trial {robust_trial})": out_of_sample(robust_config, robust_design, args.landings),
     }
-    with (HERE / "out_of_sample.csv").open("w", newline="", encoding="utf-8") as f:
-        writer = csv.writer(f, lineterminator="\n")
-        writer.writerow(["design", "landing", *(o.value for o in OBJECTIVES)])
-        for label, v in values.items():
-            writer.writerows([label.split(" ")[0], k, *map(repr, row)] for k, row in enumerate(v.tolist()))
+    write_landings(values, [label.split(" ")[0] for label in values], HERE / "out_of_sample.csv")
     plot_cdf(values, HERE / "cdf.png")
-    lines = ["| design | objective | " + " | ".join(STATISTICS) + " | failed |", "|---" * (len(STATISTICS) + 3) + "|"]
-    for label, v in values.items():
-        for j, objective in enumerate(OBJECTIVES):
-            ok = v[:, j][np.isfinite(v[:, j])]
-            cells = " | ".join(f"{s.of(ok):.4f}" for s in STATISTICS.values())
-            lines.append(f"| {label} | {objective.value} | {cells} | {v.shape[0] - ok.size} |")
+    lines = statistics_table(values)
     in_sample = []
     for label, design in (("nominal-optimal", nominal_design), ("robust-optimal", robust_design)):
         model = design_model(robust_config.leg, design, robust_config.scene, robust_config.limits)
