@@ -8,6 +8,7 @@ that exists (without ``--force``), one line on stderr naming the option, link or
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from impulse_core.errors import FootoptError
@@ -37,6 +38,9 @@ def add_import(subparsers: argparse._SubParsersAction) -> None:
                    "(default: the ankle link's origin)")
     p.add_argument("--space", choices=("auto", "planar", "spatial"), default="auto",
                    help="auto (default): planar when every joint axis is parallel, else spatial")
+    p.add_argument("--angle", action="append", default=[], metavar="JOINT=RAD",
+                   help="the touchdown posture: this joint's angle in rad, as the description counts it "
+                   "(repeat for several joints; default: every joint at 0)")
     p.add_argument("-o", "--out", metavar="OUT", required=True, help="the model file to write ('-': standard output)")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     p.set_defaults(run=run_import)
@@ -51,8 +55,11 @@ def run_import(args: argparse.Namespace) -> int:
     if args.out != "-" and Path(args.out).exists() and not args.force:
         _error(args.out, "already exists; not overwriting it (pass --force to replace it)")
         return EXIT_USAGE
+    angles = _angles(args.angle)
+    if angles is None:
+        return EXIT_USAGE
     try:
-        leg = import_leg(read_description(Path(args.description)), args.root, args.ankle, args.foot, args.space)
+        leg = import_leg(read_description(Path(args.description)), args.root, args.ankle, args.foot, args.space, angles)
     except FootoptError as e:
         _error(str(getattr(e, "source", None) or args.description), str(e))
         return EXIT_USAGE
@@ -66,6 +73,22 @@ def run_import(args: argparse.Namespace) -> int:
         print(summary)
         print(f"wrote {args.out}")
     return status
+
+
+def _angles(given: list[str]) -> dict[str, float] | None:
+    """``--angle JOINT=RAD`` options as a mapping (None after printing the error of a bad one)."""
+    out: dict[str, float] = {}
+    for text in given:
+        name, sep, value = text.partition("=")
+        try:
+            angle = float(value)
+        except ValueError:
+            angle = math.nan
+        if not sep or not name or not math.isfinite(angle):
+            _error("--angle", f"expected JOINT=RAD with a finite angle, got {text!r}")
+            return None
+        out[name.strip()] = angle
+    return out
 
 
 __all__ = ["add_import", "run_import"]

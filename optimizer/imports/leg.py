@@ -90,6 +90,7 @@ class ImportedLeg:
     ankle: str
     foot: str | None
     reason: str  # why planar or spatial
+    angles: tuple[tuple[str, float], ...] = ()  # the touchdown posture's joint angles (rad), as given
 
     @property
     def space(self) -> Space:
@@ -102,7 +103,8 @@ class ImportedLeg:
             f"footopt import of {d.path.name} ({d.format}): the leg from '{self.root}' to '{self.ankle}'"
             + (f", foot point '{self.foot}'" if self.foot else "") + f": {len(self.rods)} rods, {self.space.name}"
             f" ({self.reason}).",
-            "Touchdown posture: the description's zero configuration, the root link's frame as the world's;",
+            "Touchdown posture: the description's zero configuration"
+            + "".join(f", {n} = {v:.6g} rad" for n, v in self.angles) + "; the root link's frame as the world's;",
             "the scene (1 m/s straight down, restitution 0, frictionless) is a placeholder: edit it.",
             f"Contact: the tip of '{self.rods[-1].name}' (the ankle). Total mass {sum(s.mass for s in self.segments):.6g} kg.",
         ]
@@ -129,12 +131,21 @@ class ImportedLeg:
         return "\n".join(lines)
 
 
-def import_leg(desc: Description, root: str, ankle: str, foot: str | None = None, space: str = "auto") -> ImportedLeg:
-    """The leg from ``root`` to ``ankle`` of ``desc`` as a model file (see the module docstring).
+def import_leg(
+    desc: Description,
+    root: str,
+    ankle: str,
+    foot: str | None = None,
+    space: str = "auto",
+    angles: dict[str, float] | None = None,
+) -> ImportedLeg:
+    """The leg from ``root`` to ``ankle`` of ``desc`` as a model file (see the module docstring),
+    at the touchdown posture ``angles`` (joint name -> rad, as the description counts them;
+    joints not named at 0).
 
     Raises:
-        ConfigError: naming the option (``--root``, ``--ankle``, ``--foot``, ``--space``) or the
-            link or joint that cannot be imported.
+        ConfigError: naming the option (``--root``, ``--ankle``, ``--foot``, ``--space``,
+            ``--angle``) or the link or joint that cannot be imported.
     """
     for option, name in (("--root", root), ("--ankle", ankle)):
         if name not in desc.links:
@@ -149,8 +160,23 @@ def import_leg(desc: Description, root: str, ankle: str, foot: str | None = None
     planar = space == "planar" or (space == "auto" and parallel)
     reason = ("every joint axis parallel" if parallel else "joint axes not parallel") if space == "auto" else "--space"
     tree, rods = _planar_tree(desc, segments) if planar else _spatial_tree(desc, segments)
+    tree = _posed(desc, tree, segments, rods, angles or {})
     model = ModelFile(tree=tree, scene=IMPORT_SCENE, space=PLANAR if planar else SPATIAL)
-    return ImportedLeg(model, tuple(segments), tuple(rods), tuple(dropped), desc, root, ankle, foot, reason)
+    return ImportedLeg(model, tuple(segments), tuple(rods), tuple(dropped), desc, root, ankle, foot, reason,
+                       tuple((angles or {}).items()))
+
+
+def _posed(desc: Description, tree: Tree, segments: list[Segment], rods: list[Rod], angles: dict[str, float]) -> Tree:
+    """``tree`` with each named joint turned by its angle (a planar joint about -z the other way)."""
+    joints = {s.joint: k for k, s in enumerate(segments) if s.joint is not None}
+    bodies = list(tree.bodies)
+    for name, value in angles.items():
+        if name not in joints:
+            raise desc.error("--angle", f"no joint named '{name}' on the chain (joints: {', '.join(joints)})")
+        k = joints[name]
+        sign = -1.0 if rods[k].flipped else 1.0
+        bodies[k] = replace(bodies[k], angle=bodies[k].angle + sign * value)
+    return Tree(tuple(bodies))
 
 
 def _some(names) -> str:

@@ -52,6 +52,9 @@ def test_import_to_standard_output(capsys):
         (["--root", "shank", "--ankle", "hip"], "--ankle: 'hip' does not hang below 'shank'"),
         (["--root", "base", "--ankle", "foot", "--foot", "nope"], "--foot: no link, site or geom named 'nope'"),
         (["--root", "base", "--ankle", "foot", "--space", "planar"], "--space: planar needs"),
+        (["--root", "base", "--ankle", "foot", "--angle", "knee"], "--angle: expected JOINT=RAD"),
+        (["--root", "base", "--ankle", "foot", "--angle", "knee=inf"], "--angle: expected JOINT=RAD"),
+        (["--root", "base", "--ankle", "foot", "--angle", "nope=0.2"], "--angle: no joint named 'nope'"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, capsys, args, where):
