@@ -43,10 +43,16 @@ class ReportPoint:
 
 
 def report_html(
-    name: str, objectives: list[str], points: list[ReportPoint], others: list[tuple[float, float]], study_text: str
+    name: str,
+    objectives: list[str],
+    points: list[ReportPoint],
+    others: list[tuple[float, float]],
+    study_text: str,
+    figures: list[str] = (),
 ) -> str:
     """The page: ``objectives`` are the study's (the first two span the plot), ``others`` the
-    other feasible designs' (x, y) in the plot's axes, ``study_text`` the resolved study file."""
+    other feasible designs' (x, y) in the plot's axes, ``study_text`` the resolved study file,
+    ``figures`` the run folder's plots (paths relative to it), shown at the end."""
     two = len(objectives) > 1
     xy = [(p.objectives[objectives[0]], p.objectives[objectives[1]]) if two else (p.trial, p.objectives[objectives[0]])
           for p in points]
@@ -65,12 +71,22 @@ def report_html(
 <div id="details"><p>No design chosen yet.</p></div></div>
 <h2>Pareto designs</h2>
 {_table(points, objectives)}
-<h2>Study settings</h2>
+{_figures(figures)}<h2>Study settings</h2>
 <pre id="study">{esc(study_text)}</pre>
 <script type="application/json" id="data">{payload}</script>
 <script>{_SCRIPT}</script>
 </body></html>
 """
+
+
+def _figures(figures: list[str]) -> str:
+    """The run folder's plots, each an image linking to itself (nothing without plots)."""
+    if not figures:
+        return ""
+    esc = html.escape
+    items = "".join(f'<figure><a href="{esc(f, quote=True)}"><img src="{esc(f, quote=True)}" alt="{esc(f)}"></a>'
+                    f"<figcaption>{esc(f)}</figcaption></figure>" for f in figures)
+    return f'<h2>Figures</h2>\n<div id="figures">{items}</div>\n'
 
 
 def _scale(values: list[float], lo_px: float, hi_px: float) -> tuple[Any, float, float]:
@@ -129,6 +145,7 @@ svg .pareto { fill: #3b6ea5; stroke: #111; cursor: pointer; }
 svg .pareto.chosen { fill: #e67e22; }
 #details { min-width: 18em; max-width: 30em; }
 #details img { max-width: 100%; border: 1px solid #ddd; }
+#figures img { max-width: 100%; border: 1px solid #ddd; }
 table { border-collapse: collapse; } td, th { border: 1px solid #ccc; padding: 2px 6px; font-size: 13px; }
 pre { background: #f4f4f4; padding: 0.8em; overflow: auto; }
 """

@@ -348,18 +348,18 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
     if points and config.landings is not None:
         designs = [(p.model_file.stem, p.evaluation.design) for p in points]
         write_scenarios(run_dir, config, objective_columns(config), designs)
-    if points:
-        plot_front(run_dir / PLOT_FILE, config, trials, points)
-        write_front_report(run_dir, config, trials, points)
-    else:  # no empty plot or page: the command says why nothing is shown
-        (run_dir / PLOT_FILE).unlink(missing_ok=True)
-        (run_dir / REPORT_FILE).unlink(missing_ok=True)
     if points and config.space.spatial:
         feet = [(f"trial {p.trial} ({p.evaluation.design.shape.label})", foot_tree(config.leg, p.evaluation.design))
                 for p in points]
         plot_top_views(feet, run_dir / TOP_VIEW_FILE)
     else:
         (run_dir / TOP_VIEW_FILE).unlink(missing_ok=True)
+    if points:
+        plot_front(run_dir / PLOT_FILE, config, trials, points)
+        write_front_report(run_dir, config, trials, points)
+    else:  # no empty plot or page: the command says why nothing is shown
+        (run_dir / PLOT_FILE).unlink(missing_ok=True)
+        (run_dir / REPORT_FILE).unlink(missing_ok=True)
     return points
 
 
@@ -383,7 +383,8 @@ def write_front_report(run_dir: Path, config: StudyConfig, trials: list[Recorded
         files |= {f.name.upper(): p.model_file.with_suffix(f.suffix).as_posix() for f in ExportFormat}
         files["drawing"] = p.model_file.with_suffix(DRAWING_SUFFIX).as_posix()
         shown.append(ReportPoint(p.trial, ev.design.shape.label, values, design_values(config, ev), files))
-    return write_report(run_dir / REPORT_FILE, config.name, names, shown, others, format_study(config))
+    figures = [f for f in (PLOT_FILE, SCENARIOS_PLOT, TOP_VIEW_FILE) if (run_dir / f).exists()]
+    return write_report(run_dir / REPORT_FILE, config.name, names, shown, others, format_study(config), figures)
 
 
 def design_values(config: StudyConfig, evaluation: DesignEvaluation) -> dict[str, float]:

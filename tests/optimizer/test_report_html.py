@@ -83,3 +83,15 @@ def test_user_text_is_escaped_in_the_source(run: Path):
     page = (run / "report.html").read_text(encoding="utf-8")
     assert "<script>alert(1)" not in page
     assert "&lt;script&gt;alert(1)&lt;/script&gt; &amp; co" in page
+
+
+def test_the_run_folders_plots_are_shown(browser, run: Path):
+    """The figures section shows the run folder's plots (here the front), each image loaded."""
+    from selenium.webdriver.common.by import By
+
+    browser.get((run / "report.html").as_uri())
+    images = browser.find_elements(By.CSS_SELECTOR, "#figures img")
+    shown = [Path(unquote(urlparse(i.get_attribute("src")).path)).name for i in images]
+    assert shown == ["front.png"]
+    assert all(browser.execute_script("return arguments[0].complete && arguments[0].naturalWidth", i) > 0
+               for i in images)
