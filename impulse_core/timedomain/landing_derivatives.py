@@ -396,14 +396,15 @@ class _Symbolic:
         return self.cache[key]
 
     def impact(self, rows: _Rows, e: np.ndarray, modes: tuple) -> _Op:
-        """(x, theta) -> (v after, fn, ft, joint impulses 2 x joints) of the impact over ``rows``
-        in the law's modes ``modes`` (:func:`_impact_modes`)."""
+        """(x, theta, e) -> (v after, fn, ft, joint impulses 2 x joints) of the impact over
+        ``rows`` in the law's modes ``modes`` (:func:`_impact_modes`), e the rows' restitutions."""
         n, m = rows.n, len(rows.owner)
         pushing, tangent = modes
-        key = ("impact", tuple(rows.contact), tuple(rows.dof), tuple(float(z) for z in e), modes)
+        key = ("impact", tuple(rows.contact), tuple(rows.dof), modes)
         if key not in self.cache:
             q, v = self.split(self.x)
             th = self.th
+            e = ca.SX.sym("restitution", n)
             pt = self.point(q, v, th)
             stops = np.zeros(self.nv, int)
             for r, d in enumerate(rows.dof):
@@ -417,7 +418,7 @@ class _Symbolic:
             for i in range(n):
                 if pushing[i]:
                     K.append(W[i, :])
-                    r.append(-(1.0 + float(e[i])) * u[i])
+                    r.append(-(1.0 + e[i]) * u[i])
                 else:
                     K.append(_unit(n + m, i))
                     r.append(0)
@@ -440,7 +441,7 @@ class _Symbolic:
             joint = after - pt["momentum"] - ca.vertcat((S @ Fx).T, (S @ Fy).T)
             # the joint impulses as vectors (x row, y row): their norms are taken where a peak is
             # differentiated, since sqrt at a zero joint impulse would put 0 * inf = NaN in reverse mode
-            self.cache[key] = _Op("impact", [self.x, self.th], [v_plus, fn, ft, joint[:, 1:]])
+            self.cache[key] = _Op("impact", [self.x, self.th, e], [v_plus, fn, ft, joint[:, 1:]])
         return self.cache[key]
 
     def touchdown(self, lowest: int, lowest_x: float) -> _Op:
@@ -727,7 +728,7 @@ def landing_gradient(
             x, totals, t, dt = x1, totals + imp, t + h, dt + dh
         elif kind == "impact":
             _, q, v, rows, e, sol = entry
-            (v_plus, fn, ft, joint), J = sym.impact(rows, e, item[4])(x, theta)
+            (v_plus, fn, ft, joint), J = sym.impact(rows, e, item[4])(x, theta, e)
             d = [Jo[0] @ S + Jo[1] for Jo in J]
             x = np.concatenate([x[:nv], v_plus])
             S = np.vstack([S[:nv], d[0]])
