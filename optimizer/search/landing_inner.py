@@ -55,6 +55,7 @@ from optimizer.design_space import (
     foot_joint_laws,
     foot_tree,
     landing_scene,
+    with_lengths,
 )
 from optimizer.search.compiled import _chain_limits, _geometric_rows, foot_kind
 
@@ -419,15 +420,28 @@ def realise_landing(nlp: LandingNlp, x: np.ndarray) -> DesignEvaluation | None:
             toes=tuple(tuple(replace(s, mass=lim.min_link_mass + (s.mass - lim.min_link_mass) * scale) for s in t)
                        for t in design.toes),
         )
-    ev = evaluate_design_landing(cfg.leg, design, cfg.scene, lim, cfg.space.joint_laws.stop_restitution,
-                                 cfg.search.landing_tolerance)
-    return ev if ev.objectives is not None and ev.feasible else None
+    def evaluate(d: FootDesign) -> DesignEvaluation | None:
+        ev = evaluate_design_landing(cfg.leg, d, cfg.scene, lim, cfg.space.joint_laws.stop_restitution,
+                                     cfg.search.landing_tolerance)
+        return ev if ev.objectives is not None and ev.feasible else None
+
+    ev = evaluate(design)
+    if ev is not None:
+        return ev
+    # off the constraints (an unfinished solve, or rounding): the lengths from the linear program
+    angles = tuple(tuple(s.joint_angle for s in c) for c in design.chains)
+    masses = tuple(tuple(s.mass for s in c) for c in design.chains)
+    assignment = assign_lengths(cfg.leg, nlp.shape, angles, masses, lim)
+    return None if assignment is None else evaluate(with_lengths(design, assignment))
 
 
 def landing_sweep(nlp: LandingNlp, rng: np.random.Generator) -> Iterator[DesignEvaluation]:
     """Anchors (each objective's minimum over ``search.starts`` random starts, the other as a
-    tie-break), then ``search.front_points`` epsilon solves between them, warm-started from the
-    previous one. Yields every feasible realised design, in a fixed order."""
+    tie-break), then ``search.front_points`` epsilon solves between them, each started from the
+    previous one. A solve counts by its realised design (:func:`realise_landing`), whatever
+    IPOPT's status: the landing's objective is only piecewise smooth, so IPOPT often stops at its
+    iteration limit or an acceptable level rather than at its tolerance. Yields every feasible
+    realised design, in a fixed order."""
     cfg = nlp.config
     starts = [x0 for x0 in (start_landing(nlp, rng) for _ in range(cfg.search.starts)) if x0 is not None]
     two = len(landing_objectives_of(cfg)) > 1
@@ -437,8 +451,8 @@ def landing_sweep(nlp: LandingNlp, rng: np.random.Generator) -> Iterator[DesignE
         best = None
         for x0 in starts:
             s = solve_landing(nlp, w, math.inf, x0)
-            if s.success and (best is None or s.f < best[0].f):
-                ev = realise_landing(nlp, s.x)
+            if math.isfinite(s.f) and (best is None or s.f < best[0].f):
+                ev = realise_landing(nlp, s.x)  # the study's landing decides, not IPOPT's status
                 if ev is not None:
                     best = (s, ev)
         if best is not None:
@@ -452,7 +466,7 @@ def landing_sweep(nlp: LandingNlp, rng: np.random.Generator) -> Iterator[DesignE
     previous = first
     for eps in np.linspace(first.f2, second.f2, cfg.search.front_points + 2)[1:-1]:
         s = solve_landing(nlp, weights[0], float(eps), previous.x)
-        ev = realise_landing(nlp, s.x) if s.success else None
+        ev = realise_landing(nlp, s.x) if math.isfinite(s.f) else None
         if ev is not None:
             yield ev
             previous = s

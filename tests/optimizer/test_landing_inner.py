@@ -69,3 +69,38 @@ def test_a_few_ipopt_iterations_lower_the_landing_objective(nlp):
     assert f1 < f0  # as the numeric landing at the solve's step measures it
     assert np.all(s.x >= nlp.lbx) and np.all(s.x <= nlp.ubx)  # (its rows converge with more iterations)
     assert nlp.gradients >= 2  # the gradient was derived afresh at the iterates
+
+
+def test_an_inner_whole_landing_study_runs_and_records_its_designs(tmp_path, monkeypatch):
+    """A tiny inner whole-landing study (IPOPT cut to 4 iterations per solve: the realised designs
+    are evaluated and checked by the study's own landing, whatever IPOPT's status)."""
+    import csv
+
+    import optimizer.search.landing_inner as landing_inner
+    from optimizer.cli.main import main
+
+    monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 4)
+    study = (TINY_LANDING_YAML.replace("duration: 0.02", "duration: 0.005").replace("toes: [1, 2]", "toes: [1, 1]")
+             .replace("search: {method: outer, trials: 6, startup_trials: 6, landing_tolerance: 1.0e-2}",
+                      "search: {method: inner, inner: {starts: 1, front_points: 0}, landing_tolerance: 1.0e-2}"))
+    path = tmp_path / "tiny_inner_landing.yaml"
+    path.write_text(study, encoding="utf-8")
+    assert main(["optimize", str(path), "--out", str(tmp_path / "run"), "--quiet"]) == 0
+    rows = list(csv.DictReader((tmp_path / "run" / "pareto.csv").open()))
+    assert rows and all(r["method"] == "inner" for r in rows)
+    assert all(0 < float(r["energy_absorbed"]) <= 1 and float(r["peak_external_norm"]) > 0 for r in rows)
+
+
+@pytest.mark.parametrize("objectives, message", [
+    ("[settled_at, peak_external_norm]", "settled_at has no derivative"),
+    ("[peak_external_norm, external_norm]", "landing objectives only"),
+])
+def test_the_inner_search_refuses_what_it_cannot_differentiate(tmp_path, objectives, message):
+    from optimizer.config.study_config import ConfigError
+
+    study = (TINY_LANDING_YAML.replace("objectives: [peak_external_norm, energy_absorbed]", f"objectives: {objectives}")
+             .replace("method: outer", "method: inner"))
+    path = tmp_path / "s.yaml"
+    path.write_text(study, encoding="utf-8")
+    with pytest.raises(ConfigError, match=message):
+        load_study(path)
