@@ -43,14 +43,20 @@ lengths, masses, angles, ...), then per revolute joint its law's stiffness, damp
 limits[0], limits[1]. A joint whose ``rest`` is None rests at its touchdown angle, so the
 derivative w.r.t. its angle carries it and the rest entry's is 0; a joint without stops has 0
 derivatives for its limit entries (their values are reported as 0). The touchdown height
-follows the lowest contact (where several are lowest, the first: a one-sided derivative).
-Restitution, friction, speed and stop restitution are scene constants here.
+follows the lowest contact (where several are lowest, the first: a one-sided derivative; on a
+foot whose tips a search keeps level, the sides differ by a combination of the level-tip
+constraints' gradients, which the constraints' multipliers absorb). Restitution, friction,
+speed and stop restitution are scene constants here.
 
 Sound where: the event sequence is locally constant, i.e. away from grazing touchdowns, ties of
 event times, and ties inside the impact law (a row on the edge between two modes). Redundant
 rows (a singular row matrix, where the force split is not unique) are refused with a
 NumericalError. A change of the sequence under a change of theta is a kink or jump of the
-numeric objective: the derivative returned is that of the reported branch.
+numeric objective: the derivative returned is that of the reported branch. Eventful landings
+(hundreds of impacts, chattering contacts, a slip-stop event followed 1e-10 s later by another
+at a tolerance threshold) change their sequence under perturbations of 1e-8 relative, mostly by
+such micro-events that barely move the objectives; there the derivative describes the reported
+branch only (``studies/landing_gradient/results.md``).
 """
 
 from __future__ import annotations
@@ -93,7 +99,7 @@ class LandingGradient:
 
     Attributes:
         values: objective name -> value (floats; ``total_external`` and ``final_angles`` arrays),
-            from the replayed graph (equal to ``result``'s to rounding).
+            from the replay (equal to ``result``'s to rounding).
         jacobian: objective name -> derivative w.r.t. theta (a vector for the scalars, one row
             per entry for the arrays).
         theta: the design values differentiated (:func:`design_names` order).
@@ -651,7 +657,8 @@ def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
     run = _Landing(tree, scene, laws, settings)
     run.tape = []
     result = run.run(step)
-    return result, run.tape, run
+    tape, run.tape = run.tape, None  # the run may be kept (a cached structure): not its tape
+    return result, tape, run
 
 
 def landing_gradient(
