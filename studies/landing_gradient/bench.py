@@ -13,6 +13,7 @@ run of this script on one machine, so only the ratios travel.
 
 from __future__ import annotations
 
+import re
 import sys
 import time
 from dataclasses import replace
@@ -52,7 +53,7 @@ def vector(r) -> np.ndarray:
 def main() -> None:
     lines = ["| case | events | steps | landing() s | taped run s | gradient cold s | gradient warm s | "
              "warm / landing() | cold / landing() | central FD (2 n runs) / landing() | rel. error vs FD, 3 directions | "
-             "the same, masses and laws only |",
+             "the same, masses and laws only, toes tied |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, tree, laws, scene in cases():
         settings = LandingSettings()
@@ -93,8 +94,12 @@ def main() -> None:
             worst = max(worst, err) if same else worst
         # masses and law values only: no tip moves, so no tie of lowest contacts at touchdown
         # (landing_case3's soles all touch at once: its touchdown height has a kink in lengths and angles)
+        # and tied across numbered toes (toe1_x, toe2_x, ... move alike: landing_case3's three identical toes
+        # keep their symmetry; moving one alone changes how they touch and re-touch, a jump)
         still = np.array([n.endswith(("mass", "stiffness", "damping")) for n in g.names])
-        u = rng.standard_normal(len(g.theta)) * np.maximum(1.0, np.abs(g.theta)) * still
+        groups = [re.sub(r"toe\d+", "toe", n) for n in g.names]
+        draw = {k: rng.standard_normal() for k in sorted(set(groups))}
+        u = np.array([draw[k] for k in groups]) * np.maximum(1.0, np.abs(g.theta)) * still
         ends, same = [], True
         for sgn in (1, -1):
             t, l = apply_theta(tree, laws, g.theta + sgn * 1e-6 * u)
@@ -122,9 +127,11 @@ def main() -> None:
         "event sequence at +- eps differs from the reported one (so the difference quotient straddles a change "
         "of sequence: where the objectives are continuous across it (micro-events at tolerance thresholds) the "
         "quotient still agrees; where they are not, it is no test of the derivative). The directions move lengths, "
-        "masses, angles and joint-law values; the last column masses and law values only, which move no tip: "
-        "landing_case3's soles all touch at once (`contacts: all`, level tips), so its touchdown height, the lowest "
-        "contact's, has a kink in the lengths and angles that a central difference straddles.\n\n" + text + "\n"
+        "masses, angles and joint-law values; the last column masses and law values only, which move no tip, with "
+        "every numbered toe's values moved alike. landing_case3's soles all touch at once (`contacts: all`, level "
+        "tips), so its touchdown height, the lowest contact's, has a kink in the lengths and angles that a central "
+        "difference straddles; and its three toes are identical, so moving one toe's values alone breaks their "
+        "symmetry and changes how they touch and re-touch: a jump of the objectives, not a derivative.\n\n" + text + "\n"
     )
 
 
