@@ -496,6 +496,11 @@ class _Landing:
         weight = sum(b.mass for b in tree.bodies) * max(scene.gravity, 1.0)
         self.force_tol = 1e-9 * weight
         self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
+        #: None, or a list that a run appends its committed operations to, in order (what
+        #: :mod:`impulse_core.timedomain.landing_derivatives` replays): ("step", q, v, mode, dt,
+        #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol) and
+        #: ("project", q, v, mode); q, v are the operation's inputs.
+        self.tape: list | None = None
 
     # ---- dynamics
 
@@ -645,6 +650,8 @@ class _Landing:
         e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < MIN_BOUNCE * self.scene.duration, 0.0, e)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
         sol = solve_unilateral(rows.G @ minv_gt, u, rows.owner, e, rows.mu)
+        if self.tape is not None:
+            self.tape.append(("impact", q.copy(), v.copy(), rows, e.copy(), sol))
         lam = np.concatenate([sol.normal, sol.tangential])
         v_plus = v + minv_gt @ lam
         fn, ft = _contact_forces(rows, lam, np.zeros(self.nc, int), self.mu, self.nc)
@@ -746,6 +753,8 @@ class _Landing:
         """Back onto the mode's constraints: closed gaps and stops, and open contacts below the
         ground, to zero (positions), then the closed rows' velocities to zero; returns (q, v,
         the projection's impulses [normal, tangential] per contact)."""
+        if self.tape is not None:
+            self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         pt = self.point(q, v)
         place = mode.copy()
         place.closed |= pt.gap < 0  # an open contact left below the ground (by rounding) is lifted
@@ -821,6 +830,8 @@ class _Landing:
                     w = self.witness(qg, vg, mode)
                     graze = graze if np.any(w < 0) else None
             if graze is None:
+                if self.tape is not None:
+                    self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, dt != h))
                 v0 = v
                 q, v, p = self.project(q1, v1, mode)
                 self.add(totals, impulse + p)
@@ -829,6 +840,8 @@ class _Landing:
                 totals.steps += 1
                 continue
             tau = self.locate(q, v, mode, graze, w < 0)
+            if self.tape is not None:
+                self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, w < 0))
             q_e, v_e, impulse = self.step(q, v, mode, tau)
             self.add(totals, impulse)
             self.record(totals, t, v, t + tau, q_e, v_e)

@@ -334,10 +334,14 @@ def _check_whole_landing(config: StudyConfig) -> None:
     if landing and config.scene.duration is None:
         raise ConfigError(f"scene.duration: missing: the objective {landing[0]} scores the whole landing (s)")
     if landing and config.search.method is SearchMethod.INNER:
-        raise ConfigError(
-            f"search.method: the objective {landing[0]} needs the outer search (the inner search's exact "
-            "derivatives of a whole landing are not written yet)"
-        )
+        primary = config.objectives[:2]
+        if Objective.SETTLED_AT in primary:
+            raise ConfigError("search.method: the objective settled_at has no derivative (a threshold crossing): "
+                              "the inner search cannot optimise it; search.method: outer can")
+        first = [o.value for o in primary if not o.landing]
+        if first:
+            raise ConfigError(f"objectives: the inner search over a whole landing optimises landing objectives only, "
+                              f"got {first[0]}; search.method: outer mixes them")
     if landing:
         return
     if config.scene.friction != 0.0 and config.search.method is SearchMethod.INNER:

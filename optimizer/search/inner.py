@@ -353,14 +353,18 @@ def run_inner(
     ]
     # One kind after another, smallest first: its search runs while the larger ones compile.
     kinds = sorted(dict.fromkeys(foot_kind(config, s) for s in todo), key=lambda k: (sum(k.sizes), k.sizes))
-    swept, cache = 0, NlpCache(config, kinds)
+    # A whole-landing study compiles nothing: its NLP lands each iterate (optimizer.search.landing_inner).
+    swept, cache = 0, (None if config.whole_landing else NlpCache(config, kinds))
     order = {k: i for i, k in enumerate(kinds)}
     with interruptible():
         for shape in sorted(shapes, key=lambda s: order.get(foot_kind(config, s), -1)):
             if study.user_attrs.get(shape_done_key(shape)):
                 continue
             if shape.n_links * lim.min_link_mass <= lim.foot_mass:  # else no design of it is feasible
-                _record_shape(study, config, shape, build_nlp(config, shape, cache), distributions)
+                if config.whole_landing:
+                    _record_landing_shape(study, config, shape, distributions)
+                else:
+                    _record_shape(study, config, shape, build_nlp(config, shape, cache), distributions)
             else:
                 study.set_user_attr(infeasible_key(shape), NO_MASS)
             study.set_user_attr(shape_done_key(shape), True)
@@ -374,10 +378,28 @@ def _record_shape(
     study: optuna.Study, config: StudyConfig, shape: FootShape, nlp: ShapeNlp, distributions: dict
 ) -> None:
     """Sweep one shape and add each design not yet recorded as a COMPLETE trial."""
+    i = _record_sweep(study, config, shape, epsilon_sweep(config, nlp, shape_seed(config.seed, shape)), distributions)
+    if i < 0:  # nothing feasible: say which constraints stood in the way
+        study.set_user_attr(infeasible_key(shape), _diagnose(config, nlp, shape))
+
+
+def _record_landing_shape(study: optuna.Study, config: StudyConfig, shape: FootShape, distributions: dict) -> None:
+    """Sweep one shape of a whole-landing study (:mod:`optimizer.search.landing_inner`)."""
+    from optimizer.search.landing_inner import build_landing_nlp, landing_sweep
+
+    sweep = landing_sweep(build_landing_nlp(config, shape), shape_seed(config.seed, shape))
+    if _record_sweep(study, config, shape, sweep, distributions) < 0:
+        study.set_user_attr(infeasible_key(shape), "IPOPT found no feasible design that lands")
+
+
+def _record_sweep(
+    study: optuna.Study, config: StudyConfig, shape: FootShape, sweep: Iterator[DesignEvaluation], distributions: dict
+) -> int:
+    """Add each design of ``sweep`` not yet recorded as a COMPLETE trial; the last index (-1: none)."""
     have = recorded_indices(study, shape)
     params = {"toes": shape.n_toes, "toe_segments": shape.toe_segments, "heel_segments": shape.heel_segments}
     i = -1
-    for i, evaluation in enumerate(epsilon_sweep(config, nlp, shape_seed(config.seed, shape))):
+    for i, evaluation in enumerate(sweep):
         if i in have:
             continue
         trial = optuna.trial.create_trial(
@@ -388,8 +410,7 @@ def _record_shape(
             constraints=dict(evaluation.constraints.violations()),
         )
         study.add_trial(trial)
-    if i < 0:  # nothing feasible: say which constraints stood in the way
-        study.set_user_attr(infeasible_key(shape), _diagnose(config, nlp, shape))
+    return i
 
 
 #: Why a shape has no feasible design, as the study files' fields say it (see ``infeasible_key``).

@@ -118,7 +118,7 @@ def test_bad_values_name_their_path(text: str, message: str):
         ("objectives: [external_norm, external_norm]\n", "objectives[1]: 'external_norm' is listed twice"),
         ("- 1\n", "the top level: must be a mapping"),
         ("objectives: [peak_external_norm]\n", "scene.duration: missing: the objective peak_external_norm"),
-        ("objectives: [settled_at]\nscene: {duration: 0.1}\n", "search.method: the objective settled_at needs the outer"),
+        ("objectives: [settled_at]\nscene: {duration: 0.1}\n", "search.method: the objective settled_at has no derivative"),
     ],
 )
 def test_bad_objectives_and_top_level(text: str, message: str):

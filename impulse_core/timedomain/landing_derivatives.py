@@ -1,0 +1,815 @@
+"""Exact derivatives of the whole landing's objectives along its event sequence ("replay").
+
+:func:`landing_gradient` runs the numeric landing (:mod:`impulse_core.timedomain.landing`) at the
+reported step h with a tape that records every committed operation, then replays the same
+computation operation by operation with CasADi functions symbolic in the design values theta
+(built once per mode and cached for every design of the same structure), carrying the forward
+sensitivities dz/dtheta of every quantity z by the chain rule with each operation's exact
+Jacobian (CasADi's algorithmic differentiation):
+
+* each Runge-Kutta step in its segment's mode (the same closed rows, slip directions and stops:
+  M a = f + F^T lambda, G a + b = 0), with the contact-force quadrature;
+* each projection after a step or an event (positions, then velocities; its impulses counted),
+  with the rows it used;
+* each event time implicitly: the witness w that crossed (a gap, a stop margin, a normal force,
+  a cone margin, a slip) reaches, along the event's step of length tau from the state x_k, the
+  value c it had at the located tau*. One Newton correction
+  ``tau = tau* - (w(x_k, theta, tau*) - c) / w_tau`` gives the time (tau* to rounding) and the
+  implicit function theorem's derivative ``dtau/dtheta = -(w_x dx_k/dtheta + w_theta) / w_tau``:
+  carried through the event's step, that is the saltation term;
+* each impact by the law in its reported modes (as :mod:`impulse_core.impact.mode_derivatives`):
+  the active rows fixed, the impulse solves the linear equations of that mode (a pushing row
+  meets Newton's restitution, a separating row has no impulse, a sticking contact no slip, a
+  sliding one its impulse on the cone's edge against the reported slip); each row's restitution
+  is the number the run used (the plastic rules are decisions of the sequence);
+* the step count fixed: regular steps keep the length h, an event step is tau(theta), and the
+  last step ends at T, so its length T - t(theta) moves with the event times. The derivative is
+  that of the discretisation itself: central differences of the numeric landing at the same h
+  agree with it while the sequence does not change (``tests/impulse_core/test_landing_derivatives.py``).
+
+Forward rather than adjoint sensitivities: every operation's Jacobian w.r.t. (x, theta) is one
+call, the sweep is a product of small dense matrices, and peaks at intermediate events need no
+second pass.
+
+Outputs (:class:`LandingGradient`): ``peak_external_norm``, ``peak_internal_norm``,
+``peak_max_internal`` (the event, and joint, attaining the maximum is differentiated: where
+several tie within 1e-9 relative this is the gradient of one of them, an element of the Clarke
+subdifferential, and ``ties`` says so), ``energy_absorbed``, ``total_external`` (per contact)
+and ``final_angles``. ``settled_at`` is not differentiable (a threshold crossing of |v| with
+linear interpolation, constant where the landing never settles): it is not offered.
+
+theta (:func:`design_names`): the tree's design vector (:func:`~impulse_core.model.tree.design_vector`:
+lengths, masses, angles, ...), then per revolute joint its law's stiffness, damping, rest,
+limits[0], limits[1]. A joint whose ``rest`` is None rests at its touchdown angle, so the
+derivative w.r.t. its angle carries it and the rest entry's is 0; a joint without stops has 0
+derivatives for its limit entries (their values are reported as 0). The touchdown height
+follows the lowest contact (where several are lowest, the first: a one-sided derivative; on a
+foot whose tips a search keeps level, the sides differ by a combination of the level-tip
+constraints' gradients, which the constraints' multipliers absorb). Restitution, friction,
+speed and stop restitution are scene constants here.
+
+Sound where: the event sequence is locally constant, i.e. away from grazing touchdowns, ties of
+event times, and ties inside the impact law (a row on the edge between two modes). Redundant
+rows (a singular row matrix, where the force split is not unique) are refused with a
+NumericalError. A change of the sequence under a change of theta is a kink or jump of the
+numeric objective: the derivative returned is that of the reported branch. Eventful landings
+(hundreds of impacts, chattering contacts, a slip-stop event followed 1e-10 s later by another
+at a tolerance threshold) change their sequence under perturbations of 1e-8 relative, mostly by
+such micro-events that barely move the objectives; there the derivative describes the reported
+branch only (``studies/landing_gradient/results.md``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from impulse_core.errors import NumericalError
+from impulse_core.evaluate import pre_impact_velocity
+from impulse_core.impact.coulomb import LEMKE_TOL
+from impulse_core.kinematics.spatial import PLANAR, dof_layout
+from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.model.tree import BODY_VALUES, Scene, Tree, design_vector, value_names
+from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, subtree_incidence
+from impulse_core.timedomain.landing import (
+    LandingResult,
+    LandingSettings,
+    _Landing,
+    _Mode,
+    _Rows,
+    landing,
+    landing_function,
+)
+
+#: Events whose peak values lie within this relative distance of the maximum tie.
+TIE = 1e-9
+#: Per revolute joint, the law values theta carries after the design vector.
+LAW_VALUES = ("stiffness", "damping", "rest", "limits[0]", "limits[1]")
+#: The scalar objectives, in the order of :attr:`LandingGradient.values`.
+SCALARS = ("peak_external_norm", "peak_internal_norm", "peak_max_internal", "energy_absorbed")
+
+
+@dataclass(frozen=True)
+class LandingGradient:
+    """Objectives of one landing and their exact derivatives along its event sequence.
+
+    Attributes:
+        values: objective name -> value (floats; ``total_external`` and ``final_angles`` arrays),
+            from the replay (equal to ``result``'s to rounding).
+        jacobian: objective name -> derivative w.r.t. theta (a vector for the scalars, one row
+            per entry for the arrays).
+        theta: the design values differentiated (:func:`design_names` order).
+        names: their names.
+        sequence: the event sequence and step counts the derivative holds along
+            (:func:`sequence_signature`).
+        peak_events: objective -> (event index, joint index or -1) whose value is the peak.
+        ties: objective -> event indices tying the peak (more than one: a subgradient).
+        result: the numeric landing at the reported step (the run replayed).
+        timings: s spent in the taped run (and the landing before it, without ``step``) and in
+            the sensitivity sweep (with building any operation not yet built).
+    """
+
+    values: dict
+    jacobian: dict
+    theta: np.ndarray
+    names: tuple[str, ...]
+    sequence: tuple
+    peak_events: dict
+    ties: dict
+    result: LandingResult
+    timings: dict
+
+
+def _joint_dofs(tree: Tree) -> list[tuple[int, int]]:
+    layout = dof_layout(tree.topology(), PLANAR)
+    return [(b, layout.body_dof[b]) for b in range(1, tree.n_bodies) if layout.body_dof[b] is not None]
+
+
+def design_names(tree: Tree) -> tuple[str, ...]:
+    """Names of theta's entries: the design vector's, then each revolute joint's law values."""
+    laws = [f"{tree.bodies[b].name}.{name}" for b, _ in _joint_dofs(tree) for name in LAW_VALUES]
+    return value_names(tree) + tuple(laws)
+
+
+def design_theta(tree: Tree, laws: tuple[JointLaw, ...]) -> np.ndarray:
+    """theta of ``tree`` and its joint laws (a rest of None: the touchdown angle; no stops: 0)."""
+    laws = laws or (FREE,) * tree.n_bodies
+    extra = []
+    for b, _ in _joint_dofs(tree):
+        law = laws[b]
+        lo, hi = law.limits if law.limits is not None else (0.0, 0.0)
+        extra += [law.stiffness, law.damping, tree.bodies[b].angle if law.rest is None else law.rest, lo, hi]
+    return np.concatenate([design_vector(tree), np.array(extra, dtype=float)])
+
+
+def apply_theta(tree: Tree, laws: tuple[JointLaw, ...], theta: np.ndarray) -> tuple[Tree, tuple[JointLaw, ...]]:
+    """The tree and joint laws with the values of ``theta`` (:func:`design_theta`'s layout; a rest
+    of None stays None, following the angle; a joint without stops keeps none)."""
+    from dataclasses import replace
+
+    from impulse_core.model.tree import with_values
+
+    theta = np.asarray(theta, dtype=float)
+    n_p = len(design_vector(tree))
+    new_tree = with_values(tree, theta[:n_p])
+    out = list(laws or (FREE,) * tree.n_bodies)
+    for i, (b, _) in enumerate(_joint_dofs(tree)):
+        k, c, rest, lo, hi = theta[n_p + len(LAW_VALUES) * i : n_p + len(LAW_VALUES) * (i + 1)]
+        law = out[b]
+        out[b] = replace(law, stiffness=float(k), damping=float(c), rest=None if law.rest is None else float(rest),
+                         limits=None if law.limits is None else (float(lo), float(hi)))
+    return new_tree, tuple(out)
+
+
+class _Op:
+    """One operation of the replay with its exact Jacobians: ``op(*args)`` returns its outputs
+    (flat numpy vectors) and ``jac[i][j]`` = d output i / d input j (dense), from one CasADi call.
+    Built once per mode (symbolic in theta), so every design of one structure reuses it."""
+
+    def __init__(self, name: str, inputs: list, outputs: list) -> None:
+        outputs = [ca.vec(o) for o in outputs]
+        self.n_out, self.n_in = len(outputs), len(inputs)
+        jacs = [ca.jacobian(o, i) for o in outputs for i in inputs]
+        self.f = ca.Function(name, inputs, outputs + jacs)
+        self.shapes = [(o.shape[0], i.shape[0]) for o in outputs for i in inputs]
+
+    def __call__(self, *args) -> tuple[list[np.ndarray], list[list[np.ndarray]]]:
+        res = self.f(*args)
+        outs = [np.asarray(r, dtype=float).reshape(-1) for r in res[: self.n_out]]
+        jacs = [np.asarray(r, dtype=float).reshape(shape) for r, shape in zip(res[self.n_out :], self.shapes)]
+        return outs, [jacs[i * self.n_in : (i + 1) * self.n_in] for i in range(self.n_out)]
+
+
+def _mode_key(mode: _Mode) -> tuple:
+    return (tuple(int(x) for x in mode.closed), tuple(int(x) for x in mode.slip), tuple(int(x) for x in mode.stop))
+
+
+def _mode_of(key: tuple) -> _Mode:
+    return _Mode(np.array(key[0], bool), np.array(key[1], int), np.array(key[2], int))
+
+
+class _Symbolic:
+    """The landing's operations as CasADi functions of (x = [q; v], theta, ...), built once per
+    mode or impact and cached."""
+
+    def __init__(self, run: _Landing, laws: tuple[JointLaw, ...]) -> None:
+        self.run = run
+        tree = run.tree
+        self.tree, self.nv, self.nc = tree, run.nv, run.nc
+        self.fn = landing_function(run.topology, run.scene.terrain)
+        self.n_p = len(design_vector(tree))
+        self.dofs = _joint_dofs(tree)
+        self.n_theta = self.n_p + len(LAW_VALUES) * len(self.dofs)
+        self.laws = laws or (FREE,) * tree.n_bodies
+        self.mu, self.gravity = run.mu, run.scene.gravity
+        self.S = subtree_incidence(tree)
+        self.cache: dict = {}
+        self.x = ca.SX.sym("x", 2 * self.nv)
+        self.th = ca.SX.sym("theta", self.n_theta)
+
+    # ---- pieces of theta
+
+    def angle(self, th: ca.SX, b: int) -> ca.SX:
+        return th[len(BODY_VALUES) * b + BODY_VALUES.index("angle")]
+
+    def law_arrays(self, th: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX, list, list]:
+        """Per DOF: stiffness, damping, rest (SX vectors; base entries 0), lo, hi (lists: an SX
+        entry where a stop exists, else None)."""
+        k, c, rest = ca.SX.zeros(self.nv), ca.SX.zeros(self.nv), ca.SX.zeros(self.nv)
+        lo, hi = [None] * self.nv, [None] * self.nv
+        for i, (b, j) in enumerate(self.dofs):
+            base = self.n_p + len(LAW_VALUES) * i
+            k[j], c[j] = th[base], th[base + 1]
+            rest[j] = self.angle(th, b) if self.laws[b].rest is None else th[base + 2]
+            if self.laws[b].limits is not None:
+                lo[j], hi[j] = th[base + 3], th[base + 4]
+        return k, c, rest, lo, hi
+
+    # ---- the landing's numerics, symbolically
+
+    def point(self, q: ca.SX, v: ca.SX, th: ca.SX) -> dict:
+        o = self.fn(q, v, th[: self.n_p], self.gravity)
+        _, _, Jc, bias, M, force, kinetic, momentum, com, C = o
+        pairs = [_gap(self.run.scene.terrain, C[0, i], C[1, i]) for i in range(self.nc)]
+        gap = ca.vertcat(*[g for g, _, _ in pairs])
+        nx, ny = ca.vertcat(*[a for _, a, _ in pairs]), ca.vertcat(*[b for _, _, b in pairs])
+        Jx, Jy = Jc[0::2, :], Jc[1::2, :]
+        bx, by = bias[0::2], bias[1::2]
+        k, c, rest, _, _ = self.law_arrays(th)
+        Jn = ca.diag(nx) @ Jx + ca.diag(ny) @ Jy if self.nc else ca.SX(0, self.nv)
+        Jt = ca.diag(ny) @ Jx - ca.diag(nx) @ Jy if self.nc else ca.SX(0, self.nv)
+        return dict(
+            gap=gap, nx=nx, ny=ny, Jn=Jn, Jt=Jt, bn=nx * bx + ny * by, bt=ny * bx - nx * by, M=M,
+            f=force - k * (q - rest) - c * v, kinetic=kinetic, momentum=momentum, com=com,
+        )
+
+    def rows(self, pt: dict, contacts, slip, stops) -> tuple[ca.SX, ca.SX, ca.SX, _Rows]:
+        """G, F, b of :func:`landing._rows` symbolically, and the rows' bookkeeping (numeric)."""
+        contacts = np.asarray(contacts, int)
+        dofs = np.flatnonzero(stops)
+        mu = self.mu
+        sliding = slip[contacts] if mu > 0 else np.zeros(len(contacts), int)
+        sticking = contacts[sliding == 0] if mu > 0 else contacts[:0]
+        G_stop = np.zeros((len(dofs), self.nv))
+        G_stop[np.arange(len(dofs)), dofs] = -stops[dofs]
+        Jn, Jt = pt["Jn"], pt["Jt"]
+        sel = lambda A, idx: ca.vertcat(*[A[int(i), :] for i in idx]) if len(idx) else ca.SX(0, self.nv)  # noqa: E731
+        selv = lambda a, idx: ca.vertcat(*[a[int(i)] for i in idx]) if len(idx) else ca.SX(0, 1)  # noqa: E731
+        Fn = ca.vertcat(*[Jn[int(i), :] - mu * float(s) * Jt[int(i), :] for i, s in zip(contacts, sliding)]) \
+            if len(contacts) else ca.SX(0, self.nv)
+        G = ca.vertcat(sel(Jn, contacts), ca.SX(ca.DM(G_stop)), sel(Jt, sticking))
+        F = ca.vertcat(Fn, ca.SX(ca.DM(G_stop)), sel(Jt, sticking))
+        b = ca.vertcat(selv(pt["bn"], contacts), ca.SX.zeros(len(dofs)), selv(pt["bt"], sticking))
+        info = _Rows(
+            np.zeros((0, 0)), np.zeros((0, 0)), np.zeros(0),
+            np.concatenate([contacts, -np.ones(len(dofs), int)]),
+            np.concatenate([-np.ones(len(contacts), int), dofs]),
+            np.searchsorted(contacts, sticking), np.full(len(sticking), mu),
+        )
+        return G, F, b, info
+
+    def mode_rows(self, pt: dict, mode: _Mode):
+        return self.rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop)
+
+    def accelerations(self, pt: dict, mode: _Mode) -> tuple[ca.SX, ca.SX, ca.SX, _Rows]:
+        """(a, lambda, [fn; ft] per contact, rows) of the mode at the point."""
+        G, F, b, info = self.mode_rows(pt, mode)
+        X = _solve(pt["M"], ca.horzcat(pt["f"], F.T))
+        a0, minv_ft = X[:, 0], X[:, 1:]
+        if G.shape[0] == 0:
+            lam = ca.SX(0, 1)
+            a = a0
+        else:
+            lam = _solve(G @ minv_ft, -(G @ a0 + b))
+            a = a0 + minv_ft @ lam
+        return a, lam, self.contact_forces(info, lam, mode.slip, self.mu), info
+
+    def contact_forces(self, info: _Rows, lam: ca.SX, slip, mu: float) -> ca.SX:
+        fn, ft = [ca.SX(0)] * self.nc, [ca.SX(0)] * self.nc
+        for r, c in enumerate(info.contact):
+            if c >= 0:
+                fn[c] = lam[r]
+                ft[c] = -mu * float(slip[c]) * lam[r]
+        for k, r in enumerate(info.owner):
+            ft[int(info.contact[r])] = lam[info.n + k]
+        return ca.vertcat(*fn, *ft) if self.nc else ca.SX(0, 1)
+
+    def derivative(self, q, v, th, mode):
+        pt = self.point(q, v, th)
+        a, _, forces, _ = self.accelerations(pt, mode)
+        return a, forces
+
+    def rk4(self, q, v, th, mode, h):
+        a1, f1 = self.derivative(q, v, th, mode)
+        a2, f2 = self.derivative(q + 0.5 * h * v, v + 0.5 * h * a1, th, mode)
+        v2 = v + 0.5 * h * a1
+        a3, f3 = self.derivative(q + 0.5 * h * v2, v + 0.5 * h * a2, th, mode)
+        v3 = v + 0.5 * h * a2
+        a4, f4 = self.derivative(q + h * v3, v + h * a3, th, mode)
+        v4 = v + h * a3
+        q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
+        v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+        return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
+
+    def split(self, x):
+        return x[: self.nv], x[self.nv :]
+
+    # ---- cached functions
+
+    def step(self, mode: _Mode) -> _Op:
+        """(x, theta, h) -> (x after one RK4 step of the mode, contact impulses [fn; ft])."""
+        key = ("step", _mode_key(mode))
+        if key not in self.cache:
+            h = ca.SX.sym("h")
+            q, v = self.split(self.x)
+            q1, v1, imp = self.rk4(q, v, self.th, mode, h)
+            self.cache[key] = _Op("step", [self.x, self.th, h], [ca.vertcat(q1, v1), imp])
+        return self.cache[key]
+
+    def project(self, mode: _Mode, lifted: tuple) -> _Op:
+        """(x, theta) -> (x projected onto the mode's rows, the projection's impulses); ``lifted``:
+        open contacts below the ground at the input, whose gaps are zeroed too."""
+        key = ("project", _mode_key(mode), lifted)
+        if key not in self.cache:
+            q, v = self.split(self.x)
+            th = self.th
+            pt = self.point(q, v, th)
+            place = mode.copy()
+            place.closed[list(lifted)] = True
+            dq = self.position_correction(pt, q, th, place)
+            G, _, _, info = self.mode_rows(pt, mode)
+            if G.shape[0] == 0:
+                out = [ca.vertcat(q - dq, v), ca.SX.zeros(2 * self.nc)]
+            else:
+                minv_gt = _solve(pt["M"], G.T)
+                impulse = -_solve(G @ minv_gt, G @ v)
+                imp = self.contact_forces(info, impulse, np.zeros(self.nc, int), 0.0)
+                out = [ca.vertcat(q - dq, v + minv_gt @ impulse), imp]
+            self.cache[key] = _Op("project", [self.x, self.th], out)
+        return self.cache[key]
+
+    def position_correction(self, pt, q, th, place: _Mode):
+        G, _, _, info = self.mode_rows(pt, place)
+        n = info.n
+        if n == 0:
+            return ca.SX.zeros(self.nv)
+        _, _, _, lo, hi = self.law_arrays(th)
+        residual = []
+        for r in range(n):
+            c, d = int(info.contact[r]), int(info.dof[r])
+            if c >= 0:
+                residual.append(pt["gap"][c])
+            else:
+                side = int(place.stop[d])
+                residual.append(-side * (q[d] - (hi[d] if side > 0 else lo[d])))
+        Gn = G[:n, :]
+        minv_gt = _solve(pt["M"], Gn.T)
+        return minv_gt @ _solve(Gn @ minv_gt, ca.vertcat(*residual))
+
+    def witness(self, q, v, th, mode: _Mode, index: int, ft_sign: float) -> ca.SX:
+        """The raw (unscaled) witness ``index`` of :meth:`_Landing.witness_and_rate`."""
+        nc, nv = self.nc, self.nv
+        pt = self.point(q, v, th)
+        group, i = (index // nc, index % nc) if index < 4 * nc else (4 + (index - 4 * nc) // nv, (index - 4 * nc) % nv)
+        if group == 0:
+            return pt["gap"][i]
+        if group in (4, 5):
+            _, _, _, lo, hi = self.law_arrays(th)
+            return q[i] - lo[i] if group == 4 else hi[i] - q[i]
+        if group == 3:
+            return float(mode.slip[i]) * (pt["Jt"][i, :] @ v)
+        _, lam, forces, info = self.accelerations(pt, mode)
+        if group == 1:
+            return forces[i]
+        if group == 2:
+            return self.mu * forces[i] - ft_sign * forces[nc + i]
+        r = int(np.flatnonzero(info.dof == i)[0])  # group 6: the stop's force
+        return lam[r]
+
+    def event_witness(self, mode: _Mode, index: int, ft_sign: float) -> _Op:
+        """(x, theta, tau) -> the witness ``index`` after a step of tau from x."""
+        key = ("witness", _mode_key(mode), index, ft_sign)
+        if key not in self.cache:
+            tau = ca.SX.sym("tau")
+            q, v = self.split(self.x)
+            q1, v1, _ = self.rk4(q, v, self.th, mode, tau)
+            w = self.witness(q1, v1, self.th, mode, index, ft_sign)
+            self.cache[key] = _Op("witness", [self.x, self.th, tau], [w])
+        return self.cache[key]
+
+    def impact(self, rows: _Rows, e: np.ndarray, modes: tuple) -> _Op:
+        """(x, theta, e) -> (v after, fn, ft, joint impulses 2 x joints) of the impact over
+        ``rows`` in the law's modes ``modes`` (:func:`_impact_modes`), e the rows' restitutions."""
+        n, m = rows.n, len(rows.owner)
+        pushing, tangent = modes
+        key = ("impact", tuple(rows.contact), tuple(rows.dof), modes)
+        if key not in self.cache:
+            q, v = self.split(self.x)
+            th = self.th
+            e = ca.SX.sym("restitution", n)
+            pt = self.point(q, v, th)
+            stops = np.zeros(self.nv, int)
+            for r, d in enumerate(rows.dof):
+                if d >= 0:
+                    stops[d] = int(np.rint(-rows.G[r, d]))
+            G, _, _, _ = self.rows(pt, rows.contact[rows.contact >= 0], np.zeros(self.nc, int), stops)
+            minv_gt = _solve(pt["M"], G.T)
+            W = G @ minv_gt
+            u = G @ v
+            K, r = [], []
+            for i in range(n):
+                if pushing[i]:
+                    K.append(W[i, :])
+                    r.append(-(1.0 + e[i]) * u[i])
+                else:
+                    K.append(_unit(n + m, i))
+                    r.append(0)
+            for k, mode in enumerate(tangent):
+                i = int(rows.owner[k])
+                if mode == 2:
+                    K.append(W[n + k, :])
+                    r.append(-u[n + k])
+                else:
+                    K.append(_unit(n + m, n + k) + self.mu * float(mode) * _unit(n + m, i))
+                    r.append(0)
+            lam = _solve(ca.vcat(K), ca.vcat(r)) if n + m else ca.SX(0, 1)
+            v_plus = v + minv_gt @ lam
+            forces = self.contact_forces(rows, lam, np.zeros(self.nc, int), self.mu)
+            fn, ft = forces[: self.nc], forces[self.nc :]
+            Fx = pt["nx"] * fn + pt["ny"] * ft
+            Fy = pt["ny"] * fn - pt["nx"] * ft
+            after = self.point(q, v_plus, th)["momentum"]
+            S = ca.DM(self.S)
+            joint = after - pt["momentum"] - ca.vertcat((S @ Fx).T, (S @ Fy).T)
+            # the joint impulses as vectors (x row, y row): their norms are taken where a peak is
+            # differentiated, since sqrt at a zero joint impulse would put 0 * inf = NaN in reverse mode
+            self.cache[key] = _Op("impact", [self.x, self.th, e], [v_plus, fn, ft, joint[:, 1:]])
+        return self.cache[key]
+
+    def touchdown(self, lowest: int, lowest_x: float) -> _Op:
+        """theta -> (q0, kinetic energy before, com height at q0, total mass); the contact
+        ``lowest`` (at x = ``lowest_x`` at theta*) sets the touchdown height."""
+        key = ("touchdown", lowest)
+        if key not in self.cache:
+            th = self.th
+            run = self.run
+            q = ca.SX.zeros(self.nv)
+            layout = dof_layout(run.topology, PLANAR)
+            q[0] = float(run.q0[0])
+            q[2] = self.angle(th, 0)
+            for b in range(1, self.tree.n_bodies):
+                if layout.body_dof[b] is not None:
+                    q[layout.body_dof[b]] = self.angle(th, b)
+            v = ca.DM(pre_impact_velocity(run.topology, run.scene))
+            C = self.fn(q, v, th[: self.n_p], self.gravity)[9]
+            x, y = C[0, lowest], C[1, lowest]
+            q[1] = TOUCHDOWN_CLEARANCE - (y - _terrain_height(run.scene.terrain, x, lowest_x))
+            pt = self.point(q, v, th)
+            mass = sum(th[len(BODY_VALUES) * b + BODY_VALUES.index("mass")] for b in range(self.tree.n_bodies))
+            self.cache[key] = _Op("touchdown", [th], [q, pt["kinetic"], pt["com"], mass])
+        return self.cache[key]
+
+    def final(self) -> _Op:
+        """(x, theta) -> (kinetic + spring energy, com height, final angles)."""
+        key = ("final",)
+        if key not in self.cache:
+            q, v = self.split(self.x)
+            th = self.th
+            pt = self.point(q, v, th)
+            k, _, rest, _, _ = self.law_arrays(th)
+            energy = pt["kinetic"] + 0.5 * ca.sum1(k * (q - rest) ** 2)
+            layout = dof_layout(self.run.topology, PLANAR)
+            angles = [q[2]] + [self.angle(th, b) if layout.body_dof[b] is None else q[layout.body_dof[b]]
+                               for b in range(1, self.tree.n_bodies)]
+            self.cache[key] = _Op("final", [self.x, th], [energy, pt["com"], ca.vertcat(*angles)])
+        return self.cache[key]
+
+
+def _gap(terrain, px: ca.SX, py: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """The signed gap and ground normal of :func:`impulse_core.model.terrain.gap_expression`, with
+    finite derivatives everywhere: that one's distance sqrt(dx^2 + dy^2) has a 0/0 derivative on
+    the ground (d = 0), which CasADi's if_else carries into every branch. Here a piece's distance
+    is linear (n . (p - a)) where the nearest point is inside it, radial only at a breakpoint."""
+    xs, ys = terrain.x, terrain.y
+    if len(xs) == 1:
+        return py - ys[0], ca.SX(0.0), ca.SX(1.0)
+    from impulse_core.model.terrain import _segment_normals, slope_normal
+
+    n_pts = len(xs)
+    seg = _segment_normals(terrain)
+    pieces = [((xs[0], ys[0]), (-1.0, 0.0), math.inf, (0.0, 1.0))]
+    pieces += [((xs[i], ys[i]), (xs[i + 1] - xs[i], ys[i + 1] - ys[i]), 1.0, tuple(seg[i])) for i in range(n_pts - 1)]
+    pieces += [((xs[-1], ys[-1]), (1.0, 0.0), math.inf, (0.0, 1.0))]
+    vertex = slope_normal(terrain, np.asarray(xs))
+    h = ys[0]
+    for i in range(n_pts - 1):
+        slope = (ys[i + 1] - ys[i]) / (xs[i + 1] - xs[i])
+        h = h + slope * (ca.fmin(ca.fmax(px, xs[i]), xs[i + 1]) - xs[i])
+    sign = ca.if_else(py - h >= 0, 1.0, -1.0)
+    best = None
+    for k, ((ax, ay), (dx, dy), upper, (nx, ny)) in enumerate(pieces):
+        t = ((px - ax) * dx + (py - ay) * dy) / (dx * dx + dy * dy)
+        t = ca.fmax(t, 0.0) if math.isinf(upper) else ca.fmin(ca.fmax(t, 0.0), upper)
+        cx, cy = ax + t * dx, ay + t * dy
+        d2 = (px - cx) ** 2 + (py - cy) ** 2
+        end = 0 if k == 0 else (n_pts - 1 if k == len(pieces) - 1 else None)
+        if end is None:
+            vnx = ca.if_else(t <= 0.0, vertex[k - 1][0], vertex[k][0])
+            vny = ca.if_else(t <= 0.0, vertex[k - 1][1], vertex[k][1])
+            interior = ca.logic_and(t > 0.0, t < upper)
+        else:
+            vnx, vny = vertex[end][0], vertex[end][1]
+            interior = t > 0.0
+        safe = ca.sqrt(ca.fmax(d2, 1e-24))
+        radial = d2 > 1e-24
+        g = ca.if_else(interior, nx * (px - ax) + ny * (py - ay), sign * safe)
+        kx = ca.if_else(interior, nx, ca.if_else(radial, sign * (px - cx) / safe, vnx))
+        ky = ca.if_else(interior, ny, ca.if_else(radial, sign * (py - cy) / safe, vny))
+        if best is None:
+            best = (d2, g, kx, ky)
+        else:
+            closer = d2 < best[0]
+            best = tuple(ca.if_else(closer, new, old) for new, old in zip((d2, g, kx, ky), best))
+    return best[1], best[2], best[3]
+
+
+def _solve(A: ca.SX, B: ca.SX) -> ca.SX:
+    """A^-1 B by Gaussian elimination without pivoting. CasADi's SX ``solve`` is a Gram-Schmidt
+    QR whose square roots put 0 * inf = NaN in the derivatives where an entry is numerically zero;
+    the matrices here (the mass matrix, the rows' Delassus matrices, the impact's mode matrix)
+    have nonzero pivots in their natural order."""
+    n = A.shape[0]
+    if n == 0:
+        return ca.SX(0, B.shape[1])
+    A, B = ca.SX(A), ca.SX(B)
+    for k in range(n - 1):
+        L = A[k + 1 :, k] / A[k, k]
+        A[k + 1 :, k:] = A[k + 1 :, k:] - L @ A[k, k:]
+        B[k + 1 :, :] = B[k + 1 :, :] - L @ B[k, :]
+    X = ca.SX.zeros(n, B.shape[1])
+    for k in reversed(range(n)):
+        rest = A[k, k + 1 :] @ X[k + 1 :, :] if k + 1 < n else 0
+        X[k, :] = (B[k, :] - rest) / A[k, k]
+    return X
+
+
+_SYMBOLIC: dict = {}
+
+
+def _symbolic(run: _Landing, laws: tuple[JointLaw, ...]) -> _Symbolic:
+    """The symbolic operations of a run, shared by every run whose structure is the same (the
+    design values are symbols; which rests follow the angle and which joints have stops, the
+    ground, friction, gravity and the approach are built in): a search that lands many designs
+    of one topology builds each mode's functions, and CasADi their derivatives, once."""
+    laws = laws or (FREE,) * run.tree.n_bodies
+    scene = run.scene
+    key = (run.topology, scene.terrain, run.mu, scene.gravity, scene.base_x, scene.velocity, scene.angular_velocity_3d,
+           tuple(law.rest is None for law in laws), tuple(law.limits is None for law in laws))
+    if key not in _SYMBOLIC:
+        if len(_SYMBOLIC) >= 16:
+            _SYMBOLIC.pop(next(iter(_SYMBOLIC)))
+        _SYMBOLIC[key] = _Symbolic(run, laws)
+    return _SYMBOLIC[key]
+
+
+def _unit(size: int, k: int) -> ca.SX:
+    row = ca.SX.zeros(1, size)
+    row[k] = 1
+    return row
+
+
+def _terrain_height(terrain, x: ca.SX, x_num: float) -> ca.SX:
+    """The ground's height at x on the segment holding ``x_num`` (linear there; flat beyond)."""
+    pts = np.asarray(terrain.points, dtype=float)
+    if len(pts) == 1 or x_num <= pts[0, 0]:
+        return ca.SX(float(pts[0, 1]))
+    if x_num >= pts[-1, 0]:
+        return ca.SX(float(pts[-1, 1]))
+    i = int(np.searchsorted(pts[:, 0], x_num, side="right")) - 1
+    (x0, y0), (x1, y1) = pts[i], pts[i + 1]
+    return y0 + (y1 - y0) / (x1 - x0) * (x - x0)
+
+
+def sequence_signature(tape: list, run: _Landing) -> tuple:
+    """The discrete decisions of a taped run: per operation its kind and mode (steps: the mode and
+    whether it is the last, shortened one; event steps: the mode and the witness that crossed;
+    impacts: the rows, which restitutions the plastic rules zeroed, and the law's modes).
+    Projections' rows follow from the modes; the open contacts they lift (left below the ground
+    by rounding, with no first-order effect) are not included."""
+    return tuple(s for s in (_signature(entry, run) for entry in tape) if s is not None)
+
+
+def _signature(entry: tuple, run: _Landing) -> tuple | None:
+    kind = entry[0]
+    if kind == "step":
+        return ("step", _mode_key(entry[3]), bool(entry[5]))
+    if kind == "event_step":
+        _, q, v, mode, tau, watch = entry
+        return ("event", _mode_key(mode), _crossing(run, q, v, mode, tau, watch))
+    if kind == "impact":
+        _, q, v, rows, e, sol = entry
+        return ("impact", tuple(int(c) for c in rows.contact), tuple(int(d) for d in rows.dof),
+                tuple(float(z) == 0 for z in e), _impact_modes(rows, sol, _approach_speed(rows, v)))
+    return None
+
+
+def _approach_speed(rows: _Rows, v: np.ndarray) -> float:
+    return max(float(np.max(np.abs(rows.G @ v), initial=0.0)), np.finfo(float).tiny)
+
+
+def _impact_modes(rows: _Rows, sol, speed: float) -> tuple:
+    n = rows.n
+    impulse_tol = LEMKE_TOL * 1e3 * max(float(np.max(np.abs(sol.normal), initial=0.0)), np.finfo(float).tiny)
+    pushing = sol.normal > impulse_tol
+    tangent = []
+    for k in range(len(rows.owner)):
+        i = int(rows.owner[k])
+        if not pushing[i]:
+            tangent.append(0)
+        elif abs(sol.velocity[n + k]) <= 1e-9 * speed:
+            tangent.append(2)
+        else:
+            tangent.append(int(np.sign(sol.velocity[n + k])))
+    return tuple(int(x) for x in pushing), tuple(tangent)
+
+
+def _crossing(run: _Landing, q, v, mode: _Mode, tau: float, watch: np.ndarray) -> tuple[int, float]:
+    """The watched witness that crossed at the located tau (the smallest scaled value there), and
+    the sign of its contact's tangential force (for a cone margin)."""
+    q1, v1, _ = run.step(q, v, mode, tau)
+    w = run.witness(q1, v1, mode)
+    idx = np.flatnonzero(watch)
+    i = int(idx[np.argmin(w[idx])])
+    sign = 1.0
+    if run.nc <= i < 4 * run.nc and (i // run.nc) == 2:
+        _, forces = run.derivative(q1, v1, mode)
+        sign = float(np.sign(forces[run.nc + i % run.nc])) or 1.0
+    return i, sign
+
+
+def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
+              settings: LandingSettings = LandingSettings()) -> tuple[LandingResult, list, _Landing]:
+    """One numeric landing at the fixed Runge-Kutta ``step`` with its tape."""
+    run = _Landing(tree, scene, laws, settings)
+    run.tape = []
+    result = run.run(step)
+    tape, run.tape = run.tape, None  # the run may be kept (a cached structure): not its tape
+    return result, tape, run
+
+
+def landing_gradient(
+    tree: Tree,
+    scene: Scene,
+    laws: tuple[JointLaw, ...] = (),
+    settings: LandingSettings = LandingSettings(),
+    step: float | None = None,
+) -> LandingGradient:
+    """The landing's objectives and their exact derivatives w.r.t. theta (module docstring) along
+    the event sequence of the run at ``step`` (None: the step :func:`landing` reports at
+    ``settings``, which costs that landing first).
+
+    Raises:
+        ModelError: as :func:`landing`.
+        NumericalError: as :func:`landing`; or redundant rows in some mode (not differentiable).
+    """
+    t0 = time.perf_counter()
+    if step is None:
+        step = landing(tree, scene, laws, settings).step
+    result, tape, run = taped_run(tree, scene, laws, step, settings)
+    t1 = time.perf_counter()
+    sym = _symbolic(run, laws)
+    theta = design_theta(tree, laws)
+    nc, nv, n_theta = sym.nc, sym.nv, sym.n_theta
+
+    # touchdown: the lowest contact (the first where several tie) sets the height
+    from impulse_core.model.terrain import vertical_clearance
+
+    geometry = run.point(np.array([run.q0[0], 0.0, *run.q0[2:]]), np.zeros(nv)).contacts
+    lowest = int(np.argmin(vertical_clearance(scene.terrain, geometry)))
+    (q0, e_before, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(theta)
+    d_e_before, d_height0, d_mass = J[1][0], J[2][0], J[3][0]  # 1 x n_theta each
+    # forward sensitivities: each quantity z carries dz/dtheta (rows: its entries)
+    x = np.concatenate([q0, pre_impact_velocity(run.topology, scene)])
+    S = np.vstack([J[0][0], np.zeros((nv, n_theta))])
+    totals, S_totals = np.zeros(2 * nc), np.zeros((2 * nc, n_theta))
+    t, dt = 0.0, np.zeros(n_theta)
+    T = float(scene.duration)
+    events = []  # per impact: (fn, d fn, joint impulses, their derivative)
+    signature = []
+    checked: set = set()
+
+    for entry in tape:
+        kind = entry[0]
+        item = _signature(entry, run)
+        if item is not None:
+            signature.append(item)
+        if kind in ("step", "event_step"):
+            _, q, v, mode = entry[:4]
+            if _mode_key(mode) not in checked:
+                _check_rows(run, q, v, mode)
+                checked.add(_mode_key(mode))
+        if kind in ("step", "event_step"):
+            if kind == "step":
+                _, q, v, mode, h, final = entry
+                h, dh = (T - t, -dt) if final else (h, np.zeros(n_theta))
+            else:
+                _, q, v, mode, tau, watch = entry
+                index, sign = item[2]
+                op = sym.event_witness(mode, index, sign)
+                (c,), _ = op(np.concatenate([q, v]), theta, tau)
+                (w,), Jw = op(x, theta, tau)
+                rate = float(Jw[0][2][0, 0])
+                if rate == 0 or not math.isfinite(rate):
+                    raise NumericalError("an event's witness does not cross (a graze): no derivative of its time")
+                # the event time: where the witness reaches its value at the located tau (one
+                # Newton correction; its derivative is the implicit function theorem's)
+                h = tau - float(w[0] - c[0]) / rate
+                dh = -(Jw[0][0] @ S + Jw[0][1])[0] / rate
+            (x1, imp), J = sym.step(mode)(x, theta, h)
+            S_totals = S_totals + J[1][0] @ S + J[1][1] + np.outer(J[1][2], dh)
+            S = J[0][0] @ S + J[0][1] + np.outer(J[0][2], dh)
+            x, totals, t, dt = x1, totals + imp, t + h, dt + dh
+        elif kind == "impact":
+            _, q, v, rows, e, sol = entry
+            (v_plus, fn, ft, joint), J = sym.impact(rows, e, item[4])(x, theta, e)
+            d = [Jo[0] @ S + Jo[1] for Jo in J]
+            x = np.concatenate([x[:nv], v_plus])
+            S = np.vstack([S[:nv], d[0]])
+            totals = totals + np.concatenate([fn, ft])
+            S_totals = S_totals + np.vstack([d[1], d[2]])
+            events.append((fn, d[1], joint, d[3]))
+        elif kind == "project":
+            _, q, v, mode = entry
+            pt = run.point(q, v)
+            lifted = tuple(int(i) for i in np.flatnonzero(~mode.closed & (pt.gap < 0)))
+            (x1, imp), J = sym.project(mode, lifted)(x, theta)
+            S_totals = S_totals + J[1][0] @ S + J[1][1]
+            S = J[0][0] @ S + J[0][1]
+            x, totals = x1, totals + imp
+    (energy, com, angles), J = sym.final()(x, theta)
+    d_energy, d_com, d_angles = (Jo[0] @ S + Jo[1] for Jo in J)
+    brought = e_before[0] + float(mass[0]) * scene.gravity * (height0[0] - com[0])
+    d_brought = d_e_before[0] + scene.gravity * (d_mass[0] * (height0[0] - com[0]) + float(mass[0]) * (d_height0[0] - d_com[0]))
+    absorbed = 1.0 - energy[0] / brought
+    d_absorbed = -(d_energy[0] * brought - energy[0] * d_brought) / brought**2
+
+    # peaks: the event (and joint) attaining the maximum in the numeric run
+    ext = np.array([ev.external_norm for ev in result.events])
+    inr = np.array([ev.internal_norm for ev in result.events])
+    mx = np.array([float(ev.internal_magnitude.max()) if ev.internal_magnitude.size else 0.0 for ev in result.events])
+    ties, chosen = {}, {}
+    for name, vals in (("peak_external_norm", ext), ("peak_internal_norm", inr), ("peak_max_internal", mx)):
+        i = int(np.argmax(vals))
+        ties[name] = tuple(int(k) for k in np.flatnonzero(vals >= vals[i] * (1 - TIE)))
+        chosen[name] = i
+
+    def norm_and_derivative(z: np.ndarray, dz: np.ndarray) -> tuple[float, np.ndarray]:
+        n = float(np.linalg.norm(z))
+        return n, (z @ dz) / n if n > 0 else np.zeros(n_theta)
+
+    fn, d_fn, _, _ = events[chosen["peak_external_norm"]]
+    peak_ext = norm_and_derivative(fn, d_fn)
+    _, _, joint, d_joint = events[chosen["peak_internal_norm"]]
+    peak_int = norm_and_derivative(joint, d_joint)
+    _, _, joint, d_joint = events[chosen["peak_max_internal"]]
+    magnitudes = result.events[chosen["peak_max_internal"]].internal_magnitude
+    j = int(np.argmax(magnitudes)) if magnitudes.size else -1
+    peak_max = norm_and_derivative(joint[2 * j : 2 * j + 2], d_joint[2 * j : 2 * j + 2]) if j >= 0 else (0.0, np.zeros(n_theta))
+    peak_events = {"peak_external_norm": (chosen["peak_external_norm"], -1),
+                   "peak_internal_norm": (chosen["peak_internal_norm"], -1),
+                   "peak_max_internal": (chosen["peak_max_internal"], j)}
+    out = np.concatenate([[peak_ext[0], peak_int[0], peak_max[0], absorbed], totals[:nc], angles])
+    jac = np.vstack([peak_ext[1], peak_int[1], peak_max[1], d_absorbed, S_totals[:nc], d_angles])
+    t2 = time.perf_counter()
+    values, jacobian = {}, {}
+    for k, name in enumerate(SCALARS):
+        values[name], jacobian[name] = float(out[k]), jac[k].copy()
+    nb = tree.n_bodies
+    values["total_external"], jacobian["total_external"] = out[4 : 4 + nc].copy(), jac[4 : 4 + nc].copy()
+    values["final_angles"], jacobian["final_angles"] = out[4 + nc : 4 + nc + nb].copy(), jac[4 + nc :].copy()
+    return LandingGradient(
+        values=values, jacobian=jacobian, theta=theta, names=design_names(tree), sequence=tuple(signature),
+        peak_events=peak_events, ties=ties, result=result,
+        timings={"run": t1 - t0, "sensitivities": t2 - t1},
+    )
+
+
+def _check_rows(run: _Landing, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:
+    """Refuse a mode whose rows are redundant (the force split is not unique: no derivative)."""
+    from impulse_core.timedomain.landing import _mode_rows
+
+    pt = run.point(q, v)
+    rows = _mode_rows(pt, mode, run.mu)
+    if rows.G.shape[0]:
+        W = rows.G @ np.linalg.solve(pt.M, rows.F.T)
+        if np.linalg.cond(W) > 1e12:
+            raise NumericalError("redundant constraint rows in a landing mode: the force split is not unique, "
+                                 "so it has no derivative")
+
+
+__all__ = ["LAW_VALUES", "apply_theta", "SCALARS", "LandingGradient", "design_names", "design_theta", "landing_gradient",
+           "sequence_signature", "taped_run"]

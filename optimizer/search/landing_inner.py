@@ -1,0 +1,484 @@
+"""The inner search over whole-landing objectives: IPOPT per foot shape on the exact landing
+gradient (:func:`impulse_core.timedomain.landing_derivatives.landing_gradient`), and an
+epsilon-constraint sweep for a front, as :mod:`optimizer.search.inner` does for the first impact.
+
+Variables per shape: per distinct rod its joint angle, mass and length, the ankle height (as the
+first-impact NLP: identical toes share theirs), and each joint family's searched law values
+(stiffness, damping, stop travel; a fixed range [x, x] is a constant). Constraints: the same
+geometric rows (:func:`optimizer.search.compiled._geometric_rows`: level tips, mass per length,
+foot length, clearance, foot mass), symbolic with exact derivatives. Objectives (at most two,
+each a landing objective but ``settled_at``, which has no derivative): a CasADi callback that lands
+the design numerically at a fixed Runge-Kutta step, and its Jacobian callback, the exact gradient
+along that landing's own event sequence, chained from the tree's values to the NLP's. IPOPT uses
+a limited-memory Hessian.
+
+A change of event sequence between iterates: every evaluation lands the design afresh, so the
+gradient at an iterate is always that of its own sequence (re-derived whenever the sequence
+differs from the last one), and IPOPT's filter line search accepts a trial point only on the
+objective that the numeric landing measures there (and the constraint violation): a step across
+a change of sequence (a kink or a jump of the objective) is accepted only if the numeric landing
+says it improved, else the step is cut back. A landing that fails numerically returns NaN, which
+IPOPT treats as an evaluation error and cuts the step. The step length is fixed within one solve
+(the one ``landing()`` reports at the start point, at the study's tolerance), so the objective
+is one function of the design during a solve; every design found is then realised and evaluated
+by the study's own landing (:func:`optimizer.design_space.evaluate_design_landing`, its step
+refined to the tolerance): that evaluation, not the NLP's, decides what is recorded.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+
+import casadi as ca
+import numpy as np
+
+from impulse_core.errors import NumericalError
+from impulse_core.model.tree import BODY_VALUES
+from impulse_core.timedomain.landing import LandingSettings, landing
+from impulse_core.timedomain.landing_derivatives import LAW_VALUES, _joint_dofs, landing_gradient, taped_run
+from optimizer.config.study_config import StudyConfig
+from optimizer.design_space import (
+    JOINT_FAMILIES,
+    LENGTH_FLOOR,
+    STUDY_LANDING,
+    DesignEvaluation,
+    FootDesign,
+    FootShape,
+    MassMode,
+    Objective,
+    Segment,
+    ToeSymmetry,
+    assign_lengths,
+    evaluate_design_landing,
+    foot_joint_laws,
+    foot_tree,
+    landing_scene,
+    with_lengths,
+)
+from optimizer.search.compiled import _chain_limits, _geometric_rows, foot_kind
+
+#: IPOPT's options for a landing solve: limited-memory Hessian (only first derivatives exist).
+LANDING_IPOPT = {
+    "ipopt.hessian_approximation": "limited-memory",
+    "ipopt.print_level": 0,
+    "ipopt.max_iter": 60,
+    "ipopt.tol": 1e-6,
+    "ipopt.acceptable_tol": 1e-4,
+    "print_time": False,
+}
+#: The law values a family may search, in the NLP's order.
+LAW_KEYS = ("stiffness", "damping", "stop")
+
+
+@dataclass
+class LandingNlp:
+    """One shape's landing NLP.
+
+    Attributes:
+        config, shape: the study and the foot shape.
+        identical: identical toes share their rods' values.
+        laws: the searched law variables, (family, key) in x's order after the ankle height.
+        lbx, ubx, lbg, ubg: bounds; constraint row 0 is f2 (its upper bound: a solve's epsilon).
+        step: the Runge-Kutta step of the current solve (set by :func:`solve_landing`).
+        sequences: the distinct event sequences the gradient was derived along (a count of
+            re-derivations, for the record).
+    """
+
+    config: StudyConfig
+    shape: FootShape
+    identical: bool
+    laws: tuple[tuple[str, str], ...]
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    geometric: ca.Function
+    step: float = 0.0
+    sequences: set = field(default_factory=set)
+    evaluations: int = 0
+    gradients: int = 0
+
+    @property
+    def sizes(self) -> tuple[int, ...]:
+        return foot_kind(self.config, self.shape).sizes
+
+    @property
+    def n_rods(self) -> int:
+        return sum(self.sizes)
+
+    @property
+    def n_x(self) -> int:
+        return 3 * self.n_rods + 1 + len(self.laws)
+
+    def design(self, x: np.ndarray) -> FootDesign:
+        """The foot of an NLP point."""
+        n = self.n_rods
+        a, m, L = x[:n], x[n : 2 * n], x[2 * n : 3 * n]
+        family = self.family_laws(x)
+        chains, i = [], 0
+        for c, k in enumerate(self.sizes):
+            root, inner = ("heel_root", "heel_inner") if c == 0 else ("toe_root", "toe_inner")
+            chain = []
+            for j in range(k):
+                law = family[root if j == 0 else inner]
+                chain.append(Segment(float(L[i]), float(m[i]), float(a[i]), law["stiffness"], law["damping"], law["stop"]))
+                i += 1
+            chains.append(tuple(chain))
+        toes = (chains[1],) * self.shape.n_toes if self.identical else tuple(chains[1:])
+        return FootDesign(heel=chains[0], toes=toes)
+
+    def family_laws(self, x: np.ndarray) -> dict[str, dict]:
+        """Each family's law values at x (searched ones from x, fixed ones their value)."""
+        space = self.config.space.joint_laws
+        searched = {key: x[3 * self.n_rods + 1 + k] for k, key in enumerate(self.laws)}
+        out = {}
+        for name in JOINT_FAMILIES:
+            vals = {}
+            for key in LAW_KEYS:
+                r = getattr(getattr(space, name), key)
+                vals[key] = None if r is None else float(searched.get((name, key), r[0]))
+            vals["stiffness"] = vals["stiffness"] or 0.0
+            vals["damping"] = vals["damping"] or 0.0
+            out[name] = vals
+        return out
+
+    def rod_index(self) -> list[tuple[int, int, str, str]]:
+        """Per foot body of the tree (thigh and shank excluded, tree order): (its body index, the
+        distinct rod it takes its values from, its family's root or inner name)."""
+        out, body = [], 2
+        starts = np.cumsum((0, *self.sizes[:-1]))
+        chains = [0] + ([1] * self.shape.n_toes if self.identical else list(range(1, 1 + self.shape.n_toes)))
+        for c in chains:
+            root, inner = ("heel_root", "heel_inner") if c == 0 else ("toe_root", "toe_inner")
+            for j in range(self.sizes[c]):
+                out.append((body, int(starts[c]) + j, root if j == 0 else inner))
+                body += 1
+        return out
+
+    def chain_rule(self, x: np.ndarray, tree, names: tuple[str, ...], d_theta: np.ndarray) -> np.ndarray:
+        """d/dx from d/dtheta (rows: objectives) for the tree of x."""
+        n = self.n_rods
+        width = len(BODY_VALUES)
+        n_p = len(names) - len(LAW_VALUES) * len(_joint_dofs(tree))
+        law_at = {b: n_p + len(LAW_VALUES) * i for i, (b, _) in enumerate(_joint_dofs(tree))}
+        family = self.family_laws(x)
+        out = np.zeros((d_theta.shape[0], self.n_x))
+        searched = {key: 3 * n + 1 + k for k, key in enumerate(self.laws)}
+        for body, rod, fam in self.rod_index():
+            col = lambda name: width * body + BODY_VALUES.index(name)  # noqa: E731
+            out[:, rod] += d_theta[:, col("angle")]
+            out[:, n + rod] += d_theta[:, col("mass")]
+            out[:, 2 * n + rod] += d_theta[:, col("length")]
+            base = law_at[body]
+            lo, hi = d_theta[:, base + 3], d_theta[:, base + 4]
+            if family[fam]["stop"] is not None:  # limits = angle -+ stop
+                out[:, rod] += lo + hi
+                if (fam, "stop") in searched:
+                    out[:, searched[(fam, "stop")]] += hi - lo
+            for key, k in (("stiffness", 0), ("damping", 1)):
+                if (fam, key) in searched:
+                    out[:, searched[(fam, key)]] += d_theta[:, base + k]
+        return out
+
+
+def build_landing_nlp(config: StudyConfig, shape: FootShape) -> LandingNlp:
+    """The landing NLP of ``shape`` (see the module docstring)."""
+    lim = config.limits
+    kind = foot_kind(config, shape)
+    sizes = kind.sizes
+    n = sum(sizes)
+    starts = np.cumsum((0, *sizes[:-1]))
+    distinct = [list(range(s, s + k)) for s, k in zip(starts, sizes, strict=True)]
+    space = config.space.joint_laws
+    laws, lo_law, hi_law = [], [], []
+    for name in JOINT_FAMILIES:
+        if name.endswith("inner") and (shape.heel_segments if name.startswith("heel") else shape.toe_segments) < 2:
+            continue
+        for key in LAW_KEYS:
+            r = getattr(getattr(space, name), key)
+            if r is not None and r[0] != r[1]:
+                laws.append((name, key))
+                lo_law.append(r[0])
+                hi_law.append(r[1])
+    a, m, L = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n), ca.SX.sym("length", n)
+    h = ca.SX.sym("ankle_height")
+    w = ca.SX.sym("law", len(laws))
+    mult = [ca.SX(1)] + [ca.SX(shape.n_toes if kind.distinct_toes == 1 else 1)] * kind.distinct_toes
+    g, lbg, ubg = [], [], []
+
+    def add(expr, lo, hi):
+        g.append(expr)
+        lbg.append(lo)
+        ubg.append(hi)
+
+    _geometric_rows(config, distinct, a, m, L, h, mult, add)
+    x = ca.vertcat(a, m, L, h, w)
+    geometric = ca.Function("geometric", [x], [ca.vertcat(*g)])
+    a_lo, a_hi = [], []
+    for chain, bounds in zip(distinct, _chain_limits(config, kind), strict=True):
+        a_lo += [bounds[j][0] for j in range(len(chain))]
+        a_hi += [bounds[j][1] for j in range(len(chain))]
+    lbx = np.concatenate([a_lo, [lim.min_link_mass * (1 + 1e-6)] * n, [LENGTH_FLOOR] * n, [0.0], lo_law])
+    ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n, [math.inf], hi_law])
+    return LandingNlp(
+        config, shape, config.space.toe_symmetry is ToeSymmetry.IDENTICAL, tuple(laws), lbx, ubx,
+        np.array([-math.inf, *lbg]), np.array([math.inf, *ubg]), geometric,
+    )
+
+
+def landing_objectives_of(config: StudyConfig) -> tuple[Objective, ...]:
+    """The (at most two) objectives a landing NLP minimises, each signed (``Objective.sign``)."""
+    return tuple(config.objectives[:2])
+
+
+class _Landed:
+    """The NLP's numeric landing at x, cached for the last x: objective values, and on request
+    their gradient along that landing's event sequence."""
+
+    def __init__(self, nlp: LandingNlp) -> None:
+        self.nlp = nlp
+        self.objectives = landing_objectives_of(nlp.config)
+        self.x_f: np.ndarray | None = None
+        self.f: np.ndarray | None = None
+        self.x_g: np.ndarray | None = None
+        self.g: np.ndarray | None = None
+
+    def model(self, x: np.ndarray):
+        cfg = self.nlp.config
+        design = self.nlp.design(x)
+        tree = foot_tree(cfg.leg, design)
+        laws = foot_joint_laws(cfg.leg, design, cfg.space.joint_laws.stop_restitution)
+        return tree, laws, landing_scene(cfg.scene, cfg.limits)
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        if self.x_f is not None and np.array_equal(x, self.x_f):
+            return self.f
+        self.nlp.evaluations += 1
+        try:
+            tree, laws, scene = self.model(x)
+            with np.errstate(all="ignore"):
+                r, _, _ = taped_run(tree, scene, laws, self.nlp.step, STUDY_LANDING)
+            f = np.array([o.sign * getattr(r, o.value) for o in self.objectives])
+        except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
+            f = np.full(len(self.objectives), np.nan)
+        self.x_f, self.f = x.copy(), f
+        return f
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        if self.x_g is not None and np.array_equal(x, self.x_g):
+            return self.g
+        self.nlp.gradients += 1
+        try:
+            tree, laws, scene = self.model(x)
+            with np.errstate(all="ignore"):
+                gr = landing_gradient(tree, scene, laws, STUDY_LANDING, step=self.nlp.step)
+            self.nlp.sequences.add(hash(gr.sequence))
+            d = np.vstack([o.sign * gr.jacobian[o.value] for o in self.objectives])
+            g = self.nlp.chain_rule(x, tree, gr.names, d)
+        except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
+            g = np.full((len(self.objectives), self.nlp.n_x), np.nan)
+        self.x_g, self.g = x.copy(), g
+        return g
+
+
+class _Objectives(ca.Callback):
+    """x -> the signed landing objectives (CasADi callback; its Jacobian: :class:`_Gradient`)."""
+
+    def __init__(self, landed: _Landed, n_x: int, n_f: int) -> None:
+        ca.Callback.__init__(self)
+        self.landed, self.n_x, self.n_f = landed, n_x, n_f
+        self.construct("landing_objectives", {"enable_fd": False})
+
+    def get_n_in(self):
+        return 1
+
+    def get_n_out(self):
+        return 1
+
+    def get_sparsity_in(self, i):
+        return ca.Sparsity.dense(self.n_x, 1)
+
+    def get_sparsity_out(self, i):
+        return ca.Sparsity.dense(self.n_f, 1)
+
+    def eval(self, args):
+        return [ca.DM(self.landed.values(np.asarray(args[0], dtype=float).ravel()))]
+
+    def has_jacobian(self):
+        return True
+
+    def get_jacobian(self, name, inames, onames, opts):
+        self._jacobian = _Gradient(name, self.landed, self.n_x, self.n_f, opts)
+        return self._jacobian
+
+
+class _Gradient(ca.Callback):
+    """(x, objectives) -> d objectives / d x: the exact gradient along the landing's sequence."""
+
+    def __init__(self, name: str, landed: _Landed, n_x: int, n_f: int, opts: dict) -> None:
+        ca.Callback.__init__(self)
+        self.landed, self.n_x, self.n_f = landed, n_x, n_f
+        self.construct(name, opts)
+
+    def get_n_in(self):
+        return 2
+
+    def get_n_out(self):
+        return 1
+
+    def get_sparsity_in(self, i):
+        return ca.Sparsity.dense(self.n_x, 1) if i == 0 else ca.Sparsity.dense(self.n_f, 1)
+
+    def get_sparsity_out(self, i):
+        return ca.Sparsity.dense(self.n_f, self.n_x)
+
+    def eval(self, args):
+        return [ca.DM(self.landed.gradient(np.asarray(args[0], dtype=float).ravel()))]
+
+
+@dataclass(frozen=True)
+class LandingSolution:
+    x: np.ndarray
+    success: bool
+    f: float
+    f2: float
+    status: str
+
+
+def solver(nlp: LandingNlp, options: dict | None = None) -> tuple[ca.Function, _Landed]:
+    """IPOPT on the landing NLP: parameters (w1, w2), row 0 = f2 (``options`` override
+    :data:`LANDING_IPOPT`)."""
+    landed = _Landed(nlp)
+    n_f = len(landed.objectives)
+    F = _Objectives(landed, nlp.n_x, n_f)
+    x = ca.MX.sym("x", nlp.n_x)
+    p = ca.MX.sym("p", 2)
+    f = F(x)
+    f2 = f[1] if n_f > 1 else ca.MX(0)
+    problem = {"x": x, "p": p, "f": p[0] * f[0] + p[1] * f2, "g": ca.vertcat(f2, nlp.geometric(x))}
+    s = ca.nlpsol("landing_nlp", "ipopt", problem, {**LANDING_IPOPT, **(options or {})})
+    s._keep = F  # the callback must outlive the solver
+    return s, landed
+
+
+def start_landing(nlp: LandingNlp, rng: np.random.Generator) -> np.ndarray | None:
+    """A random level start (as the first-impact search's): angles uniform in their limits, mass
+    shares uniform, lengths and ankle height from the linear program; law values uniform."""
+    cfg, lim = nlp.config, nlp.config.limits
+    n = nlp.n_rods
+    a = rng.uniform(nlp.lbx[:n], nlp.ubx[:n])
+    shares = rng.uniform(0.05, 1.0, n)
+    mult = np.concatenate([[1] * nlp.sizes[0]] + [[nlp.shape.n_toes if nlp.identical else 1] * k for k in nlp.sizes[1:]])
+    used = lim.foot_mass if lim.mass_mode is MassMode.EQUAL else lim.foot_mass * 0.9
+    free = used - np.sum(mult) * lim.min_link_mass
+    m = lim.min_link_mass + free * shares / np.sum(mult * shares)
+    design = nlp.design(np.concatenate([a, m, np.full(n, 0.1), [0.0], nlp.lbx[3 * n + 1 :]]))
+    angles = tuple(tuple(s.joint_angle for s in c) for c in design.chains)
+    masses = tuple(tuple(s.mass for s in c) for c in design.chains)
+    assignment = assign_lengths(cfg.leg, nlp.shape, angles, masses, lim)
+    if assignment is None:
+        return None
+    L = np.concatenate([np.array(c) for c in assignment.lengths[: len(nlp.sizes)]])
+    w = rng.uniform(nlp.lbx[3 * n + 1 :], nlp.ubx[3 * n + 1 :])
+    return np.concatenate([a, m, L, [assignment.ankle_height], w])
+
+
+def solve_landing(nlp: LandingNlp, weights: tuple[float, float], eps: float, x0: np.ndarray,
+                  options: dict | None = None) -> LandingSolution:
+    """One IPOPT solve from x0, at the step ``landing()`` reports at x0 (study tolerance)."""
+    cfg = nlp.config
+    landed0 = _Landed(nlp)
+    tree, laws, scene = landed0.model(x0)
+    try:
+        with np.errstate(all="ignore"):
+            nlp.step = landing(tree, scene, laws, replace(STUDY_LANDING, tolerance=cfg.search.landing_tolerance)).step
+    except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
+        return LandingSolution(x0, False, math.nan, math.nan, "start point does not land")
+    s, landed = solver(nlp, options)
+    ubg = nlp.ubg.copy()
+    ubg[0] = eps
+    sol = s(x0=x0, p=list(weights), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=ubg)
+    stats = s.stats()
+    x = np.asarray(sol["x"]).ravel()
+    return LandingSolution(x, bool(stats["success"]), float(sol["f"]), float(np.asarray(sol["g"]).ravel()[0]),
+                           str(stats["return_status"]))
+
+
+def realise_landing(nlp: LandingNlp, x: np.ndarray) -> DesignEvaluation | None:
+    """The design of an NLP point, evaluated by the study's landing (masses rescaled to the
+    budget in EQUAL mode); None when it is not feasible."""
+    cfg, lim = nlp.config, nlp.config.limits
+    design = nlp.design(x)
+    if lim.mass_mode is MassMode.EQUAL:
+        total = design.foot_mass
+        n_all = len(design.segments)
+        scale = (lim.foot_mass - n_all * lim.min_link_mass) / (total - n_all * lim.min_link_mass)
+        design = FootDesign(
+            heel=tuple(replace(s, mass=lim.min_link_mass + (s.mass - lim.min_link_mass) * scale) for s in design.heel),
+            toes=tuple(tuple(replace(s, mass=lim.min_link_mass + (s.mass - lim.min_link_mass) * scale) for s in t)
+                       for t in design.toes),
+        )
+    def evaluate(d: FootDesign) -> DesignEvaluation | None:
+        ev = evaluate_design_landing(cfg.leg, d, cfg.scene, lim, cfg.space.joint_laws.stop_restitution,
+                                     cfg.search.landing_tolerance)
+        return ev if ev.objectives is not None and ev.feasible else None
+
+    ev = evaluate(design)
+    if ev is not None:
+        return ev
+    # off the constraints (an unfinished solve, or rounding): the lengths from the linear program
+    angles = tuple(tuple(s.joint_angle for s in c) for c in design.chains)
+    masses = tuple(tuple(s.mass for s in c) for c in design.chains)
+    assignment = assign_lengths(cfg.leg, nlp.shape, angles, masses, lim)
+    return None if assignment is None else evaluate(with_lengths(design, assignment))
+
+
+def landing_sweep(nlp: LandingNlp, rng: np.random.Generator) -> Iterator[DesignEvaluation]:
+    """Anchors (each objective's minimum over ``search.starts`` random starts, the other as a
+    tie-break), then ``search.front_points`` epsilon solves between them, each started from the
+    previous one. A solve counts by its realised design (:func:`realise_landing`), whatever
+    IPOPT's status: the landing's objective is only piecewise smooth, so IPOPT often stops at its
+    iteration limit or an acceptable level rather than at its tolerance. Yields every feasible
+    realised design, in a fixed order."""
+    cfg = nlp.config
+    starts = [x0 for x0 in (start_landing(nlp, rng) for _ in range(cfg.search.starts)) if x0 is not None]
+    two = len(landing_objectives_of(cfg)) > 1
+    weights = ((1.0, 1e-4), (1e-4, 1.0)) if two else ((1.0, 0.0),)
+    anchors = []
+    for w in weights:
+        best = None
+        for x0 in starts:
+            s = solve_landing(nlp, w, math.inf, x0)
+            if math.isfinite(s.f) and (best is None or s.f < best[0].f):
+                ev = realise_landing(nlp, s.x)  # the study's landing decides, not IPOPT's status
+                if ev is not None:
+                    best = (s, ev)
+        if best is not None:
+            anchors.append(best)
+            yield best[1]
+    if len(anchors) < 2 or cfg.search.front_points == 0:
+        return
+    (first, _), (second, _) = anchors
+    if not first.f2 > second.f2:
+        return
+    previous = first
+    for eps in np.linspace(first.f2, second.f2, cfg.search.front_points + 2)[1:-1]:
+        s = solve_landing(nlp, weights[0], float(eps), previous.x)
+        ev = realise_landing(nlp, s.x) if math.isfinite(s.f) else None
+        if ev is not None:
+            yield ev
+            previous = s
+
+
+__all__ = [
+    "LANDING_IPOPT",
+    "LandingNlp",
+    "LandingSolution",
+    "build_landing_nlp",
+    "landing_sweep",
+    "realise_landing",
+    "solve_landing",
+    "start_landing",
+]

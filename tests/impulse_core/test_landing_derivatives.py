@@ -1,0 +1,182 @@
+"""Exact derivatives of the whole landing along its event sequence
+(impulse_core.timedomain.landing_derivatives).
+
+Seeded cases: a leg whose second contact touches down after the first (frictionless), one whose
+knee reaches its stop (springs with given rest angles, a stop restitution), and one with friction
+(contacts sticking and sliding between impacts, sliding and sticking impacts); all with springs,
+dampers and gravity. For each:
+- the replayed graph's values equal the numeric landing's (same step) to 1e-10;
+- the exact derivatives agree with central differences of the numeric landing at the same step,
+  along seeded random directions over lengths, masses, angles and joint-law values, where the
+  event sequence (modes, event witnesses, impact modes, step counts) is the same at +- the step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from impulse_core.errors import NumericalError
+from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.model.tree import Body, Scene, Tree
+from impulse_core.timedomain.landing import LandingSettings, landing
+from impulse_core.timedomain.landing_derivatives import (
+    SCALARS,
+    apply_theta,
+    design_names,
+    design_theta,
+    landing_gradient,
+    sequence_signature,
+    taped_run,
+)
+from tests.impulse_core.test_landing import _random_leg
+
+G = 9.81
+STEP = 5e-4
+#: Central differences' step, relative to max(1, |theta_i|) along the direction.
+EPS = 1e-6
+
+
+def _stop_leg() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    """A leg whose knee flexes onto its upper stop (restitution 0.3) 6 mrad from touchdown."""
+    knee = -0.6
+    bodies = (Body("thigh", None, 0.4, 2.0, -1.2), Body("shank", 0, 0.4, 1.0, knee),
+              Body("toe", 1, 0.15, 0.08, 1.4, contacts=(1.0,)), Body("heel", 1, 0.1, 0.05, -0.9, contacts=(1.0,)))
+    laws = (FREE, JointLaw(stiffness=40.0, damping=0.5, rest=knee + 0.05, limits=(knee - 0.1, knee + 0.006),
+                           stop_restitution=0.3),
+            JointLaw(stiffness=5.0, damping=0.05), JointLaw(stiffness=4.0, damping=0.05, rest=-0.85))
+    return Tree(bodies), laws, Scene(speed=2.0, velocity_x=0.2, restitution=0.3, gravity=G, duration=0.04)
+
+
+def _case(name: str) -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    if name == "second_touchdown":
+        tree, laws, scene = _random_leg(3)
+        return tree, laws, replace(scene, friction=0.0)
+    if name == "stop":
+        return _stop_leg()
+    tree, laws, scene = _random_leg(0)  # mu = 1
+    return tree, laws, scene
+
+
+CASES = ("second_touchdown", "stop", "friction")
+
+
+@pytest.fixture(scope="module")
+def gradients() -> dict:
+    out = {}
+    for name in CASES:
+        tree, laws, scene = _case(name)
+        out[name] = landing_gradient(tree, scene, laws, step=STEP)
+    return out
+
+
+def _objectives(tree, laws, scene, theta) -> tuple[np.ndarray, tuple]:
+    t, l = apply_theta(tree, laws, theta)
+    r, tape, run = taped_run(t, scene, l, STEP)
+    return np.concatenate([[getattr(r, k) for k in SCALARS], r.total_external, r.final_angles]), sequence_signature(tape, run)
+
+
+def _jacobian(g) -> np.ndarray:
+    return np.vstack([g.jacobian[k] for k in SCALARS] + [g.jacobian["total_external"], g.jacobian["final_angles"]])
+
+
+def _searched(g) -> np.ndarray:
+    """Entries a direction may move: lengths, masses, angles, springs, dampers, and the rest
+    angles and stops that the laws give (contact fractions and `at` sit on their bounds)."""
+    J = _jacobian(g)
+    return np.array([n.endswith(("length", "mass", "angle", "stiffness", "damping"))
+                     or (n.endswith(("rest", "limits[0]", "limits[1]")) and bool(np.any(J[:, i])))
+                     for i, n in enumerate(g.names)])
+
+
+def test_the_cases_have_what_they_are_named_for(gradients):
+    second = gradients["second_touchdown"].result
+    assert second.touchdown_time[0] == 0.0 and second.touchdown_time[1] > 1e-3  # contact 1 lands later
+    assert any(e.kind == "stop" for e in gradients["stop"].result.events)
+    seq = gradients["friction"].sequence
+    slips = {s for item in seq if item[0] == "step" for closed, slip in [item[1][:2]] for c, s in zip(closed, slip) if c}
+    assert slips >= {-1, 0} and (1 in slips or -1 in slips)  # sticking and sliding between impacts
+    impact_modes = {m for item in seq if item[0] == "impact" for m in item[4][1]}
+    assert impact_modes >= {2} and impact_modes & {1, -1}  # sticking and sliding impacts
+    for g in gradients.values():
+        law = [n for n in g.names if n.endswith("stiffness")]
+        assert law and np.all(np.isfinite(_jacobian(g)))
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_replayed_values_equal_the_landing(gradients, name):
+    g = gradients[name]
+    r = g.result
+    for k in SCALARS:
+        assert g.values[k] == pytest.approx(getattr(r, k), rel=1e-10, abs=1e-12), k
+    assert np.max(np.abs(g.values["total_external"] - r.total_external)) <= 1e-10 * np.max(np.abs(r.total_external))
+    assert np.max(np.abs(g.values["final_angles"] - r.final_angles)) <= 1e-10
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_gradients_agree_with_central_differences(gradients, name):
+    """Two seeded random directions over every searched entry: J u against central differences
+    of the numeric landing at the same step, the event sequence unchanged at both ends."""
+    tree, laws, scene = _case(name)
+    g = gradients[name]
+    J = _jacobian(g)
+    rng = np.random.default_rng(7)
+    scale = np.maximum(1.0, np.abs(g.theta)) * _searched(g)
+    for _ in range(2):
+        u = rng.standard_normal(len(g.theta)) * scale
+        plus, seq_plus = _objectives(tree, laws, scene, g.theta + EPS * u)
+        minus, seq_minus = _objectives(tree, laws, scene, g.theta - EPS * u)
+        assert seq_plus == g.sequence and seq_minus == g.sequence
+        fd, exact = (plus - minus) / (2 * EPS), J @ u
+        assert np.all(np.abs(fd - exact) <= 1e-4 * np.maximum(np.abs(exact), 1e-6)), np.abs(fd - exact) / np.abs(exact)
+
+
+def test_the_stop_and_the_rest_angle_have_their_derivatives(gradients):
+    """Along the knee's stop alone and its rest angle alone (coordinate directions)."""
+    tree, laws, scene = _case("stop")
+    g = gradients["stop"]
+    J = _jacobian(g)
+    for entry in ("shank.limits[1]", "shank.rest"):
+        i = g.names.index(entry)
+        assert np.max(np.abs(J[:, i])) > 1e-3
+        u = np.zeros(len(g.theta))
+        u[i] = 1.0
+        plus, seq_plus = _objectives(tree, laws, scene, g.theta + EPS * u)
+        minus, seq_minus = _objectives(tree, laws, scene, g.theta - EPS * u)
+        assert seq_plus == g.sequence and seq_minus == g.sequence
+        fd = (plus - minus) / (2 * EPS)
+        assert np.all(np.abs(fd - J[:, i]) <= 1e-4 * np.maximum(np.abs(J[:, i]), 1e-6)), entry
+
+
+def test_theta_round_trip_and_names():
+    tree, laws, _ = _stop_leg()
+    theta = design_theta(tree, laws)
+    assert len(theta) == len(design_names(tree))
+    t, l = apply_theta(tree, laws, theta)
+    assert t == tree and l == laws
+    assert "shank.limits[1]" in design_names(tree) and "thigh.length" in design_names(tree)
+
+
+def test_peak_ties_and_the_reported_step():
+    """Without a step the landing's own reported step is replayed; the peaks name their event."""
+    tree, laws, scene = _stop_leg()
+    scene = replace(scene, duration=0.01)
+    settings = LandingSettings(tolerance=1e-2)
+    g = landing_gradient(tree, scene, laws, settings)
+    assert g.result.step == landing(tree, scene, laws, settings).step
+    for k in ("peak_external_norm", "peak_internal_norm", "peak_max_internal"):
+        i, _ = g.peak_events[k]
+        assert i in g.ties[k]
+    assert g.values["peak_external_norm"] == pytest.approx(g.result.events[g.peak_events["peak_external_norm"][0]].external_norm)
+    assert "settled_at" not in g.values
+
+
+def test_redundant_rows_are_refused():
+    """A plank resting on both ends with friction sticks on four rows over three DOFs: the force
+    split is not unique, so there is no derivative."""
+    plank = Tree((Body("plank", None, 0.6, 3.0, 0.0, contacts=(0.0, 1.0)),))
+    scene = Scene(speed=0.5, restitution=0.0, friction=1.0, gravity=G, duration=0.05)
+    with pytest.raises(NumericalError, match="redundant"):
+        landing_gradient(plank, scene, (), step=1e-3)
