@@ -81,7 +81,6 @@ from impulse_core.kinematics.spatial import (
     SPATIAL,
     DofKind,
     Space,
-    axis_rotation,
     contact_bodies,
     dof_layout,
     forward_kinematics,
@@ -266,41 +265,60 @@ def _require_known(space: Space) -> None:
         raise ModelError(f"the time-domain rungs run in the plane or in space, got space '{space.name}'")
 
 
-#: Space: the base's rotation coordinates (alpha, beta, gamma) place it at Rz(gamma) Ry(beta) Rx(alpha)
-#: times its touchdown orientation (world axes). Beyond this |beta| (rad) the chart is near its
-#: singularity (beta = pi/2) and the integration stops with a NumericalError.
-CHART_LIMIT = 1.4
-_X, _Y, _Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+#: Space: the base's rotation coordinates phi (a rotation vector, world frame) place it at
+#: Exp(phi) times its touchdown orientation. Exp is equivariant (Exp(R phi) = R Exp(phi) R^T), so
+#: turning the whole scene turns the coordinates with it and the integration is the same, step for
+#: step. The chart is singular at |phi| = 2 pi; beyond this |phi| (rad) the integration stops.
+CHART_LIMIT = 5.0
+#: Below this |phi|^2 the chart's coefficients are their Taylor series (exact in float64 there).
+_SERIES = 1e-2
 
 
-def chart_rotation(a: Any) -> Any:
-    """Rz(gamma) Ry(beta) Rx(alpha) of the base's rotation coordinates a = (alpha, beta, gamma)
-    (CasADi or numpy)."""
-    if isinstance(a, (ca.SX, ca.MX)):
-        return axis_rotation(_Z, a[2]) @ axis_rotation(_Y, a[1]) @ axis_rotation(_X, a[0])
-    al, be, ga = (float(x) for x in a)
+def _coefficients(s: Any) -> tuple[Any, Any, Any]:
+    """a(s) = sin(t)/t, b(s) = (1 - cos t)/t^2, c(s) = (t - sin t)/t^3 of s = t^2, smooth at 0
+    (CasADi: the closed form at a guarded argument beside the series, both finite for AD)."""
+    series = (
+        1 - s / 6 + s**2 / 120 - s**3 / 5040 + s**4 / 362880 - s**5 / 39916800,
+        0.5 - s / 24 + s**2 / 720 - s**3 / 40320 + s**4 / 3628800 - s**5 / 479001600,
+        1 / 6 - s / 120 + s**2 / 5040 - s**3 / 362880 + s**4 / 39916800 - s**5 / 6227020800,
+    )
+    if isinstance(s, (ca.SX, ca.MX)):
+        small = s < _SERIES
+        safe = ca.if_else(small, 1.0, s)
+        t = ca.sqrt(safe)
+        closed = (ca.sin(t) / t, (1 - ca.cos(t)) / safe, (t - ca.sin(t)) / (safe * t))
+        return tuple(ca.if_else(small, a, b) for a, b in zip(series, closed))  # type: ignore[return-value]
+    if s < _SERIES:
+        return series
+    t = math.sqrt(s)
+    return math.sin(t) / t, (1 - math.cos(t)) / s, (t - math.sin(t)) / (s * t)
 
-    def rot(axis: int, t: float) -> np.ndarray:
-        c, s = math.cos(t), math.sin(t)
-        i, j = [(1, 2), (2, 0), (0, 1)][axis]
-        R = np.eye(3)
-        R[i, i] = R[j, j] = c
-        R[i, j], R[j, i] = -s, s
-        return R
 
-    return rot(2, ga) @ rot(1, be) @ rot(0, al)
+def _hat(phi: Any) -> Any:
+    if isinstance(phi, (ca.SX, ca.MX)):
+        return ca.skew(phi)
+    x, y, z = (float(v) for v in phi)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def chart_rates(a: Any) -> Any:
-    """S(a): the base's world angular velocity is S(a) a' for the rotation coordinates a
-    (:func:`chart_rotation`); S(0) = I, so at the touchdown orientation a' is the angular velocity."""
-    if isinstance(a, (ca.SX, ca.MX)):
-        Rz = axis_rotation(_Z, a[2])
-        Rzy = Rz @ axis_rotation(_Y, a[1])
-        return ca.horzcat(Rzy[:, 0], Rz[:, 1], ca.DM(_Z))
-    al, be, ga = (float(x) for x in a)
-    cz, sz, cy, sy = math.cos(ga), math.sin(ga), math.cos(be), math.sin(be)
-    return np.array([[cz * cy, -sz, 0.0], [sz * cy, cz, 0.0], [-sy, 0.0, 1.0]])
+def chart_rotation(phi: Any) -> Any:
+    """Exp(phi) = I + a [phi]x + b [phi]x^2, the rotation by |phi| about phi (CasADi or numpy)."""
+    K = _hat(phi)
+    s = ca.dot(phi, phi) if isinstance(phi, (ca.SX, ca.MX)) else float(np.dot(phi, phi))
+    a, b, _ = _coefficients(s)
+    eye = ca.SX.eye(3) if isinstance(phi, (ca.SX, ca.MX)) else np.eye(3)
+    return eye + a * K + b * (K @ K)
+
+
+def chart_rates(phi: Any) -> Any:
+    """S(phi) = I + b [phi]x + c [phi]x^2 (SO(3)'s left Jacobian): the base's world angular
+    velocity is S(phi) phi' for the rotation coordinates phi (:func:`chart_rotation`); S(0) = I, so
+    at the touchdown orientation phi' is the angular velocity."""
+    K = _hat(phi)
+    s = ca.dot(phi, phi) if isinstance(phi, (ca.SX, ca.MX)) else float(np.dot(phi, phi))
+    _, b, c = _coefficients(s)
+    eye = ca.SX.eye(3) if isinstance(phi, (ca.SX, ca.MX)) else np.eye(3)
+    return eye + b * K + c * (K @ K)
 
 
 def world_velocity(q: np.ndarray, v: np.ndarray, space: Space = PLANAR) -> np.ndarray:
@@ -316,10 +334,11 @@ def world_velocity(q: np.ndarray, v: np.ndarray, space: Space = PLANAR) -> np.nd
 
 def _check_chart(q: np.ndarray, space: Space, t: float) -> None:
     """Raise NumericalError when the base's rotation coordinates near the chart's singularity."""
-    if space is not PLANAR and abs(q[4]) > CHART_LIMIT:
+    if space is not PLANAR and float(np.linalg.norm(q[3:6])) > CHART_LIMIT:
         raise NumericalError(
-            f"the base turned {math.degrees(abs(q[4])):.0f} degrees about the vertical by t = {t:.3g} s: beyond "
-            "the spatial time-domain rungs' rotation coordinates (at most about 80 degrees from touchdown)"
+            f"the base turned {math.degrees(float(np.linalg.norm(q[3:6]))):.0f} degrees from its touchdown "
+            f"orientation by t = {t:.3g} s: beyond the spatial time-domain rungs' rotation coordinates "
+            f"(at most {math.degrees(CHART_LIMIT):.0f} degrees)"
         )
 
 
@@ -429,9 +448,10 @@ def expressions(topology: Topology, space: Space) -> Expressions:
 
 def _spatial_expressions(topology: Topology, space: Space) -> Expressions:
     """The spatial tree's Lagrangian dynamics. Coordinates q = (base origin x, y, z; the base's
-    rotation coordinates a = (alpha, beta, gamma); joint angles), velocities v = q'. The tree sits
-    at Rz(gamma) Ry(beta) Rx(alpha) x (its touchdown placement, the core's kinematics with the
-    joint angles of q) + the base origin: with E that rotation and S(a) its rates
+    rotation coordinates a, a rotation vector in the world frame; joint angles), velocities
+    v = q'. The tree sits at Exp(a) x (its touchdown placement, the core's kinematics with the
+    joint angles of q, rotated about the base origin) + the base origin: with E = Exp(a) and S(a)
+    its rates
     (:func:`chart_rates`), the core's generalized velocity at the touchdown orientation is
     G q', G = blockdiag(E^T, E^T S, I), so a point's world velocity is E J_core G q' and the mass
     matrix G^T M_core G (kinetic energy does not change under a rotation of the whole scene); the
