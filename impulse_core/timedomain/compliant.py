@@ -14,8 +14,21 @@ factor (``ltdl``, ``solve``) are the core's, evaluated with the angles of the de
 replaced by the symbols q (:func:`configured_design`). Gravity is off by default (impact time
 scales); ``CompliantSettings.gravity`` adds it.
 
+Space (``space=SPATIAL``, ``model.space: spatial``): q = (base origin x, y, z; the base's rotation
+coordinates phi, a rotation vector in the world frame placing it at Exp(phi) times its touchdown
+orientation; revolute joint angles), again with v = q' and Lagrange's equations obtained by
+automatic differentiation of the core's mass matrix, turned to these coordinates
+(:func:`_spatial_expressions`). At the touchdown orientation (phi = 0) q' is the core's velocity
+(base origin velocity, world angular velocity, joint rates), which ``v_minus`` and ``v_plus`` report.
+Exp is equivariant, so turning the whole scene (ground included) turns the trajectory with it,
+step for step. The chart is singular at |phi| = 2 pi: beyond |phi| = 5 rad (286 degrees from the
+touchdown orientation) the integration stops with a NumericalError. The ground is a heightfield
+(``impulse_core.model.heightfield``: flat, or bilinear on a grid), contacts push along its upward
+normal, and impulse vectors, joint impulses and momenta have three components.
+
 Contact laws (:class:`ContactLaw`), frictionless, along the terrain's outward normal n_i at the
-nearest ground point; g_i is the signed gap (``terrain.gap_expression``), g_i' = n_i^T J_i v:
+nearest ground point; g_i is the signed gap (``terrain.gap_expression``; in space
+``heightfield.gap_expression``), g_i' = n_i^T J_i v:
 
 * ``PENALTY`` (default): a force-level linear spring-damper per contact, a physical pad,
   f_i = max(0, -k g_i - c_i g_i'), one stiffness k (N/m) for every contact and
