@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from fidelity_scenes import PAPER_SCENE, UNEVEN, case2, case3, chain, rod
 
-from impulse_core.errors import ModelError
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import evaluate
 from impulse_core.kinematics.spatial import SPATIAL
 from impulse_core.model.heightfield import Heightfield, flat_heightfield
@@ -138,7 +138,7 @@ def test_chart_rates_are_the_angular_velocity_of_the_chart_rotation():
 # Planar files read as spatial
 
 
-def test_planar_trees_read_as_spatial_give_the_planar_compliant_answer():
+def test_planar_trees_read_as_spatial_give_the_planar_compliant_and_sequential_answers():
     rng = np.random.default_rng(SEED + 1)
     worst = 0.0
     cases = [(case2(), PAPER_SCENE), (chain(), PAPER_SCENE), (rod(), PAPER_SCENE)]
@@ -159,6 +159,17 @@ def test_planar_trees_read_as_spatial_give_the_planar_compliant_answer():
             np.testing.assert_allclose(spatial.internal, planar.internal, atol=1e-10 * planar.internal_norm + 1e-300)
             np.testing.assert_allclose(spatial.v_plus[[0, 1, 5]], planar.v_plus[:3], atol=1e-9)
             np.testing.assert_allclose(spatial.v_plus[2:5], 0.0, atol=1e-12)
+        try:
+            planar_seq = sequential_impacts(tree, scene)
+        except NumericalError:  # a random tree whose contacts chatter: so must the spatial run
+            with pytest.raises(NumericalError, match="chatter"):
+                sequential_impacts(tree, scene, space=SPATIAL)
+            continue
+        spatial_seq = sequential_impacts(tree, scene, space=SPATIAL)
+        d = relative_difference([(spatial_seq.external, planar_seq.external),
+                                 (spatial_seq.internal_magnitude, planar_seq.internal_magnitude)])
+        assert d < 1e-10 and len(spatial_seq.events) == len(planar_seq.events)
+        np.testing.assert_allclose(spatial_seq.v_plus[[0, 1, 5]], planar_seq.v_plus[:3], atol=1e-9)
     report("compliant-spatial", f"planar trees read as spatial: compliant rung within {worst:.1e} of the planar answer")
 
 

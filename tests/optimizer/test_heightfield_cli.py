@@ -157,3 +157,22 @@ def test_a_planar_terrain_that_is_not_flat_is_refused_in_space(tmp_path, capsys)
     assert main(["evaluate", str(f)]) == 2
     err = capsys.readouterr().err
     assert "scene.terrain: a ground profile y(x) is planar" in err and "scene.heightfield" in err
+
+
+@pytest.mark.parametrize("rung", ["compliant", "sequential"])
+def test_a_planar_file_read_as_spatial_gives_the_planar_time_domain_answer(tmp_path, capsys, rung):
+    planar = ROOT / "configs" / "paper_case2.yaml"
+    spatial = tmp_path / "case2_spatial.yaml"
+    spatial.write_text(planar.read_text(encoding="utf-8").replace("model:\n", "model:\n  space: spatial\n", 1),
+                       encoding="utf-8")
+    records = []
+    for f in (planar, spatial):
+        assert main(["evaluate", str(f), "--json", "--model", rung]) == 0
+        records.append(_record(capsys))
+    a, b = records
+    assert b["model"] == a["model"] == rung
+    for key in ("external", "internal"):
+        np.testing.assert_allclose(b[key], a[key], rtol=1e-10, atol=1e-12 * max(a[key]))
+    if rung == "compliant":
+        assert b["error_estimate"] == pytest.approx(a["error_estimate"], rel=1e-6)
+    assert b["touchdown_order"] == a["touchdown_order"]
