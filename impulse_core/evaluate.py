@@ -14,7 +14,8 @@ along +y. A scene whose ``terrain`` is not flat is refused (``ModelError`` namin
 of :func:`impulse_core.timedomain.sequential.sequential_impacts` (rigid impacts in sequence, one per
 touchdown) or :func:`impulse_core.timedomain.compliant.simulate_impact`. A flat terrain at any height, and
 any ``base_x``, change nothing here: heights are measured from the lowest contact. To measure the
-flat-ground answer on purpose, evaluate ``dataclasses.replace(scene, terrain=FLAT)``.
+flat-ground answer on purpose, evaluate ``dataclasses.replace(scene, terrain=FLAT)``. The same holds for a
+spatial scene's ``heightfield`` (``scene.heightfield``): flat at any height is flat ground; otherwise refused.
 """
 
 from __future__ import annotations
@@ -245,7 +246,7 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
         The result, with the rung that ran in ``model`` and why in ``reason``.
 
     Raises:
-        ModelError: the scene's terrain is not flat (module docstring).
+        ModelError: the scene's terrain or heightfield is not flat (module docstring).
         NumericalError: when float64 cannot resolve the impact (non-finite results), or eq. 14
             is undefined (a zero row sum of the Delassus matrix).
     """
@@ -254,6 +255,12 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
             "scene.terrain: the rigid impact models (decoupled, newton, lcp, friction) assume flat ground and this "
             "terrain is not flat; use the sequential rigid model (--model sequential, "
             "impulse_core.timedomain.sequential.sequential_impacts) or the compliant one (--model compliant)"
+        )
+    if scene.heightfield is not None and not scene.heightfield.is_flat:
+        raise ModelError(
+            "scene.heightfield: the rigid impact models (decoupled, newton, lcp, friction) assume flat ground and "
+            "this heightfield is not flat; use the sequential rigid model (--model sequential) or the compliant one "
+            "(--model compliant)"
         )
     _check_space(tree, scene, model, space)
     active = active_contacts(tree, scene, space=space)

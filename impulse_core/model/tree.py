@@ -18,6 +18,7 @@ from enum import Enum
 import numpy as np
 
 from impulse_core.errors import ModelError
+from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import FLAT, Terrain
 
 #: Centre of mass of a uniform rod, as a fraction of its length.
@@ -216,6 +217,9 @@ class Scene:
         base_x: x (m) of the base origin at touchdown: the tree keeps its touchdown angles, sits
             with its base origin at ``base_x`` and is lowered straight down until the contact with
             the smallest vertical clearance touches the terrain. Irrelevant on flat ground.
+        base_z: spatial: z (m) of the base origin at touchdown (as ``base_x``).
+        heightfield: spatial: the ground y = h(x, z) (``impulse_core.model.heightfield``), or None
+            (flat, as ``terrain`` says). The rigid rungs need it flat; the time-domain models follow it.
         gravity: m/s^2 along -y (acts between impacts: the whole landing).
         duration: the whole landing's length (s) from the first touchdown, or None (first impact).
     """
@@ -234,6 +238,8 @@ class Scene:
     angular_velocity_y: float = 0.0
     gravity: float = 0.0
     duration: float | None = None
+    base_z: float = 0.0
+    heightfield: Heightfield | None = None
 
     def __post_init__(self) -> None:
         _require(math.isfinite(self.speed) and self.speed > 0, "scene.speed", f"must be > 0, got {self.speed}")
@@ -271,7 +277,16 @@ class Scene:
             "scene.base_x",
             f"must be a finite number (m), got {self.base_x!r}",
         )
-
+        _require(
+            isinstance(self.base_z, (int, float)) and not isinstance(self.base_z, bool) and math.isfinite(self.base_z),
+            "scene.base_z",
+            f"must be a finite number (m), got {self.base_z!r}",
+        )
+        _require(
+            self.heightfield is None or isinstance(self.heightfield, Heightfield),
+            "scene.heightfield",
+            f"must be a Heightfield (impulse_core.model.heightfield), got {type(self.heightfield).__name__}",
+        )
         _require(
             math.isfinite(self.gravity) and self.gravity >= 0.0, "scene.gravity", f"must be >= 0, got {self.gravity}"
         )
@@ -280,6 +295,11 @@ class Scene:
             "scene.duration",
             f"must be > 0 (s), got {self.duration}",
         )
+
+    @property
+    def ground_is_flat(self) -> bool:
+        """True when the ground (``terrain``, and ``heightfield`` where given) is horizontal."""
+        return self.terrain.is_flat and (self.heightfield is None or self.heightfield.is_flat)
 
     @property
     def straight_down(self) -> bool:

@@ -14,8 +14,21 @@ factor (``ltdl``, ``solve``) are the core's, evaluated with the angles of the de
 replaced by the symbols q (:func:`configured_design`). Gravity is off by default (impact time
 scales); ``CompliantSettings.gravity`` adds it.
 
+Space (``space=SPATIAL``, ``model.space: spatial``): q = (base origin x, y, z; the base's rotation
+coordinates phi, a rotation vector in the world frame placing it at Exp(phi) times its touchdown
+orientation; revolute joint angles), again with v = q' and Lagrange's equations obtained by
+automatic differentiation of the core's mass matrix, turned to these coordinates
+(:func:`_spatial_expressions`). At the touchdown orientation (phi = 0) q' is the core's velocity
+(base origin velocity, world angular velocity, joint rates), which ``v_minus`` and ``v_plus`` report.
+Exp is equivariant, so turning the whole scene (ground included) turns the trajectory with it,
+step for step. The chart is singular at |phi| = 2 pi: beyond |phi| = 5 rad (286 degrees from the
+touchdown orientation) the integration stops with a NumericalError. The ground is a heightfield
+(``impulse_core.model.heightfield``: flat, or bilinear on a grid), contacts push along its upward
+normal, and impulse vectors, joint impulses and momenta have three components.
+
 Contact laws (:class:`ContactLaw`), frictionless, along the terrain's outward normal n_i at the
-nearest ground point; g_i is the signed gap (``terrain.gap_expression``), g_i' = n_i^T J_i v:
+nearest ground point; g_i is the signed gap (``terrain.gap_expression``; in space
+``heightfield.gap_expression``), g_i' = n_i^T J_i v:
 
 * ``PENALTY`` (default): a force-level linear spring-damper per contact, a physical pad,
   f_i = max(0, -k g_i - c_i g_i'), one stiffness k (N/m) for every contact and
@@ -78,14 +91,18 @@ from impulse_core.impact.nnls import nnls
 from impulse_core.kinematics import dynamics as dyn
 from impulse_core.kinematics.spatial import (
     PLANAR,
+    SPATIAL,
     DofKind,
     Space,
     contact_bodies,
     dof_layout,
     forward_kinematics,
+    n_values,
     point_jacobian,
     unpack_values,
 )
+from impulse_core.model import heightfield as hfield
+from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import FLAT, Terrain, gap_expression, vertical_clearance
 from impulse_core.model.tree import BODY_VALUES, Scene, Topology, Tree, design_vector
 
@@ -256,9 +273,86 @@ STEP_OUTPUTS = (
 )
 
 
-def _require_planar(space: Space) -> None:
-    if space != PLANAR:
-        raise ModelError(f"the compliant rung is planar (terrain is a profile in x-y), got space '{space.name}'")
+def _require_known(space: Space) -> None:
+    if space not in (PLANAR, SPATIAL):
+        raise ModelError(f"the time-domain rungs run in the plane or in space, got space '{space.name}'")
+
+
+#: Space: the base's rotation coordinates phi (a rotation vector, world frame) place it at
+#: Exp(phi) times its touchdown orientation. Exp is equivariant (Exp(R phi) = R Exp(phi) R^T), so
+#: turning the whole scene turns the coordinates with it and the integration is the same, step for
+#: step. The chart is singular at |phi| = 2 pi; beyond this |phi| (rad) the integration stops.
+CHART_LIMIT = 5.0
+#: Below this |phi|^2 the chart's coefficients are their Taylor series (exact in float64 there).
+_SERIES = 1e-2
+
+
+def _coefficients(s: Any) -> tuple[Any, Any, Any]:
+    """a(s) = sin(t)/t, b(s) = (1 - cos t)/t^2, c(s) = (t - sin t)/t^3 of s = t^2, smooth at 0
+    (CasADi: the closed form at a guarded argument beside the series, both finite for AD)."""
+    series = (
+        1 - s / 6 + s**2 / 120 - s**3 / 5040 + s**4 / 362880 - s**5 / 39916800,
+        0.5 - s / 24 + s**2 / 720 - s**3 / 40320 + s**4 / 3628800 - s**5 / 479001600,
+        1 / 6 - s / 120 + s**2 / 5040 - s**3 / 362880 + s**4 / 39916800 - s**5 / 6227020800,
+    )
+    if isinstance(s, (ca.SX, ca.MX)):
+        small = s < _SERIES
+        safe = ca.if_else(small, 1.0, s)
+        t = ca.sqrt(safe)
+        closed = (ca.sin(t) / t, (1 - ca.cos(t)) / safe, (t - ca.sin(t)) / (safe * t))
+        return tuple(ca.if_else(small, a, b) for a, b in zip(series, closed))  # type: ignore[return-value]
+    if s < _SERIES:
+        return series
+    t = math.sqrt(s)
+    return math.sin(t) / t, (1 - math.cos(t)) / s, (t - math.sin(t)) / (s * t)
+
+
+def _hat(phi: Any) -> Any:
+    if isinstance(phi, (ca.SX, ca.MX)):
+        return ca.skew(phi)
+    x, y, z = (float(v) for v in phi)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def chart_rotation(phi: Any) -> Any:
+    """Exp(phi) = I + a [phi]x + b [phi]x^2, the rotation by |phi| about phi (CasADi or numpy)."""
+    K = _hat(phi)
+    s = ca.dot(phi, phi) if isinstance(phi, (ca.SX, ca.MX)) else float(np.dot(phi, phi))
+    a, b, _ = _coefficients(s)
+    eye = ca.SX.eye(3) if isinstance(phi, (ca.SX, ca.MX)) else np.eye(3)
+    return eye + a * K + b * (K @ K)
+
+
+def chart_rates(phi: Any) -> Any:
+    """S(phi) = I + b [phi]x + c [phi]x^2 (SO(3)'s left Jacobian): the base's world angular
+    velocity is S(phi) phi' for the rotation coordinates phi (:func:`chart_rotation`); S(0) = I, so
+    at the touchdown orientation phi' is the angular velocity."""
+    K = _hat(phi)
+    s = ca.dot(phi, phi) if isinstance(phi, (ca.SX, ca.MX)) else float(np.dot(phi, phi))
+    _, b, c = _coefficients(s)
+    eye = ca.SX.eye(3) if isinstance(phi, (ca.SX, ca.MX)) else np.eye(3)
+    return eye + b * K + c * (K @ K)
+
+
+def world_velocity(q: np.ndarray, v: np.ndarray, space: Space = PLANAR) -> np.ndarray:
+    """The core's generalized velocity (base origin velocity, world angular velocity, joint rates)
+    of the rates ``v`` of the configuration ``q``: the same in the plane; in space the rotation
+    rates become S(a) a' (:func:`chart_rates`)."""
+    if space is PLANAR:
+        return np.array(v, dtype=float)
+    out = np.array(v, dtype=float)
+    out[3:6] = chart_rates(q[3:6]) @ out[3:6]
+    return out
+
+
+def _check_chart(q: np.ndarray, space: Space, t: float) -> None:
+    """Raise NumericalError when the base's rotation coordinates near the chart's singularity."""
+    if space is not PLANAR and float(np.linalg.norm(q[3:6])) > CHART_LIMIT:
+        raise NumericalError(
+            f"the base turned {math.degrees(float(np.linalg.norm(q[3:6]))):.0f} degrees from its touchdown "
+            f"orientation by t = {t:.3g} s: beyond the spatial time-domain rungs' rotation coordinates "
+            f"(at most {math.degrees(CHART_LIMIT):.0f} degrees)"
+        )
 
 
 def configured_design(topology: Topology, p: ca.SX, q: ca.SX, space: Space = PLANAR) -> ca.SX:
@@ -288,25 +382,34 @@ class Expressions:
     v: ca.SX
     p: ca.SX
     gravity: ca.SX
-    contacts: ca.SX  # 2 x n_c
-    contact_jacobian: ca.SX  # 2 n_c x nv
-    minv_jt: ca.SX  # nv x 2 n_c
+    contacts: ca.SX  # d x n_c (d = 2 in the plane, 3 in space)
+    contact_jacobian: ca.SX  # d n_c x nv
+    minv_jt: ca.SX  # nv x d n_c
     free_acceleration: ca.SX
     kinetic_energy: ca.SX
-    subtree_momentum: ca.SX  # 2 x bodies
-    subtree_jacobian: ca.SX  # 2 bodies x nv: rows (x, y) of each subtree's momentum Jacobian
-    subtree_bias: ca.SX  # 2 x bodies: d/dt (subtree momentum) at zero acceleration
+    subtree_momentum: ca.SX  # d x bodies
+    subtree_jacobian: ca.SX  # d bodies x nv: rows (x, y[, z]) of each subtree's momentum Jacobian
+    subtree_bias: ca.SX  # d x bodies: d/dt (subtree momentum) at zero acceleration
     mass_matrix: ca.SX  # nv x nv
     force: ca.SX  # nv: gravity's generalized force - Coriolis and centrifugal terms
-    contact_bias: ca.SX  # 2 n_c: (dJ/dt) v, the contact accelerations at zero acceleration
+    contact_bias: ca.SX  # d n_c: (dJ/dt) v, the contact accelerations at zero acceleration
     com_height: ca.SX  # y of the whole tree's centre of mass
+
+    @property
+    def dims(self) -> int:
+        """2 in the plane, 3 in space: the rows of a point's position."""
+        return int(self.contacts.shape[0])
 
 
 @functools.lru_cache(maxsize=64)
 def expressions(topology: Topology, space: Space) -> Expressions:
-    """The tree's planar dynamics as SX expressions of (q, v, p, gravity), built once per
-    topology: every terrain's step function (:func:`step_function`) shares them."""
-    _require_planar(space)
+    """The tree's dynamics as SX expressions of (q, v, p, gravity), built once per topology:
+    every terrain's step function (:func:`step_function`) shares them. In space
+    (:func:`_spatial_expressions`) q holds the base origin, the base's rotation coordinates and
+    the joint angles."""
+    _require_known(space)
+    if space is not PLANAR:
+        return _spatial_expressions(topology, space)
     layout = dof_layout(topology, space)
     nv = layout.nv
     q = ca.SX.sym("q", nv)
@@ -356,6 +459,74 @@ def expressions(topology: Topology, space: Space) -> Expressions:
     )
 
 
+def _spatial_expressions(topology: Topology, space: Space) -> Expressions:
+    """The spatial tree's Lagrangian dynamics. Coordinates q = (base origin x, y, z; the base's
+    rotation coordinates a, a rotation vector in the world frame; joint angles), velocities
+    v = q'. The tree sits at Exp(a) x (its touchdown placement, the core's kinematics with the
+    joint angles of q, rotated about the base origin) + the base origin: with E = Exp(a) and S(a)
+    its rates
+    (:func:`chart_rates`), the core's generalized velocity at the touchdown orientation is
+    G q', G = blockdiag(E^T, E^T S, I), so a point's world velocity is E J_core G q' and the mass
+    matrix G^T M_core G (kinetic energy does not change under a rotation of the whole scene); the
+    Coriolis and centrifugal terms follow from it by automatic differentiation, as in the plane.
+    At a = 0 (touchdown), G = I: q' is the core's velocity."""
+    layout = dof_layout(topology, space)
+    nv = layout.nv
+    q = ca.SX.sym("q", nv)
+    v = ca.SX.sym("v", nv)
+    p = ca.SX.sym("p", n_values(topology, space))
+    g = ca.SX.sym("gravity")
+    n = len(space.body_values)
+    i_angle = space.body_values.index("angle")
+    entries = [p[i] for i in range(p.shape[0])]
+    for b in range(1, topology.n_bodies):
+        k = layout.body_dof[b]
+        if k is not None:
+            entries[n * b + i_angle] = q[k]
+    values = unpack_values(topology, ca.vertcat(*entries), space)
+    kin = forward_kinematics(topology, values, space)
+    jac = dyn.body_jacobians(kin, layout, values, space)
+    M_core = dyn.mass_matrix(jac, values)
+    offset, a = q[0:3], q[3:6]
+    E = chart_rotation(a)
+    G = ca.SX.eye(nv)
+    G[0:3, 0:3] = E.T
+    G[3:6, 3:6] = E.T @ chart_rates(a)
+    M = G.T @ M_core @ G
+    factor = dyn.ltdl(M, layout.dof_parent)
+
+    positions, rows = [], []
+    for c, b in enumerate(contact_bodies(topology)):
+        Jv, _ = point_jacobian(kin, layout, b, kin.W_p_C[c], space)
+        positions.append(E @ kin.W_p_C[c] + offset)
+        rows.append(E @ Jv @ G)
+    C = ca.horzcat(*positions) if positions else ca.SX(3, 0)
+    Jc = ca.vertcat(*rows) if rows else ca.SX(0, nv)
+
+    Mv = M @ v
+    kinetic = 0.5 * ca.dot(v, Mv)
+    h = ca.jtimes(Mv, q, v) - ca.gradient(kinetic, q)
+    down = ca.vertcat(0, -g, 0)
+    Jsub = [val.mass * (E @ jac.Jv[b] @ G) for b, val in enumerate(values)]
+    tau_g = ca.SX.zeros(nv, 1)
+    for J in Jsub:
+        tau_g = tau_g + J.T @ down
+    free = dyn.solve(factor, tau_g - h)
+    minv_jt = dyn.solve(factor, Jc.T) if rows else ca.SX(nv, 0)
+    for b in reversed(range(1, topology.n_bodies)):
+        parent = topology.parents[b]
+        Jsub[parent] = Jsub[parent] + Jsub[b]
+    momentum = ca.horzcat(*[J @ v for J in Jsub])
+    bias = ca.jtimes(momentum, q, v)
+    contact_bias = ca.jtimes(Jc @ v, q, v) if rows else ca.SX(0, 1)
+    total = sum(val.mass for val in values)
+    com_height = sum(val.mass * (E @ kin.W_p_G[b] + offset)[1] for b, val in enumerate(values)) / total
+    return Expressions(
+        q, v, p, g, C, Jc, minv_jt, free, kinetic, momentum, ca.vertcat(*Jsub), bias, M, tau_g - h, contact_bias,
+        com_height,
+    )
+
+
 def dynamics_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
     """The tree's planar dynamics at configuration q, as a named CasADi function of
     (q, v, p, gravity).
@@ -373,7 +544,15 @@ def dynamics_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
     )
 
 
-def step_function(topology: Topology, terrain: Terrain, space: Space = PLANAR) -> ca.Function:
+def ground_expression(ground: Terrain | Heightfield, W_p: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Gap and outward unit normal of the point ``W_p``: a planar terrain's (2 x 1 point) or a
+    heightfield's (3 x 1; ``impulse_core.model.heightfield``)."""
+    if isinstance(ground, Heightfield):
+        return hfield.gap_expression(ground, W_p)
+    return gap_expression(ground, W_p)
+
+
+def step_function(topology: Topology, terrain: Terrain | Heightfield, space: Space = PLANAR) -> ca.Function:
     """What one integration step needs at (q, v, p, gravity), with the contact detection of
     ``terrain`` built in (one call per step).
 
@@ -383,19 +562,23 @@ def step_function(topology: Topology, terrain: Terrain, space: Space = PLANAR) -
     ``subtree_momentum`` (as :func:`dynamics_function`), ``subtree_jacobian`` (2 bodies x nv,
     rows x and y of each subtree's momentum Jacobian) and ``subtree_bias`` (2 x bodies, its
     (dJ/dt) v): a subtree's momentum rate is ``subtree_jacobian @ a + subtree_bias`` for an
-    acceleration a. Every output is dense.
+    acceleration a. Every output is dense. In space (``terrain`` a ``Heightfield``) every 2 above
+    is a 3.
     """
     x = expressions(topology, space)
+    d = x.dims
+    if (d == 3) != isinstance(terrain, Heightfield):
+        raise ModelError(f"the {space.name} time-domain rungs take a {'heightfield' if d == 3 else 'terrain'} as ground")
     nc = x.contacts.shape[1]
     gaps, normals = [], []
     for c in range(nc):
-        gap, normal = gap_expression(terrain, x.contacts[:, c])
+        gap, normal = ground_expression(terrain, x.contacts[:, c])
         gaps.append(gap)
         normals.append(normal)
     nv = x.q.shape[0]
-    N = ca.horzcat(*normals) if nc else ca.SX(2, 0)
-    Jn = ca.vertcat(*[N[:, c].T @ x.contact_jacobian[2 * c : 2 * c + 2, :] for c in range(nc)]) if nc else ca.SX(0, nv)
-    minv_jnt = ca.horzcat(*[x.minv_jt[:, 2 * c : 2 * c + 2] @ N[:, c] for c in range(nc)]) if nc else ca.SX(nv, 0)
+    N = ca.horzcat(*normals) if nc else ca.SX(d, 0)
+    Jn = ca.vertcat(*[N[:, c].T @ x.contact_jacobian[d * c : d * c + d, :] for c in range(nc)]) if nc else ca.SX(0, nv)
+    minv_jnt = ca.horzcat(*[x.minv_jt[:, d * c : d * c + d] @ N[:, c] for c in range(nc)]) if nc else ca.SX(nv, 0)
     gap = ca.vertcat(*gaps) if nc else ca.SX(0, 1)
     outs = [
         gap,
@@ -425,16 +608,19 @@ def compiled_dynamics(topology: Topology, space: Space = PLANAR) -> ca.Function:
 
 
 @functools.lru_cache(maxsize=64)
-def compiled_step(topology: Topology, terrain: Terrain, space: Space = PLANAR) -> ca.Function:
+def compiled_step(topology: Topology, terrain: Terrain | Heightfield, space: Space = PLANAR) -> ca.Function:
     """:func:`step_function`, built once per (topology, terrain)."""
     return step_function(topology, terrain, space)
 
 
 def joint_impulses(per_body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Planar joint impulses (2 x bodies, the base's column unused) as the result's
-    (n_joints x 3) vectors and their magnitudes."""
+    """Joint impulses (2 x bodies in the plane, 3 x bodies in space; the base's column unused) as
+    the result's (n_joints x 3) vectors (z = 0 in the plane) and their magnitudes."""
     joint = per_body[:, 1:].T
-    internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
+    if per_body.shape[0] == 3:
+        internal = joint.copy() if len(joint) else np.zeros((0, 3))
+    else:
+        internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
     return internal, np.linalg.norm(internal, axis=1)
 
 
@@ -457,6 +643,24 @@ def scene_ground(scene: Scene, terrain: Terrain | None = None, base_x: float | N
     ``scene.base_x``) unless an argument overrides it."""
     return (scene.terrain if terrain is None else terrain), float(scene.base_x if base_x is None else base_x)
 
+
+def spatial_ground(scene: Scene, ground: Heightfield | Terrain | None = None) -> Heightfield:
+    """The ground of a spatial landing: ``ground`` when given (a flat planar terrain is the
+    horizontal heightfield at its height), else ``scene.heightfield``, else the scene's flat
+    ``terrain`` as a heightfield.
+
+    Raises:
+        ModelError: a terrain that is not flat (a profile y(x) is planar: give ``scene.heightfield``).
+    """
+    ground = ground if ground is not None else scene.heightfield if scene.heightfield is not None else scene.terrain
+    if isinstance(ground, Heightfield):
+        return ground
+    if not ground.is_flat:
+        raise ModelError(
+            "scene.terrain: a ground profile y(x) is planar; a spatial model's uneven ground is scene.heightfield "
+            "(constant along z: heights equal in each row)"
+        )
+    return hfield.flat_heightfield(ground.y[0])
 
 def subtree_incidence(tree: Tree) -> np.ndarray:
     """S[b, i] = 1 when contact i sits on body b's subtree (b or a descendant): bodies x contacts."""
@@ -486,14 +690,34 @@ TOUCHDOWN_CLEARANCE = 1e-12
 
 
 def touchdown_configuration(
-    tree: Tree, terrain: Terrain = FLAT, base_x: float = 0.0, clearance: float = TOUCHDOWN_CLEARANCE
+    tree: Tree,
+    terrain: Terrain | Heightfield = FLAT,
+    base_x: float = 0.0,
+    clearance: float = TOUCHDOWN_CLEARANCE,
+    space: Space = PLANAR,
+    base_z: float = 0.0,
 ) -> np.ndarray:
     """The configuration q at the instant the first contact touches, approaching straight down.
 
-    The tree keeps its touchdown angles; its base origin sits at x = ``base_x`` and is lowered
-    until the contact with the smallest vertical clearance above the terrain is ``clearance``
-    above it.
+    The tree keeps its touchdown angles; its base origin sits at x = ``base_x`` (and, in space,
+    z = ``base_z``) and is lowered until the contact with the smallest vertical clearance above
+    the terrain (a heightfield in space) is ``clearance`` above it. In space q is (base origin,
+    rotation coordinates 0: the touchdown orientation, joint angles).
     """
+    if space is not PLANAR:
+        ground = terrain if isinstance(terrain, Heightfield) else hfield.flat_heightfield(terrain.y[0])
+        if not isinstance(terrain, Heightfield) and not terrain.is_flat:
+            raise ModelError("scene.terrain: a ground profile y(x) is planar; in space give scene.heightfield")
+        topology = tree.topology()
+        layout = dof_layout(topology, space)
+        q = np.zeros(layout.nv)
+        for b in range(1, tree.n_bodies):
+            if layout.body_dof[b] is not None:
+                q[layout.body_dof[b]] = tree.bodies[b].angle
+        q[0], q[2] = float(base_x), float(base_z)
+        C = touchdown_geometry(tree, space).contacts + np.array([q[0], 0.0, q[2]])
+        q[1] = clearance - float(np.min(hfield.vertical_clearance(ground, C)))
+        return q
     topology = tree.topology()
     layout = dof_layout(topology)
     q = np.zeros(layout.nv)
@@ -720,8 +944,9 @@ class _Run:
     settle_steps: int
     settle_speed: float
     in_subtree: np.ndarray  # bodies x contacts
-    gravity_force: np.ndarray  # on each subtree, 2 x bodies
+    gravity_force: np.ndarray  # on each subtree, d x bodies
     zeros: np.ndarray  # the force of no contact (n_c), shared by every step that has none
+    space: Space = PLANAR
 
 
 @dataclass(frozen=True)
@@ -737,8 +962,8 @@ class _Tally:
     release: np.ndarray
     max_penetration: np.ndarray
     impulse: np.ndarray  # n_c
-    impulse_vector: np.ndarray  # 2 x n_c
-    joint_impulse: np.ndarray  # 2 x bodies
+    impulse_vector: np.ndarray  # d x n_c
+    joint_impulse: np.ndarray  # d x bodies
     times: list[float]
     forces: list[np.ndarray]
 
@@ -762,26 +987,46 @@ def _touchdown_state(
     tree: Tree,
     scene: Scene,
     settings: CompliantSettings,
-    terrain: Terrain | None,
+    terrain: Terrain | Heightfield | None,
     base_x: float | None,
     v_minus: np.ndarray | None,
+    space: Space = PLANAR,
 ) -> tuple[_Evaluator, np.ndarray, np.ndarray]:
     """The step function on the ground and the state (q, v) at the first touchdown
     (:func:`simulate_impact`'s arguments)."""
-    terrain, base_x = scene_ground(scene, terrain, base_x)
-    topology = tree.topology()
-    layout = dof_layout(topology)
-    p = design_vector(tree)
-    g = settings.gravity
-    evaluate_step = _Evaluator(compiled_step(topology, terrain), p, g)
-    q = touchdown_configuration(tree, terrain, base_x)
+    evaluate_step, q = touchdown_evaluator(tree, scene, settings.gravity, terrain, base_x, space)
+    layout = dof_layout(tree.topology(), space)
     if v_minus is None:
-        v = pre_impact_velocity(topology, scene)
+        v = pre_impact_velocity(tree.topology(), scene, space)
     else:
         v = np.array(v_minus, dtype=float).ravel()
         if v.shape != (layout.nv,):
             raise ModelError(f"v_minus: expected {layout.nv} generalized velocities, got {v.shape}")
     return evaluate_step, q, v
+
+
+def touchdown_evaluator(
+    tree: Tree,
+    scene: Scene,
+    gravity: float,
+    terrain: Terrain | Heightfield | None = None,
+    base_x: float | None = None,
+    space: Space = PLANAR,
+) -> tuple[_Evaluator, np.ndarray]:
+    """The step function of ``tree`` on its ground (the scene's unless ``terrain`` is given; in
+    space a heightfield, :func:`spatial_ground`) and the configuration at the first touchdown.
+    At that configuration (rotation coordinates 0 in space) the rates are the core's velocity."""
+    topology = tree.topology()
+    if space is PLANAR:
+        ground, base_x = scene_ground(scene, terrain, base_x)
+        base_z = 0.0
+    else:
+        ground = spatial_ground(scene, terrain)
+        base_x = float(scene.base_x if base_x is None else base_x)
+        base_z = float(scene.base_z)
+    evaluate_step = _Evaluator(compiled_step(topology, ground, space), design_vector(tree, space.body_values), gravity)
+    q = touchdown_configuration(tree, ground, base_x, space=space, base_z=base_z)
+    return evaluate_step, q
 
 
 def _contact_parameters(
@@ -810,11 +1055,14 @@ def _setup(
     s: _State,
     v: np.ndarray,
     zeta: float,
+    space: Space = PLANAR,
 ) -> tuple[_Run, _Tally]:
     """The run's constants (step, settling test) and empty tallies, at the first touchdown ``s``
     with velocity ``v``."""
     k, c, effective_mass, omega_max = _contact_parameters(s, settings, zeta)
     nc = len(k)
+    d = s.normal.shape[0]
+    down = [0.0, -settings.gravity, 0.0][:d]
     dt = settings.timestep or 2.0 * math.pi / (omega_max * settings.steps_per_period)
     period = 2.0 * math.pi / omega_max
     run = _Run(
@@ -827,8 +1075,9 @@ def _setup(
         settle_steps=max(1, int(math.ceil(period / dt))),
         settle_speed=settings.settle_fraction * max(abs(scene.speed), float(np.max(np.abs(v))), 1e-12),
         in_subtree=subtree_incidence(tree),
-        gravity_force=np.outer([0.0, -settings.gravity], subtree_masses(tree)),
+        gravity_force=np.outer(down, subtree_masses(tree)),
         zeros=np.zeros(nc),
+        space=space,
     )
     tally = _Tally(
         c=c,
@@ -839,8 +1088,8 @@ def _setup(
         release=np.full(nc, np.nan),
         max_penetration=np.zeros(nc),
         impulse=np.zeros(nc),
-        impulse_vector=np.zeros((2, nc)),
-        joint_impulse=np.zeros((2, tree.n_bodies)),
+        impulse_vector=np.zeros((d, nc)),
+        joint_impulse=np.zeros((d, tree.n_bodies)),
         times=[],
         forces=[],
     )
@@ -906,9 +1155,9 @@ def _loaded_acceleration(
     time moved to its end."""
     dt = run.dt
     a = s.free + s.minv_jnt @ f
-    F = s.normal * f  # 2 x contacts
+    F = s.normal * f  # d x contacts
     # joint forces (parent onto child) at this state: Newton's law for each subtree
-    momentum_rate = (s.subtree_jacobian @ a).reshape(-1, 2).T + s.subtree_bias
+    momentum_rate = (s.subtree_jacobian @ a).reshape(-1, F.shape[0]).T + s.subtree_bias
     joint_force = momentum_rate - F @ run.in_subtree.T - run.gravity_force
     np.add(tally.joint_impulse, dt * joint_force, out=tally.joint_impulse)
     np.add(tally.impulse, dt * f, out=tally.impulse)
@@ -967,6 +1216,7 @@ def _integrate(run: _Run, tally: _Tally, s: _State, q: np.ndarray, v: np.ndarray
                 q, v, h = flown
                 t += h
                 n_flight += 1
+                _check_chart(q, run.space, t)
                 _record(settings, tally, prev_t, run.zeros)
                 s = evaluate_step(q, v)
                 continue
@@ -980,6 +1230,7 @@ def _integrate(run: _Run, tally: _Tally, s: _State, q: np.ndarray, v: np.ndarray
         t += run.dt
         n_steps += 1
         _check_finite(q, v, t, run)
+        _check_chart(q, run.space, t)
         s = evaluate_step(q, v)
     return _End(q, v, s.rate.copy(), float(s.kinetic[0]), t, n_steps, n_flight, status)
 
@@ -1008,8 +1259,8 @@ def _result(
         force=np.array(tally.forces).reshape(len(tally.forces), len(touchdown)),
         q_minus=q0,
         q_plus=end.q,
-        v_minus=v0,
-        v_plus=end.v,
+        v_minus=world_velocity(q0, v0, run.space),
+        v_plus=world_velocity(end.q, end.v, run.space),
         energy_before=energy_before,
         energy_after=energy_after,
         energy_gain=energy_after > energy_before * (1.0 + 1e-9),
@@ -1023,7 +1274,7 @@ def _result(
         duration=end.t,
         status=end.status,
         law=settings.law,
-        model=f"compliant ({settings.law.value}, semi-implicit Euler), planar",
+        model=f"compliant ({settings.law.value}, semi-implicit Euler), {run.space.name}",
     )
 
 
@@ -1034,6 +1285,7 @@ def simulate_impact(
     terrain: Terrain | None = None,
     base_x: float | None = None,
     v_minus: np.ndarray | None = None,
+    space: Space = PLANAR,
 ) -> CompliantResult:
     """Integrate the landing of ``tree`` through the impact with compliant contacts.
 
@@ -1045,8 +1297,14 @@ def simulate_impact(
         terrain: overrides ``scene.terrain``, the ground profile (default: the scene's).
         base_x: overrides ``scene.base_x``, the x of the base origin at touchdown (m) placing the
             tree over the terrain (default: the scene's).
-        v_minus: generalized velocity at the first touchdown (base vx, vy, omega, joint rates);
-            default: the scene's approach (:func:`impulse_core.evaluate.pre_impact_velocity`).
+        v_minus: generalized velocity at the first touchdown (base vx, vy, omega, joint rates;
+            in space vx, vy, vz, wx, wy, wz, joint rates); default: the scene's approach
+            (:func:`impulse_core.evaluate.pre_impact_velocity`).
+        space: PLANAR, or SPATIAL: the ground is then ``scene.heightfield`` (or ``terrain``, a
+            ``Heightfield``), the base placed at (``scene.base_x``, ``scene.base_z``); impulse
+            vectors, joint impulses and momenta have three components; ``q_minus``/``q_plus``
+            hold the base origin, its rotation coordinates (:func:`chart_rotation`) and the joint
+            angles; ``v_minus``/``v_plus`` the core's velocities (world angular velocity).
 
     Raises:
         ModelError: friction (the rung is frictionless) or a restitution it cannot represent.
@@ -1054,12 +1312,12 @@ def simulate_impact(
     """
     if scene.friction > 0:
         raise ModelError("scene.friction: the compliant rung models frictionless contact only (friction: 0)")
-    evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus)
+    evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus, space)
     zeta = (
         damping_ratio_for_restitution(scene.restitution) if settings.damping_ratio is None else settings.damping_ratio
     )
     s = evaluate_step(q, v)
-    run, tally = _setup(tree, scene, settings, evaluate_step, s, v, zeta)
+    run, tally = _setup(tree, scene, settings, evaluate_step, s, v, zeta, space)
     q0, v0 = q.copy(), v.copy()
     energy_before = float(s.kinetic[0])
     end = _integrate(run, tally, s, q, v)
@@ -1084,18 +1342,23 @@ def compliant_difference(a: CompliantResult, b: CompliantResult) -> float:
 
 
 def simulate_to_tolerance(
-    tree: Tree, scene: Scene, settings: CompliantSettings, tolerance: float, max_doublings: int = 7
+    tree: Tree,
+    scene: Scene,
+    settings: CompliantSettings,
+    tolerance: float,
+    max_doublings: int = 7,
+    space: Space = PLANAR,
 ) -> CompliantResult:
     """:func:`simulate_impact` with the steps per contact period doubled from ``settings``' until
     two runs differ by at most ``tolerance`` (the method is first order, so that difference
     estimates the finer run's error); the finer run, with the estimate. An unmet tolerance after
     ``max_doublings``: the estimate says so (the caller warns)."""
     n = settings.steps_per_period
-    previous = simulate_impact(tree, scene, settings)
+    previous = simulate_impact(tree, scene, settings, space=space)
     error = math.inf
     for _ in range(max_doublings):
         n *= 2.0
-        current = simulate_impact(tree, scene, replace(settings, steps_per_period=n))
+        current = simulate_impact(tree, scene, replace(settings, steps_per_period=n), space=space)
         error = compliant_difference(current, previous)
         previous = current
         if error <= tolerance:
@@ -1115,6 +1378,11 @@ __all__ = [
     "damping_ratio_for_restitution",
     "dynamics_function",
     "scene_ground",
+    "spatial_ground",
+    "touchdown_evaluator",
+    "world_velocity",
+    "chart_rates",
+    "chart_rotation",
     "simulate_impact",
     "simulate_to_tolerance",
     "compliant_difference",

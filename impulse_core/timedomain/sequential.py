@@ -20,17 +20,19 @@ import numpy as np
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.nnls import nnls
+from impulse_core.kinematics.spatial import PLANAR, Space
+from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
-from impulse_core.model.tree import Scene, Tree, design_vector
+from impulse_core.model.tree import Scene, Tree
 from impulse_core.timedomain.compliant import (
+    _check_chart,
     _Evaluator,
     _State,
-    compiled_step,
     joint_impulses,
-    scene_ground,
     subtree_incidence,
-    touchdown_configuration,
+    touchdown_evaluator,
     touchdown_order,
+    world_velocity,
 )
 
 MODEL_NAME = "newton-sequential on terrain (LCP at each touchdown, RK4 flight)"
@@ -114,18 +116,16 @@ def _touchdown_state(
     tree: Tree,
     scene: Scene,
     settings: SequentialSettings,
-    terrain: Terrain | None,
+    terrain: Terrain | Heightfield | None,
     base_x: float | None,
     v_minus: np.ndarray | None,
+    space: Space = PLANAR,
 ) -> tuple[_Evaluator, np.ndarray, np.ndarray]:
     """The step function on the ground and the state (q, v) at the first touchdown
     (:func:`sequential_impacts`' arguments)."""
-    terrain, base_x = scene_ground(scene, terrain, base_x)
-    topology = tree.topology()
-    evaluate_step = _Evaluator(compiled_step(topology, terrain), design_vector(tree), settings.gravity)
-    q = touchdown_configuration(tree, terrain, base_x)
+    evaluate_step, q = touchdown_evaluator(tree, scene, settings.gravity, terrain, base_x, space)
     if v_minus is None:
-        v = pre_impact_velocity(topology, scene)
+        v = pre_impact_velocity(tree.topology(), scene, space)
     else:
         v = np.array(v_minus, dtype=float).ravel()
     return evaluate_step, q, v
@@ -182,12 +182,12 @@ def _rigid_impact(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One rigid impact of the contacts ``idx`` at (q, v), ``s`` evaluated there: the velocity
     after it, their normal impulses (:func:`_lcp_impulse`), the impulse vectors of every contact
-    (2 x n_c) and the joint impulses (2 x bodies: each subtree's momentum change minus the contact
-    impulses on it)."""
+    (d x n_c, d = 2 in the plane, 3 in space) and the joint impulses (d x bodies: each subtree's
+    momentum change minus the contact impulses on it)."""
     A = s.Jn[idx] @ s.minv_jnt[:, idx]
     lam = _lcp_impulse(A, s.rate[idx], e)
     momentum = s.momentum.copy()
-    F = np.zeros((2, len(s.gap)))
+    F = np.zeros((s.normal.shape[0], len(s.gap)))
     F[:, idx] = s.normal[:, idx] * lam
     v = v + s.minv_jnt[:, idx] @ lam
     s = evaluate_step(q, v)
@@ -213,9 +213,9 @@ class _Impacts:
     events: list[ImpactEvent]
 
 
-def _no_impacts(nc: int, n_bodies: int) -> _Impacts:
-    """No impact yet: zero impulses, no touchdown (NaN), no events."""
-    return _Impacts(np.zeros(nc), np.zeros((2, nc)), np.zeros((2, n_bodies)), np.full(nc, np.nan), [])
+def _no_impacts(nc: int, n_bodies: int, d: int = 2) -> _Impacts:
+    """No impact yet: zero impulses, no touchdown (NaN), no events (d: 2 in the plane, 3 in space)."""
+    return _Impacts(np.zeros(nc), np.zeros((d, nc)), np.zeros((d, n_bodies)), np.full(nc, np.nan), [])
 
 
 def _add_impact(
@@ -268,12 +268,16 @@ def sequential_impacts(
     terrain: Terrain | None = None,
     base_x: float | None = None,
     v_minus: np.ndarray | None = None,
+    space: Space = PLANAR,
 ) -> SequentialResult:
     """Rigid impacts of ``tree`` landing on ``terrain``, one per touchdown (module docstring).
 
     Ends when no contact that has not touched yet approaches the ground (as the compliant rung),
     or at ``settings.max_time``. ``terrain`` and ``base_x``, when given, override the scene's own
     ``scene.terrain`` and ``scene.base_x`` (:func:`impulse_core.timedomain.compliant.scene_ground`).
+    In space (``space`` SPATIAL) the ground is ``scene.heightfield`` (or ``terrain``, a
+    ``Heightfield``), impulse vectors and joint impulses have three components, and ``v_plus`` is
+    the core's velocity (world angular velocity), as the compliant rung's.
 
     Raises:
         ModelError: friction (frictionless only).
@@ -281,11 +285,11 @@ def sequential_impacts(
     """
     if scene.friction > 0:
         raise ModelError("scene.friction: the sequential rigid model is frictionless (friction: 0)")
-    evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus)
+    evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus, space)
     in_subtree = subtree_incidence(tree)
     s = evaluate_step(q, v)
     energy_before = float(s.kinetic[0])
-    impacts = _no_impacts(len(s.gap), tree.n_bodies)
+    impacts = _no_impacts(len(s.gap), tree.n_bodies, s.normal.shape[0])
     t = 0.0
     approaching = -1e-12 * max(abs(scene.speed), float(np.max(np.abs(v))), 1.0)  # m/s: below this, a contact hits
     while True:
@@ -302,7 +306,9 @@ def sequential_impacts(
         t += step
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise NumericalError(f"the free flight diverged at t = {t:.3g} s")
-    return _sequential_result(impacts, q, v, energy_before, float(evaluate_step(q, v).kinetic[0]))
+        _check_chart(q, space, t)
+    energy_after = float(evaluate_step(q, v).kinetic[0])
+    return _sequential_result(impacts, q, world_velocity(q, v, space), energy_before, energy_after)
 
 
 __all__ = ["ImpactEvent", "SequentialResult", "SequentialSettings", "sequential_impacts"]

@@ -35,6 +35,7 @@ import yaml
 from impulse_core.errors import ModelError
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import FLAT, Terrain
 from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
 from optimizer.config.yaml_fields import describe as _describe
@@ -57,6 +58,8 @@ SCENE_KEYS = (
     "contact_tolerance",
     "terrain",
     "base_x",
+    "base_z",
+    "heightfield",
     "gravity",
     "duration",
 )
@@ -389,6 +392,13 @@ def parse_scene(data: Any, where: str = "scene", spatial: bool = False) -> Scene
     selection = _choice(m.get("contacts", ContactSelection.LOWEST.value), f"{where}.contacts", ContactSelection, "mode")
     terrain = parse_terrain(m["terrain"], f"{where}.terrain") if "terrain" in m else FLAT
     base_x = parse_base_x(m["base_x"], f"{where}.base_x") if "base_x" in m else 0.0
+    for key in ("heightfield", "base_z"):
+        if key in m and not spatial:
+            raise ConfigError(f"{where}.{key}: needs 'model.space: spatial' (a planar ground is scene.terrain)")
+    heightfield = parse_heightfield(m["heightfield"], f"{where}.heightfield") if "heightfield" in m else None
+    if heightfield is not None and "terrain" in m:
+        raise ConfigError(f"{where}.terrain: give scene.heightfield or scene.terrain, not both (in space: the heightfield)")
+    base_z = _number(m["base_z"], f"{where}.base_z") if "base_z" in m else 0.0
     gravity = _number(m.get("gravity", 0.0), f"{where}.gravity")
     if gravity < 0:
         raise ConfigError(f"{where}.gravity: must be >= 0 (m/s^2 along -y, e.g. 9.81), got {gravity!r}")
@@ -406,6 +416,8 @@ def parse_scene(data: Any, where: str = "scene", spatial: bool = False) -> Scene
         contact_tolerance=tolerance,
         terrain=terrain,
         base_x=base_x,
+        base_z=base_z,
+        heightfield=heightfield,
         gravity=gravity,
         duration=duration,
     )
@@ -476,6 +488,39 @@ def parse_terrain(value: Any, where: str = "scene.terrain") -> Terrain:
         return Terrain.from_points(points)
     except ModelError as e:  # x not increasing: Terrain names it scene.terrain[i]
         raise ConfigError(str(e).replace("scene.terrain", where, 1)) from None
+
+
+def parse_heightfield(value: Any, where: str = "scene.heightfield") -> Heightfield:
+    """Validate ``scene.heightfield``: ``{x: [...], z: [...], heights: [[...], ...]}``, x and z
+    strictly increasing, ``heights`` len(x) rows of len(z) finite numbers (m).
+
+    Raises:
+        ConfigError: one line naming the field at fault (``scene.heightfield.heights: expected 3
+            rows of 4 values ...``).
+    """
+    m = _mapping(value, where, ("x", "z", "heights"))
+    grid = {}
+    for key in ("x", "z"):
+        raw = _required(m, key, where)
+        if not isinstance(raw, list) or not raw:
+            raise ConfigError(f"{where}.{key}: must be a non-empty list of numbers (m), got {_describe(raw)}")
+        grid[key] = tuple(_number(v, f"{where}.{key}[{i}]") for i, v in enumerate(raw))
+    rows = _required(m, "heights", where)
+    nx, nz = len(grid["x"]), len(grid["z"])
+    if not isinstance(rows, list) or len(rows) != nx or any(not isinstance(r, list) or len(r) != nz for r in rows):
+        raise ConfigError(
+            f"{where}.heights: expected {nx} rows of {nz} values (row i: the heights at x[i] along z), got "
+            + (_describe(rows) if not isinstance(rows, list) else
+               f"{len(rows)} rows of " + "/".join(str(len(r)) if isinstance(r, list) else _describe(r) for r in rows)
+               + " values")
+        )
+    heights = tuple(
+        tuple(_number(v, f"{where}.heights[{i}][{j}]") for j, v in enumerate(r)) for i, r in enumerate(rows)
+    )
+    try:
+        return Heightfield(grid["x"], grid["z"], heights)
+    except ModelError as e:  # a grid not increasing: named scene.heightfield.x[i]
+        raise ConfigError(str(e).replace("scene.heightfield", where, 1)) from None
 
 
 def parse_base_x(value: Any, where: str = "scene.base_x") -> float:
@@ -722,6 +767,14 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
         lines.append(f"  terrain: [{points}]  # ground profile y(x), world frame, m")
     if s.base_x != 0.0:
         lines.append(f"  base_x: {_float_text(s.base_x)}  # m, base origin at touchdown")
+    if s.base_z != 0.0:
+        lines.append(f"  base_z: {_float_text(s.base_z)}  # m, base origin at touchdown")
+    if s.heightfield is not None:
+        hf = s.heightfield
+        rows = ", ".join(_list_text(row) for row in hf.heights)
+        lines.append(
+            f"  heightfield: {{x: {_list_text(hf.x)}, z: {_list_text(hf.z)}, heights: [{rows}]}}  # ground y(x, z), m"
+        )
     if s.gravity != 0.0:
         lines.append(f"  gravity: {_float_text(s.gravity)}  # m/s^2 along -y")
     if s.duration is not None:

@@ -41,7 +41,7 @@ BASE_ANGLE = 2
 def batchable(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> np.ndarray:
     """Which scenarios are frictionless first impacts on flat ground (module docstring)."""
     s = model.scene
-    if s.duration is not None or not s.terrain.is_flat or "terrain_step" in names:
+    if s.duration is not None or not s.ground_is_flat or "terrain_step" in names:
         return np.zeros(len(values), dtype=bool)
     friction = values[:, names.index("friction")] if "friction" in names else np.full(len(values), s.friction)
     return friction == 0.0

@@ -3,8 +3,9 @@ time-domain models when the ground is uneven (or on request).
 
 ``auto`` (the default) keeps the rigid ladder's automatic choice (``impulse_core.evaluate``) on
 flat ground, and runs the sequential rigid model (``impulse_core.timedomain.sequential``: a Newton/LCP impact
-along the local ground normal at each touchdown, free flight between) when ``scene.terrain`` is
-not flat: the rigid rungs assume level ground and simultaneous contacts, and refuse such a scene.
+along the local ground normal at each touchdown, free flight between) when ``scene.terrain`` (in
+space ``scene.heightfield``) is not flat: the rigid rungs assume level ground and simultaneous
+contacts, and refuse such a scene.
 The compliant rung (``impulse_core.timedomain.compliant``) runs on request only: it needs a contact
 stiffness, which is a modelling choice (studies/fidelity/README.md).
 """
@@ -147,39 +148,54 @@ def evaluate_landing(
             (both frictionless), or an unknown model name.
         NumericalError: the solve or the integration failed.
     """
-    flat = scene.terrain.is_flat
     if space is not PLANAR:
-        return _spatial(tree, scene, model, space)
+        return _spatial(tree, scene, model, compliant, sequential, compliant_tolerance, space)
+    flat = scene.terrain.is_flat
     if model == LANDING or model == "auto" and scene.duration is not None:
         return _whole_landing(tree, scene, joints, whole or LandingSettings(), requested=model == LANDING)
     if model == "auto" and flat or model in {m.value for m in ImpactModel}:
         return evaluate(tree, scene, None if model == "auto" else ImpactModel(model))
+    why = (
+        "automatic: scene.terrain is not flat, so the contacts touch down at different times and on slopes, "
+        "which the flat-ground rigid rungs cannot describe; the sequential rigid model is their stiff limit "
+        "(--model compliant for finite contact stiffness)"
+    )
+    return _time_domain(tree, scene, model, why, compliant, sequential, compliant_tolerance, PLANAR)
+
+
+def _time_domain(
+    tree: Tree,
+    scene: Scene,
+    model: str,
+    why: str,
+    compliant: CompliantSettings | None,
+    sequential: SequentialSettings | None,
+    compliant_tolerance: float | None,
+    space: Space,
+) -> TimeDomainResult:
+    """The sequential or compliant landing (``auto``: sequential, for the reason ``why``)."""
     notes = []
     if model == "auto":
         model = SEQUENTIAL
-        notes.append(
-            "automatic: scene.terrain is not flat, so the contacts touch down at different times and on slopes, "
-            "which the flat-ground rigid rungs cannot describe; the sequential rigid model is their stiff limit "
-            "(--model compliant for finite contact stiffness)"
-        )
-    elif model in TIME_DOMAIN_MODELS:
+        notes.append(why)
+    elif model in (SEQUENTIAL, COMPLIANT):
         notes.append("requested")
     else:
         raise ModelError(f"model: unknown model {model!r} (choices: {', '.join(MODEL_CHOICES)})")
     if scene.selection is ContactSelection.ALL:
         notes.append("scene.contacts: all is not used here: the geometry decides which contacts touch and when")
-    v_minus = approach_velocity(tree.topology(), scene.speed)
+    v_minus = approach_velocity(tree.topology(), scene.speed) if space is PLANAR else None
     settings: SequentialSettings | CompliantSettings
     result: SequentialResult | CompliantResult
     if model == SEQUENTIAL:
         settings = _scene_gravity(sequential or SequentialSettings(), scene)
-        result = sequential_impacts(tree, scene, settings)
+        result = sequential_impacts(tree, scene, settings, space=space)
     else:
         settings = _scene_gravity(compliant or CompliantSettings(), scene)
         if compliant_tolerance is None:
-            result = simulate_impact(tree, scene, settings)
+            result = simulate_impact(tree, scene, settings, space=space)
         else:
-            result = simulate_to_tolerance(tree, scene, settings, compliant_tolerance)
+            result = simulate_to_tolerance(tree, scene, settings, compliant_tolerance, space=space)
         unit = "N/m" if settings.law is ContactLaw.PENALTY else "1/s^2"
         steps = result.steps_per_period or settings.steps_per_period
         notes.append(
@@ -189,19 +205,42 @@ def evaluate_landing(
         )
     if settings.gravity:
         notes.append(f"gravity {settings.gravity:g} m/s^2")
+    if v_minus is None:
+        v_minus = pre_impact_velocity(tree.topology(), scene, space)
     return TimeDomainResult(model, "; ".join(notes), result, v_minus, settings)
 
 
-def _spatial(tree: Tree, scene: Scene, model: str, space: Space) -> ImpactResult:
-    """A spatial model's first impact; the time-domain models are planar so far (refused)."""
-    if model in TIME_DOMAIN_MODELS or model == "auto" and (scene.duration is not None or not scene.terrain.is_flat):
+def _spatial(
+    tree: Tree,
+    scene: Scene,
+    model: str,
+    compliant: CompliantSettings | None,
+    sequential: SequentialSettings | None,
+    compliant_tolerance: float | None,
+    space: Space,
+) -> ImpactResult | TimeDomainResult:
+    """A spatial model's landing: the first-impact rungs on flat ground; on a heightfield that is
+    not flat (``auto``), or on request, the sequential or compliant rung. The whole landing
+    (``landing``, ``scene.duration``) and a planar ``scene.terrain`` that is not flat are refused."""
+    if model == LANDING or scene.duration is not None:
         raise ModelError(
-            "model.space: spatial models run the first-impact rungs (newton, lcp, decoupled) so far; the "
-            "time-domain models (landing, sequential, compliant), scene.duration and scene.terrain are planar only"
+            "model.space: the whole landing (--model landing, scene.duration) is planar only so far; spatial "
+            "models run the first-impact rungs and the sequential and compliant rungs"
         )
-    if model not in {"auto"} | {m.value for m in ImpactModel}:
-        raise ModelError(f"model: unknown model {model!r} (choices: {', '.join(MODEL_CHOICES)})")
-    return evaluate(tree, scene, None if model == "auto" else ImpactModel(model), space)
+    if not scene.terrain.is_flat:
+        raise ModelError(
+            "scene.terrain: a ground profile y(x) is planar; a spatial model's uneven ground is scene.heightfield "
+            "(x and z grids and heights; constant along z for a profile)"
+        )
+    uneven = scene.heightfield is not None and not scene.heightfield.is_flat
+    if model == "auto" and not uneven or model in {m.value for m in ImpactModel}:
+        return evaluate(tree, scene, None if model == "auto" else ImpactModel(model), space)
+    why = (
+        "automatic: scene.heightfield is not flat, so the contacts touch down at different times and on slopes, "
+        "which the flat-ground rigid rungs cannot describe; the sequential rigid model is their stiff limit "
+        "(--model compliant for finite contact stiffness)"
+    )
+    return _time_domain(tree, scene, model, why, compliant, sequential, compliant_tolerance, space)
 
 
 def _scene_gravity(settings, scene: Scene):  # type: ignore[no-untyped-def]

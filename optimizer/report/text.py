@@ -356,7 +356,14 @@ def _scene_record(scene: Scene, space: Space = PLANAR) -> dict[str, Any]:
         "base_x": _f(scene.base_x),
         "gravity": _f(scene.gravity),
         "duration": None if scene.duration is None else _f(scene.duration),
-    }
+    } | ({} if planar else {
+        "base_z": _f(scene.base_z),
+        "heightfield": None if scene.heightfield is None else {
+            "x": _floats(scene.heightfield.x),
+            "z": _floats(scene.heightfield.z),
+            "heights": [_floats(row) for row in scene.heightfield.heights],
+        },
+    })
 
 
 def format_report(model: ModelFile, result: Result, file: str) -> str:
@@ -401,9 +408,18 @@ def _header_lines(model: ModelFile, result: Result, file: str) -> list[str]:
         f"scene:   speed {scene.speed:g} m/s down{approach}, restitution e = {scene.restitution:g}, "
         f"friction {scene.friction:g}, contacts: {selection}",
     ]
-    if scene.terrain != FLAT or scene.base_x != 0.0:
+    if scene.heightfield is not None:
+        hf = scene.heightfield
+        lines.append(
+            f"ground:  heightfield {len(hf.x)} x {len(hf.z)} points, x in [{hf.x[0]:g}, {hf.x[-1]:g}] m, "
+            f"z in [{hf.z[0]:g}, {hf.z[-1]:g}] m, heights {hf.level:g} to "
+            f"{max(v for row in hf.heights for v in row):g} m; base origin at x = {scene.base_x:g} m, "
+            f"z = {scene.base_z:g} m"
+        )
+    elif scene.terrain != FLAT or scene.base_x != 0.0 or scene.base_z != 0.0:
         points = ", ".join(f"[{x:g}, {y:g}]" for x, y in scene.terrain.points)
-        lines.append(f"ground:  terrain [{points}] (m), base origin at x = {scene.base_x:g} m")
+        where = f"x = {scene.base_x:g} m" + (f", z = {scene.base_z:g} m" if scene.base_z != 0.0 else "")
+        lines.append(f"ground:  terrain [{points}] (m), base origin at {where}")
     verb = "hit" if rigid else "touch down"
     if model.space is not PLANAR:
         margin = 1e3 * foot_support_margin(model)

@@ -348,4 +348,97 @@ def drop(
     )
 
 
-__all__ = ["CONTACT_RADIUS", "MujocoDrop", "build_mjcf", "contact_parameters", "drop"]
+def drop_spatial(
+    tree: Tree,
+    scene: Scene,
+    settings: CompliantSettings,
+    n_steps: int,
+    timestep: float,
+    effective_mass: np.ndarray | None = None,
+) -> MujocoDrop:
+    """A spatial model (``model.space: spatial``) dropped in MuJoCo on flat ground, as :func:`drop`
+    drops a planar one: ``footopt export``'s MJCF (a freejoint base at the touchdown pose, hinges
+    about each rod's own axis) with the bridge's ground and contact spheres
+    (:func:`exported_for_drop`), the scene's approach (``qvel``: the base origin's world velocity,
+    the angular velocity in the base frame), ``n_steps`` semi-implicit Euler steps of
+    ``timestep``. Impulse vectors and joint impulses are 3D (world frame); ``v_plus`` is in our
+    order (base origin velocity, world angular velocity, joint rates). ``effective_mass``: the
+    penalty law's (:func:`contact_parameters`; required for it: the planar default does not apply).
+    """
+    import mujoco  # lazy: a test and study dependency only
+
+    from impulse_core.evaluate import pre_impact_velocity
+    from impulse_core.kinematics.spatial import SPATIAL
+    from impulse_core.model.rods import body_rotation
+    from impulse_core.model.terrain import FLAT
+    from optimizer.results.export import to_mjcf
+
+    if not (scene.terrain.is_flat and (scene.heightfield is None or scene.heightfield.is_flat)):
+        raise ValueError("drop_spatial: flat ground only")
+    if settings.law is ContactLaw.PENALTY and effective_mass is None:
+        raise ValueError("drop_spatial: the penalty law needs each contact's effective mass")
+    stiffness, damping = contact_parameters(tree, scene, settings, FLAT, 0.0, effective_mass)
+    text = exported_for_drop(to_mjcf(tree, scene, space=SPATIAL), tree, FLAT, timestep, stiffness, damping, settings)
+    m = mujoco.MjModel.from_xml_string(text)
+    d = mujoco.MjData(m)
+    free = m.joint(tree.bodies[0].name)
+    d.qpos[free.qposadr[0] + 1] += TOUCHDOWN_CLEARANCE  # as the compliant rung
+    layout = dof_layout(tree.topology(), SPATIAL)
+    v0 = pre_impact_velocity(tree.topology(), scene, SPATIAL)
+    R = body_rotation(tree.bodies[0])  # the base frame at touchdown, in the world
+    base = free.dofadr[0]
+    joints = [m.joint(tree.bodies[layout.dof_body[k]].name).dofadr[0] for k in range(6, layout.nv)]
+    d.qvel[base : base + 3] = v0[:3]
+    d.qvel[base + 3 : base + 6] = R.T @ v0[3:6]
+    d.qvel[joints] = v0[6:]
+    geom_contact = {m.geom(f"contact{j}").id: j for j in range(len(tree.contacts))}
+    body_ids = [m.body(b.name).id for b in tree.bodies]
+    nc = len(tree.contacts)
+    impulse, impulse_vec = np.zeros(nc), np.zeros((nc, 3))
+    joint_impulse = np.zeros((tree.n_bodies, 3))
+    touchdown = np.full(nc, np.nan)
+    f6 = np.zeros(6)
+    for step in range(n_steps):
+        mujoco.mj_forward(m, d)
+        mujoco.mj_rnePostConstraint(m, d)
+        F = np.zeros((nc, 3))
+        for i in range(d.ncon):
+            con = d.contact[i]
+            if con.geom1 in geom_contact:
+                j, sign = geom_contact[con.geom1], -1.0
+            elif con.geom2 in geom_contact:
+                j, sign = geom_contact[con.geom2], 1.0
+            else:
+                continue
+            if math.isnan(touchdown[j]):
+                touchdown[j] = step * timestep
+            mujoco.mj_contactForce(m, d, i, f6)
+            impulse[j] += timestep * f6[0]
+            F[j] += sign * (f6[:3] @ np.array(con.frame).reshape(3, 3))
+        impulse_vec += timestep * F
+        if np.any(F != 0.0):
+            joint_impulse += timestep * np.array([d.cfrc_int[i, 3:6] for i in body_ids])
+        mujoco.mj_Euler(m, d)
+    mujoco.mj_forward(m, d)
+    loaded = False
+    for i in range(d.ncon):
+        mujoco.mj_contactForce(m, d, i, f6)
+        loaded = loaded or f6[0] > 0.0
+    body_rot = np.array(d.xmat[m.body(tree.bodies[0].name).id]).reshape(3, 3)
+    v_plus = np.concatenate([d.qvel[base : base + 3], body_rot @ d.qvel[base + 3 : base + 6], d.qvel[joints]])
+    internal = joint_impulse[1:]
+    return MujocoDrop(
+        external=impulse,
+        external_vector=impulse_vec,
+        internal=internal,
+        internal_magnitude=np.linalg.norm(internal, axis=1),
+        touchdown_time=touchdown,
+        v_plus=v_plus,
+        loaded_at_end=loaded,
+        timestep=timestep,
+        n_steps=n_steps,
+        mjcf=text,
+    )
+
+
+__all__ = ["CONTACT_RADIUS", "MujocoDrop", "build_mjcf", "contact_parameters", "drop", "drop_spatial"]
