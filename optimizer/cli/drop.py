@@ -21,8 +21,10 @@ import numpy as np
 
 from impulse_core.errors import FootoptError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact
 from optimizer.cli.status import EXIT_FAILURE, EXIT_OK, EXIT_USAGE, warn
+from optimizer.errors import ConfigError
 from optimizer.cli.status import error as _error
 from optimizer.report.text import contact_names, joint_names
 
@@ -53,7 +55,7 @@ def add_drop(subparsers: argparse._SubParsersAction) -> None:
 
 def run_drop(args: argparse.Namespace) -> int:
     """``footopt drop``."""
-    from optimizer.config.model_file import load_model_file, require_planar
+    from optimizer.config.model_file import load_model_file
     from optimizer.evaluation.model_choice import evaluate_landing
 
     try:
@@ -65,12 +67,14 @@ def run_drop(args: argparse.Namespace) -> int:
         _error("--stiffness", f"must be a finite number > 0 (1/s^2), got {args.stiffness}")
         return EXIT_USAGE
     try:
-        model = require_planar(load_model_file(args.model), "footopt drop")
+        model = load_model_file(args.model)
+        if model.space is SPATIAL:
+            _check_spatial(model)
         if model.scene.duration is not None:
             warn(f"{args.model}: scene.duration is left out: the drop compares the first impact")
         scene = replace(model.scene, duration=None)  # the first impact
-        rigid = evaluate_landing(model.tree, scene, "auto")
-        record = drop_record(model.tree, scene, args.stiffness, rigid)
+        rigid = evaluate_landing(model.tree, scene, "auto", space=model.space)
+        record = drop_record(model.tree, scene, args.stiffness, rigid, model.space)
     except NumericalError as e:
         _error(args.model, f"numerical failure: {e}")
         return EXIT_FAILURE
@@ -81,18 +85,31 @@ def run_drop(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def drop_record(tree, scene, stiffness: float, rigid) -> dict:  # type: ignore[no-untyped-def]
+def _check_spatial(model) -> None:  # type: ignore[no-untyped-def]
+    """What a spatial drop takes: flat ground, no friction (ConfigError naming the field)."""
+    scene = model.scene
+    if scene.heightfield is not None and not scene.heightfield.is_flat:
+        raise ConfigError("scene.heightfield: a spatial drop lands on flat ground only", model.path)
+    if scene.friction > 0:
+        raise ConfigError(f"scene.friction: a spatial drop is frictionless so far, got {scene.friction!r} "
+                          "(footopt evaluate solves the exact circular cone)", model.path)
+
+
+def drop_record(tree, scene, stiffness: float, rigid, space: Space = PLANAR) -> dict:  # type: ignore[no-untyped-def]
     """The three answers and the settings, as JSON-able data."""
     from optimizer.results.export import to_mjcf
-    from optimizer.validation.mujoco_bridge import drop
+    from optimizer.validation.mujoco_bridge import drop, drop_spatial
 
     settings = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=stiffness, gravity=scene.gravity)
     frictional = scene.friction > 0  # the compliant rung is frictionless: no column then
-    soft = simulate_impact(tree, replace(scene, friction=0.0), settings)
+    soft = simulate_impact(tree, replace(scene, friction=0.0), settings, space=space)
     steps = int(round(soft.duration / soft.timestep)) * (FRICTION_WINDOW if frictional else 1)
-    exported = to_mjcf(tree, scene)  # footopt export's MJCF (its joint laws give no impulse: left out)
-    mj = drop(tree, scene, settings, steps, soft.timestep, v_minus=pre_impact_velocity(tree.topology(), scene),
-              exported=exported if scene.terrain.is_flat else None)
+    if space is SPATIAL:
+        mj = drop_spatial(tree, scene, settings, steps, soft.timestep)
+    else:
+        exported = to_mjcf(tree, scene)  # footopt export's MJCF (its joint laws give no impulse: left out)
+        mj = drop(tree, scene, settings, steps, soft.timestep, v_minus=pre_impact_velocity(tree.topology(), scene),
+                  exported=exported if scene.terrain.is_flat else None)
     b = float(np.mean(soft.damping))
     record = {
         "contacts": list(contact_names(tree)),
@@ -107,7 +124,7 @@ def drop_record(tree, scene, stiffness: float, rigid) -> dict:  # type: ignore[n
                      "friction": scene.friction, "cone": "elliptic" if frictional else None,
                      "rigid_model": _model_name(rigid),
                      "mjcf": "footopt export's, with contact spheres and ground" if scene.terrain.is_flat
-                     else "the bridge's (terrain)"},
+                     else "the bridge's (terrain)", "space": space.name},
     }
     if frictional:
         record["tangential"] = {"footopt": _floats(rigid.tangential), "mujoco": _floats(mj.external_vector[:, 0])}

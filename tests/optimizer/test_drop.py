@@ -109,3 +109,25 @@ def test_the_exported_mjcf_drops_as_the_bridges_model():
     for a, b in ((exported.external, bridge.external), (exported.internal_magnitude, bridge.internal_magnitude)):
         assert np.abs(a - b).max() <= 1e-6 * np.abs(b).max()
     assert "<freejoint" in exported.mjcf and "<freejoint" not in bridge.mjcf
+
+
+def test_a_spatial_design_drops_as_footopt_exports_it(capsys, tmp_path):
+    """A spatial file (splayed toes, an oblique turning approach): MuJoCo on the exported MJCF
+    meets the spatial compliant rung (same law, same step) and nears the rigid answer."""
+    text = (REPO / "configs" / "spatial_case3.yaml").read_text(encoding="utf-8")
+    assert main(["drop", str(REPO / "configs" / "spatial_case3.yaml"), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["settings"]["space"] == "spatial" and len(r["external"]["mujoco"]) == len(r["contacts"])
+    mj, soft, rigid = (np.array(r["external"][k]) for k in ("mujoco", "compliant", "footopt"))
+    assert np.max(np.abs(mj - soft)) <= 1e-3 * np.max(soft)
+    assert np.max(np.abs(mj - rigid)) <= 1e-2 * np.max(rigid)
+    mj_j, soft_j = (np.array(r["internal"][k]) for k in ("mujoco", "compliant"))
+    assert np.max(np.abs(mj_j - soft_j)) <= 1e-3 * np.max(soft_j)
+    tilted = "  friction: 0.0\n  heightfield: {x: [-1, 1], z: [-1, 1], heights: [[0, 0.1], [0, 0.1]]}\n"
+    for bad, where in (("  friction: 0.4\n", "scene.friction: a spatial drop is frictionless"),
+                       (tilted, "scene.heightfield: a spatial drop lands on flat ground only")):
+        path = tmp_path / "bad.yaml"
+        path.write_text(text.replace("  friction: 0.0\n", bad, 1), encoding="utf-8")
+        assert main(["drop", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert where in err and err.count("\n") == 1, err
