@@ -114,7 +114,7 @@ def test_plot_of_a_spatial_file_draws_three_views(tmp_path: Path) -> None:
     assert image.shape[1] > 2 * image.shape[0]  # three views side by side
 
 
-@pytest.mark.parametrize("command", [("drop",)])
+@pytest.mark.parametrize("command", [("evaluate", "--landings", str(REPO / "configs" / "robust_study.yaml"))])
 def test_commands_not_yet_spatial_refuse_a_spatial_file_with_exit_2(command: tuple[str, ...]) -> None:
     proc = _footopt(*command, str(EXAMPLE))
     assert proc.returncode == 2
