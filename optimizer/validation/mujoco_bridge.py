@@ -299,39 +299,8 @@ def drop(
     geom_contact = {m.geom(f"contact{j}").id: j for j in range(len(tree.contacts))}
     body_ids = [m.body(b.name).id for b in tree.bodies]
 
-    nc = len(tree.contacts)
-    impulse = np.zeros(nc)
-    impulse_vec = np.zeros((nc, 2))
-    joint_impulse = np.zeros((tree.n_bodies, 2))
-    touchdown = np.full(nc, np.nan)
-    f6 = np.zeros(6)
-    for step in range(n_steps):
-        mujoco.mj_forward(m, d)  # contacts, constraint forces and accelerations at this state
-        mujoco.mj_rnePostConstraint(m, d)  # cfrc_int: MuJoCo's own joint reaction forces (RNE)
-        F = np.zeros((nc, 2))
-        for i in range(d.ncon):
-            con = d.contact[i]
-            if con.geom1 in geom_contact:
-                j, sign = geom_contact[con.geom1], -1.0
-            elif con.geom2 in geom_contact:
-                j, sign = geom_contact[con.geom2], 1.0
-            else:
-                continue
-            if math.isnan(touchdown[j]):
-                touchdown[j] = step * timestep
-            mujoco.mj_contactForce(m, d, i, f6)  # contact frame: normal, then the two tangents
-            impulse[j] += timestep * f6[0]
-            frame = np.array(con.frame).reshape(3, 3)
-            F[j] += sign * (f6[:3] @ frame)[:2]
-        impulse_vec += timestep * F
-        if np.any(F != 0.0):  # the force the parent exerts on each body (world axes)
-            joint_impulse += timestep * np.array([d.cfrc_int[i, 3:5] for i in body_ids])
-        mujoco.mj_Euler(m, d)  # semi-implicit Euler with these accelerations (= mj_step)
-    mujoco.mj_forward(m, d)
-    loaded = False
-    for i in range(d.ncon):
-        mujoco.mj_contactForce(m, d, i, f6)
-        loaded = loaded or f6[0] > 0.0
+    impulse, impulse_vec, joint_impulse, touchdown, loaded = _integrate_drop(
+        m, d, geom_contact, body_ids, n_steps, timestep, dims=2)
     joint = joint_impulse[1:]
     internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
     return MujocoDrop(
@@ -346,6 +315,48 @@ def drop(
         n_steps=n_steps,
         mjcf=text,
     )
+
+
+def _integrate_drop(m, d, geom_contact: dict[int, int], body_ids: list[int], n_steps: int, timestep: float,
+                    dims: int):  # type: ignore[no-untyped-def]
+    """``n_steps`` of MuJoCo from ``d``, integrating each contact's normal impulse, its force
+    vector (world axes, the first ``dims``), the joint reactions (``cfrc_int``, the force the parent
+    exerts on each body) while a contact pushes, and each contact's first touch; then whether a
+    contact still pushes at the end."""
+    import mujoco
+
+    nc = len(geom_contact)
+    impulse, impulse_vec = np.zeros(nc), np.zeros((nc, dims))
+    joint_impulse = np.zeros((len(body_ids), dims))
+    touchdown = np.full(nc, np.nan)
+    f6 = np.zeros(6)
+    for step in range(n_steps):
+        mujoco.mj_forward(m, d)  # contacts, constraint forces and accelerations at this state
+        mujoco.mj_rnePostConstraint(m, d)  # cfrc_int: MuJoCo's own joint reaction forces (RNE)
+        F = np.zeros((nc, dims))
+        for i in range(d.ncon):
+            con = d.contact[i]
+            if con.geom1 in geom_contact:
+                j, sign = geom_contact[con.geom1], -1.0
+            elif con.geom2 in geom_contact:
+                j, sign = geom_contact[con.geom2], 1.0
+            else:
+                continue
+            if math.isnan(touchdown[j]):
+                touchdown[j] = step * timestep
+            mujoco.mj_contactForce(m, d, i, f6)  # contact frame: normal, then the two tangents
+            impulse[j] += timestep * f6[0]
+            F[j] += sign * (f6[:3] @ np.array(con.frame).reshape(3, 3))[:dims]
+        impulse_vec += timestep * F
+        if np.any(F != 0.0):
+            joint_impulse += timestep * np.array([d.cfrc_int[i, 3 : 3 + dims] for i in body_ids])
+        mujoco.mj_Euler(m, d)  # semi-implicit Euler with these accelerations (= mj_step)
+    mujoco.mj_forward(m, d)
+    loaded = False
+    for i in range(d.ncon):
+        mujoco.mj_contactForce(m, d, i, f6)
+        loaded = loaded or f6[0] > 0.0
+    return impulse, impulse_vec, joint_impulse, touchdown, loaded
 
 
 def drop_spatial(
@@ -393,37 +404,8 @@ def drop_spatial(
     d.qvel[joints] = v0[6:]
     geom_contact = {m.geom(f"contact{j}").id: j for j in range(len(tree.contacts))}
     body_ids = [m.body(b.name).id for b in tree.bodies]
-    nc = len(tree.contacts)
-    impulse, impulse_vec = np.zeros(nc), np.zeros((nc, 3))
-    joint_impulse = np.zeros((tree.n_bodies, 3))
-    touchdown = np.full(nc, np.nan)
-    f6 = np.zeros(6)
-    for step in range(n_steps):
-        mujoco.mj_forward(m, d)
-        mujoco.mj_rnePostConstraint(m, d)
-        F = np.zeros((nc, 3))
-        for i in range(d.ncon):
-            con = d.contact[i]
-            if con.geom1 in geom_contact:
-                j, sign = geom_contact[con.geom1], -1.0
-            elif con.geom2 in geom_contact:
-                j, sign = geom_contact[con.geom2], 1.0
-            else:
-                continue
-            if math.isnan(touchdown[j]):
-                touchdown[j] = step * timestep
-            mujoco.mj_contactForce(m, d, i, f6)
-            impulse[j] += timestep * f6[0]
-            F[j] += sign * (f6[:3] @ np.array(con.frame).reshape(3, 3))
-        impulse_vec += timestep * F
-        if np.any(F != 0.0):
-            joint_impulse += timestep * np.array([d.cfrc_int[i, 3:6] for i in body_ids])
-        mujoco.mj_Euler(m, d)
-    mujoco.mj_forward(m, d)
-    loaded = False
-    for i in range(d.ncon):
-        mujoco.mj_contactForce(m, d, i, f6)
-        loaded = loaded or f6[0] > 0.0
+    impulse, impulse_vec, joint_impulse, touchdown, loaded = _integrate_drop(
+        m, d, geom_contact, body_ids, n_steps, timestep, dims=3)
     body_rot = np.array(d.xmat[m.body(tree.bodies[0].name).id]).reshape(3, 3)
     v_plus = np.concatenate([d.qvel[base : base + 3], body_rot @ d.qvel[base + 3 : base + 6], d.qvel[joints]])
     internal = joint_impulse[1:]
