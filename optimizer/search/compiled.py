@@ -178,6 +178,8 @@ class NlpCache:
 
     def __init__(self, config: StudyConfig, kinds: list[FootKind], directory: Path | None = None) -> None:
         self._config, self._ready = config, {}
+        self._folders: dict[FootKind, Path | None] = {}
+        self._vm: dict[FootKind, _Graph] = {}
         self._compiler = find_compiler()
         self._root = directory or cache_dir()
         self._pool = ThreadPoolExecutor(max_workers=max(1, len(kinds)))
@@ -196,32 +198,44 @@ class NlpCache:
 
     def __getitem__(self, kind: FootKind) -> CompiledNlp:
         if kind not in self._ready:
-            self._ready[kind] = self._nlp(kind)
+            folder = self.library(kind)
+            self._ready[kind] = _on_vm(self._vm.pop(kind), kind) if folder is None else load_nlp(kind, folder)
         return self._ready[kind]
 
-    def _nlp(self, kind: FootKind) -> CompiledNlp:
+    def library(self, kind: FootKind) -> Path | None:
+        """The cache folder of the kind's compiled NLP (waiting for its build; another process
+        loads it with :func:`load_nlp`), or None when the kind runs on CasADi's virtual machine
+        (no C compiler, or its build failed: a ``RuntimeWarning`` says so)."""
+        if kind in self._folders:
+            return self._folders[kind]
+        folder, graph = None, None
         if self._compiler is None:
             warnings.warn(
                 "no C compiler found (cc, gcc or clang): the inner search runs on CasADi's virtual machine (slower)",
                 RuntimeWarning,
                 stacklevel=3,
             )
-            return _on_vm(_graph(self._config, kind), kind)
-        started = self._builds.pop(kind, None) or self._start(kind)
-        if started is None:
-            folder = lookup(self._root, kind.name, self._key(kind))
-            if folder is not None:
-                return _load(kind, folder)
-            started = self._start(kind)
-        graph, future = started
-        try:
-            return _load(kind, future.result())
-        except CompileError as exc:
-            warnings.warn(f"{exc}; {kind.name} runs on CasADi's virtual machine (slower)", RuntimeWarning, stacklevel=3)
-            return _on_vm(graph, kind)
+        else:
+            started = self._builds.pop(kind, None) or self._start(kind)
+            if started is None:
+                folder = lookup(self._root, kind.name, self._key(kind))
+                started = self._start(kind) if folder is None else None
+            if started is not None:
+                graph, future = started
+                try:
+                    folder = future.result()
+                except CompileError as exc:
+                    warnings.warn(
+                        f"{exc}; {kind.name} runs on CasADi's virtual machine (slower)", RuntimeWarning, stacklevel=3
+                    )
+        if folder is None:
+            self._vm[kind] = graph or _graph(self._config, kind)
+        self._folders[kind] = folder
+        return folder
 
 
-def _load(kind: FootKind, folder: Path) -> CompiledNlp:
+def load_nlp(kind: FootKind, folder: Path) -> CompiledNlp:
+    """The kind's NLP from its cache folder (:meth:`NlpCache.library`)."""
     bounds = np.load(folder / "bounds.npz")
     solver = ca.nlpsol(kind.name, "ipopt", str(folder / "nlp.so"), IPOPT_OPTIONS)
     values = ca.external("foot_values", str(folder / "values.so"))
@@ -529,5 +543,6 @@ __all__ = [
     "FootKind",
     "NlpCache",
     "foot_kind",
+    "load_nlp",
     "values_function",
 ]
