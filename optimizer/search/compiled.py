@@ -156,6 +156,9 @@ def nlp_key(config: StudyConfig, kind: FootKind, compiler: str) -> str:
     )
 
 
+#: Niceness added per place in the build order (the first kind's build runs at the search's own).
+NICENESS_STEP = 5
+
 IPOPT_OPTIONS = {
     "ipopt.print_level": 0,
     "print_time": False,
@@ -183,17 +186,18 @@ class NlpCache:
         self._compiler = find_compiler()
         self._root = directory or cache_dir()
         self._pool = ThreadPoolExecutor(max_workers=max(1, len(kinds)))
-        self._builds = {k: self._start(k) for k in kinds}
+        # In the order the search needs them: each later build yields the cores to the earlier.
+        self._builds = {k: self._start(k, NICENESS_STEP * i) for i, k in enumerate(kinds)}
 
     def _key(self, kind: FootKind) -> str:
         return nlp_key(self._config, kind, self._compiler)
 
-    def _start(self, kind: FootKind) -> tuple[_Graph, Future] | None:
+    def _start(self, kind: FootKind, niceness: int = 0) -> tuple[_Graph, Future] | None:
         """Generate the kind's C and start compiling it, unless it is cached or cannot be."""
         if self._compiler is None or lookup(self._root, kind.name, self._key(kind)) is not None:
             return None
         graph = _graph(self._config, kind)
-        build = functools.partial(_build, _sources(graph, kind), graph, self._compiler)
+        build = functools.partial(_build, _sources(graph, kind), graph, self._compiler, niceness)
         return graph, self._pool.submit(store, self._root, kind.name, self._key(kind), build)
 
     def __getitem__(self, kind: FootKind) -> CompiledNlp:
@@ -261,13 +265,14 @@ def _sources(graph: _Graph, kind: FootKind) -> dict[str, str]:
     return sources
 
 
-def _build(sources: dict[str, str], graph: _Graph, compiler: str, work: Path) -> list[str]:
-    """Compile a kind's sources into ``work`` (both at once) beside its bounds; the files made."""
+def _build(sources: dict[str, str], graph: _Graph, compiler: str, niceness: int, work: Path) -> list[str]:
+    """Compile a kind's sources into ``work`` (both at once, at ``niceness``) beside its bounds;
+    the files made."""
     commands = []
     for name, text in sources.items():
         (work / f"{name}.c").write_text(text)
         commands.append([compiler, *NLP_CFLAGS, str(work / f"{name}.c"), "-o", str(work / f"{name}.so")])
-    run_compilers(*commands)
+    run_compilers(*commands, niceness=niceness)
     np.savez(work / "bounds.npz", lbx=graph.lbx, ubx=graph.ubx, lbg=graph.lbg, ubg=graph.ubg)
     return ["nlp.so", "values.so", "bounds.npz"]
 
