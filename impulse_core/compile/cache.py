@@ -115,7 +115,9 @@ def run_compilers(*commands: list[str], niceness: int = 0) -> None:
     nice = shutil.which("nice") if niceness > 0 else None  # a command, not preexec_fn: builds run in threads
     prefix = [nice, "-n", str(niceness)] if nice else []
     try:
-        jobs = [subprocess.Popen([*prefix, *c], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands]
+        jobs = [
+            subprocess.Popen([*prefix, *c], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands
+        ]
     except OSError as exc:
         raise CompileError(f"C compiler cannot be run: {exc}") from exc
     outputs = [job.communicate() for job in jobs]

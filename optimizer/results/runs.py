@@ -380,7 +380,9 @@ def _draw(i: int) -> None:
     f(*args)
 
 
-def _write_front_files(run_dir: Path, config: StudyConfig, trials: list[RecordedTrial], points: list[FrontPoint]) -> None:
+def _write_front_files(
+    run_dir: Path, config: StudyConfig, trials: list[RecordedTrial], points: list[FrontPoint]
+) -> None:
     """The front's CSV, JSON, scenarios, plot, page and top views (or none of the last ones)."""
     (run_dir / CSV_FILE).write_text(front_csv(config, points), encoding="utf-8")
     (run_dir / JSON_FILE).write_text(json.dumps(front_json(config, points), indent=2) + "\n", encoding="utf-8")

@@ -389,7 +389,9 @@ def sweep_shape(config: StudyConfig, nlp: ShapeNlp) -> Sweep:
 
 
 @contextmanager
-def _sweeps(config: StudyConfig, shapes: list[FootShape], cache: NlpCache, workers: int | None) -> Iterator[Iterator[Sweep]]:
+def _sweeps(
+    config: StudyConfig, shapes: list[FootShape], cache: NlpCache, workers: int | None
+) -> Iterator[Iterator[Sweep]]:
     """The sweeps of ``shapes``, in their order. With more than one worker (and shape), each
     kind's shapes are handed to forked worker processes (:mod:`optimizer.workers`) as soon as its
     library is built (each loads it from the cache), while the next kinds compile; the results
@@ -402,7 +404,9 @@ def _sweeps(config: StudyConfig, shapes: list[FootShape], cache: NlpCache, worke
             yield _pooled(config, shapes, cache, pool)
 
 
-def _pooled(config: StudyConfig, shapes: list[FootShape], cache: NlpCache, pool: ProcessPoolExecutor) -> Iterator[Sweep]:
+def _pooled(
+    config: StudyConfig, shapes: list[FootShape], cache: NlpCache, pool: ProcessPoolExecutor
+) -> Iterator[Sweep]:
     pending: deque[tuple[FootShape, Future | None]] = deque()
     submitted: set = set()
     for shape in shapes:
