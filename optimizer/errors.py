@@ -22,6 +22,9 @@ class ConfigError(FootoptError, ValueError):
         super().__init__(" ".join(line.strip() for line in message.splitlines()))
         self.source = source
 
+    def __reduce__(self):  # raised in a worker process, it arrives with its source
+        return type(self), (str(self), self.source)
+
 
 def interrupted(exc: BaseException) -> bool:
     """True when ``exc`` is a Ctrl-C: a KeyboardInterrupt, or an error a C extension raised

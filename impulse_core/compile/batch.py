@@ -11,10 +11,15 @@ complementarity law lets it separate instead.
 
 The path is the fastest one built: the SIMD loop (:func:`impulse_core.compile.codegen.simd_driver`), else
 the C loop, else CasADi's ``map`` on its virtual machine (no cache directory, or no C compiler).
+Compiled, one C call does the whole batch (:func:`impulse_core.compile.codegen.api_driver`: the
+value checks, each row's approach velocity, the loop and the ``newton`` and ``failed`` flags, in
+blocks of rows split over the cores); a check that fails there is raised by the same Python
+checks as on the virtual machine, so the errors name the same value.
 """
 
 from __future__ import annotations
 
+import ctypes
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +27,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from impulse_core.compile.codegen import Backend, batch_kernel, compile_function, simd_lanes
+from impulse_core.compile import codegen
+from impulse_core.compile.codegen import Backend, api_kernel, batch_kernel, compile_function, simd_lanes
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import approach_velocity
 from impulse_core.impact.delassus import GRADIENT_OUTPUTS, LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
@@ -30,6 +36,8 @@ from impulse_core.impact.laws import PIVOT_TOL
 from impulse_core.kinematics.spatial import PLANAR, Space, n_values
 from impulse_core.model.tree import BODY_VALUES, CONTACT_BOUNDS, VALUE_BOUNDS, Topology
 
+#: Where the API driver finds the external impulses and the Delassus pivots among the outputs.
+_EXTERNAL, _PIVOTS = LEAN_OUTPUTS.index("external"), LEAN_OUTPUTS.index("delassus_pivots")
 #: Rows -> one array per output (rows of designs in, rows out).
 _Runner = Callable[[np.ndarray, np.ndarray, np.ndarray], list[np.ndarray]]
 
@@ -68,6 +76,9 @@ class BatchEvaluator:
         space: the kinematic space.
         path: what runs: "SIMD loop (4 designs per step)", "C loop" or "CasADi virtual machine".
         run_impact, run_gradient: the compiled (or VM) batch functions, rows in and out.
+        run_api: the compiled API driver (checks, loop and flags in one call), None on the VM.
+        parallel: whether the compiled loops run on all cores.
+        widths: values per row of each of ``LEAN_OUTPUTS``.
     """
 
     topology: Topology
@@ -75,6 +86,16 @@ class BatchEvaluator:
     path: str
     run_impact: _Runner = field(repr=False)
     run_gradient: _Runner | None = field(repr=False)
+    run_api: Callable[..., int] | None = field(default=None, repr=False)
+    parallel: bool = True
+    widths: tuple[int, ...] = field(default=(), repr=False)
+    _fixed: tuple = field(default=(), init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        """The arrays every compiled call passes: value bounds, the approach at unit speed."""
+        lo, hi = codegen.api_bounds(*_bounds(self.topology, self.space.body_values))
+        arrays = (lo, hi, approach_velocity(self.topology, 1.0, self.space))
+        object.__setattr__(self, "_fixed", (*arrays, *(a.ctypes.data for a in arrays)))
 
     def __call__(self, p: np.ndarray, speed: float | np.ndarray, restitution: float | np.ndarray) -> BatchResult:
         """The impact of every design.
@@ -93,14 +114,12 @@ class BatchEvaluator:
         width = n_values(self.topology, self.space)
         if P.ndim != 2 or P.shape[1] != width:
             raise ModelError(f"p: must have {width} values per row, got shape {np.shape(p)}")
-        _check_values(self.topology, P, self.space.body_values)
-        speeds = _per_row("speed", speed, n)
-        if not np.all(speeds > 0):
-            raise ModelError("speed: must be > 0")
-        E = _per_row("restitution", restitution, n)
-        if not np.all((E >= 0) & (E <= 1)):
-            raise ModelError("restitution: must be in [0, 1]")
-        V = speeds[:, None] * approach_velocity(self.topology, 1.0, self.space)[None, :]
+        if self.run_api is not None:
+            done = self._compiled_call(P, speed, restitution)
+            if done is not None:
+                return done
+        speeds, E = self._checked(P, speed, restitution)
+        V = speeds[:, None] * self._fixed[2][None, :]
         out = dict(zip(LEAN_OUTPUTS, self.run_impact(P, V, E[:, None]), strict=True))
         external = out["external"]
         finite = np.ones(n, dtype=bool)
@@ -114,6 +133,57 @@ class BatchEvaluator:
             grads = dict(zip(GRADIENT_OUTPUTS, self.run_gradient(P, V, E[:, None]), strict=True))
         return BatchResult(
             external=external,
+            internal_magnitude=out["internal_magnitude"],
+            external_norm=out["external_norm"][:, 0],
+            internal_norm=out["internal_norm"][:, 0],
+            newton=newton,
+            failed=failed,
+            d_external_norm=grads.get("d_external_norm"),
+            d_internal_norm=grads.get("d_internal_norm"),
+        )
+
+    def _checked(self, P: np.ndarray, speed, restitution) -> tuple[np.ndarray, np.ndarray]:
+        """Speed and restitution per row, once every value is checked (ModelError naming the
+        first bad one: ``p``, then speed, then restitution)."""
+        n = P.shape[0]
+        _check_values(self.topology, P, self.space.body_values)
+        speeds = _per_row("speed", speed, n)
+        if not np.all(speeds > 0):
+            raise ModelError("speed: must be > 0")
+        E = _per_row("restitution", restitution, n)
+        if not np.all((E >= 0) & (E <= 1)):
+            raise ModelError("restitution: must be in [0, 1]")
+        return speeds, E
+
+    def _compiled_call(self, P: np.ndarray, speed, restitution) -> BatchResult | None:
+        """The batch by one call of the compiled API driver; None when speed or restitution has
+        neither one value nor one per row (the checks then raise)."""
+        n = P.shape[0]
+        P = np.ascontiguousarray(P)
+        speeds = np.ascontiguousarray(speed, dtype=float).reshape(-1)
+        E = np.ascontiguousarray(restitution, dtype=float).reshape(-1)
+        if speeds.size not in (1, n) or E.size not in (1, n):
+            return None
+        outs = [np.empty((n, k)) for k in self.widths]
+        newton, failed = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        low, high, unit = self._fixed[3:]
+        bad = self.run_api(
+            P.ctypes.data, speeds.ctypes.data, int(speeds.size > 1), E.ctypes.data, int(E.size > 1), unit, low, high,
+            (ctypes.c_void_p * len(outs))(*(o.ctypes.data for o in outs)), n, _EXTERNAL, _PIVOTS, PIVOT_TOL,
+            newton.ctypes.data, failed.ctypes.data, int(self.parallel),
+        )
+        if bad & ~codegen.API_FAILED:
+            self._checked(P, speeds, E)  # raises, naming the value
+            raise AssertionError(f"the compiled checks refused a batch that the Python checks accept ({bad})")
+        if bad:
+            raise FloatingPointError(f"{self.path}: the compiled function reported a failure")
+        out = dict(zip(LEAN_OUTPUTS, outs, strict=True))
+        grads = {}
+        if self.run_gradient is not None:
+            V = np.broadcast_to(speeds, (n,))[:, None] * self._fixed[2][None, :]
+            grads = dict(zip(GRADIENT_OUTPUTS, self.run_gradient(P, V, np.broadcast_to(E, (n,))[:, None]), strict=True))
+        return BatchResult(
+            external=out["external"],
             internal_magnitude=out["internal_magnitude"],
             external_norm=out["external_norm"][:, 0],
             internal_norm=out["internal_norm"][:, 0],
@@ -147,26 +217,37 @@ def batch_evaluator(
             instead of raising ``CompileError``.
     """
     lean = lean_impact_function(topology, space)
-    impact, path = _runner(lean, cache_dir, parallel, fallback)
+    impact, path, api = _runner(lean, cache_dir, parallel, fallback)
     grad = _runner(norms_gradient_function(topology, space), cache_dir, parallel, fallback)[0] if gradient else None
-    return BatchEvaluator(topology, space, path, impact, grad)
+    widths = tuple(lean.nnz_out(i) for i in range(lean.n_out()))
+    return BatchEvaluator(topology, space, path, impact, grad, api, parallel, widths)
 
 
-def _runner(f: ca.Function, cache_dir: str | Path | None, parallel: bool, fallback: bool) -> tuple[_Runner, str]:
-    """The fastest batch path of ``f`` and its name."""
+def _runner(
+    f: ca.Function, cache_dir: str | Path | None, parallel: bool, fallback: bool
+) -> tuple[_Runner, str, Callable[..., int] | None]:
+    """The fastest batch path of ``f``, its name and its API driver (None on the VM)."""
     directory = None if cache_dir is None else Path(cache_dir).expanduser()
     compiled = compile_function(f, directory, fallback=fallback)
     if compiled.backend is Backend.COMPILED:
         lanes = simd_lanes(compiled, f)
         kernel = batch_kernel(compiled, f, parallel=parallel, simd=lanes > 0)
         assert kernel is not None
-        return kernel, f"SIMD loop ({lanes} designs per step)" if lanes else "C loop"
+        return kernel, f"SIMD loop ({lanes} designs per step)" if lanes else "C loop", api_kernel(compiled, f)
 
     def on_vm(P: np.ndarray, V: np.ndarray, E: np.ndarray) -> list[np.ndarray]:
         outs = f.map(P.shape[0])(P.T, V.T, E.T)
         return [np.array(o, dtype=float).T.reshape(P.shape[0], -1) for o in outs]
 
-    return on_vm, Backend.VIRTUAL_MACHINE.value
+    return on_vm, Backend.VIRTUAL_MACHINE.value, None
+
+
+def _bounds(topology: Topology, body_values: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each design value's (low, low included, high), in the design vector's order."""
+    names = [name for _ in range(topology.n_bodies) for name in body_values]
+    names += ["contact"] * sum(topology.n_contacts)
+    bounds = np.array([VALUE_BOUNDS.get(name, CONTACT_BOUNDS) for name in names], dtype=float).reshape(-1, 3)
+    return np.ascontiguousarray(bounds[:, 0]), bounds[:, 1].astype(bool), np.ascontiguousarray(bounds[:, 2])
 
 
 def _check_values(topology: Topology, P: np.ndarray, body_values: tuple[str, ...] = BODY_VALUES) -> None:
@@ -175,8 +256,7 @@ def _check_values(topology: Topology, P: np.ndarray, body_values: tuple[str, ...
     searched only when a column is out of bounds."""
     names = [(b, name) for b in range(topology.n_bodies) for name in body_values]
     names += [(c, "contact") for c in range(sum(topology.n_contacts))]
-    bounds = np.array([VALUE_BOUNDS.get(name, CONTACT_BOUNDS) for _, name in names], dtype=float)
-    low, closed, high = bounds[:, 0], bounds[:, 1].astype(bool), bounds[:, 2]
+    low, closed, high = _bounds(topology, body_values)
 
     def ok(x: np.ndarray) -> np.ndarray:
         return np.isfinite(x) & np.where(closed, x >= low, x > low) & (x <= high)

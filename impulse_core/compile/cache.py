@@ -108,11 +108,16 @@ def store(root: Path, name: str, key: str, build: Callable[[Path], Iterable[str]
     return found
 
 
-def run_compilers(*commands: list[str]) -> None:
-    """Run compiler commands at once (one process each) and wait for all; CompileError with the
-    first failing compiler's last lines."""
+def run_compilers(*commands: list[str], niceness: int = 0) -> None:
+    """Run compiler commands at once (one process each, ``niceness`` added to their scheduling
+    niceness: builds needed later yield the cores to those needed first) and wait for all;
+    CompileError with the first failing compiler's last lines."""
+    nice = shutil.which("nice") if niceness > 0 else None  # a command, not preexec_fn: builds run in threads
+    prefix = [nice, "-n", str(niceness)] if nice else []
     try:
-        jobs = [subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands]
+        jobs = [
+            subprocess.Popen([*prefix, *c], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands
+        ]
     except OSError as exc:
         raise CompileError(f"C compiler cannot be run: {exc}") from exc
     outputs = [job.communicate() for job in jobs]

@@ -253,6 +253,102 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
     )
 
 
+#: Rows per block of :func:`api_driver` (a multiple of the SIMD lanes): its speeds and
+#: restitutions are expanded into a block-sized buffer on the stack.
+API_BLOCK = 64
+
+#: Bits of the value :func:`api_driver` returns.
+API_BAD_P, API_SPEED_NOT_FINITE, API_SPEED_NOT_POSITIVE, API_E_NOT_FINITE, API_E_OUT_OF_RANGE, API_FAILED = (
+    1 << k for k in range(6)
+)
+
+
+def api_driver(f: ca.Function, simd: bool) -> str:
+    """C source of ``<name>_api``: the batched API's whole call in one pass over the designs, for
+    a function of ``(p, v_minus, restitution)`` (restitution one value per design). In blocks of
+    ``API_BLOCK`` designs (split over threads by OpenMP when asked): every value of ``p`` checked
+    against its column's closed bounds ``lo`` <= x <= ``hi`` (finite; an open or infinite bound is
+    passed as the nearest double inside it, :func:`api_bounds`), each design's
+    speed (finite, > 0) and restitution (finite, in [0, 1]) checked, ``v_minus`` = speed x
+    ``unit_v`` (the product numpy forms, so the same bits), the SIMD (or C) loop on the block,
+    then per design ``failed`` (an output not finite) and ``newton`` (finite, every output
+    ``ext`` >= 0 and every output ``piv`` >= ``pivot_tol``). Returns the ``API_*`` bits of what
+    was wrong (0: all checks held); the caller raises the error the bits name."""
+    name = f.name()
+    n_out = f.n_out()
+    n_p, n_v = f.nnz_in(0), f.nnz_in(1)
+    nnz_out = ", ".join(str(f.nnz_out(i)) for i in range(n_out))
+    kernel = f"{name}_simd" if simd else f"{name}_batch"
+    # x * 0 is 0 for every finite x and NaN for an infinite or NaN one: their sum is 0 exactly
+    # when every output of the row is finite.
+    finite_terms = "\n".join(
+        f"    zero += res[{i}][r * {f.nnz_out(i)} + {j}] * 0;" for i in range(n_out) for j in range(f.nnz_out(i))
+    )
+    return f"""
+static int {name}_api_block(const casadi_real* P, const casadi_real* speed, casadi_int speed_step,
+    const casadi_real* E, casadi_int e_step, const casadi_real* unit_v, const casadi_real* lo,
+    const casadi_real* hi, casadi_real** out, casadi_int k0, casadi_int m,
+    casadi_int ext, casadi_int piv, casadi_real pivot_tol, unsigned char* newton, unsigned char* failed) {{
+  static const casadi_int nnz_out[{max(n_out, 1)}] = {{{nnz_out}}};
+  casadi_real v[{API_BLOCK * max(n_v, 1)}], e[{API_BLOCK}];
+  const casadi_real* in[3];
+  casadi_real* res[{max(n_out, 1)}];
+  casadi_int r, j, i;
+  int bad = 0, ok_p = 1;
+  for (r = 0; r < m; ++r) {{
+    const casadi_real* p = P + (k0 + r) * {n_p};
+    casadi_real s = speed[(k0 + r) * speed_step], x = E[(k0 + r) * e_step];
+    for (j = 0; j < {n_p}; ++j) ok_p &= (p[j] >= lo[j]) & (p[j] <= hi[j]);
+    if (!(s - s == 0)) bad |= {API_SPEED_NOT_FINITE}; else if (!(s > 0)) bad |= {API_SPEED_NOT_POSITIVE};
+    if (!(x - x == 0)) bad |= {API_E_NOT_FINITE}; else if (!(x >= 0 && x <= 1)) bad |= {API_E_OUT_OF_RANGE};
+    for (j = 0; j < {n_v}; ++j) v[r * {n_v} + j] = s * unit_v[j];
+    e[r] = x;
+  }}
+  if (!ok_p) bad |= {API_BAD_P};
+  in[0] = P + k0 * {n_p};
+  in[1] = v;
+  in[2] = e;
+  for (i = 0; i < {n_out}; ++i) res[i] = out[i] + k0 * nnz_out[i];
+  if ({kernel}(in, res, m)) bad |= {API_FAILED};
+  for (r = 0; r < m; ++r) {{
+    casadi_real zero = 0;
+    int positive = 1;
+{finite_terms}
+    for (j = 0; j < nnz_out[ext]; ++j) positive &= res[ext][r * nnz_out[ext] + j] >= 0;
+    for (j = 0; j < nnz_out[piv]; ++j) positive &= res[piv][r * nnz_out[piv] + j] >= pivot_tol;
+    failed[k0 + r] = !(zero == 0);
+    newton[k0 + r] = (zero == 0) & positive;
+  }}
+  return bad;
+}}
+CASADI_SYMBOL_EXPORT int {name}_api(const casadi_real* P, const casadi_real* speed, casadi_int speed_step,
+    const casadi_real* E, casadi_int e_step, const casadi_real* unit_v, const casadi_real* lo,
+    const casadi_real* hi, casadi_real** out, casadi_int n,
+    casadi_int ext, casadi_int piv, casadi_real pivot_tol, unsigned char* newton, unsigned char* failed,
+    int parallel) {{
+  casadi_int k0;
+  int bad = 0;
+  #pragma omp parallel for reduction(|:bad) if(parallel && n >= {2 * API_BLOCK})
+  for (k0 = 0; k0 < n; k0 += {API_BLOCK}) {{
+    casadi_int m = n - k0 < {API_BLOCK} ? n - k0 : {API_BLOCK};
+    bad |= {name}_api_block(P, speed, speed_step, E, e_step, unit_v, lo, hi, out, k0, m, ext, piv,
+                            pivot_tol, newton, failed);
+  }}
+  return bad;
+}}
+"""
+
+
+def api_bounds(low: np.ndarray, closed: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (low, low included, high; a value must also be finite) as the closed bounds
+    ``lo <= x <= hi`` that :func:`api_driver` tests, which hold for exactly the same doubles:
+    an open low bound becomes the next double above it, infinite bounds the largest finite
+    doubles (NaN fails both comparisons)."""
+    big = np.finfo(float).max
+    lo = np.where(closed, low, np.nextafter(low, np.inf))
+    return np.ascontiguousarray(np.clip(lo, -big, big)), np.ascontiguousarray(np.clip(high, -big, big))
+
+
 def _sincos_pairs(f: ca.Function) -> dict[int, tuple[bool, int]]:
     """The SIN and COS instructions of ``f`` that take the same value (the same work slot, not
     written in between), as instruction -> (first of its pair, pair number)."""
@@ -349,8 +445,16 @@ def generated_source(f: ca.Function) -> str:
         generator = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
         generator.add(f)
         source = Path(generator.generate(f"{tmp}/")).read_text()
-    simd = simd_driver(f) or f"CASADI_SYMBOL_EXPORT int {f.name()}_simd_lanes(void) {{ return 0; }}\n"
-    return source + batch_driver(f) + simd
+    simd = simd_driver(f)
+    lanes = simd or f"CASADI_SYMBOL_EXPORT int {f.name()}_simd_lanes(void) {{ return 0; }}\n"
+    api = api_driver(f, simd is not None) if _api_signature(f) else ""
+    return source + batch_driver(f) + lanes + api
+
+
+def _api_signature(f: ca.Function) -> bool:
+    """Whether ``f`` takes ``(p, v_minus, restitution)`` with one restitution per design (what
+    :func:`api_driver` serves)."""
+    return f.n_in() == 3 and f.nnz_in(2) == 1 and f.n_out() > 0
 
 
 def _build(compiler: str, source: str, arch: tuple[str, ...], work: Path) -> list[str]:
@@ -406,6 +510,21 @@ def batch_kernel(
         return out
 
     return run
+
+
+def api_kernel(compiled: Compiled, f: ca.Function) -> Callable[..., int] | None:
+    """The compiled library's :func:`api_driver` as a ctypes function (arguments as its C
+    signature, arrays by address), or None (virtual machine, another signature, no driver)."""
+    if compiled.backend is not Backend.COMPILED or compiled.library is None or not _api_signature(f):
+        return None
+    fn = getattr(ctypes.CDLL(str(compiled.library)), f"{f.name()}_api", None)
+    if fn is None:
+        return None
+    address, count = ctypes.c_void_p, ctypes.c_longlong
+    fn.restype = ctypes.c_int
+    fn.argtypes = [address, address, count, address, count, address, address, address, address,
+                   count, count, count, ctypes.c_double, address, address, ctypes.c_int]
+    return fn
 
 
 def has_openmp(compiled: Compiled, f: ca.Function) -> bool:

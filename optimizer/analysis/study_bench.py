@@ -4,7 +4,8 @@ the hypervolume of both fronts, and the batched API's cost per design against it
 Each version runs as its own process (``footopt optimize`` of the same study file into a fresh
 folder), interleaved, ``repeats`` times: the old one from a temporary git worktree of its commit
 (same interpreter and packages, ``PYTHONPATH`` at the worktree), HEAD cold (an empty cache of
-compiled NLPs) and warm (the cache the cold run filled). The hypervolume is measured in
+compiled NLPs) and warm (the cache the cold run filled); each run's wall time and CPU time
+(user + system of all its processes: HEAD runs forked workers) are reported. The hypervolume is measured in
 (external_norm, internal_norm) against one reference point for both fronts: 1.1 x the worst
 value of each objective over the union of the two fronts (stated in the report).
 """
@@ -12,7 +13,9 @@ value of each objective over the union of the two fronts (stated in the report).
 from __future__ import annotations
 
 import csv
+import math
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -52,11 +55,17 @@ def read_front(run_dir: Path) -> np.ndarray:
     return np.array([[float(r["external_norm"]), float(r["internal_norm"])] for r in rows]).reshape(-1, 2)
 
 
-def timed_run(command: list[str], env: dict[str, str], cwd: Path) -> float:
-    """Wall time (s) of one run; raises if it fails."""
-    t0 = time.perf_counter()
+def timed_run(command: list[str], env: dict[str, str], cwd: Path) -> tuple[float, float]:
+    """Wall time and CPU time (user + system, the run's processes together; s) of one run;
+    raises if it fails."""
+    cpu0, t0 = _children_cpu(), time.perf_counter()
     subprocess.run(command, env=env, cwd=cwd, check=True, capture_output=True)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, _children_cpu() - cpu0
+
+
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 @dataclass(frozen=True)
@@ -65,6 +74,8 @@ class StudyBench:
 
     Attributes:
         old, cold, warm: wall times of the old commit, HEAD with an empty cache, HEAD warm.
+        cpu: their CPU times (user + system of all their processes), the same order; on shared
+            cores the load moves these less than the wall times.
         hv_old, hv_new: hypervolumes against ``reference``.
         api_ns, loop_ns: ns per design of ``BatchEvaluator.__call__`` and of its bare compiled
             loop, ``BATCH_DESIGNS`` designs per call.
@@ -80,6 +91,7 @@ class StudyBench:
     reference: tuple[float, float]
     api_ns: float
     loop_ns: float
+    cpu: tuple[float, float, float] = (math.nan, math.nan, math.nan)
 
     def format(self) -> str:
         r = self.reference
@@ -89,6 +101,8 @@ class StudyBench:
                 f"  {self.old_commit}: {self.old:.2f} s",
                 f"  HEAD cold cache: {self.cold:.2f} s  ({self.cold / self.old:.2f} x {self.old_commit})",
                 f"  HEAD warm cache: {self.warm:.2f} s  ({self.warm / self.old:.2f} x {self.old_commit})",
+                f"  CPU time (user + system): {self.old_commit} {self.cpu[0]:.2f} s, HEAD cold {self.cpu[1]:.2f} s "
+                f"({self.cpu[1] / self.cpu[0]:.2f} x), warm {self.cpu[2]:.2f} s ({self.cpu[2] / self.cpu[0]:.2f} x)",
                 f"front hypervolume (external_norm, internal_norm), reference ({r[0]:.6g}, {r[1]:.6g}) N s:",
                 f"  {self.old_commit}: {self.hv_old:.6e}   HEAD: {self.hv_new:.6e}"
                 f"   ratio {self.hv_new / self.hv_old:.4f}",
@@ -111,14 +125,17 @@ def study_bench(study: Path = DEFAULT_STUDY, old_commit: str = DEFAULT_OLD, repe
             subprocess.run([*git, "remove", "--force", str(root / "old")], capture_output=True)
     reference = 1.1 * np.vstack(list(fronts.values())).max(axis=0)
     hv_old, hv_new = (hypervolume_2d(fronts[k], reference) for k in ("old", "cold"))
-    medians = (statistics.median(times[k]) for k in ("old", "cold", "warm"))
-    return StudyBench(old_commit, repeats, *medians, hv_old, hv_new, tuple(reference.tolist()), *batch_api_cost())
+    names = ("old", "cold", "warm")
+    medians = (statistics.median(w for w, _ in times[k]) for k in names)
+    cpu = tuple(statistics.median(c for _, c in times[k]) for k in names)
+    reference_point = tuple(reference.tolist())
+    return StudyBench(old_commit, repeats, *medians, hv_old, hv_new, reference_point, *batch_api_cost(), cpu)
 
 
-def _timed_versions(root: Path, study: Path, repeats: int) -> dict[str, list[float]]:
-    """Wall times of the old worktree (``root/old``), HEAD cold and HEAD warm, interleaved; run
-    ``k`` of each writes to ``root/<name><k>``."""
-    times: dict[str, list[float]] = {"old": [], "cold": [], "warm": []}
+def _timed_versions(root: Path, study: Path, repeats: int) -> dict[str, list[tuple[float, float]]]:
+    """Wall and CPU times of the old worktree (``root/old``), HEAD cold and HEAD warm,
+    interleaved; run ``k`` of each writes to ``root/<name><k>``."""
+    times: dict[str, list[tuple[float, float]]] = {"old": [], "cold": [], "warm": []}
     old = ([sys.executable, "-m", "optimizer", "optimize"], root / "old", {})
     for r in range(repeats):
         cache = {"FOOTOPT_CACHE_DIR": str(root / f"c{r}")}
@@ -130,9 +147,10 @@ def _timed_versions(root: Path, study: Path, repeats: int) -> dict[str, list[flo
     return times
 
 
-def batch_api_cost(cache_dir: Path | None = None, repeats: int = 7) -> tuple[float, float]:
+def batch_api_cost(cache_dir: Path | None = None, repeats: int = 101) -> tuple[float, float]:
     """ns per design of the batch evaluator's ``__call__`` and of its bare compiled loop, on the
-    toe-count study's best shape (one toe of three rods), ``BATCH_DESIGNS`` designs per call."""
+    toe-count study's best shape (one toe of three rods), ``BATCH_DESIGNS`` designs per call:
+    the best of ``repeats`` calls each, the two calls taking turns."""
     from impulse_core.compile.batch import batch_evaluator
     from impulse_core.evaluate import approach_velocity
     from impulse_core.model.tree import design_vector
@@ -149,11 +167,14 @@ def batch_api_cost(cache_dir: Path | None = None, repeats: int = 7) -> tuple[flo
     V = np.tile(approach_velocity(topology, 3.43), (BATCH_DESIGNS, 1))
     E = np.full((BATCH_DESIGNS, 1), 0.8)
 
-    def best(f) -> float:
+    calls = (lambda: evaluator(P, 3.43, 0.8), lambda: evaluator.run_impact(P, V, E))
+    best = [math.inf, math.inf]
+    for f in calls:
         f()
-        return min(_seconds(f) for _ in range(repeats)) / BATCH_DESIGNS * 1e9
-
-    return best(lambda: evaluator(P, 3.43, 0.8)), best(lambda: evaluator.run_impact(P, V, E))
+    for _ in range(repeats):  # interleaved, so that both see the same load; the best of each
+        for i, f in enumerate(calls):
+            best[i] = min(best[i], _seconds(f))
+    return best[0] / BATCH_DESIGNS * 1e9, best[1] / BATCH_DESIGNS * 1e9
 
 
 def _seconds(f) -> float:

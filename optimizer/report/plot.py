@@ -42,9 +42,18 @@ def _plot_path(path: str | Path) -> Path:
     return path
 
 
-def _save(fig, path: Path) -> Path:
-    """Lay out ``fig`` and write it to ``path`` (ConfigError if it cannot be written)."""
-    fig.tight_layout()
+def preload_matplotlib() -> None:
+    """Import what the drawings need (before forking workers that draw, so each need not)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: F401
+    from matplotlib.figure import Figure  # noqa: F401
+
+
+def _save(fig, path: Path, layout: bool = True) -> Path:
+    """Lay out ``fig`` (unless ``layout`` is False: a figure of one axes needs no layout pass
+    when the crop to its tight box keeps its outside legend) and write it to ``path``
+    (ConfigError if it cannot be written)."""
+    if layout:
+        fig.tight_layout()
     try:
         fig.savefig(path, dpi=150, bbox_inches="tight")
     except OSError as e:
@@ -179,7 +188,7 @@ def plot_touchdown(
         Line2D([], [], color=_GROUND, lw=1.5, label="ground"),
     ]
     ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
-    return _save(fig, path)
+    return _save(fig, path, layout=False)
 
 
 def plot_speed(report: SpeedReport, path: str | Path) -> Path:

@@ -31,6 +31,8 @@ import platform
 import signal
 import sys
 import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from enum import Enum
 from importlib import metadata
@@ -57,7 +59,8 @@ from optimizer.design_space import (
 from optimizer.errors import ConfigError
 from optimizer.results.export import ExportFormat, export_text
 from optimizer.report.html import REPORT_FILE, ReportPoint, write_report
-from optimizer.report.plot import plot_top_views, plot_touchdown, plot_views
+from optimizer.report.plot import plot_top_views, plot_touchdown, plot_views, preload_matplotlib
+from optimizer.workers import cores, forked_pool
 from optimizer.results.pareto import non_dominated
 from optimizer.results.scenarios import SCENARIOS_FILE, SCENARIOS_PLOT, write_scenarios
 from optimizer.search.outer import RecordedTrial, recorded_trials
@@ -305,7 +308,7 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
     designs = run_dir / DESIGNS_DIR
     designs.mkdir(exist_ok=True)
     _remove_designs(designs)
-    points = []
+    points, drawings = [], []
     scene = landing_scene(config.scene, config.limits)
     for t in front:
         rel = Path(DESIGNS_DIR) / f"trial_{t.number:05d}.yaml"
@@ -339,10 +342,49 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
         title = f"trial {t.number} ({t.evaluation.design.shape.label})"
         drawing = run_dir / rel.with_suffix(DRAWING_SUFFIX)
         if design.spatial:
-            plot_views(tree, touchdown_geometry(tree, design.space), result, drawing, title)
+            drawings.append((plot_views, (tree, touchdown_geometry(tree, design.space), result, drawing, title)))
         else:
-            plot_touchdown(tree, touchdown_geometry(tree), result, drawing, title, scene)
+            drawings.append((plot_touchdown, (tree, touchdown_geometry(tree), result, drawing, title, scene)))
         points.append(FrontPoint(t.number, t.method, t.evaluation, rel))
+    with _drawn(drawings):
+        _write_front_files(run_dir, config, trials, points)
+    return points
+
+
+@contextmanager
+def _drawn(drawings: list[tuple[Callable, tuple]]) -> Iterator[None]:
+    """Make every drawing (function, arguments): in forked workers (:mod:`optimizer.workers`)
+    while the body runs, or here after it; any error a drawing raised is raised on leaving."""
+    global _DRAWINGS
+    if drawings:
+        preload_matplotlib()  # once, before the workers fork
+    with forked_pool(min(cores(), len(drawings))) as pool:
+        _DRAWINGS = drawings  # the workers fork at the first job and find them here
+        try:
+            jobs = [pool.submit(_draw, i) for i in range(len(drawings))] if pool is not None else []
+            yield
+            for job in jobs:
+                job.result()
+        finally:
+            _DRAWINGS = []
+    if not jobs:
+        for f, args in drawings:
+            f(*args)
+
+
+_DRAWINGS: list[tuple[Callable, tuple]] = []
+
+
+def _draw(i: int) -> None:
+    f, args = _DRAWINGS[i]
+    f(*args)
+
+
+def _write_front_files(
+    run_dir: Path, config: StudyConfig, trials: list[RecordedTrial], points: list[FrontPoint]
+) -> None:
+    """The front's CSV, JSON, scenarios, top views, plot and page (or none of the last ones); the
+    page shows the plots, so it comes last."""
     (run_dir / CSV_FILE).write_text(front_csv(config, points), encoding="utf-8")
     (run_dir / JSON_FILE).write_text(json.dumps(front_json(config, points), indent=2) + "\n", encoding="utf-8")
     if points and config.landings is not None:
@@ -360,7 +402,6 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
     else:  # no empty plot or page: the command says why nothing is shown
         (run_dir / PLOT_FILE).unlink(missing_ok=True)
         (run_dir / REPORT_FILE).unlink(missing_ok=True)
-    return points
 
 
 def write_front_report(run_dir: Path, config: StudyConfig, trials: list[RecordedTrial], points: list[FrontPoint]) -> Path:

@@ -156,6 +156,9 @@ def nlp_key(config: StudyConfig, kind: FootKind, compiler: str) -> str:
     )
 
 
+#: Niceness added per place in the build order (the first kind's build runs at the search's own).
+NICENESS_STEP = 5
+
 IPOPT_OPTIONS = {
     "ipopt.print_level": 0,
     "print_time": False,
@@ -178,50 +181,65 @@ class NlpCache:
 
     def __init__(self, config: StudyConfig, kinds: list[FootKind], directory: Path | None = None) -> None:
         self._config, self._ready = config, {}
+        self._folders: dict[FootKind, Path | None] = {}
+        self._vm: dict[FootKind, _Graph] = {}
         self._compiler = find_compiler()
         self._root = directory or cache_dir()
         self._pool = ThreadPoolExecutor(max_workers=max(1, len(kinds)))
-        self._builds = {k: self._start(k) for k in kinds}
+        # In the order the search needs them: each later build yields the cores to the earlier.
+        self._builds = {k: self._start(k, NICENESS_STEP * i) for i, k in enumerate(kinds)}
 
     def _key(self, kind: FootKind) -> str:
         return nlp_key(self._config, kind, self._compiler)
 
-    def _start(self, kind: FootKind) -> tuple[_Graph, Future] | None:
+    def _start(self, kind: FootKind, niceness: int = 0) -> tuple[_Graph, Future] | None:
         """Generate the kind's C and start compiling it, unless it is cached or cannot be."""
         if self._compiler is None or lookup(self._root, kind.name, self._key(kind)) is not None:
             return None
         graph = _graph(self._config, kind)
-        build = functools.partial(_build, _sources(graph, kind), graph, self._compiler)
+        build = functools.partial(_build, _sources(graph, kind), graph, self._compiler, niceness)
         return graph, self._pool.submit(store, self._root, kind.name, self._key(kind), build)
 
     def __getitem__(self, kind: FootKind) -> CompiledNlp:
         if kind not in self._ready:
-            self._ready[kind] = self._nlp(kind)
+            folder = self.library(kind)
+            self._ready[kind] = _on_vm(self._vm.pop(kind), kind) if folder is None else load_nlp(kind, folder)
         return self._ready[kind]
 
-    def _nlp(self, kind: FootKind) -> CompiledNlp:
+    def library(self, kind: FootKind) -> Path | None:
+        """The cache folder of the kind's compiled NLP (waiting for its build; another process
+        loads it with :func:`load_nlp`), or None when the kind runs on CasADi's virtual machine
+        (no C compiler, or its build failed: a ``RuntimeWarning`` says so)."""
+        if kind in self._folders:
+            return self._folders[kind]
+        folder, graph = None, None
         if self._compiler is None:
             warnings.warn(
                 "no C compiler found (cc, gcc or clang): the inner search runs on CasADi's virtual machine (slower)",
                 RuntimeWarning,
                 stacklevel=3,
             )
-            return _on_vm(_graph(self._config, kind), kind)
-        started = self._builds.pop(kind, None) or self._start(kind)
-        if started is None:
-            folder = lookup(self._root, kind.name, self._key(kind))
-            if folder is not None:
-                return _load(kind, folder)
-            started = self._start(kind)
-        graph, future = started
-        try:
-            return _load(kind, future.result())
-        except CompileError as exc:
-            warnings.warn(f"{exc}; {kind.name} runs on CasADi's virtual machine (slower)", RuntimeWarning, stacklevel=3)
-            return _on_vm(graph, kind)
+        else:
+            started = self._builds.pop(kind, None) or self._start(kind)
+            if started is None:
+                folder = lookup(self._root, kind.name, self._key(kind))
+                started = self._start(kind) if folder is None else None
+            if started is not None:
+                graph, future = started
+                try:
+                    folder = future.result()
+                except CompileError as exc:
+                    warnings.warn(
+                        f"{exc}; {kind.name} runs on CasADi's virtual machine (slower)", RuntimeWarning, stacklevel=3
+                    )
+        if folder is None:
+            self._vm[kind] = graph or _graph(self._config, kind)
+        self._folders[kind] = folder
+        return folder
 
 
-def _load(kind: FootKind, folder: Path) -> CompiledNlp:
+def load_nlp(kind: FootKind, folder: Path) -> CompiledNlp:
+    """The kind's NLP from its cache folder (:meth:`NlpCache.library`)."""
     bounds = np.load(folder / "bounds.npz")
     solver = ca.nlpsol(kind.name, "ipopt", str(folder / "nlp.so"), IPOPT_OPTIONS)
     values = ca.external("foot_values", str(folder / "values.so"))
@@ -247,13 +265,14 @@ def _sources(graph: _Graph, kind: FootKind) -> dict[str, str]:
     return sources
 
 
-def _build(sources: dict[str, str], graph: _Graph, compiler: str, work: Path) -> list[str]:
-    """Compile a kind's sources into ``work`` (both at once) beside its bounds; the files made."""
+def _build(sources: dict[str, str], graph: _Graph, compiler: str, niceness: int, work: Path) -> list[str]:
+    """Compile a kind's sources into ``work`` (both at once, at ``niceness``) beside its bounds;
+    the files made."""
     commands = []
     for name, text in sources.items():
         (work / f"{name}.c").write_text(text)
         commands.append([compiler, *NLP_CFLAGS, str(work / f"{name}.c"), "-o", str(work / f"{name}.so")])
-    run_compilers(*commands)
+    run_compilers(*commands, niceness=niceness)
     np.savez(work / "bounds.npz", lbx=graph.lbx, ubx=graph.ubx, lbg=graph.lbg, ubg=graph.ubg)
     return ["nlp.so", "values.so", "bounds.npz"]
 
@@ -529,5 +548,6 @@ __all__ = [
     "FootKind",
     "NlpCache",
     "foot_kind",
+    "load_nlp",
     "values_function",
 ]

@@ -33,8 +33,10 @@ from __future__ import annotations
 import math
 import signal
 import threading
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ProcessPoolExecutor
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -53,8 +55,9 @@ from optimizer.design_space import (
     assign_lengths,
     constraint_values,
 )
-from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, NlpCache, foot_kind
+from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, NlpCache, foot_kind, load_nlp
 from optimizer.errors import ConfigError, interrupted
+from optimizer.workers import cores, forked_pool
 from optimizer.search.outer import evaluate_design_over_landings, objective_values, record_attrs
 
 #: Weights of the two anchors: each objective first, the other as a tie-break.
@@ -320,12 +323,16 @@ def run_inner(
     study: optuna.Study,
     config: StudyConfig,
     progress: Callable[[int, int], None] | None = None,
+    workers: int | None = None,
 ) -> int:
     """Sweep every shape of the design space not yet recorded in ``study``; record each feasible
     design as a COMPLETE trial (user attributes as the outer search's, ``method: inner``, and its
     shape and place in the sweep), then mark the shape done. The sweep is deterministic, so a
     resumed shape skips the places already recorded: no shape is swept twice once done, and no
     design is recorded twice after a kill.
+
+    Shapes are swept by ``workers`` processes (default :func:`optimizer.workers.cores`); the
+    trials are recorded here, in the serial order.
 
     Returns:
         The number of shapes swept now.
@@ -356,7 +363,9 @@ def run_inner(
     # A whole-landing study compiles nothing: its NLP lands each iterate (optimizer.search.landing_inner).
     swept, cache = 0, (None if config.whole_landing else NlpCache(config, kinds))
     order = {k: i for i, k in enumerate(kinds)}
-    with interruptible():
+    todo.sort(key=lambda s: order[foot_kind(config, s)])
+    sweeps = nullcontext(None) if config.whole_landing else _sweeps(config, todo, cache, workers)
+    with interruptible(), sweeps as results:
         for shape in sorted(shapes, key=lambda s: order.get(foot_kind(config, s), -1)):
             if study.user_attrs.get(shape_done_key(shape)):
                 continue
@@ -364,7 +373,7 @@ def run_inner(
                 if config.whole_landing:
                     _record_landing_shape(study, config, shape, distributions)
                 else:
-                    _record_shape(study, config, shape, build_nlp(config, shape, cache), distributions)
+                    _record_shape(study, config, shape, *next(results), distributions)
             else:
                 study.set_user_attr(infeasible_key(shape), NO_MASS)
             study.set_user_attr(shape_done_key(shape), True)
@@ -374,32 +383,87 @@ def run_inner(
     return swept
 
 
-def _record_shape(
-    study: optuna.Study, config: StudyConfig, shape: FootShape, nlp: ShapeNlp, distributions: dict
-) -> None:
-    """Sweep one shape and add each design not yet recorded as a COMPLETE trial."""
-    i = _record_sweep(study, config, shape, epsilon_sweep(config, nlp, shape_seed(config.seed, shape)), distributions)
-    if i < 0:  # nothing feasible: say which constraints stood in the way
-        study.set_user_attr(infeasible_key(shape), _diagnose(config, nlp, shape))
+#: A shape's sweep: its feasible designs in order, and why there are none (else None).
+Sweep = tuple[list[DesignEvaluation], "str | None"]
+
+
+def sweep_shape(config: StudyConfig, nlp: ShapeNlp) -> Sweep:
+    """The designs of one shape's epsilon sweep, and, when there are none, why (:func:`_diagnose`)."""
+    designs = list(epsilon_sweep(config, nlp, shape_seed(config.seed, nlp.shape)))
+    return designs, None if designs else _diagnose(config, nlp, nlp.shape)
+
+
+@contextmanager
+def _sweeps(
+    config: StudyConfig, shapes: list[FootShape], cache: NlpCache, workers: int | None
+) -> Iterator[Iterator[Sweep]]:
+    """The sweeps of ``shapes``, in their order. With more than one worker (and shape), each
+    kind's shapes are handed to forked worker processes (:mod:`optimizer.workers`) as soon as its
+    library is built (each loads it from the cache), while the next kinds compile; the results
+    are the ones a serial sweep gives (every shape's sweep depends on the study's seed and the
+    shape only). A kind on the virtual machine is swept here."""
+    with forked_pool(min(cores() if workers is None else workers, len(shapes))) as pool:
+        if pool is None:
+            yield (sweep_shape(config, build_nlp(config, s, cache)) for s in shapes)
+        else:
+            yield _pooled(config, shapes, cache, pool)
+
+
+def _pooled(
+    config: StudyConfig, shapes: list[FootShape], cache: NlpCache, pool: ProcessPoolExecutor
+) -> Iterator[Sweep]:
+    pending: deque[tuple[FootShape, Future | None]] = deque()
+    submitted: set = set()
+    for shape in shapes:
+        kind = foot_kind(config, shape)
+        if kind not in submitted:  # hand out every shape of this kind once it is built
+            submitted.add(kind)
+            folder = cache.library(kind)
+            for s in shapes:
+                if foot_kind(config, s) == kind:
+                    job = None if folder is None else pool.submit(_sweep_in_worker, config, s, folder)
+                    pending.append((s, job))
+        while pending and (pending[0][1] is None or pending[0][1].done()):
+            yield _result(config, cache, *pending.popleft())
+    while pending:
+        yield _result(config, cache, *pending.popleft())
+
+
+def _result(config: StudyConfig, cache: NlpCache, shape: FootShape, job: Future | None) -> Sweep:
+    return sweep_shape(config, build_nlp(config, shape, cache)) if job is None else job.result()
+
+
+_WORKER_NLPS: dict = {}
+
+
+def _sweep_in_worker(config: StudyConfig, shape: FootShape, folder) -> Sweep:
+    kind = foot_kind(config, shape)
+    if folder not in _WORKER_NLPS:
+        _WORKER_NLPS[folder] = load_nlp(kind, folder)
+    nlp = ShapeNlp(shape, _WORKER_NLPS[folder], config.space.toe_symmetry is ToeSymmetry.IDENTICAL)
+    return sweep_shape(config, nlp)
 
 
 def _record_landing_shape(study: optuna.Study, config: StudyConfig, shape: FootShape, distributions: dict) -> None:
-    """Sweep one shape of a whole-landing study (:mod:`optimizer.search.landing_inner`)."""
+    """Sweep one shape of a whole-landing study (:mod:`optimizer.search.landing_inner`), each
+    design recorded as it is found (a solve can take minutes)."""
     from optimizer.search.landing_inner import build_landing_nlp, landing_sweep
 
     sweep = landing_sweep(build_landing_nlp(config, shape), shape_seed(config.seed, shape))
-    if _record_sweep(study, config, shape, sweep, distributions) < 0:
-        study.set_user_attr(infeasible_key(shape), "IPOPT found no feasible design that lands")
+    _record_shape(study, config, shape, sweep, "IPOPT found no feasible design that lands", distributions)
 
 
-def _record_sweep(
-    study: optuna.Study, config: StudyConfig, shape: FootShape, sweep: Iterator[DesignEvaluation], distributions: dict
-) -> int:
-    """Add each design of ``sweep`` not yet recorded as a COMPLETE trial; the last index (-1: none)."""
+def _record_shape(
+    study: optuna.Study, config: StudyConfig, shape: FootShape, designs: Iterable[DesignEvaluation],
+    diagnosis: str | None, distributions: dict,
+) -> None:
+    """Add each design of one shape's sweep not yet recorded as a COMPLETE trial (``designs``
+    may be a generator: each is recorded as it comes); ``diagnosis``: why there is none, recorded
+    when there is none."""
     have = recorded_indices(study, shape)
     params = {"toes": shape.n_toes, "toe_segments": shape.toe_segments, "heel_segments": shape.heel_segments}
     i = -1
-    for i, evaluation in enumerate(sweep):
+    for i, evaluation in enumerate(designs):
         if i in have:
             continue
         trial = optuna.trial.create_trial(
@@ -410,7 +474,8 @@ def _record_sweep(
             constraints=dict(evaluation.constraints.violations()),
         )
         study.add_trial(trial)
-    return i
+    if i < 0 and diagnosis is not None:  # nothing feasible: say what stood in the way
+        study.set_user_attr(infeasible_key(shape), diagnosis)
 
 
 #: Why a shape has no feasible design, as the study files' fields say it (see ``infeasible_key``).
@@ -459,4 +524,5 @@ __all__ = [
     "shape_done_key",
     "solve",
     "start_point",
+    "sweep_shape",
 ]

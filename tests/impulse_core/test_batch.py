@@ -5,6 +5,8 @@ input is refused naming the value."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -134,12 +136,83 @@ def test_bad_designs_are_refused_naming_the_value(change, message) -> None:
 
 @pytest.mark.parametrize(
     "speed,restitution,message",
-    [(0.0, 0.5, "speed"), (2.0, 1.5, "restitution"), ([1.0, 2.0], 0.5, "speed: must be one value or one per row")],
+    [
+        (0.0, 0.5, "speed: must be > 0"),
+        (2.0, 1.5, "restitution: must be in"),
+        ([1.0, 2.0], 0.5, "speed: must be one value or one per row"),
+        ([1.0, np.inf, -1.0], 0.5, "speed: must be finite"),
+        ([1.0, 2.0, -1.0], np.nan, "speed: must be > 0"),
+        (2.0, [0.5, np.nan, 2.0], "restitution: must be finite"),
+        (2.0, [0.5, 0.5], "restitution: must be one value or one per row"),
+    ],
 )
 def test_bad_scene_values_are_refused(speed, restitution, message) -> None:
     tree, P = _designs(3, rows=3)
-    with pytest.raises(ModelError, match=message):
+    with pytest.raises(ModelError, match=message.replace("[", r"\[")):
         batch_evaluator(tree.topology(), None)(P, speed, restitution)
+
+
+@pytest.fixture(scope="module")
+def compiled_foot(tmp_path_factory):
+    """The compiled evaluator of :func:`foot` (its API driver, then the Python path on the same
+    library for comparison)."""
+    if find_compiler() is None:
+        pytest.skip("no C compiler")
+    tree = foot()
+    fast = batch_evaluator(tree.topology(), tmp_path_factory.mktemp("batch_cache"))
+    assert fast.run_api is not None
+    return fast, replace(fast, run_api=None)
+
+
+@pytest.mark.parametrize("rows", [1, 5, 203])
+def test_api_driver_equals_the_python_path_bit_for_bit(compiled_foot, rows) -> None:
+    """One C call (checks, approach, loop, flags) gives what the Python path gives on the same
+    library, bit for bit: outputs, ``newton`` (both kinds of row) and ``failed`` (a row made
+    not finite by a denormal mass), for shared and per-row speeds and restitutions."""
+    fast, python = compiled_foot
+    tree, P = _designs(4, rows=rows)
+    if rows > 3:
+        P[3, len(BODY_VALUES) * 4 + BODY_VALUES.index("mass")] = 1e-320
+    rng = np.random.default_rng(rows)
+    for speed, restitution in ((2.5, 0.7), (rng.uniform(1, 4, rows), 0.3), (1.5, rng.uniform(0, 1, rows))):
+        a, b = fast(P, speed, restitution), python(P, speed, restitution)
+        for name in ("external", "internal_magnitude", "external_norm", "internal_norm", "newton", "failed"):
+            x, y = getattr(a, name), getattr(b, name)
+            assert x.dtype == y.dtype and x.shape == y.shape, name
+            assert x.tobytes() == y.tobytes(), name
+    if rows == 203:
+        assert a.newton.any() and not a.newton.all() and a.failed[3] and a.failed.sum() == 1
+
+
+@pytest.mark.parametrize(
+    "speed,restitution,message",
+    [
+        (0.0, 0.5, "speed: must be > 0"),
+        (2.0, 1.5, "restitution: must be in"),
+        (2.0, -0.0 - 1e-300, "restitution: must be in"),
+        ([1.0, np.inf, -1.0], 0.5, "speed: must be finite"),
+        ([1.0, 2.0, -1.0], np.nan, "speed: must be > 0"),
+        (2.0, [0.5, np.nan, 2.0], "restitution: must be finite"),
+        ([1.0, 2.0], 0.5, "speed: must be one value or one per row"),
+    ],
+)
+def test_compiled_path_refuses_bad_scene_values_alike(compiled_foot, speed, restitution, message) -> None:
+    tree, P = _designs(3, rows=3)
+    with pytest.raises(ModelError, match=message):
+        compiled_foot[0](P, speed, restitution)
+
+
+def test_compiled_path_refuses_bad_designs_naming_the_value(compiled_foot) -> None:
+    """The first bad value (row-major) is named, as on the virtual machine, also when the
+    speed is bad too (the design is checked first)."""
+    tree, P = _designs(3, rows=150)
+    P[140, 2] = np.nan
+    P[141, 1] = -1.0
+    with pytest.raises(ModelError, match=r"p\[140\]: body 0 angle"):
+        compiled_foot[0](P, -1.0, 0.5)
+    P[140, 2] = 0.1
+    with pytest.raises(ModelError, match=r"p\[141\]: body 0 mass"):
+        compiled_foot[0](P, 2.0, 0.5)
 
 
 def _set(P: np.ndarray, index: tuple[int, int], value: float) -> np.ndarray:
@@ -148,15 +221,18 @@ def _set(P: np.ndarray, index: tuple[int, int], value: float) -> np.ndarray:
 
 
 @pytest.mark.parametrize("name", [*BODY_VALUES, "contact"])
-def test_value_bounds_are_what_validate_tree_enforces(name) -> None:
-    """The batch check and ``validate_tree`` accept and refuse the same values at each bound
-    (``VALUE_BOUNDS``): just inside, at the bound, just outside."""
+def test_value_bounds_are_what_validate_tree_enforces(name, tmp_path) -> None:
+    """The batch check (in Python and in the compiled API driver) and ``validate_tree`` accept
+    and refuse the same values at each bound (``VALUE_BOUNDS``): just inside, at the bound, just
+    outside, infinities and NaN."""
     tree, P = _designs(6, rows=1)
     low, closed, high = VALUE_BOUNDS.get(name, CONTACT_BOUNDS)
     n_body = len(BODY_VALUES)
     col = n_body * tree.n_bodies if name == "contact" else n_body + BODY_VALUES.index(name)  # the shank's
     evaluator = batch_evaluator(tree.topology(), None)
+    compiled = batch_evaluator(tree.topology(), tmp_path) if find_compiler() is not None else evaluator
     candidates = [v for v in (low, high) if np.isfinite(v)] + [np.nextafter(low, -np.inf), np.nan]
+    candidates += [np.nextafter(low, np.inf), np.nextafter(high, -np.inf), np.inf, -np.inf]
     candidates += [np.nextafter(high, np.inf)] if np.isfinite(high) else []
     for value in candidates:
         row = P[0].copy()
@@ -166,12 +242,13 @@ def test_value_bounds_are_what_validate_tree_enforces(name) -> None:
             tree_ok = True
         except ModelError:
             tree_ok = False
-        try:
-            evaluator(row, SCENE.speed, SCENE.restitution)
-            batch_ok = True
-        except ModelError:
-            batch_ok = False
-        assert batch_ok == tree_ok, (name, value)
+        for path in (evaluator, compiled):
+            try:
+                path(row, SCENE.speed, SCENE.restitution)
+                batch_ok = True
+            except ModelError:
+                batch_ok = False
+            assert batch_ok == tree_ok, (name, value, path.path)
 
 
 def test_rows_that_are_not_finite_are_reported_and_never_newton() -> None:

@@ -238,3 +238,15 @@ def test_an_interrupt_casadi_reports_as_an_error_is_a_keyboard_interrupt(tiny_st
     with pytest.raises(KeyboardInterrupt):
         inner.solve(dataclasses.replace(nlp, compiled=fake), (1.0, 0.0), float("inf"), x0)
     assert not inner._INTERRUPTED.is_set()
+
+
+def test_workers_record_what_one_process_records(tiny_study: Path):
+    """Shapes swept in forked workers (two, and more than there are shapes) give the trials, in
+    the order, that one process gives: every shape's sweep depends on the seed and shape only."""
+    config = load_study(tiny_study)
+    runs = []
+    for workers in (1, 2, 8):
+        study = open_study(config, optuna.storages.InMemoryStorage())
+        run_inner(study, config, workers=workers)
+        runs.append([(t.params, t.values, t.user_attrs, t.system_attrs) for t in study.trials])
+    assert runs[0] and runs[1] == runs[0] and runs[2] == runs[0]

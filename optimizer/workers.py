@@ -1,0 +1,46 @@
+"""Forked worker processes for the work of one run that splits into independent pieces (the
+inner search's shapes, the front's drawings): as many as the cores this process may run on, or
+``FOOTOPT_WORKERS`` (1: everything in this process). Workers leave Ctrl-C to the parent; results
+come back in the order asked, so a run's files do not depend on the number of workers."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
+
+#: Overrides the number of worker processes (an integer >= 1).
+WORKERS_ENV = "FOOTOPT_WORKERS"
+
+
+def cores() -> int:
+    """Worker processes to use: ``FOOTOPT_WORKERS``, else the cores this process may run on."""
+    value = os.environ.get(WORKERS_ENV, "").strip()
+    if value:
+        return max(1, int(value))
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+@contextmanager
+def forked_pool(workers: int) -> Iterator[ProcessPoolExecutor | None]:
+    """A pool of ``workers`` forked processes (they inherit what this process has imported and
+    set up), or None when ``workers`` <= 1 or the platform cannot fork. On leaving, queued jobs
+    are cancelled and running ones awaited."""
+    if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        yield None
+        return
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"), initializer=_leave_sigint)
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _leave_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+__all__ = ["WORKERS_ENV", "cores", "forked_pool"]
