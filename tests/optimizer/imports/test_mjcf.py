@@ -74,7 +74,7 @@ def test_go1_leg_from_the_trunk_against_mujoco():
     theirs = 1.0 / float(up @ jacp @ np.linalg.solve(M, jacp.T) @ up)
     ours = footopt_impulse(leg)
     print(f'go1 spatial impulse: footopt {ours:.6g}, MuJoCo {theirs:.6g}, {ours / theirs - 1:+.3%}')
-    # exact (measured 1e-15; +12.2 % before com_offset and inertia_tensor: centres of mass 3-20 mm off the rods)
+    # exact (measured 2.7e-15; +12.2 % before com_offset and inertia_tensor: centres of mass 3-20 mm off the rods)
     assert abs(ours / theirs - 1) < 1e-12, (ours, theirs)
     dofs = [m.joint(n).dofadr[0] for n in CHAIN]
     np.testing.assert_allclose(footopt_joint_mass_matrix(leg), M[np.ix_(dofs, dofs)], rtol=0,
