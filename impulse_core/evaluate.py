@@ -281,7 +281,7 @@ def _check_space(tree: Tree, scene: Scene, model: ImpactModel | None, space: Spa
     if space.joint_axis is not None:
         for i, b in enumerate(tree.bodies):
             if not b.is_planar:
-                raise ModelError(f"model.bodies[{i}]: rpy, axis and radius need 'model.space: spatial'")
+                raise ModelError(f"model.bodies[{i}]: rpy, axis, radius, com_offset and inertia_tensor need 'model.space: spatial'")
         if scene.out_of_plane:
             raise ModelError("scene.velocity: a lateral velocity or a turn about x or y needs 'model.space: spatial'")
         return

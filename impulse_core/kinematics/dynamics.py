@@ -41,7 +41,7 @@ def body_jacobians(
         Jv.append(jv)
         Jw.append(jw)
         B_I = ca.diag(ca.vertcat(v.axial_inertia, v.inertia, v.inertia))
-        inertia.append(kin.W_R_B[b] @ B_I @ kin.W_R_B[b].T)
+        inertia.append(_with_tensor(kin.W_R_B[b] @ B_I @ kin.W_R_B[b].T, kin.W_R_B[b], v))
     return BodyJacobians(tuple(Jv), tuple(Jw), tuple(inertia))
 
 
@@ -234,13 +234,39 @@ class SpatialInertia:
         return self.I_P @ omega + ca.cross(self.h, v_P), self.mass * v_P + ca.cross(omega, self.h)
 
 
+def added_tensor(R: ca.SX, v: BodyValues) -> ca.SX:
+    """A body's added inertia tensor (``BodyValues.tensor``, body axes) in the world frame,
+    R T R^T: each of its six distinct entries formed once."""
+    ixx, iyy, izz, ixy, ixz, iyz = v.tensor
+    T = ca.SX(3, 3)
+    T[0, 0], T[1, 1], T[2, 2] = ixx, iyy, izz
+    T[0, 1] = T[1, 0] = ixy
+    T[0, 2] = T[2, 0] = ixz
+    T[1, 2] = T[2, 1] = iyz
+    A = R @ T
+    out = ca.SX(3, 3)
+    for i in range(3):
+        for j in range(i, 3):
+            out[i, j] = A[i, 0] * R[j, 0] + A[i, 1] * R[j, 1] + A[i, 2] * R[j, 2]
+            out[j, i] = out[i, j]
+    return out
+
+
+def _with_tensor(W_I_G: ca.SX, R: ca.SX, v: BodyValues) -> ca.SX:
+    """The rod's world-frame inertia plus the body's added tensor (a term added after the rod's
+    own, so a zero tensor leaves the rod's value unchanged); the rod's alone in the plane."""
+    return W_I_G if v.is_rod else W_I_G + added_tensor(R, v)
+
+
 def body_inertias(kin: Kinematics, values: tuple[BodyValues, ...]) -> tuple[SpatialInertia, ...]:
     """Each rod's inertia about its own joint origin. In its own frame a rod's inertia about its
-    centre of mass is diag(I_axial, I, I), I = mass * (gyration * length)^2."""
+    centre of mass is diag(I_axial, I, I), I = mass * (gyration * length)^2, plus the body's
+    added tensor (space: ``BodyValues.tensor``)."""
     out = []
     for b, v in enumerate(values):
         R = kin.W_R_B[b]
         W_I_G = v.inertia * (R[:, 1] @ R[:, 1].T + R[:, 2] @ R[:, 2].T) + v.axial_inertia * (R[:, 0] @ R[:, 0].T)
+        W_I_G = _with_tensor(W_I_G, R, v)
         about_G = SpatialInertia(v.mass, ca.SX.zeros(3, 1), W_I_G)
         out.append(about_G.shifted(kin.W_p_G[b] - kin.W_p_O[b]))
     return tuple(out)

@@ -15,7 +15,7 @@ from enum import Enum
 
 import casadi as ca
 
-from impulse_core.model.tree import BODY_VALUES, SPATIAL_BODY_VALUES, JointKind, Topology
+from impulse_core.model.tree import BODY_VALUES, SPATIAL_BODY_VALUES, TENSOR_VALUES, JointKind, Topology
 
 
 class DofKind(Enum):
@@ -85,7 +85,8 @@ GROUND_NORMAL = ca.DM([0.0, 1.0, 0.0])
 @dataclass(frozen=True)
 class BodyValues:
     """The symbolic values of one body (see ``Space.body_values``) and its contact fractions;
-    in the plane ``rpy``, ``axis`` and ``radius`` are the constants of a planar body."""
+    in the plane ``rpy``, ``axis``, ``radius``, ``com_offset`` and ``tensor`` are the constants of
+    a planar body (a rod: no offset, no tensor added)."""
 
     length: ca.SX
     mass: ca.SX
@@ -97,6 +98,13 @@ class BodyValues:
     rpy: tuple[ca.SX | float, ...] = (0.0, 0.0, 0.0)
     axis: tuple[ca.SX | float, ...] = (0.0, 0.0, 1.0)
     radius: ca.SX | float = 0.0
+    com_offset: tuple[ca.SX | float, ...] = (0.0, 0.0)
+    tensor: tuple[ca.SX | float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    @property
+    def is_rod(self) -> bool:
+        """True when the offset and the added tensor are the constant zeros (the plane)."""
+        return all(isinstance(x, float) and x == 0.0 for x in self.com_offset + self.tensor)
 
     @property
     def inertia(self) -> ca.SX:
@@ -128,6 +136,9 @@ def unpack_values(topology: Topology, p: ca.SX, space: Space = PLANAR) -> tuple[
                 "axis": tuple(vals.pop(k) for k in ("axis_x", "axis_y", "axis_z")),
                 "radius": vals.pop("radius"),
             }
+            if "com_y" in vals:
+                spatial["com_offset"] = (vals.pop("com_y"), vals.pop("com_z"))
+                spatial["tensor"] = tuple(vals.pop(k) for k in TENSOR_VALUES)
         out.append(BodyValues(contacts=contacts, **vals, **spatial))
     return tuple(out)
 
@@ -242,10 +253,21 @@ def _spatial_kinematics(topology: Topology, values: tuple[BodyValues, ...]) -> K
 
 def _placed(values: tuple[BodyValues, ...], R: tuple, O: tuple, axes: tuple) -> Kinematics:
     """The kinematics given each body's rotation, joint origin and joint axis."""
-    G = [O[i] + R[i] @ (v.com * v.length * E_X) for i, v in enumerate(values)]
+    G = [O[i] + _offset(R[i] @ (v.com * v.length * E_X), R[i], v) for i, v in enumerate(values)]
     T = [O[i] + R[i] @ (v.length * E_X) for i, v in enumerate(values)]
     C = [O[i] + R[i] @ (c * v.length * E_X) for i, v in enumerate(values) for c in v.contacts]
     return Kinematics(R, O, tuple(G), tuple(T), tuple(C), axes)
+
+
+def _offset(r: ca.SX, R: ca.SX, v: BodyValues) -> ca.SX:
+    """The rod's centre of mass from its joint ``r`` (world frame) moved by the body's
+    ``com_offset`` along its frame's y and z: a term added to the rod's own before the joint's
+    position, so that a zero offset leaves every value unchanged, bit for bit (and CasADi still
+    simplifies G - O to this vector, as for a rod)."""
+    if v.is_rod:
+        return r
+    dy, dz = v.com_offset
+    return r + (R[:, 1] * dy + R[:, 2] * dz)
 
 
 def forward_kinematics(topology: Topology, values: tuple[BodyValues, ...], space: Space = PLANAR) -> Kinematics:

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from impulse_core.model.tree import Body, Tree
+from impulse_core.model.tree import Body, Tree, tensor_matrix
 
 
 def children(tree: Tree) -> tuple[tuple[int, ...], ...]:
@@ -84,8 +84,8 @@ def body_rotation(body: Body) -> np.ndarray:
 
 
 def centre_of_mass(body: Body) -> np.ndarray:
-    """The centre of mass in the body frame: ``com`` x length along x."""
-    return np.array([body.com * body.length, 0.0, 0.0])
+    """The centre of mass in the body frame: ``com`` x length along x, ``com_offset`` along y, z."""
+    return np.array([body.com * body.length, body.com_offset[0], body.com_offset[1]])
 
 
 def contact_point(body: Body, k: int) -> np.ndarray:
@@ -96,10 +96,19 @@ def contact_point(body: Body, k: int) -> np.ndarray:
 def inertia_tensor(body: Body, floor: float = 0.0) -> np.ndarray:
     """The inertia tensor about the centre of mass, in the body frame (kg m^2): ``axial_inertia``
     (m r^2 / 2; 0 for a slender planar rod) about its own axis (x) and ``body.inertia`` across it
-    (y and z). ``floor`` raises each principal moment to at least that value (for formats and
-    engines that need it positive)."""
+    (y and z), plus the body's added ``tensor`` (spatial). ``floor`` raises each principal moment
+    to at least that value (for formats and engines that need it positive; a rod's diagonal entry
+    by entry, a general tensor in its principal axes)."""
     across = body.inertia
-    return np.diag([max(body.axial_inertia, floor), max(across, floor), max(across, floor)])
+    if body.is_rod:
+        return np.diag([max(body.axial_inertia, floor), max(across, floor), max(across, floor)])
+    I = np.diag([body.axial_inertia, across, across]) + tensor_matrix(body.tensor)
+    if floor > 0.0:
+        moments, axes = np.linalg.eigh(I)
+        if moments.min() < floor:
+            I = axes @ np.diag(np.maximum(moments, floor)) @ axes.T
+            I = 0.5 * (I + I.T)
+    return I
 
 
 __all__ = [

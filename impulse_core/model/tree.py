@@ -31,6 +31,13 @@ BODY_VALUES = ("length", "mass", "angle", "at", "com", "gyration")
 #: A spatial model's values per body: the planar ones, then the fixed rotation ``rpy`` (roll,
 #: pitch, yaw: Rz(yaw) Ry(pitch) Rx(roll), as in URDF), the joint ``axis`` and the rod's ``radius``.
 SPATIAL_BODY_VALUES = BODY_VALUES + ("roll", "pitch", "yaw", "axis_x", "axis_y", "axis_z", "radius")
+#: A spatial body's general mass properties, appended after ``SPATIAL_BODY_VALUES``'s rod values:
+#: the centre of mass's offset from the rod's axis along the body frame's y and z (m), and six
+#: entries of an inertia tensor about the centre of mass, body axes (kg m^2), ADDED to the rod's
+#: own (diag(m r^2 / 2, I, I)); all zero for a rod (MODEL_FORMAT "Spatial models": ``com_offset``,
+#: ``inertia_tensor``).
+TENSOR_VALUES = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")
+SPATIAL_BODY_VALUES = SPATIAL_BODY_VALUES + ("com_y", "com_z") + TENSOR_VALUES
 #: Where each body value may lie: (lowest, whether the lowest itself is allowed, highest); every
 #: value is also finite. :func:`validate_tree` enforces them one tree at a time, the batch
 #: evaluator (``impulse_core.compile.batch``) on whole arrays of design vectors.
@@ -48,7 +55,18 @@ VALUE_BOUNDS = {
     "axis_y": (-math.inf, False, math.inf),
     "axis_z": (-math.inf, False, math.inf),
     "radius": (0.0, True, math.inf),
+    "com_y": (-math.inf, False, math.inf),
+    "com_z": (-math.inf, False, math.inf),
+    "ixx": (0.0, True, math.inf),
+    "iyy": (0.0, True, math.inf),
+    "izz": (0.0, True, math.inf),
+    "ixy": (-math.inf, False, math.inf),
+    "ixz": (-math.inf, False, math.inf),
+    "iyz": (-math.inf, False, math.inf),
 }
+#: A tensor is taken as physical (positive semidefinite, each principal moment at most the sum
+#: of the other two) within this fraction of its trace (round-off of a tensor rotated or summed).
+TENSOR_TOLERANCE = 1e-12
 #: The same for every contact fraction.
 CONTACT_BOUNDS = (0.0, True, 1.0)
 
@@ -89,6 +107,12 @@ class Body:
             zero; made unit); planar: z.
         radius: spatial models: the rod's radius (a solid cylinder: m r^2 / 2 about its own
             axis); planar: 0.
+        com_offset: spatial models: the centre of mass's offset (m) from the rod's axis along the
+            body frame's y and z (its position along the axis stays ``com`` x length); planar: 0.
+        tensor: spatial models: (ixx, iyy, izz, ixy, ixz, iyz), an inertia tensor about the centre
+            of mass in body axes (kg m^2) added to the rod's own diag(m r^2 / 2, I, I); a file's
+            ``inertia_tensor`` is this with ``gyration`` and ``radius`` 0. Physical (see
+            :func:`tensor_problem`). Planar: 0.
     """
 
     name: str
@@ -104,6 +128,8 @@ class Body:
     rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     radius: float = 0.0
+    com_offset: tuple[float, float] = (0.0, 0.0)
+    tensor: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     @property
     def inertia(self) -> float:
@@ -118,7 +144,17 @@ class Body:
     @property
     def is_planar(self) -> bool:
         """True when the body turns about z with no fixed rotation and no radius."""
-        return self.rpy == (0.0, 0.0, 0.0) and self.axis == (0.0, 0.0, 1.0) and self.radius == 0.0
+        return (
+            self.rpy == (0.0, 0.0, 0.0)
+            and self.axis == (0.0, 0.0, 1.0)
+            and self.radius == 0.0
+            and self.is_rod
+        )
+
+    @property
+    def is_rod(self) -> bool:
+        """True when the centre of mass is on the rod's axis and no tensor is added to the rod's."""
+        return self.com_offset == (0.0, 0.0) and not any(self.tensor)
 
     roll = property(lambda self: self.rpy[0])
     pitch = property(lambda self: self.rpy[1])
@@ -126,6 +162,39 @@ class Body:
     axis_x = property(lambda self: self.axis[0])
     axis_y = property(lambda self: self.axis[1])
     axis_z = property(lambda self: self.axis[2])
+    com_y = property(lambda self: self.com_offset[0])
+    com_z = property(lambda self: self.com_offset[1])
+    ixx = property(lambda self: self.tensor[0])
+    iyy = property(lambda self: self.tensor[1])
+    izz = property(lambda self: self.tensor[2])
+    ixy = property(lambda self: self.tensor[3])
+    ixz = property(lambda self: self.tensor[4])
+    iyz = property(lambda self: self.tensor[5])
+
+
+def tensor_matrix(t) -> np.ndarray:
+    """The 3 x 3 symmetric matrix of (ixx, iyy, izz, ixy, ixz, iyz)."""
+    ixx, iyy, izz, ixy, ixz, iyz = (float(x) for x in t)
+    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+
+def tensor_problem(t) -> str | None:
+    """Why (ixx, iyy, izz, ixy, ixz, iyz) is no rigid body's inertia about its centre of mass, or
+    None: six finite numbers, positive semidefinite, and each principal moment at most the sum of
+    the other two (within ``TENSOR_TOLERANCE`` x the trace)."""
+    if len(t) != 6:
+        return f"must be 6 numbers [ixx, iyy, izz, ixy, ixz, iyz] (kg m^2), got {len(t)}"
+    if not all(math.isfinite(x) for x in t):
+        return f"must be 6 finite numbers, got {list(t)}"
+    moments = np.linalg.eigvalsh(tensor_matrix(t))
+    tol = TENSOR_TOLERANCE * max(float(np.sum(np.abs(t[:3]))), 1e-300)
+    if moments[0] < -tol:
+        return (f"{list(t)} is not positive semidefinite (principal moments "
+                f"{', '.join(f'{m:.6g}' for m in moments)} kg m^2)")
+    if moments[2] > moments[0] + moments[1] + tol:
+        return (f"{list(t)} is no rigid body's: its largest principal moment {moments[2]:.6g} exceeds the sum "
+                f"of the other two ({moments[0]:.6g} + {moments[1]:.6g}; the triangle inequality)")
+    return None
 
 
 @dataclass(frozen=True)
@@ -365,6 +434,13 @@ def validate_tree(tree: Tree) -> None:
             f"must be a non-zero finite 3-vector, got {b.axis}",
         )
         _require(math.isfinite(b.radius) and b.radius >= 0.0, f"{where}.radius", f"must be >= 0 (m), got {b.radius}")
+        _require(
+            len(b.com_offset) == 2 and all(math.isfinite(x) for x in b.com_offset),
+            f"{where}.com_offset",
+            f"must be 2 finite numbers [dy, dz] (m), got {b.com_offset}",
+        )
+        problem = tensor_problem(b.tensor) if len(b.tensor) != 6 or any(b.tensor) else None
+        _require(problem is None, f"{where}.inertia_tensor", problem or "")
         for k, c in enumerate(b.contacts):
             _require(
                 math.isfinite(c) and 0.0 <= c <= 1.0,
@@ -409,6 +485,8 @@ def with_values(tree: Tree, p: np.ndarray, body_values: tuple[str, ...] = BODY_V
             "rpy": tuple(vals.pop(name, old) for name, old in zip(("roll", "pitch", "yaw"), b.rpy)),
             "axis": tuple(vals.pop(name, old) for name, old in zip(("axis_x", "axis_y", "axis_z"), b.axis)),
             "radius": vals.pop("radius", b.radius),
+            "com_offset": tuple(vals.pop(name, old) for name, old in zip(("com_y", "com_z"), b.com_offset)),
+            "tensor": tuple(vals.pop(name, old) for name, old in zip(TENSOR_VALUES, b.tensor)),
         }
         bodies.append(Body(name=b.name, parent=b.parent, joint=b.joint, contacts=contacts, **vals, **spatial))
     return Tree(tuple(bodies))
@@ -418,6 +496,7 @@ __all__ = [
     "BODY_VALUES",
     "CONTACT_BOUNDS",
     "SPATIAL_BODY_VALUES",
+    "TENSOR_VALUES",
     "VALUE_BOUNDS",
     "Body",
     "ContactSelection",
@@ -426,6 +505,8 @@ __all__ = [
     "Topology",
     "Tree",
     "design_vector",
+    "tensor_matrix",
+    "tensor_problem",
     "value_names",
     "with_values",
 ]

@@ -37,7 +37,16 @@ from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import FLAT, Terrain
-from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, JointKind, Scene, Tree
+from impulse_core.model.tree import (
+    UNIFORM_COM,
+    UNIFORM_GYRATION,
+    Body,
+    ContactSelection,
+    JointKind,
+    Scene,
+    Tree,
+    tensor_problem,
+)
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import join as _join
 from optimizer.config.yaml_fields import mapping as _mapping
@@ -66,7 +75,7 @@ SCENE_KEYS = (
 MODEL_KEYS = ("bodies", "space")
 BODY_KEYS = ("name", "parent", "at", "length", "mass", "angle", "joint", "contacts", "com", "inertia", "gyration")
 #: A spatial model's body keys (MODEL_FORMAT "Spatial models").
-SPATIAL_BODY_KEYS = ("rpy", "axis", "radius")
+SPATIAL_BODY_KEYS = ("rpy", "axis", "radius", "com_offset", "inertia_tensor")
 #: ``model.space``.
 SPACES = {"planar": PLANAR, "spatial": SPATIAL}
 #: A revolute joint's spring, damper and stops (``impulse_core.model.joints.JointLaw``).
@@ -587,6 +596,13 @@ def _parse_body(
     if "inertia" in b and "gyration" in b:
         raise ConfigError(f"{where}.gyration: give 'inertia' or 'gyration', not both")
     rpy, axis, radius = _spatial_fields(b, where) if spatial else ((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 0.0)
+    com_offset, tensor = _mass_fields(b, where) if spatial else ((0.0, 0.0), None)
+    if tensor is not None:
+        return Body(
+            name=names[i], parent=parent, length=length, mass=mass, angle=angle, at=at, joint=joint,
+            contacts=tuple(contacts), com=com, gyration=0.0, rpy=rpy, axis=axis, radius=0.0,
+            com_offset=com_offset, tensor=tensor,
+        )
     # a solid cylinder's m (3 r^2 + L^2) / 12 across the rod (a uniform rod's m L^2 / 12 at r = 0)
     gyration = math.sqrt(UNIFORM_GYRATION**2 + 0.25 * (radius / length) ** 2) if radius else UNIFORM_GYRATION
     if "inertia" in b:
@@ -612,7 +628,31 @@ def _parse_body(
         rpy=rpy,
         axis=axis,
         radius=radius,
+        com_offset=com_offset,
     )
+
+
+def _mass_fields(b: dict[str, Any], where: str) -> tuple[tuple[float, float], tuple[float, ...] | None]:
+    """A spatial body's ``com_offset`` ([dy, dz], m, default 0) and ``inertia_tensor`` ([ixx, iyy,
+    izz, ixy, ixz, iyz], kg m^2 about the centre of mass, body axes; physical), or None without
+    one. The tensor is the body's whole inertia: ``inertia``, ``gyration`` and ``radius`` are
+    refused beside it."""
+    com_offset = _vector(b.get("com_offset", [0.0, 0.0]), f"{where}.com_offset", "dy, dz", unit=" (m)")
+    if "inertia_tensor" not in b:
+        return com_offset, None
+    for key in ("inertia", "gyration", "radius"):
+        if key in b:
+            raise ConfigError(f"{where}.inertia_tensor: is the whole inertia about the centre of mass; "
+                              f"give 'inertia_tensor' or '{key}', not both")
+    raw = b["inertia_tensor"]
+    if not isinstance(raw, list) or len(raw) != 6:
+        raise ConfigError(f"{where}.inertia_tensor: must be [ixx, iyy, izz, ixy, ixz, iyz] (kg m^2, about the "
+                          f"centre of mass, body axes), got {_describe(raw)}")
+    tensor = tuple(_number(x, f"{where}.inertia_tensor[{k}]") for k, x in enumerate(raw))
+    problem = tensor_problem(tensor)
+    if problem is not None:
+        raise ConfigError(f"{where}.inertia_tensor: {problem}")
+    return com_offset, tensor
 
 
 def _spatial_fields(b: dict[str, Any], where: str) -> tuple[tuple[float, ...], tuple[float, ...], float]:
@@ -798,11 +838,16 @@ def format_model_file(model: ModelFile, header_comment: str | None = None) -> st
             lines.append(f"      rpy: {_list_text(b.rpy)}  # rad: Rz(c) Ry(b) Rx(a)")
         if b.axis != (0.0, 0.0, 1.0):
             lines.append(f"      axis: {_list_text(b.axis)}")
-        if b.radius != 0.0:
+        tensor = _tensor_text(b)
+        if b.radius != 0.0 and tensor is None:
             lines.append(f"      radius: {_float_text(b.radius)}  # m")
         if b.com != UNIFORM_COM:
             lines.append(f"      com: {_float_text(b.com)}")
-        if b.gyration != UNIFORM_GYRATION:
+        if b.com_offset != (0.0, 0.0):
+            lines.append(f"      com_offset: {_list_text(b.com_offset)}  # m, along the body's y and z")
+        if tensor is not None:
+            lines.append(f"      inertia_tensor: {tensor}  # kg m^2 about the centre of mass: ixx, iyy, izz, ixy, ixz, iyz")
+        elif b.gyration != UNIFORM_GYRATION:
             inertia = _exact_inertia(b)
             if inertia is not None:
                 lines.append(f"      inertia: {_float_text(inertia)}  # kg m^2, about the centre of mass")
@@ -917,6 +962,18 @@ def _escape(ch: str) -> str:
         return ch
     code = ord(ch)  # control characters, YAML 1.1 line breaks (NEL, LS, PS), non-characters
     return f"\\x{code:02x}" if code <= 0xFF else f"\\u{code:04x}" if code <= 0xFFFF else f"\\U{code:08x}"
+
+
+def _tensor_text(b: Body) -> str | None:
+    """A body's ``inertia_tensor`` as written, or None for a rod (no added tensor): the added
+    tensor itself when the rod carries none (``gyration`` and ``radius`` 0, as a file's tensor
+    loads), else the rod's and the added one summed (a tree built in code)."""
+    if not any(b.tensor):
+        return None
+    t = b.tensor
+    if b.gyration != 0.0 or b.radius != 0.0:
+        t = tuple(x + y for x, y in zip(t, (b.axial_inertia, b.inertia, b.inertia, 0.0, 0.0, 0.0)))
+    return _list_text(t)
 
 
 def _exact_inertia(b: Body) -> float | None:

@@ -12,12 +12,15 @@ link welded to the ankle, or an MJCF site or geom on it). The contact is at its 
 posture is the description's zero configuration (every joint angle 0) with the root's frame as
 the world's.
 
-What a rod carries and what it cannot (docs/MODEL_FORMAT.md, "Import"): mass exactly; the centre
-of mass on the rod's axis: it is moved to the nearest point of the rod (``com`` in [0, 1]) and the
-inertia tensor is taken about that point (parallel axes), so the rod keeps the link's second
-moments there but loses the first moment of the offset; planar, the inertia about the joint axis
-(exact), spatial, the tensor's entry along the rod (``radius``: m r^2 / 2) and the mean of the two
-across it (``inertia``), the rest of the tensor dropped. The joints' placement and axes are exact.
+What a rod carries (docs/MODEL_FORMAT.md, "Import"): mass exactly. Spatial: everything exactly:
+the centre of mass as its projection on the rod (``com``) and the rest (``com_offset``), the link's
+whole inertia tensor about it in the rod's axes (``inertia_tensor``); where the projection falls
+behind a rod's start, the start slides along its joint's axis (the same line: the same motion; the
+base's start moves back along its rod), and past its next joint, the rod reaches beyond it (the
+child at ``at`` < 1, the contact at < 1). Planar: the centre of mass on the rod's axis: it is moved
+to the nearest point of the rod (``com`` in [0, 1]) and the inertia about the joint axis is taken
+about that point (parallel axes), so the rod keeps the link's second moments there but loses the
+first moment of the offset. The joints' axes and placement (on their axes) are exact.
 
 Planar (every revolute axis of the chain parallel, the default then): the plane is normal to the
 axes, which become footopt's z; offsets along the axis drop out (planar motion does not see them);
@@ -34,7 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
-from impulse_core.model.tree import Body, JointKind, Scene, Tree
+from impulse_core.model.tree import Body, JointKind, Scene, Tree, tensor_problem
 from optimizer.config.model_file import ModelFile
 from optimizer.errors import ConfigError
 from optimizer.imports.description import FIXED, REVOLUTE, Description
@@ -71,10 +74,12 @@ class Rod:
 
     name: str
     merged: tuple[str, ...]
-    com_offset: float  # m: distance of the centre of mass from the rod's axis (dropped)
-    com_clamped: bool  # the centre of mass lay beyond an end of the rod (moved onto it)
-    inertia_residual: float  # relative Frobenius norm of the inertia tensor's part not carried
+    com_offset: float  # m: distance of the centre of mass from the rod's axis (planar: dropped; spatial: carried)
+    com_clamped: bool  # planar: the centre of mass lay beyond an end of the rod (moved onto it)
+    inertia_residual: float  # relative Frobenius norm of the inertia tensor's part not carried (spatial: 0)
     flipped: bool = False  # planar: the joint turns about -z (its angle counted the other way)
+    slide: float = 0.0  # spatial: m the rod's start moved along its joint axis (the base: along its rod)
+    carried: bool = False  # spatial: the centre of mass and the whole tensor are carried (com_offset, inertia_tensor)
 
 
 @dataclass(frozen=True)
@@ -111,23 +116,35 @@ class ImportedLeg:
         for r, s in zip(self.rods, self.segments, strict=True):
             welded = f" (merged: {', '.join(r.merged[1:])})" if len(r.merged) > 1 else ""
             joint = "base" if s.joint is None else f"joint '{s.joint}'"
+            if r.carried:
+                lines.append(
+                    f"  {r.name}: {joint}, {s.mass:.6g} kg{welded}; centre of mass "
+                    + (f"{1000 * r.com_offset:.3g} mm off the rod's axis (com_offset)" if r.com_offset > 1e-12
+                       else "on the rod's axis")
+                    + ", inertia_tensor"
+                    + (f"; its start {1000 * r.slide:.3g} mm "
+                       + ("back along the rod" if s.joint is None else "along its joint axis")
+                       + " (so the centre of mass projects onto the rod)" if r.slide > 0 else "")
+                )
+                continue
             lines.append(
                 f"  {r.name}: {joint}, {s.mass:.6g} kg{welded}; "
                 + (f"centre of mass {1000 * r.com_offset:.3g} mm off the rod's axis (moved onto it"
                    + (", past an end of the rod" if r.com_clamped else "") + ")"
                    if r.com_offset > 1e-12 else "centre of mass on the rod's axis")
-                + (f", {100 * r.inertia_residual:.3g} % of the inertia tensor (Frobenius norm) not carried"
-                   if self.space is SPATIAL else "")
                 + ("; its joint turns about -z (the description's angle is minus footopt's)" if r.flipped else "")
             )
         if self.dropped:
             lines.append("Left out (hanging off the chain by a moving joint): "
                          + ", ".join(f"{n} ({m:.6g} kg with its subtree)" for n, m in self.dropped) + ".")
-        lines.append("Exact: masses, joint placements and axes, the ankle; approximated as above: each rod carries its")
-        lines.append("centre of mass on its axis and the inertia " + (
-            "about the joint axis through it (exact about that point)."
-            if self.space is PLANAR else "along the rod (radius) and the mean across it (inertia).")
-            + " Joint limits, damping and motors are not imported.")
+        if self.space is PLANAR:
+            lines.append("Exact: masses, joint placements and axes, the ankle; approximated as above: each rod carries its")
+            lines.append("centre of mass on its axis and the inertia about the joint axis through it (exact about that "
+                         "point). Joint limits, damping and motors are not imported.")
+        else:
+            lines.append("Exact: masses, centres of mass (com, com_offset), inertia tensors (inertia_tensor), joint axes")
+            lines.append("and placements (a joint's point anywhere on its axis), the ankle. Joint limits, damping and "
+                         "motors are not imported.")
         return "\n".join(lines)
 
 
@@ -302,19 +319,50 @@ def _ankle_point(desc, ankle, foot, members, world) -> np.ndarray:
     raise desc.error("--foot", f"no link, site or geom named '{foot}' in the file")
 
 
-def _onto_rod(s: Segment, x: np.ndarray, length: float) -> tuple[float, np.ndarray, bool]:
-    """The centre of mass moved onto the rod (start + f L x): f, the offset dropped, clamped?"""
-    r = s.com - s.start
-    along = float(r @ x) / length
-    f = min(max(along, 0.0), 1.0)
-    return f, r - f * length * x, f != along and abs(f - along) > 1e-12
+def _rod_points(segments: list[Segment]) -> tuple[list[np.ndarray], list[float]]:
+    """Where each spatial rod starts so that its centre of mass projects onto it, and how far that
+    moved it (m): a joint's point may slide along its axis (the same line, the same motion), the
+    base's start anywhere (a translation of the whole leg). From the ankle up, a rod whose centre of
+    mass projects behind its start has that start slid along the joint axis just past where the
+    projection reaches it (the parent rod then ends there); the base's start moves back along its rod.
+    A projection beyond the tip is kept by a rod longer than its joints' distance (see
+    :func:`_spatial_tree`)."""
+    starts = [s.start.copy() for s in segments]
+    slides = [0.0] * len(segments)
+    for k in reversed(range(len(segments))):
+        s = segments[k]
+        a, b = starts[k], starts[k + 1] if k + 1 < len(segments) else s.tip
+        if float((s.com - a) @ (b - a)) >= 0.0:
+            continue
+        if k == 0:  # the base: its rod extended back to the centre of mass's projection
+            x = (b - a) / np.linalg.norm(b - a)
+            starts[0] = a + float((s.com - a) @ x) * x
+        else:  # (c - a - t u).(b - a - t u) = t^2 - t u.((c - a) + (b - a)) + (c - a).(b - a), < 0 at t = 0
+            u = s.axis
+            p, q = float(u @ ((s.com - a) + (b - a))), float((s.com - a) @ (b - a))
+            root = np.sqrt(0.25 * p * p - q)
+            t = min(0.5 * p + root, 0.5 * p - root, key=abs)
+            t += math.copysign(1e-3 * float(np.linalg.norm(b - a)), t)  # just past it: the projection on the rod
+            starts[k] = a + t * u
+        slides[k] = float(np.linalg.norm(starts[k] - s.start))
+    return starts, slides
 
 
 def _spatial_tree(desc: Description, segments: list[Segment]) -> tuple[Tree, list[Rod]]:
-    bodies, rods, frames = [], [], []
+    """Each segment as a rod carrying its link's exact mass properties: ``com`` (the centre of
+    mass's projection on the rod), ``com_offset`` (the rest, along the rod frame's y and z) and
+    ``inertia_tensor`` (the link's, about its centre of mass, in the rod's axes)."""
+    starts, slides = _rod_points(segments)
+    segments[0] = replace(segments[0], start=starts[0])  # the base rod's start (the base origin)
+    bodies, rods, frames, reach = [], [], [], []
     for k, s in enumerate(segments):
-        length = float(np.linalg.norm(s.tip - s.start))
-        x = (s.tip - s.start) / length
+        a = starts[k]
+        b = starts[k + 1] if k + 1 < len(segments) else s.tip
+        span = float(np.linalg.norm(b - a))  # to the next joint (or the ankle)
+        x = (b - a) / span
+        along = float((s.com - a) @ x)
+        length = max(span, along)  # a centre of mass beyond the next joint: the rod reaches past it
+        reach.append(span / length)
         ref = s.axis if s.axis is not None else segments[1].axis
         z = ref - (ref @ x) * x
         if np.linalg.norm(z) < 1e-9:  # the axis along the rod: any frame across it
@@ -323,23 +371,28 @@ def _spatial_tree(desc: Description, segments: list[Segment]) -> tuple[Tree, lis
         z /= np.linalg.norm(z)
         S_world = np.column_stack([x, np.cross(z, x), z])  # rod frame in the description's world
         S = TO_FOOTOPT @ S_world  # in footopt's world
-        f, offset, clamped = _onto_rod(s, x, length)
-        J = S_world.T @ (s.inertia + s.mass * (offset @ offset * np.eye(3) - np.outer(offset, offset))) @ S_world
-        axial, across = float(J[0, 0]), float(0.5 * (J[1, 1] + J[2, 2]))
-        kept = np.diag([axial, across, across])
-        residual = float(np.linalg.norm(J - kept) / max(np.linalg.norm(J), 1e-300))
+        f = min(max(along / length, 0.0), 1.0)
+        r = S_world.T @ (s.com - a - f * length * x)  # the centre of mass from its point on the rod, rod axes
+        J = S_world.T @ s.inertia @ S_world  # about the centre of mass, rod axes
+        J = 0.5 * (J + J.T)
+        tensor = _clean(np.array([J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]]), 1e-15 * float(np.trace(J)))
         if k == 0:
-            rpy, axis, parent = rpy_of(S), (0.0, 0.0, 1.0), None
+            rpy, axis, parent, at = rpy_of(S), (0.0, 0.0, 1.0), None, 1.0
         else:
-            rpy, parent = rpy_of(frames[-1].T @ S), k - 1
+            rpy, parent, at = rpy_of(frames[-1].T @ S), k - 1, reach[k - 1]
             axis = _clean(S_world.T @ s.axis)
         frames.append(S)
+        problem = tensor_problem(tensor) if any(tensor) else None
+        if problem is not None:
+            raise desc.error(f"link '{s.name}'", f"its inertia (with {', '.join(s.merged[1:]) or 'nothing'} welded to "
+                             f"it, rod axes) {problem}")
         bodies.append(Body(
-            name=s.name, parent=parent, length=length, mass=s.mass, angle=0.0, com=f,
-            gyration=math.sqrt(across / s.mass) / length, contacts=(1.0,) if k + 1 == len(segments) else (),
-            rpy=_clean(np.array(rpy)), axis=axis, radius=math.sqrt(2.0 * axial / s.mass), joint=JointKind.REVOLUTE,
+            name=s.name, parent=parent, at=at, length=length, mass=s.mass, angle=0.0, com=f, gyration=0.0,
+            contacts=(reach[k],) if k + 1 == len(segments) else (), rpy=_clean(np.array(rpy)), axis=axis,
+            radius=0.0, com_offset=(float(r[1]), float(r[2])), tensor=tensor, joint=JointKind.REVOLUTE,
         ))
-        rods.append(Rod(s.name, s.merged, float(np.linalg.norm(offset)), clamped, residual))
+        rods.append(Rod(s.name, s.merged, float(np.hypot(r[1], r[2])), False, 0.0, slide=slides[k],
+                        carried=True))
     return Tree(tuple(bodies)), rods
 
 
@@ -382,9 +435,9 @@ def _planar_tree(desc: Description, segments: list[Segment]) -> tuple[Tree, list
     return Tree(tuple(bodies)), rods
 
 
-def _clean(v: np.ndarray) -> tuple[float, ...]:
-    """Round-off below 1e-15 written as 0 (readable files; far below any tolerance)."""
-    return tuple(0.0 if abs(x) < 1e-15 else float(x) for x in v)
+def _clean(v: np.ndarray, below: float = 1e-15) -> tuple[float, ...]:
+    """Round-off below ``below`` written as 0 (readable files; far below any tolerance)."""
+    return tuple(0.0 if abs(x) < below else float(x) for x in v)
 
 
 __all__ = ["IMPORT_SCENE", "TO_FOOTOPT", "ImportedLeg", "Rod", "Segment", "import_leg"]

@@ -46,7 +46,7 @@ from impulse_core.model.rods import (
     unit_axis,
 )
 from impulse_core.model.joints import FREE, JointLaw
-from impulse_core.model.tree import Body, JointKind, Scene, Tree
+from impulse_core.model.tree import Body, JointKind, Scene, Tree, tensor_problem
 from impulse_core.timedomain.compliant import scene_ground, touchdown_configuration
 from optimizer.errors import ConfigError
 
@@ -84,6 +84,12 @@ def check_inertias(tree: Tree) -> None:
     exceeds twice its inertia across: no rigid body has such principal moments (their triangle
     inequality), and MuJoCo refuses them. The model file allows them (the impulses are defined)."""
     for i, b in enumerate(tree.bodies):
+        if not b.is_rod:  # a general body: its whole tensor (the rod's and the added one)
+            I = inertia_tensor(b)
+            problem = tensor_problem((I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]))
+            if problem is not None:
+                raise ConfigError(f"model.bodies[{i}].inertia_tensor: with the rod's own, {problem}: MuJoCo refuses it")
+            continue
         if b.axial_inertia > 2.0 * b.inertia * (1 + 1e-12):
             raise ConfigError(
                 f"model.bodies[{i}].radius: {b.radius} m gives m r^2/2 = {b.axial_inertia:.6g} kg m^2 about the rod's "
@@ -299,8 +305,13 @@ def _mjcf_body(
     elif b.joint is JointKind.REVOLUTE:
         law = _mjcf_law(_law(joints, i), b.angle)
         ET.SubElement(body, "joint", name=b.name, type="hinge", axis=_axis_text(b), **law)
-    inertia = np.diag(inertia_tensor(b, INERTIA_FLOOR))  # principal axes = body axes
-    ET.SubElement(body, "inertial", pos=_xyz(centre_of_mass(b)), mass=_f(b.mass), diaginertia=_xyz(inertia))
+    tensor = inertia_tensor(b, INERTIA_FLOOR)
+    if b.is_rod:  # principal axes = body axes
+        inertia = {"diaginertia": _xyz(np.diag(tensor))}
+    else:  # a general body: the full tensor about its centre of mass, body axes
+        tensor = _inside_triangle(tensor)
+        inertia = {"fullinertia": _xyz(tensor[r, c] for r, c in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)))}
+    ET.SubElement(body, "inertial", pos=_xyz(centre_of_mass(b)), mass=_f(b.mass), **inertia)
     rod = {"type": "capsule", "fromto": _xyz((0, 0, 0, b.length, 0, 0)), "size": _f(max(b.radius, VISUAL_RADIUS))}
     ET.SubElement(body, "geom", rod, contype="0", conaffinity="0", group="1", mass="0")  # drawing only
     for k in range(len(b.contacts)):
@@ -308,6 +319,25 @@ def _mjcf_body(
     for child in kids[i]:
         placed = (joint_origin(tree, child), body_rotation(tree.bodies[child]))
         _mjcf_body(body, tree, child, placed, kids, joints)
+
+
+#: A general body's principal moments are written at least this fraction of their sum inside
+#: the triangle inequality (MuJoCo checks A + B >= C on its own eigenvalues, without slack).
+TRIANGLE_MARGIN = 1e-12
+
+
+def _inside_triangle(I: np.ndarray) -> np.ndarray:
+    """``I`` with its two smaller principal moments raised, where needed, so that their sum
+    exceeds the largest by ``TRIANGLE_MARGIN`` of the trace: a tensor on the boundary (a thin
+    plate, a rod) then passes MuJoCo's check despite rounding; it changes by at most that fraction."""
+    moments, axes = np.linalg.eigh(I)
+    slack = moments[0] + moments[1] - moments[2]
+    margin = TRIANGLE_MARGIN * float(moments.sum())
+    if slack >= margin:
+        return I
+    moments[:2] += 0.5 * (margin - slack)
+    out = axes @ np.diag(moments) @ axes.T
+    return 0.5 * (out + out.T)
 
 
 def _mjcf_law(law: JointLaw, angle: float) -> dict[str, str]:
@@ -331,7 +361,8 @@ def _note(
 ) -> str:
     """The comment at the top of a file: what it holds and where it departs from the model."""
     origin, R = base_pose(tree, scene, space)
-    thin = sum(b.inertia < INERTIA_FLOOR for b in tree.bodies)
+    thin = sum(b.inertia < INERTIA_FLOOR for b in tree.bodies if b.is_rod)
+    general = [b.name for b in tree.bodies if not b.is_rod]
     needs = "MuJoCo needs" if fmt is ExportFormat.MJCF else "a floating base's mass matrix needs"
     planar = space is PLANAR
     lines = [
@@ -349,6 +380,11 @@ def _note(
     ]
     if thin:
         lines.append(f"{thin} rod(s) have less than {INERTIA_FLOOR:g} kg m^2 across the rod too: raised to it.")
+    if general:
+        lines.append(f"{', '.join(general)}: centre of mass off the rod's axis (com_offset) or a full inertia tensor")
+        lines.append("(inertia_tensor): written whole ("
+                     + ("<inertia> ixx..iyz" if fmt is ExportFormat.URDF else "fullinertia")
+                     + f"), any principal moment below {INERTIA_FLOOR:g} kg m^2 raised to it.")
     if fmt is ExportFormat.URDF:
         lines += [
             "Load with a free-flyer root joint (Pinocchio: buildModelFromXML(text, JointModelFreeFlyer())):",

@@ -119,3 +119,23 @@ def test_fuzzed_spatial_model_files(seed: int, tmp_path: Path, capsys) -> None:
         _check(status, capsys.readouterr().err)
         invalid += status == 2
     assert invalid >= 10
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_fuzzed_general_spatial_model_files(seed: int, tmp_path: Path, capsys) -> None:
+    """The same on spatial files whose bodies carry ``com_offset`` and ``inertia_tensor``."""
+    rng = random.Random(300 + seed)
+    base = yaml.safe_load((REPO / "configs" / "spatial_case3.yaml").read_text())
+    for i, b in enumerate(base["model"]["bodies"]):
+        b["com_offset"] = [0.002 * i, -0.001 * i]
+        if i % 2 == 0:
+            del b["radius"]
+            b["inertia_tensor"] = [0.002 * b["mass"], 0.04 * b["mass"], 0.041 * b["mass"], 1e-6, -2e-6, 3e-6]
+    invalid = 0
+    for k in range(40):
+        f = tmp_path / f"g{k}.yaml"
+        f.write_text(_dump(_mutate(base, rng)), encoding="utf-8")
+        status = main(["evaluate", "--json", str(f)])
+        _check(status, capsys.readouterr().err)
+        invalid += status == 2
+    assert invalid >= 10

@@ -15,12 +15,13 @@ import pytest
 from impulse_core.evaluate import evaluate, touchdown_geometry
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import SPATIAL
-from impulse_core.model.rods import body_rotation
+from impulse_core.model.rods import body_rotation, centre_of_mass, inertia_tensor
 from impulse_core.model.tree import JointKind, Tree
 from optimizer.config.model_file import load_model_file
 from optimizer.results.export import INERTIA_FLOOR, base_pose, to_mjcf, to_urdf
 from tests.conftest import report
 from tests.impulse_core.test_spatial import SCENE, _delassus, spatial_trees
+from tests.impulse_core.test_spatial_inertia import general_trees
 
 pin = pytest.importorskip("pinocchio")
 mujoco = pytest.importorskip("mujoco")
@@ -32,7 +33,10 @@ TOL = 1e-8
 def cases() -> list[tuple[str, Tree]]:
     example = load_model_file(REPO / "configs" / "spatial_case3.yaml").tree
     randoms = [t for t in spatial_trees() if np.linalg.cond(_delassus(t, SCENE)) < 1e5][:10]
-    return [("spatial_case3", example)] + [(f"random{k}", t) for k, t in enumerate(randoms)]
+    # bodies with their centre of mass off the rod and a full inertia tensor (com_offset, inertia_tensor)
+    general = [t for t in general_trees() if np.linalg.cond(_delassus(t, SCENE)) < 1e5][:6]
+    return ([("spatial_case3", example)] + [(f"random{k}", t) for k, t in enumerate(randoms)]
+            + [(f"general{k}", t) for k, t in enumerate(general)])
 
 
 CASES = cases()
@@ -92,8 +96,9 @@ def test_spatial_mjcf_in_mujoco_has_the_models_bodies_and_gives_its_impulses(nam
         mujoco.mju_quat2Mat(R, m.body_iquat[i])
         R = R.reshape(3, 3)
         tensor = R @ np.diag(m.body_inertia[i]) @ R.T
-        want = np.diag([max(b.axial_inertia, INERTIA_FLOOR), max(b.inertia, INERTIA_FLOOR), max(b.inertia, INERTIA_FLOOR)])
+        want = inertia_tensor(b, INERTIA_FLOOR)  # a rod's diagonal, a general body's full tensor
         worst = max(worst, np.abs(tensor - want).max() / np.abs(want).max())
+        worst = max(worst, np.abs(m.body_ipos[i] - centre_of_mass(b)).max() / b.length)
     e_at = max(np.abs(d.site(n).xpos - p).max() for n, p in _points(tree).items())
     base = m.body(tree.bodies[0].name).id
     R0 = np.zeros(9)

@@ -86,7 +86,7 @@ def test_planar_rods_are_exact_against_pinocchio(tmp_path):
     assert abs(footopt_impulse(spatial) / footopt_impulse(leg) - 1) > 1e-3  # not the planar answer
 
 
-def test_an_off_axis_centre_of_mass_is_moved_onto_the_rod_and_reported(tmp_path):
+def test_an_off_axis_centre_of_mass_is_carried_exactly_and_reported(tmp_path):
     text = rod_urdf(SPATIAL_LEG)
     head = '<link name="thigh"><inertial><origin xyz="'
     k = text.index(head) + len(head)
@@ -96,7 +96,28 @@ def test_an_off_axis_centre_of_mass_is_moved_onto_the_rod_and_reported(tmp_path)
     leg = import_leg(read_description(tmp_path / "off.urdf"), "base", "foot")
     assert leg.rods[2].com_offset == pytest.approx(0.01, rel=1e-9)
     assert [r.com_offset < 1e-15 for r in leg.rods] == [True, True, False, True]
-    assert "thigh: joint 'thigh_joint', 1 kg; centre of mass 10 mm off the rod's axis" in leg.summary()
+    assert "thigh: joint 'thigh_joint', 1 kg; centre of mass 10 mm off the rod's axis (com_offset)" in leg.summary()
+    thigh = leg.model.tree.bodies[2]
+    assert np.hypot(*thigh.com_offset) == pytest.approx(0.01, rel=1e-9) and thigh.gyration == 0.0
+    ref = reference(tmp_path / "off.urdf", "base", "foot")
+    assert footopt_impulse(leg) == pytest.approx(ref.impulse(), rel=1e-12)
+    np.testing.assert_allclose(footopt_joint_mass_matrix(leg), ref.joint_mass_matrix(), rtol=0, atol=1e-12)
+
+
+def test_a_centre_of_mass_behind_its_joint_slides_the_joint_along_its_axis(tmp_path):
+    """The hip's centre of mass 30 mm behind its joint along the rod (and 5 mm across): its rod
+    starts further along the hip's axis, the base's rod ends there, and the answer stays exact."""
+    text = rod_urdf(SPATIAL_LEG)
+    head = '<link name="hip"><inertial><origin xyz="'
+    k = text.index(head) + len(head)
+    text = text[:k] + "0.005 -0.03 0.0" + text[text.index('"', k):]
+    (tmp_path / "behind.urdf").write_text(text)
+    leg = import_leg(read_description(tmp_path / "behind.urdf"), "base", "foot")
+    assert leg.rods[1].slide > 0.0 and [r.slide for r in leg.rods[2:]] == [0.0, 0.0]
+    assert "along its joint axis (so the centre of mass projects onto the rod)" in leg.summary()
+    ref = reference(tmp_path / "behind.urdf", "base", "foot")
+    assert footopt_impulse(leg) == pytest.approx(ref.impulse(), rel=1e-12)
+    np.testing.assert_allclose(footopt_joint_mass_matrix(leg), ref.joint_mass_matrix(), rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -139,3 +160,20 @@ def test_xml_with_entities_is_refused(tmp_path):
 def test_rpy_convention_of_the_reader():
     R = rotation_rpy((0.1, 0.2, 0.3))
     assert np.allclose(R @ R.T, np.eye(3))
+
+
+def test_a_centre_of_mass_past_the_next_joint_lengthens_the_rod(tmp_path):
+    """The thigh's and the shank's centres of mass beyond their next joint (the knee, the foot):
+    their rods reach past it, the shank hangs at ``at`` < 1 and the contact sits at < 1; exact."""
+    text = rod_urdf(SPATIAL_LEG)
+    for link, xyz in (("thigh", "0.03 0.004 -0.3"), ("shank", "0.0 0.002 -0.25")):
+        head = f'<link name="{link}"><inertial><origin xyz="'
+        k = text.index(head) + len(head)
+        text = text[:k] + xyz + text[text.index('"', k):]
+    (tmp_path / "past.urdf").write_text(text)
+    leg = import_leg(read_description(tmp_path / "past.urdf"), "base", "foot")
+    thigh, shank = leg.model.tree.bodies[2:]
+    assert thigh.com == 1.0 and shank.at < 1.0 and shank.com == 1.0 and shank.contacts[0] < 1.0
+    ref = reference(tmp_path / "past.urdf", "base", "foot")
+    assert footopt_impulse(leg) == pytest.approx(ref.impulse(), rel=1e-12)
+    np.testing.assert_allclose(footopt_joint_mass_matrix(leg), ref.joint_mass_matrix(), rtol=0, atol=1e-12)

