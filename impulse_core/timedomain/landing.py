@@ -630,9 +630,13 @@ class _Landing:
         (W k_v - F^T nu = M r_v - gamma h K r_q, G k_v = G r_v; k_q = r_q + gamma h k_v).
         Stages: k1 from r = (v, a(y)); k2 from r = F(y + h k1) - 2 k1; y + h (3 k1 + k2) / 2.
         The contact impulses are the matching combination of the stages' row forces
-        (h / 2 (nu_1 + lambda(y + h k1) + nu_2)); the second stage's force is taken with the
-        first stage's mass matrix, so the momentum balance holds to O(h^2) (RK4's: O(h^4)).
-        The Coriolis terms stay explicit (as in MuJoCo's implicitfast), which keeps W symmetric
+        (h / 2 (nu_1 + lambda(y + h k1) + nu_2)): the first stage's implicit forces nu_1 and the
+        second's correction nu_2 carry what the stiff laws transmit within the step (explicit
+        samples of the contact forces would not), with the second stage's force taken with the
+        first stage's mass matrix; the momentum balance closes to O(h^2) between events (on a
+        random leg of the tests 7.9e-6, 2.0e-6, 5.0e-7 of the momentum at h = 5e-4, 2.5e-4,
+        1.25e-4 s; RK4 2e-10 at 5e-4 s). The
+        Coriolis terms stay explicit (as in MuJoCo's implicitfast), which keeps W symmetric
         positive definite and its base rows M's."""
         g = ROS2_GAMMA * h
         D, K = self.joints.damping, self.joints.stiffness
@@ -909,6 +913,7 @@ class _Landing:
         pt = self.point(q, v)
         place = mode.copy()
         place.closed |= pt.gap < 0  # an open contact left below the ground (by rounding) is lifted
+        place.stop = np.where(place.stop == 0, self.beyond(q), place.stop)  # a free joint past a stop is put back
         q = q - self.position_correction(pt, q, place)
         rows = _mode_rows(pt, mode, self.mu)
         if not rows.G.shape[0]:
@@ -918,6 +923,13 @@ class _Landing:
         v = v + minv_gt @ impulse
         fn, ft = _contact_forces(rows, impulse, np.zeros(self.nc, int), 0.0, self.nc)
         return q, v, np.concatenate([fn, ft])
+
+    def beyond(self, q: np.ndarray) -> np.ndarray:
+        """Per DOF: +1 past its upper stop, -1 past its lower one, else 0. A joint that an impact
+        left on its stop moving away (the other rows' impulses can do that) may be carried past
+        it by the step's rounding; unprojected, its stop margin stays below the event threshold
+        and every step is an event of length 0 (the run stalled so)."""
+        return np.where(q > self.joints.hi, 1, np.where(q < self.joints.lo, -1, 0))
 
     def position_correction(self, pt: _Point, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """The smallest (kinetic-metric) change of q that zeroes the mode's closed gaps and stops."""

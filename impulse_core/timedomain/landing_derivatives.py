@@ -365,16 +365,18 @@ class _Symbolic:
             self.cache[key] = _Op("step", [self.x, self.th, h], [ca.vertcat(q1, v1), imp])
         return self.cache[key]
 
-    def project(self, mode: _Mode, lifted: tuple) -> _Op:
+    def project(self, mode: _Mode, lifted: tuple, beyond: tuple = ()) -> _Op:
         """(x, theta) -> (x projected onto the mode's rows, the projection's impulses); ``lifted``:
         open contacts below the ground at the input, whose gaps are zeroed too."""
-        key = ("project", _mode_key(mode), lifted)
+        key = ("project", _mode_key(mode), lifted, beyond)
         if key not in self.cache:
             q, v = self.split(self.x)
             th = self.th
             pt = self.point(q, v, th)
             place = mode.copy()
             place.closed[list(lifted)] = True
+            if beyond:  # free joints past a stop, put back onto it
+                place.stop = np.where(place.stop == 0, np.array(beyond, int), place.stop)
             dq = self.position_correction(pt, q, th, place)
             G, _, _, info = self.mode_rows(pt, mode)
             if G.shape[0] == 0:
@@ -781,7 +783,8 @@ def landing_gradient(
             _, q, v, mode = entry
             pt = run.point(q, v)
             lifted = tuple(int(i) for i in np.flatnonzero(~mode.closed & (pt.gap < 0)))
-            (x1, imp), J = sym.project(mode, lifted)(x, theta)
+            beyond = tuple(int(b) for b in run.beyond(q)) if np.any(run.beyond(q)) else ()
+            (x1, imp), J = sym.project(mode, lifted, beyond)(x, theta)
             S_totals = S_totals + J[1][0] @ S + J[1][1]
             S = J[0][0] @ S + J[0][1]
             x, totals = x1, totals + imp

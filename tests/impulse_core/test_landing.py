@@ -359,3 +359,38 @@ def test_identical_toes_on_one_point_do_not_stall():
     for e in r.events:
         assert e.external[1] == pytest.approx(e.external[2], rel=1e-6, abs=1e-9)
     assert r.final_angles[3] == pytest.approx(r.final_angles[5], abs=1e-6)
+
+
+def _trial25() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    """Trial 25 of studies/whole_landing: two as good as identical toes whose 9 mm proximal rods
+    have stops."""
+    bodies = [Body("thigh", None, 0.7, 1.0, -1.4), Body("shank", 0, 0.7, 1.0, -0.3),
+              Body("heel", 1, 0.2867881485225904, 0.1998200873218924, -1.1541528463415311, contacts=(1.0,))]
+    laws = [FREE, JointLaw(stiffness=150.0, damping=3.0, limits=(-2.0, 0.0)),
+            JointLaw(stiffness=29.226030538862236, damping=0.5411775308717243,
+                     limits=(-1.7871940293202497, -0.5211116633628127))]
+    for k, (proximal, distal) in enumerate(((0.008929194158536978, 0.08373323139797538),
+                                            (0.0089291941585369, 0.08373323139797545)), start=1):
+        bodies += [Body(f"toe{k}_proximal", 1, proximal, 0.03710863536887501, 0.35803898591797756),
+                   Body(f"toe{k}_distal", len(bodies), distal, 0.11298132097017877, 0.292553652091045, contacts=(1.0,))]
+        laws += [JointLaw(stiffness=10.884445568842725, damping=0.09561112795787996,
+                          limits=(0.09093291393680225, 0.6251450578991529)),
+                 JointLaw(stiffness=3.3903842560845936, damping=0.39238339376582687)]
+    scene = Scene(speed=3.43, restitution=0.3, friction=0.5, selection=ContactSelection.LOWEST, gravity=G,
+                  duration=0.15)
+    return Tree(tuple(bodies)), tuple(laws), scene
+
+
+def test_a_joint_left_past_its_stop_is_put_back():
+    """Trial 25's toe roots leave their stops moving away after an impact and the steps carry
+    them past the stop by more than the gap tolerance: unprojected, their stop margins stayed
+    below the event threshold and the run stalled (events of length 0). Projected back onto
+    the stop, the landing runs through and obeys the laws. The momentum balance closes to
+    1.1e-3 of the momentum only at this step (5.6e-4 and 3.8e-4 at half and a quarter of it;
+    RK4 at 1e-5 s: 5e-5): the contract's 1e-4 is not met on this 9 mm-rod design."""
+    tree, laws, scene = _trial25()
+    r = _assert_the_laws(tree, laws, scene, 4.6875e-5, LandingSettings(), momentum=2e-3)
+    assert r.integrator == "implicit"
+    lo, hi = laws[3].limits
+    # within a step's drift of the stops (1.3e-9 rad at an event step's end, resting on one)
+    assert np.all((r.trajectory[1][:, 5] >= lo - 1e-8) & (r.trajectory[1][:, 5] <= hi + 1e-8))
