@@ -2,11 +2,15 @@
 study saw 28 % of its trials fail).
 
 The first call reads the failed trials' parameters from the run's Optuna storage and keeps them in
-`failed_trials.json` (so they survive a rerun of the study, which replaces `run/`); every call
-re-lands each of those designs with the study's own evaluation (`evaluate_design_landing`, the
-study's budget `STUDY_LANDING`) and prints how many land now, and why the others fail.
+`failed_trials.json` (so they survive a rerun of the study, which replaces `run/`; `--kept FILE`
+names another file); every call re-lands each of those designs as the study does (its scene and
+joint laws, its budget `STUDY_LANDING` at its tolerance) and prints how many land now, and why
+the others fail.
 
-Usage: python studies/whole_landing/failed_trials.py [--run DIR] [--only N ...]
+Kept here: `failed_trials.json`, the 34 of the first run (commit d4abda4, before the implicit
+integrator and the identical-toes fixes), and `failed_trials_rerun.json`, the 10 of the rerun.
+
+Usage: python studies/whole_landing/failed_trials.py [--run DIR] [--kept FILE] [--only N ...]
 """
 
 from __future__ import annotations
@@ -60,11 +64,12 @@ def land(config, params: dict) -> tuple[str, float, int]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", type=Path, default=HERE / "run")
+    parser.add_argument("--kept", type=Path, default=KEPT)
     parser.add_argument("--only", type=int, nargs="*")
     args = parser.parse_args()
-    if not KEPT.exists():
-        KEPT.write_text(json.dumps(failed_params(args.run), indent=1) + "\n", encoding="utf-8")
-    kept = json.loads(KEPT.read_text(encoding="utf-8"))
+    if not args.kept.exists():
+        args.kept.write_text(json.dumps(failed_params(args.run), indent=1) + "\n", encoding="utf-8")
+    kept = json.loads(args.kept.read_text(encoding="utf-8"))
     config = load_study(HERE / "study.yaml")
     landed = 0
     for item in kept:
