@@ -459,6 +459,8 @@ def _accelerations(pt: _Point, rows: _Rows) -> tuple[np.ndarray, np.ndarray]:
     return a0 + minv_ft @ lam, lam
 
 
+#: Contacts closer than this (m) are at one point (:meth:`_Landing.unify`).
+COINCIDENT = 1e-9
 #: Rows whose matrix G M^-1 F^T has a singular value below this times its largest are redundant.
 REDUNDANT = 1e-10
 
@@ -850,9 +852,30 @@ class _Landing:
         d = rows.dof >= 0
         new.stop[rows.dof[d & rest]] = stops[rows.dof[d & rest]]
         new.redundant = self.redundant(pt, new)
-        new = self.consistent_slip(pt, v, self.slide_on_the_edge(q, v, new), acc_tol)
+        new = self.consistent_slip(pt, v, self.unify(pt, v, self.slide_on_the_edge(q, v, new)), acc_tol)
         new.redundant = self.redundant(pt, new)
         return new
+
+    def unify(self, pt: _Point, v: np.ndarray, mode: _Mode) -> _Mode:
+        """Resting contacts at one point moving alike (identical toes: their tips coincide to
+        rounding) take one slip: the sliding one's where one slides and another sticks. The
+        contact problem at such a point has many answers, and Lemke's method may stick one toe
+        on the cone's edge while the other slides at zero slip acceleration; the identical toes'
+        symmetric answer is both sliding (the same forces), and the asymmetric one stalled the
+        run (the sticking toe leaves the cone at once)."""
+        if self.mu <= 0:
+            return mode
+        closed = np.flatnonzero(mode.closed)
+        vt = pt.vt(v)
+        out = mode
+        for a, i in enumerate(closed):
+            for j in closed[a + 1 :]:
+                if (out.slip[i] != out.slip[j] and (out.slip[i] == 0 or out.slip[j] == 0)
+                        and np.max(np.abs(pt.contacts[i] - pt.contacts[j])) <= COINCIDENT
+                        and abs(vt[i] - vt[j]) <= self.speed_tol):
+                    out = out.copy() if out is mode else out
+                    out.slip[i] = out.slip[j] = out.slip[i] or out.slip[j]
+        return out
 
     def redundant(self, pt: _Point, mode: _Mode) -> bool:
         """Whether the mode's rows are redundant (:data:`REDUNDANT`): identical toes resting on

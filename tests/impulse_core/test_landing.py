@@ -394,3 +394,36 @@ def test_a_joint_left_past_its_stop_is_put_back():
     lo, hi = laws[3].limits
     # within a step's drift of the stops (1.3e-9 rad at an event step's end, resting on one)
     assert np.all((r.trajectory[1][:, 5] >= lo - 1e-8) & (r.trajectory[1][:, 5] <= hi + 1e-8))
+
+
+def _trial32() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    """Trial 32 of the whole-landing study's rerun: two as good as identical toes of 2.4 cm and
+    3.7 cm rods."""
+    bodies = [Body("thigh", None, 0.7, 1.0, -1.4), Body("shank", 0, 0.7, 1.0, -0.3),
+              Body("heel", 1, 0.059788428779167284, 0.1148621741685105, -1.1306995403481912, contacts=(1.0,))]
+    laws = [FREE, JointLaw(stiffness=150.0, damping=3.0, limits=(-2.0, 0.0)),
+            JointLaw(stiffness=6.613657199390783, damping=0.040894345858980996,
+                     limits=(-1.7997106701954326, -0.4616884105009498))]
+    for k, (proximal, distal) in enumerate(((0.02378776857242368, 0.03683085066320549),
+                                            (0.02378776857242366, 0.0368308506632055)), start=1):
+        bodies += [Body(f"toe{k}_proximal", 1, proximal, 0.10391407885636716, 1.504179777203347),
+                   Body(f"toe{k}_distal", len(bodies), distal, 0.08865483405937757, -0.18418246668459526,
+                        contacts=(1.0,))]
+        laws += [JointLaw(stiffness=15.883739641994477, damping=0.8297475432825873,
+                          limits=(0.7369232215028605, 2.2714363329038334)),
+                 JointLaw(stiffness=4.633824220093544, damping=0.49622954450322826)]
+    scene = Scene(speed=3.43, restitution=0.3, friction=0.5, selection=ContactSelection.LOWEST, gravity=G,
+                  duration=0.15)
+    return Tree(tuple(bodies)), tuple(laws), scene
+
+
+def test_identical_toes_take_one_slip():
+    """Trial 32: resting on both tips, Lemke's answer stuck one toe on the cone's edge while the
+    other slid at zero slip acceleration; the sticking toe left the cone at once and the run
+    stalled at one instant. Coincident contacts moving alike take one slip (both sliding), and
+    the landing runs through, obeying the laws, the toes' impact impulses equal."""
+    tree, laws, scene = _trial32()
+    r = _assert_the_laws(tree, laws, scene, 4.6875e-5, LandingSettings(), momentum=2e-3)
+    for e in r.events:
+        assert e.external[1] == pytest.approx(e.external[2], rel=1e-6, abs=1e-9)
+    assert r.total_external[1] == pytest.approx(r.total_external[2], rel=1e-4)  # 1.5e-5 apart: the split while resting
