@@ -76,6 +76,8 @@ from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import BODY_VALUES, Scene, Tree, design_vector, value_names
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, subtree_incidence
 from impulse_core.timedomain.landing import (
+    IMPLICIT,
+    ROS2_GAMMA,
     LandingResult,
     LandingSettings,
     _Landing,
@@ -315,31 +317,66 @@ class _Symbolic:
         v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
         return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
 
+    def ros2(self, q, v, th, mode, h):
+        """:meth:`landing._Landing.implicit_step` symbolically (ROS2 with the joint laws in its
+        matrix)."""
+        g = ROS2_GAMMA * h
+        k, c, _, _, _ = self.law_arrays(th)
+        pt = self.point(q, v, th)
+        G, F, b, info = self.mode_rows(pt, mode)
+        W = pt["M"] + ca.diag(g * c + g * g * k)
+
+        def constrained(rhs, row_rhs):
+            X = _solve(W, ca.horzcat(rhs, F.T))
+            x0, winv_ft = X[:, 0], X[:, 1:]
+            if G.shape[0] == 0:
+                return x0, ca.SX(0, 1)
+            nu = _solve(G @ winv_ft, row_rhs - G @ x0)
+            return x0 + winv_ft @ nu, nu
+
+        k1v, nu1 = constrained(pt["f"] - g * k * v, -b)
+        k1q = v + g * k1v
+        q2, v2 = q + h * k1q, v + h * k1v
+        a2, f2 = self.derivative(q2, v2, th, mode)
+        rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
+        k2v, nu2 = constrained(pt["M"] @ rv - g * k * rq, G @ rv)
+        k2q = rq + g * k2v
+        f1 = self.contact_forces(info, nu1, mode.slip, self.mu)
+        f3 = self.contact_forces(info, nu2, mode.slip, self.mu)
+        return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
+
+    def integrate(self, q, v, th, mode, h, method):
+        """One step of the run's integrator (``rk4`` or ``implicit``)."""
+        return self.ros2(q, v, th, mode, h) if method == IMPLICIT else self.rk4(q, v, th, mode, h)
+
     def split(self, x):
         return x[: self.nv], x[self.nv :]
 
     # ---- cached functions
 
-    def step(self, mode: _Mode) -> _Op:
-        """(x, theta, h) -> (x after one RK4 step of the mode, contact impulses [fn; ft])."""
-        key = ("step", _mode_key(mode))
+    def step(self, mode: _Mode, method: str) -> _Op:
+        """(x, theta, h) -> (x after one step of the mode by the run's integrator, contact
+        impulses [fn; ft])."""
+        key = ("step", method, _mode_key(mode))
         if key not in self.cache:
             h = ca.SX.sym("h")
             q, v = self.split(self.x)
-            q1, v1, imp = self.rk4(q, v, self.th, mode, h)
+            q1, v1, imp = self.integrate(q, v, self.th, mode, h, method)
             self.cache[key] = _Op("step", [self.x, self.th, h], [ca.vertcat(q1, v1), imp])
         return self.cache[key]
 
-    def project(self, mode: _Mode, lifted: tuple) -> _Op:
+    def project(self, mode: _Mode, lifted: tuple, beyond: tuple = ()) -> _Op:
         """(x, theta) -> (x projected onto the mode's rows, the projection's impulses); ``lifted``:
         open contacts below the ground at the input, whose gaps are zeroed too."""
-        key = ("project", _mode_key(mode), lifted)
+        key = ("project", _mode_key(mode), lifted, beyond)
         if key not in self.cache:
             q, v = self.split(self.x)
             th = self.th
             pt = self.point(q, v, th)
             place = mode.copy()
             place.closed[list(lifted)] = True
+            if beyond:  # free joints past a stop, put back onto it
+                place.stop = np.where(place.stop == 0, np.array(beyond, int), place.stop)
             dq = self.position_correction(pt, q, th, place)
             G, _, _, info = self.mode_rows(pt, mode)
             if G.shape[0] == 0:
@@ -390,13 +427,13 @@ class _Symbolic:
         r = int(np.flatnonzero(info.dof == i)[0])  # group 6: the stop's force
         return lam[r]
 
-    def event_witness(self, mode: _Mode, index: int, ft_sign: float) -> _Op:
+    def event_witness(self, mode: _Mode, index: int, ft_sign: float, method: str) -> _Op:
         """(x, theta, tau) -> the witness ``index`` after a step of tau from x."""
-        key = ("witness", _mode_key(mode), index, ft_sign)
+        key = ("witness", method, _mode_key(mode), index, ft_sign)
         if key not in self.cache:
             tau = ca.SX.sym("tau")
             q, v = self.split(self.x)
-            q1, v1, _ = self.rk4(q, v, self.th, mode, tau)
+            q1, v1, _ = self.integrate(q, v, self.th, mode, tau, method)
             w = self.witness(q1, v1, self.th, mode, index, ft_sign)
             self.cache[key] = _Op("witness", [self.x, self.th, tau], [w])
         return self.cache[key]
@@ -719,7 +756,7 @@ def landing_gradient(
             else:
                 _, q, v, mode, tau, watch = entry
                 index, sign = item[2]
-                op = sym.event_witness(mode, index, sign)
+                op = sym.event_witness(mode, index, sign, run.method)
                 (c,), _ = op(np.concatenate([q, v]), theta, tau)
                 (w,), Jw = op(x, theta, tau)
                 rate = float(Jw[0][2][0, 0])
@@ -729,7 +766,7 @@ def landing_gradient(
                 # Newton correction; its derivative is the implicit function theorem's)
                 h = tau - float(w[0] - c[0]) / rate
                 dh = -(Jw[0][0] @ S + Jw[0][1])[0] / rate
-            (x1, imp), J = sym.step(mode)(x, theta, h)
+            (x1, imp), J = sym.step(mode, run.method)(x, theta, h)
             S_totals = S_totals + J[1][0] @ S + J[1][1] + np.outer(J[1][2], dh)
             S = J[0][0] @ S + J[0][1] + np.outer(J[0][2], dh)
             x, totals, t, dt = x1, totals + imp, t + h, dt + dh
@@ -746,7 +783,8 @@ def landing_gradient(
             _, q, v, mode = entry
             pt = run.point(q, v)
             lifted = tuple(int(i) for i in np.flatnonzero(~mode.closed & (pt.gap < 0)))
-            (x1, imp), J = sym.project(mode, lifted)(x, theta)
+            beyond = tuple(int(b) for b in run.beyond(q)) if np.any(run.beyond(q)) else ()
+            (x1, imp), J = sym.project(mode, lifted, beyond)(x, theta)
             S_totals = S_totals + J[1][0] @ S + J[1][1]
             S = J[0][0] @ S + J[0][1]
             x, totals = x1, totals + imp

@@ -289,7 +289,8 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
 
 def _landing_record(r: LandingResult) -> dict[str, Any]:
     """The contract's ``events`` and ``landing`` keys (``MODEL_FORMAT.md``), with ``tangential``
-    and ``modes``-free first-impact keys, and the accuracy (``error_estimate``, ``tolerance``)."""
+    and ``modes``-free first-impact keys, and the accuracy (``error_estimate``, ``tolerance``,
+    ``integrator``)."""
     events = [
         {
             "t": _f(e.time),
@@ -320,6 +321,7 @@ def _landing_record(r: LandingResult) -> dict[str, Any]:
         },
         "error_estimate": None if r.error_estimate is None or not math.isfinite(r.error_estimate) else _f(r.error_estimate),
         "tolerance": _f(r.tolerance) if r.tolerance is not None else None,
+        "integrator": r.integrator,
     }
 
 
@@ -558,7 +560,8 @@ def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
         "the touchdown kinetic energy plus gravity's work",
         "final angles [rad]: " + ", ".join(f"{n} {a:.4f}" for n, a in zip(angle_names, r.final_angles, strict=True)),
         f"final base origin [m]: x {r.final_base[0]:.4f}, y {r.final_base[1]:.4f}",
-        f"accuracy: error estimate {estimate} (tolerance {r.tolerance:g}), Runge-Kutta step {r.step:.3g} s",
+        f"accuracy: error estimate {estimate} (tolerance {r.tolerance:g}), "
+        + ("Runge-Kutta 4" if r.integrator == "rk4" else "implicit (ROS2, order 2)") + f" step {r.step:.3g} s",
     ]
 
 

@@ -2,9 +2,10 @@
 (impulse_core.timedomain.landing_derivatives).
 
 Seeded cases: a leg whose second contact touches down after the first (frictionless), one whose
-knee reaches its stop (springs with given rest angles, a stop restitution), and one with friction
-(contacts sticking and sliding between impacts, sliding and sticking impacts); all with springs,
-dampers and gravity. For each:
+knee reaches its stop (springs with given rest angles, a stop restitution), one with friction
+(contacts sticking and sliding between impacts, sliding and sticking impacts), and one whose toe
+ends in a light, short damped rod (too stiff for RK4: the implicit integrator runs); all with
+springs, dampers and gravity. For each:
 - the replayed graph's values equal the numeric landing's (same step) to 1e-10;
 - the exact derivatives agree with central differences of the numeric landing at the same step,
   along seeded random directions over lengths, masses, angles and joint-law values, where the
@@ -50,7 +51,18 @@ def _stop_leg() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
     return Tree(bodies), laws, Scene(speed=2.0, velocity_x=0.2, restitution=0.3, gravity=G, duration=0.04)
 
 
+def _stiff_leg() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    """The stop leg with a 2 cm, 20 g damped rod at the toe's end (its damper's rate 1e5 1/s)."""
+    tree, laws, scene = _stop_leg()
+    toe = replace(tree.bodies[2], contacts=())
+    tip = Body("toe_tip", 2, 0.02, 0.02, 0.3, contacts=(1.0,))
+    return (Tree((*tree.bodies[:2], toe, tree.bodies[3], tip)), (*laws, JointLaw(stiffness=2.0, damping=0.3)),
+            replace(scene, duration=0.006))
+
+
 def _case(name: str) -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    if name == "stiff":
+        return _stiff_leg()
     if name == "second_touchdown":
         tree, laws, scene = _random_leg(3)
         return tree, laws, replace(scene, friction=0.0)
@@ -60,7 +72,7 @@ def _case(name: str) -> tuple[Tree, tuple[JointLaw, ...], Scene]:
     return tree, laws, scene
 
 
-CASES = ("second_touchdown", "stop", "friction")
+CASES = ("second_touchdown", "stop", "friction", "stiff")
 
 
 @pytest.fixture(scope="module")
@@ -100,6 +112,8 @@ def test_the_cases_have_what_they_are_named_for(gradients):
     assert slips >= {-1, 0} and (1 in slips or -1 in slips)  # sticking and sliding between impacts
     impact_modes = {m for item in seq if item[0] == "impact" for m in item[4][1]}
     assert impact_modes >= {2} and impact_modes & {1, -1}  # sticking and sliding impacts
+    assert gradients["stiff"].result.integrator == "implicit"
+    assert all(g.result.integrator == "rk4" for name, g in gradients.items() if name != "stiff")
     for g in gradients.values():
         law = [n for n in g.names if n.endswith("stiffness")]
         assert law and np.all(np.isfinite(_jacobian(g)))

@@ -49,6 +49,10 @@ def test_landing_json_keeps_the_contract(tmp_path, capsys, friction, rung):
     assert all(len(e["external"]) == n_contacts and len(e["internal"]) == n_joints for e in d["events"])
     assert [e["t"] for e in d["events"]] == sorted(e["t"] for e in d["events"])
     assert d["error_estimate"] <= d["tolerance"] == 1e-3
+    assert set(landing) == {"peak_external_norm", "peak_internal_norm", "peak_max_internal", "total_external",
+                            "settled_at", "final_angles", "final_base", "final_velocity", "energy_absorbed",
+                            "duration", "step"}  # MODEL_FORMAT's keys, no more
+    assert d["integrator"] == "rk4"  # an extra beside error_estimate: these joint laws are not stiff
 
 
 def test_tolerance_applies_to_the_landing_only(tmp_path, capsys):
