@@ -131,16 +131,7 @@ class BatchEvaluator:
         grads = {}
         if self.run_gradient is not None:
             grads = dict(zip(GRADIENT_OUTPUTS, self.run_gradient(P, V, E[:, None]), strict=True))
-        return BatchResult(
-            external=external,
-            internal_magnitude=out["internal_magnitude"],
-            external_norm=out["external_norm"][:, 0],
-            internal_norm=out["internal_norm"][:, 0],
-            newton=newton,
-            failed=failed,
-            d_external_norm=grads.get("d_external_norm"),
-            d_internal_norm=grads.get("d_internal_norm"),
-        )
+        return _batch_result(out, newton, failed, grads)
 
     def _checked(self, P: np.ndarray, speed, restitution) -> tuple[np.ndarray, np.ndarray]:
         """Speed and restitution per row, once every value is checked (ModelError naming the
@@ -182,16 +173,22 @@ class BatchEvaluator:
         if self.run_gradient is not None:
             V = np.broadcast_to(speeds, (n,))[:, None] * self._fixed[2][None, :]
             grads = dict(zip(GRADIENT_OUTPUTS, self.run_gradient(P, V, np.broadcast_to(E, (n,))[:, None]), strict=True))
-        return BatchResult(
-            external=out["external"],
-            internal_magnitude=out["internal_magnitude"],
-            external_norm=out["external_norm"][:, 0],
-            internal_norm=out["internal_norm"][:, 0],
-            newton=newton,
-            failed=failed,
-            d_external_norm=grads.get("d_external_norm"),
-            d_internal_norm=grads.get("d_internal_norm"),
-        )
+        return _batch_result(out, newton, failed, grads)
+
+
+def _batch_result(out: dict[str, np.ndarray], newton: np.ndarray, failed: np.ndarray,
+                  grads: dict[str, np.ndarray]) -> BatchResult:
+    """The rows' outputs (``LEAN_OUTPUTS``, rows first) and flags as a :class:`BatchResult`."""
+    return BatchResult(
+        external=out["external"],
+        internal_magnitude=out["internal_magnitude"],
+        external_norm=out["external_norm"][:, 0],
+        internal_norm=out["internal_norm"][:, 0],
+        newton=newton,
+        failed=failed,
+        d_external_norm=grads.get("d_external_norm"),
+        d_internal_norm=grads.get("d_internal_norm"),
+    )
 
 
 def batch_evaluator(
