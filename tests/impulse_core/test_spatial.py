@@ -70,14 +70,15 @@ def _delassus(tree: Tree, scene: Scene) -> np.ndarray:
     return np.array(out["delassus"])
 
 
-def test_random_spatial_trees_match_pinocchio() -> None:
-    """External impulses, post-impact velocities and joint impulse magnitudes (revolute joints;
-    Pinocchio merges welded bodies) against Pinocchio within 1e-8 (relative)."""
+def pinocchio_errors(trees) -> tuple[np.ndarray, int]:  # type: ignore[no-untyped-def]
+    """The worst relative errors against Pinocchio (external impulses, post-impact velocities,
+    revolute joint impulse magnitudes; Pinocchio merges welded bodies) over the trees whose
+    Delassus matrix is well conditioned, and how many were compared."""
     from optimizer.validation.pinocchio_bridge import build_spatial, joint_force_impulses
 
     worst = np.zeros(3)
     compared = 0
-    for tree in spatial_trees():
+    for tree in trees:
         if np.linalg.cond(_delassus(tree, SCENE)) > DELASSUS_COND_LIMIT:
             continue
         r = evaluate(tree, SCENE, ImpactModel.NEWTON, space=SPATIAL)
@@ -93,6 +94,13 @@ def test_random_spatial_trees_match_pinocchio() -> None:
         ]
         worst = np.maximum(worst, errors)
         compared += 1
+    return worst, compared
+
+
+def test_random_spatial_trees_match_pinocchio() -> None:
+    """External impulses, post-impact velocities and joint impulse magnitudes (revolute joints;
+    Pinocchio merges welded bodies) against Pinocchio within 1e-8 (relative)."""
+    worst, compared = pinocchio_errors(spatial_trees())
     report("spatial", f"{compared} random spatial trees vs Pinocchio: external {worst[0]:.1e}, v_plus {worst[1]:.1e}, "
            f"joint impulses {worst[2]:.1e}")
     assert compared >= N_TREES // 2

@@ -22,9 +22,9 @@ from impulse_core.impact.delassus import norms_gradient_function
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.rods import centre_of_mass, inertia_tensor
-from impulse_core.model.tree import SPATIAL_BODY_VALUES, JointKind, Tree, design_vector, tensor_matrix
+from impulse_core.model.tree import SPATIAL_BODY_VALUES, Tree, design_vector, tensor_matrix
 from tests.conftest import random_tree, report
-from tests.impulse_core.test_spatial import DELASSUS_COND_LIMIT, SCENE, _delassus, spatial_trees
+from tests.impulse_core.test_spatial import SCENE, _delassus, pinocchio_errors, spatial_trees
 
 SEED = 20261126
 GOLDEN = Path(__file__).parent / "data" / "rod_answers_871616f.json"
@@ -64,26 +64,7 @@ def general_trees() -> tuple[Tree, ...]:
 def test_general_spatial_trees_match_pinocchio() -> None:
     """External impulses, post-impact velocities and joint impulses against Pinocchio (its bodies
     built from rods.py's centre of mass and full tensor) within 1e-8 relative."""
-    from optimizer.validation.pinocchio_bridge import build_spatial, joint_force_impulses
-
-    worst = np.zeros(3)
-    compared = 0
-    for tree in general_trees():
-        if np.linalg.cond(_delassus(tree, SCENE)) > DELASSUS_COND_LIMIT:
-            continue
-        r = evaluate(tree, SCENE, ImpactModel.NEWTON, space=SPATIAL)
-        pt = build_spatial(tree)
-        v_plus, lam = pt.impulse(r.v_minus, SCENE.restitution, r.active)
-        joints = joint_force_impulses(pt, r.v_minus, v_plus, r.active, lam)
-        ours = {b.name: r.internal_magnitude[i - 1] for i, b in enumerate(tree.bodies) if i and b.joint is JointKind.REVOLUTE}
-        scale = max(np.abs(lam).max(), 1e-300)
-        errors = [
-            np.abs(lam - r.external[list(r.active)]).max() / scale,
-            np.abs(v_plus - r.v_plus).max() / np.abs(r.v_plus).max(),
-            max((abs(joints[n] - m) for n, m in ours.items()), default=0.0) / scale,
-        ]
-        worst = np.maximum(worst, errors)
-        compared += 1
+    worst, compared = pinocchio_errors(general_trees())
     report("spatial", f"{compared} random spatial trees with com offsets and full tensors vs Pinocchio: external "
            f"{worst[0]:.1e}, v_plus {worst[1]:.1e}, joint impulses {worst[2]:.1e}")
     assert compared >= len(general_trees()) // 2
