@@ -53,35 +53,53 @@ def polygon_directions(k: int = POLYGON) -> np.ndarray:
     return np.vstack([np.cos(angles), np.sin(angles)])
 
 
-def _rows(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Indices of the normal, x and z rows of W (normal rows, then x rows, then z rows)."""
-    return np.arange(n), n + np.arange(n), 2 * n + np.arange(n)
+def _rows(n: int, m: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Indices of the normal, x and z rows of W (n normal rows, then m x rows, then m z rows;
+    m = n by default: one tangent pair per contact)."""
+    m = n if m is None else m
+    return np.arange(n), n + np.arange(m), n + m + np.arange(m)
+
+
+def _pairs(n: int, owner: np.ndarray) -> np.ndarray:
+    """Per normal row, its tangent pair (index into ``owner``), or -1 (a frictionless row)."""
+    pair = np.full(n, -1)
+    pair[owner] = np.arange(len(owner))
+    return pair
 
 
 def polyhedral_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: float, k: int = POLYGON):
     """Stage 1: (normal (n,), tangential (n, 2)) of the Stewart-Trinkle LCP with a k-gon cone."""
     n = W.shape[0] // 3
-    N, X, Z = _rows(n)
+    return _polyhedral(W, v_minus, np.arange(n), np.full(n, float(restitution)), np.full(n, float(mu)), k)
+
+
+def _polyhedral(W, u, owner, e, mu, k: int = POLYGON):
+    """Stage 1 over n normal rows (restitution ``e`` each) of which those in ``owner`` carry a
+    tangent pair (coefficient ``mu`` each): (normal (n,), tangential (m, 2))."""
+    n, m = len(e), len(owner)
+    N, X, Z = _rows(n, m)
     D = polygon_directions(k)
-    G = np.zeros((2 * n, n * k))  # tangential impulse (x rows, z rows) = G beta
-    for i in range(n):
+    G = np.zeros((2 * m, m * k))  # tangential impulse (x rows, z rows) = G beta
+    for i in range(m):
         G[i, i * k : (i + 1) * k] = D[0]
-        G[n + i, i * k : (i + 1) * k] = D[1]
+        G[m + i, i * k : (i + 1) * k] = D[1]
     T = np.concatenate([X, Z])
     Wnn, Wnt, Wtn, Wtt = W[np.ix_(N, N)], W[np.ix_(N, T)], W[np.ix_(T, N)], W[np.ix_(T, T)]
-    E = np.kron(np.eye(n), np.ones((1, k)))
+    E = np.kron(np.eye(m), np.ones((1, k)))
+    Mu = np.zeros((m, n))
+    Mu[np.arange(m), owner] = mu
     M = np.block(
         [
-            [Wnn, Wnt @ G, np.zeros((n, n))],
+            [Wnn, Wnt @ G, np.zeros((n, m))],
             [G.T @ Wtn, G.T @ Wtt @ G, E.T],
-            [mu * np.eye(n), -E, np.zeros((n, n))],
+            [Mu, -E, np.zeros((m, m))],
         ]
     )
-    q = np.concatenate([(1.0 + restitution) * v_minus[N], G.T @ v_minus[T], np.zeros(n)])
+    q = np.concatenate([(1.0 + e) * u[N], G.T @ u[T], np.zeros(m)])
     s = 1.0 / np.sqrt(np.maximum(np.abs(np.diag(Wnn)), np.finfo(float).tiny))  # unit velocity diagonals
-    z = scaled_lemke(M, q, np.concatenate([s, np.repeat(s, k), 1.0 / s]), v_minus, "the polyhedral Coulomb impact LCP")
-    t = G @ z[n : n + n * k]
-    return z[:n], np.column_stack([t[:n], t[n:]])
+    z = scaled_lemke(M, q, np.concatenate([s, np.repeat(s[owner], k), 1.0 / s[owner]]), u, "the polyhedral Coulomb impact LCP")
+    t = G @ z[n : n + m * k]
+    return z[:n], np.column_stack([t[:m], t[m:]])
 
 
 def law_residuals(
@@ -90,65 +108,76 @@ def law_residuals(
     """The worst violation of each part of the law, relative to the impact's scale (impulses to
     the largest normal impulse, velocities to the largest approach speed)."""
     n = normal.size
-    N, X, Z = _rows(n)
-    v = v_minus + W @ np.concatenate([normal, tangential[:, 0], tangential[:, 1]])
+    return _residuals(W, v_minus, np.arange(n), np.full(n, float(restitution)), np.full(n, float(mu)), normal, tangential)
+
+
+def _residuals(W, u, owner, e, mu, normal, tangential) -> dict[str, float]:
+    """:func:`law_residuals` over rows with ``owner``, per-row ``e`` and per-pair ``mu``."""
+    n, m = normal.size, len(owner)
+    N, X, Z = _rows(n, m)
+    v = u + W @ np.concatenate([normal, tangential[:, 0], tangential[:, 1]])
     slip = np.column_stack([v[X], v[Z]])
-    gap = v[N] + restitution * v_minus[N]
+    gap = v[N] + e * u[N]
     scale_l = max(float(np.max(np.abs(normal), initial=0.0)), np.finfo(float).tiny)
-    scale_v = max(float(np.max(np.abs(v_minus), initial=0.0)), np.finfo(float).tiny)
+    scale_v = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
     t_norm = np.linalg.norm(tangential, axis=1)
     s_norm = np.linalg.norm(slip, axis=1)
     sliding = s_norm > LAW_TOL * scale_v
-    opposing = tangential[sliding] + mu * normal[sliding, None] * slip[sliding] / s_norm[sliding, None]
+    carried = normal[owner]
+    opposing = tangential[sliding] + (mu * carried)[sliding, None] * slip[sliding] / s_norm[sliding, None]
     return {
         "normal >= 0": max(0.0, -float(np.min(normal, initial=0.0))) / scale_l,
         "restitution >= 0": max(0.0, -float(np.min(gap, initial=0.0))) / scale_v,
         "complementarity": float(np.max(np.abs(normal * gap), initial=0.0)) / (scale_l * scale_v),
-        "cone": max(0.0, float(np.max(t_norm - mu * normal, initial=0.0))) / scale_l,
+        "cone": max(0.0, float(np.max(t_norm - mu * carried, initial=0.0))) / scale_l,
         "sliding opposes slip": float(np.max(np.abs(opposing), initial=0.0)) / scale_l,
     }
 
 
-def _equations(W, v_minus, e, mu, modes, lam):
+def _equations(W, u, owner, e, mu, modes, lam):
     """The exact law's equations F(lambda) = 0 for fixed modes and their Jacobian, or None
     where a sliding contact has no slip (its direction is undefined)."""
     n = len(modes)
-    N, X, Z = _rows(n)
-    v = v_minus + W @ lam
-    eye = np.eye(3 * n)
+    N, X, Z = _rows(n, len(owner))
+    pair = _pairs(n, owner)
+    v = u + W @ lam
+    eye = np.eye(lam.size)
     F, J = [], []
     for i, mode in enumerate(modes):
+        k = pair[i]
         if mode is ContactMode.SEPARATING:
-            F += [lam[N[i]], lam[X[i]], lam[Z[i]]]
-            J += [eye[N[i]], eye[X[i]], eye[Z[i]]]
+            F += [lam[N[i]]] + ([lam[X[k]], lam[Z[k]]] if k >= 0 else [])
+            J += [eye[N[i]]] + ([eye[X[k]], eye[Z[k]]] if k >= 0 else [])
             continue
-        F.append(v[N[i]] + e * v_minus[N[i]])
+        F.append(v[N[i]] + e[i] * u[N[i]])
         J.append(W[N[i]])
-        if mode is ContactMode.STICKING:
-            F += [v[X[i]], v[Z[i]]]
-            J += [W[X[i]], W[Z[i]]]
+        if k < 0:
             continue
-        s = np.array([v[X[i]], v[Z[i]]])
+        if mode is ContactMode.STICKING:
+            F += [v[X[k]], v[Z[k]]]
+            J += [W[X[k]], W[Z[k]]]
+            continue
+        s = np.array([v[X[k]], v[Z[k]]])
         norm = np.linalg.norm(s)
         if norm == 0.0:
             return None
-        u = s / norm
-        P = (np.eye(2) - np.outer(u, u)) / norm  # d(s / |s|) / ds
-        dS = np.vstack([W[X[i]], W[Z[i]]])
-        for a, r in enumerate((X[i], Z[i])):
-            F.append(lam[r] + mu * lam[N[i]] * u[a])
-            row = mu * lam[N[i]] * (P[a] @ dS)
+        d = s / norm
+        P = (np.eye(2) - np.outer(d, d)) / norm  # d(s / |s|) / ds
+        dS = np.vstack([W[X[k]], W[Z[k]]])
+        for a, r in enumerate((X[k], Z[k])):
+            F.append(lam[r] + mu[k] * lam[N[i]] * d[a])
+            row = mu[k] * lam[N[i]] * (P[a] @ dS)
             row[r] += 1.0
-            row[N[i]] += mu * u[a]
+            row[N[i]] += mu[k] * d[a]
             J.append(row)
     return np.array(F), np.array(J)
 
 
-def _newton(W, v_minus, e, mu, modes, start_n, start_t):
+def _newton(W, u, owner, e, mu, modes, start_n, start_t):
     """Stage 2 for fixed modes: damped Newton (backtracking on |F|) from the polyhedral answer;
     (normal, tangential), or None if a sliding contact loses its slip."""
     lam = np.concatenate([start_n, start_t[:, 0], start_t[:, 1]])
-    current = _equations(W, v_minus, e, mu, modes, lam)
+    current = _equations(W, u, owner, e, mu, modes, lam)
     for _ in range(100):
         if current is None:
             return None
@@ -159,7 +188,7 @@ def _newton(W, v_minus, e, mu, modes, start_n, start_t):
             step = np.linalg.lstsq(J, -F, rcond=None)[0]
         size = 1.0
         while size > 1e-6:  # backtrack until |F| decreases
-            trial = _equations(W, v_minus, e, mu, modes, lam + size * step)
+            trial = _equations(W, u, owner, e, mu, modes, lam + size * step)
             if trial is not None and np.linalg.norm(trial[0]) < np.linalg.norm(F):
                 break
             size *= 0.5
@@ -168,21 +197,28 @@ def _newton(W, v_minus, e, mu, modes, start_n, start_t):
         lam, current = lam + size * step, trial
         if np.max(np.abs(size * step)) <= 1e-15 * max(np.max(np.abs(lam)), np.finfo(float).tiny):
             break
-    n = start_n.size
-    return lam[:n], np.column_stack([lam[n : 2 * n], lam[2 * n :]])
+    n, m = start_n.size, len(owner)
+    return lam[:n], np.column_stack([lam[n : n + m], lam[n + m :]])
 
 
-def modes_of(normal, tangential, velocity, scale_v) -> tuple[ContactMode, ...]:
-    """Each contact's mode from its impulses and its slip after the impact."""
+def _slip(velocity: np.ndarray, n: int, m: int) -> np.ndarray:
+    """Per tangent pair: the slip speed |(v_x, v_z)| in ``velocity`` (normal, x, z rows)."""
+    return np.hypot(velocity[n : n + m], velocity[n + m : n + 2 * m])
+
+
+def modes_of(normal, tangential, velocity, scale_v, owner=None) -> tuple[ContactMode, ...]:
+    """Each normal row's mode from its impulses and its slip after the impact (a row without a
+    tangent pair in ``owner``, default one per row, is sticking when loaded)."""
     n = normal.size
-    N, X, Z = _rows(n)
+    owner = np.arange(n) if owner is None else owner
+    pair = _pairs(n, owner)
+    slip = _slip(velocity, n, len(owner))
     scale_l = max(float(np.max(np.abs(normal), initial=0.0)), np.finfo(float).tiny)
     out = []
     for i in range(n):
-        slip = np.hypot(velocity[X[i]], velocity[Z[i]])
         if normal[i] <= 1e-9 * scale_l:
             out.append(ContactMode.SEPARATING)
-        elif slip <= LAW_TOL * scale_v:
+        elif pair[i] < 0 or slip[pair[i]] <= LAW_TOL * scale_v:
             out.append(ContactMode.STICKING)
         else:
             out.append(ContactMode.SLIDING)
@@ -201,43 +237,65 @@ def cone_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: floa
     Raises:
         NumericalError: stage 1 found no solution.
     """
-    normal, tangential = polyhedral_impact(W, v_minus, restitution, mu)
-    scale_v = max(float(np.max(np.abs(v_minus), initial=0.0)), np.finfo(float).tiny)
+    n = W.shape[0] // 3
+    return cone_unilateral(W, v_minus, np.arange(n), np.full(n, float(restitution)), np.full(n, float(mu)))
+
+
+def cone_unilateral(W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray) -> ConeImpact:
+    """:func:`cone_impact` over n normal rows of which the rows ``owner`` carry a tangent pair:
+    the circular-cone counterpart of :func:`impulse_core.impact.coulomb.solve_unilateral` (a joint
+    stop is a normal row without a pair; each row has its own restitution, each pair its mu).
+
+    Args:
+        W: rows n normal, then m x rows, then m z rows (pair k belongs to normal row owner[k]).
+        u: those rows' velocities before (at acceleration level: free accelerations).
+        owner: (m,) normal row of each tangent pair.
+        restitution: (n,) per normal row.
+        mu: (m,) per pair.
+
+    Returns:
+        ConeImpact with ``tangential`` (m, 2) and ``modes`` per normal row.
+    """
+    owner, e, mu = np.asarray(owner, dtype=int), np.asarray(restitution, dtype=float), np.asarray(mu, dtype=float)
+    normal, tangential = _polyhedral(W, u, owner, e, mu)
+    scale_v = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    n, m = normal.size, len(owner)
 
     def velocity(nrm, tan):
-        return v_minus + W @ np.concatenate([nrm, tan[:, 0], tan[:, 1]])
+        return u + W @ np.concatenate([nrm, tan[:, 0], tan[:, 1]])
 
-    n = normal.size
-    modes = list(modes_of(normal, tangential, velocity(normal, tangential), scale_v))
+    pair = _pairs(n, owner)
+    modes = list(modes_of(normal, tangential, velocity(normal, tangential), scale_v, owner))
     for _ in range(ROUNDS):
-        polished = _newton(W, v_minus, restitution, mu, modes, normal, tangential)
+        polished = _newton(W, u, owner, e, mu, modes, normal, tangential)
         if polished is None:  # a sliding guess lost its slip: it sticks on the circle
-            v = velocity(normal, tangential)
-            stuck = [i for i, m in enumerate(modes) if m is ContactMode.SLIDING]
+            slip = _slip(velocity(normal, tangential), n, m)
+            stuck = [i for i, md in enumerate(modes) if md is ContactMode.SLIDING]
             if not stuck:
                 break
-            i = min(stuck, key=lambda i: np.hypot(v[n + i], v[2 * n + i]))
+            i = min(stuck, key=lambda i: slip[pair[i]])
             modes[i] = ContactMode.STICKING
             continue
         nrm, tan = polished
-        if max(law_residuals(W, v_minus, restitution, mu, nrm, tan).values()) <= LAW_TOL:
+        if max(_residuals(W, u, owner, e, mu, nrm, tan).values()) <= LAW_TOL:
             v = velocity(nrm, tan)
-            return ConeImpact(nrm, tan, v, modes_of(nrm, tan, v, scale_v), True)
+            return ConeImpact(nrm, tan, v, modes_of(nrm, tan, v, scale_v, owner), True)
         changed = False
-        v = velocity(nrm, tan)
-        for i, m in enumerate(modes):
-            outside = np.linalg.norm(tan[i]) > mu * nrm[i] * (1 + LAW_TOL)
-            still = np.hypot(v[n + i], v[2 * n + i]) <= 1e3 * LAW_TOL * scale_v
-            if m is ContactMode.STICKING and outside:
+        slip = _slip(velocity(nrm, tan), n, m)
+        for i, md in enumerate(modes):
+            k = pair[i]
+            outside = k >= 0 and np.linalg.norm(tan[k]) > mu[k] * nrm[i] * (1 + LAW_TOL)
+            still = k >= 0 and slip[k] <= 1e3 * LAW_TOL * scale_v
+            if md is ContactMode.STICKING and outside:
                 modes[i], changed = ContactMode.SLIDING, True
-            elif m is ContactMode.SLIDING and still:
+            elif md is ContactMode.SLIDING and still:
                 modes[i], changed = ContactMode.STICKING, True
-            elif m is not ContactMode.SEPARATING and nrm[i] < 0:
+            elif md is not ContactMode.SEPARATING and nrm[i] < 0:
                 modes[i], changed = ContactMode.SEPARATING, True
         if not changed:
             break
     v = velocity(normal, tangential)
-    return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, scale_v), False)
+    return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, scale_v, owner), False)
 
 
-__all__ = ["POLYGON", "ConeImpact", "cone_impact", "law_residuals", "polygon_directions", "polyhedral_impact"]
+__all__ = ["POLYGON", "ConeImpact", "cone_impact", "cone_unilateral", "law_residuals", "polygon_directions", "polyhedral_impact"]

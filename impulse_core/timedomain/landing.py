@@ -39,19 +39,26 @@ import numpy as np
 
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import active_contacts, pre_impact_velocity
-from impulse_core.impact.coulomb import solve_unilateral
-from impulse_core.kinematics.spatial import PLANAR, dof_layout
+from impulse_core.impact.cone import cone_unilateral
+from impulse_core.impact.coulomb import UnilateralSolution, solve_unilateral
+from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
+from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
     DYNAMICS_INPUTS,
     BufferedCall,
+    _check_chart,
+    _require_known,
     expressions,
+    ground_expression,
     relative_difference,
     joint_impulses,
+    spatial_ground,
     subtree_incidence,
     touchdown_configuration,
+    world_velocity,
 )
 
 MODEL_NAME = "landing"
@@ -185,6 +192,7 @@ class LandingResult:
     trajectory: tuple[np.ndarray, np.ndarray] = field(default=(np.zeros(0), np.zeros((0, 0))), repr=False)
     model: str = MODEL_NAME
     integrator: str = RK4
+    space: str = PLANAR.name
 
     @property
     def peak_external_norm(self) -> float:
@@ -201,7 +209,8 @@ class LandingResult:
 
     @property
     def final_base(self) -> np.ndarray:
-        return self.q_final[:2].copy()
+        """The base origin at T: [x, y] in the plane, [x, y, z] in space (world frame)."""
+        return self.q_final[: 2 if self.space == PLANAR.name else 3].copy()
 
     @property
     def energy_absorbed(self) -> float:
@@ -224,7 +233,7 @@ class LandingResult:
     @property
     def internal(self) -> np.ndarray:
         e = self.events[0]
-        return np.column_stack([e.internal, np.zeros(len(e.internal))])
+        return np.column_stack([e.internal, np.zeros((len(e.internal), 3 - e.internal.shape[1]))])
 
     @property
     def internal_magnitude(self) -> np.ndarray:
@@ -289,16 +298,16 @@ LANDING_OUTPUTS = ("gap", "normal", "contact_jacobian", "contact_bias", "mass_ma
 
 
 @functools.lru_cache(maxsize=64)
-def landing_function(topology, terrain: Terrain) -> ca.Function:
+def landing_function(topology, terrain: Terrain | Heightfield, space: Space = PLANAR) -> ca.Function:
     """What the landing needs at (q, v, p, gravity), one call per evaluation: ``gap`` (n_c),
-    ``normal`` (2 x n_c, outward at the nearest ground point), ``contact_jacobian`` (2 n_c x nv),
-    ``contact_bias`` ((dJ/dt) v, 2 n_c), ``mass_matrix``, ``force`` (gravity - Coriolis),
-    ``kinetic_energy``, ``subtree_momentum`` (2 x bodies), ``com_height``, ``contacts`` (2 x n_c)."""
-    from impulse_core.model.terrain import gap_expression
-
-    x = expressions(topology, PLANAR)
+    ``normal`` (d x n_c, outward at the nearest ground point), ``contact_jacobian`` (d n_c x nv),
+    ``contact_bias`` ((dJ/dt) v, d n_c), ``mass_matrix``, ``force`` (gravity - Coriolis),
+    ``kinetic_energy``, ``subtree_momentum`` (d x bodies), ``com_height``, ``contacts`` (d x n_c);
+    d = 2 in the plane (``terrain`` a profile), 3 in space (a heightfield; q and v as in
+    :func:`impulse_core.timedomain.compliant._spatial_expressions`)."""
+    x = expressions(topology, space)
     nc = x.contacts.shape[1]
-    pairs = [gap_expression(terrain, x.contacts[:, c]) for c in range(nc)]
+    pairs = [ground_expression(terrain, x.contacts[:, c]) for c in range(nc)]
     outs = [
         ca.vertcat(*[g for g, _ in pairs]),
         ca.horzcat(*[n for _, n in pairs]),
@@ -318,26 +327,49 @@ def landing_function(topology, terrain: Terrain) -> ca.Function:
 
 @dataclass
 class _Point:
-    """Numeric dynamics at one (q, v), spring and damper torques included."""
+    """Numeric dynamics at one (q, v), spring and damper torques included (d = 2 in the plane, 3
+    in space; each contact has d - 1 tangents: +x's in the plane, the tangent plane's x and z in
+    space, :func:`tangent_basis`)."""
 
     gap: np.ndarray
-    normal: np.ndarray  # n_c x 2
+    normal: np.ndarray  # n_c x d
+    tangent: np.ndarray  # n_c x (d - 1) x d
     Jn: np.ndarray  # n_c x nv
-    Jt: np.ndarray
+    Jt: np.ndarray  # n_c x (d - 1) x nv
     bn: np.ndarray  # (dJn/dt) v
-    bt: np.ndarray
+    bt: np.ndarray  # n_c x (d - 1)
     M: np.ndarray
     f: np.ndarray
     kinetic: float
-    momentum: np.ndarray  # 2 x bodies
+    momentum: np.ndarray  # d x bodies
     com_height: float
-    contacts: np.ndarray  # n_c x 2
+    contacts: np.ndarray  # n_c x d
+    slip: np.ndarray  # n_c x (d - 1): the tangential velocities at this (q, v)
+    slip_floor: float = 0.0  # below this slip speed a sliding contact keeps its mode's direction
 
     def vn(self, v: np.ndarray) -> np.ndarray:
         return self.Jn @ v
 
     def vt(self, v: np.ndarray) -> np.ndarray:
+        """Tangential velocities (n_c x (d - 1)) of the generalized velocity v."""
         return self.Jt @ v
+
+
+def tangent_basis(normal: np.ndarray) -> np.ndarray:
+    """Per contact (rows of ``normal``, n_c x d), its d - 1 unit tangents (n_c x (d - 1) x d): in
+    the plane (n_y, -n_x) (+x on flat ground); in space t_x, x's projection on the tangent plane,
+    and t_z = t_x x n (x and z on flat ground), so that a planar normal gives the planar tangent."""
+    if normal.shape[1] == 2:
+        return np.column_stack([normal[:, 1], -normal[:, 0]])[:, None, :]
+    t_x = np.array([1.0, 0.0, 0.0]) - normal[:, :1] * normal
+    t_x /= np.linalg.norm(t_x, axis=1, keepdims=True)
+    return np.stack([t_x, np.cross(t_x, normal)], axis=1)
+
+
+def _along(directions: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """sum_k directions[:, k] rows[:, k]: per contact, the component of ``rows`` (n_c x d x ...)
+    along its direction (n_c x d)."""
+    return (directions.reshape(directions.shape + (1,) * (rows.ndim - 2)) * rows).sum(axis=1)
 
 
 @dataclass(frozen=True)
@@ -359,10 +391,10 @@ class _Joints:
         return float(0.5 * np.sum(self.stiffness * (q - self.rest) ** 2))
 
 
-def joint_arrays(tree: Tree, laws: tuple[JointLaw, ...], q0: np.ndarray) -> _Joints:
+def joint_arrays(tree: Tree, laws: tuple[JointLaw, ...], q0: np.ndarray, space: Space = PLANAR) -> _Joints:
     """:class:`_Joints` of ``laws`` (one per body; () = all free), rest angles defaulting to the
     touchdown configuration ``q0``."""
-    layout = dof_layout(tree.topology(), PLANAR)
+    layout = dof_layout(tree.topology(), space)
     nv = layout.nv
     k, c, e = np.zeros(nv), np.zeros(nv), np.zeros(nv)
     rest, lo, hi = q0.copy(), np.full(nv, -np.inf), np.full(nv, np.inf)
@@ -387,28 +419,52 @@ class _Mode:
     """Which rows are closed between two events."""
 
     closed: np.ndarray  # bool per contact: resting on the ground
-    slip: np.ndarray  # int per contact: 0 sticking (or frictionless), +-1 sliding along +-t
+    #: per contact (n_c x (d - 1)): 0 sticking (or frictionless), else the unit slip direction in
+    #: its tangent basis (the plane: +-1 sliding along +-t); a 1-D array is the plane's signs
+    slip: np.ndarray
     stop: np.ndarray  # int per DOF: 0 free, -1 resting on its lower stop, +1 on its upper
     #: the rows are redundant (e.g. two identical toes sticking on one point): their forces are
     #: the least-norm split (:data:`REDUNDANT`), which is the symmetric one between identical toes
     redundant: bool = False
+    #: per contact: the slip speed (m/s) below which its sliding friction's direction is
+    #: regularised (:func:`slip_direction`, :meth:`_Landing.steered`); None: 0, exact
+    core: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.slip.ndim == 1:
+            self.slip = self.slip.astype(float)[:, None]
+        if self.core is None:
+            self.core = np.zeros(len(self.closed))
 
     def copy(self) -> _Mode:
-        return _Mode(self.closed.copy(), self.slip.copy(), self.stop.copy(), self.redundant)
+        return _Mode(self.closed.copy(), self.slip.copy(), self.stop.copy(), self.redundant, self.core.copy())
+
+    @property
+    def sliding(self) -> np.ndarray:
+        """Per contact: whether it slides."""
+        return np.any(self.slip != 0, axis=1)
+
+    @property
+    def side(self) -> np.ndarray:
+        """The plane's slip per contact: 0, or +-1 sliding along +-t."""
+        return np.sign(self.slip[:, 0]).astype(int)
 
 
 @dataclass(frozen=True)
 class _Rows:
-    """Constraint rows of a mode: velocity rows G (normal rows first, then tangent rows), force
-    rows F (= G but for sliding contacts), (dG/dt) v, and what each row is."""
+    """Constraint rows of a mode: velocity rows G (normal rows first, then the tangent rows: the
+    first tangent of every sticking contact, then, in space, the second's), force rows F (= G but
+    for sliding contacts), (dG/dt) v, and what each row is."""
 
     G: np.ndarray
     F: np.ndarray
     b: np.ndarray
     contact: np.ndarray  # per normal row: its contact, or -1 for a stop
     dof: np.ndarray  # per normal row: its DOF (stops), or -1
-    owner: np.ndarray  # per tangent row: its normal row
-    mu: np.ndarray  # per tangent row
+    owner: np.ndarray  # per sticking contact (its d - 1 tangent rows): its normal row
+    mu: np.ndarray  # per sticking contact
+    #: per contact (n_c x (d - 1)): the unit direction its sliding friction opposes, or 0
+    direction: np.ndarray = field(default_factory=lambda: np.zeros((0, 1)))
     redundant: bool = False  # the mode's rows are redundant: least-norm forces
 
     @property
@@ -416,29 +472,69 @@ class _Rows:
         return len(self.contact)
 
 
-def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray, mu: float, nv: int) -> _Rows:
-    """Rows for the given contacts (indices; ``slip`` per contact), stops (DOF -> side, dict-like
-    array: 0 none) and friction coefficient; tangent rows for non-sliding contacts when mu > 0."""
+def slip_direction(pt: _Point, slip: np.ndarray, core: np.ndarray | None = None) -> np.ndarray:
+    """Per contact, the direction u of its sliding friction's slip: the current slip velocity's
+    s / |s| while it points along the mode's ``slip`` d (s . d > 0) and |s| exceeds the resting
+    threshold, else d (a contact starting to slide, or one whose slip reverses: an event). Below
+    the speed ``core`` (per contact; 0: none) u = (s + (core - |s|) d) / |...|: the lateral
+    sensitivity of the direction, mu f_n / |s|, is capped at mu f_n / core (see
+    :meth:`_Landing.steered`). In the plane u is the mode's +-1 in every case (the plane's
+    fixed-direction force); in space it turns with the slip."""
+    if slip.shape[1] == 1:
+        return slip
+    speed = np.linalg.norm(pt.slip, axis=1, keepdims=True)
+    along = (np.sum(pt.slip * slip, axis=1, keepdims=True) > 0) & (speed > pt.slip_floor)
+    lifted = pt.slip if core is None else pt.slip + np.maximum(core[:, None] - speed, 0.0) * slip
+    size = np.linalg.norm(lifted, axis=1, keepdims=True)
+    current = np.divide(lifted, size, out=np.zeros_like(pt.slip), where=along)
+    return np.where(along, current, slip)
+
+
+def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray, mu: float, nv: int,
+          core: np.ndarray | None = None) -> _Rows:
+    """Rows for the given contacts (indices; ``slip`` per contact, n_c x (d - 1)), stops (DOF ->
+    side, dict-like array: 0 none) and friction coefficient; tangent rows for non-sliding contacts
+    when mu > 0; a sliding contact's force row is n - mu u^T t along its slip direction u
+    (:func:`slip_direction`)."""
     dofs = np.flatnonzero(stops)
     G_stop = np.zeros((len(dofs), nv))
     G_stop[np.arange(len(dofs)), dofs] = -stops[dofs]
-    sliding = slip[contacts] if mu > 0 else np.zeros(len(contacts))
-    Fn = pt.Jn[contacts] - (mu * sliding)[:, None] * pt.Jt[contacts]
-    sticking = contacts[sliding == 0] if mu > 0 else contacts[:0]
-    G = np.vstack([pt.Jn[contacts], G_stop, pt.Jt[sticking]])
-    F = np.vstack([Fn, G_stop, pt.Jt[sticking]])
-    b = np.concatenate([pt.bn[contacts], np.zeros(len(dofs)), pt.bt[sticking]])
+    direction = slip_direction(pt, slip, core) if mu > 0 else np.zeros_like(slip)
+    sliding = direction[contacts]
+    Fn = pt.Jn[contacts] - _along(mu * sliding, pt.Jt[contacts])
+    sticking = contacts[~np.any(sliding != 0, axis=1)] if mu > 0 else contacts[:0]
+    tangent_rows = pt.Jt[sticking].transpose(1, 0, 2).reshape(-1, nv)
+    G = np.vstack([pt.Jn[contacts], G_stop, tangent_rows])
+    F = np.vstack([Fn, G_stop, tangent_rows])
+    b = np.concatenate([pt.bn[contacts], np.zeros(len(dofs)), pt.bt[sticking].T.ravel()])
     owner = np.searchsorted(contacts, sticking)
     return _Rows(
         G, F, b,
         np.concatenate([contacts, -np.ones(len(dofs), int)]),
         np.concatenate([-np.ones(len(contacts), int), dofs]),
-        owner, np.full(len(sticking), mu),
+        owner, np.full(len(sticking), mu), direction,
     )
 
 
+def _solve_rows(W: np.ndarray, u: np.ndarray, rows: _Rows, restitution: np.ndarray) -> tuple[UnilateralSolution, np.ndarray]:
+    """The unilateral law over the rows (Newton's restitution per normal row, Coulomb friction
+    per sticking contact; at the acceleration level with ``restitution`` 0): in the plane the
+    LCP by Lemke's method (:func:`impulse_core.impact.coulomb.solve_unilateral`); in space the
+    circular cone (:func:`impulse_core.impact.cone.cone_unilateral`: the Stewart-Trinkle 16-gon
+    LCP, then Newton's method on the exact law). Returns the solution (tangential impulses and
+    tangent-row velocities in :class:`_Rows`' order, ``slip`` the slip speed per sticking contact)
+    and the tangent rows' velocities after, per sticking contact (m x (d - 1))."""
+    m, tangents = len(rows.owner), rows.direction.shape[1]
+    if tangents == 1 or not m:
+        sol = solve_unilateral(W, u, rows.owner, restitution, rows.mu)
+        return sol, sol.velocity[rows.n :].reshape(tangents, m).T
+    law = cone_unilateral(W, u, rows.owner, restitution, rows.mu)
+    after = law.velocity[rows.n :].reshape(tangents, m).T
+    return UnilateralSolution(law.normal, law.tangential.T.ravel(), law.velocity, np.linalg.norm(after, axis=1)), after
+
+
 def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
-    rows = _rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop, mu, pt.M.shape[0])
+    rows = _rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop, mu, pt.M.shape[0], mode.core)
     return replace(rows, redundant=True) if mode.redundant else rows
 
 
@@ -502,16 +598,28 @@ def joint_law_rate(M: np.ndarray, damping: np.ndarray, stiffness: np.ndarray) ->
     return max(rates)
 
 
-def _contact_forces(rows: _Rows, lam: np.ndarray, slip: np.ndarray, mu: float, nc: int) -> tuple[np.ndarray, np.ndarray]:
-    """Normal and tangential force (or impulse) per contact from the rows' multipliers; a sliding
-    contact's tangential force is -mu s lambda_n."""
-    fn, ft = np.zeros(nc), np.zeros(nc)
+def _contact_forces(rows: _Rows, lam: np.ndarray, mu: float, nc: int) -> tuple[np.ndarray, np.ndarray]:
+    """Normal (n_c) and tangential (n_c x (d - 1)) force (or impulse) per contact from the rows'
+    multipliers; a sliding contact's tangential force is -mu u lambda_n (u its slip direction)."""
+    tangents = rows.direction.shape[1]
+    fn, ft = np.zeros(nc), np.zeros((nc, tangents))
     on = rows.contact >= 0
     c = rows.contact[on]
     fn[c] = lam[: rows.n][on]
-    ft[c] = -mu * slip[c] * fn[c]
-    ft[rows.contact[rows.owner]] = lam[rows.n :]
+    ft[c] = -mu * rows.direction[c] * fn[c][:, None]
+    ft[rows.contact[rows.owner]] = lam[rows.n :].reshape(tangents, len(rows.owner)).T
     return fn, ft
+
+
+def _unit(x: np.ndarray, tol: float) -> np.ndarray:
+    """Rows of ``x`` made unit length where longer than ``tol``, else 0 (the plane: their signs)."""
+    size = np.linalg.norm(x, axis=1, keepdims=True)
+    return np.divide(x, size, out=np.zeros_like(x, dtype=float), where=size > tol)
+
+
+def _stacked(fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
+    """[normal per contact, first tangent per contact, (space) second tangent per contact]."""
+    return np.concatenate([fn, ft.T.ravel()])
 
 
 def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
@@ -551,14 +659,20 @@ class _Totals:
 class _Landing:
     """The integration of one landing at one step length (module docstring)."""
 
-    def __init__(self, tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings) -> None:
-        self.tree, self.scene, self.settings = tree, scene, settings
+    def __init__(self, tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings,
+                 space: Space = PLANAR) -> None:
+        _require_known(space)
+        self.tree, self.scene, self.settings, self.space = tree, scene, settings, space
         self.topology = tree.topology()
-        fn = landing_function(self.topology, scene.terrain)
-        self.call = BufferedCall(fn, design_vector(tree), scene.gravity)
-        self.q0 = touchdown_configuration(tree, scene.terrain, scene.base_x)
-        self.joints = joint_arrays(tree, laws, self.q0)
+        ground = scene.terrain if space is PLANAR else spatial_ground(scene)
+        fn = landing_function(self.topology, ground, space)
+        self.call = BufferedCall(fn, design_vector(tree, space.body_values), scene.gravity)
+        base_z = 0.0 if space is PLANAR else float(scene.base_z)
+        self.q0 = touchdown_configuration(tree, ground, scene.base_x, space=space, base_z=base_z)
+        self.joints = joint_arrays(tree, laws, self.q0, space)
         self.nc, self.nv = len(tree.contacts), len(self.q0)
+        #: the rows of a point's position: 2 in the plane, 3 in space
+        self.dims = 2 if space is PLANAR else 3
         self.mu, self.e = scene.friction, scene.restitution
         self.in_subtree = subtree_incidence(tree)
         weight = sum(b.mass for b in tree.bodies) * max(scene.gravity, 1.0)
@@ -584,23 +698,28 @@ class _Landing:
     def point(self, q: np.ndarray, v: np.ndarray) -> _Point:
         self.call.call(q, v)
         o, f = self.call.out, self.call.flat
+        d = self.dims
         normal = o[1].T.copy()
-        tangent = np.column_stack([normal[:, 1], -normal[:, 0]])
-        Jx, Jy = o[2][0::2], o[2][1::2]
-        bx, by = f[3][0::2], f[3][1::2]
+        tangent = tangent_basis(normal)
+        J = o[2].reshape(self.nc, d, self.nv)  # per contact, its x, y (, z) rows
+        bias = f[3].reshape(self.nc, d)
+        Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
         return _Point(
             gap=f[0].copy(),
             normal=normal,
-            Jn=normal[:, :1] * Jx + normal[:, 1:] * Jy,
-            Jt=tangent[:, :1] * Jx + tangent[:, 1:] * Jy,
-            bn=normal[:, 0] * bx + normal[:, 1] * by,
-            bt=tangent[:, 0] * bx + tangent[:, 1] * by,
+            tangent=tangent,
+            Jn=_along(normal, J),
+            Jt=Jt,
+            bn=_along(normal, bias),
+            bt=np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)]),
             M=o[4].copy(),
             f=f[5] + self.joints.torque(q, v),
             kinetic=float(f[6][0]),
             momentum=o[7].copy(),
             com_height=float(f[8][0]),
             contacts=o[9].T.copy(),
+            slip=Jt @ v,
+            slip_floor=self.speed_tol,
         )
 
     def mass_matrix_at(self, q: np.ndarray) -> np.ndarray:
@@ -613,14 +732,44 @@ class _Landing:
         pt = self.point(q, v)
         rows = _mode_rows(pt, mode, self.mu)
         a, lam = _accelerations(pt, rows)
-        fn, ft = _contact_forces(rows, lam, mode.slip, self.mu, self.nc)
-        return a, np.concatenate([fn, ft])
+        return a, _stacked(*_contact_forces(rows, lam, self.mu, self.nc))
 
     def step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the landing's integrator: (q, v, contact impulses [normal, tangential])."""
+        self.steer(q, v, mode, h)
         if self.method == IMPLICIT:
             return self.implicit_step(q, v, mode, h)
         return self.rk4_step(q, v, mode, h)
+
+    def steer(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> None:
+        """Set ``mode.core`` for a step of length h from (q, v) (space, sliding contacts). A
+        lateral slip s_perp of a sliding contact decays at the rate mu f_n w / |s| (w: the trace of
+        its tangential inverse mass J_t M^-1 J_t^T): stiff as |s| falls, and an explicit step
+        beyond 1 / rate amplifies it instead (a slow-slipping loaded toe turned the foot out of
+        its plane within two steps). core = h mu f_n w caps that rate at 1 / h (RK4 is stable to
+        2.8 / h): the direction is exact s / |s| above |s| = core and regularised below it; core
+        shrinks with the step, so the landing's step halving converges to the exact law. The
+        plane (one tangent) is untouched."""
+        if self.dims == 2 or self.mu <= 0 or not np.any(mode.closed & mode.sliding):
+            return
+        mode.core[:] = 0.0
+        _, forces = self.derivative(q, v, mode)
+        pt = self.point(q, v)
+        moving = np.flatnonzero(mode.closed & mode.sliding)
+        X = np.linalg.solve(pt.M, pt.Jt[moving].reshape(-1, self.nv).T)
+        w = np.einsum("ij,ji->i", pt.Jt[moving].reshape(-1, self.nv), X).reshape(len(moving), -1).sum(axis=1)
+        mode.core[moving] = h * self.mu * np.maximum(forces[moving], 0.0) * w
+
+    def follow_slip(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:
+        """In space, after a step: each sliding contact's mode direction d becomes its friction's
+        slip direction u at the step's end (:func:`slip_direction` with the step's core), so that
+        the slip-stop witness (s . d) watches the slip as it turns and the regularised direction
+        relaxes towards s / |s|."""
+        if self.dims == 2 or self.mu <= 0 or not np.any(mode.closed & mode.sliding):
+            return
+        pt = self.point(q, v)
+        moving = mode.closed & mode.sliding
+        mode.slip[moving] = slip_direction(pt, mode.slip, mode.core)[moving]
 
     def implicit_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of ROS2 (Verwer, Spee, Blom and Hundsdorfer 1999), a two-stage Rosenbrock-W
@@ -652,8 +801,8 @@ class _Landing:
         rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
         k2v, nu2 = _constrained_solve(W, rows, pt.M @ rv - g * K * rq, rows.G @ rv)
         k2q = rq + g * k2v
-        f1 = np.concatenate(_contact_forces(rows, nu1, mode.slip, self.mu, self.nc))
-        f3 = np.concatenate(_contact_forces(rows, nu2, mode.slip, self.mu, self.nc))
+        f1 = _stacked(*_contact_forces(rows, nu1, self.mu, self.nc))
+        f3 = _stacked(*_contact_forces(rows, nu2, self.mu, self.nc))
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
     def rk4_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -682,10 +831,10 @@ class _Landing:
         pt = self.point(q, v)
         rows = _mode_rows(pt, mode, self.mu)
         _, lam = _accelerations(pt, rows)
-        fn, ft = _contact_forces(rows, lam, mode.slip, self.mu, self.nc)
+        fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
         closed, slip = mode.closed, mode.slip
-        sticking = closed & (slip == 0) & (self.mu > 0)
-        sliding = closed & (slip != 0) & (self.mu > 0)
+        sticking = closed & ~mode.sliding & (self.mu > 0)
+        sliding = closed & mode.sliding & (self.mu > 0)
         gap_tol = self.settings.gap_tolerance
         free = mode.stop == 0
         stop_force = np.zeros(self.nv)
@@ -693,8 +842,8 @@ class _Landing:
         values = np.concatenate([
             np.where(closed, np.inf, pt.gap / gap_tol + 1.0),
             np.where(closed, fn / self.force_tol + 1.0, np.inf),
-            np.where(sticking, (self.mu * fn - np.abs(ft)) / self.force_tol + 1.0, np.inf),
-            np.where(sliding, slip * pt.vt(v) / self.speed_tol + 1.0, np.inf),
+            np.where(sticking, (self.mu * fn - np.linalg.norm(ft, axis=1)) / self.force_tol + 1.0, np.inf),
+            np.where(sliding, np.sum(slip * pt.slip, axis=1) / self.speed_tol + 1.0, np.inf),
             np.where(free, (q - self.joints.lo) / gap_tol + 1.0, np.inf),
             np.where(free, (self.joints.hi - q) / gap_tol + 1.0, np.inf),
             np.where(free, np.inf, stop_force / self.force_tol + 1.0),
@@ -765,19 +914,19 @@ class _Landing:
         velocities after, the event, and which rows rest afterwards."""
         pt = self.point(q, v)
         stops = self.stops_touching(q, mode)
-        rows = _rows(pt, contacts, np.zeros(self.nc, int), stops, self.mu, self.nv)
+        rows = _rows(pt, contacts, self.no_slip(), stops, self.mu, self.nv)
         u = rows.G @ v
         e = np.where(rows.contact >= 0, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
         e = np.where(-u[: rows.n] > PLASTIC_SPEED, e, 0.0)
         e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < MIN_BOUNCE * self.scene.duration, 0.0, e)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
-        sol = solve_unilateral(rows.G @ minv_gt, u, rows.owner, e, rows.mu)
+        sol, _ = _solve_rows(rows.G @ minv_gt, u, rows, e)
         if self.tape is not None:
             self.tape.append(("impact", q.copy(), v.copy(), rows, e.copy(), sol))
         lam = np.concatenate([sol.normal, sol.tangential])
         v_plus = v + minv_gt @ lam
-        fn, ft = _contact_forces(rows, lam, np.zeros(self.nc, int), self.mu, self.nc)
-        F = pt.normal.T * fn + np.vstack([pt.normal[:, 1], -pt.normal[:, 0]]) * ft
+        fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
+        F = pt.normal.T * fn + sum(pt.tangent[:, a].T * ft[:, a] for a in range(self.dims - 1))
         joint = self.point(q, v_plus).momentum - pt.momentum - F @ self.in_subtree.T
         internal, magnitude = joint_impulses(joint)
         stop = np.zeros(self.nv)
@@ -792,11 +941,21 @@ class _Landing:
         at = rows.dof[(rows.dof >= 0) & after]
         new.stop[at] = stops[at]
         event = LandingEvent(
-            time=t, kind=kind, external=fn, tangential=ft, internal=internal[:, :2], internal_magnitude=magnitude,
-            stop=self.per_joint(stop), v_minus=v.copy(), v_plus=v_plus.copy(),
+            time=t, kind=kind, external=fn, tangential=self.public_tangential(ft), internal=internal[:, : self.dims],
+            internal_magnitude=magnitude, stop=self.per_joint(stop), v_minus=world_velocity(q, v, self.space),
+            v_plus=world_velocity(q, v_plus, self.space),
             energy_before=float(v @ pt.M @ v) / 2, energy_after=float(v_plus @ pt.M @ v_plus) / 2,
         )
         return v_plus, event, new
+
+    def no_slip(self) -> np.ndarray:
+        """A mode's ``slip`` with every contact sticking (n_c x (d - 1))."""
+        return np.zeros((self.nc, self.dims - 1))
+
+    def public_tangential(self, ft: np.ndarray) -> np.ndarray:
+        """Tangential impulses per contact as reported: along +x in the plane (n_c), [t_x, t_z] in
+        space (n_c x 2)."""
+        return ft[:, 0].copy() if self.dims == 2 else ft.copy()
 
     def bounce_time(self, pt: _Point, rows: _Rows, rebound: np.ndarray) -> np.ndarray:
         """Per normal row: how long a rebound at speed ``rebound`` would last before the row's
@@ -813,17 +972,17 @@ class _Landing:
 
     def per_joint(self, per_dof: np.ndarray) -> np.ndarray:
         """A per-DOF quantity as one entry per non-base body (0 for fixed joints)."""
-        layout = dof_layout(self.topology, PLANAR)
+        layout = dof_layout(self.topology, self.space)
         return np.array([0.0 if k is None else per_dof[k] for k in layout.body_dof[1:]])
 
     def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
         """Which resting rows stay closed, stick or slide: the contact LCP at the acceleration
         level (e = 0; a contact already sliding keeps its direction)."""
         pt = self.point(q, v)
-        vn, vt = pt.vn(v), pt.vt(v)
+        vn = pt.vn(v)
         near = mode.closed | ((pt.gap <= self.settings.gap_tolerance) & (np.abs(vn) <= self.speed_tol))
         contacts = np.flatnonzero(near)
-        slip = np.where(np.abs(vt) > self.speed_tol, np.sign(vt), 0).astype(int) if self.mu > 0 else np.zeros(self.nc, int)
+        slip = _unit(pt.slip, self.speed_tol) if self.mu > 0 else self.no_slip()
         stops = self.stops_touching(q, mode)
         stops = np.where((mode.stop != 0) | (np.abs(v) <= self.speed_tol), stops, 0)
         for attempt in range(2):
@@ -831,7 +990,7 @@ class _Landing:
             minv = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
             u = rows.G @ minv[:, 0] + rows.b
             try:
-                sol = solve_unilateral(rows.G @ minv[:, 1:], u, rows.owner, np.zeros(rows.n), rows.mu)
+                sol, acceleration = _solve_rows(rows.G @ minv[:, 1:], u, rows, np.zeros(rows.n))
                 break
             except NumericalError:
                 if attempt or not np.any(slip[contacts]):
@@ -839,16 +998,16 @@ class _Landing:
                         f"no consistent contact forces at t with sliding contacts {list(contacts)} "
                         "(Painleve's paradox: lower the friction)"
                     ) from None
-                slip = np.zeros(self.nc, int)  # let the sliding contacts stick or slide afresh
+                slip = self.no_slip()  # let the sliding contacts stick or slide afresh
         acc_tol = 1e-9 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
         rest = sol.normal > self.force_tol  # an unloaded row opens (if it sinks, it touches again)
-        new = _Mode(np.zeros(self.nc, bool), np.zeros(self.nc, int), np.zeros(self.nv, int))
+        new = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
         c = rows.contact >= 0
         new.closed[rows.contact[c & rest]] = True
-        new.slip[:] = np.where(new.closed, slip, 0)
+        new.slip[:] = np.where(new.closed[:, None], slip, 0)
         k = rows.contact[rows.owner]
         starting = (sol.slip > acc_tol) & new.closed[k]
-        new.slip[k[starting]] = np.sign(sol.velocity[rows.n :][starting]).astype(int)
+        new.slip[k[starting]] = _unit(acceleration[starting], 0.0)
         d = rows.dof >= 0
         new.stop[rows.dof[d & rest]] = stops[rows.dof[d & rest]]
         new.redundant = self.redundant(pt, new)
@@ -870,11 +1029,11 @@ class _Landing:
         out = mode
         for a, i in enumerate(closed):
             for j in closed[a + 1 :]:
-                if (out.slip[i] != out.slip[j] and (out.slip[i] == 0 or out.slip[j] == 0)
+                if (out.sliding[i] != out.sliding[j]
                         and np.max(np.abs(pt.contacts[i] - pt.contacts[j])) <= COINCIDENT
-                        and abs(vt[i] - vt[j]) <= self.speed_tol):
+                        and np.linalg.norm(vt[i] - vt[j]) <= self.speed_tol):
                     out = out.copy() if out is mode else out
-                    out.slip[i] = out.slip[j] = out.slip[i] or out.slip[j]
+                    out.slip[i] = out.slip[j] = out.slip[i] if out.sliding[i] else out.slip[j]
         return out
 
     def redundant(self, pt: _Point, mode: _Mode) -> bool:
@@ -900,13 +1059,13 @@ class _Landing:
             rows = _mode_rows(pt, mode, self.mu)
             a, _ = _accelerations(pt, rows)
             at = pt.Jt @ a + pt.bt
-            starting = mode.closed & (mode.slip != 0) & (np.abs(pt.vt(v)) <= self.speed_tol)
-            wrong = starting & (mode.slip * at < -acc_tol)
+            starting = mode.closed & mode.sliding & (np.linalg.norm(pt.vt(v), axis=1) <= self.speed_tol)
+            wrong = starting & (np.sum(mode.slip * at, axis=1) < -acc_tol)
             if not np.any(wrong):
                 break
             mode = mode.copy()
             mode.redundant = False
-            mode.slip[wrong] = np.where(np.abs(at[wrong]) > acc_tol, np.sign(at[wrong]), 0).astype(int)
+            mode.slip[wrong] = _unit(at[wrong], acc_tol)
         return mode
 
     def slide_on_the_edge(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
@@ -914,17 +1073,18 @@ class _Landing:
         of the cone's edge (or beyond, by rounding) slides against its friction force: the LCP's
         answer at the edge (no slip acceleration) is the same in either mode, but sticking would
         leave the cone at once and stall the run."""
-        if self.mu <= 0 or not np.any(mode.closed & (mode.slip == 0)):
+        if self.mu <= 0 or not np.any(mode.closed & ~mode.sliding):
             return mode
         pt = self.point(q, v)
         rows = _mode_rows(pt, mode, self.mu)
         _, lam = _accelerations(pt, rows)
-        fn, ft = _contact_forces(rows, lam, mode.slip, self.mu, self.nc)
-        edge = mode.closed & (mode.slip == 0) & (self.mu * fn - np.abs(ft) <= self.force_tol) & (ft != 0)
+        fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
+        magnitude = np.linalg.norm(ft, axis=1)
+        edge = mode.closed & ~mode.sliding & (self.mu * fn - magnitude <= self.force_tol) & (magnitude != 0)
         if not np.any(edge):
             return mode
         new = mode.copy()
-        new.slip[edge] = -np.sign(ft[edge]).astype(int)
+        new.slip[edge] = -_unit(ft[edge], 0.0)
         return new
 
     def project(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -940,12 +1100,11 @@ class _Landing:
         q = q - self.position_correction(pt, q, place)
         rows = _mode_rows(pt, mode, self.mu)
         if not rows.G.shape[0]:
-            return q, v, np.zeros(2 * self.nc)
+            return q, v, np.zeros(self.dims * self.nc)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
         impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
         v = v + minv_gt @ impulse
-        fn, ft = _contact_forces(rows, impulse, np.zeros(self.nc, int), 0.0, self.nc)
-        return q, v, np.concatenate([fn, ft])
+        return q, v, _stacked(*_contact_forces(rows, impulse, 0.0, self.nc))
 
     def beyond(self, q: np.ndarray) -> np.ndarray:
         """Per DOF: +1 past its upper stop, -1 past its lower one, else 0. A joint that an impact
@@ -973,11 +1132,12 @@ class _Landing:
     def first_impact(self) -> tuple[np.ndarray, np.ndarray, _Mode, _Totals]:
         """t = 0: the first-impact law over the contacts the scene selects."""
         q = self.q0.copy()
-        v = pre_impact_velocity(self.topology, self.scene)
-        none = _Mode(np.zeros(self.nc, bool), np.zeros(self.nc, int), np.zeros(self.nv, int))
-        hit = np.array(active_contacts(self.tree, self.scene), dtype=int)
+        v = pre_impact_velocity(self.topology, self.scene, self.space)
+        none = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
+        hit = np.array(active_contacts(self.tree, self.scene, space=self.space), dtype=int)
         v_plus, event, mode = self.impact(q, v, none, 0.0, hit, "touchdown")
-        totals = _Totals(event.external.copy(), event.tangential.copy(), [event])
+        totals = _Totals(event.external.copy(), self.no_slip(), [event])
+        self.add(totals, np.concatenate([np.zeros(self.nc), event.tangential.T.ravel()]))
         totals.moving_until = 0.0 if np.max(np.abs(v_plus)) < SETTLE_SPEED else math.nan
         mode = self.resolve(q, v_plus, mode)
         q, v_plus, impulse = self.project(q, v_plus, mode)
@@ -985,8 +1145,9 @@ class _Landing:
         return q, v_plus, mode, totals
 
     def add(self, totals: _Totals, impulses: np.ndarray) -> None:
+        """Add stacked impulses (:func:`_stacked`) to the totals."""
         totals.normal += impulses[: self.nc]
-        totals.tangential += impulses[self.nc :]
+        totals.tangential += impulses[self.nc :].reshape(self.dims - 1, self.nc).T
 
     def run(self, h: float) -> LandingResult:
         """The landing at Runge-Kutta step ``h``."""
@@ -1006,6 +1167,7 @@ class _Landing:
             q1, v1, impulse = self.step(q, v, mode, dt)
             if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.point(q1, v1).kinetic <= cap):
                 raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
+            _check_chart(q1, self.space, t + dt)
             w = self.witness(q1, v1, mode)
             graze = None if np.all(w >= 0) else dt
             if graze is None:
@@ -1020,6 +1182,7 @@ class _Landing:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, dt != h))
                 v0 = v
                 q, v, p = self.project(q1, v1, mode)
+                self.follow_slip(q, v, mode)
                 self.add(totals, impulse + p)
                 self.record(totals, t, v0, t + dt, q, v)
                 t += dt
@@ -1055,7 +1218,7 @@ class _Landing:
             contacts = np.flatnonzero(mode.closed | (pt.gap <= self.settings.gap_tolerance))
             v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if np.any(touching) else "stop")
             totals.events.append(event)
-            self.add(totals, np.concatenate([event.external, event.tangential]))
+            self.add(totals, np.concatenate([event.external, event.tangential.T.ravel()]))
         mode = self.resolve(q, v, mode)
         q, v, p = self.project(q, v, mode)
         self.add(totals, p)
@@ -1067,6 +1230,8 @@ class _Landing:
         from (t0, v0) to (t1, v1), or a jump (t0 = t1) at an impact. Where every velocity falls
         below SETTLE_SPEED within a step, the crossing is interpolated linearly (exact under
         constant deceleration)."""
+        q0 = totals.states[-1] if totals.states else q1
+        v0, v1 = world_velocity(q0, v0, self.space), world_velocity(q1, v1, self.space)
         totals.times.append(t1)
         totals.states.append(q1.copy())
         if np.max(np.abs(v1)) >= SETTLE_SPEED:
@@ -1079,16 +1244,17 @@ class _Landing:
 
     def result(self, totals: _Totals, q: np.ndarray, v: np.ndarray, h: float, energy_before: float,
                energy_final: float, gravity_work: float) -> LandingResult:
-        layout = dof_layout(self.topology, PLANAR)
-        angles = [q[2]] + [b.angle if k is None else q[k] for b, k in zip(self.tree.bodies[1:], layout.body_dof[1:])]
+        layout = dof_layout(self.topology, self.space)
+        base = [q[2]] if self.space is PLANAR else list(q[3:6])
+        angles = base + [b.angle if k is None else q[k] for b, k in zip(self.tree.bodies[1:], layout.body_dof[1:])]
         settled = None if math.isnan(totals.moving_until) else totals.moving_until
         return LandingResult(
             events=tuple(totals.events),
             total_external=totals.normal.copy(),
-            total_tangential=totals.tangential.copy(),
+            total_tangential=self.public_tangential(totals.tangential),
             settled_at=settled,
             q_final=q.copy(),
-            v_final=v.copy(),
+            v_final=world_velocity(q, v, self.space),
             final_angles=np.array(angles, dtype=float),
             energy_before=float(energy_before),
             energy_final=float(energy_final),
@@ -1098,6 +1264,7 @@ class _Landing:
             n_steps=totals.steps,
             integrator=self.method,
             trajectory=(np.array(totals.times), np.array(totals.states)),
+            space=self.space.name,
         )
 
 
@@ -1116,7 +1283,8 @@ def landing_difference(a: LandingResult, b: LandingResult) -> float:
 
 
 def landing(
-    tree: Tree, scene: Scene, joints: tuple[JointLaw, ...] = (), settings: LandingSettings = LandingSettings()
+    tree: Tree, scene: Scene, joints: tuple[JointLaw, ...] = (), settings: LandingSettings = LandingSettings(),
+    space: Space = PLANAR,
 ) -> LandingResult:
     """The whole landing of ``tree`` (module docstring), to ``settings.tolerance``: the step is
     halved from ``settings.step`` until two successive runs differ by at most the tolerance
@@ -1131,7 +1299,7 @@ def landing(
         raise ModelError("scene.duration: the whole landing needs a duration (s)")
     if joints and len(joints) != tree.n_bodies:
         raise ModelError(f"joints: {len(joints)} joint laws for {tree.n_bodies} bodies")
-    run = _Landing(tree, scene, joints, settings)
+    run = _Landing(tree, scene, joints, settings, space)
     h = settings.step or scene.duration / 200.0
     for halvings in range(settings.max_refinements + 1):  # a step too long for the stiffest joint diverges
         try:

@@ -187,7 +187,7 @@ class _Op:
 
 
 def _mode_key(mode: _Mode) -> tuple:
-    return (tuple(int(x) for x in mode.closed), tuple(int(x) for x in mode.slip), tuple(int(x) for x in mode.stop))
+    return (tuple(int(x) for x in mode.closed), tuple(int(x) for x in mode.side), tuple(int(x) for x in mode.stop))
 
 
 def _mode_of(key: tuple) -> _Mode:
@@ -275,7 +275,7 @@ class _Symbolic:
         return G, F, b, info
 
     def mode_rows(self, pt: dict, mode: _Mode):
-        return self.rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop)
+        return self.rows(pt, np.flatnonzero(mode.closed), mode.side, mode.stop)
 
     def accelerations(self, pt: dict, mode: _Mode) -> tuple[ca.SX, ca.SX, ca.SX, _Rows]:
         """(a, lambda, [fn; ft] per contact, rows) of the mode at the point."""
@@ -288,7 +288,7 @@ class _Symbolic:
         else:
             lam = _solve(G @ minv_ft, -(G @ a0 + b))
             a = a0 + minv_ft @ lam
-        return a, lam, self.contact_forces(info, lam, mode.slip, self.mu), info
+        return a, lam, self.contact_forces(info, lam, mode.side, self.mu), info
 
     def contact_forces(self, info: _Rows, lam: ca.SX, slip, mu: float) -> ca.SX:
         fn, ft = [ca.SX(0)] * self.nc, [ca.SX(0)] * self.nc
@@ -341,8 +341,8 @@ class _Symbolic:
         rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
         k2v, nu2 = constrained(pt["M"] @ rv - g * k * rq, G @ rv)
         k2q = rq + g * k2v
-        f1 = self.contact_forces(info, nu1, mode.slip, self.mu)
-        f3 = self.contact_forces(info, nu2, mode.slip, self.mu)
+        f1 = self.contact_forces(info, nu1, mode.side, self.mu)
+        f3 = self.contact_forces(info, nu2, mode.side, self.mu)
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
     def integrate(self, q, v, th, mode, h, method):
@@ -418,7 +418,7 @@ class _Symbolic:
             _, _, _, lo, hi = self.law_arrays(th)
             return q[i] - lo[i] if group == 4 else hi[i] - q[i]
         if group == 3:
-            return float(mode.slip[i]) * (pt["Jt"][i, :] @ v)
+            return float(mode.side[i]) * (pt["Jt"][i, :] @ v)
         _, lam, forces, info = self.accelerations(pt, mode)
         if group == 1:
             return forces[i]

@@ -148,11 +148,11 @@ def evaluate_landing(
             (both frictionless), or an unknown model name.
         NumericalError: the solve or the integration failed.
     """
+    if model == LANDING or model == "auto" and scene.duration is not None:
+        return _whole_landing(tree, scene, joints, whole or LandingSettings(), model == LANDING, space)
     if space is not PLANAR:
         return _spatial(tree, scene, model, compliant, sequential, compliant_tolerance, space)
     flat = scene.terrain.is_flat
-    if model == LANDING or model == "auto" and scene.duration is not None:
-        return _whole_landing(tree, scene, joints, whole or LandingSettings(), requested=model == LANDING)
     if model == "auto" and flat or model in {m.value for m in ImpactModel}:
         return evaluate(tree, scene, None if model == "auto" else ImpactModel(model))
     why = (
@@ -220,13 +220,8 @@ def _spatial(
     space: Space,
 ) -> ImpactResult | TimeDomainResult:
     """A spatial model's landing: the first-impact rungs on flat ground; on a heightfield that is
-    not flat (``auto``), or on request, the sequential or compliant rung. The whole landing
-    (``landing``, ``scene.duration``) and a planar ``scene.terrain`` that is not flat are refused."""
-    if model == LANDING or scene.duration is not None:
-        raise ModelError(
-            "model.space: the whole landing (--model landing, scene.duration) is planar only so far; spatial "
-            "models run the first-impact rungs and the sequential and compliant rungs"
-        )
+    not flat (``auto``), or on request, the sequential or compliant rung. A planar
+    ``scene.terrain`` that is not flat is refused."""
     if not scene.terrain.is_flat:
         raise ModelError(
             "scene.terrain: a ground profile y(x) is planar; a spatial model's uneven ground is scene.heightfield "
@@ -249,17 +244,19 @@ def _scene_gravity(settings, scene: Scene):  # type: ignore[no-untyped-def]
 
 
 def _whole_landing(
-    tree: Tree, scene: Scene, joints: tuple[JointLaw, ...], settings: LandingSettings, requested: bool
+    tree: Tree, scene: Scene, joints: tuple[JointLaw, ...], settings: LandingSettings, requested: bool,
+    space: Space = PLANAR,
 ) -> TimeDomainResult:
-    """The whole landing, with why it ran."""
+    """The whole landing, with why it ran (in space on flat ground or a heightfield)."""
     if scene.duration is None:
         raise ModelError("scene.duration: --model landing needs the landing's duration (s) in the scene")
     why = "requested" if requested else "automatic: scene.duration is given, so the whole landing runs"
-    result = landing(tree, scene, joints, settings)
+    result = landing(tree, scene, joints, settings, space)
     notes = [why, f"{len(result.events)} impacts over {scene.duration:g} s, Runge-Kutta step {result.step:.3g} s"]
     if scene.gravity:
         notes.append(f"gravity {scene.gravity:g} m/s^2")
-    return TimeDomainResult(LANDING, "; ".join(notes), result, pre_impact_velocity(tree.topology(), scene), settings)
+    v_minus = pre_impact_velocity(tree.topology(), scene, space)
+    return TimeDomainResult(LANDING, "; ".join(notes), result, v_minus, settings)
 
 
 __all__ = [
