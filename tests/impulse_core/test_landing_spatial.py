@@ -1,0 +1,200 @@
+"""The whole landing in space (impulse_core.timedomain.landing with ``space=SPATIAL``).
+
+- a planar leg read as spatial gives the planar landing (the plane is the spatial case
+  restricted): the same events, final angles, base and totals, and nothing out of the plane;
+- the first event equals the spatial first-impact answer (the circular-cone friction rung);
+- seeded random legs with yaw-splayed toes, springs, dampers, stops, gravity and friction:
+  linear momentum in x, y and z changes by the contact impulses minus the weight times T;
+- at every event: Newton's restitution (e = 0: no contact approaching after), the circular
+  friction cone, no energy gained;
+- a plank landing obliquely and sliding (hand derivation): the sliding impact, friction against
+  the slip in x and z, the stopping time and distance, the momentum balance in z.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from impulse_core.evaluate import evaluate
+from impulse_core.impact.laws import ImpactModel
+from impulse_core.kinematics.spatial import SPATIAL
+from impulse_core.model.rods import rotation_rpy
+from impulse_core.model.tree import Body, Scene, Tree
+from impulse_core.timedomain.compliant import chart_rates
+from impulse_core.timedomain.landing import SETTLE_SPEED, LandingResult, LandingSettings, _Landing
+from tests.conftest import report
+from tests.impulse_core.test_compliant_spatial import rpy_of
+from tests.impulse_core.test_landing import G, _random_leg
+
+#: The fixed Runge-Kutta step of the comparisons (s).
+STEP = 5e-4
+
+
+def _rates(q: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """The chart rates q' of a reported (world) generalized velocity at q (the inverse of
+    ``compliant.world_velocity``)."""
+    v = velocity.copy()
+    v[3:6] = np.linalg.solve(chart_rates(q[3:6]), velocity[3:6])
+    return v
+
+
+def _splayed_leg(seed: int, friction: float | None = None, restitution: float | None = None):
+    """:func:`test_landing._random_leg` with its toes and heel turned about the vertical through the
+    ankle by up to 0.5 rad (each keeps its planar height, so the touchdowns stay), an oblique
+    approach (lateral velocity, a roll and yaw rate)."""
+    tree, laws, scene = _random_leg(seed)
+    rng = np.random.default_rng(1000 + seed)
+    phi = tree.bodies[0].angle + tree.bodies[1].angle
+    bodies = list(tree.bodies[:2])
+    for b in tree.bodies[2:]:
+        R = rotation_rpy((0.0, 0.0, -phi)) @ rotation_rpy((0.0, rng.uniform(-0.5, 0.5), 0.0)) @ rotation_rpy((0.0, 0.0, phi))
+        bodies.append(replace(b, rpy=rpy_of(R), radius=0.005))
+    scene = replace(scene, velocity_z=rng.uniform(-0.4, 0.4), angular_velocity_x=rng.uniform(-0.5, 0.5),
+                    angular_velocity_y=rng.uniform(-0.5, 0.5))
+    if friction is not None:
+        scene = replace(scene, friction=friction)
+    if restitution is not None:
+        scene = replace(scene, restitution=restitution)
+    return Tree(tuple(bodies)), laws, scene
+
+
+# --------------------------------------------------------------------------------------------
+# The plane is the spatial landing restricted
+
+
+def _planar_view(tree: Tree, r: LandingResult) -> tuple[np.ndarray, np.ndarray]:
+    """A spatial landing's final angles as the plane's (base absolute angle, joints) and its
+    out-of-plane figures (phi_x, phi_y, base z)."""
+    angles = np.concatenate([[tree.bodies[0].angle + r.final_angles[2]], r.final_angles[3:]])
+    return angles, np.array([r.final_angles[0], r.final_angles[1], r.final_base[2]])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_planar_leg_read_as_spatial_lands_as_in_the_plane(seed):
+    """Random planar legs (springs, dampers, stops, gravity, friction 0, 0.4 or 1) at one step:
+    the same events; event times within 1e-8 s and impulses within 1e-6 of the peak (an event's
+    time is located to a gap tolerance / approach speed, up to 1e-8 s on the slow re-contacts,
+    which moves their impulses); final angles, base and total impulses within 1e-10 relative;
+    nothing out of the plane (1e-12). Measured: 6e-9 s, 4.3e-7, 2.1e-12, 1e-21."""
+    tree, laws, scene = _random_leg(seed)
+    planar = _Landing(tree, scene, laws, LandingSettings()).run(STEP)
+    spatial = _Landing(tree, scene, laws, LandingSettings(), SPATIAL).run(STEP)
+    assert len(spatial.events) == len(planar.events) and len(planar.events) > 5
+    peak = max(float(np.max(e.external)) for e in planar.events)
+    for a, b in zip(planar.events, spatial.events):
+        assert a.kind == b.kind and abs(a.time - b.time) <= 1e-8
+        assert np.max(np.abs(a.external - b.external)) <= 1e-6 * peak
+        assert np.max(np.abs(a.tangential - b.tangential[:, 0])) <= 1e-6 * peak
+        assert np.max(np.abs(b.tangential[:, 1])) <= 1e-12 * peak
+    angles, out_of_plane = _planar_view(tree, spatial)
+    assert np.max(np.abs(angles - planar.final_angles)) <= 1e-10 * np.max(np.abs(planar.final_angles))
+    assert np.max(np.abs(out_of_plane)) <= 1e-12
+    assert np.max(np.abs(spatial.final_base[:2] - planar.final_base)) <= 1e-10 * np.max(np.abs(planar.final_base))
+    for ours, theirs in ((spatial.total_external, planar.total_external), (spatial.total_tangential[:, 0], planar.total_tangential)):
+        assert np.max(np.abs(ours - theirs)) <= 1e-10 * max(np.max(np.abs(theirs)), 1e-300)
+    assert spatial.settled_at == pytest.approx(planar.settled_at, abs=1e-8) if planar.settled_at else spatial.settled_at is None
+    report("landing-spatial", f"planar leg {seed} read as spatial: {len(planar.events)} events, final angles within "
+           f"{np.max(np.abs(angles - planar.final_angles)):.1e} rad")
+
+
+# --------------------------------------------------------------------------------------------
+# The first event
+
+
+@pytest.mark.parametrize("seed, friction", [(0, 0.0), (1, 0.4), (2, 1.0)])
+def test_the_first_event_is_the_spatial_first_impact(seed, friction):
+    """The event at t = 0 equals the first-impact friction rung in space (the circular cone) for
+    the same file, springs and gravity notwithstanding (1e-9)."""
+    tree, laws, scene = _splayed_leg(seed, friction)
+    r = _Landing(tree, scene, laws, LandingSettings(), SPATIAL).run(STEP)
+    first = evaluate(tree, scene, ImpactModel.FRICTION if friction else ImpactModel.LCP, space=SPATIAL)
+    e = r.events[0]
+    scale = float(np.max(first.external))
+    assert e.time == 0.0
+    assert np.max(np.abs(e.external - first.external)) <= 1e-9 * scale
+    tangential = first.tangential if friction else np.zeros_like(e.tangential)
+    assert np.max(np.abs(e.tangential - tangential)) <= 1e-9 * scale
+    assert np.max(np.abs(e.internal_magnitude - first.internal_magnitude)) <= 1e-9 * np.max(first.internal_magnitude)
+    assert np.max(np.abs(e.v_plus - first.v_plus)) <= 1e-9 * np.max(np.abs(first.v_plus))
+
+
+# --------------------------------------------------------------------------------------------
+# Momentum and the laws at every event
+
+
+def _momentum_error(run: _Landing, r: LandingResult, scene: Scene) -> float:
+    """|change of linear momentum - (contact impulses - weight T)| / |initial momentum| (x, y, z)."""
+    mass = sum(b.mass for b in run.tree.bodies)
+    p0 = run.point(run.q0, r.events[0].v_minus).momentum[:, 0]
+    p1 = run.point(r.q_final, _rates(r.q_final, r.v_final)).momentum[:, 0]
+    tx, tz = r.total_tangential.sum(axis=0)
+    impulse = np.array([tx, r.total_external.sum() - mass * G * scene.duration, tz])
+    return float(np.max(np.abs(p1 - p0 - impulse)) / np.max(np.abs(p0)))
+
+
+def _assert_event_laws(run: _Landing, r: LandingResult, scene: Scene) -> None:
+    """Every event: impulses pushing, inside the circular cone, no energy gained; with e = 0
+    every contact that took an impulse leaves at rest (Newton), none approaches."""
+    times, states = r.trajectory
+    for e in r.events:
+        assert np.all(e.external >= 0)
+        assert np.all(np.linalg.norm(e.tangential, axis=1) <= scene.friction * e.external * (1 + 1e-9) + 1e-12)
+        assert e.energy_after <= e.energy_before * (1 + 1e-9) + 1e-12
+        if scene.restitution == 0:
+            q = states[np.flatnonzero(times == e.time)[-1]]
+            pt = run.point(q, _rates(q, e.v_plus))
+            vn = pt.vn(_rates(q, e.v_plus))
+            speed = np.max(np.abs(e.v_minus))
+            hit = e.external > 0
+            assert np.all(np.abs(vn[hit]) <= 1e-6 * speed)
+            assert np.all(vn[pt.gap <= 1e-9] >= -1e-6 * speed)
+    assert all(b.time >= a.time for a, b in zip(r.events, r.events[1:]))
+
+
+@pytest.mark.parametrize("seed, friction, restitution", [(0, 0.4, None), (1, 1.0, 0.0), (2, 0.4, 0.0), (3, 1.0, None)])
+def test_splayed_legs_balance_momentum_and_obey_the_laws(seed, friction, restitution):
+    """Random yaw-splayed legs with springs, dampers, stops, gravity and friction, oblique
+    approach, RK4 at 5e-4 s: linear momentum in x, y, z changes by the contact impulses (normal and
+    tangential, impulsive and continuous) minus the weight times T, to 1e-6 relative; the laws
+    at every event (:func:`_assert_event_laws`)."""
+    tree, laws, scene = _splayed_leg(seed, friction, restitution)
+    run = _Landing(tree, scene, laws, LandingSettings(integrator="rk4"), SPATIAL)
+    r = run.run(STEP)
+    error = _momentum_error(run, r, scene)
+    assert error <= 1e-6
+    assert np.max(np.abs(r.total_tangential[:, 1])) > 1e-4 * np.max(np.abs(r.total_tangential))  # friction along z acts
+    assert np.max(np.abs(r.final_angles[:2])) > 1e-6  # the base turned out of the plane
+    _assert_event_laws(run, r, scene)
+    report("landing-spatial", f"splayed leg {seed}: {len(r.events)} events, momentum balance {error:.1e}")
+
+
+# --------------------------------------------------------------------------------------------
+# A hand derivation out of the plane
+
+
+def test_an_oblique_plank_slides_against_its_slip_and_stops_where_coulomb_says():
+    """A plank landing flat, plastic, moving at (vx, -vy, vz): the sliding impact takes mu m vy of
+    the tangential speed |v_t| against the slip, then friction mu m g decelerates it along the same
+    line until it sticks at t* = (|v_t| - mu vy) / (mu g), having slid (|v_t| - mu vy)^2 / (2 mu g)
+    along (vx, vz) / |v_t|; x and z momentum are all taken by the tangential impulses."""
+    m, vx, vy, vz, mu, T = 3.0, 0.9, 0.5, -0.8, 0.4, 0.6
+    plank = Tree((Body("plank", None, 0.6, m, 0.0, contacts=(0.0, 1.0), radius=0.02),))
+    scene = Scene(speed=vy, velocity_x=vx, velocity_z=vz, restitution=0.0, friction=mu, gravity=G, duration=T)
+    r = _Landing(plank, scene, (), LandingSettings(), SPATIAL).run(2e-3)
+    speed = math.hypot(vx, vz)
+    along = np.array([vx, vz]) / speed
+    first = r.events[0]
+    assert first.external.sum() == pytest.approx(m * vy, rel=1e-9)
+    np.testing.assert_allclose(first.tangential.sum(axis=0), -mu * m * vy * along, rtol=1e-9)
+    v1 = speed - mu * vy
+    t_stop = v1 / (mu * G)
+    np.testing.assert_allclose(r.final_base[[0, 2]], v1**2 / (2 * mu * G) * along, rtol=1e-6)
+    fastest = max(abs(along[0]), abs(along[1]))
+    assert r.settled_at == pytest.approx(t_stop - SETTLE_SPEED / (fastest * mu * G), abs=1e-6)
+    np.testing.assert_allclose(r.total_tangential.sum(axis=0), -m * np.array([vx, vz]), rtol=1e-9)
+    assert r.total_external.sum() == pytest.approx(m * vy + m * G * T, rel=1e-9)
+    np.testing.assert_allclose(r.final_angles, 0.0, atol=1e-9)
