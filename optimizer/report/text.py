@@ -241,7 +241,7 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
         record["support_margin"] = _f(foot_support_margin(model))
     if isinstance(result, ImpactResult):
         record |= {
-            "tangential": _floats(result.tangential) if planar else [_floats(row) for row in result.tangential],
+            "tangential": _tangential(result.tangential),
             "modes": None if result.modes is None else [m.value for m in result.modes],
             "separating": [names[i] for i in result.separating],
             "internal_torque": (
@@ -296,7 +296,7 @@ def _landing_record(r: LandingResult) -> dict[str, Any]:
             "t": _f(e.time),
             "kind": e.kind,
             "external": _floats(e.external),
-            "tangential": _floats(e.tangential),
+            "tangential": _tangential(e.tangential),
             "internal": _floats(e.internal_magnitude),
             "stop": _floats(e.stop),
         }
@@ -304,7 +304,7 @@ def _landing_record(r: LandingResult) -> dict[str, Any]:
     ]
     settled = None if r.settled_at is None else _f(r.settled_at)
     return {
-        "tangential": _floats(r.tangential),
+        "tangential": _tangential(r.tangential),
         "events": events,
         "landing": {
             "peak_external_norm": _f(r.peak_external_norm),
@@ -545,7 +545,9 @@ def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
     headers = ["t [ms]", "kind", "external_norm", "internal_norm"] + [f"{n} [N s]" for n in names]
     more = len(r.events) - SHOWN_EVENTS
     settled = "not within the landing" if r.settled_at is None else f"at {1e3 * r.settled_at:.3f} ms"
-    angle_names = [f"{tree.bodies[0].name} (absolute)"] + [b.name for b in tree.bodies[1:]]
+    base = [f"{tree.bodies[0].name} (absolute)"] if r.space == "planar" else [
+        f"{tree.bodies[0].name} turn {axis}" for axis in ("x", "y", "z")]
+    angle_names = base + [b.name for b in tree.bodies[1:]]
     estimate = "not estimated" if r.error_estimate is None else f"{r.error_estimate:.2g}"
     return [
         "",
@@ -559,7 +561,7 @@ def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
         f"settled (every velocity below 1e-3) {settled}; energy absorbed {100 * r.energy_absorbed:.1f}% of "
         "the touchdown kinetic energy plus gravity's work",
         "final angles [rad]: " + ", ".join(f"{n} {a:.4f}" for n, a in zip(angle_names, r.final_angles, strict=True)),
-        f"final base origin [m]: x {r.final_base[0]:.4f}, y {r.final_base[1]:.4f}",
+        "final base origin [m]: " + ", ".join(f"{n} {x:.4f}" for n, x in zip("xyz", r.final_base)),
         f"accuracy: error estimate {estimate} (tolerance {r.tolerance:g}), "
         + ("Runge-Kutta 4" if r.integrator == "rk4" else "implicit (ROS2, order 2)") + f" step {r.step:.3g} s",
     ]
@@ -597,6 +599,12 @@ def _f(x: float) -> float:
 
 def _floats(a: Any) -> list[float]:
     return [_f(x) for x in np.asarray(a, dtype=float).ravel()]
+
+
+def _tangential(a: Any) -> list[float] | list[list[float]]:
+    """Tangential impulses per contact: a number along +x in the plane, [t_x, t_z] in space."""
+    a = np.asarray(a, dtype=float)
+    return [_floats(row) for row in a] if a.ndim == 2 else _floats(a)
 
 
 def _opt(x: float | None) -> float | None:

@@ -99,9 +99,29 @@ def test_axis_zero_is_refused() -> None:
         parse_model(load_yaml(text))
 
 
-def test_time_domain_models_are_refused_for_spatial_files_with_exit_2() -> None:
+def test_the_landing_without_a_duration_is_refused_naming_the_field() -> None:
     proc = _footopt("evaluate", "--model", "landing", str(EXAMPLE))
-    assert proc.returncode == 2 and "model.space" in proc.stderr
+    assert proc.returncode == 2 and "scene.duration" in proc.stderr
+
+
+def test_a_spatial_file_with_a_duration_lands_whole(tmp_path: Path) -> None:
+    """``auto`` and ``--model landing`` run the whole landing in space: final_base [x, y, z],
+    final_angles = the base's turn (rotation vector) then the joints, tangential [t_x, t_z] per
+    contact; the first event is the spatial first impact."""
+    text = EXAMPLE.read_text().replace("  contacts: all\n", "  contacts: all\n  friction: 0.5\n  gravity: 9.81\n  duration: 0.004\n")
+    text = text.replace("  friction: 0.0\n", "")
+    path = tmp_path / "landing.yaml"
+    path.write_text(text)
+    auto, requested = _json(str(path)), _json("--model", "landing", str(path))
+    assert auto["model"] == requested["model"] == "landing"
+    model = load_model_file(path)
+    landing = auto["landing"]
+    assert len(landing["final_base"]) == 3
+    assert len(landing["final_angles"]) == 3 + len(model.tree.bodies) - 1
+    assert all(len(t) == 2 for t in auto["tangential"]) and all(len(t) == 2 for e in auto["events"] for t in e["tangential"])
+    first = evaluate(model.tree, model.scene, space=SPATIAL)
+    np.testing.assert_allclose(auto["events"][0]["external"], first.external, atol=1e-9 * max(first.external))
+    np.testing.assert_allclose(auto["tangential"], first.tangential, atol=1e-9 * max(first.external))
 
 
 def test_plot_of_a_spatial_file_draws_three_views(tmp_path: Path) -> None:
