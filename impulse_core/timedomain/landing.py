@@ -362,8 +362,10 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
     if normal.shape[1] == 2:
         return np.column_stack([normal[:, 1], -normal[:, 0]])[:, None, :]
     t_x = np.array([1.0, 0.0, 0.0]) - normal[:, :1] * normal
-    t_x /= np.linalg.norm(t_x, axis=1, keepdims=True)
-    return np.stack([t_x, np.cross(t_x, normal)], axis=1)
+    t_x /= np.sqrt(np.einsum("ij,ij->i", t_x, t_x))[:, None]
+    (a, b, c), (x, y, z) = t_x.T, normal.T
+    t_z = np.column_stack([b * z - c * y, c * x - a * z, a * y - b * x])  # t_x x n
+    return np.stack([t_x, t_z], axis=1)
 
 
 def _along(directions: np.ndarray, rows: np.ndarray) -> np.ndarray:
