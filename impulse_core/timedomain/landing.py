@@ -1,5 +1,6 @@
 """The whole landing: every impact from the first touchdown until ``duration``, with resting
-contact, sticking and sliding, joint springs, dampers and stops in between (planar).
+contact, sticking and sliding, joint springs, dampers and stops in between, in the plane or in
+space (one code path: the plane is the spatial case restricted).
 
 An event-driven hybrid integration (Pfeiffer & Glocker, *Multibody Dynamics with Unilateral
 Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
@@ -26,6 +27,17 @@ Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
 
 The error of a run at step h is estimated by comparing with the run at h / 2; the step is halved
 until that estimate meets ``tolerance`` (:func:`landing`).
+
+Space (``space=SPATIAL``): q = (base origin, the base's rotation vector phi about its touchdown
+orientation, joint angles) with q' = v, the compliant rung's chart
+(:func:`impulse_core.timedomain.compliant._spatial_expressions`); the ground is a heightfield
+(:func:`impulse_core.timedomain.compliant.spatial_ground`). Each contact has two tangents
+(:func:`tangent_basis`): a sticking contact two tangent rows inside the circular cone, a sliding
+one the force n - mu u^T t along its current slip direction u (:func:`slip_direction`,
+regularised within one step's stiffness near zero slip: :meth:`_Landing.steer`). Impacts and the
+mode LCP are the circular cone's law (:func:`impulse_core.impact.cone.cone_unilateral`). Every
+array that is per tangent in the plane is per tangent pair in space, and the plane's arithmetic
+is unchanged (its tangent is the spatial t_x of a normal in the x-y plane).
 """
 
 from __future__ import annotations
@@ -121,11 +133,13 @@ class LandingEvent:
         time: s from the first touchdown.
         kind: "touchdown" (a contact touched or re-touched) or "stop" (a joint reached a stop).
         external: normal impulse per declared contact (0 where not involved), N s.
-        tangential: tangential impulse per contact (along the ground tangent, +x on flat ground).
-        internal: force impulse through each joint, parent onto child (n_joints x 2).
+        tangential: tangential impulse per contact (along the ground tangent, +x on flat ground;
+            space: n_c x 2, [t_x, t_z], :func:`tangent_basis`).
+        internal: force impulse through each joint, parent onto child (n_joints x d, d = 2 or 3).
         internal_magnitude: |internal| per joint.
         stop: torque impulse of each joint's stop (N m s; 0 where not involved), per non-base body.
-        v_minus, v_plus: generalized velocities before and after.
+        v_minus, v_plus: generalized velocities before and after (space: base origin velocity,
+            world angular velocity, joint rates).
         energy_before, energy_after: kinetic energy before and after (J).
     """
 
@@ -157,12 +171,13 @@ class LandingResult:
     Attributes:
         events: every impact, in time order; the first is at t = 0.
         total_external: per contact, the normal impulse over [0, T], impulsive and continuous.
-        total_tangential: the same for the tangential impulse.
+        total_tangential: the same for the tangential impulse (space: n_c x 2).
         settled_at: the earliest t after which every generalized velocity stays below
             :data:`SETTLE_SPEED`, or None.
-        q_final, v_final: the state at T (q: base x, y, angle, then joint angles).
-        final_angles: the base's absolute angle, then every joint's angle in file order (fixed
-            joints: their fixed angle).
+        q_final, v_final: the state at T (q: base x, y, angle, then joint angles; space: base
+            x, y, z, rotation vector phi, joint angles, and v_final world velocities as v_plus).
+        final_angles: the base's absolute angle (space: its turn since touchdown, phi_x, phi_y,
+            phi_z), then every joint's angle in file order (fixed joints: their fixed angle).
         energy_before: kinetic energy just before the first touchdown (J).
         energy_final: kinetic plus spring energy at T (J).
         gravity_work: work of gravity over [0, T] (J).
@@ -172,6 +187,7 @@ class LandingResult:
         trajectory: (time, q) at every step end and event, for plots.
         integrator: ``rk4`` or ``implicit``, the integrator between events
             (:attr:`LandingSettings.integrator`).
+        space: ``planar`` or ``spatial``.
     """
 
     events: tuple[LandingEvent, ...]
@@ -1288,7 +1304,7 @@ def landing(
     tree: Tree, scene: Scene, joints: tuple[JointLaw, ...] = (), settings: LandingSettings = LandingSettings(),
     space: Space = PLANAR,
 ) -> LandingResult:
-    """The whole landing of ``tree`` (module docstring), to ``settings.tolerance``: the step is
+    """The whole landing of ``tree`` (module docstring; in ``space``), to ``settings.tolerance``: the step is
     halved from ``settings.step`` until two successive runs differ by at most the tolerance
     (:func:`landing_difference`); the finer run is returned with that difference as its
     ``error_estimate`` (an unmet tolerance: ``converged`` is False).
