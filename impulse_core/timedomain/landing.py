@@ -50,14 +50,14 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.errors import ModelError, NumericalError
-from impulse_core.evaluate import active_contacts, pre_impact_velocity
+from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import cone_unilateral
 from impulse_core.impact.coulomb import UnilateralSolution, solve_unilateral
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.terrain import Terrain
-from impulse_core.model.tree import Scene, Tree, design_vector
+from impulse_core.model.tree import ContactSelection, Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
     DYNAMICS_INPUTS,
     BufferedCall,
@@ -1152,7 +1152,7 @@ class _Landing:
         q = self.q0.copy()
         v = pre_impact_velocity(self.topology, self.scene, self.space)
         none = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
-        hit = np.array(active_contacts(self.tree, self.scene, space=self.space), dtype=int)
+        hit = self.first_contacts(self.point(q, v))
         v_plus, event, mode = self.impact(q, v, none, 0.0, hit, "touchdown")
         totals = _Totals(event.external.copy(), self.no_slip(), [event])
         self.add(totals, np.concatenate([np.zeros(self.nc), event.tangential.T.ravel()]))
@@ -1161,6 +1161,15 @@ class _Landing:
         q, v_plus, impulse = self.project(q, v_plus, mode)
         self.add(totals, impulse)
         return q, v_plus, mode, totals
+
+    def first_contacts(self, pt: _Point) -> np.ndarray:
+        """The contacts of the first impact: every one (``contacts: all``), or those whose gap is
+        within ``scene.contact_tolerance`` of the smallest: on flat ground the rigid rungs' lowest
+        contacts (:func:`impulse_core.evaluate.active_contacts`), on uneven ground (a terrain, a
+        heightfield) those that touch, not those lowest in the tree's own frame."""
+        if self.scene.selection is ContactSelection.ALL:
+            return np.arange(self.nc)
+        return np.flatnonzero(pt.gap <= np.min(pt.gap) + self.scene.contact_tolerance)
 
     def add(self, totals: _Totals, impulses: np.ndarray) -> None:
         """Add stacked impulses (:func:`_stacked`) to the totals."""

@@ -198,3 +198,28 @@ def test_an_oblique_plank_slides_against_its_slip_and_stops_where_coulomb_says()
     np.testing.assert_allclose(r.total_tangential.sum(axis=0), -m * np.array([vx, vz]), rtol=1e-9)
     assert r.total_external.sum() == pytest.approx(m * vy + m * G * T, rel=1e-9)
     np.testing.assert_allclose(r.final_angles, 0.0, atol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------
+# Uneven ground: the sequential rung's touchdowns
+
+
+def test_on_a_heightfield_the_touchdowns_are_the_sequential_rungs():
+    """configs/spatial_heightfield.yaml (frictionless, e = 0.8, gravity) until just after its last
+    first touchdown: the toes touch one after another and then the heel, each impact at the
+    sequential rigid rung's time and with its impulse (both integrate the flight between; 1e-9).
+    The first event is over the contacts that touch the heightfield, not the tree's lowest."""
+    from impulse_core.timedomain.landing import landing
+    from impulse_core.timedomain.sequential import SequentialSettings, sequential_impacts
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file("configs/spatial_heightfield.yaml")
+    scene = replace(m.scene, gravity=G, duration=0.0036)
+    r = landing(m.tree, scene, (), LandingSettings(tolerance=1e-8), space=SPATIAL)
+    rigid = sequential_impacts(m.tree, scene, SequentialSettings(gravity=G), space=SPATIAL)
+    assert len(r.events) == len(m.tree.contacts) == len(rigid.touchdown_order)
+    for e in r.events:
+        (c,) = np.flatnonzero(e.external)
+        assert e.time == pytest.approx(rigid.touchdown_time[c], abs=1e-9)
+        assert e.external[c] == pytest.approx(rigid.external[c], rel=1e-9)
+    assert r.touchdown_order == rigid.touchdown_order
