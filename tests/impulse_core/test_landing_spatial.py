@@ -223,3 +223,46 @@ def test_on_a_heightfield_the_touchdowns_are_the_sequential_rungs():
         assert e.time == pytest.approx(rigid.touchdown_time[c], abs=1e-9)
         assert e.external[c] == pytest.approx(rigid.external[c], rel=1e-9)
     assert r.touchdown_order == rigid.touchdown_order
+
+
+# --------------------------------------------------------------------------------------------
+# A posture out of the plane: static equilibrium
+
+
+def _tripod_and_pole() -> tuple[Tree, tuple, Scene]:
+    """A plank along x with a welded cross rod along +z (three contacts: a triangle), and a pole
+    at the plank's middle standing up (rpy turns its x axis to +y) on a sprung, damped joint
+    about the world x axis (its axis y after rpy): the pole leans sideways, towards -z."""
+    from impulse_core.model.joints import FREE, JointLaw
+    from impulse_core.model.tree import JointKind
+
+    tree = Tree((
+        Body("plank", None, 0.6, 2.0, 0.0, contacts=(0.0, 1.0), radius=0.01),
+        Body("cross", 0, 0.3, 0.5, 0.0, at=0.5, joint=JointKind.FIXED, rpy=(0.0, -math.pi / 2, 0.0), contacts=(1.0,),
+             radius=0.01),
+        Body("pole", 0, 0.5, 0.5, 0.2, at=0.5, rpy=(0.0, 0.0, math.pi / 2), axis=(0.0, 1.0, 0.0), radius=0.01),
+    ))
+    laws = (FREE, FREE, JointLaw(stiffness=5.0, damping=0.5, rest=0.3))
+    return tree, laws, Scene(speed=0.5, restitution=0.0, gravity=G, duration=2.0)
+
+
+def test_a_sideways_sprung_pole_settles_where_spring_and_gravity_balance():
+    """Frictionless, plastic: the tripod settles flat (no turn) and the pole, leaning in the
+    y-z plane (height (L / 2) cos theta), where k (theta - rest) = m g (L / 2) sin theta; the base
+    slides sideways (no friction: the centre of mass keeps its z), and the ground carries the
+    weight over T plus the touchdown momentum."""
+    from scipy.optimize import brentq
+
+    from impulse_core.timedomain.landing import landing
+
+    tree, laws, scene = _tripod_and_pole()
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-5), space=SPATIAL)
+    k, rest, m, half = 5.0, 0.3, 0.5, 0.25
+    theta = brentq(lambda th: k * (th - rest) - m * G * half * math.sin(th), 0.0, 1.5)
+    assert r.converged and r.settled_at is not None and r.settled_at < scene.duration
+    np.testing.assert_allclose(r.final_angles[:3], 0.0, atol=1e-9)
+    assert r.final_angles[-1] == pytest.approx(theta, abs=1e-6)
+    assert r.final_base[1] == pytest.approx(0.0, abs=1e-9) and r.final_base[2] > 1e-3
+    total = sum(b.mass for b in tree.bodies)
+    assert r.total_external.sum() == pytest.approx(total * (G * scene.duration + scene.speed), rel=1e-6)
+    report("landing-spatial", f"sideways pole settles at {r.final_angles[-1]:.9f} rad, static {theta:.9f}")
