@@ -290,7 +290,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 print(json.dumps(result_record(model, result, file), allow_nan=False))
             else:
                 print(("\n" if n else "") + format_report(model, result, file), end="")
-            if n in plots and _is_landing(result):
+            if n in plots and _is_landing(result) and model.space is PLANAR:
                 from optimizer.report.landing_plot import plot_landing
 
                 plot_landing(model.tree, result.result, plots[n], title=Path(file).name, scene=model.scene)
@@ -356,6 +356,9 @@ def _animate(model: ModelFile, result: Result, path: Path, quiet: bool) -> None:
     """Write the landing's animation (ConfigError when the result is not a whole landing)."""
     if not _is_landing(result):
         raise ConfigError("--animate: only a whole landing moves (give scene.duration, or --model landing)")
+    if model.space is not PLANAR:
+        raise ConfigError("--animate: draws planar landings only so far (model.space: spatial; --plot draws the "
+                          "spatial foot's three views)")
     from optimizer.report.landing_plot import animate_landing
 
     animate_landing(model.tree, result.result, path, scene=model.scene)

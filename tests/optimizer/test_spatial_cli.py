@@ -122,6 +122,8 @@ def test_a_spatial_file_with_a_duration_lands_whole(tmp_path: Path) -> None:
     first = evaluate(model.tree, model.scene, space=SPATIAL)
     np.testing.assert_allclose(auto["events"][0]["external"], first.external, atol=1e-9 * max(first.external))
     np.testing.assert_allclose(auto["tangential"], first.tangential, atol=1e-9 * max(first.external))
+    animated = _footopt("evaluate", str(path), "--animate", str(tmp_path / "landing.gif"))
+    assert animated.returncode == 2 and "--animate" in animated.stderr
 
 
 def test_plot_of_a_spatial_file_draws_three_views(tmp_path: Path) -> None:
