@@ -209,6 +209,9 @@ class LandingResult:
     model: str = MODEL_NAME
     integrator: str = RK4
     space: str = PLANAR.name
+    #: space: impacts and mode choices where the circular cone's exact law was not met and its
+    #: 16-gon (polyhedral) answer was used (:func:`impulse_core.impact.cone.cone_unilateral`)
+    inexact: int = 0
 
     @property
     def peak_external_norm(self) -> float:
@@ -534,21 +537,25 @@ def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray,
     )
 
 
-def _solve_rows(W: np.ndarray, u: np.ndarray, rows: _Rows, restitution: np.ndarray) -> tuple[UnilateralSolution, np.ndarray]:
+def _solve_rows(
+    W: np.ndarray, u: np.ndarray, rows: _Rows, restitution: np.ndarray
+) -> tuple[UnilateralSolution, np.ndarray, bool]:
     """The unilateral law over the rows (Newton's restitution per normal row, Coulomb friction
     per sticking contact; at the acceleration level with ``restitution`` 0): in the plane the
     LCP by Lemke's method (:func:`impulse_core.impact.coulomb.solve_unilateral`); in space the
     circular cone (:func:`impulse_core.impact.cone.cone_unilateral`: the Stewart-Trinkle 16-gon
     LCP, then Newton's method on the exact law). Returns the solution (tangential impulses and
-    tangent-row velocities in :class:`_Rows`' order, ``slip`` the slip speed per sticking contact)
-    and the tangent rows' velocities after, per sticking contact (m x (d - 1))."""
+    tangent-row velocities in :class:`_Rows`' order, ``slip`` the slip speed per sticking contact),
+    the tangent rows' velocities after, per sticking contact (m x (d - 1)), and whether the exact
+    law was met (False: the cone's polyhedral answer)."""
     m, tangents = len(rows.owner), rows.direction.shape[1]
     if tangents == 1 or not m:
         sol = solve_unilateral(W, u, rows.owner, restitution, rows.mu)
-        return sol, sol.velocity[rows.n :].reshape(tangents, m).T
+        return sol, sol.velocity[rows.n :].reshape(tangents, m).T, True
     law = cone_unilateral(W, u, rows.owner, restitution, rows.mu)
     after = law.velocity[rows.n :].reshape(tangents, m).T
-    return UnilateralSolution(law.normal, law.tangential.T.ravel(), law.velocity, np.linalg.norm(after, axis=1)), after
+    slip = np.linalg.norm(after, axis=1)
+    return UnilateralSolution(law.normal, law.tangential.T.ravel(), law.velocity, slip), after, law.exact
 
 
 def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
@@ -705,6 +712,8 @@ class _Landing:
             self.method = IMPLICIT if h0 * rate > RK4_STABLE else RK4
         if self.method not in (RK4, IMPLICIT):
             raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, auto")
+        #: circular-cone solves of the current run that fell back to the polyhedral answer
+        self.inexact = 0
         #: None, or a list that a run appends its committed operations to, in order (what
         #: :mod:`impulse_core.timedomain.landing_derivatives` replays): ("step", q, v, mode, dt,
         #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol) and
@@ -938,7 +947,8 @@ class _Landing:
         e = np.where(-u[: rows.n] > PLASTIC_SPEED, e, 0.0)
         e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < MIN_BOUNCE * self.scene.duration, 0.0, e)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
-        sol, _ = _solve_rows(rows.G @ minv_gt, u, rows, e)
+        sol, _, exact = _solve_rows(rows.G @ minv_gt, u, rows, e)
+        self.inexact += not exact
         if self.tape is not None:
             self.tape.append(("impact", q.copy(), v.copy(), rows, e.copy(), sol))
         lam = np.concatenate([sol.normal, sol.tangential])
@@ -1008,7 +1018,8 @@ class _Landing:
             minv = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
             u = rows.G @ minv[:, 0] + rows.b
             try:
-                sol, acceleration = _solve_rows(rows.G @ minv[:, 1:], u, rows, np.zeros(rows.n))
+                sol, acceleration, exact = _solve_rows(rows.G @ minv[:, 1:], u, rows, np.zeros(rows.n))
+                self.inexact += not exact
                 break
             except NumericalError:
                 if attempt or not np.any(slip[contacts]):
@@ -1179,6 +1190,7 @@ class _Landing:
     def run(self, h: float) -> LandingResult:
         """The landing at Runge-Kutta step ``h``."""
         T = float(self.scene.duration)
+        self.inexact = 0
         q, v, mode, totals = self.first_impact()
         energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
@@ -1292,6 +1304,7 @@ class _Landing:
             integrator=self.method,
             trajectory=(np.array(totals.times), np.array(totals.states)),
             space=self.space.name,
+            inexact=self.inexact,
         )
 
 

@@ -166,6 +166,7 @@ def test_splayed_legs_balance_momentum_and_obey_the_laws(seed, friction, restitu
     r = run.run(STEP)
     error = _momentum_error(run, r, scene)
     assert error <= 1e-6
+    assert r.inexact == 0  # every impact and mode choice met the exact circular-cone law
     assert np.max(np.abs(r.total_tangential[:, 1])) > 1e-4 * np.max(np.abs(r.total_tangential))  # friction along z acts
     assert np.max(np.abs(r.final_angles[:2])) > 1e-6  # the base turned out of the plane
     _assert_event_laws(run, r, scene)
