@@ -448,7 +448,7 @@ class _Mode:
     #: the least-norm split (:data:`REDUNDANT`), which is the symmetric one between identical toes
     redundant: bool = False
     #: per contact: the slip speed (m/s) below which its sliding friction's direction is
-    #: regularised (:func:`slip_direction`, :meth:`_Landing.steered`); None: 0, exact
+    #: regularised (:func:`slip_direction`, :meth:`_Landing.steer`); None: 0, exact
     core: np.ndarray | None = None
 
     def __post_init__(self) -> None:
@@ -499,7 +499,7 @@ def slip_direction(pt: _Point, slip: np.ndarray, core: np.ndarray | None = None)
     threshold, else d (a contact starting to slide, or one whose slip reverses: an event). Below
     the speed ``core`` (per contact; 0: none) u = (s + (core - |s|) d) / |...|: the lateral
     sensitivity of the direction, mu f_n / |s|, is capped at mu f_n / core (see
-    :meth:`_Landing.steered`). In the plane u is the mode's +-1 in every case (the plane's
+    :meth:`_Landing.steer`). In the plane u is the mode's +-1 in every case (the plane's
     fixed-direction force); in space it turns with the slip."""
     if slip.shape[1] == 1:
         return slip
