@@ -73,7 +73,7 @@ def _planar_view(tree: Tree, r: LandingResult) -> tuple[np.ndarray, np.ndarray]:
     return angles, np.array([r.final_angles[0], r.final_angles[1], r.final_base[2]])
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 5])  # 5: a slow-slipping loaded toe (the direction's stiffness)
 def test_a_planar_leg_read_as_spatial_lands_as_in_the_plane(seed):
     """Random planar legs (springs, dampers, stops, gravity, friction 0, 0.4 or 1) at one step:
     the same events; event times within 1e-8 s and impulses within 1e-6 of the peak (an event's
