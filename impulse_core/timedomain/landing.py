@@ -780,8 +780,10 @@ class _Landing:
         if self.dims == 2 or self.mu <= 0 or not np.any(mode.closed & mode.sliding):
             return
         mode.core[:] = 0.0
-        _, forces = self.derivative(q, v, mode)
         pt = self.point(q, v)
+        rows = _mode_rows(pt, mode, self.mu)
+        _, lam = _accelerations(pt, rows)
+        forces, _ = _contact_forces(rows, lam, self.mu, self.nc)
         moving = np.flatnonzero(mode.closed & mode.sliding)
         X = np.linalg.solve(pt.M, pt.Jt[moving].reshape(-1, self.nv).T)
         w = np.einsum("ij,ji->i", pt.Jt[moving].reshape(-1, self.nv), X).reshape(len(moving), -1).sum(axis=1)
