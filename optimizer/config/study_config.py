@@ -351,9 +351,10 @@ def _check_whole_landing(config: StudyConfig) -> None:
         )
     if not config.space.joint_laws.empty or config.leg.knee != Leg().knee:
         where = "design_space.joint_laws" if not config.space.joint_laws.empty else "leg.shank"
+        hint = "" if where != "leg.shank" else " (a leg file from footopt import: --no-joint-laws leaves them out)"
         raise ConfigError(f"{where}: springs, dampers and stops act only over a whole landing: add a landing "
                           "objective (peak_external_norm, peak_internal_norm, peak_max_internal, settled_at, "
-                          "energy_absorbed)")
+                          f"energy_absorbed){hint}")
 
 
 def resolve_storage(url: str, folder: Path | None) -> str:

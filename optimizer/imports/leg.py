@@ -9,8 +9,9 @@ ankle) are left out, and the report names them. The root is the floating base.
 Each rod runs from its joint (the base: from the root link's origin) to the next joint on the
 chain; the last one to the ankle: the ankle link's origin, or the ``foot`` point when given (a
 link welded to the ankle, or an MJCF site or geom on it). The contact is at its tip. The touchdown
-posture is the description's zero configuration (every joint angle 0) with the root's frame as
-the world's.
+posture is the pose the file places its links in (URDF: every joint at 0; MJCF: at ``ref``) or
+``--angle``'s, with the root's frame as the world's; the joints' stops, dampers and springs come
+along (:mod:`optimizer.imports.laws`).
 
 What a rod carries (docs/MODEL_FORMAT.md, "Import"): mass exactly. Spatial: everything exactly:
 the centre of mass as its projection on the rod (``com``) and the rest (``com_offset``), the link's
@@ -41,6 +42,7 @@ from impulse_core.model.tree import Body, JointKind, Scene, Tree, tensor_problem
 from optimizer.config.model_file import ModelFile
 from optimizer.errors import ConfigError
 from optimizer.imports.description import FIXED, REVOLUTE, Description
+from optimizer.imports.laws import footopt_angle, imported_laws, laws_summary
 from optimizer.results.export import rpy_of
 
 #: footopt's world from the description's (rows: footopt's x, y, z in the description's axes).
@@ -96,6 +98,8 @@ class ImportedLeg:
     foot: str | None
     reason: str  # why planar or spatial
     angles: tuple[tuple[str, float], ...] = ()  # the touchdown posture's joint angles (rad), as given
+    joint_laws: bool = True  # the description's stops, dampers and springs imported (False: --no-joint-laws)
+    warnings: tuple[str, ...] = ()  # one line each: what the model file cannot carry (laws left out)
 
     @property
     def space(self) -> Space:
@@ -108,7 +112,7 @@ class ImportedLeg:
             f"footopt import of {d.path.name} ({d.format}): the leg from '{self.root}' to '{self.ankle}'"
             + (f", foot point '{self.foot}'" if self.foot else "") + f": {len(self.rods)} rods, {self.space.name}"
             f" ({self.reason}).",
-            "Touchdown posture: the description's zero configuration"
+            "Touchdown posture: the description's pose as the file places it"
             + "".join(f", {n} = {v:.6g} rad" for n, v in self.angles) + "; the root link's frame as the world's;",
             "the scene (1 m/s straight down, restitution 0, frictionless) is a placeholder: edit it.",
             f"Contact: the tip of '{self.rods[-1].name}' (the ankle). Total mass {sum(s.mass for s in self.segments):.6g} kg.",
@@ -140,12 +144,12 @@ class ImportedLeg:
         if self.space is PLANAR:
             lines.append("Exact: masses, joint placements and axes, the ankle; approximated as above: each rod carries its")
             lines.append("centre of mass on its axis and the inertia about the joint axis through it (exact about that "
-                         "point). Joint limits, damping and motors are not imported.")
+                         "point).")
         else:
             lines.append("Exact: masses, centres of mass (com, com_offset), inertia tensors (inertia_tensor), joint axes")
-            lines.append("and placements (a joint's point anywhere on its axis), the ankle. Joint limits, damping and "
-                         "motors are not imported.")
-        return "\n".join(lines)
+            lines.append("and placements (a joint's point anywhere on its axis), the ankle.")
+        names = [s.joint for s in self.segments[1:]]
+        return "\n".join(lines + laws_summary(d.format, names, self.model.joints, self.joint_laws, self.warnings))
 
 
 def import_leg(
@@ -155,10 +159,12 @@ def import_leg(
     foot: str | None = None,
     space: str = "auto",
     angles: dict[str, float] | None = None,
+    joint_laws: bool = True,
 ) -> ImportedLeg:
     """The leg from ``root`` to ``ankle`` of ``desc`` as a model file (see the module docstring),
     at the touchdown posture ``angles`` (joint name -> rad, as the description counts them;
-    joints not named at 0).
+    joints not named at the file's pose), with the joints' stops, dampers and springs unless
+    ``joint_laws`` is False (:mod:`optimizer.imports.laws`).
 
     Raises:
         ConfigError: naming the option (``--root``, ``--ankle``, ``--foot``, ``--space``,
@@ -177,22 +183,26 @@ def import_leg(
     planar = space == "planar" or (space == "auto" and parallel)
     reason = ("every joint axis parallel" if parallel else "joint axes not parallel") if space == "auto" else "--space"
     tree, rods = _planar_tree(desc, segments) if planar else _spatial_tree(desc, segments)
-    tree = _posed(desc, tree, segments, rods, angles or {})
-    model = ModelFile(tree=tree, scene=IMPORT_SCENE, space=PLANAR if planar else SPATIAL)
+    posed = _posed(desc, tree, segments, rods, angles or {})
+    laws, warnings = (), ()
+    if joint_laws:
+        chain = [desc.joints[s.name] for s in segments[1:]]
+        laws, warnings = imported_laws(desc, chain, [r.flipped for r in rods], tree, angles or {})
+    model = ModelFile(tree=posed, scene=IMPORT_SCENE, space=PLANAR if planar else SPATIAL, joints=laws)
     return ImportedLeg(model, tuple(segments), tuple(rods), tuple(dropped), desc, root, ankle, foot, reason,
-                       tuple((angles or {}).items()))
+                       tuple((angles or {}).items()), joint_laws, warnings)
 
 
 def _posed(desc: Description, tree: Tree, segments: list[Segment], rods: list[Rod], angles: dict[str, float]) -> Tree:
-    """``tree`` with each named joint turned by its angle (a planar joint about -z the other way)."""
+    """``tree`` with each named joint at its angle, as the description counts it (laws.footopt_angle)."""
     joints = {s.joint: k for k, s in enumerate(segments) if s.joint is not None}
     bodies = list(tree.bodies)
     for name, value in angles.items():
         if name not in joints:
             raise desc.error("--angle", f"no joint named '{name}' on the chain (joints: {', '.join(joints)})")
         k = joints[name]
-        sign = -1.0 if rods[k].flipped else 1.0
-        bodies[k] = replace(bodies[k], angle=bodies[k].angle + sign * value)
+        dynamics = desc.joints[segments[k].name].dynamics
+        bodies[k] = replace(bodies[k], angle=footopt_angle(bodies[k].angle, rods[k].flipped, dynamics, value))
     return Tree(tuple(bodies))
 
 

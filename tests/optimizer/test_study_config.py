@@ -146,11 +146,15 @@ def test_leg_from_an_imported_model_file(tmp_path: Path):
     from optimizer.imports.read import read_description
     from tests.optimizer.imports.peers import robot_file
 
-    leg = import_leg(read_description(robot_file("solo_description/robots/solo12.urdf")), "FL_UPPER_LEG", "FL_FOOT")
+    desc = read_description(robot_file("solo_description/robots/solo12.urdf"))
     (tmp_path / "legs").mkdir()
-    (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(leg.model))
+    (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(import_leg(desc, "FL_UPPER_LEG", "FL_FOOT").model))
     study = tmp_path / "s.yaml"
     study.write_text("leg: {file: legs/solo.yaml}\nobjectives: [external_norm, internal_norm]\n")
+    with pytest.raises(ConfigError, match="leg.shank: .*whole landing.*--no-joint-laws"):  # its knee's stops
+        load_study(study)
+    leg = import_leg(desc, "FL_UPPER_LEG", "FL_FOOT", joint_laws=False)
+    (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(leg.model))
     config = load_study(study)
     thigh, shank = leg.model.tree.bodies
     assert (config.leg.thigh_length, config.leg.thigh_mass, config.leg.thigh_angle) == (thigh.length, thigh.mass, thigh.angle)
