@@ -27,8 +27,8 @@ def add_import(subparsers: argparse._SubParsersAction) -> None:
             "floating base) down to --ankle as a footopt model file: one rod per link, fixed joints merged into "
             "their parent, each revolute joint as in the description, a contact at the ankle (or at --foot). "
             "Planar when every joint axis of the chain is parallel, else spatial. Each rod carries its link's "
-            "mass exactly and its centre of mass and inertia as a rod can (the file's comments and this "
-            "command's output say what is approximated), and each joint's stops, damper and spring "
+            "mass, centre of mass and inertia (the file's comments and this command's output say where "
+            "anything is approximated), and each joint's stops, damper and spring "
             "(--no-joint-laws: none). See MODEL_FORMAT.md, 'Import'."
         ),
     )
@@ -43,6 +43,9 @@ def add_import(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--angle", action="append", default=[], metavar="JOINT=RAD",
                    help="the touchdown posture: this joint's angle in rad, as the description counts it "
                    "(repeat for several joints; default: every joint at 0)")
+    p.add_argument("--com-on-rods", action="store_true",
+                   help="planar: move each centre of mass onto its rod (the inertia taken about that point), as a "
+                   "study's leg file needs; default: carried exactly (com_offset)")
     p.add_argument("--no-joint-laws", dest="joint_laws", action="store_false",
                    help="leave out the joints' stops, dampers and springs (default: imported, as footopt's "
                    "limits, damping, stiffness and rest; laws it has no key for are named in a warning)")
@@ -65,7 +68,7 @@ def run_import(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     try:
         leg = import_leg(read_description(Path(args.description)), args.root, args.ankle, args.foot, args.space, angles,
-                         args.joint_laws)
+                         args.joint_laws, args.com_on_rods)
     except FootoptError as e:
         _error(str(getattr(e, "source", None) or args.description), str(e))
         return EXIT_USAGE

@@ -17,15 +17,19 @@ from tests.optimizer.imports.peers import planar_ankle
 from tests.optimizer.imports.peers import spatial_world as _world
 
 SOLO = "solo_description/robots/solo12.urdf"
+GO1 = "go1_description/urdf/go1.urdf"
 # (file, root, ankle, rods, space, |impulse / Pinocchio's - 1| at most, measured)
 LEGS = [
-    (SOLO, "FL_UPPER_LEG", "FL_FOOT", 2, PLANAR, 1e-7),  # HFE -> KFE: parallel axes (measured 4.7e-8: the com on the rod)
-    (SOLO, "FL_SHOULDER", "FL_FOOT", 3, PLANAR, 1e-7),  # the shoulder as base (measured 1.8e-8)
+    # planar: each link's centre of mass in the plane (com, com_offset) and inertia about the joint axis
+    # exactly (before com_offset, with the centre of mass moved onto the rod: 4.7e-8, 1.8e-8)
+    (SOLO, "FL_UPPER_LEG", "FL_FOOT", 2, PLANAR, 1e-12),  # HFE -> KFE: parallel axes
+    (SOLO, "FL_SHOULDER", "FL_FOOT", 3, PLANAR, 1e-12),  # the shoulder as base
+    (GO1, "FL_hip", "FL_foot", 3, PLANAR, 1e-12),  # the thigh's and calf's centres of mass 3.05 and 4.3 mm off
     # spatial: each link's exact centre of mass (com_offset) and tensor (inertia_tensor); measured
     # 2.9e-15, 1.6e-15, 2.4e-15, 8.9e-16 (before com_offset and inertia_tensor: +22 %, -7.8 %, +12 %, +9.9 %)
     (SOLO, "base_link", "FL_FOOT", 4, SPATIAL, 1e-12),  # HAA too (the shoulder's com 79 mm off its rod)
     ("anymal_c_simple_description/urdf/anymal.urdf", "base", "LF_FOOT", 4, SPATIAL, 1e-12),
-    ("go1_description/urdf/go1.urdf", "trunk", "FL_foot", 4, SPATIAL, 1e-12),  # the hip's rod starts 22 mm along HAA
+    (GO1, "trunk", "FL_foot", 4, SPATIAL, 1e-12),  # the hip's rod starts 22 mm along HAA
     ("a1_description/urdf/a1.urdf", "trunk", "FL_foot", 4, SPATIAL, 1e-12),
 ]
 
@@ -61,7 +65,7 @@ def test_real_leg_against_pinocchio(robot, root, ankle, rods, space, bound):
     # the joints' mass matrix block (the planar angles as the description counts them)
     s = np.array([-1.0 if r.flipped else 1.0 for r in leg.rods[1:]])
     M, M_ref = footopt_joint_mass_matrix(leg) * np.outer(s, s), ref.joint_mass_matrix()
-    assert np.abs(M - M_ref).max() / np.abs(M_ref).max() <= (1e-6 if space is PLANAR else 1e-12)
+    assert np.abs(M - M_ref).max() / np.abs(M_ref).max() <= 1e-12
     if space is SPATIAL:  # the summary no longer lists approximations
         assert "moved onto it" not in leg.summary() and "not carried" not in leg.summary()
 
@@ -83,13 +87,14 @@ def _pose(ref, angles: dict[str, float]) -> None:
 @pytest.mark.parametrize(
     "robot, root, ankle, angles, space, bound",
     [
-        # bent, the upper leg's centre of mass 0.014 mm off its rod shows: measured 1.5e-6, 2e-7
-        (SOLO, "FL_UPPER_LEG", "FL_FOOT", {"FL_KFE": -1.3}, PLANAR, 1e-5),
-        (SOLO, "FL_SHOULDER", "FL_FOOT", {"FL_HFE": 0.5, "FL_KFE": -1.3}, PLANAR, 1e-5),
+        # bent: exact (with the centre of mass moved onto the rod, --com-on-rods: 1.5e-6, 2e-7)
+        (SOLO, "FL_UPPER_LEG", "FL_FOOT", {"FL_KFE": -1.3}, PLANAR, 1e-12),
+        (SOLO, "FL_SHOULDER", "FL_FOOT", {"FL_HFE": 0.5, "FL_KFE": -1.3}, PLANAR, 1e-12),
+        (GO1, "FL_hip", "FL_foot", {"FL_thigh_joint": 0.8, "FL_calf_joint": -1.5}, PLANAR, 1e-12),
         ("go1_description/urdf/go1.urdf", "trunk", "FL_foot",
          {"FL_hip_joint": 0.15, "FL_thigh_joint": 0.8, "FL_calf_joint": -1.5}, SPATIAL, 1e-12),
     ],
-    ids=["solo-knee", "solo-hip-knee", "go1-three"],
+    ids=["solo-knee", "solo-hip-knee", "go1-planar", "go1-three"],
 )
 def test_touchdown_posture_from_joint_angles(robot, root, ankle, angles, space, bound):
     """``--angle``: the chain at those joint angles is the source's at the same configuration in
