@@ -286,3 +286,13 @@ def test_go1_at_its_zero_pose_asks_for_a_touchdown_angle():
     with pytest.raises(ConfigError, match=r"--angle: joint 'FL_calf_joint' at 0 rad lies outside its limit "
                                           r"\[-2.818, -0.888\] rad: give a touchdown angle within it"):
         import_leg(read_description(robot_file(GO1_URDF)), "FL_hip", "FL_foot")
+
+
+def test_the_warning_goes_to_stderr_when_the_file_goes_to_stdout(capsys):
+    assert main(["import", str(robot_file(GO1_URDF)), "--root", "FL_hip", "--ankle", "FL_foot",
+                 "--angle", "FL_calf_joint=-1.5", "-o", "-"]) == 0
+    out, err = capsys.readouterr()
+    line = "Warning: not imported (footopt has no such joint law): friction (FL_thigh_joint 0.2, FL_calf_joint 0.2)."
+    assert err.strip() == f"footopt import: {line}" and f"# {line}" in out
+    model = parse_model(load_yaml(out))
+    assert model.joints[2].limits == pytest.approx((0.888, 2.818), abs=1e-12)  # the calf turns about -z

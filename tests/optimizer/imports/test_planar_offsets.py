@@ -77,3 +77,40 @@ def test_a_centre_of_mass_behind_a_planar_joint_is_moved_and_reported(tmp_path):
     assert leg.space is PLANAR and leg.rods[1].com_clamped and leg.model.tree.bodies[1].com == 0.0
     assert "moved onto its joint (behind it: a planar rod starts at its joint)" in leg.summary()
     assert "(except where said above)" in leg.summary()
+
+
+@pytest.mark.parametrize("rung", ["compliant", "sequential"])
+def test_rungs_that_take_rods_only_refuse_an_offset_naming_it(tmp_path, capsys, rung):
+    from optimizer.cli.main import main
+
+    leg = import_leg(read_description(robot_file(GO1)), "FL_hip", "FL_foot", angles={"FL_calf_joint": -1.5},
+                     joint_laws=False)
+    (tmp_path / "leg.yaml").write_text(format_model_file(leg.model))
+    assert main(["evaluate", "--model", rung, str(tmp_path / "leg.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert "model.bodies[1].com_offset: a centre of mass off the rod is read by the rigid impact models" in err
+    assert "--com-on-rods" in err and len(err.strip().splitlines()) == 1
+    assert main(["evaluate", "--model", "lcp", str(tmp_path / "leg.yaml")]) == 0
+
+
+def test_planar_centres_of_mass_behind_the_base_and_past_a_joint_are_exact(tmp_path):
+    """The base's centre of mass behind the root's origin (its rod starts further back) and the
+    thigh's past the knee (its rod reaches beyond it, the shank hangs at ``at`` < 1), both off
+    their rods in the plane: the impulse is Pinocchio's on a planar joint."""
+    from tests.optimizer.imports.test_leg import SPATIAL_LEG, rod_urdf
+
+    links = [list(x) for x in SPATIAL_LEG if x[0] != "hip"]
+    links[1] = ["thigh", "base", "continuous", (0.2, 0.1, 0.0), (0.0, 0.3, 0.0), (0, 1, 0), (0.02, 0.0, -0.2), 1.0, 0.4]
+    text = rod_urdf(links)
+    for link, xyz in (("base", "-0.05 0.0 0.02"), ("thigh", "0.03 0.0 -0.26")):
+        head = f'<link name="{link}"><inertial><origin xyz="'
+        k = text.index(head) + len(head)
+        text = text[:k] + xyz + text[text.index('"', k):]
+    (tmp_path / "far.urdf").write_text(text)
+    leg = import_leg(read_description(tmp_path / "far.urdf"), "base", "foot")
+    base, thigh, shank = leg.model.tree.bodies
+    assert leg.space is PLANAR and leg.rods[0].slide > 0.0 and base.com == 0.0
+    assert thigh.com == 1.0 and shank.at < 1.0 and min(abs(base.com_offset[0]), abs(thigh.com_offset[0])) > 1e-3
+    assert "back along the rod" in leg.summary()
+    ref = reference(tmp_path / "far.urdf", "base", "foot", planar_basis=np.vstack([*_plane(list(leg.segments))]))
+    assert footopt_impulse(leg) == pytest.approx(ref.impulse(), rel=1e-12)
