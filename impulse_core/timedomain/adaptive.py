@@ -91,7 +91,9 @@ DOPRI_E = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -
 REFINEMENT = 4.0
 #: The first run's local tolerance per unit of the requested one (measured: the impulses' error
 #: is then about the requested tolerance / REFINEMENT).
-LOCAL_TOLERANCE = 1.0
+LOCAL_TOLERANCE = 16.0
+#: The finest local tolerance: below it the positions' rounding (1e-16 m on 1 m) is the error.
+LOCAL_FLOOR = 1e-12
 #: The integrator's name in the result (``CompliantResult.integrator``, the JSON's ``integrator``).
 INTEGRATOR = "dopri5"
 #: Events are located to a bracket of this many contact periods (about 1e-16 s at 1e8 1/s^2, a
@@ -504,3 +506,31 @@ def simulate_adaptive(
         integrator=INTEGRATOR,
         model=f"compliant ({settings.law.value}, Dormand-Prince 5(4), located contact switches), {ad.run.space.name}",
     )
+
+
+def adaptive_to_tolerance(
+    tree: Tree,
+    scene: Scene,
+    settings: CompliantSettings,
+    tolerance: float,
+    max_refinements: int = 7,
+    space: Space = PLANAR,
+) -> CompliantResult:
+    """:func:`simulate_adaptive` at the local tolerance :data:`LOCAL_TOLERANCE` x ``tolerance``,
+    then divided by :data:`REFINEMENT` until two runs differ by at most ``tolerance``: the finer
+    run, with that difference as its ``error_estimate`` (module docstring). An unmet tolerance
+    after ``max_refinements``, or at :data:`LOCAL_FLOOR`: the estimate says so (the caller warns;
+    infinite when the first run is already at the floor)."""
+    local = max(LOCAL_TOLERANCE * tolerance, LOCAL_FLOOR)
+    previous = simulate_adaptive(tree, scene, settings, local, space=space)
+    error = math.inf
+    for _ in range(max_refinements):
+        if local <= LOCAL_FLOOR:
+            break
+        local = max(local / REFINEMENT, LOCAL_FLOOR)
+        current = simulate_adaptive(tree, scene, settings, local, space=space)
+        error = compliant_difference(current, previous)
+        previous = current
+        if error <= tolerance:
+            break
+    return replace(previous, error_estimate=error, tolerance=tolerance)

@@ -54,7 +54,8 @@ e(1) = exp(-2), and its overdamped continuation. The damping is tuned with the i
 :func:`damping_ratio_for_restitution`: e = 0.8 needs zeta = 0.0744, not the textbook 0.0708 (which
 gives e = 0.808). Exact for one contact in the stiff limit; e = 0 would need infinite damping.
 
-Integrator: semi-implicit (symplectic) Euler with a fixed step, v+ = v + dt a(q, v),
+Integrator (fixed steps; ``simulate_to_tolerance`` integrates adaptively by default, fifth order:
+:mod:`impulse_core.timedomain.adaptive`): semi-implicit (symplectic) Euler with a fixed step, v+ = v + dt a(q, v),
 q+ = q + dt v+ (MuJoCo's ``Euler``, so that both integrate the same map). The step is a fraction
 of the fastest contact period, dt = 2 pi / (omega_max * steps_per_period), omega_max^2 =
 k lambda_max(A) (penalty: the stiffest mode with every contact engaged) or k (constraint). The
@@ -771,12 +772,17 @@ class CompliantResult:
             1/s^2, 1/s); damping_ratio: zeta used.
         effective_mass: 1 / A_ii of each contact at its touchdown (at the first touchdown for
             contacts that never touched), kg: the penalty law's damping is 2 zeta sqrt(k m).
-        timestep, n_steps, duration: the contact step, the number of contact steps, and the
-            integrated time; n_flight_steps: Runge-Kutta steps of free flight between touchdowns.
+        timestep, n_steps, duration: the contact step (adaptive: the mean step while some contact
+            touches), the number of contact steps, and the integrated time; n_flight_steps:
+            Runge-Kutta steps of free flight between touchdowns.
         status: how it ended; law: the contact law; model: a one-line description.
-        steps_per_period: the discretisation of this run (None: a fixed ``timestep``).
-        error_estimate, tolerance: from :func:`simulate_to_tolerance` (relative difference from
-            the run at half the step), else None.
+        steps_per_period: the discretisation of this run (None: a fixed ``timestep``; adaptive:
+            the contact period over the mean step).
+        error_estimate, tolerance: from :func:`simulate_to_tolerance` (the relative difference
+            from the previous, coarser run: at twice the step, or adaptive at 4 x the local
+            tolerance), else None.
+        integrator: ``euler`` (fixed semi-implicit Euler steps) or ``dopri5`` (adaptive
+            Dormand-Prince 5(4) between located contact switches, :mod:`.adaptive`).
     """
 
     external: np.ndarray
@@ -1363,6 +1369,10 @@ def compliant_difference(a: CompliantResult, b: CompliantResult) -> float:
     return relative_difference([(a.external, b.external), (a.internal_magnitude, b.internal_magnitude)])
 
 
+#: :func:`simulate_to_tolerance`'s methods: adaptive Dormand-Prince steps, or doubled fixed steps.
+ADAPTIVE, DOUBLING = "adaptive", "doubling"
+
+
 def simulate_to_tolerance(
     tree: Tree,
     scene: Scene,
@@ -1370,11 +1380,22 @@ def simulate_to_tolerance(
     tolerance: float,
     max_doublings: int = 7,
     space: Space = PLANAR,
+    method: str = ADAPTIVE,
 ) -> CompliantResult:
-    """:func:`simulate_impact` with the steps per contact period doubled from ``settings``' until
+    """The compliant landing to ``tolerance`` (relative, :func:`compliant_difference`), with its
+    error estimate. ``method`` :data:`ADAPTIVE` (default): Dormand-Prince 5(4) steps between
+    located contact switches, the local tolerance refined until two runs agree
+    (:func:`impulse_core.timedomain.adaptive.adaptive_to_tolerance`). :data:`DOUBLING`:
+    :func:`simulate_impact` with the steps per contact period doubled from ``settings``' until
     two runs differ by at most ``tolerance`` (the method is first order, so that difference
-    estimates the finer run's error); the finer run, with the estimate. An unmet tolerance after
-    ``max_doublings``: the estimate says so (the caller warns)."""
+    estimates the finer run's error); the finer run, with the estimate. Either way an unmet
+    tolerance after ``max_doublings`` refinements: the estimate says so (the caller warns)."""
+    if method == ADAPTIVE:
+        from impulse_core.timedomain.adaptive import adaptive_to_tolerance  # it builds on this module
+
+        return adaptive_to_tolerance(tree, scene, settings, tolerance, max_doublings, space)
+    if method != DOUBLING:
+        raise ModelError(f"compliant: unknown refinement method {method!r} (choices: {ADAPTIVE}, {DOUBLING})")
     n = settings.steps_per_period
     previous = simulate_impact(tree, scene, settings, space=space)
     error = math.inf
