@@ -519,9 +519,8 @@ def adaptive_to_tolerance(
     """:func:`simulate_adaptive` at the local tolerance :data:`LOCAL_TOLERANCE` x ``tolerance``,
     then divided by :data:`REFINEMENT` until two runs differ by at most ``tolerance``: the finer
     run, with that difference as its ``error_estimate`` (module docstring). An unmet tolerance
-    after ``max_refinements``, or at :data:`LOCAL_FLOOR`: the estimate says so (the caller warns;
-    infinite when the first run is already at the floor)."""
-    local = max(LOCAL_TOLERANCE * tolerance, LOCAL_FLOOR)
+    after ``max_refinements``, or at :data:`LOCAL_FLOOR`: the estimate says so (the caller warns)."""
+    local = max(LOCAL_TOLERANCE * tolerance, REFINEMENT * LOCAL_FLOOR)
     previous = simulate_adaptive(tree, scene, settings, local, space=space)
     error = math.inf
     for _ in range(max_refinements):
