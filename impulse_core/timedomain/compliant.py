@@ -558,7 +558,8 @@ def normal_terms(x: Expressions, terrain: Terrain | Heightfield, space: Space) -
     n_i^T J_i) and M^-1 Jn^T on ``terrain``, as expressions of ``x``'s symbols."""
     d = x.dims
     if (d == 3) != isinstance(terrain, Heightfield):
-        raise ModelError(f"the {space.name} time-domain rungs take a {'heightfield' if d == 3 else 'terrain'} as ground")
+        ground = "heightfield" if d == 3 else "terrain"
+        raise ModelError(f"the {space.name} time-domain rungs take a {ground} as ground")
     nc, nv = x.contacts.shape[1], x.q.shape[0]
     gaps, normals = [], []
     for c in range(nc):

@@ -41,8 +41,8 @@ MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel), *TIME_DOMAIN_MODELS)
 _DESCRIPTIONS = {
     SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact along the local normal at each touchdown, "
     "free flight between)",
-    COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal; fixed semi-implicit Euler "
-    "steps, or adaptive Dormand-Prince 5(4) steps between located contact switches to a tolerance)",
+    COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal; fixed semi-implicit "
+    "Euler steps, or adaptive Dormand-Prince 5(4) steps between located contact switches to a tolerance)",
     LANDING: "the whole landing: every touchdown and joint stop an impact by the first-impact law, resting contact "
     "with Coulomb friction, joint springs, dampers and gravity in between (event-driven RK4)",
 }
