@@ -37,8 +37,9 @@ the impulses'. The rung runs at tau and at tau / :data:`REFINEMENT` and reports 
 the relative difference of the two (``compliant_difference``) as ``error_estimate``; if it exceeds
 the tolerance, tau is divided again. The global error scales about like tau (measured: 0.03 tau
 on the uneven-terrain example), so that difference is about (REFINEMENT - 1) x the finer run's
-error: an estimate from above, 1.5 to 3.8 times the true error in the tested cases (the example
-and random trees, both laws: tests/impulse_core/test_compliant_adaptive.py), not a bound.
+error: an estimate from above, 1.2 to 3.8 times the true error in the measured cases (the example
+at 1e-3 to 1e-5, studies/fidelity/tolerance_cost.md; random trees, both laws:
+tests/impulse_core/test_compliant_adaptive.py), not a bound.
 """
 
 from __future__ import annotations
