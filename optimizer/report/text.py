@@ -472,7 +472,7 @@ def _touchdown_lines(model: ModelFile, result: TimeDomainResult) -> list[str]:
     if isinstance(r, CompliantResult):
         unit = "N/m" if r.law is ContactLaw.PENALTY else "1/s^2"
         lines.append(
-            f"integration ({r.integrator}): {r.status.value} after {1e3 * r.duration:.3f} ms, {r.n_steps} contact "
+            f"integration: {r.status.value} after {1e3 * r.duration:.3f} ms, {r.n_steps} {r.integrator} contact "
             f"steps of {'' if r.integrator == 'euler' else 'on average '}{r.timestep:.3g} s and {r.n_flight_steps} "
             f"flight steps; stiffness {result.settings.stiffness:g} {unit}"
         )
