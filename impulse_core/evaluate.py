@@ -50,7 +50,7 @@ from impulse_core.impact.laws import (
 )
 from impulse_core.impact.mode_derivatives import mode_impulse_function, slip_signs
 from impulse_core.impact.nnls import least_distance
-from impulse_core.kinematics.spatial import PLANAR, DofKind, Space, dof_layout
+from impulse_core.kinematics.spatial import PLANAR, DofKind, Space, dof_layout, values_space
 from impulse_core.model.tree import ContactSelection, Scene, Topology, Tree, design_vector
 
 #: A normal impulse below this fraction of the approach momentum counts as zero (separating).
@@ -107,6 +107,7 @@ class Geometry:
 
 def touchdown_geometry(tree: Tree, space: Space = PLANAR) -> Geometry:
     """Where every body, centre of mass and contact point is at touchdown."""
+    space = values_space(tree, space)
     out = compiled_geometry(tree.topology(), space)(p=design_vector(tree, space.body_values))
     dims = 2 if space.joint_axis is not None else 3
     pts = {k: np.array(out[k]).T[:, :dims] for k in ("origins", "tips", "coms", "contacts")}
@@ -263,6 +264,7 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
             "(--model compliant)"
         )
     _check_space(tree, scene, model, space)
+    space = values_space(tree, space)  # a planar tree with centres of mass off its rods: their offsets too
     active = active_contacts(tree, scene, space=space)
     topology = tree.topology(active)
     v_minus = pre_impact_velocity(topology, scene, space)
@@ -281,7 +283,8 @@ def _check_space(tree: Tree, scene: Scene, model: ImpactModel | None, space: Spa
     if space.joint_axis is not None:
         for i, b in enumerate(tree.bodies):
             if not b.is_planar:
-                raise ModelError(f"model.bodies[{i}]: rpy, axis, radius, com_offset and inertia_tensor need 'model.space: spatial'")
+                raise ModelError(f"model.bodies[{i}]: rpy, axis, radius, com_offset out of the plane (dz) and "
+                                 "inertia_tensor need 'model.space: spatial'")
         if scene.out_of_plane:
             raise ModelError("scene.velocity: a lateral velocity or a turn about x or y needs 'model.space: spatial'")
         return

@@ -15,7 +15,15 @@ from enum import Enum
 
 import casadi as ca
 
-from impulse_core.model.tree import BODY_VALUES, SPATIAL_BODY_VALUES, TENSOR_VALUES, JointKind, Topology
+from impulse_core.model.tree import (
+    BODY_VALUES,
+    PLANAR_OFFSET_VALUES,
+    SPATIAL_BODY_VALUES,
+    TENSOR_VALUES,
+    JointKind,
+    Topology,
+    Tree,
+)
 
 
 class DofKind(Enum):
@@ -51,6 +59,22 @@ PLANAR = Space(
     ),
     joint_axis=(0.0, 0.0, 1.0),
 )
+
+#: The plane with centres of mass off the rods (``com_offset`` [dy, 0]): PLANAR's motions, each
+#: body's offset along its frame's y one more value (the spatial offset machinery, z fixed at 0).
+#: :func:`values_space` picks it for a planar tree that needs it; rods keep PLANAR's functions.
+PLANAR_OFFSET = Space(
+    name="planar", base_dofs=PLANAR.base_dofs, joint_axis=PLANAR.joint_axis, body_values=PLANAR_OFFSET_VALUES
+)
+
+
+def values_space(tree: Tree, space: Space) -> Space:
+    """The space whose values carry ``tree``: PLANAR_OFFSET for a planar tree with a centre of mass
+    off a rod, else ``space``."""
+    if space is PLANAR and any(b.com_offset[0] != 0.0 for b in tree.bodies):
+        return PLANAR_OFFSET
+    return space
+
 
 #: Space (MODEL_FORMAT "Spatial models"): the base free in six directions (its origin's
 #: velocity, then its angular velocity, world frame); each joint about its own axis.
@@ -139,6 +163,8 @@ def unpack_values(topology: Topology, p: ca.SX, space: Space = PLANAR) -> tuple[
             if "com_y" in vals:
                 spatial["com_offset"] = (vals.pop("com_y"), vals.pop("com_z"))
                 spatial["tensor"] = tuple(vals.pop(k) for k in TENSOR_VALUES)
+        elif "com_y" in vals:  # the plane with offsets: along y only
+            spatial = {"com_offset": (vals.pop("com_y"), 0.0)}
         out.append(BodyValues(contacts=contacts, **vals, **spatial))
     return tuple(out)
 

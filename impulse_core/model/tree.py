@@ -38,6 +38,9 @@ SPATIAL_BODY_VALUES = BODY_VALUES + ("roll", "pitch", "yaw", "axis_x", "axis_y",
 #: ``inertia_tensor``).
 TENSOR_VALUES = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")
 SPATIAL_BODY_VALUES = SPATIAL_BODY_VALUES + ("com_y", "com_z") + TENSOR_VALUES
+#: A planar model whose centres of mass lie off the rods (in the plane): the planar values, then
+#: the offset along each body frame's y (``com_offset`` [dy, 0]; MODEL_FORMAT "Bodies").
+PLANAR_OFFSET_VALUES = BODY_VALUES + ("com_y",)
 #: Where each body value may lie: (lowest, whether the lowest itself is allowed, highest); every
 #: value is also finite. :func:`validate_tree` enforces them one tree at a time, the batch
 #: evaluator (``impulse_core.compile.batch``) on whole arrays of design vectors.
@@ -107,8 +110,8 @@ class Body:
             zero; made unit); planar: z.
         radius: spatial models: the rod's radius (a solid cylinder: m r^2 / 2 about its own
             axis); planar: 0.
-        com_offset: spatial models: the centre of mass's offset (m) from the rod's axis along the
-            body frame's y and z (its position along the axis stays ``com`` x length); planar: 0.
+        com_offset: the centre of mass's offset (m) from the rod's axis along the body frame's y
+            and z (its position along the axis stays ``com`` x length); planar: [dy, 0].
         tensor: spatial models: (ixx, iyy, izz, ixy, ixz, iyz), an inertia tensor about the centre
             of mass in body axes (kg m^2) added to the rod's own diag(m r^2 / 2, I, I); a file's
             ``inertia_tensor`` is this with ``gyration`` and ``radius`` 0. Physical (see
@@ -143,12 +146,14 @@ class Body:
 
     @property
     def is_planar(self) -> bool:
-        """True when the body turns about z with no fixed rotation and no radius."""
+        """True when the body turns about z with no fixed rotation and no radius, its centre of
+        mass in the plane (``com_offset`` [dy, 0]) and no tensor added."""
         return (
             self.rpy == (0.0, 0.0, 0.0)
             and self.axis == (0.0, 0.0, 1.0)
             and self.radius == 0.0
-            and self.is_rod
+            and self.com_offset[1] == 0.0
+            and not any(self.tensor)
         )
 
     @property
@@ -455,8 +460,19 @@ def design_vector(tree: Tree, body_values: tuple[str, ...] = BODY_VALUES) -> np.
     """The values of a tree as the flat vector ``p`` the compiled functions take.
 
     Layout: for each body, ``body_values`` in order (``BODY_VALUES`` in the plane,
-    ``SPATIAL_BODY_VALUES`` in space); then every declared contact fraction.
+    ``PLANAR_OFFSET_VALUES`` in the plane with centres of mass off the rods, ``SPATIAL_BODY_VALUES``
+    in space); then every declared contact fraction.
+
+    Raises:
+        ModelError: naming ``model.bodies[i].com_offset`` when a body's centre of mass is off its
+            rod and the layout has no ``com_y`` (a computation that takes rods only).
     """
+    if "com_y" not in body_values:
+        for i, b in enumerate(tree.bodies):
+            if b.com_offset != (0.0, 0.0):
+                raise ModelError(f"model.bodies[{i}].com_offset: a centre of mass off the rod is read by the rigid "
+                                 "impact models (decoupled, newton, lcp, friction) and spatial models; this "
+                                 "computation takes planar rods only (a leg from footopt import: --com-on-rods)")
     per_body = [[getattr(b, name) for name in body_values] for b in tree.bodies]
     contacts = [c for b in tree.bodies for c in b.contacts]
     return np.array([v for row in per_body for v in row] + contacts, dtype=float)
@@ -494,6 +510,7 @@ def with_values(tree: Tree, p: np.ndarray, body_values: tuple[str, ...] = BODY_V
 
 __all__ = [
     "BODY_VALUES",
+    "PLANAR_OFFSET_VALUES",
     "CONTACT_BOUNDS",
     "SPATIAL_BODY_VALUES",
     "TENSOR_VALUES",

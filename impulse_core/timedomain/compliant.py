@@ -54,7 +54,8 @@ e(1) = exp(-2), and its overdamped continuation. The damping is tuned with the i
 :func:`damping_ratio_for_restitution`: e = 0.8 needs zeta = 0.0744, not the textbook 0.0708 (which
 gives e = 0.808). Exact for one contact in the stiff limit; e = 0 would need infinite damping.
 
-Integrator: semi-implicit (symplectic) Euler with a fixed step, v+ = v + dt a(q, v),
+Integrator (fixed steps; ``simulate_to_tolerance`` integrates adaptively by default, fifth order:
+:mod:`impulse_core.timedomain.adaptive`): semi-implicit (symplectic) Euler with a fixed step, v+ = v + dt a(q, v),
 q+ = q + dt v+ (MuJoCo's ``Euler``, so that both integrate the same map). The step is a fraction
 of the fastest contact period, dt = 2 pi / (omega_max * steps_per_period), omega_max^2 =
 k lambda_max(A) (penalty: the stiffest mode with every contact engaged) or k (constraint). The
@@ -552,6 +553,25 @@ def ground_expression(ground: Terrain | Heightfield, W_p: ca.SX) -> tuple[ca.SX,
     return gap_expression(ground, W_p)
 
 
+def normal_terms(x: Expressions, terrain: Terrain | Heightfield, space: Space) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    """The contacts' gaps g (n_c), outward normals N (d x n_c), normal Jacobian rows Jn (n_c x nv,
+    n_i^T J_i) and M^-1 Jn^T on ``terrain``, as expressions of ``x``'s symbols."""
+    d = x.dims
+    if (d == 3) != isinstance(terrain, Heightfield):
+        ground = "heightfield" if d == 3 else "terrain"
+        raise ModelError(f"the {space.name} time-domain rungs take a {ground} as ground")
+    nc, nv = x.contacts.shape[1], x.q.shape[0]
+    gaps, normals = [], []
+    for c in range(nc):
+        gap, normal = ground_expression(terrain, x.contacts[:, c])
+        gaps.append(gap)
+        normals.append(normal)
+    N = ca.horzcat(*normals) if nc else ca.SX(d, 0)
+    Jn = ca.vertcat(*[N[:, c].T @ x.contact_jacobian[d * c : d * c + d, :] for c in range(nc)]) if nc else ca.SX(0, nv)
+    minv_jnt = ca.horzcat(*[x.minv_jt[:, d * c : d * c + d] @ N[:, c] for c in range(nc)]) if nc else ca.SX(nv, 0)
+    return (ca.vertcat(*gaps) if nc else ca.SX(0, 1)), N, Jn, minv_jnt
+
+
 def step_function(topology: Topology, terrain: Terrain | Heightfield, space: Space = PLANAR) -> ca.Function:
     """What one integration step needs at (q, v, p, gravity), with the contact detection of
     ``terrain`` built in (one call per step).
@@ -566,20 +586,7 @@ def step_function(topology: Topology, terrain: Terrain | Heightfield, space: Spa
     is a 3.
     """
     x = expressions(topology, space)
-    d = x.dims
-    if (d == 3) != isinstance(terrain, Heightfield):
-        raise ModelError(f"the {space.name} time-domain rungs take a {'heightfield' if d == 3 else 'terrain'} as ground")
-    nc = x.contacts.shape[1]
-    gaps, normals = [], []
-    for c in range(nc):
-        gap, normal = ground_expression(terrain, x.contacts[:, c])
-        gaps.append(gap)
-        normals.append(normal)
-    nv = x.q.shape[0]
-    N = ca.horzcat(*normals) if nc else ca.SX(d, 0)
-    Jn = ca.vertcat(*[N[:, c].T @ x.contact_jacobian[d * c : d * c + d, :] for c in range(nc)]) if nc else ca.SX(0, nv)
-    minv_jnt = ca.horzcat(*[x.minv_jt[:, d * c : d * c + d] @ N[:, c] for c in range(nc)]) if nc else ca.SX(nv, 0)
-    gap = ca.vertcat(*gaps) if nc else ca.SX(0, 1)
+    gap, N, Jn, minv_jnt = normal_terms(x, terrain, space)
     outs = [
         gap,
         N,
@@ -766,12 +773,17 @@ class CompliantResult:
             1/s^2, 1/s); damping_ratio: zeta used.
         effective_mass: 1 / A_ii of each contact at its touchdown (at the first touchdown for
             contacts that never touched), kg: the penalty law's damping is 2 zeta sqrt(k m).
-        timestep, n_steps, duration: the contact step, the number of contact steps, and the
-            integrated time; n_flight_steps: Runge-Kutta steps of free flight between touchdowns.
+        timestep, n_steps, duration: the contact step (adaptive: the mean step while some contact
+            touches), the number of contact steps, and the integrated time; n_flight_steps:
+            Runge-Kutta steps of free flight between touchdowns.
         status: how it ended; law: the contact law; model: a one-line description.
-        steps_per_period: the discretisation of this run (None: a fixed ``timestep``).
-        error_estimate, tolerance: from :func:`simulate_to_tolerance` (relative difference from
-            the run at half the step), else None.
+        steps_per_period: the discretisation of this run (None: a fixed ``timestep``; adaptive:
+            the contact period over the mean step).
+        error_estimate, tolerance: from :func:`simulate_to_tolerance` (the relative difference
+            from the previous, coarser run: at twice the step, or adaptive at 4 x the local
+            tolerance), else None.
+        integrator: ``euler`` (fixed semi-implicit Euler steps) or ``dopri5`` (adaptive
+            Dormand-Prince 5(4) between located contact switches, :mod:`.adaptive`).
     """
 
     external: np.ndarray
@@ -808,6 +820,7 @@ class CompliantResult:
     steps_per_period: float | None = None
     error_estimate: float | None = None
     tolerance: float | None = None
+    integrator: str = "euler"
 
     @property
     def max_internal(self) -> float:
@@ -840,29 +853,35 @@ class _State:
     subtree_bias: np.ndarray  # 2 x bodies
 
 
-class BufferedCall:
-    """Low-overhead numeric calls of a CasADi function of (q, v, p, gravity) through its buffer
-    interface (a few us per call instead of tens): inputs are copied into fixed arrays, outputs
-    are views of fixed arrays, overwritten by the next call: ``self.flat`` (as vectors) and
-    ``self.out`` (shaped, CasADi's column-major order)."""
+class BufferedFunction:
+    """Low-overhead numeric calls of a CasADi function through its buffer interface (a few us per
+    call instead of tens): fill the fixed input arrays ``self.args``, call :meth:`evaluate`; the
+    outputs are views of fixed arrays, overwritten by the next call: ``self.flat`` (as vectors)
+    and ``self.out`` (shaped, CasADi's column-major order)."""
+
+    def __init__(self, fn: ca.Function) -> None:
+        self._buf, self.evaluate = fn.buffer()
+        self.args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
+        self.flat = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
+        for i, a in enumerate(self.args):
+            self._buf.set_arg(i, memoryview(a))
+        for i, r in enumerate(self.flat):
+            self._buf.set_res(i, memoryview(r))
+        self.out = [r.reshape(fn.size_out(i), order="F") for i, r in enumerate(self.flat)]
+
+
+class BufferedCall(BufferedFunction):
+    """:class:`BufferedFunction` of a function of (q, v, p, gravity), with p and gravity fixed."""
 
     def __init__(self, fn: ca.Function, p: np.ndarray, gravity: float) -> None:
-        self._buf, self._eval = fn.buffer()
-        self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
-        self._res = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
-        for i, a in enumerate(self._args):
-            self._buf.set_arg(i, memoryview(a))
-        for i, r in enumerate(self._res):
-            self._buf.set_res(i, memoryview(r))
-        self._args[2][:] = p
-        self._args[3][:] = gravity
-        self.flat = self._res
-        self.out = [r.reshape(fn.size_out(i), order="F") for i, r in enumerate(self._res)]
+        super().__init__(fn)
+        self.args[2][:] = p
+        self.args[3][:] = gravity
 
     def call(self, q: np.ndarray, v: np.ndarray) -> None:
-        self._args[0][:] = q
-        self._args[1][:] = v
-        self._eval()
+        self.args[0][:] = q
+        self.args[1][:] = v
+        self.evaluate()
 
 
 class _Evaluator(BufferedCall):
@@ -1005,6 +1024,17 @@ def _touchdown_state(
     return evaluate_step, q, v
 
 
+def landing_ground(
+    scene: Scene, terrain: Terrain | Heightfield | None, base_x: float | None, space: Space
+) -> tuple[Terrain | Heightfield, float, float]:
+    """The ground (the scene's unless ``terrain`` is given; in space a heightfield,
+    :func:`spatial_ground`) and the base origin's x and z at touchdown."""
+    if space is PLANAR:
+        ground, x = scene_ground(scene, terrain, base_x)  # type: ignore[arg-type]
+        return ground, x, 0.0
+    return spatial_ground(scene, terrain), float(scene.base_x if base_x is None else base_x), float(scene.base_z)
+
+
 def touchdown_evaluator(
     tree: Tree,
     scene: Scene,
@@ -1017,13 +1047,7 @@ def touchdown_evaluator(
     space a heightfield, :func:`spatial_ground`) and the configuration at the first touchdown.
     At that configuration (rotation coordinates 0 in space) the rates are the core's velocity."""
     topology = tree.topology()
-    if space is PLANAR:
-        ground, base_x = scene_ground(scene, terrain, base_x)
-        base_z = 0.0
-    else:
-        ground = spatial_ground(scene, terrain)
-        base_x = float(scene.base_x if base_x is None else base_x)
-        base_z = float(scene.base_z)
+    ground, base_x, base_z = landing_ground(scene, terrain, base_x, space)
     evaluate_step = _Evaluator(compiled_step(topology, ground, space), design_vector(tree, space.body_values), gravity)
     q = touchdown_configuration(tree, ground, base_x, space=space, base_z=base_z)
     return evaluate_step, q
@@ -1104,13 +1128,18 @@ def _touch_down(s: _State, touching: np.ndarray, t: float, prev_t: float, run: _
     if not new.any():
         return False
     frac = -s.gap[new] / np.maximum(tally.prev_gap[new] - s.gap[new], 1e-300)
-    tally.touchdown[new] = t - (t - prev_t) * np.minimum(frac, 1.0)
+    tune_damping(s, new, t - (t - prev_t) * np.minimum(frac, 1.0), run, tally)
+    return True
+
+
+def tune_damping(s: _State, new: np.ndarray, touchdown: np.ndarray | float, run: _Run, tally: _Tally) -> None:
+    """Record the ``new`` contacts' touchdown at ``touchdown`` (s), their effective mass at ``s``
+    and, penalty law, the damping tuned to e on it (the effective mass the contact meets)."""
+    tally.touchdown[new] = touchdown
     tally.untouched[new] = False
-    # damping tuned to e on the effective mass the contact meets when it lands
     tally.effective_mass[new] = 1.0 / np.einsum("cv,vc->c", s.Jn[new], s.minv_jnt[:, new])
     if run.penalty:
         tally.c[new] = 2.0 * run.zeta * np.sqrt(run.k[new] * tally.effective_mass[new])
-    return True
 
 
 def _normal_forces(s: _State, touching: np.ndarray, any_touching: bool, run: _Run, c: np.ndarray) -> np.ndarray:
@@ -1341,6 +1370,10 @@ def compliant_difference(a: CompliantResult, b: CompliantResult) -> float:
     return relative_difference([(a.external, b.external), (a.internal_magnitude, b.internal_magnitude)])
 
 
+#: :func:`simulate_to_tolerance`'s methods: adaptive Dormand-Prince steps, or doubled fixed steps.
+ADAPTIVE, DOUBLING = "adaptive", "doubling"
+
+
 def simulate_to_tolerance(
     tree: Tree,
     scene: Scene,
@@ -1348,11 +1381,22 @@ def simulate_to_tolerance(
     tolerance: float,
     max_doublings: int = 7,
     space: Space = PLANAR,
+    method: str = ADAPTIVE,
 ) -> CompliantResult:
-    """:func:`simulate_impact` with the steps per contact period doubled from ``settings``' until
+    """The compliant landing to ``tolerance`` (relative, :func:`compliant_difference`), with its
+    error estimate. ``method`` :data:`ADAPTIVE` (default): Dormand-Prince 5(4) steps between
+    located contact switches, the local tolerance refined until two runs agree
+    (:func:`impulse_core.timedomain.adaptive.adaptive_to_tolerance`). :data:`DOUBLING`:
+    :func:`simulate_impact` with the steps per contact period doubled from ``settings``' until
     two runs differ by at most ``tolerance`` (the method is first order, so that difference
-    estimates the finer run's error); the finer run, with the estimate. An unmet tolerance after
-    ``max_doublings``: the estimate says so (the caller warns)."""
+    estimates the finer run's error); the finer run, with the estimate. Either way an unmet
+    tolerance after ``max_doublings`` refinements: the estimate says so (the caller warns)."""
+    if method == ADAPTIVE:
+        from impulse_core.timedomain.adaptive import adaptive_to_tolerance  # it builds on this module
+
+        return adaptive_to_tolerance(tree, scene, settings, tolerance, max_doublings, space)
+    if method != DOUBLING:
+        raise ModelError(f"compliant: unknown refinement method {method!r} (choices: {ADAPTIVE}, {DOUBLING})")
     n = settings.steps_per_period
     previous = simulate_impact(tree, scene, settings, space=space)
     error = math.inf

@@ -781,9 +781,10 @@ def landing_gradient(
             events.append((fn, d[1], joint, d[3]))
         elif kind == "project":
             _, q, v, mode = entry
-            pt = run.point(q, v)
-            lifted = tuple(int(i) for i in np.flatnonzero(~mode.closed & (pt.gap < 0)))
-            beyond = tuple(int(b) for b in run.beyond(q)) if np.any(run.beyond(q)) else ()
+            place = run.placement(run.point(q, v), q, mode)
+            lifted = tuple(int(i) for i in np.flatnonzero(place.closed & ~mode.closed))
+            put_back = np.where(mode.stop == 0, place.stop, 0)
+            beyond = tuple(int(b) for b in put_back) if np.any(put_back) else ()
             (x1, imp), J = sym.project(mode, lifted, beyond)(x, theta)
             S_totals = S_totals + J[1][0] @ S + J[1][1]
             S = J[0][0] @ S + J[0][1]

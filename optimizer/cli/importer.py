@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
 from impulse_core.errors import FootoptError
@@ -26,8 +27,9 @@ def add_import(subparsers: argparse._SubParsersAction) -> None:
             "floating base) down to --ankle as a footopt model file: one rod per link, fixed joints merged into "
             "their parent, each revolute joint as in the description, a contact at the ankle (or at --foot). "
             "Planar when every joint axis of the chain is parallel, else spatial. Each rod carries its link's "
-            "mass exactly and its centre of mass and inertia as a rod can (the file's comments and this "
-            "command's output say what is approximated). See MODEL_FORMAT.md, 'Import'."
+            "mass, centre of mass and inertia (the file's comments and this command's output say where "
+            "anything is approximated), and each joint's stops, damper and spring "
+            "(--no-joint-laws: none). See MODEL_FORMAT.md, 'Import'."
         ),
     )
     p.add_argument("description", metavar="ROBOT", help="a URDF (.urdf) or MJCF (.xml) file")
@@ -41,6 +43,12 @@ def add_import(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--angle", action="append", default=[], metavar="JOINT=RAD",
                    help="the touchdown posture: this joint's angle in rad, as the description counts it "
                    "(repeat for several joints; default: every joint at 0)")
+    p.add_argument("--com-on-rods", action="store_true",
+                   help="planar: move each centre of mass onto its rod (the inertia taken about that point), as a "
+                   "study's leg file needs; default: carried exactly (com_offset)")
+    p.add_argument("--no-joint-laws", dest="joint_laws", action="store_false",
+                   help="leave out the joints' stops, dampers and springs (default: imported, as footopt's "
+                   "limits, damping, stiffness and rest; laws it has no key for are named in a warning)")
     p.add_argument("-o", "--out", metavar="OUT", required=True, help="the model file to write ('-': standard output)")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     p.set_defaults(run=run_import)
@@ -59,13 +67,16 @@ def run_import(args: argparse.Namespace) -> int:
     if angles is None:
         return EXIT_USAGE
     try:
-        leg = import_leg(read_description(Path(args.description)), args.root, args.ankle, args.foot, args.space, angles)
+        leg = import_leg(read_description(Path(args.description)), args.root, args.ankle, args.foot, args.space, angles,
+                         args.joint_laws, args.com_on_rods)
     except FootoptError as e:
         _error(str(getattr(e, "source", None) or args.description), str(e))
         return EXIT_USAGE
     summary = leg.summary()
     text = format_model_file(leg.model, header_comment=summary)
     if args.out == "-":
+        for line in leg.warnings:
+            print(f"footopt import: {line}", file=sys.stderr)
         print(text, end="")
         return EXIT_OK
     status = _write(Path(args.out), text, args.force)

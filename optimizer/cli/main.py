@@ -114,8 +114,9 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         help=f"--model landing (or auto with scene.duration): the error the landing must meet, relative, in its "
         f"peak impulses, total contact impulses and final angles (default {LandingSettings().tolerance:g}); the step "
         "is halved until two runs agree to it, and the JSON reports the estimate as error_estimate; --model "
-        "compliant: the same for its external and internal impulses, its steps per contact period doubled from 120 "
-        "(unless --steps-per-period fixes them)",
+        "compliant: the same for its external and internal impulses, by adaptive Dormand-Prince 5(4) steps between "
+        "located contact switches, their local tolerance refined until two runs agree (unless --steps-per-period fixes "
+        "semi-implicit Euler steps)",
     )
     p.add_argument(
         "--plot",

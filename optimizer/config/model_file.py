@@ -551,7 +551,7 @@ def parse_tree(data: Any, where: str = "model") -> Tree:
     entries = [_mapping(b, f"{path}[{i}]", keys) for i, b in enumerate(raw)]
     for i, b in enumerate(entries):
         for key in SPATIAL_BODY_KEYS:
-            if key in b and not spatial:
+            if key in b and not spatial and key != "com_offset":
                 raise ConfigError(f"{path}[{i}].{key}: needs 'model.space: spatial' (a planar body turns about z)")
 
     index: dict[str, int] = {}
@@ -596,7 +596,7 @@ def _parse_body(
     if "inertia" in b and "gyration" in b:
         raise ConfigError(f"{where}.gyration: give 'inertia' or 'gyration', not both")
     rpy, axis, radius = _spatial_fields(b, where) if spatial else ((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 0.0)
-    com_offset, tensor = _mass_fields(b, where) if spatial else ((0.0, 0.0), None)
+    com_offset, tensor = _mass_fields(b, where) if spatial else (_planar_offset(b, where), None)
     if tensor is not None:
         return Body(
             name=names[i], parent=parent, length=length, mass=mass, angle=angle, at=at, joint=joint,
@@ -653,6 +653,15 @@ def _mass_fields(b: dict[str, Any], where: str) -> tuple[tuple[float, float], tu
     if problem is not None:
         raise ConfigError(f"{where}.inertia_tensor: {problem}")
     return com_offset, tensor
+
+
+def _planar_offset(b: dict[str, Any], where: str) -> tuple[float, float]:
+    """A planar body's ``com_offset`` [dy, 0] (m, default 0): its centre of mass lies in the plane."""
+    dy, dz = _vector(b.get("com_offset", [0.0, 0.0]), f"{where}.com_offset", "dy, dz", unit=" (m)")
+    if dz != 0.0:
+        raise ConfigError(f"{where}.com_offset: a planar body's centre of mass lies in the plane: dz must be 0, "
+                          f"got {dz!r} (out of the plane: 'model.space: spatial')")
+    return dy, 0.0
 
 
 def _spatial_fields(b: dict[str, Any], where: str) -> tuple[tuple[float, ...], tuple[float, ...], float]:

@@ -352,9 +352,10 @@ def _check_whole_landing(config: StudyConfig) -> None:
         )
     if not config.space.joint_laws.empty or config.leg.knee != Leg().knee:
         where = "design_space.joint_laws" if not config.space.joint_laws.empty else "leg.shank"
+        hint = "" if where != "leg.shank" else " (a leg file from footopt import: --no-joint-laws leaves them out)"
         raise ConfigError(f"{where}: springs, dampers and stops act only over a whole landing: add a landing "
                           "objective (peak_external_norm, peak_internal_norm, peak_max_internal, settled_at, "
-                          "energy_absorbed)")
+                          f"energy_absorbed){hint}")
 
 
 def resolve_storage(url: str, folder: Path | None) -> str:
@@ -444,6 +445,10 @@ def _leg_file(value: Any, folder: Path | None) -> Leg:
         raise ConfigError(f"leg.file: {path} has {len(bodies)} rods: the design space hangs the foot on a two-rod "
                           "leg (thigh: the floating base, shank: its child; import from the thigh to the ankle)")
     thigh, shank = bodies
+    for i, b in enumerate(bodies):
+        if b.com_offset != (0.0, 0.0):
+            raise ConfigError(f"leg.file: {path}: model.bodies[{i}].com_offset: the design space's leg carries each "
+                              "centre of mass on its rod (footopt import --com-on-rods)")
     if shank.joint is not JointKind.REVOLUTE or shank.at != 1.0:
         raise ConfigError(f"leg.file: {path}: the shank must hang from the thigh's tip (at: 1.0) by a revolute joint")
     knee = model.joints[1] if model.joints else Leg().knee

@@ -41,7 +41,8 @@ MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel), *TIME_DOMAIN_MODELS)
 _DESCRIPTIONS = {
     SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact along the local normal at each touchdown, "
     "free flight between)",
-    COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal, semi-implicit Euler)",
+    COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal; fixed semi-implicit "
+    "Euler steps, or adaptive Dormand-Prince 5(4) steps between located contact switches to a tolerance)",
     LANDING: "the whole landing: every touchdown and joint stop an impact by the first-impact law, resting contact "
     "with Coulomb friction, joint springs, dampers and gravity in between (event-driven RK4)",
 }
@@ -198,9 +199,14 @@ def _time_domain(
             result = simulate_to_tolerance(tree, scene, settings, compliant_tolerance, space=space)
         unit = "N/m" if settings.law is ContactLaw.PENALTY else "1/s^2"
         steps = result.steps_per_period or settings.steps_per_period
+        how = (
+            f"{steps:g} semi-implicit Euler steps per contact period (step {result.timestep:.3g} s)"
+            if result.integrator == "euler"
+            else f"adaptive Dormand-Prince 5(4) steps between located contact switches ({steps:.3g} per contact "
+            f"period on average, mean step {result.timestep:.3g} s)"
+        )
         notes.append(
-            f"{settings.law.value} law, stiffness {settings.stiffness:g} {unit}, "
-            f"{steps:g} steps per contact period (step {result.timestep:.3g} s)"
+            f"{settings.law.value} law, stiffness {settings.stiffness:g} {unit}, {how}"
             + ("" if compliant_tolerance is None else f", refined to a tolerance of {compliant_tolerance:g}")
         )
     if settings.gravity:

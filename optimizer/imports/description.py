@@ -3,7 +3,8 @@
 Every link has a frame; a joint places its child's frame in its parent's at the zero
 configuration (``origin``, ``rotation``) and, when it moves, turns the child about ``axis`` (a unit
 vector in the child's frame, through the child frame's origin). Mass properties are each link's
-own: mass, centre of mass and inertia tensor about it, in the link's frame.
+own: mass, centre of mass and inertia tensor about it, in the link's frame. A revolute joint's
+laws (stops, damper, spring) are in the file's own joint coordinate (:class:`Dynamics`).
 """
 
 from __future__ import annotations
@@ -33,6 +34,22 @@ class Link:
 
 
 @dataclass(frozen=True)
+class Dynamics:
+    """A revolute joint's laws as the file states them, in its joint coordinate (rad): ``limits``
+    (lower, upper; None: none), ``damping`` (N m s/rad), ``stiffness`` (N m/rad) of a spring about
+    ``springref``; ``ref`` is the coordinate's value at the pose the links are placed in (MJCF
+    ``ref``; URDF 0); ``unsupported``: (name, value) of the non-zero laws footopt has no key for
+    (URDF friction, MJCF armature and frictionloss)."""
+
+    limits: tuple[float, float] | None = None
+    damping: float = 0.0
+    stiffness: float = 0.0
+    springref: float = 0.0
+    ref: float = 0.0
+    unsupported: tuple[tuple[str, float], ...] = ()
+
+
+@dataclass(frozen=True)
 class Joint:
     """The joint above ``child``: ``kind`` is ``revolute``, ``fixed`` or the format's name of a kind
     footopt does not carry (``prismatic``, ``ball``, ...)."""
@@ -44,6 +61,7 @@ class Joint:
     origin: np.ndarray
     rotation: np.ndarray
     axis: np.ndarray
+    dynamics: Dynamics = field(default_factory=Dynamics)
 
 
 @dataclass(frozen=True)
@@ -82,4 +100,4 @@ def check_xml_safe(text: str, path: Path) -> None:
         raise ConfigError("has a <!DOCTYPE> or <!ENTITY> declaration: footopt does not read XML with entities", path)
 
 
-__all__ = ["FIXED", "REVOLUTE", "Description", "Joint", "Link", "check_xml_safe", "unit"]
+__all__ = ["FIXED", "REVOLUTE", "Description", "Dynamics", "Joint", "Link", "check_xml_safe", "unit"]

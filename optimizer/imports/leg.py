@@ -9,18 +9,20 @@ ankle) are left out, and the report names them. The root is the floating base.
 Each rod runs from its joint (the base: from the root link's origin) to the next joint on the
 chain; the last one to the ankle: the ankle link's origin, or the ``foot`` point when given (a
 link welded to the ankle, or an MJCF site or geom on it). The contact is at its tip. The touchdown
-posture is the description's zero configuration (every joint angle 0) with the root's frame as
-the world's.
+posture is the pose the file places its links in (URDF: every joint at 0; MJCF: at ``ref``) or
+``--angle``'s, with the root's frame as the world's; the joints' stops, dampers and springs come
+along (:mod:`optimizer.imports.laws`).
 
 What a rod carries (docs/MODEL_FORMAT.md, "Import"): mass exactly. Spatial: everything exactly:
 the centre of mass as its projection on the rod (``com``) and the rest (``com_offset``), the link's
 whole inertia tensor about it in the rod's axes (``inertia_tensor``); where the projection falls
 behind a rod's start, the start slides along its joint's axis (the same line: the same motion; the
 base's start moves back along its rod), and past its next joint, the rod reaches beyond it (the
-child at ``at`` < 1, the contact at < 1). Planar: the centre of mass on the rod's axis: it is moved
-to the nearest point of the rod (``com`` in [0, 1]) and the inertia about the joint axis is taken
-about that point (parallel axes), so the rod keeps the link's second moments there but loses the
-first moment of the offset. The joints' axes and placement (on their axes) are exact.
+child at ``at`` < 1, the contact at < 1). Planar: the same in the plane (``com``, ``com_offset``
+[dy, 0], the inertia about the joint axis through the centre of mass; a centre of mass behind a
+joint other than the base's is moved onto it, reported); ``com_on_rods`` (``--com-on-rods``) moves
+each centre of mass to the nearest point of its rod instead, the inertia about the joint axis taken
+about that point (parallel axes). The joints' axes and placement (on their axes) are exact.
 
 Planar (every revolute axis of the chain parallel, the default then): the plane is normal to the
 axes, which become footopt's z; offsets along the axis drop out (planar motion does not see them);
@@ -41,6 +43,7 @@ from impulse_core.model.tree import Body, JointKind, Scene, Tree, tensor_problem
 from optimizer.config.model_file import ModelFile
 from optimizer.errors import ConfigError
 from optimizer.imports.description import FIXED, REVOLUTE, Description
+from optimizer.imports.laws import footopt_angle, imported_laws, laws_summary
 from optimizer.results.export import rpy_of
 
 #: footopt's world from the description's (rows: footopt's x, y, z in the description's axes).
@@ -74,12 +77,12 @@ class Rod:
 
     name: str
     merged: tuple[str, ...]
-    com_offset: float  # m: distance of the centre of mass from the rod's axis (planar: dropped; spatial: carried)
+    com_offset: float  # m: distance of the centre of mass from the rod's axis (carried; --com-on-rods: dropped)
     com_clamped: bool  # planar: the centre of mass lay beyond an end of the rod (moved onto it)
     inertia_residual: float  # relative Frobenius norm of the inertia tensor's part not carried (spatial: 0)
     flipped: bool = False  # planar: the joint turns about -z (its angle counted the other way)
-    slide: float = 0.0  # spatial: m the rod's start moved along its joint axis (the base: along its rod)
-    carried: bool = False  # spatial: the centre of mass and the whole tensor are carried (com_offset, inertia_tensor)
+    slide: float = 0.0  # m the rod's start moved along its joint axis (the base: along its rod)
+    carried: bool = False  # the centre of mass is carried (com_offset; spatial: and the whole tensor)
 
 
 @dataclass(frozen=True)
@@ -96,6 +99,9 @@ class ImportedLeg:
     foot: str | None
     reason: str  # why planar or spatial
     angles: tuple[tuple[str, float], ...] = ()  # the touchdown posture's joint angles (rad), as given
+    joint_laws: bool = True  # the description's stops, dampers and springs imported (False: --no-joint-laws)
+    warnings: tuple[str, ...] = ()  # one line each: what the model file cannot carry (laws left out)
+    com_on_rods: bool = False  # planar: each centre of mass moved onto its rod (--com-on-rods)
 
     @property
     def space(self) -> Space:
@@ -108,7 +114,7 @@ class ImportedLeg:
             f"footopt import of {d.path.name} ({d.format}): the leg from '{self.root}' to '{self.ankle}'"
             + (f", foot point '{self.foot}'" if self.foot else "") + f": {len(self.rods)} rods, {self.space.name}"
             f" ({self.reason}).",
-            "Touchdown posture: the description's zero configuration"
+            "Touchdown posture: the description's pose as the file places it"
             + "".join(f", {n} = {v:.6g} rad" for n, v in self.angles) + "; the root link's frame as the world's;",
             "the scene (1 m/s straight down, restitution 0, frictionless) is a placeholder: edit it.",
             f"Contact: the tip of '{self.rods[-1].name}' (the ankle). Total mass {sum(s.mass for s in self.segments):.6g} kg.",
@@ -121,7 +127,9 @@ class ImportedLeg:
                     f"  {r.name}: {joint}, {s.mass:.6g} kg{welded}; centre of mass "
                     + (f"{1000 * r.com_offset:.3g} mm off the rod's axis (com_offset)" if r.com_offset > 1e-12
                        else "on the rod's axis")
-                    + ", inertia_tensor"
+                    + (", inertia_tensor" if self.space is SPATIAL else "")
+                    + ("; moved onto its joint (behind it: a planar rod starts at its joint)" if r.com_clamped else "")
+                    + ("; its joint turns about -z (the description's angle is minus footopt's)" if r.flipped else "")
                     + (f"; its start {1000 * r.slide:.3g} mm "
                        + ("back along the rod" if s.joint is None else "along its joint axis")
                        + " (so the centre of mass projects onto the rod)" if r.slide > 0 else "")
@@ -137,15 +145,19 @@ class ImportedLeg:
         if self.dropped:
             lines.append("Left out (hanging off the chain by a moving joint): "
                          + ", ".join(f"{n} ({m:.6g} kg with its subtree)" for n, m in self.dropped) + ".")
-        if self.space is PLANAR:
-            lines.append("Exact: masses, joint placements and axes, the ankle; approximated as above: each rod carries its")
-            lines.append("centre of mass on its axis and the inertia about the joint axis through it (exact about that "
-                         "point). Joint limits, damping and motors are not imported.")
+        if self.space is PLANAR and self.com_on_rods:
+            lines.append("Exact: masses, joint placements and axes, the ankle; approximated as above (--com-on-rods): each")
+            lines.append("rod carries its centre of mass on its axis and the inertia about the joint axis through it "
+                         "(exact about that point).")
+        elif self.space is PLANAR:
+            lines.append("Exact: masses, centres of mass in the plane (com, com_offset), inertias about the joint axes,")
+            lines.append("joint placements and axes, the ankle" + (" (except where said above)." if any(
+                r.com_clamped for r in self.rods) else "."))
         else:
             lines.append("Exact: masses, centres of mass (com, com_offset), inertia tensors (inertia_tensor), joint axes")
-            lines.append("and placements (a joint's point anywhere on its axis), the ankle. Joint limits, damping and "
-                         "motors are not imported.")
-        return "\n".join(lines)
+            lines.append("and placements (a joint's point anywhere on its axis), the ankle.")
+        names = [s.joint for s in self.segments[1:]]
+        return "\n".join(lines + laws_summary(d.format, names, self.model.joints, self.joint_laws, self.warnings))
 
 
 def import_leg(
@@ -155,10 +167,13 @@ def import_leg(
     foot: str | None = None,
     space: str = "auto",
     angles: dict[str, float] | None = None,
+    joint_laws: bool = True,
+    com_on_rods: bool = False,
 ) -> ImportedLeg:
     """The leg from ``root`` to ``ankle`` of ``desc`` as a model file (see the module docstring),
     at the touchdown posture ``angles`` (joint name -> rad, as the description counts them;
-    joints not named at 0).
+    joints not named at the file's pose), with the joints' stops, dampers and springs unless
+    ``joint_laws`` is False (:mod:`optimizer.imports.laws`).
 
     Raises:
         ConfigError: naming the option (``--root``, ``--ankle``, ``--foot``, ``--space``,
@@ -176,23 +191,27 @@ def import_leg(
         raise desc.error("--space", "planar needs every revolute joint axis of the chain parallel; these are not")
     planar = space == "planar" or (space == "auto" and parallel)
     reason = ("every joint axis parallel" if parallel else "joint axes not parallel") if space == "auto" else "--space"
-    tree, rods = _planar_tree(desc, segments) if planar else _spatial_tree(desc, segments)
-    tree = _posed(desc, tree, segments, rods, angles or {})
-    model = ModelFile(tree=tree, scene=IMPORT_SCENE, space=PLANAR if planar else SPATIAL)
+    tree, rods = _planar_tree(desc, segments, com_on_rods) if planar else _spatial_tree(desc, segments)
+    posed = _posed(desc, tree, segments, rods, angles or {})
+    laws, warnings = (), ()
+    if joint_laws:
+        chain = [desc.joints[s.name] for s in segments[1:]]
+        laws, warnings = imported_laws(desc, chain, [r.flipped for r in rods], tree, angles or {})
+    model = ModelFile(tree=posed, scene=IMPORT_SCENE, space=PLANAR if planar else SPATIAL, joints=laws)
     return ImportedLeg(model, tuple(segments), tuple(rods), tuple(dropped), desc, root, ankle, foot, reason,
-                       tuple((angles or {}).items()))
+                       tuple((angles or {}).items()), joint_laws, warnings, com_on_rods)
 
 
 def _posed(desc: Description, tree: Tree, segments: list[Segment], rods: list[Rod], angles: dict[str, float]) -> Tree:
-    """``tree`` with each named joint turned by its angle (a planar joint about -z the other way)."""
+    """``tree`` with each named joint at its angle, as the description counts it (laws.footopt_angle)."""
     joints = {s.joint: k for k, s in enumerate(segments) if s.joint is not None}
     bodies = list(tree.bodies)
     for name, value in angles.items():
         if name not in joints:
             raise desc.error("--angle", f"no joint named '{name}' on the chain (joints: {', '.join(joints)})")
         k = joints[name]
-        sign = -1.0 if rods[k].flipped else 1.0
-        bodies[k] = replace(bodies[k], angle=bodies[k].angle + sign * value)
+        dynamics = desc.joints[segments[k].name].dynamics
+        bodies[k] = replace(bodies[k], angle=footopt_angle(bodies[k].angle, rods[k].flipped, dynamics, value))
     return Tree(tuple(bodies))
 
 
@@ -396,7 +415,9 @@ def _spatial_tree(desc: Description, segments: list[Segment]) -> tuple[Tree, lis
     return Tree(tuple(bodies)), rods
 
 
-def _planar_tree(desc: Description, segments: list[Segment]) -> tuple[Tree, list[Rod]]:
+def _plane(segments: list[Segment]) -> tuple[np.ndarray, np.ndarray]:
+    """footopt's (x, y) rows in the description's world, and the plane's normal (footopt's z):
+    normal to the joint axes, y the description's up (+z) in the plane, x kept forward."""
     n = segments[1].axis
     up = np.array([0.0, 0.0, 1.0])
     y = up - (up @ n) * n
@@ -405,33 +426,63 @@ def _planar_tree(desc: Description, segments: list[Segment]) -> tuple[Tree, list
     y /= np.linalg.norm(y)
     if np.cross(y, n)[0] < 0:  # keep the description's forward (x) forward
         n = -n
-    x = np.cross(y, n)
-    plane = np.vstack([x, y])  # footopt's (x, y) from the description's world
-    bodies, rods, angles = [], [], []
+    return np.vstack([np.cross(y, n), y]), n
+
+
+def _planar_base(segments: list[Segment], plane: np.ndarray, on_rods: bool) -> float:
+    """Where the base rod starts: at its centre of mass when the root's origin is the first joint;
+    moved back along its rod when its centre of mass projects behind it (exact mode; the base's
+    start is free). Updates ``segments[0]``; returns how far it moved back (m)."""
+    s = segments[0]
+    a, b = plane @ s.start, plane @ s.tip
+    if np.linalg.norm(b - a) < SHORTEST:  # the root's origin sits on the first joint's axis
+        segments[0] = replace(s, start=s.com)
+        return 0.0
+    u = (b - a) / np.linalg.norm(b - a)
+    behind = float((plane @ s.com - a) @ u)
+    if on_rods or behind >= 0.0:
+        return 0.0
+    segments[0] = replace(s, start=s.start + behind * (plane.T @ u))
+    return -behind
+
+
+def _planar_tree(desc: Description, segments: list[Segment], on_rods: bool = False) -> tuple[Tree, list[Rod]]:
+    """Each segment as a planar rod: exact (``on_rods`` False) its centre of mass in the plane as
+    ``com`` and ``com_offset`` [dy, 0] and its inertia about the joint axis through it; a centre of
+    mass past the next joint lengthens the rod (the child at ``at`` < 1), behind the base's start
+    moves that start back. ``on_rods``: each centre of mass moved onto its rod, the inertia about
+    the joint axis through that point (parallel axes). Behind a joint (not the base's) a centre of
+    mass is moved onto the joint either way (a planar rod cannot start elsewhere), reported."""
+    plane, n = _plane(segments)
+    slide = _planar_base(segments, plane, on_rods)
+    bodies, rods, angles, reach = [], [], [], [1.0]
     for k, s in enumerate(segments):
         a, b = plane @ s.start, plane @ s.tip
-        if k == 0 and np.linalg.norm(b - a) < SHORTEST:  # the root's origin sits on the first joint's axis
-            a = plane @ s.com
-            segments[0] = replace(s, start=s.com)
-        length = float(np.linalg.norm(b - a))
-        if length < SHORTEST:
+        span = float(np.linalg.norm(b - a))
+        if span < SHORTEST:
             raise desc.error(f"link '{s.name}'", "its rod lies along the joint axes (no length in their plane): "
                              "the chain is not planar; pass --space spatial")
-        u = (b - a) / length
+        u = (b - a) / span
         theta = math.atan2(u[1], u[0])
         r = plane @ s.com - a
-        along = float(r @ u) / length
-        f = min(max(along, 0.0), 1.0)
-        offset = float(np.linalg.norm(r - f * length * u))
-        across = float(n @ s.inertia @ n) + s.mass * offset**2
+        along, dy = float(r @ u), float(r @ np.array([-u[1], u[0]]))
+        length = span if on_rods else max(span, along)
+        f = min(max(along / length, 0.0), 1.0)
+        moved = r - f * length * u if on_rods else (f * length - along) * u  # what is not carried
+        dy = 0.0 if on_rods or abs(dy) <= 1e-15 * length else dy
+        inertia = float(n @ s.inertia @ n) + s.mass * float(moved @ moved)
+        reach.append(span / length)
         flipped = s.axis is not None and float(s.axis @ n) < 0
         angle = theta if k == 0 else math.remainder(theta - angles[-1], 2 * math.pi)
         angles.append(theta)
         bodies.append(Body(
-            name=s.name, parent=None if k == 0 else k - 1, length=length, mass=s.mass, angle=angle, com=f,
-            gyration=math.sqrt(across / s.mass) / length, contacts=(1.0,) if k + 1 == len(segments) else (),
+            name=s.name, parent=None if k == 0 else k - 1, at=reach[k], length=length, mass=s.mass, angle=angle,
+            com=f, gyration=math.sqrt(inertia / s.mass) / length, com_offset=(dy, 0.0),
+            contacts=(reach[-1],) if k + 1 == len(segments) else (),
         ))
-        rods.append(Rod(s.name, s.merged, offset, abs(f - along) > 1e-12, 0.0, flipped))
+        off = float(np.linalg.norm(moved)) if on_rods else abs(dy)
+        rods.append(Rod(s.name, s.merged, off, abs(f * length - along) > 1e-12, 0.0, flipped,
+                        slide=slide if k == 0 else 0.0, carried=not on_rods))
     return Tree(tuple(bodies)), rods
 
 

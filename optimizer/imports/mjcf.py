@@ -7,7 +7,11 @@ MuJoCo places a hinge anywhere in its body (``jnt_pos``): each link's frame here
 moved to that point, so that the joint turns the link about its frame's origin as in URDF. A body
 without joints is welded to its parent (fixed); one hinge is revolute; a free joint on the root
 is the root's own and ignored; anything else (slide, ball, several joints) keeps MuJoCo's name.
-Sites and geoms are named points on their body.
+Sites and geoms are named points on their body. A hinge's laws are MuJoCo's compiled ones (so
+``<compiler angle>``, ``limited``/autolimits and default classes resolve as MuJoCo resolves them):
+``jnt_range`` where ``jnt_limited``, ``dof_damping``, ``jnt_stiffness`` about ``qpos_spring``
+(springref), all in qpos, whose value at the file's pose is ``qpos0`` (``ref``); ``dof_armature``
+and ``dof_frictionloss`` are kept as laws footopt cannot carry.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from optimizer.errors import ConfigError
-from optimizer.imports.description import FIXED, REVOLUTE, Description, Joint, Link, unit
+from optimizer.imports.description import FIXED, REVOLUTE, Description, Dynamics, Joint, Link, unit
 
 
 def _rotation(quat: np.ndarray) -> np.ndarray:
@@ -27,6 +31,16 @@ def _rotation(quat: np.ndarray) -> np.ndarray:
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
     ])
+
+
+def _dynamics(m, j: int) -> Dynamics:
+    """Hinge ``j``'s compiled laws (qpos units: rad)."""
+    q, v = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+    limits = (float(m.jnt_range[j][0]), float(m.jnt_range[j][1])) if m.jnt_limited[j] else None
+    other = (("armature", float(m.dof_armature[v])), ("frictionloss", float(m.dof_frictionloss[v])))
+    return Dynamics(limits=limits, damping=float(m.dof_damping[v]), stiffness=float(m.jnt_stiffness[j]),
+                    springref=float(m.qpos_spring[q]), ref=float(m.qpos0[q]),
+                    unsupported=tuple((name, x) for name, x in other if x != 0.0))
 
 
 def read_mjcf(path: Path) -> Description:
@@ -46,6 +60,7 @@ def read_mjcf(path: Path) -> Description:
     kind = [FIXED] * m.nbody
     axis = [np.array([1.0, 0.0, 0.0])] * m.nbody
     joint_name = list(body_name)
+    dynamics = [Dynamics()] * m.nbody
     for b in range(1, m.nbody):
         n, adr = int(m.body_jntnum[b]), int(m.body_jntadr[b])
         if n == 1:
@@ -54,6 +69,7 @@ def read_mjcf(path: Path) -> Description:
             if kind[b] == REVOLUTE:
                 anchor[b] = m.jnt_pos[adr]
                 axis[b] = unit(np.array(m.jnt_axis[adr], dtype=float), f"joint '{joint_name[b]}'.axis", path)
+                dynamics[b] = _dynamics(m, adr)
         elif n > 1:
             kind[b] = f"{n} joints"
             joint_name[b] = f"{body_name[b]}'s {n} joints"
@@ -68,7 +84,8 @@ def read_mjcf(path: Path) -> Description:
         p = int(m.body_parentid[b])
         R = _rotation(np.array(m.body_quat[b], dtype=float))
         origin = np.array(m.body_pos[b], dtype=float) + R @ anchor[b] - anchor[p]
-        joints[body_name[b]] = Joint(joint_name[b], kind[b], body_name[p], body_name[b], origin, R, axis[b])
+        joints[body_name[b]] = Joint(joint_name[b], kind[b], body_name[p], body_name[b], origin, R, axis[b],
+                                     dynamics[b])
     points: dict[str, tuple[str, np.ndarray]] = {}
     for obj, count, body_of, pos in ((mujoco.mjtObj.mjOBJ_GEOM, m.ngeom, m.geom_bodyid, m.geom_pos),
                                      (mujoco.mjtObj.mjOBJ_SITE, m.nsite, m.site_bodyid, m.site_pos)):

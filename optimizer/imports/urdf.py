@@ -4,7 +4,9 @@ entities, nothing executed; mesh files are not opened).
 URDF: a link's ``<inertial>`` holds its mass, the centre of mass (``origin xyz``) and the inertia
 tensor about it in the frame turned by ``origin rpy``; a joint's ``<origin>`` places the child
 frame in the parent's and ``<axis>`` (default 1 0 0) is in the child frame. ``revolute`` and
-``continuous`` joints are revolute here; ``fixed`` is fixed; others keep their URDF kind.
+``continuous`` joints are revolute here; ``fixed`` is fixed; others keep their URDF kind. A
+``revolute`` joint's ``<limit lower upper>`` (default 0, as URDF) are its stops; ``<dynamics
+damping>`` its damper, ``friction`` is kept as a law footopt cannot carry. URDF has no springs.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import numpy as np
 
 from impulse_core.model.rods import rotation_rpy
 from optimizer.errors import ConfigError
-from optimizer.imports.description import FIXED, REVOLUTE, Description, Joint, Link, check_xml_safe, unit
+from optimizer.imports.description import FIXED, REVOLUTE, Description, Dynamics, Joint, Link, check_xml_safe, unit
 
 _KINDS = {"revolute": REVOLUTE, "continuous": REVOLUTE, "fixed": FIXED}
 
@@ -52,8 +54,22 @@ def read_urdf(path: Path, text: str) -> Description:
         axis = _floats(axis_el.get("xyz", "1 0 0") if axis_el is not None else "1 0 0", 3, f"{where}.axis", path)
         kind = _KINDS.get(kind, kind or "(no type)")
         axis = unit(axis, f"{where}.axis", path) if kind == REVOLUTE else np.array([1.0, 0.0, 0.0])
-        joints[child] = Joint(name, kind, parent, child, xyz, rotation_rpy(tuple(rpy)), axis)
+        dynamics = _dynamics(el, where, path) if kind == REVOLUTE else Dynamics()
+        joints[child] = Joint(name, kind, parent, child, xyz, rotation_rpy(tuple(rpy)), axis, dynamics)
     return Description(path, "URDF", links, joints)
+
+
+def _dynamics(el: ET.Element, where: str, path: Path) -> Dynamics:
+    """A revolute or continuous joint's stops (``revolute`` only), damper and friction."""
+    limits = None
+    limit = el.find("limit")
+    if el.get("type") == "revolute" and limit is not None:
+        lo, hi = (float(_floats(limit.get(k, "0"), 1, f"{where}.limit.{k}", path)[0]) for k in ("lower", "upper"))
+        limits = (lo, hi)
+    dyn = el.find("dynamics")
+    damping, friction = (0.0 if dyn is None else float(_floats(dyn.get(k, "0"), 1, f"{where}.dynamics.{k}", path)[0])
+                         for k in ("damping", "friction"))
+    return Dynamics(limits=limits, damping=damping, unsupported=(("friction", friction),) if friction else ())
 
 
 def _link(el: ET.Element, name: str, path: Path) -> Link:

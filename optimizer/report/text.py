@@ -164,7 +164,7 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
     elif isinstance(r, CompliantResult) and not r.error_estimate <= r.tolerance:
         out.append(
             f"the compliant rung did not meet its tolerance: error estimate {r.error_estimate:.3g} > {r.tolerance:g} "
-            f"at {r.steps_per_period:g} steps per contact period (the finest run is reported)"
+            f"at {r.steps_per_period:.4g} steps per contact period ({r.integrator}; the finest run is reported)"
         )
     if isinstance(r, CompliantResult):
         if r.recontacting:
@@ -274,6 +274,7 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
                 "stiffness": _f(result.settings.stiffness),
                 "timestep": _f(r.timestep),
                 "steps_per_period": None if r.steps_per_period is None else _f(r.steps_per_period),
+                "integrator": r.integrator,
                 "error_estimate": None if r.error_estimate is None or not math.isfinite(r.error_estimate)
                 else _f(r.error_estimate),
                 "tolerance": None if r.tolerance is None else _f(r.tolerance),
@@ -477,8 +478,9 @@ def _touchdown_lines(model: ModelFile, result: TimeDomainResult) -> list[str]:
     if isinstance(r, CompliantResult):
         unit = "N/m" if r.law is ContactLaw.PENALTY else "1/s^2"
         lines.append(
-            f"integration: {r.status.value} after {1e3 * r.duration:.3f} ms, {r.n_steps} contact steps of "
-            f"{r.timestep:.3g} s and {r.n_flight_steps} flight steps; stiffness {result.settings.stiffness:g} {unit}"
+            f"integration: {r.status.value} after {1e3 * r.duration:.3f} ms, {r.n_steps} {r.integrator} contact "
+            f"steps of {'' if r.integrator == 'euler' else 'on average '}{r.timestep:.3g} s and {r.n_flight_steps} "
+            f"flight steps; stiffness {result.settings.stiffness:g} {unit}"
         )
     return lines
 

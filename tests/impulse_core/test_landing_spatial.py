@@ -127,13 +127,17 @@ def test_the_first_event_is_the_spatial_first_impact(seed, friction):
 
 
 def _momentum_error(run: _Landing, r: LandingResult, scene: Scene) -> float:
-    """|change of linear momentum - (contact impulses - weight T)| / |initial momentum| (x, y, z)."""
+    """|change of linear momentum - (contact impulses - weight T)| / |initial momentum| (x, y, z);
+    checks that the run's own ``momentum_balance`` reports it (over max(|p0|, m g T))."""
     mass = sum(b.mass for b in run.tree.bodies)
     p0 = run.point(run.q0, r.events[0].v_minus).momentum[:, 0]
     p1 = run.point(r.q_final, _rates(r.q_final, r.v_final)).momentum[:, 0]
     tx, tz = r.total_tangential.sum(axis=0)
     impulse = np.array([tx, r.total_external.sum() - mass * G * scene.duration, tz])
-    return float(np.max(np.abs(p1 - p0 - impulse)) / np.max(np.abs(p0)))
+    residual = float(np.max(np.abs(p1 - p0 - impulse)))
+    reference = max(float(np.max(np.abs(p0))), mass * G * scene.duration)
+    assert r.momentum_balance == pytest.approx(residual / reference, rel=1e-6, abs=1e-13)
+    return residual / float(np.max(np.abs(p0)))
 
 
 def _assert_event_laws(run: _Landing, r: LandingResult, scene: Scene) -> None:

@@ -77,7 +77,19 @@ def config_cases() -> list[tuple[str, Tree, Scene]]:
     return [(p.stem, (m := load_model_file(p)).tree, m.scene) for p in CONFIGS]
 
 
-CASES = config_cases() + random_cases()
+def offset_cases() -> list[tuple[str, Tree, Scene]]:
+    """Random planar trees whose centres of mass lie off their rods in the plane (``com_offset``
+    [dy, 0], up to 0.3 of the length): the URDF and MJCF write each centre of mass where it is."""
+    rng = np.random.default_rng(16)
+    out = []
+    for k, (_, tree, scene) in enumerate(random_cases()[:4]):
+        bodies = tuple(dataclasses.replace(b, com_offset=(float(rng.uniform(-0.3, 0.3)) * b.length, 0.0))
+                       for b in tree.bodies)
+        out.append((f"offset{k}", Tree(bodies), scene))
+    return out
+
+
+CASES = config_cases() + random_cases() + offset_cases()
 IDS = [name for name, _, _ in CASES]
 
 
@@ -189,7 +201,7 @@ def test_mjcf_in_mujoco_has_the_models_bodies_and_contacts(name: str, tree: Tree
         assert m.body_mass[i] == pytest.approx(b.mass, rel=TOL)
         tensor, want = inertia_in_body_frame(m, i), expected_inertia(b)
         worst = max(worst, np.abs(tensor - want).max() / np.abs(want).max())
-        np.testing.assert_allclose(m.body_ipos[i], [b.com * b.length, 0.0, 0.0], rtol=0, atol=TOL * b.length)
+        np.testing.assert_allclose(m.body_ipos[i], [b.com * b.length, *b.com_offset], rtol=0, atol=TOL * b.length)
     where = touchdown_points(tree, scene)
     e_at = max(np.abs(d.site(n).xpos - p).max() for n, p in where.items())
     if scene.terrain.is_flat:  # the pose, told independently: base above base_x, lowest contact on the ground

@@ -96,15 +96,16 @@ def test_animate_writes_a_gif_of_the_landing(tmp_path, capsys):
 
 
 def test_tolerance_refines_the_compliant_rung(capsys):
-    """--model compliant --tolerance: refined steps, the estimate in the JSON; --steps-per-period
-    fixes them (no estimate, a warning saying so); both together are refused."""
+    """--model compliant --tolerance: adaptive steps, the estimate and the integrator in the JSON;
+    --steps-per-period fixes them (no estimate, a warning saying so); both together are refused."""
     path = str(Path(__file__).resolve().parents[2] / "configs" / "uneven_terrain.yaml")
     got = _json(capsys, "--model", "compliant", "--tolerance", "1e-3", path)
-    assert got["error_estimate"] <= 1e-3 and got["tolerance"] == 1e-3 and got["steps_per_period"] > 120
+    assert got["error_estimate"] <= 1e-3 and got["tolerance"] == 1e-3 and got["integrator"] == "dopri5"
     assert got["warnings"] == []
     fixed = _json(capsys, "--model", "compliant", "--steps-per-period", "240", path)
     assert fixed["error_estimate"] is None and any("fixed steps" in w for w in fixed["warnings"])
-    unmet = _json(capsys, "--model", "compliant", "--tolerance", "1e-12", path)
+    assert fixed["integrator"] == "euler" and fixed["steps_per_period"] is None
+    unmet = _json(capsys, "--model", "compliant", "--tolerance", "1e-15", path)  # below its rounding
     assert any("did not meet its tolerance" in w for w in unmet["warnings"])
     assert main(["evaluate", "--model", "compliant", "--tolerance", "1e-3", "--steps-per-period", "240", path]) == 2
     assert "--tolerance" in capsys.readouterr().err

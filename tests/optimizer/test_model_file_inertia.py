@@ -100,8 +100,14 @@ def test_a_bad_offset_is_refused_naming_the_field(value, tmp_path, capsys) -> No
     _refused(data, tmp_path, capsys, r"model\.bodies\[0\]\.com_offset")
 
 
-@pytest.mark.parametrize("key, value", [("com_offset", [0.0, 0.01]), ("inertia_tensor", TENSOR)])
-def test_a_planar_file_refuses_the_keys(key, value, tmp_path, capsys) -> None:
+@pytest.mark.parametrize(
+    "key, value, message",
+    [
+        ("com_offset", [0.0, 0.01], "a planar body's centre of mass lies in the plane: dz must be 0"),  # [dy, 0] is planar
+        ("inertia_tensor", TENSOR, "needs 'model.space: spatial'"),
+    ],
+)
+def test_a_planar_file_refuses_the_keys(key, value, message, tmp_path, capsys) -> None:
     data = yaml.safe_load((REPO / "configs" / "paper_case3.yaml").read_text())
     data["model"]["bodies"][1][key] = copy.copy(value)
-    _refused(data, tmp_path, capsys, rf"model\.bodies\[1\]\.{key}: needs 'model.space: spatial'")
+    _refused(data, tmp_path, capsys, rf"model\.bodies\[1\]\.{key}: {message}")

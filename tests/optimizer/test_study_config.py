@@ -146,11 +146,20 @@ def test_leg_from_an_imported_model_file(tmp_path: Path):
     from optimizer.imports.read import read_description
     from tests.optimizer.imports.peers import robot_file
 
-    leg = import_leg(read_description(robot_file("solo_description/robots/solo12.urdf")), "FL_UPPER_LEG", "FL_FOOT")
+    desc = read_description(robot_file("solo_description/robots/solo12.urdf"))
     (tmp_path / "legs").mkdir()
-    (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(leg.model))
+    laws = import_leg(desc, "FL_UPPER_LEG", "FL_FOOT", com_on_rods=True)
+    (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(laws.model))
     study = tmp_path / "s.yaml"
     study.write_text("leg: {file: legs/solo.yaml}\nobjectives: [external_norm, internal_norm]\n")
+    with pytest.raises(ConfigError, match="leg.shank: .*whole landing.*--no-joint-laws"):  # its knee's stops
+        load_study(study)
+    leg = import_leg(desc, "FL_UPPER_LEG", "FL_FOOT", joint_laws=False)
+    (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(leg.model))
+    with pytest.raises(ConfigError, match=r"leg.file: .*model.bodies\[0\].com_offset: .*--com-on-rods"):
+        load_study(study)  # its upper leg's centre of mass 0.014 mm off the rod, carried exactly
+    leg = import_leg(desc, "FL_UPPER_LEG", "FL_FOOT", joint_laws=False, com_on_rods=True)
+    (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(leg.model))
     config = load_study(study)
     thigh, shank = leg.model.tree.bodies
     assert (config.leg.thigh_length, config.leg.thigh_mass, config.leg.thigh_angle) == (thigh.length, thigh.mass, thigh.angle)
@@ -169,7 +178,7 @@ def test_leg_file_is_refused_when_the_design_space_cannot_hang_a_foot_on_it(tmp_
     from tests.optimizer.imports.peers import robot_file
 
     desc = read_description(robot_file("solo_description/robots/solo12.urdf"))
-    (tmp_path / "three.yaml").write_text(format_model_file(import_leg(desc, "FL_SHOULDER", "FL_FOOT").model))
+    (tmp_path / "three.yaml").write_text(format_model_file(import_leg(desc, "FL_SHOULDER", "FL_FOOT", com_on_rods=True).model))
     (tmp_path / "spatial.yaml").write_text(format_model_file(import_leg(desc, "base_link", "FL_FOOT").model))
     cases = {
         "{file: three.yaml}": "leg.file: .* has 3 rods: the design space hangs the foot on a two-rod leg",

@@ -14,8 +14,9 @@ import pytest
 
 from impulse_core.evaluate import evaluate
 from impulse_core.kinematics.spatial import PLANAR
-from impulse_core.model.tree import Scene
-from optimizer.imports.leg import ImportedLeg
+from impulse_core.model.rods import body_rotation, unit_axis
+from impulse_core.model.tree import Scene, Tree
+from optimizer.imports.leg import TO_FOOTOPT, ImportedLeg
 from optimizer.validation.pinocchio_bridge import build, build_spatial
 
 
@@ -144,3 +145,42 @@ def footopt_joint_mass_matrix(leg: ImportedLeg) -> np.ndarray:
     M = t.mass_matrix_ours()
     nb = 3 if leg.space is PLANAR else 6
     return M[nb:, nb:]
+
+
+def spatial_world(leg: ImportedLeg, tree: Tree | None = None):
+    """A spatial leg's joint positions and axes and its contact (the ankle) in the description's
+    world (the root link's frame), from the model file's rods alone (footopt's frame rules,
+    rods.py); ``tree``: the leg's tree posed otherwise."""
+    tree = tree or leg.model.tree
+    R = [None] * tree.n_bodies
+    p = [None] * tree.n_bodies
+    out = []
+    for i, b in enumerate(tree.bodies):
+        if b.parent is None:
+            R[i], p[i] = body_rotation(b), TO_FOOTOPT @ leg.segments[0].start
+        else:
+            q = tree.bodies[b.parent]
+            p[i] = p[b.parent] + R[b.parent] @ np.array([b.at * q.length, 0.0, 0.0])
+            R[i] = R[b.parent] @ body_rotation(b)
+            out.append((TO_FOOTOPT.T @ p[i], TO_FOOTOPT.T @ R[i] @ unit_axis(b)))
+    last = tree.bodies[-1]
+    ankle = TO_FOOTOPT.T @ (p[-1] + R[-1] @ np.array([last.contacts[0] * last.length, 0.0, 0.0]))
+    return out, ankle
+
+
+def planar_ankle(leg: ImportedLeg, tree: Tree | None = None) -> np.ndarray:
+    """A planar leg's contact (the ankle) in footopt's plane (x, y), from the model file's rods
+    alone, the base rod starting where the import placed it (``TO_FOOTOPT[:2]`` of the description's
+    world: the plane of legs turning about the description's y)."""
+    tree = tree or leg.model.tree
+    tip, phi = TO_FOOTOPT[:2] @ leg.segments[0].start, 0.0
+    for b in tree.bodies:
+        phi += b.angle
+        reach = b.contacts[0] if b.contacts else 1.0
+        tip = tip + reach * b.length * np.array([np.cos(phi), np.sin(phi)])
+    return tip
+
+
+def footopt_ankle(leg: ImportedLeg, tree: Tree | None = None) -> np.ndarray:
+    """The ankle from the rods: spatial, in the description's world; planar, in footopt's plane."""
+    return planar_ankle(leg, tree) if leg.space is PLANAR else spatial_world(leg, tree)[1]
