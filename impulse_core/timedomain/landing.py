@@ -79,6 +79,10 @@ ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
 MOMENTUM_BALANCE = 2e-5
 #: Halvings of one step for the momentum balance (the step then is taken as it is).
 MAX_SPLITS = 14
+#: Steps (of any length) after which a run is abandoned, per step of the run's nominal length: a
+#: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
+#: when the step diverged).
+STEP_BUDGET = 64
 
 
 class Diverged(NumericalError):
@@ -1071,6 +1075,11 @@ class _Landing:
         trial = h  # the next step's length: h, or h / 2^k after the momentum balance split a step
         while t < T * (1 - 1e-12):
             q1, v1, impulse, dt = self.balanced_step(q, v, mode, min(trial, T - t), rate)
+            if totals.steps > STEP_BUDGET * T / h:
+                raise NumericalError(
+                    f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
+                    "balance split its steps: a light rod spinning fast)"
+                )
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, 2.0 * dt)
             if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.point(q1, v1).kinetic <= cap):
