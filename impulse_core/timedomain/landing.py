@@ -96,8 +96,12 @@ ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
 #: impulses and the weight's) that the steps keep below this fraction of the touchdown momentum:
 #: each step is halved until its own residual is below its share (its length over the duration).
 MOMENTUM_BALANCE = 2e-5
-#: Halvings of one step for the momentum balance (the step then is taken as it is).
+#: Halvings of the nominal step for the momentum balance (a step that short is taken as it is).
 MAX_SPLITS = 14
+#: Steps (of any length) after which a run is abandoned, per step of the run's nominal length: a
+#: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
+#: when the step diverged).
+STEP_BUDGET = 64
 
 
 class Diverged(NumericalError):
@@ -857,19 +861,19 @@ class _Landing:
         f3 = _stacked(*_contact_forces(rows, nu2, self.mu, self.nc))
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
-    def balanced_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: float, rate: float
+    def balanced_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: float, rate: float, floor: float
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """One step of length ``trial``, halved until the step's momentum balance closes to
-        ``rate`` times its length (:data:`MOMENTUM_BALANCE`): the step's change of the linear
+        """One step of length ``trial``, halved (not below ``floor``) until the step's momentum
+        balance closes to ``rate`` times its length (:data:`MOMENTUM_BALANCE`): the step's change of the linear
         momentum equals its contact impulses plus the weight's, exactly for the true motion. A
         fast-spinning light rod resting on its tip (tens of kN of contact force over one step) is
         where the fixed step is too long; the residual is then the step's error, seen in a law
         the motion obeys. Returns (q, v, contact impulses, the step's length)."""
         p0 = self.point(q, v).momentum[:, 0].copy()
         dt = trial
-        for split in range(MAX_SPLITS + 1):
+        while True:
             q1, v1, impulse = self.step(q, v, mode, dt)
-            if split == MAX_SPLITS or not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
+            if dt <= floor or not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
                 break
             if np.max(np.abs(self.momentum_residual(p0, q1, v1, impulse, dt))) <= rate * dt:
                 break
@@ -1275,7 +1279,12 @@ class _Landing:
         rate = MOMENTUM_BALANCE * reference / T  # the steps' momentum residual per second
         trial = h  # the next step's length: h, or h / 2^k after the momentum balance split a step
         while t < T * (1 - 1e-12):
-            q1, v1, impulse, dt = self.balanced_step(q, v, mode, min(trial, T - t), rate)
+            q1, v1, impulse, dt = self.balanced_step(q, v, mode, min(trial, T - t), rate, h / 2.0**MAX_SPLITS)
+            if totals.steps > STEP_BUDGET * T / h:
+                raise NumericalError(
+                    f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
+                    "balance split its steps: a light rod spinning fast)"
+                )
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, 2.0 * dt)
             if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.point(q1, v1).kinetic <= cap):

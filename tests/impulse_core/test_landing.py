@@ -28,6 +28,7 @@ import impulse_core.timedomain.landing as landing_module
 from impulse_core.evaluate import evaluate
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.errors import NumericalError
 from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 from impulse_core.timedomain.landing import (
     PLASTIC_SPEED,
@@ -437,3 +438,12 @@ def test_identical_toes_take_one_slip():
     for e in r.events:
         assert e.external[1] == pytest.approx(e.external[2], rel=1e-6, abs=1e-9)
     assert r.total_external[1] == pytest.approx(r.total_external[2], rel=1e-4)  # 1.5e-5 apart: the split while resting
+
+
+def test_a_landing_whose_steps_split_without_end_is_abandoned(monkeypatch):
+    """Trial 25's spinning toes make the momentum balance split steps (2.2 x the nominal count):
+    with a budget of 1.5 x the run gives up with a one-line reason instead of running on."""
+    tree, laws, scene = _trial25()
+    monkeypatch.setattr(landing_module, "STEP_BUDGET", 1.5)
+    with pytest.raises(NumericalError, match="steps by t = .*momentum balance split its steps"):
+        _Landing(tree, scene, laws, LandingSettings()).run(4.6875e-5)
