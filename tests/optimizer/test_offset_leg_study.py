@@ -72,8 +72,8 @@ def test_a_study_on_an_exact_import_reevaluates_to_its_impulses(tmp_path, capsys
 
 def test_a_whole_landing_on_an_exact_import_is_refused_naming_the_field(tmp_path, capsys):
     go1_leg(tmp_path)
-    study = STUDY.replace("friction: 0.0}", "friction: 0.0, duration: 0.1}").replace(
-        "[external_norm, internal_norm]", "[peak_external_norm, internal_norm]").replace("method: inner", "method: outer")
+    study = STUDY.replace("friction: 0.0}", "friction: 0.0, duration: 0.1}").replace("method: inner", "method: outer")
+    study = study.replace("[external_norm, internal_norm]", "[peak_external_norm, internal_norm]")
     (tmp_path / "s.yaml").write_text(study)
     assert main(["optimize", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "run"), "--quiet"]) == 2
     err = capsys.readouterr().err

@@ -207,5 +207,6 @@ def test_an_inline_leg_takes_planar_offsets_and_the_whole_landing_refuses_them(t
         load_study(study)
     study.write_text("leg: {shank: {com_offset: [0.01, 0]}}\nscene: {duration: 0.1}\n"
                      "objectives: [peak_external_norm]\nsearch: {method: outer}\n")
-    with pytest.raises(ConfigError, match=r"model.bodies\[1\].com_offset \(leg.shank.com_offset inline\).*--com-on-rods"):
+    field = r"model.bodies\[1\].com_offset \(leg.shank.com_offset inline\)"
+    with pytest.raises(ConfigError, match=field + ".*--com-on-rods"):
         load_study(study)
