@@ -43,7 +43,7 @@ from scipy.optimize import linprog
 
 from impulse_core.evaluate import ImpactResult, approach_velocity, compiled_model, evaluate, touchdown_geometry
 from impulse_core.errors import NumericalError
-from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space, values_space
 from impulse_core.model.support import support_margin as hull_margin
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
@@ -88,6 +88,8 @@ class Leg:
         thigh_gyration, shank_gyration: radius of gyration about it, as a fraction of the
             length (default a uniform rod's, 1/sqrt(12)); a leg read from a model file
             (``leg: {file: ...}``, e.g. ``footopt import``) carries its own.
+        thigh_offset, shank_offset: the centre of mass's offset from the rod in the plane (m,
+            the body's ``com_offset`` [dy, 0]; default 0: on the rod), as a leg file gives it.
     """
 
     thigh_length: float = 0.7
@@ -101,6 +103,8 @@ class Leg:
     thigh_gyration: float = UNIFORM_GYRATION
     shank_com: float = UNIFORM_COM
     shank_gyration: float = UNIFORM_GYRATION
+    thigh_offset: float = 0.0
+    shank_offset: float = 0.0
 
     @property
     def shank_angle(self) -> float:
@@ -230,9 +234,9 @@ def foot_tree(leg: Leg, design: FootDesign) -> Tree:
     carry the ``rpy`` of :func:`yaw_rpy` (evaluate such a tree with ``space=SPATIAL``)."""
     bodies = [
         Body("thigh", None, leg.thigh_length, leg.thigh_mass, leg.thigh_angle, com=leg.thigh_com,
-             gyration=leg.thigh_gyration),
+             gyration=leg.thigh_gyration, com_offset=(leg.thigh_offset, 0.0)),
         Body("shank", 0, leg.shank_length, leg.shank_mass, leg.knee_angle, com=leg.shank_com,
-             gyration=leg.shank_gyration),
+             gyration=leg.shank_gyration, com_offset=(leg.shank_offset, 0.0)),
     ]
     for names, chain, yaw in zip(chain_names(design.shape), design.chains, design.chain_yaws, strict=True):
         parent = 1
@@ -987,11 +991,8 @@ def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimi
 def newton_impulses(tree: Tree, scene: Scene, space: Space = PLANAR) -> np.ndarray:
     """The normal impulses of Newton's law at every declared contact (paper eq. 11), from the
     core's compiled model: negative where the law would make a contact pull."""
-    topology = tree.topology()
-    if space is PLANAR:
-        v_minus, p = approach_velocity(topology, scene.speed), design_vector(tree)
-    else:
-        v_minus, p = approach_velocity(topology, scene.speed, space), design_vector(tree, space.body_values)
+    topology, space = tree.topology(), values_space(tree, space)  # a leg's centres of mass off its rods too
+    v_minus, p = approach_velocity(topology, scene.speed, space), design_vector(tree, space.body_values)
     out = compiled_model(topology, space).impact(p=p, v_minus=v_minus, restitution=scene.restitution)
     return np.array(out["external"]).ravel()
 

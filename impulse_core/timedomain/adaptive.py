@@ -52,7 +52,7 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.errors import ModelError, NumericalError
-from impulse_core.kinematics.spatial import PLANAR, Space
+from impulse_core.kinematics.spatial import PLANAR, Space, values_space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import Scene, Topology, Tree, design_vector
@@ -457,6 +457,7 @@ def _adaptive_run(tree: Tree, scene: Scene, settings: CompliantSettings, local_t
                   terrain, base_x, v_minus, space: Space) -> tuple[_Adaptive, np.ndarray, float, float]:
     """The run's constants at the first touchdown, y there, its kinetic energy and the step
     that resolves simultaneous touchdowns (the fixed-step rung's at ``settings``)."""
+    space = values_space(tree, space)  # a planar tree with centres of mass off its rods: their offsets too
     evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus, space)
     zeta = settings.damping_ratio
     zeta = damping_ratio_for_restitution(scene.restitution) if zeta is None else zeta

@@ -92,6 +92,7 @@ from impulse_core.impact.nnls import nnls
 from impulse_core.kinematics import dynamics as dyn
 from impulse_core.kinematics.spatial import (
     PLANAR,
+    PLANAR_OFFSET,
     SPATIAL,
     DofKind,
     Space,
@@ -101,11 +102,12 @@ from impulse_core.kinematics.spatial import (
     n_values,
     point_jacobian,
     unpack_values,
+    values_space,
 )
 from impulse_core.model import heightfield as hfield
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import FLAT, Terrain, gap_expression, vertical_clearance
-from impulse_core.model.tree import BODY_VALUES, Scene, Topology, Tree, design_vector
+from impulse_core.model.tree import Scene, Topology, Tree, design_vector
 
 
 class ContactLaw(Enum):
@@ -275,7 +277,7 @@ STEP_OUTPUTS = (
 
 
 def _require_known(space: Space) -> None:
-    if space not in (PLANAR, SPATIAL):
+    if space not in (PLANAR, PLANAR_OFFSET, SPATIAL):
         raise ModelError(f"the time-domain rungs run in the plane or in space, got space '{space.name}'")
 
 
@@ -339,7 +341,7 @@ def world_velocity(q: np.ndarray, v: np.ndarray, space: Space = PLANAR) -> np.nd
     """The core's generalized velocity (base origin velocity, world angular velocity, joint rates)
     of the rates ``v`` of the configuration ``q``: the same in the plane; in space the rotation
     rates become S(a) a' (:func:`chart_rates`)."""
-    if space is PLANAR:
+    if space.joint_axis is not None:
         return np.array(v, dtype=float)
     out = np.array(v, dtype=float)
     out[3:6] = chart_rates(q[3:6]) @ out[3:6]
@@ -348,7 +350,7 @@ def world_velocity(q: np.ndarray, v: np.ndarray, space: Space = PLANAR) -> np.nd
 
 def _check_chart(q: np.ndarray, space: Space, t: float) -> None:
     """Raise NumericalError when the base's rotation coordinates near the chart's singularity."""
-    if space is not PLANAR and float(np.linalg.norm(q[3:6])) > CHART_LIMIT:
+    if space.joint_axis is None and float(np.linalg.norm(q[3:6])) > CHART_LIMIT:
         raise NumericalError(
             f"the base turned {math.degrees(float(np.linalg.norm(q[3:6]))):.0f} degrees from its touchdown "
             f"orientation by t = {t:.3g} s: beyond the spatial time-domain rungs' rotation coordinates "
@@ -360,10 +362,11 @@ def configured_design(topology: Topology, p: ca.SX, q: ca.SX, space: Space = PLA
     """The design vector with its angles replaced by the configuration q: the base's absolute
     angle by q's base rotation, each revolute joint's angle by its joint coordinate. Fixed joints
     keep their angle. The core's kinematics evaluated at this vector place the tree at q (up to
-    the base translation, which :func:`dynamics_function` adds)."""
+    the base translation, which :func:`dynamics_function` adds). The vector's layout is
+    ``space.body_values``'s (the plane with centres of mass off the rods: PLANAR_OFFSET)."""
     layout = dof_layout(topology, space)
-    n = len(BODY_VALUES)
-    i_angle = BODY_VALUES.index("angle")
+    n = len(space.body_values)
+    i_angle = space.body_values.index("angle")
     rotation = [k for k, (kind, _) in enumerate(space.base_dofs) if kind is DofKind.ROTATION]
     entries = [p[i] for i in range(p.shape[0])]
     if rotation:
@@ -407,17 +410,18 @@ def expressions(topology: Topology, space: Space) -> Expressions:
     """The tree's dynamics as SX expressions of (q, v, p, gravity), built once per topology:
     every terrain's step function (:func:`step_function`) shares them. In space
     (:func:`_spatial_expressions`) q holds the base origin, the base's rotation coordinates and
-    the joint angles."""
+    the joint angles. PLANAR_OFFSET: the plane with each body's centre of mass off its rod (the
+    core's offset terms, :func:`impulse_core.kinematics.spatial.values_space`)."""
     _require_known(space)
-    if space is not PLANAR:
+    if space.joint_axis is None:
         return _spatial_expressions(topology, space)
     layout = dof_layout(topology, space)
     nv = layout.nv
     q = ca.SX.sym("q", nv)
     v = ca.SX.sym("v", nv)
-    p = ca.SX.sym("p", topology.n_values)
+    p = ca.SX.sym("p", n_values(topology, space))
     g = ca.SX.sym("gravity")
-    values = unpack_values(topology, configured_design(topology, p, q, space))
+    values = unpack_values(topology, configured_design(topology, p, q, space), space)
     kin = forward_kinematics(topology, values, space)
     offset = ca.SX.zeros(3, 1)
     for k, (kind, axis) in enumerate(space.base_dofs):
@@ -711,7 +715,7 @@ def touchdown_configuration(
     the terrain (a heightfield in space) is ``clearance`` above it. In space q is (base origin,
     rotation coordinates 0: the touchdown orientation, joint angles).
     """
-    if space is not PLANAR:
+    if space.joint_axis is None:
         ground = terrain if isinstance(terrain, Heightfield) else hfield.flat_heightfield(terrain.y[0])
         if not isinstance(terrain, Heightfield) and not terrain.is_flat:
             raise ModelError("scene.terrain: a ground profile y(x) is planar; in space give scene.heightfield")
@@ -1029,7 +1033,7 @@ def landing_ground(
 ) -> tuple[Terrain | Heightfield, float, float]:
     """The ground (the scene's unless ``terrain`` is given; in space a heightfield,
     :func:`spatial_ground`) and the base origin's x and z at touchdown."""
-    if space is PLANAR:
+    if space.joint_axis is not None:
         ground, x = scene_ground(scene, terrain, base_x)  # type: ignore[arg-type]
         return ground, x, 0.0
     return spatial_ground(scene, terrain), float(scene.base_x if base_x is None else base_x), float(scene.base_z)
@@ -1045,7 +1049,9 @@ def touchdown_evaluator(
 ) -> tuple[_Evaluator, np.ndarray]:
     """The step function of ``tree`` on its ground (the scene's unless ``terrain`` is given; in
     space a heightfield, :func:`spatial_ground`) and the configuration at the first touchdown.
-    At that configuration (rotation coordinates 0 in space) the rates are the core's velocity."""
+    At that configuration (rotation coordinates 0 in space) the rates are the core's velocity. A
+    planar tree with centres of mass off its rods evaluates with their offsets (PLANAR_OFFSET)."""
+    space = values_space(tree, space)
     topology = tree.topology()
     ground, base_x, base_z = landing_ground(scene, terrain, base_x, space)
     evaluate_step = _Evaluator(compiled_step(topology, ground, space), design_vector(tree, space.body_values), gravity)
@@ -1341,6 +1347,7 @@ def simulate_impact(
     """
     if scene.friction > 0:
         raise ModelError("scene.friction: the compliant rung models frictionless contact only (friction: 0)")
+    space = values_space(tree, space)  # a planar tree with centres of mass off its rods: their offsets too
     evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus, space)
     zeta = (
         damping_ratio_for_restitution(scene.restitution) if settings.damping_ratio is None else settings.damping_ratio

@@ -20,7 +20,7 @@ import numpy as np
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.nnls import nnls
-from impulse_core.kinematics.spatial import PLANAR, Space
+from impulse_core.kinematics.spatial import PLANAR, Space, values_space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import Scene, Tree
@@ -285,6 +285,7 @@ def sequential_impacts(
     """
     if scene.friction > 0:
         raise ModelError("scene.friction: the sequential rigid model is frictionless (friction: 0)")
+    space = values_space(tree, space)  # a planar tree with centres of mass off its rods: their offsets too
     evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus, space)
     in_subtree = subtree_incidence(tree)
     s = evaluate_step(q, v)

@@ -133,7 +133,7 @@ TOP_KEYS = ("name", "seed", "storage", "scene", "leg", "design_space", "constrai
 LANDINGS_KEYS = ("count", "seed", *PARAMETERS)
 SCENE_KEYS = ("speed", "restitution", "friction", "gravity", "duration")
 LEG_KEYS = ("thigh", "shank", "file")
-ROD_KEYS = ("length", "mass", "angle", "com", "gyration")
+ROD_KEYS = ("length", "mass", "angle", "com", "gyration", "com_offset")
 KNEE_KEYS = ("stiffness", "damping", "limits", "stop_restitution")
 SPACE_KEYS = ("toes", "toe_segments", "heel_segments", "toe_symmetry", "joint_laws", "space", "splay", "splay_mode")
 #: ``design_space.space``: the planar foot, or a spatial one with splayed toes.
@@ -330,8 +330,15 @@ def _statistic(data: Any) -> tuple[tuple[Objective, Statistic], ...]:
 
 
 def _check_whole_landing(config: StudyConfig) -> None:
-    """What only a whole landing uses needs a landing objective, and the reverse."""
+    """What only a whole landing uses needs a landing objective, and the reverse; the whole
+    landing takes a leg whose centres of mass lie on its rods."""
     landing = [o.value for o in config.objectives if o.landing]
+    offsets = [i for i, x in enumerate((config.leg.thigh_offset, config.leg.shank_offset)) if x != 0.0]
+    if offsets and (landing or config.scene.duration is not None):
+        i = offsets[0]
+        raise ConfigError(f"leg: model.bodies[{i}].com_offset (leg.{('thigh', 'shank')[i]}.com_offset inline): the "
+                          "whole landing takes centres of mass on the rods; first-impact objectives take the offsets, "
+                          "or import the leg with footopt import --com-on-rods")
     if landing and config.scene.duration is None:
         raise ConfigError(f"scene.duration: missing: the objective {landing[0]} scores the whole landing (s)")
     if landing and config.search.method is SearchMethod.INNER:
@@ -417,9 +424,18 @@ def _leg(data: Any, folder: Path | None = None) -> Leg:
         if gyration < 0:
             raise ConfigError(f"{where}.gyration: must be >= 0 (a fraction of the length), got {gyration!r}")
         values[f"{rod}_com"], values[f"{rod}_gyration"] = com, gyration
+        values[f"{rod}_offset"] = _planar_offset(r.get("com_offset", [0.0, 0.0]), f"{where}.com_offset")
         if any(k in r for k in KNEE_KEYS):
             values["knee"] = joint_law({**r, "angle": values[angle_name]}, where)
     return Leg(**values)
+
+
+def _planar_offset(value: Any, where: str) -> float:
+    """A rod's ``com_offset`` in the plane, [dy, 0] (m): its dy."""
+    if not isinstance(value, list) or len(value) != 2 or value[1] != 0:
+        raise ConfigError(f"{where}: must be [dy, 0] (m: the centre of mass off the rod, in the plane), "
+                          f"got {_describe(value)}")
+    return _number(value[0], f"{where}[0]")
 
 
 def _leg_file(value: Any, folder: Path | None) -> Leg:
@@ -445,16 +461,13 @@ def _leg_file(value: Any, folder: Path | None) -> Leg:
         raise ConfigError(f"leg.file: {path} has {len(bodies)} rods: the design space hangs the foot on a two-rod "
                           "leg (thigh: the floating base, shank: its child; import from the thigh to the ankle)")
     thigh, shank = bodies
-    for i, b in enumerate(bodies):
-        if b.com_offset != (0.0, 0.0):
-            raise ConfigError(f"leg.file: {path}: model.bodies[{i}].com_offset: the design space's leg carries each "
-                              "centre of mass on its rod (footopt import --com-on-rods)")
     if shank.joint is not JointKind.REVOLUTE or shank.at != 1.0:
         raise ConfigError(f"leg.file: {path}: the shank must hang from the thigh's tip (at: 1.0) by a revolute joint")
     knee = model.joints[1] if model.joints else Leg().knee
     return Leg(thigh_length=thigh.length, thigh_mass=thigh.mass, thigh_angle=thigh.angle, shank_length=shank.length,
                shank_mass=shank.mass, knee_angle=shank.angle, knee=knee, thigh_com=thigh.com,
-               thigh_gyration=thigh.gyration, shank_com=shank.com, shank_gyration=shank.gyration)
+               thigh_gyration=thigh.gyration, shank_com=shank.com, shank_gyration=shank.gyration,
+               thigh_offset=thigh.com_offset[0], shank_offset=shank.com_offset[0])
 
 
 def _space(data: Any) -> DesignSpace:
@@ -647,12 +660,15 @@ def _landings_lines(config: StudyConfig) -> list[str]:
 
 
 def _mass_text(leg: Leg, rod: str) -> str:
-    """A rod's ``com`` and ``gyration`` inside its flow mapping (empty when a uniform rod's)."""
+    """A rod's ``com``, ``gyration`` and ``com_offset`` inside its flow mapping (empty when a
+    uniform rod's)."""
     d, parts = Leg(), []
     for key in ("com", "gyration"):
         value = getattr(leg, f"{rod}_{key}")
         if value != getattr(d, f"{rod}_{key}"):
             parts.append(f", {key}: {_float_text(value)}")
+    if getattr(leg, f"{rod}_offset") != 0.0:
+        parts.append(f", com_offset: [{_float_text(getattr(leg, f'{rod}_offset'))}, 0]")
     return "".join(parts)
 
 

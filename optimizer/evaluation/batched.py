@@ -29,7 +29,7 @@ from impulse_core.compile.codegen import batch_kernel, compile_function, simd_la
 from impulse_core.evaluate import compiled_geometry
 from impulse_core.impact.delassus import SCENARIO_IMPACT_OUTPUTS, scenario_impact_function
 from impulse_core.impact.laws import PIVOT_TOL
-from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.tree import ContactSelection, Topology, design_vector
 from optimizer.config.model_file import ModelFile
 from optimizer.design_space import Objectives
@@ -52,7 +52,7 @@ def scenario_inputs(model: ModelFile, names: tuple[str, ...], values: np.ndarray
     as the scenario's file gives them (``scenarios.overrides``)."""
     s, n = model.scene, len(values)
     column = dict(zip(names, values.T, strict=True))
-    P = np.tile(design_vector(model.tree), (n, 1))
+    P = np.tile(design_vector(model.tree, _space(model).body_values), (n, 1))
     if "pitch" in column:
         P[:, BASE_ANGLE] = model.tree.bodies[0].angle + column["pitch"]
     V = np.zeros((n, dof_layout(model.tree.topology()).nv))
@@ -61,6 +61,11 @@ def scenario_inputs(model: ModelFile, names: tuple[str, ...], values: np.ndarray
     V[:, 2] = column.get("angular_velocity", s.angular_velocity)
     E = np.broadcast_to(column.get("restitution", s.restitution), (n,)).astype(float)
     return P, V, E
+
+
+def _space(model: ModelFile) -> Space:
+    """The values' space of a planar model (PLANAR_OFFSET where a centre of mass is off its rod)."""
+    return values_space(model.tree, PLANAR)
 
 
 def active_sets(model: ModelFile, P: np.ndarray, pitched: bool = True) -> list[tuple[int, ...]]:
@@ -75,7 +80,7 @@ def _hitting(model: ModelFile, P: np.ndarray, pitched: bool) -> np.ndarray:
     if model.scene.selection is ContactSelection.ALL:
         return np.ones((len(P), n_declared), dtype=bool)
     rows = P if pitched else P[:1]
-    contacts = _rows(compiled_geometry(model.tree.topology()), rows)[3]  # 3 x declared, column-major
+    contacts = _rows(compiled_geometry(model.tree.topology(), _space(model)), rows)[3]  # 3 x declared, column-major
     heights = contacts.reshape(len(rows), n_declared, 3)[:, :, 1]
     hit = heights <= heights.min(axis=1, keepdims=True) + model.scene.contact_tolerance
     return hit if pitched else np.repeat(hit, len(P), axis=0)
@@ -102,7 +107,7 @@ def first_impact_values_many(models: list[ModelFile], names: tuple[str, ...], va
     """:func:`first_impact_values` of every model on the same scenarios: designs x scenarios in
     one call per structure and contact set (designs of one shape share it)."""
     tables = [np.full((len(values), len(FIRST_IMPACT)), np.nan) for _ in models]
-    groups: dict[Topology, list[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
+    groups: dict[tuple[Topology, Space], list[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
     for i, model in enumerate(models):
         rows = np.flatnonzero(batchable(model, names, values))
         if rows.size == 0:
@@ -111,9 +116,10 @@ def first_impact_values_many(models: list[ModelFile], names: tuple[str, ...], va
         hit = _hitting(model, P, "pitch" in names)
         for members in _groups(hit):
             active = tuple(int(c) for c in np.flatnonzero(hit[members[0]]))
-            groups.setdefault(model.tree.topology(active), []).append((i, rows[members], P[members], V[members], E[members]))
-    for topology, parts in groups.items():
-        found = _newton_rows(topology, *(np.concatenate([part[k] for part in parts]) for k in (2, 3, 4)))
+            key = (model.tree.topology(active), _space(model))
+            groups.setdefault(key, []).append((i, rows[members], P[members], V[members], E[members]))
+    for (topology, space), parts in groups.items():
+        found = _newton_rows(topology, space, *(np.concatenate([part[k] for part in parts]) for k in (2, 3, 4)))
         start = 0
         for i, rows, P, _, _ in parts:
             tables[i][rows] = found[start : start + len(P)]
@@ -137,9 +143,10 @@ def _groups(hit: np.ndarray) -> list[np.ndarray]:
     return [np.flatnonzero(codes == c) for c in np.unique(codes)]
 
 
-def _newton_rows(topology: Topology, P: np.ndarray, V: np.ndarray, E: np.ndarray) -> np.ndarray:
+def _newton_rows(topology: Topology, space: Space, P: np.ndarray, V: np.ndarray, E: np.ndarray) -> np.ndarray:
     """The objectives of every row (rows x 5); NaN where Newton's answer is not ``auto``'s."""
-    out = dict(zip(SCENARIO_IMPACT_OUTPUTS, _rows(_scenario_function(topology), P, V, E[:, None]), strict=True))
+    f = _scenario_function(topology, space)
+    out = dict(zip(SCENARIO_IMPACT_OUTPUTS, _rows(f, P, V, E[:, None]), strict=True))
     lam, magnitude = out["external"], out["internal_magnitude"]
     table = np.column_stack([
         out["external_norm"][:, 0],
@@ -167,8 +174,8 @@ def _rows(f: ca.Function, *inputs: np.ndarray) -> list[np.ndarray]:
 
 
 @functools.lru_cache(maxsize=64)
-def _scenario_function(topology: Topology) -> ca.Function:
-    return scenario_impact_function(topology)
+def _scenario_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
+    return scenario_impact_function(topology, space)
 
 
 @functools.lru_cache(maxsize=64)

@@ -39,7 +39,8 @@ from impulse_core.compile.cache import CompileError, compiler_identity, entry_ke
 from impulse_core.compile.cache import default_root as cache_dir
 from impulse_core.compile.codegen import find_compiler
 from impulse_core.evaluate import approach_velocity, compiled_model
-from impulse_core.model.tree import BODY_VALUES, design_vector
+from impulse_core.kinematics.spatial import PLANAR, values_space
+from impulse_core.model.tree import design_vector
 from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
     LENGTH_FLOOR,
@@ -464,8 +465,9 @@ def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult, approach=Non
         toes=tuple(tuple(Segment(0.1, 0.1, 0.0) for _ in range(kind.toe_segments)) for _ in range(kind.distinct_toes)),
     )
     tree = foot_tree(config.leg, template)
-    p = ca.SX(ca.DM(design_vector(tree)))
-    width = len(BODY_VALUES)
+    space = values_space(tree, PLANAR)  # a leg with centres of mass off its rods: their offsets too
+    p = ca.SX(ca.DM(design_vector(tree, space.body_values)))
+    width = len(space.body_values)
     body, body_mult = 2, [ca.SX(1)]  # the shank's joint impulse is counted once
     for c, k in enumerate(kind.sizes):
         for _ in range(k):
@@ -486,7 +488,7 @@ def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult, approach=Non
     else:
         base, e = approach
         v_minus = ca.vertcat(base, ca.SX(len(approach_velocity(topology, 0.0)) - base.numel(), 1))
-    out = compiled_model(topology).impact(p=p, v_minus=v_minus, restitution=e)
+    out = compiled_model(topology, space).impact(p=p, v_minus=v_minus, restitution=e)
     lam, mag = out["external"], out["internal_magnitude"]
     contact_mult = ca.vertcat(*mult)
     joint_mult = ca.vertcat(*body_mult)

@@ -31,15 +31,15 @@ import numpy as np
 from impulse_core.kinematics.spatial import dof_layout
 from impulse_core.model.rods import centre_of_mass, children, contact_point, inertia_tensor, joint_origin
 from impulse_core.model.terrain import Terrain
-from impulse_core.model.tree import JointKind, Scene, Tree, design_vector
+from impulse_core.model.tree import JointKind, Scene, Tree
 from impulse_core.timedomain.compliant import (
     CompliantSettings,
     ContactLaw,
-    compiled_step,
     damping_ratio_for_restitution,
     scene_ground,
     TOUCHDOWN_CLEARANCE,
     touchdown_configuration,
+    touchdown_evaluator,
 )
 
 #: Radius of the contact spheres (m); the terrain is offset by it, so it does not enter the gap.
@@ -79,12 +79,10 @@ def contact_parameters(
     n = len(tree.contacts)
     if settings.law is ContactLaw.CONSTRAINT:
         return np.full(n, settings.stiffness), np.full(n, 2.0 * zeta * math.sqrt(settings.stiffness))
-    if effective_mass is None:
-        terrain, base_x = scene_ground(scene, terrain, base_x)
-        topology = tree.topology()
-        q = touchdown_configuration(tree, terrain, base_x)
-        out = compiled_step(topology, terrain)(q, np.zeros(len(q)), design_vector(tree), 0.0)
-        effective_mass = 1.0 / np.diag(np.array(out[3]) @ np.array(out[4]))
+    if effective_mass is None:  # the rung's own step function (centres of mass off the rods too)
+        evaluate_step, q = touchdown_evaluator(tree, scene, 0.0, terrain, base_x)
+        s = evaluate_step(q, np.zeros(len(q)))
+        effective_mass = 1.0 / np.diag(s.Jn @ s.minv_jnt)
     a = 1.0 / np.asarray(effective_mass, dtype=float)
     c = 2.0 * zeta * np.sqrt(settings.stiffness / a)
     return settings.stiffness * a, c * a

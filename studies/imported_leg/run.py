@@ -1,9 +1,10 @@
 """studies/imported_leg: a footopt foot on a real quadruped's imported leg, against the default leg.
 
 1. ``footopt import`` of Unitree Go1's front left thigh and calf (example-robot-data's go1.urdf, a
-   test extra), standing posture (thigh joint 0.9 rad, calf -1.8 rad), centres of mass moved onto
-   the rods (``--com-on-rods``: a study's leg file needs them there) and joint laws left out (the
-   objectives are first-impact ones): ``go1_leg.yaml``. The thigh is the floating base, so its
+   test extra), standing posture (thigh joint 0.9 rad, calf -1.8 rad), exact: centres of mass
+   where they are, off the rods (``com_offset``; until the offsets reached studies the leg was
+   imported with ``--com-on-rods``) and joint laws left out (the objectives are first-impact
+   ones): ``go1_leg.yaml``. The thigh is the floating base, so its
    absolute angle comes from the same import rooted at the hip (the thigh joint on the chain).
 2. ``footopt optimize`` of the same Go1-sized foot search (go1.yaml) on that leg and on footopt's
    default leg (default.yaml): the inner search, 6 foot shapes.
@@ -39,10 +40,10 @@ def write_leg(out: Path) -> str:
     from optimizer.imports.read import read_description
 
     desc = read_description(go1_urdf())
-    hip = import_leg(desc, "FL_hip", "FL_foot", angles=ANGLES, com_on_rods=True, joint_laws=False)
+    hip = import_leg(desc, "FL_hip", "FL_foot", angles=ANGLES, joint_laws=False)
     thigh_angle = hip.model.tree.bodies[0].angle + hip.model.tree.bodies[1].angle  # absolute, hip to knee
     leg = import_leg(desc, "FL_thigh", "FL_foot", angles={"FL_calf_joint": ANGLES["FL_calf_joint"]},
-                     com_on_rods=True, joint_laws=False)
+                     joint_laws=False)
     bodies = leg.model.tree.bodies
     model = replace(leg.model, tree=Tree((replace(bodies[0], angle=thigh_angle), *bodies[1:])))
     note = (f"{leg.summary()}\nstudies/imported_leg/run.py: the thigh's absolute angle set to {thigh_angle:.6g} rad "

@@ -271,9 +271,9 @@ def test_designs_times_scenarios_in_one_call_per_shape_and_contact_set(monkeypat
     calls = []
     original = batched._newton_rows
 
-    def spy(topology, P, V, E):
+    def spy(topology, space, P, V, E):
         calls.append(len(P))
-        return original(topology, P, V, E)
+        return original(topology, space, P, V, E)
 
     monkeypatch.setattr(batched, "_newton_rows", spy)
     found = evaluate_designs_over_landings(config, designs)

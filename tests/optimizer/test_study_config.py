@@ -156,8 +156,12 @@ def test_leg_from_an_imported_model_file(tmp_path: Path):
         load_study(study)
     leg = import_leg(desc, "FL_UPPER_LEG", "FL_FOOT", joint_laws=False)
     (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(leg.model))
-    with pytest.raises(ConfigError, match=r"leg.file: .*model.bodies\[0\].com_offset: .*--com-on-rods"):
-        load_study(study)  # its upper leg's centre of mass 0.014 mm off the rod, carried exactly
+    exact = load_study(study)  # its upper leg's centre of mass 0.014 mm off the rod, carried exactly
+    assert (exact.leg.thigh_offset, exact.leg.shank_offset) == tuple(b.com_offset[0] for b in leg.model.tree.bodies)
+    assert exact.leg.thigh_offset != 0.0 and "com_offset: [" in format_study(exact)
+    again = tmp_path / "again.yaml"
+    again.write_text(format_study(exact))
+    assert load_study(again) == exact
     leg = import_leg(desc, "FL_UPPER_LEG", "FL_FOOT", joint_laws=False, com_on_rods=True)
     (tmp_path / "legs" / "solo.yaml").write_text(format_model_file(leg.model))
     config = load_study(study)
@@ -192,3 +196,17 @@ def test_leg_file_is_refused_when_the_design_space_cannot_hang_a_foot_on_it(tmp_
         study.write_text(f"leg: {leg}\nobjectives: [external_norm]\n")
         with pytest.raises(ConfigError, match=message):
             load_study(study)
+
+
+def test_an_inline_leg_takes_planar_offsets_and_the_whole_landing_refuses_them(tmp_path: Path):
+    study = tmp_path / "s.yaml"
+    study.write_text("leg: {thigh: {com_offset: [0.01, 0]}}\nobjectives: [external_norm]\n")
+    assert load_study(study).leg.thigh_offset == 0.01
+    study.write_text("leg: {thigh: {com_offset: [0.01, 0.02]}}\nobjectives: [external_norm]\n")
+    with pytest.raises(ConfigError, match=r"leg.thigh.com_offset: must be \[dy, 0\]"):
+        load_study(study)
+    study.write_text("leg: {shank: {com_offset: [0.01, 0]}}\nscene: {duration: 0.1}\n"
+                     "objectives: [peak_external_norm]\nsearch: {method: outer}\n")
+    field = r"model.bodies\[1\].com_offset \(leg.shank.com_offset inline\)"
+    with pytest.raises(ConfigError, match=field + ".*--com-on-rods"):
+        load_study(study)

@@ -6,6 +6,8 @@ the same answer (one kinematic core); ``--com-on-rods`` keeps the former approxi
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -79,15 +81,22 @@ def test_a_centre_of_mass_behind_a_planar_joint_is_moved_and_reported(tmp_path):
     assert "(except where said above)" in leg.summary()
 
 
-@pytest.mark.parametrize("rung", ["compliant", "sequential"])
-def test_rungs_that_take_rods_only_refuse_an_offset_naming_it(tmp_path, capsys, rung):
+@pytest.mark.parametrize("rung", ["compliant", "sequential", "landing"])
+def test_the_time_domain_rungs_take_an_offset_and_the_landing_refuses_it_naming_it(tmp_path, capsys, rung):
     from optimizer.cli.main import main
 
     leg = import_leg(read_description(robot_file(GO1)), "FL_hip", "FL_foot", angles={"FL_calf_joint": -1.5},
                      joint_laws=False)
-    (tmp_path / "leg.yaml").write_text(format_model_file(leg.model))
-    assert main(["evaluate", "--model", rung, str(tmp_path / "leg.yaml")]) == 2
+    text = format_model_file(replace(leg.model, scene=replace(leg.model.scene, restitution=0.3)))
+    if rung == "landing":
+        text = text.replace("scene:\n", "scene:\n  duration: 0.05\n", 1)
+    (tmp_path / "leg.yaml").write_text(text)
+    code = main(["evaluate", "--model", rung, str(tmp_path / "leg.yaml")])
     err = capsys.readouterr().err
+    if rung != "landing":
+        assert code == 0, err
+        return
+    assert code == 2
     assert "model.bodies[1].com_offset: a centre of mass off the rod is read by the rigid impact models" in err
     assert "--com-on-rods" in err and len(err.strip().splitlines()) == 1
     assert main(["evaluate", "--model", "lcp", str(tmp_path / "leg.yaml")]) == 0
