@@ -33,7 +33,7 @@ from impulse_core.errors import ModelError
 from impulse_core.evaluate import approach_velocity
 from impulse_core.impact.delassus import GRADIENT_OUTPUTS, LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
 from impulse_core.impact.laws import PIVOT_TOL
-from impulse_core.kinematics.spatial import PLANAR, Space, n_values
+from impulse_core.kinematics.spatial import MASS_VALUES, PLANAR, Space, n_values
 from impulse_core.model.tree import BODY_VALUES, CONTACT_BOUNDS, VALUE_BOUNDS, Topology
 
 #: Where the API driver finds the external impulses and the Delassus pivots among the outputs.
@@ -79,6 +79,8 @@ class BatchEvaluator:
         run_api: the compiled API driver (checks, loop and flags in one call), None on the VM.
         parallel: whether the compiled loops run on all cores.
         widths: values per row of each of ``LEAN_OUTPUTS``.
+        rods: the functions' rods variant runs (mass-property values folded to 0): every row's
+            must be 0 (the checks refuse others).
     """
 
     topology: Topology
@@ -89,11 +91,12 @@ class BatchEvaluator:
     run_api: Callable[..., int] | None = field(default=None, repr=False)
     parallel: bool = True
     widths: tuple[int, ...] = field(default=(), repr=False)
+    rods: bool = False
     _fixed: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         """The arrays every compiled call passes: value bounds, the approach at unit speed."""
-        lo, hi = codegen.api_bounds(*_bounds(self.topology, self.space.body_values))
+        lo, hi = codegen.api_bounds(*_bounds(self.topology, self.space.body_values, self.rods))
         arrays = (lo, hi, approach_velocity(self.topology, 1.0, self.space))
         object.__setattr__(self, "_fixed", (*arrays, *(a.ctypes.data for a in arrays)))
 
@@ -137,7 +140,7 @@ class BatchEvaluator:
         """Speed and restitution per row, once every value is checked (ModelError naming the
         first bad one: ``p``, then speed, then restitution)."""
         n = P.shape[0]
-        _check_values(self.topology, P, self.space.body_values)
+        _check_values(self.topology, P, self.space.body_values, self.rods)
         speeds = _per_row("speed", speed, n)
         if not np.all(speeds > 0):
             raise ModelError("speed: must be > 0")
@@ -199,6 +202,7 @@ def batch_evaluator(
     parallel: bool = True,
     space: Space = PLANAR,
     fallback: bool = False,
+    rods: bool = False,
 ) -> BatchEvaluator:
     """Build (once per topology; compiled code is cached in ``cache_dir``) a batch evaluator.
 
@@ -212,12 +216,17 @@ def batch_evaluator(
         space: the kinematic space (planar).
         fallback: on a missing or failing C compiler, warn and run on the virtual machine
             instead of raising ``CompileError``.
+        rods: the variant for designs whose mass-property values are all zero (a model where
+            :func:`impulse_core.kinematics.spatial.rods_only`; its own compiled functions, the
+            same outputs, faster); rows with another value there are refused.
     """
-    lean = lean_impact_function(topology, space)
+    lean = lean_impact_function(topology, space, rods=rods)
     impact, path, api = _runner(lean, cache_dir, parallel, fallback)
-    grad = _runner(norms_gradient_function(topology, space), cache_dir, parallel, fallback)[0] if gradient else None
+    grad = None
+    if gradient:
+        grad = _runner(norms_gradient_function(topology, space, rods=rods), cache_dir, parallel, fallback)[0]
     widths = tuple(lean.nnz_out(i) for i in range(lean.n_out()))
-    return BatchEvaluator(topology, space, path, impact, grad, api, parallel, widths)
+    return BatchEvaluator(topology, space, path, impact, grad, api, parallel, widths, rods)
 
 
 def _runner(
@@ -239,21 +248,29 @@ def _runner(
     return on_vm, Backend.VIRTUAL_MACHINE.value, None
 
 
-def _bounds(topology: Topology, body_values: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each design value's (low, low included, high), in the design vector's order."""
+def _bounds(
+    topology: Topology, body_values: tuple[str, ...], rods: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each design value's (low, low included, high), in the design vector's order; with ``rods``
+    the mass-property values' are [0, 0]."""
     names = [name for _ in range(topology.n_bodies) for name in body_values]
     names += ["contact"] * sum(topology.n_contacts)
-    bounds = np.array([VALUE_BOUNDS.get(name, CONTACT_BOUNDS) for name in names], dtype=float).reshape(-1, 3)
+    bounds = np.array(
+        [(0.0, True, 0.0) if rods and name in MASS_VALUES else VALUE_BOUNDS.get(name, CONTACT_BOUNDS) for name in names],
+        dtype=float,
+    ).reshape(-1, 3)
     return np.ascontiguousarray(bounds[:, 0]), bounds[:, 1].astype(bool), np.ascontiguousarray(bounds[:, 2])
 
 
-def _check_values(topology: Topology, P: np.ndarray, body_values: tuple[str, ...] = BODY_VALUES) -> None:
+def _check_values(
+    topology: Topology, P: np.ndarray, body_values: tuple[str, ...] = BODY_VALUES, rods: bool = False
+) -> None:
     """Raise ModelError naming the first value of ``P`` that no tree may have (the checks of
     :func:`impulse_core.model.tree.validate_tree`): one pass for each column's extremes, the rows
     searched only when a column is out of bounds."""
     names = [(b, name) for b in range(topology.n_bodies) for name in body_values]
     names += [(c, "contact") for c in range(sum(topology.n_contacts))]
-    low, closed, high = _bounds(topology, body_values)
+    low, closed, high = _bounds(topology, body_values, rods)
 
     def ok(x: np.ndarray) -> np.ndarray:
         return np.isfinite(x) & np.where(closed, x >= low, x > low) & (x <= high)

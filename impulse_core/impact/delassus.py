@@ -27,6 +27,7 @@ from impulse_core.kinematics.spatial import (
     contact_bodies,
     dof_layout,
     forward_kinematics,
+    mass_columns,
     n_values,
     point_jacobian,
     unpack_values,
@@ -463,20 +464,33 @@ def _lean_graph(
 
 
 def lean_impact_function(
-    topology: Topology, space: Space = PLANAR, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO
+    topology: Topology, space: Space = PLANAR, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO, rods: bool = False
 ) -> ca.Function:
     """The hot path of the optimiser and the benchmark: same inputs as :func:`impact_function`
     and the subset ``LEAN_OUTPUTS`` of its outputs (same names, same values to rounding), by the
     tree-structured algorithms of ``algorithm`` (:class:`LeanAlgorithm`), with common
-    subexpression elimination."""
+    subexpression elimination. ``rods``: the variant for designs whose mass-property values are
+    all zero (:func:`_rods_folded`; ``impact_lean_rods``)."""
     nv = dof_layout(topology, space).nv
     p = ca.SX.sym("p", n_values(topology, space))
     v_minus = ca.SX.sym("v_minus", nv)
     e = ca.SX.sym("restitution")
-    outs = _lean_graph(topology, space, p, v_minus, e, algorithm).outputs
+    outs = _rods_folded(topology, space, p, _lean_graph(topology, space, p, v_minus, e, algorithm).outputs, rods)
     return ca.Function(
-        "impact_lean", [p, v_minus, e], list(outs), list(IMPACT_INPUTS), list(LEAN_OUTPUTS), LEAN_OPTIONS
+        "impact_lean_rods" if rods else "impact_lean", [p, v_minus, e], outs, list(IMPACT_INPUTS),
+        list(LEAN_OUTPUTS), LEAN_OPTIONS,
     )
+
+
+def _rods_folded(topology: Topology, space: Space, p: ca.SX, outs, rods: bool) -> list[ca.SX]:
+    """``outs`` with every body's mass-property values (:func:`impulse_core.kinematics.spatial.mass_columns`)
+    replaced by the constant 0 when ``rods``: CasADi then drops the terms they multiply. Applied
+    after differentiating, a gradient keeps its entries w.r.t. those values (exact at 0); the
+    function is then only right for designs that have them all zero (its callers check)."""
+    columns = mass_columns(topology, space) if rods else ()
+    if not columns:
+        return list(outs)
+    return ca.substitute(list(outs), [p[k] for k in columns], [ca.SX(0.0)] * len(columns))
 
 
 #: Outputs of :func:`scenario_impact_function`.
@@ -563,7 +577,11 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
 
 
 def norms_gradient_function(
-    topology: Topology, space: Space = PLANAR, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO, adjoint: bool = True
+    topology: Topology,
+    space: Space = PLANAR,
+    algorithm: LeanAlgorithm = LeanAlgorithm.AUTO,
+    adjoint: bool = True,
+    rods: bool = False,
 ) -> ca.Function:
     """``external_norm`` and ``internal_norm`` with their gradients w.r.t. every design value
     (``d_external_norm``, ``d_internal_norm``: 1 x n_values each), sharing the forward pass of
@@ -571,7 +589,9 @@ def norms_gradient_function(
 
     With ``adjoint`` (default) by the adjoint of the impact equations (:func:`_adjoint_gradients`:
     the factorizations are not differentiated); otherwise by CasADi's reverse-mode algorithmic
-    differentiation of the whole graph (the independent check of the first).
+    differentiation of the whole graph (the independent check of the first). ``rods``: the
+    variant for designs whose mass-property values are all zero (``norms_gradient_rods``,
+    :func:`_rods_folded` after differentiating: every entry of the gradients kept).
     """
     nv = dof_layout(topology, space).nv
     p = ca.SX.sym("p", n_values(topology, space))
@@ -584,9 +604,9 @@ def norms_gradient_function(
     else:
         d_external, d_internal = (ca.gradient(x, p) for x in norms)
     return ca.Function(
-        "norms_gradient",
+        "norms_gradient_rods" if rods else "norms_gradient",
         [p, v_minus, e],
-        [*norms, d_external.T, d_internal.T],
+        _rods_folded(topology, space, p, [*norms, d_external.T, d_internal.T], rods),
         list(IMPACT_INPUTS),
         list(GRADIENT_OUTPUTS),
         LEAN_OPTIONS,

@@ -99,6 +99,23 @@ def n_values(topology: Topology, space: Space = PLANAR) -> int:
     """Length of the design vector of ``topology`` in ``space``."""
     return len(space.body_values) * topology.n_bodies + sum(topology.n_contacts)
 
+
+#: A body's general mass-property values (``com_offset`` and ``inertia_tensor``), all zero for a rod.
+MASS_VALUES = ("com_y", "com_z") + TENSOR_VALUES
+
+
+def mass_columns(topology: Topology, space: Space) -> tuple[int, ...]:
+    """Where every body's ``MASS_VALUES`` sit in the design vector of ``space`` (none in PLANAR)."""
+    n = len(space.body_values)
+    at = [j for j, name in enumerate(space.body_values) if name in MASS_VALUES]
+    return tuple(n * b + j for b in range(topology.n_bodies) for j in at)
+
+
+def rods_only(tree: Tree, space: Space) -> bool:
+    """Whether ``space`` carries mass-property values and every body of ``tree`` has them all
+    zero: the rods variant of the hot path (``rods=True``, those values folded to 0) serves it."""
+    return bool(mass_columns(tree.topology(), space)) and all(b.is_rod for b in tree.bodies)
+
 #: A rod's own axis, in its frame.
 E_X = ca.DM([1.0, 0.0, 0.0])
 

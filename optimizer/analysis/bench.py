@@ -33,7 +33,7 @@ import numpy as np
 from impulse_core.compile.codegen import Backend, Compiled, batch_kernel, compile_function, has_openmp, simd_lanes
 from impulse_core.evaluate import active_contacts, approach_velocity, compiled_model
 from impulse_core.impact.delassus import LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
-from impulse_core.kinematics.spatial import PLANAR, Space
+from impulse_core.kinematics.spatial import PLANAR, Space, rods_only
 from impulse_core.model.tree import Body, ContactSelection, Scene, Topology, Tree, design_vector
 
 #: Body counts of the scaling series (more toes and more segments per toe).
@@ -50,7 +50,8 @@ class SpeedReport:
     (the SIMD loop where built, else the C loop, else CasADi's map): the adjoint gradient;
     ``gradient_ratio_autodiff`` the same for CasADi's reverse mode through the whole graph, its
     peer in the same run; ``gradient_ratio_c_loop`` and ``gradient_ratio_map`` the adjoint's on
-    those paths."""
+    those paths; ``rods``: the functions timed are the rods variants (every body's mass-property
+    values zero, folded: ``rods=True`` of :func:`lean_impact_function`)."""
 
     model: str
     n_bodies: int
@@ -90,6 +91,7 @@ class SpeedReport:
     batched_equals_single: bool
     lean_equals_full: bool
     scaling: list[dict] = field(default_factory=list)
+    rods: bool = False
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -199,13 +201,15 @@ class _Bench:
     batch: int
     topology: Topology
     space: Space
+    rods: bool
 
     @classmethod
     def of(cls, tree: Tree, scene: Scene, batch: int, seed: int, space: Space) -> _Bench:
         active = active_contacts(tree, scene, space=space)
         topology = tree.topology(active)
         t0 = time.perf_counter()
-        lean = lean_impact_function(topology, space)
+        rods = rods_only(tree, space)
+        lean = lean_impact_function(topology, space, rods=rods)
         build_ms = (time.perf_counter() - t0) * 1e3
         p = design_vector(tree, space.body_values)
         v = approach_velocity(topology, scene.speed, space)
@@ -215,7 +219,7 @@ class _Bench:
         idx = sorted({0, batch - 1, *(int(i) for i in rng.integers(0, batch, 3))})
         rows = tuple(np.ascontiguousarray(np.array(a).T) for a in args)
         full = compiled_model(topology, space).impact
-        return cls(tree, active, lean, full, build_ms, v, args, rows, idx, batch, topology, space)
+        return cls(tree, active, lean, full, build_ms, v, args, rows, idx, batch, topology, space, rods)
 
     def checked(self) -> tuple[bool, bool, list]:
         """Correctness first: (batched == single calls to 1e-12, lean == the full model to 1e-9,
@@ -266,8 +270,8 @@ def _gradient_paths(b: _Bench, cache_dir: Path | None, fns: dict) -> tuple[dict[
     """Add the adjoint's and CasADi's reverse mode's batched paths to ``fns``: (instructions, the
     two agree to 1e-8, every batched path equals single calls)."""
     grads = {
-        "gradient": norms_gradient_function(b.topology, b.space),
-        "gradient_autodiff": norms_gradient_function(b.topology, b.space, adjoint=False),
+        "gradient": norms_gradient_function(b.topology, b.space, rods=b.rods),
+        "gradient_autodiff": norms_gradient_function(b.topology, b.space, adjoint=False, rods=b.rods),
     }
     n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
     singles = {k: [g(*(x[:, i] for x in b.args)) for i in b.idx] for k, g in grads.items()}
@@ -350,6 +354,7 @@ def _report(
         batch=b.batch,
         batched_equals_single=bool(same),
         lean_equals_full=lean_full,
+        rods=b.rods,
     )
 
 
@@ -495,7 +500,8 @@ def format_report(r: SpeedReport) -> str:
     rows = [
         (
             "model",
-            f"{r.model} ({r.n_bodies} bodies, {r.n_dof} DOF, {r.n_contacts} contacts)",
+            f"{r.model} ({r.n_bodies} bodies, {r.n_dof} DOF, {r.n_contacts} contacts)"
+            + (", rods: mass properties folded to 0" if r.rods else ""),
         ),
         (
             "SX instructions: lean / full model / gradient (adjoint, reverse mode)",
