@@ -717,6 +717,7 @@ class _Landing:
         ground = scene.terrain if space is PLANAR else spatial_ground(scene)
         fn = landing_function(self.topology, ground, space)
         self.call = BufferedCall(fn, design_vector(tree, space.body_values), scene.gravity)
+        self._last: tuple[tuple[bytes, bytes], _Point] | None = None  # see point()
         base_z = 0.0 if space is PLANAR else float(scene.base_z)
         self.q0 = touchdown_configuration(tree, ground, scene.base_x, space=space, base_z=base_z)
         self.joints = joint_arrays(tree, laws, self.q0, space)
@@ -750,6 +751,16 @@ class _Landing:
     # ---- dynamics
 
     def point(self, q: np.ndarray, v: np.ndarray) -> _Point:
+        """The dynamics at (q, v); the last one is kept, since a step's end is asked for by the
+        momentum balance, the divergence check and the witnesses in turn (read only)."""
+        key = (q.tobytes(), v.tobytes())
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        pt = self._evaluate(q, v)
+        self._last = (key, pt)
+        return pt
+
+    def _evaluate(self, q: np.ndarray, v: np.ndarray) -> _Point:
         self.call.call(q, v)
         o, f = self.call.out, self.call.flat
         d = self.dims
