@@ -1195,7 +1195,7 @@ class _Landing:
         if self.tape is not None:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         pt = self.point(q, v)
-        q = q - self.position_correction(pt, q, self.placement(pt, q, mode))
+        q = q - self.placement(pt, q, mode)[1]
         rows = _mode_rows(pt, mode, self.mu)
         if not rows.G.shape[0]:
             return q, v, np.zeros(self.dims * self.nc)
@@ -1204,16 +1204,19 @@ class _Landing:
         v = v + minv_gt @ impulse
         return q, v, _stacked(*_contact_forces(rows, impulse, 0.0, self.nc))
 
-    def placement(self, pt: _Point, q: np.ndarray, mode: _Mode) -> _Mode:
+    def placement(self, pt: _Point, q: np.ndarray, mode: _Mode) -> tuple[_Mode, np.ndarray]:
         """The rows a projection at (q, ``pt``) zeroes: the mode's, an open contact left below the
         ground (by rounding), and a free joint past a stop, also one that the correction of the
-        others would carry past it (it is put back onto the stop)."""
+        others would carry past it (it is put back onto the stop); and that position correction."""
         place = mode.copy()
         place.closed |= pt.gap < 0
         place.stop = np.where(place.stop == 0, self.beyond(q), place.stop)
-        carried = np.where(place.stop == 0, self.beyond(q - self.position_correction(pt, q, place)), 0)
-        place.stop = np.where(place.stop == 0, carried, place.stop)
-        return place
+        dq = self.position_correction(pt, q, place)
+        carried = np.where(place.stop == 0, self.beyond(q - dq), 0)
+        if np.any(carried):
+            place.stop = np.where(place.stop == 0, carried, place.stop)
+            dq = self.position_correction(pt, q, place)
+        return place, dq
 
     def beyond(self, q: np.ndarray) -> np.ndarray:
         """Per DOF: +1 past its upper stop, -1 past its lower one, else 0. A joint that an impact

@@ -781,7 +781,7 @@ def landing_gradient(
             events.append((fn, d[1], joint, d[3]))
         elif kind == "project":
             _, q, v, mode = entry
-            place = run.placement(run.point(q, v), q, mode)
+            place, _ = run.placement(run.point(q, v), q, mode)
             lifted = tuple(int(i) for i in np.flatnonzero(place.closed & ~mode.closed))
             put_back = np.where(mode.stop == 0, place.stop, 0)
             beyond = tuple(int(b) for b in put_back) if np.any(put_back) else ()
