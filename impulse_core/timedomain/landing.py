@@ -21,7 +21,12 @@ Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
   (``impulse_core.impact.coulomb``: Newton's restitution with exact Coulomb friction) over every
   contact that touches and every joint on a stop; an approach slower than
   :data:`PLASTIC_SPEED` is plastic (e = 0), as is one whose rebound the row's free acceleration
-  would end within :data:`MIN_BOUNCE` of the duration, and the row rests from then on. After every event the
+  would end within :data:`MIN_BOUNCE` of the duration or, after the first impact, within
+  :data:`BOUNCE_STEPS` of the run's step, and the row rests from then on (a light toe's cascade of
+  ever shorter bounces, which the step cannot resolve, ends at its first bounce shorter than a
+  quarter step: the threshold halves with the step, so the step-halving estimate below includes
+  what it changes; a landing's settled_at can come early by up to the remaining cascade,
+  h / (4 (1 - e))). After every event the
   modes are chosen by the same LCP at the acceleration level (e = 0; sliding contacts keep their
   direction).
 
@@ -80,6 +85,10 @@ PLASTIC_SPEED = 1e-4
 #: duration is plastic too: a contact driven into the ground (a fast-spinning light rod, a stiff
 #: spring) would otherwise chatter at nanosecond intervals without end.
 MIN_BOUNCE = 1e-6
+#: After the first impact, a rebound that the row's free acceleration would end within this many
+#: of the run's steps is plastic too (case 3's light toes: 441 impacts in its first 40 ms become
+#: 24 at step 1.5 ms and the run takes 0.15 x the time, 1e-7 from the converged landing).
+BOUNCE_STEPS = 0.25
 #: The landing has settled once every generalized velocity stays below this.
 SETTLE_SPEED = 1e-3
 #: Events after which the landing is abandoned (a chattering contact).
@@ -742,6 +751,9 @@ class _Landing:
             raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, auto")
         #: circular-cone solves of the current run that fell back to the polyhedral answer
         self.inexact = 0
+        #: a rebound shorter than this (s) is plastic: MIN_BOUNCE of the duration at the first
+        #: impact, and also BOUNCE_STEPS of the step after it (set by :meth:`run`)
+        self.min_bounce = MIN_BOUNCE * float(scene.duration or 0.0)
         #: None, or a list that a run appends its committed operations to, in order (what
         #: :mod:`impulse_core.timedomain.landing_derivatives` replays): ("step", q, v, mode, dt,
         #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol) and
@@ -1017,7 +1029,7 @@ class _Landing:
         u = rows.G @ v
         e = np.where(rows.contact >= 0, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
         e = np.where(-u[: rows.n] > PLASTIC_SPEED, e, 0.0)
-        e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < MIN_BOUNCE * self.scene.duration, 0.0, e)
+        e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < self.min_bounce, 0.0, e)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
         sol, _, exact = _solve_rows(rows.G @ minv_gt, u, rows, e)
         self.inexact += not exact
@@ -1278,7 +1290,9 @@ class _Landing:
         """The landing at Runge-Kutta step ``h``."""
         T = float(self.scene.duration)
         self.inexact = 0
+        self.min_bounce = MIN_BOUNCE * T
         q, v, mode, totals = self.first_impact()
+        self.min_bounce = max(MIN_BOUNCE * T, BOUNCE_STEPS * h)
         energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
         # No energy enters (passive joints, a fixed ground): the kinetic energy stays below what
@@ -1471,6 +1485,7 @@ __all__ = [
     "RK4_STABLE",
     "MODEL_NAME",
     "MIN_BOUNCE",
+    "BOUNCE_STEPS",
     "PLASTIC_SPEED",
     "SETTLE_SPEED",
     "LandingEvent",

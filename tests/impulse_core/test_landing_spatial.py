@@ -145,7 +145,7 @@ def _assert_event_laws(run: _Landing, r: LandingResult, scene: Scene) -> None:
     every contact that took an impulse leaves at rest (Newton), none approaches."""
     times, states = r.trajectory
     for e in r.events:
-        assert np.all(e.external >= 0)
+        assert np.all(e.external >= -1e-12 * np.max(np.abs(e.external)))  # 0 to rounding: -5e-37 seen
         assert np.all(np.linalg.norm(e.tangential, axis=1) <= scene.friction * e.external * (1 + 1e-9) + 1e-12)
         assert e.energy_after <= e.energy_before * (1 + 1e-9) + 1e-12
         if scene.restitution == 0:
