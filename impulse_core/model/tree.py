@@ -471,9 +471,9 @@ def design_vector(tree: Tree, body_values: tuple[str, ...] = BODY_VALUES) -> np.
         for i, b in enumerate(tree.bodies):
             if b.com_offset != (0.0, 0.0):
                 raise ModelError(f"model.bodies[{i}].com_offset: a centre of mass off the rod is read by the rigid "
-                                 "impact models (decoupled, newton, lcp, friction), the sequential and compliant "
-                                 "ones and spatial models; this computation (the whole landing) takes planar rods "
-                                 "only (a leg from footopt import: --com-on-rods)")
+                                 "impact models, the time-domain ones (sequential, compliant, landing) and spatial "
+                                 "models; this computation (landing derivatives, sensitivity analysis, bench study) "
+                                 "takes planar rods only (a leg from footopt import: --com-on-rods)")
     per_body = [[getattr(b, name) for name in body_values] for b in tree.bodies]
     contacts = [c for b in tree.bodies for c in b.contacts]
     return np.array([v for row in per_body for v in row] + contacts, dtype=float)

@@ -58,7 +58,7 @@ from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import cone_unilateral
 from impulse_core.impact.coulomb import UnilateralSolution, solve_unilateral
-from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
+from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.terrain import Terrain
@@ -721,18 +721,21 @@ class _Landing:
     def __init__(self, tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings,
                  space: Space = PLANAR) -> None:
         _require_known(space)
+        space = values_space(tree, space)  # the plane with centres of mass off the rods: PLANAR_OFFSET
         self.tree, self.scene, self.settings, self.space = tree, scene, settings, space
         self.topology = tree.topology()
-        ground = scene.terrain if space is PLANAR else spatial_ground(scene)
+        #: in the plane (PLANAR or PLANAR_OFFSET), not in space
+        self.planar = space.joint_axis is not None
+        ground = scene.terrain if self.planar else spatial_ground(scene)
         fn = landing_function(self.topology, ground, space)
         self.call = BufferedCall(fn, design_vector(tree, space.body_values), scene.gravity)
         self._last: tuple[tuple[bytes, bytes], _Point] | None = None  # see point()
-        base_z = 0.0 if space is PLANAR else float(scene.base_z)
+        base_z = 0.0 if self.planar else float(scene.base_z)
         self.q0 = touchdown_configuration(tree, ground, scene.base_x, space=space, base_z=base_z)
         self.joints = joint_arrays(tree, laws, self.q0, space)
         self.nc, self.nv = len(tree.contacts), len(self.q0)
         #: the rows of a point's position: 2 in the plane, 3 in space
-        self.dims = 2 if space is PLANAR else 3
+        self.dims = 2 if self.planar else 3
         self.mu, self.e = scene.friction, scene.restitution
         self.in_subtree = subtree_incidence(tree)
         self.mass = sum(b.mass for b in tree.bodies)
@@ -1398,7 +1401,7 @@ class _Landing:
     def result(self, totals: _Totals, q: np.ndarray, v: np.ndarray, h: float, energy_before: float,
                energy_final: float, gravity_work: float) -> LandingResult:
         layout = dof_layout(self.topology, self.space)
-        base = [q[2]] if self.space is PLANAR else list(q[3:6])
+        base = [q[2]] if self.planar else list(q[3:6])
         angles = base + [b.angle if k is None else q[k] for b, k in zip(self.tree.bodies[1:], layout.body_dof[1:])]
         settled = None if math.isnan(totals.moving_until) else totals.moving_until
         return LandingResult(

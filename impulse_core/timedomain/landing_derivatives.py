@@ -714,12 +714,12 @@ def landing_gradient(
         NumericalError: as :func:`landing`; or redundant rows in some mode (not differentiable).
     """
     t0 = time.perf_counter()
+    theta = design_theta(tree, laws)  # first: a centre of mass off its rod is refused before any landing
     if step is None:
         step = landing(tree, scene, laws, settings).step
     result, tape, run = taped_run(tree, scene, laws, step, settings)
     t1 = time.perf_counter()
     sym = _symbolic(run, laws)
-    theta = design_theta(tree, laws)
     nc, nv, n_theta = sym.nc, sym.nv, sym.n_theta
 
     # touchdown: the lowest contact (the first where several tie) sets the height

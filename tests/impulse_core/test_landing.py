@@ -242,6 +242,23 @@ def test_the_settled_pole_solves_the_static_equilibrium():
     assert r.total_external.sum() == pytest.approx(total_mass * (G * scene.duration) + 2.0 * 0.5 + m * 0.5, rel=1e-6)
 
 
+
+def test_a_pole_with_its_centre_of_mass_off_the_rod_settles_as_derived():
+    """The pole's centre of mass d = 4 cm off its rod (``com_offset`` [d, 0], the plane with
+    offsets): gravity's torque about the joint is m g (c cos(theta) - d sin(theta)), so it settles
+    at k (theta - rest) + m g (c cos(theta) - d sin(theta)) = 0, 0.05 rad from the rods-only answer."""
+    tree, laws, scene = _plank_and_pole()
+    d = 0.04
+    tree = Tree((tree.bodies[0], replace(tree.bodies[1], com_offset=(d, 0.0))))
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-6))
+    k, rest, m, half = 5.0, 1.4, 0.5, 0.25
+    theta = brentq(lambda th: k * (th - rest) + m * G * (half * math.cos(th) - d * math.sin(th)), 0.5, 1.6)
+    on_rod = brentq(lambda th: k * (th - rest) + m * G * half * math.cos(th), 0.5, 1.6)
+    assert r.converged and r.settled_at is not None and abs(theta - on_rod) > 0.03
+    assert r.final_angles[0] == pytest.approx(0.0, abs=1e-9)
+    assert r.final_angles[1] == pytest.approx(theta, abs=1e-7)
+    _assert_the_laws(tree, laws, replace(scene, duration=0.3), 1e-3)
+
 PLANK_MJCF = """
 <mujoco>
   <compiler angle="radian"/>

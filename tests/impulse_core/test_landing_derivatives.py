@@ -19,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from impulse_core.errors import NumericalError
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, Scene, Tree
 from impulse_core.timedomain.landing import LandingSettings, landing
@@ -194,3 +194,12 @@ def test_redundant_rows_are_refused():
     scene = Scene(speed=0.5, restitution=0.0, friction=1.0, gravity=G, duration=0.05)
     with pytest.raises(NumericalError, match="redundant"):
         landing_gradient(plank, scene, (), step=1e-3)
+
+
+def test_a_centre_of_mass_off_its_rod_is_refused_naming_the_field():
+    """The landing takes it; its derivatives take rods only so far (before any landing runs)."""
+    rod = Tree((Body("rod", None, 0.5, 2.0, -1.2, contacts=(1.0,)), Body("pole", 0, 0.3, 0.5, 1.0, com_offset=(0.02, 0.0))))
+    scene = Scene(speed=0.5, restitution=0.0, gravity=G, duration=0.05)
+    assert landing(rod, scene).n_steps > 0
+    with pytest.raises(ModelError, match=r"model.bodies\[1\].com_offset.*landing derivatives"):
+        landing_gradient(rod, scene, (), step=1e-3)

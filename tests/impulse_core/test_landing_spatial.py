@@ -73,16 +73,29 @@ def _planar_view(tree: Tree, r: LandingResult) -> tuple[np.ndarray, np.ndarray]:
     return angles, np.array([r.final_angles[0], r.final_angles[1], r.final_base[2]])
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3, 5])  # 5: a slow-slipping loaded toe (the direction's stiffness)
-def test_a_planar_leg_read_as_spatial_lands_as_in_the_plane(seed):
-    """Random planar legs (springs, dampers, stops, gravity, friction 0, 0.4 or 1) at one step:
+def _off_the_rods(tree: Tree, seed: int) -> Tree:
+    """``tree`` with every centre of mass up to 3 cm off its rod in the plane (``com_offset`` [d, 0])."""
+    rng = np.random.default_rng(500 + seed)
+    return Tree(tuple(replace(b, com_offset=(rng.uniform(-0.03, 0.03), 0.0)) for b in tree.bodies))
+
+
+@pytest.mark.parametrize("seed, offsets", [(0, False), (1, False), (2, False), (3, False), (5, False),
+                                           (1, True), (2, True)])  # 5: a slow-slipping loaded toe
+def test_a_planar_leg_read_as_spatial_lands_as_in_the_plane(seed, offsets):
+    """Random planar legs (springs, dampers, stops, gravity, friction 0, 0.4 or 1; ``offsets``: the
+    centres of mass off the rods, which move the landing by more than 1e-3 rad) at one step:
     the same events; event times within 1e-8 s and impulses within 1e-6 of the peak (an event's
     time is located to a gap tolerance / approach speed, up to 1e-8 s on the slow re-contacts,
     which moves their impulses); final angles, base and total impulses within 1e-10 relative;
     nothing out of the plane (1e-12). Measured: 6e-9 s, 4.3e-7, 2.1e-12, 1e-21."""
     tree, laws, scene = _random_leg(seed)
+    if offsets:
+        rods = _Landing(tree, scene, laws, LandingSettings()).run(STEP).final_angles
+        tree = _off_the_rods(tree, seed)
     planar = _Landing(tree, scene, laws, LandingSettings()).run(STEP)
     spatial = _Landing(tree, scene, laws, LandingSettings(), SPATIAL).run(STEP)
+    if offsets:
+        assert np.max(np.abs(planar.final_angles - rods)) > 1e-3
     assert len(spatial.events) == len(planar.events) and len(planar.events) > 5
     peak = max(float(np.max(e.external)) for e in planar.events)
     for a, b in zip(planar.events, spatial.events):

@@ -2,7 +2,8 @@
 and calf, their centres of mass 3.05 and 4.3 mm off the rods): the design space carries the
 offsets into the thigh and shank it builds (the inner search's NLP and the outer search's batched
 evaluator alike), each front design's model file re-evaluates (``footopt evaluate``) to the
-impulses the study recorded, and a whole landing on such a leg is refused naming the field."""
+impulses the study recorded; whole landings on such a leg (the outer search) too, and the inner
+search's landing derivatives refuse it naming the field."""
 
 from __future__ import annotations
 
@@ -70,14 +71,34 @@ def test_a_study_on_an_exact_import_reevaluates_to_its_impulses(tmp_path, capsys
             assert dataclasses.replace(built, name=source.name, contacts=source.contacts) == source
 
 
-def test_a_whole_landing_on_an_exact_import_is_refused_naming_the_field(tmp_path, capsys):
-    go1_leg(tmp_path)
-    study = STUDY.replace("friction: 0.0}", "friction: 0.0, duration: 0.1}").replace("method: inner", "method: outer")
-    study = study.replace("[external_norm, internal_norm]", "[peak_external_norm, internal_norm]")
-    (tmp_path / "s.yaml").write_text(study)
-    assert main(["optimize", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "run"), "--quiet"]) == 2
+def test_a_whole_landing_study_on_an_exact_import_reevaluates_to_its_landings(tmp_path, capsys):
+    """The outer search scores whole landings of feet on the exact import (its offsets carried):
+    each front design's model file lands again (``footopt evaluate --json``) to the peak and the
+    energy the study recorded; the inner search, whose landing derivatives take rods, refuses."""
+    leg = go1_leg(tmp_path)
+    study = STUDY.replace("friction: 0.0}", "friction: 0.5, gravity: 9.81, duration: 0.03}")
+    study = study.replace("[external_norm, internal_norm]", "[peak_external_norm, energy_absorbed]")
+    study = study.replace("trials: 12, startup_trials: 5", "trials: 4, startup_trials: 4")
+    (tmp_path / "s.yaml").write_text(study.replace("method: inner", "method: outer"))
+    out = tmp_path / "run"
+    assert main(["optimize", str(tmp_path / "s.yaml"), "--out", str(out), "--quiet"]) == 0
+    with open(out / "pareto.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert rows
+    capsys.readouterr()
+    files = [str(out / r["model_file"]) for r in rows]
+    assert main(["evaluate", "--json", *files]) == 0
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    for row, rec, path in zip(rows, records, files, strict=True):
+        assert rec["model"] == "landing"
+        for key in ("peak_external_norm", "energy_absorbed"):
+            assert rec["landing"][key] == pytest.approx(float(row[key]), rel=1e-9, abs=1e-15), key
+        assert [b.com_offset for b in load_model_file(path).tree.bodies[:2]] == [b.com_offset for b in leg.bodies]
+    (tmp_path / "s.yaml").write_text(study.replace("objectives: [peak_external_norm, energy_absorbed]",
+                                                   "objectives: [peak_external_norm, peak_internal_norm]"))
+    assert main(["optimize", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "run2"), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert "model.bodies[0].com_offset" in err and "--com-on-rods" in err and len(err.strip().splitlines()) == 1
+    assert "model.bodies[0].com_offset" in err and "landing derivatives" in err and len(err.strip().splitlines()) == 1
 
 
 def test_batched_landings_carry_the_offsets():
