@@ -1016,13 +1016,16 @@ STUDY_LANDING = LandingSettings(max_refinements=4, max_events=1000)
 
 
 def landing_objectives(result: LandingResult) -> Objectives:
-    """The designer's objectives from a whole landing: its first event's, and its own."""
+    """The designer's objectives from a whole landing: its first event's (the base's turn as in
+    :func:`objectives`), and its own."""
     first = result.events[0]
+    planar = result.space == PLANAR.name
+    turn = abs(float(first.v_plus[2])) if planar else float(np.linalg.norm(first.v_plus[3:6]))
     return Objectives(
         external_norm=first.external_norm,
         internal_norm=first.internal_norm,
         max_internal=float(first.internal_magnitude.max(initial=0.0)),
-        base_angular_velocity=abs(float(first.v_plus[2])),
+        base_angular_velocity=turn,
         energy_after=first.energy_after,
         peak_external_norm=result.peak_external_norm,
         peak_internal_norm=result.peak_internal_norm,
@@ -1046,7 +1049,8 @@ def evaluate_design_landing(
     geometric = constraint_values(leg, design, limits)
     try:
         with np.errstate(all="ignore"):
-            result = landing(tree, landing_scene(scene, limits), laws, replace(STUDY_LANDING, tolerance=tolerance))
+            result = landing(tree, landing_scene(scene, limits), laws, replace(STUDY_LANDING, tolerance=tolerance),
+                             design.space)
     except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
         return DesignEvaluation(design, None, geometric)
     objectives = landing_objectives(result)

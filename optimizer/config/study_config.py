@@ -239,10 +239,6 @@ def _check_spatial(config: StudyConfig) -> None:
     if config.search.method is SearchMethod.INNER:
         raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only; "
                           "search.method: outer searches spatial ones")
-    if config.whole_landing:
-        raise ConfigError("design_space.space: whole-landing objectives are planar so far (the landing's derivatives "
-                          "along its events and the landing search; footopt evaluate lands spatial files): a spatial "
-                          "design space takes first-impact objectives only")
     if config.landings is not None:
         raise ConfigError("landings: a distribution of landings takes planar design spaces only so far "
                           "(design_space.space: spatial)")

@@ -189,12 +189,12 @@ def suggest_design(trial: optuna.Trial, config: StudyConfig) -> FootDesign:
     else:
         used = limits.foot_mass
     masses = masses_from_shares(shape, shares, limits, used)
-    if config.space.spatial:
-        return design_from(config.leg, angles, masses, limits, toe_yaws=suggest_yaws(trial, config, shape))
+    yaws = suggest_yaws(trial, config, shape) if config.space.spatial else None
     if not config.whole_landing:
-        return design_from(config.leg, angles, masses, limits)
+        return design_from(config.leg, angles, masses, limits, toe_yaws=yaws)
     reach = trial.suggest_float("foot_reach", *limits.foot_length)
-    return with_joint_laws(design_from(config.leg, angles, masses, limits, reach), suggest_joint_laws(trial, config))
+    design = design_from(config.leg, angles, masses, limits, reach, toe_yaws=yaws)
+    return with_joint_laws(design, suggest_joint_laws(trial, config))
 
 
 def suggest_yaws(trial: optuna.Trial, config: StudyConfig, shape: FootShape) -> tuple[float, ...]:
@@ -249,10 +249,8 @@ def with_joint_laws(design: FootDesign, laws: dict[str, FamilyLaw]) -> FootDesig
             for t in (laws[root if j == 0 else inner],)
         )
 
-    return FootDesign(
-        heel=chain(design.heel, "heel_root", "heel_inner"),
-        toes=tuple(chain(t, "toe_root", "toe_inner") for t in design.toes),
-    )
+    return replace(design, heel=chain(design.heel, "heel_root", "heel_inner"),
+                   toes=tuple(chain(t, "toe_root", "toe_inner") for t in design.toes))
 
 
 def objective_values(config: StudyConfig, objectives: Objectives) -> list[float]:

@@ -79,3 +79,47 @@ def test_top_view_plot_is_written(tmp_path: Path):
     assert svg.read_text(encoding="utf-8").lstrip().startswith("<?xml")
     with pytest.raises(ConfigError):
         plot_top_views(feet, tmp_path / "top.bmp")
+
+
+LANDING_STUDY = """\
+name: tiny_splay_landing
+seed: 4
+scene: {speed: 2.0, restitution: 0.3, friction: 0.5, gravity: 9.81, duration: 0.01}
+design_space:
+  toes: [2, 3]
+  toe_segments: [1, 2]
+  space: spatial
+  splay: [0.1, 0.6]
+  joint_laws:
+    heel_root: {stiffness: [5.0, 20.0], damping: [0.05, 0.5], stop: [0.2, 0.6]}
+    toe_root: {stiffness: [5.0, 20.0], damping: [0.05, 0.5], stop: [0.2, 0.6]}
+    toe_inner: {stiffness: [2.0, 10.0], damping: [0.02, 0.2]}
+constraints: {support_margin: 0.005}
+objectives: [peak_external_norm, energy_absorbed]
+search: {method: outer, trials: 4, startup_trials: 4}
+"""
+
+
+def test_a_whole_landing_study_of_splayed_feet_reevaluates_to_its_landings(tmp_path: Path, capsys):
+    """Splayed feet scored on their whole landings in space (the outer search): each front
+    design's spatial model file lands again (``footopt evaluate --json``) to the recorded peak and
+    energy absorbed, its joints sprung as the trial asked, its toes splayed; the inner search refuses."""
+    (tmp_path / "study.yaml").write_text(LANDING_STUDY, encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["optimize", str(tmp_path / "study.yaml"), "--out", str(out), "--quiet"]) == 0
+    entries = json.loads((out / "pareto.json").read_text())["designs"]
+    assert entries
+    files = [str(out / e["model_file"]) for e in entries]
+    capsys.readouterr()
+    assert main(["evaluate", "--json", *files]) == 0
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    for entry, record, path in zip(entries, records, files, strict=True):
+        assert record["model"] == "landing" and len(record["landing"]["final_base"]) == 3
+        for key in ("peak_external_norm", "energy_absorbed"):
+            assert record["landing"][key] == pytest.approx(entry["objectives"][key], rel=1e-9), key
+        model = load_model_file(path)
+        assert model.space.joint_axis is None and any(b.rpy != (0.0, 0.0, 0.0) for b in model.tree.bodies)
+        assert sum(1 for j in model.joints if j.stiffness > 0) == len(model.tree.bodies) - 2  # every foot joint
+    (tmp_path / "study.yaml").write_text(LANDING_STUDY.replace("method: outer", "method: inner"), encoding="utf-8")
+    assert main(["optimize", str(tmp_path / "study.yaml"), "--out", str(tmp_path / "inner"), "--quiet"]) == 2
+    assert "design_space.space: the inner search" in capsys.readouterr().err

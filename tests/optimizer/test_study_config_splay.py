@@ -73,8 +73,6 @@ def test_per_toe_round_trips_and_planar_text_has_no_spatial_keys(tmp_path: Path)
          r"^constraints\.support_margin: needs design_space\.space: spatial"),
         ({"search__method": "inner"}, r"^design_space\.space: the inner search \(IPOPT\) takes planar"),
         ({"landings": {"count": 4, "pitch": [0.0, 0.1]}}, r"^landings: a distribution of landings takes planar"),
-        ({"objectives": ["peak_external_norm"], "scene": {"duration": 0.1}},
-         r"^design_space\.space: whole-landing objectives are planar so far"),
     ],
 )
 def test_bad_values_name_the_field(changes: dict, message: str):
