@@ -32,7 +32,7 @@ from optimizer.cli.init import add_init
 from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
-from optimizer.config.model_file import ModelFile, load_model_file, require_planar
+from optimizer.config.model_file import ModelFile, load_model_file
 from optimizer.design_space import Objective
 from optimizer.errors import ConfigError, interrupted
 from impulse_core.timedomain.landing import LandingSettings
@@ -333,7 +333,7 @@ def _evaluate_over_landings(args: argparse.Namespace) -> int:
     status = EXIT_OK
     for file in args.files:
         try:
-            robust = evaluate_over_landings(require_planar(load_model_file(file), "footopt evaluate --landings"), config.landings, config.statistic_of)
+            robust = evaluate_over_landings(load_model_file(file), config.landings, config.statistic_of)
         except FootoptError as e:
             _error(file, str(e))
             status = EXIT_USAGE

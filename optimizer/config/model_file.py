@@ -285,13 +285,6 @@ def load_model_file(path: str | Path) -> ModelFile:
         raise
 
 
-def require_planar(model: ModelFile, what: str) -> ModelFile:
-    """``model`` if it is planar; else ConfigError naming ``model.space`` and what refused it."""
-    if model.space is not PLANAR:
-        raise ConfigError(f"model.space: {what} takes planar models so far (spatial: footopt evaluate)", model.path)
-    return model
-
-
 def read_text(path: Path, what: str) -> str:
     """The UTF-8 text of a config file, or ConfigError saying why it cannot be read."""
     try:
@@ -1006,7 +999,6 @@ __all__ = [
     "dump_model_file",
     "format_model_file",
     "load_model_file",
-    "require_planar",
     "load_yaml",
     "parse_base_x",
     "parse_model",

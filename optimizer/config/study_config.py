@@ -41,7 +41,14 @@ from optimizer.design_space import (
     ToeSymmetry,
 )
 from optimizer.errors import ConfigError
-from optimizer.evaluation.scenarios import PARAMETERS, Distribution, DistributionKind, Landings
+from optimizer.evaluation.scenarios import (
+    PARAMETERS,
+    PLANAR_PARAMETERS,
+    SPATIAL_PARAMETERS,
+    Distribution,
+    DistributionKind,
+    Landings,
+)
 from optimizer.evaluation.statistics import Statistic, StatisticKind, parse_statistic
 
 
@@ -239,15 +246,18 @@ def _check_spatial(config: StudyConfig) -> None:
     if config.search.method is SearchMethod.INNER:
         raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only; "
                           "search.method: outer searches spatial ones")
-    if config.landings is not None:
-        raise ConfigError("landings: a distribution of landings takes planar design spaces only so far "
-                          "(design_space.space: spatial)")
 
 
 def _check_landings(config: StudyConfig, landings: Landings) -> None:
     """What the landings need of the rest of the study."""
     if config.search.method is SearchMethod.INNER:
         _check_inner_landings(config, landings)
+    for name in landings.names:
+        if name in SPATIAL_PARAMETERS and not config.space.spatial:
+            raise ConfigError(f"landings.{name}: needs design_space.space: spatial (a planar foot neither rolls nor "
+                              "moves sideways)")
+        if name in PLANAR_PARAMETERS and config.space.spatial:
+            raise ConfigError(f"landings.{name}: a step is a planar terrain: a spatial design space lands on flat ground")
     draws = dict(zip(landings.names, landings.draw().T, strict=True))
     frictional = config.scene.friction > 0 or np.any(draws.get("friction", np.zeros(1)) > 0)
     if "terrain_step" in draws and frictional and config.scene.duration is None:

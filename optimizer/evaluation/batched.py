@@ -39,9 +39,10 @@ BASE_ANGLE = 2
 
 
 def batchable(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> np.ndarray:
-    """Which scenarios are frictionless first impacts on flat ground (module docstring)."""
+    """Which scenarios are frictionless planar first impacts on flat ground (module docstring;
+    a spatial model's are evaluated one by one)."""
     s = model.scene
-    if s.duration is not None or not s.ground_is_flat or "terrain_step" in names:
+    if s.duration is not None or not s.ground_is_flat or "terrain_step" in names or model.space.joint_axis is None:
         return np.zeros(len(values), dtype=bool)
     friction = values[:, names.index("friction")] if "friction" in names else np.full(len(values), s.friction)
     return friction == 0.0

@@ -4,8 +4,8 @@ objective's statistic over the scenarios (:mod:`optimizer.evaluation.scenarios`,
 
 Each scenario is the design's model file with the scenario's overrides, evaluated by the model
 ``auto`` picks for it, as ``footopt evaluate`` does (a terrain step: the sequential model; a
-scene with ``duration``: the whole landing). Frictionless first impacts on flat ground are
-evaluated together, the rest one after another.
+scene with ``duration``: the whole landing; a spatial model in space). Frictionless planar first
+impacts on flat ground are evaluated together, the rest one after another.
 """
 
 from __future__ import annotations
@@ -49,11 +49,11 @@ def scenario_objectives(model: ModelFile) -> Objectives | None:
     """One model file's objectives by the model ``auto`` picks (None if the numerics fail)."""
     with np.errstate(all="ignore"):
         try:
-            result = evaluate_landing(model.tree, model.scene, "auto", joints=model.joints)
+            result = evaluate_landing(model.tree, model.scene, "auto", joints=model.joints, space=model.space)
         except (np.linalg.LinAlgError, NumericalError):
             return None
     inner = getattr(result, "result", None)
-    found = landing_objectives(inner) if isinstance(inner, LandingResult) else objectives(result)
+    found = landing_objectives(inner) if isinstance(inner, LandingResult) else objectives(result, model.space)
     return found if all(math.isfinite(v) for _, v in found.items()) else None
 
 

@@ -8,9 +8,12 @@ by construction, how a scenario is scored, so that a row of ``scenarios.csv`` is
 ``footopt evaluate`` on the overridden file exactly.
 
 Parameters (each optional): ``speed`` (m/s, downward), ``velocity_x`` (m/s), ``pitch`` (rad, added
-to the base's angle), ``angular_velocity`` (rad/s), ``restitution``, ``friction``, ``terrain_step``
-(m: the ground is raised by this much in front of the midpoint between the rearmost and the
-foremost contact at touchdown, a 2 mm ramp; under a footopt foot: under the toes, not the heel).
+to the base's angle), ``angular_velocity`` (rad/s, about z), ``restitution``, ``friction``,
+``terrain_step`` (m: the ground is raised by this much in front of the midpoint between the
+rearmost and the foremost contact at touchdown, a 2 mm ramp; under a footopt foot: under the toes,
+not the heel; planar models only). Spatial models only: ``roll`` (rad, added to the base's rpy
+roll, its turn about x before its angle about z), ``roll_rate`` (rad/s, the angular velocity about
+x) and ``velocity_z`` (m/s, lateral).
 """
 
 from __future__ import annotations
@@ -25,9 +28,14 @@ import numpy as np
 
 from impulse_core.evaluate import touchdown_geometry
 from optimizer.config.model_file import ModelFile, format_model_file, load_yaml, parse_model
+from optimizer.errors import ConfigError
 
 #: The landing parameters, in the order they are drawn.
-PARAMETERS = ("speed", "velocity_x", "pitch", "angular_velocity", "restitution", "friction", "terrain_step")
+PARAMETERS = ("speed", "velocity_x", "pitch", "angular_velocity", "restitution", "friction", "terrain_step",
+              "roll", "roll_rate", "velocity_z")
+#: The parameters only a spatial model has, and those only a planar one has.
+SPATIAL_PARAMETERS = ("roll", "roll_rate", "velocity_z")
+PLANAR_PARAMETERS = ("terrain_step",)
 #: Width of a terrain step's ramp (m).
 STEP_RAMP = 2e-3
 
@@ -80,23 +88,56 @@ def _drawn(landings: Landings) -> np.ndarray:
 
 
 def overrides(model: ModelFile, names: tuple[str, ...], values: np.ndarray) -> dict[str, Any]:
-    """The dotted-path overrides of one scenario on ``model`` (module docstring)."""
+    """The dotted-path overrides of one scenario on ``model`` (module docstring).
+
+    Raises:
+        ConfigError: a spatial parameter on a planar model, or a planar one on a spatial model.
+    """
     given = {n: float(v) for n, v in zip(names, values, strict=True)}
+    spatial = model.space.joint_axis is None
+    wrong = [n for n in given if n in (PLANAR_PARAMETERS if spatial else SPATIAL_PARAMETERS)]
+    if wrong:
+        need = "a planar model (a step is a planar terrain)" if spatial else "a spatial model (model.space: spatial)"
+        raise ConfigError(f"landings.{wrong[0]}: needs {need}", model.path)
+    out = _spatial_approach(model, given) if spatial else _planar_approach(model, given)
+    if "pitch" in given:
+        out["model.bodies.0.angle"] = model.tree.bodies[0].angle + given["pitch"]
+    if "roll" in given:
+        a, b, c = model.tree.bodies[0].rpy
+        out["model.bodies.0.rpy"] = [a + given["roll"], b, c]
+    for name in ("restitution", "friction"):
+        if name in given:
+            out[f"scene.{name}"] = given[name]
+    if "terrain_step" in given:
+        x = touchdown_geometry(model.tree).contacts[:, 0] + model.scene.base_x
+        middle = 0.5 * (float(x.min()) + float(x.max()))
+        out["scene.terrain"] = [[middle - STEP_RAMP / 2, 0.0], [middle + STEP_RAMP / 2, given["terrain_step"]]]
+    return out
+
+
+def _planar_approach(model: ModelFile, given: dict[str, float]) -> dict[str, Any]:
+    """``scene.speed`` or ``scene.velocity`` [vx, vy], and ``scene.angular_velocity``."""
     s, out = model.scene, {}
     speed = given.get("speed", s.speed)
     if "velocity_x" in given or ("speed" in given and s.velocity_x != 0.0):
         out["scene.velocity"] = [given.get("velocity_x", s.velocity_x), -speed]
     elif "speed" in given:
         out["scene.speed"] = speed
-    if "pitch" in given:
-        out["model.bodies.0.angle"] = model.tree.bodies[0].angle + given["pitch"]
-    for name in ("angular_velocity", "restitution", "friction"):
-        if name in given:
-            out[f"scene.{name}"] = given[name]
-    if "terrain_step" in given:
-        x = touchdown_geometry(model.tree).contacts[:, 0] + s.base_x
-        middle = 0.5 * (float(x.min()) + float(x.max()))
-        out["scene.terrain"] = [[middle - STEP_RAMP / 2, 0.0], [middle + STEP_RAMP / 2, given["terrain_step"]]]
+    if "angular_velocity" in given:
+        out["scene.angular_velocity"] = given["angular_velocity"]
+    return out
+
+
+def _spatial_approach(model: ModelFile, given: dict[str, float]) -> dict[str, Any]:
+    """``scene.velocity`` [vx, vy, vz] and ``scene.angular_velocity`` [wx, wy, wz] (world frame),
+    each written whole where a scenario changes a component."""
+    s, out = model.scene, {}
+    if given.keys() & {"speed", "velocity_x", "velocity_z"}:
+        out["scene.velocity"] = [given.get("velocity_x", s.velocity_x), -given.get("speed", s.speed),
+                                 given.get("velocity_z", s.velocity_z)]
+    if given.keys() & {"roll_rate", "angular_velocity"}:
+        out["scene.angular_velocity"] = [given.get("roll_rate", s.angular_velocity_x), s.angular_velocity_y,
+                                         given.get("angular_velocity", s.angular_velocity)]
     return out
 
 
@@ -128,6 +169,8 @@ def scenario_model(data: dict[str, Any], changes: dict[str, Any]) -> ModelFile:
 
 __all__ = [
     "PARAMETERS",
+    "PLANAR_PARAMETERS",
+    "SPATIAL_PARAMETERS",
     "Distribution",
     "DistributionKind",
     "Landings",

@@ -72,7 +72,9 @@ def test_per_toe_round_trips_and_planar_text_has_no_spatial_keys(tmp_path: Path)
         ({"design_space__space": "planar", "design_space__splay": KeyError},
          r"^constraints\.support_margin: needs design_space\.space: spatial"),
         ({"search__method": "inner"}, r"^design_space\.space: the inner search \(IPOPT\) takes planar"),
-        ({"landings": {"count": 4, "pitch": [0.0, 0.1]}}, r"^landings: a distribution of landings takes planar"),
+        ({"landings": {"count": 4, "terrain_step": [0.0, 0.01]}}, r"^landings\.terrain_step: a step is a planar terrain"),
+        ({"design_space__space": "planar", "design_space__splay": KeyError, "constraints__support_margin": KeyError,
+          "landings": {"count": 4, "roll": [0.0, 0.1]}}, r"^landings\.roll: needs design_space\.space: spatial"),
     ],
 )
 def test_bad_values_name_the_field(changes: dict, message: str):
