@@ -136,11 +136,11 @@ def test_plot_of_a_spatial_file_draws_three_views(tmp_path: Path) -> None:
     assert image.shape[1] > 2 * image.shape[0]  # three views side by side
 
 
-@pytest.mark.parametrize("command", [("evaluate", "--landings", str(REPO / "configs" / "robust_study.yaml"))])
-def test_commands_not_yet_spatial_refuse_a_spatial_file_with_exit_2(command: tuple[str, ...]) -> None:
-    proc = _footopt(*command, str(EXAMPLE))
+def test_landings_with_a_terrain_step_refuse_a_spatial_file_with_exit_2() -> None:
+    """configs/robust_study.yaml steps the ground under the toes: a planar terrain."""
+    proc = _footopt("evaluate", "--landings", str(REPO / "configs" / "robust_study.yaml"), str(EXAMPLE))
     assert proc.returncode == 2
-    assert "model.space" in proc.stderr and "Traceback" not in proc.stderr
+    assert "landings.terrain_step: needs a planar model" in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_spatial_friction_json_has_xz_tangential_impulses_and_modes(tmp_path: Path) -> None:
