@@ -39,7 +39,7 @@ and ``final_angles``. ``settled_at`` is not differentiable (a threshold crossing
 linear interpolation, constant where the landing never settles): it is not offered.
 
 theta (:func:`design_names`): the tree's design vector (:func:`~impulse_core.model.tree.design_vector`:
-lengths, masses, angles, ...), then per revolute joint its law's stiffness, damping, rest,
+lengths, masses, angles, ..., and ``com_y`` where a centre of mass is off its rod), then per revolute joint its law's stiffness, damping, rest,
 limits[0], limits[1]. A joint whose ``rest`` is None rests at its touchdown angle, so the
 derivative w.r.t. its angle carries it and the rest entry's is 0; a joint without stops has 0
 derivatives for its limit entries (their values are reported as 0). The touchdown height
@@ -71,9 +71,9 @@ import numpy as np
 from impulse_core.errors import NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.coulomb import LEMKE_TOL
-from impulse_core.kinematics.spatial import PLANAR, dof_layout
+from impulse_core.kinematics.spatial import PLANAR, dof_layout, values_space
 from impulse_core.model.joints import FREE, JointLaw
-from impulse_core.model.tree import BODY_VALUES, Scene, Tree, design_vector, value_names
+from impulse_core.model.tree import Scene, Tree, design_vector, value_names
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, subtree_incidence
 from impulse_core.timedomain.landing import (
     IMPLICIT,
@@ -131,10 +131,16 @@ def _joint_dofs(tree: Tree) -> list[tuple[int, int]]:
     return [(b, layout.body_dof[b]) for b in range(1, tree.n_bodies) if layout.body_dof[b] is not None]
 
 
+def body_values(tree: Tree) -> tuple[str, ...]:
+    """The design vector's values per body: the plane's, with ``com_y`` where a centre of mass
+    is off its rod (PLANAR_OFFSET)."""
+    return values_space(tree, PLANAR).body_values
+
+
 def design_names(tree: Tree) -> tuple[str, ...]:
     """Names of theta's entries: the design vector's, then each revolute joint's law values."""
     laws = [f"{tree.bodies[b].name}.{name}" for b, _ in _joint_dofs(tree) for name in LAW_VALUES]
-    return value_names(tree) + tuple(laws)
+    return value_names(tree, body_values(tree)) + tuple(laws)
 
 
 def design_theta(tree: Tree, laws: tuple[JointLaw, ...]) -> np.ndarray:
@@ -145,7 +151,7 @@ def design_theta(tree: Tree, laws: tuple[JointLaw, ...]) -> np.ndarray:
         law = laws[b]
         lo, hi = law.limits if law.limits is not None else (0.0, 0.0)
         extra += [law.stiffness, law.damping, tree.bodies[b].angle if law.rest is None else law.rest, lo, hi]
-    return np.concatenate([design_vector(tree), np.array(extra, dtype=float)])
+    return np.concatenate([design_vector(tree, body_values(tree)), np.array(extra, dtype=float)])
 
 
 def apply_theta(tree: Tree, laws: tuple[JointLaw, ...], theta: np.ndarray) -> tuple[Tree, tuple[JointLaw, ...]]:
@@ -156,8 +162,9 @@ def apply_theta(tree: Tree, laws: tuple[JointLaw, ...], theta: np.ndarray) -> tu
     from impulse_core.model.tree import with_values
 
     theta = np.asarray(theta, dtype=float)
-    n_p = len(design_vector(tree))
-    new_tree = with_values(tree, theta[:n_p])
+    values = body_values(tree)
+    n_p = len(design_vector(tree, values))
+    new_tree = with_values(tree, theta[:n_p], values)
     out = list(laws or (FREE,) * tree.n_bodies)
     for i, (b, _) in enumerate(_joint_dofs(tree)):
         k, c, rest, lo, hi = theta[n_p + len(LAW_VALUES) * i : n_p + len(LAW_VALUES) * (i + 1)]
@@ -202,8 +209,9 @@ class _Symbolic:
         self.run = run
         tree = run.tree
         self.tree, self.nv, self.nc = tree, run.nv, run.nc
-        self.fn = landing_function(run.topology, run.scene.terrain)
-        self.n_p = len(design_vector(tree))
+        self.values = run.space.body_values  # the plane's, or PLANAR_OFFSET's
+        self.fn = landing_function(run.topology, run.scene.terrain, run.space)
+        self.n_p = len(design_vector(tree, self.values))
         self.dofs = _joint_dofs(tree)
         self.n_theta = self.n_p + len(LAW_VALUES) * len(self.dofs)
         self.laws = laws or (FREE,) * tree.n_bodies
@@ -216,7 +224,7 @@ class _Symbolic:
     # ---- pieces of theta
 
     def angle(self, th: ca.SX, b: int) -> ca.SX:
-        return th[len(BODY_VALUES) * b + BODY_VALUES.index("angle")]
+        return th[len(self.values) * b + self.values.index("angle")]
 
     def law_arrays(self, th: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX, list, list]:
         """Per DOF: stiffness, damping, rest (SX vectors; base entries 0), lo, hi (lists: an SX
@@ -506,7 +514,7 @@ class _Symbolic:
             x, y = C[0, lowest], C[1, lowest]
             q[1] = TOUCHDOWN_CLEARANCE - (y - _terrain_height(run.scene.terrain, x, lowest_x))
             pt = self.point(q, v, th)
-            mass = sum(th[len(BODY_VALUES) * b + BODY_VALUES.index("mass")] for b in range(self.tree.n_bodies))
+            mass = sum(th[len(self.values) * b + self.values.index("mass")] for b in range(self.tree.n_bodies))
             self.cache[key] = _Op("touchdown", [th], [q, pt["kinetic"], pt["com"], mass])
         return self.cache[key]
 
@@ -604,7 +612,7 @@ def _symbolic(run: _Landing, laws: tuple[JointLaw, ...]) -> _Symbolic:
     of one topology builds each mode's functions, and CasADi their derivatives, once."""
     laws = laws or (FREE,) * run.tree.n_bodies
     scene = run.scene
-    key = (run.topology, scene.terrain, run.mu, scene.gravity, scene.base_x, scene.velocity, scene.angular_velocity_3d,
+    key = (run.topology, run.space.body_values, scene.terrain, run.mu, scene.gravity, scene.base_x, scene.velocity, scene.angular_velocity_3d,
            tuple(law.rest is None for law in laws), tuple(law.limits is None for law in laws))
     if key not in _SYMBOLIC:
         if len(_SYMBOLIC) >= 16:
@@ -714,7 +722,7 @@ def landing_gradient(
         NumericalError: as :func:`landing`; or redundant rows in some mode (not differentiable).
     """
     t0 = time.perf_counter()
-    theta = design_theta(tree, laws)  # first: a centre of mass off its rod is refused before any landing
+    theta = design_theta(tree, laws)
     if step is None:
         step = landing(tree, scene, laws, settings).step
     result, tape, run = taped_run(tree, scene, laws, step, settings)
@@ -850,5 +858,5 @@ def _check_rows(run: _Landing, q: np.ndarray, v: np.ndarray, mode: _Mode) -> Non
                                  "so it has no derivative")
 
 
-__all__ = ["LAW_VALUES", "apply_theta", "SCALARS", "LandingGradient", "design_names", "design_theta", "landing_gradient",
+__all__ = ["LAW_VALUES", "apply_theta", "body_values", "SCALARS", "LandingGradient", "design_names", "design_theta", "landing_gradient",
            "sequence_signature", "taped_run"]

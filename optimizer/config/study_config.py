@@ -336,15 +336,8 @@ def _statistic(data: Any) -> tuple[tuple[Objective, Statistic], ...]:
 
 
 def _check_whole_landing(config: StudyConfig) -> None:
-    """What only a whole landing uses needs a landing objective, and the reverse; the inner
-    search's landing derivatives take a leg whose centres of mass lie on its rods."""
+    """What only a whole landing uses needs a landing objective, and the reverse."""
     landing = [o.value for o in config.objectives if o.landing]
-    offsets = [i for i, x in enumerate((config.leg.thigh_offset, config.leg.shank_offset)) if x != 0.0]
-    if offsets and landing and config.search.method is SearchMethod.INNER:
-        i = offsets[0]
-        raise ConfigError(f"leg: model.bodies[{i}].com_offset (leg.{('thigh', 'shank')[i]}.com_offset inline): the "
-                          "inner search's landing derivatives take centres of mass on the rods; search.method: outer "
-                          "takes the offsets, or import the leg with footopt import --com-on-rods")
     if landing and config.scene.duration is None:
         raise ConfigError(f"scene.duration: missing: the objective {landing[0]} scores the whole landing (s)")
     if landing and config.search.method is SearchMethod.INNER:

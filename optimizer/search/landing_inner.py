@@ -35,9 +35,8 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.errors import NumericalError
-from impulse_core.model.tree import BODY_VALUES
 from impulse_core.timedomain.landing import LandingSettings, landing
-from impulse_core.timedomain.landing_derivatives import LAW_VALUES, _joint_dofs, landing_gradient, taped_run
+from impulse_core.timedomain.landing_derivatives import LAW_VALUES, _joint_dofs, body_values, landing_gradient, taped_run
 from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
     JOINT_FAMILIES,
@@ -160,14 +159,15 @@ class LandingNlp:
     def chain_rule(self, x: np.ndarray, tree, names: tuple[str, ...], d_theta: np.ndarray) -> np.ndarray:
         """d/dx from d/dtheta (rows: objectives) for the tree of x."""
         n = self.n_rods
-        width = len(BODY_VALUES)
+        values = body_values(tree)  # the plane's, with com_y on a leg whose centres of mass are off the rods
+        width = len(values)
         n_p = len(names) - len(LAW_VALUES) * len(_joint_dofs(tree))
         law_at = {b: n_p + len(LAW_VALUES) * i for i, (b, _) in enumerate(_joint_dofs(tree))}
         family = self.family_laws(x)
         out = np.zeros((d_theta.shape[0], self.n_x))
         searched = {key: 3 * n + 1 + k for k, key in enumerate(self.laws)}
         for body, rod, fam in self.rod_index():
-            col = lambda name: width * body + BODY_VALUES.index(name)  # noqa: E731
+            col = lambda name: width * body + values.index(name)  # noqa: E731
             out[:, rod] += d_theta[:, col("angle")]
             out[:, n + rod] += d_theta[:, col("mass")]
             out[:, 2 * n + rod] += d_theta[:, col("length")]

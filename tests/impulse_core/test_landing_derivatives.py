@@ -19,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from impulse_core.errors import ModelError, NumericalError
+from impulse_core.errors import NumericalError
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, Scene, Tree
 from impulse_core.timedomain.landing import LandingSettings, landing
@@ -68,11 +68,14 @@ def _case(name: str) -> tuple[Tree, tuple[JointLaw, ...], Scene]:
         return tree, laws, replace(scene, friction=0.0)
     if name == "stop":
         return _stop_leg()
+    if name == "offsets":  # the stop leg with centres of mass off the rods (PLANAR_OFFSET)
+        tree, laws, scene = _stop_leg()
+        return Tree(tuple(replace(b, com_offset=(dy, 0.0)) for b, dy in zip(tree.bodies, (0.02, -0.015, 0.01, 0.0)))), laws, scene
     tree, laws, scene = _random_leg(0)  # mu = 1
     return tree, laws, scene
 
 
-CASES = ("second_touchdown", "stop", "friction", "stiff")
+CASES = ("second_touchdown", "stop", "friction", "stiff", "offsets")
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +101,7 @@ def _searched(g) -> np.ndarray:
     """Entries a direction may move: lengths, masses, angles, springs, dampers, and the rest
     angles and stops that the laws give (contact fractions and `at` sit on their bounds)."""
     J = _jacobian(g)
-    return np.array([n.endswith(("length", "mass", "angle", "stiffness", "damping"))
+    return np.array([n.endswith(("length", "mass", "angle", "stiffness", "damping", "com_y"))
                      or (n.endswith(("rest", "limits[0]", "limits[1]")) and bool(np.any(J[:, i])))
                      for i, n in enumerate(g.names)])
 
@@ -196,10 +199,10 @@ def test_redundant_rows_are_refused():
         landing_gradient(plank, scene, (), step=1e-3)
 
 
-def test_a_centre_of_mass_off_its_rod_is_refused_naming_the_field():
-    """The landing takes it; its derivatives take rods only so far (before any landing runs)."""
-    rod = Tree((Body("rod", None, 0.5, 2.0, -1.2, contacts=(1.0,)), Body("pole", 0, 0.3, 0.5, 1.0, com_offset=(0.02, 0.0))))
-    scene = Scene(speed=0.5, restitution=0.0, gravity=G, duration=0.05)
-    assert landing(rod, scene).n_steps > 0
-    with pytest.raises(ModelError, match=r"model.bodies\[1\].com_offset.*landing derivatives"):
-        landing_gradient(rod, scene, (), step=1e-3)
+def test_centres_of_mass_off_the_rods_are_design_values(gradients):
+    """theta carries each body's com_y where a centre of mass is off its rod (the values
+    PLANAR_OFFSET reads), and the landing depends on them."""
+    g = gradients["offsets"]
+    assert "thigh.com_y" in g.names and not any(n.endswith("com_y") for n in gradients["stop"].names)
+    J = _jacobian(g)
+    assert np.max(np.abs(J[:, g.names.index("thigh.com_y")])) > 1e-3 * np.max(np.abs(J))

@@ -19,11 +19,25 @@ from optimizer.search.landing_inner import _Landed, build_landing_nlp, solve_lan
 from tests.optimizer.test_landing_study import TINY_LANDING_YAML
 
 
+def _tiny_nlp(folder, leg: str | None = None):
+    text = TINY_LANDING_YAML.replace("duration: 0.02", "duration: 0.01")
+    if leg is not None:
+        text = text.replace("leg: {shank: {stiffness: 150.0, damping: 3.0, limits: [-2.0, 0.0]}}", leg)
+    (folder / "tiny.yaml").write_text(text, encoding="utf-8")
+    return build_landing_nlp(load_study(folder / "tiny.yaml"), FootShape(1, 1))
+
+
 @pytest.fixture(scope="module")
 def nlp(tmp_path_factory):
-    path = tmp_path_factory.mktemp("landing_inner") / "tiny.yaml"
-    path.write_text(TINY_LANDING_YAML.replace("duration: 0.02", "duration: 0.01"), encoding="utf-8")
-    return build_landing_nlp(load_study(path), FootShape(1, 1))
+    return _tiny_nlp(tmp_path_factory.mktemp("landing_inner"))
+
+
+@pytest.fixture(scope="module")
+def offset_nlp(tmp_path_factory):
+    """The tiny NLP on a leg whose thigh's and shank's centres of mass are off the rods."""
+    leg = ("leg: {thigh: {com_offset: [0.03, 0]}, shank: {stiffness: 150.0, damping: 3.0, limits: [-2.0, 0.0], "
+           "com_offset: [-0.02, 0]}}")
+    return _tiny_nlp(tmp_path_factory.mktemp("landing_inner_offsets"), leg)
 
 
 def _tangent(nlp, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -38,7 +52,9 @@ def _tangent(nlp, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return basis @ rng.standard_normal(basis.shape[1])
 
 
-def test_the_nlp_gradient_agrees_with_central_differences_along_level_directions(nlp):
+@pytest.mark.parametrize("which", ["nlp", "offset_nlp"])
+def test_the_nlp_gradient_agrees_with_central_differences_along_level_directions(which, request):
+    nlp = request.getfixturevalue(which)
     x0 = start_landing(nlp, np.random.default_rng(0))
     landed = _Landed(nlp)
     tree, laws, scene = landed.model(x0)
