@@ -291,10 +291,11 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 print(json.dumps(result_record(model, result, file), allow_nan=False))
             else:
                 print(("\n" if n else "") + format_report(model, result, file), end="")
-            if n in plots and _is_landing(result) and model.space is PLANAR:
+            if n in plots and _is_landing(result):
                 from optimizer.report.landing_plot import plot_landing
 
-                plot_landing(model.tree, result.result, plots[n], title=Path(file).name, scene=model.scene)
+                plot_landing(model.tree, result.result, plots[n], title=Path(file).name, scene=model.scene,
+                             space=model.space)
                 if not args.json:
                     print(f"plot: {plots[n]}")
             elif n in plots and model.space is not PLANAR:
@@ -357,12 +358,9 @@ def _animate(model: ModelFile, result: Result, path: Path, quiet: bool) -> None:
     """Write the landing's animation (ConfigError when the result is not a whole landing)."""
     if not _is_landing(result):
         raise ConfigError("--animate: only a whole landing moves (give scene.duration, or --model landing)")
-    if model.space is not PLANAR:
-        raise ConfigError("--animate: draws planar landings only so far (model.space: spatial; --plot draws the "
-                          "spatial foot's three views)")
     from optimizer.report.landing_plot import animate_landing
 
-    animate_landing(model.tree, result.result, path, scene=model.scene)
+    animate_landing(model.tree, result.result, path, scene=model.scene, space=model.space)
     if not quiet:
         print(f"animation: {path}")
 

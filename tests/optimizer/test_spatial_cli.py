@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import json
 import subprocess
 import sys
@@ -122,8 +124,54 @@ def test_a_spatial_file_with_a_duration_lands_whole(tmp_path: Path) -> None:
     first = evaluate(model.tree, model.scene, space=SPATIAL)
     np.testing.assert_allclose(auto["events"][0]["external"], first.external, atol=1e-9 * max(first.external))
     np.testing.assert_allclose(auto["tangential"], first.tangential, atol=1e-9 * max(first.external))
-    animated = _footopt("evaluate", str(path), "--animate", str(tmp_path / "landing.gif"))
-    assert animated.returncode == 2 and "--animate" in animated.stderr
+
+
+def test_a_spatial_landing_is_drawn_and_animated_in_three_views(tmp_path: Path, monkeypatch, capsys) -> None:
+    """--plot: the impulses over time above the side, front and top views; --animate: a GIF of
+    the three views side by side, the leg moving between frames."""
+    from PIL import Image, ImageChops
+
+    import optimizer.report.landing_plot as landing_plot
+    from optimizer.cli.main import main
+
+    monkeypatch.setattr(landing_plot, "ANIMATION_FRAMES", 4)
+    text = EXAMPLE.read_text().replace("  contacts: all\n", "  contacts: all\n  gravity: 9.81\n  duration: 0.01\n")
+    path = tmp_path / "landing.yaml"
+    path.write_text(text)
+    png, gif = tmp_path / "landing.png", tmp_path / "landing.gif"
+    assert main(["evaluate", str(path), "--plot", str(png), "--animate", str(gif)]) == 0
+    out = capsys.readouterr().out
+    assert f"plot: {png}" in out and f"animation: {gif}" in out
+    with Image.open(png) as image:
+        assert image.width > 1.4 * image.height  # three views under the time panel
+    with Image.open(gif) as image:
+        assert image.n_frames == 4 and image.width > 2.5 * image.height
+        first = image.convert("RGB")
+        image.seek(image.n_frames - 1)
+        assert ImageChops.difference(first, image.convert("RGB")).getbbox() is not None
+
+
+@pytest.mark.parametrize("spatial", [False, True])
+def test_the_drawn_posture_puts_the_contacts_where_the_landing_has_them(spatial: bool) -> None:
+    """``landing_plot.posture`` (the touchdown geometry at the run's joint angles, turned by the
+    base's rotation vector and moved to its origin) puts each contact body's tip where the
+    landing's own dynamics put the contact, along the whole trajectory (1e-12 m)."""
+    from impulse_core.kinematics.spatial import PLANAR
+    from impulse_core.timedomain.landing import LandingSettings, _Landing
+    from optimizer.report.landing_plot import posture
+
+    path = EXAMPLE if spatial else REPO / "configs" / "landing_case3.yaml"
+    model = load_model_file(path)
+    space = SPATIAL if spatial else PLANAR
+    scene = model.scene if model.scene.duration else dataclasses.replace(model.scene, duration=0.01, gravity=9.81)
+    run = _Landing(model.tree, scene, model.joints, LandingSettings(), space)
+    _, states = run.run(scene.duration / 40).trajectory
+    tips_of = [b for b, _ in model.tree.contacts]
+    assert all(model.tree.bodies[b].contacts[k] == 1.0 for b, k in model.tree.contacts)  # each at its rod's tip
+    for q in states[:: max(1, len(states) // 8)]:
+        _, tips = posture(model.tree, q, space)
+        contacts = run.point(q, np.zeros(len(q))).contacts
+        assert np.max(np.abs(tips[tips_of] - contacts)) <= 1e-12
 
 
 def test_plot_of_a_spatial_file_draws_three_views(tmp_path: Path) -> None:
