@@ -48,21 +48,27 @@ def go1_leg(folder: Path) -> Tree:
     return tree
 
 
-@pytest.mark.parametrize("method", ["inner", "outer"])
-def test_a_study_on_an_exact_import_reevaluates_to_its_impulses(tmp_path, capsys, method):
-    leg = go1_leg(tmp_path)
-    assert min(abs(b.com_offset[0]) for b in leg.bodies) > 3e-3
-    (tmp_path / "s.yaml").write_text(STUDY.replace("method: inner", f"method: {method}"))
-    assert load_study(tmp_path / "s.yaml").leg.shank_offset == leg.bodies[1].com_offset[0]
-    out = tmp_path / "run"
-    assert main(["optimize", str(tmp_path / "s.yaml"), "--out", str(out), "--quiet"]) == 0
+def _optimized_and_reevaluated(folder: Path, capsys) -> list[tuple[dict, dict, str]]:
+    """``footopt optimize folder/s.yaml``, then ``footopt evaluate --json`` on its front's model
+    files: (front row, evaluated record, model file) per design."""
+    out = folder / "run"
+    assert main(["optimize", str(folder / "s.yaml"), "--out", str(out), "--quiet"]) == 0
     rows = list(csv.DictReader((out / "pareto.csv").open(encoding="utf-8")))
     assert rows
     capsys.readouterr()
     files = [str(out / r["model_file"]) for r in rows]
     assert main(["evaluate", "--json", *files]) == 0
     records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    for row, rec, path in zip(rows, records, files, strict=True):
+    return list(zip(rows, records, files, strict=True))
+
+
+@pytest.mark.parametrize("method", ["inner", "outer"])
+def test_a_study_on_an_exact_import_reevaluates_to_its_impulses(tmp_path, capsys, method):
+    leg = go1_leg(tmp_path)
+    assert min(abs(b.com_offset[0]) for b in leg.bodies) > 3e-3
+    (tmp_path / "s.yaml").write_text(STUDY.replace("method: inner", f"method: {method}"))
+    assert load_study(tmp_path / "s.yaml").leg.shank_offset == leg.bodies[1].com_offset[0]
+    for row, rec, path in _optimized_and_reevaluated(tmp_path, capsys):
         for key in ("external_norm", "internal_norm", "max_internal"):
             assert rec[key] == pytest.approx(float(row[key]), rel=1e-9, abs=1e-15), key
         thigh, shank = load_model_file(path).tree.bodies[:2]  # the leg's rods, offsets and all
@@ -79,16 +85,7 @@ def test_a_whole_landing_study_on_an_exact_import_reevaluates_to_its_landings(tm
     study = study.replace("[external_norm, internal_norm]", "[peak_external_norm, energy_absorbed]")
     study = study.replace("trials: 12, startup_trials: 5", "trials: 4, startup_trials: 4")
     (tmp_path / "s.yaml").write_text(study.replace("method: inner", "method: outer"))
-    out = tmp_path / "run"
-    assert main(["optimize", str(tmp_path / "s.yaml"), "--out", str(out), "--quiet"]) == 0
-    with open(out / "pareto.csv") as f:
-        rows = list(csv.DictReader(f))
-    assert rows
-    capsys.readouterr()
-    files = [str(out / r["model_file"]) for r in rows]
-    assert main(["evaluate", "--json", *files]) == 0
-    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    for row, rec, path in zip(rows, records, files, strict=True):
+    for row, rec, path in _optimized_and_reevaluated(tmp_path, capsys):
         assert rec["model"] == "landing"
         for key in ("peak_external_norm", "energy_absorbed"):
             assert rec["landing"][key] == pytest.approx(float(row[key]), rel=1e-9, abs=1e-15), key
