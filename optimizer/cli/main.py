@@ -299,7 +299,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 if not args.json:
                     print(f"plot: {plots[n]}")
             elif n in plots and model.space is not PLANAR:
-                plot_views(model.tree, touchdown_geometry(model.tree, model.space), result, plots[n], Path(file).name)
+                plot_views(model.tree, touchdown_geometry(model.tree, model.space), result, plots[n], Path(file).name,
+                           model.scene)
                 if not args.json:
                     print(f"plot: {plots[n]}")
             elif n in plots:

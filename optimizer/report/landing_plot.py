@@ -10,13 +10,11 @@ import numpy as np
 
 from impulse_core.evaluate import touchdown_geometry
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
-from impulse_core.model import heightfield
-from impulse_core.model.terrain import height
 from impulse_core.model.tree import Scene, Tree
-from impulse_core.timedomain.compliant import chart_rotation, spatial_ground
+from impulse_core.timedomain.compliant import chart_rotation
 from impulse_core.timedomain.landing import LandingResult
 from optimizer.errors import ConfigError
-from optimizer.report.plot import _GROUND, VIEWS, _plot_path, _save
+from optimizer.report.plot import _GROUND, VIEWS, _plot_path, _save, ground_section
 from optimizer.report.text import contact_names
 
 #: Postures drawn at most (evenly chosen among the events, the first and last always).
@@ -106,22 +104,11 @@ def _draw_postures(ax, tree: Tree, result: LandingResult, scene: Scene, space: S
         ax.annotate(label, origins[0, [h, v]], fontsize=6, alpha=shade)
         points += [origins, tips]
     if v == 1:
-        across, ground = _ground_section(np.vstack(points), scene, space, h)
+        across, ground = ground_section(np.vstack(points), scene, space, h)
         ax.plot(across, ground, color=_GROUND, lw=1.5)
     ax.set_aspect("equal")
     ax.set_xlabel(f"{_AXES[h]} [m]")
     ax.set_ylabel(f"{_AXES[v]} [m]")
-
-
-def _ground_section(points: np.ndarray, scene: Scene, space: Space, h: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ground's height along world axis ``h`` (x or z) under ``points`` (in space through
-    their mean position across)."""
-    across = np.linspace(points[:, h].min() - 0.1, points[:, h].max() + 0.1, 200)
-    if space.joint_axis is not None:
-        return across, height(scene.terrain, across)
-    other = np.full_like(across, points[:, 2 if h == 0 else 0].mean())
-    x, z = (across, other) if h == 0 else (other, across)
-    return across, heightfield.height(spatial_ground(scene), x, z)
 
 
 #: Frames of an animation (evenly spaced in time) and its frame rate.
@@ -150,7 +137,7 @@ def animate_landing(tree: Tree, result: LandingResult, path: str | Path, scene: 
     drawn = []
     for ax, (h, v) in zip(axes[0], views):
         if v == 1:
-            ax.plot(*_ground_section(points, scene, space, h), color=_GROUND, lw=1.5)
+            ax.plot(*ground_section(points, scene, space, h), color=_GROUND, lw=1.5)
         drawn.append([ax.plot([], [], "-", color="#4a6fa5", lw=2.5)[0] for _ in tree.bodies])
         ax.set_xlim(lo[h], hi[h])
         ax.set_ylim(min(lo[v], -0.02) if v == 1 else lo[v], hi[v])

@@ -267,10 +267,42 @@ __all__ = ["PLOT_SUFFIXES", "plot_speed", "plot_top_views", "plot_touchdown", "p
 VIEWS = (("side (x forward, y up)", 0, 1), ("front (z lateral, y up)", 2, 1), ("top (x forward, z lateral)", 0, 2))
 
 
-def plot_views(tree: Tree, geometry: Geometry, result: ImpactResult, path: str | Path, title: str) -> Path:
+def ground_section(points: np.ndarray, scene: Scene, space: Space, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ground's height along world axis ``h`` (x or z) under ``points`` (in space through
+    their mean position across: the scene's heightfield, or its flat ground)."""
+    from impulse_core.model import heightfield
+    from impulse_core.timedomain.compliant import spatial_ground
+
+    across = np.linspace(points[:, h].min() - 0.1, points[:, h].max() + 0.1, 200)
+    if space.joint_axis is not None:
+        return across, height(scene.terrain, across)
+    other = np.full_like(across, points[:, 2 if h == 0 else 0].mean())
+    x, z = (across, other) if h == 0 else (other, across)
+    return across, heightfield.height(spatial_ground(scene), x, z)
+
+
+def _placed_on(tree: Tree, geometry: Geometry, scene: Scene) -> tuple[Geometry, np.ndarray]:
+    """The touchdown geometry where the scene's heightfield puts it (base at ``base_x``,
+    ``base_z``, lowered onto the ground) and the ground's upward normal at each contact."""
+    import dataclasses
+
+    from impulse_core.model import heightfield
+    from impulse_core.timedomain.compliant import touchdown_configuration
+
+    hf = scene.heightfield
+    shift = touchdown_configuration(tree, hf, scene.base_x, space=SPATIAL, base_z=scene.base_z)[:3]
+    placed = dataclasses.replace(geometry, origins=geometry.origins + shift, tips=geometry.tips + shift,
+                                 coms=geometry.coms + shift, contacts=geometry.contacts + shift)
+    return placed, heightfield.normal(hf, placed.contacts[:, 0], placed.contacts[:, 2])
+
+
+def plot_views(tree: Tree, geometry: Geometry, result: ImpactResult, path: str | Path, title: str,
+               scene: Scene | None = None) -> Path:
     """A spatial tree at touchdown in three views (side, front, top): rods, joints, contacts
     (filled when they hit) and the external impulses as arrows along the ground normal (drawn in
-    the side and front views; seen end-on from above, the top view marks them with their value).
+    the side and front views; seen from above, the top view marks them with their value). On a
+    heightfield (``scene.heightfield``) the tree stands where the scene lands it and the side and
+    front views draw the ground's section through the contacts.
 
     Raises:
         ConfigError: an unsupported suffix, or the file cannot be written.
@@ -279,6 +311,10 @@ def plot_views(tree: Tree, geometry: Geometry, result: ImpactResult, path: str |
     from matplotlib.figure import Figure
 
     path = _plot_path(path)
+    uneven = scene is not None and scene.heightfield is not None
+    normals = np.tile([0.0, 1.0, 0.0], (len(geometry.contacts), 1))
+    if uneven:
+        geometry, normals = _placed_on(tree, geometry, scene)
     fig = Figure(figsize=(14, 5))
     FigureCanvasAgg(fig)
     points = np.vstack([geometry.origins, geometry.tips, geometry.contacts])
@@ -296,12 +332,15 @@ def plot_views(tree: Tree, geometry: Geometry, result: ImpactResult, path: str |
         ax.plot(c[active, h], c[active, v], "o", color=_CONTACT, ms=6)
         ax.plot(c[~active, h], c[~active, v], "o", mfc="white", mec=_CONTACT, ms=6)
         for i in np.flatnonzero(active):
-            if v == 1:  # the normal (y) lies in this view
-                ax.annotate("", xy=(c[i, h], c[i, v] + scale * result.external[i]), xytext=(c[i, h], c[i, v]),
+            if v == 1:  # the normal's upward part lies in this view
+                tip = c[i] + scale * result.external[i] * normals[i]
+                ax.annotate("", xy=(tip[h], tip[v]), xytext=(c[i, h], c[i, v]),
                             arrowprops=dict(arrowstyle="-|>", color=_EXTERNAL, lw=2, shrinkA=0, shrinkB=0))
             ax.annotate(f"{result.external[i]:.3g}", (c[i, h], c[i, v]), fontsize=8, color=_EXTERNAL,
                         xytext=(3, -10), textcoords="offset points")
-        if v == 1:
+        if v == 1 and uneven:
+            ax.plot(*ground_section(c, scene, SPATIAL, h), color=_GROUND, lw=1)
+        elif v == 1:
             ax.axhline(geometry.ground_height, color=_GROUND, lw=1)
         ax.set_title(name, fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")

@@ -176,3 +176,25 @@ def test_a_planar_file_read_as_spatial_gives_the_planar_time_domain_answer(tmp_p
     if rung == "compliant":
         assert b["error_estimate"] == pytest.approx(a["error_estimate"], rel=1e-6)
     assert b["touchdown_order"] == a["touchdown_order"]
+
+
+def test_the_plot_stands_the_foot_on_the_heightfield(tmp_path, capsys):
+    """--plot on a heightfield: the drawn tree stands where the scene lands it (its lowest
+    contact the touchdown clearance above the ground, the base at base_x, base_z) and the impulse
+    arrows point along the ground's normal at each contact."""
+    from impulse_core.evaluate import touchdown_geometry
+    from impulse_core.model import heightfield
+    from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE
+    from optimizer.report.plot import _placed_on
+
+    model = load_model_file(EXAMPLE)
+    hf = model.scene.heightfield
+    assert not hf.is_flat
+    placed, normals = _placed_on(model.tree, touchdown_geometry(model.tree, SPATIAL), model.scene)
+    clearance = heightfield.vertical_clearance(hf, placed.contacts)
+    assert float(np.min(clearance)) == pytest.approx(TOUCHDOWN_CLEARANCE, abs=1e-12)
+    assert placed.origins[0, [0, 2]] == pytest.approx([model.scene.base_x, model.scene.base_z], abs=1e-12)
+    assert np.allclose(normals, heightfield.normal(hf, placed.contacts[:, 0], placed.contacts[:, 2]))
+    assert np.max(np.abs(normals[:, [0, 2]])) > 1e-3  # tilted somewhere: the arrows are not all vertical
+    assert main(["evaluate", str(EXAMPLE), "--plot", str(tmp_path / "hf.png")]) == 0
+    assert (tmp_path / "hf.png").stat().st_size > 10_000
