@@ -1270,6 +1270,11 @@ class _Landing:
         the projection's impulses [normal, tangential] per contact)."""
         if self.tape is not None:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
+        end = self.ended(q, v, mode)
+        if end is not None and not np.any(~mode.closed & (end.gap < 0)) and not np.any((mode.stop == 0) & (self.beyond(q) != 0)):
+            projected = self.fast.project(q, v, mode)  # the compiled step's end: its compiled projection
+            if projected is not None:
+                return projected
         pt = self.point(q, v)
         q = q - self.placement(pt, q, mode)[1]
         rows = _mode_rows(pt, mode, self.mu)

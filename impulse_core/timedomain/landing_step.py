@@ -1,4 +1,4 @@
-"""The landing's Runge-Kutta step as one compiled CasADi function (the plane).
+"""The landing's Runge-Kutta step and projection as compiled CasADi functions (the plane).
 
 :meth:`impulse_core.timedomain.landing._Landing.rk4_step` builds each stage's rows and solves
 them in numpy, which costs ~10 x the dynamics call. Here one SX graph per topology, terrain and
@@ -14,8 +14,10 @@ matrix block diagonal in the active and inactive rows, the active block that of 
 The function also returns what the landing loop asks of the step's end point: the witnesses'
 ingredients (gaps, normal velocities, slip, contact forces, stop forces in the mode), the linear
 momentum at both ends (the momentum balance), the normals (the step's impulse vector) and the
-kinetic energy (the divergence check), so that a plain step costs one call. Redundant modes
-(least-norm forces) and non-finite results (singular rows) are left to the numpy path.
+kinetic energy (the divergence check), so that a plain step costs one call; and the projection
+that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
+velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
+corrections) and non-finite results (singular rows) are left to the numpy path.
 """
 
 from __future__ import annotations
@@ -71,9 +73,7 @@ def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.S
     """(a, fn, ft, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on the
     active rows; F's normal row of a sliding contact is n - mu d t."""
     nv, nc = pt["M"].shape[0], pt["Jn"].shape[0]
-    E = ca.SX.zeros(len(stop_dofs), nv)
-    for r, j in enumerate(stop_dofs):
-        E[r, j] = -x.stop[r]
+    E = _stop_rows(x.stop, stop_dofs, nv)
     Jn, Jt = pt["Jn"], pt["Jt"]
     G = ca.diag(x.active) @ ca.vertcat(Jn, E, Jt)
     F = ca.diag(x.active) @ ca.vertcat(Jn - x.mu * ca.diag(x.direction) @ Jt, E, Jt)
@@ -121,13 +121,56 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
     return ca.Function("landing_step", inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS))
 
 
+def _masked_correction(M: ca.SX, G: ca.SX, active: ca.SX, residual: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(M^-1 G^T lambda, lambda) with G M^-1 G^T lambda = residual on the active rows of G (the
+    others: lambda = 0): the smallest kinetic-metric change that moves the rows by ``residual``."""
+    G = ca.diag(active) @ G
+    X = _solve(M, G.T)
+    lam = _solve(G @ X + ca.diag(1 - active), active * residual)
+    return X @ lam, lam
+
+
+def _stop_rows(stop: ca.SX, stop_dofs: tuple[int, ...], nv: int) -> ca.SX:
+    """Each stop's velocity row: -side e_j (its margin's rate)."""
+    E = ca.SX.zeros(len(stop_dofs), nv)
+    for r, j in enumerate(stop_dofs):
+        E[r, j] = -stop[r]
+    return E
+
+
 @functools.lru_cache(maxsize=16)
-def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]) -> ca.Function:
-    """:func:`landing_step_function` as C, built once into (or loaded from) the compile cache
+def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]) -> ca.Function:
+    """:meth:`landing._Landing.project` for a mode given as numbers: the position correction dq
+    (gaps of the ``place`` rows' contacts and their stops' margins to ``limit``, to zero), then
+    the velocity projection onto the mode's rows (``active``, ``stop``: as the step's), both
+    with the rows at (q, v) (q_new = q - dq); its impulses [normal, tangential] per contact."""
+    fn = landing_function(topology, terrain)
+    nv, nc, ns = fn.size1_in(0), fn.size1_out(0), len(stop_dofs)
+    q, v, p, gravity = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity")
+    place, place_stop, limit = ca.SX.sym("place", nc + ns), ca.SX.sym("place_stop", ns), ca.SX.sym("limit", ns)
+    active, stop = ca.SX.sym("active", 2 * nc + ns), ca.SX.sym("stop", ns)
+    x = _Args(active, ca.SX.zeros(nc), stop, ca.SX(0), ca.SX.zeros(nv), ca.SX.zeros(nv), ca.SX.zeros(nv), p, gravity)
+    pt = _point(fn, q, v, x)
+    margin = ca.vertcat(*[-place_stop[r] * (q[j] - limit[r]) for r, j in enumerate(stop_dofs)]) if ns else ca.SX(0, 1)
+    dq, _ = _masked_correction(pt["M"], ca.vertcat(pt["Jn"], _stop_rows(place_stop, stop_dofs, nv)), place,
+                               ca.vertcat(pt["gap"], margin))
+    G = ca.vertcat(pt["Jn"], _stop_rows(stop, stop_dofs, nv), pt["Jt"])
+    dv, lam = _masked_correction(pt["M"], G, active, -(G @ v))
+    return ca.Function("landing_projection", [q, v, place, place_stop, limit, active, stop, p, gravity],
+                       [dq, v + dv, ca.vertcat(lam[:nc], lam[nc + ns :])],
+                       ["q", "v", "place", "place_stop", "limit", "active", "stop", "p", "gravity"],
+                       ["dq", "v1", "impulse"])
+
+
+@functools.lru_cache(maxsize=16)
+def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]
+                           ) -> tuple[ca.Function, ca.Function]:
+    """:func:`landing_step_function` and :func:`landing_projection_function` as C, built once into (or loaded from) the compile cache
     (:func:`impulse_core.compile.codegen.compile_function`); without a C compiler, a warning
-    and the virtual machine's function."""
-    f = landing_step_function(topology, terrain, stop_dofs)
-    return compile_function(f, default_root(), fallback=True).function
+    and the virtual machine's functions."""
+    step = landing_step_function(topology, terrain, stop_dofs)
+    projection = landing_projection_function(topology, terrain, stop_dofs)
+    return tuple(compile_function(f, default_root(), fallback=True).function for f in (step, projection))
 
 
 @dataclass(frozen=True)
@@ -161,8 +204,17 @@ class CompiledStep(BufferedFunction):
     def __init__(self, topology, terrain: Terrain, p: np.ndarray, gravity: float, mu: float, joints: _Joints,
                  compiled: bool = False) -> None:
         self.stop_dofs = tuple(int(j) for j in np.flatnonzero(np.isfinite(joints.lo) | np.isfinite(joints.hi)))
-        make = compiled_step_function if compiled else landing_step_function
-        super().__init__(make(topology, terrain, self.stop_dofs))
+        if compiled:
+            step, projection = compiled_step_function(topology, terrain, self.stop_dofs)
+        else:
+            step = landing_step_function(topology, terrain, self.stop_dofs)
+            projection = landing_projection_function(topology, terrain, self.stop_dofs)
+        super().__init__(step)
+        self.projection = BufferedFunction(projection)
+        self.projection.args[7][:], self.projection.args[8][:] = p, gravity
+        dofs = list(self.stop_dofs)
+        self.lo, self.hi = joints.lo[dofs], joints.hi[dofs]
+        self.lo_all, self.hi_all = joints.lo, joints.hi
         for name, value in (("mu", mu), ("stiffness", joints.stiffness), ("damping", joints.damping),
                             ("rest", joints.rest), ("p", p), ("gravity", gravity)):
             self.args[STEP_INPUTS.index(name)][:] = value
@@ -174,10 +226,8 @@ class CompiledStep(BufferedFunction):
         a = self.args
         a[0][:], a[1][:], a[2][0] = q, v, h
         sliding = mode.slip[:, 0] if self.mu > 0 else np.zeros(len(mode.closed))
-        stick = mode.closed & (sliding == 0) & (self.mu > 0)
-        stops = mode.stop[list(self.stop_dofs)]
-        a[3][:] = np.concatenate([mode.closed, stops != 0, stick])
-        a[4][:], a[5][:] = sliding * mode.closed, stops
+        a[3][:], a[5][:] = self.active(mode)
+        a[4][:] = sliding * mode.closed
         self.evaluate()
         o = [r.copy() for r in self.flat]
         if not np.isfinite(o[1].sum() + o[10].sum() + o[11].sum()):  # singular rows: NaN or inf, which propagate
@@ -188,4 +238,33 @@ class CompiledStep(BufferedFunction):
                        stop_force, self.out[13].T.copy(), float(o[14][0]))
 
 
-__all__ = ["CompiledStep", "StepEnd", "compiled_step_function", "landing_step_function"]
+    def active(self, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
+        """The mode's rows as numbers: per row (normal, stop, tangent) whether it is closed, and
+        each stop row's side."""
+        stops = mode.stop[list(self.stop_dofs)]
+        stick = mode.closed & ~mode.sliding & (self.mu > 0)
+        return np.concatenate([mode.closed, stops != 0, stick]), stops
+
+    def project(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """:meth:`landing._Landing.project` of (q, v) onto ``mode``'s rows, the placement's
+        being the mode's own (no open contact below the ground, no free joint past a stop before
+        or after the correction: the caller checks the first two); None where the numpy path
+        must answer (a redundant mode, a joint carried past its stop, a non-finite result)."""
+        if mode.redundant or np.any(np.delete(mode.stop, self.stop_dofs)):
+            return None
+        a = self.projection.args
+        a[0][:], a[1][:] = q, v
+        a[5][:], a[6][:] = self.active(mode)
+        a[2][:], a[3][:] = a[5][: len(a[2])], a[6]
+        a[4][:] = np.where(a[6] > 0, self.hi, self.lo)
+        self.projection.evaluate()
+        dq, v1, impulse = (r.copy() for r in self.projection.flat)
+        q1 = q - dq
+        free = mode.stop == 0
+        carried = np.any(free & ((q1 > self.hi_all) | (q1 < self.lo_all)))
+        if carried or not np.isfinite(dq.sum() + v1.sum()):
+            return None
+        return q1, v1, impulse
+
+
+__all__ = ["CompiledStep", "StepEnd", "compiled_step_function", "landing_projection_function", "landing_step_function"]

@@ -19,7 +19,11 @@ from impulse_core.timedomain.landing import (
     _Mode,
     landing_difference,
 )
-from impulse_core.timedomain.landing_step import compiled_step_function, landing_step_function
+from impulse_core.timedomain.landing_step import (
+    compiled_step_function,
+    landing_projection_function,
+    landing_step_function,
+)
 from tests.impulse_core.test_landing import _random_leg
 
 
@@ -58,11 +62,14 @@ def test_the_compiled_step_equals_the_numpy_step(leg):
     """Random (q, v) near touchdown in random modes (closed, sliding either way, on either stop;
     a redundant one, e.g. more rows than DOFs, is the numpy path's least-norm split):
     the compiled step's state, contact impulses, momenta, kinetic energy, and its end's witnesses
-    and their rates, equal the numpy path's to 1e-12 (relative to each list's largest entry)."""
+    and their rates, equal the numpy path's to 1e-12 (relative to each list's largest entry); the
+    compiled projection's velocities to 1e-12, its position correction and impulses to 1e-10 (the
+    numpy path's least squares against the compiled elimination)."""
     tree, laws, scene = list(_legs())[leg]
     fast = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE, integrator="rk4"))
     ref = _Landing(tree, scene, laws, LandingSettings(step_code=NUMPY_CODE, integrator="rk4"))
     rng = np.random.default_rng(leg)
+    projected = 0
     for _ in range(12):
         q = fast.q0 + 0.02 * rng.standard_normal(fast.nv)
         v = rng.standard_normal(fast.nv)
@@ -85,6 +92,14 @@ def test_the_compiled_step_equals_the_numpy_step(leg):
         assert _rel(end.momentum0, p0.momentum[:, 0]) <= 1e-12 and _rel(end.momentum1, p1.momentum[:, 0]) <= 1e-12
         assert _rel(end.gap0, p0.gap) <= 1e-12 and _rel(end.vn0, p0.vn(v)) <= 1e-12
         assert _rel(end.normal, p1.normal) <= 1e-12 and end.kinetic == pytest.approx(p1.kinetic, rel=1e-12)
+        # the projection after the step: compiled where the placement is the mode's, else numpy's
+        compiled = fast.fast.project(q1, v1, mode) is not None and not np.any(~mode.closed & (end.gap < 0)) \
+            and not np.any((mode.stop == 0) & (fast.beyond(q1) != 0))
+        projected += compiled
+        (pq, pv, pimpulse), (rq, rv, rimpulse) = fast.project(q1, v1, mode), ref.project(q1, v1, mode)
+        assert _rel(pq - q1, rq - q1) <= 1e-10 and _rel(pv, rv) <= 1e-12
+        assert _rel(pimpulse, rimpulse) <= 1e-10 or np.max(np.abs(rimpulse)) == 0.0 == np.max(np.abs(pimpulse))
+    assert projected >= 2
 
 
 def test_a_redundant_mode_is_left_to_numpy():
@@ -97,19 +112,22 @@ def test_a_redundant_mode_is_left_to_numpy():
 
 
 def test_c_equals_the_virtual_machine(tmp_path, monkeypatch):
-    """The step compiled to C through the compile cache gives the virtual machine's numbers."""
+    """The step and projection compiled to C through the compile cache give the virtual
+    machine's numbers."""
     monkeypatch.setenv("FOOTOPT_CACHE_DIR", str(tmp_path))
     tree, laws, scene = _random_leg(0)
     run = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE, integrator="rk4"))
     compiled_step_function.cache_clear()
-    c = compiled_step_function(run.topology, scene.terrain, run.fast.stop_dofs)
-    vm = landing_step_function(run.topology, scene.terrain, run.fast.stop_dofs)
-    assert c is not vm and any(tmp_path.iterdir())  # built into this cache
+    key = (run.topology, scene.terrain, run.fast.stop_dofs)
+    compiled = compiled_step_function(*key)
+    assert len(list(tmp_path.iterdir())) >= 2  # both built into this cache
     rng = np.random.default_rng(3)
-    args = [rng.uniform(-1, 1, vm.size1_in(i)) for i in range(vm.n_in())]
-    for a, b in zip(c.call(args), vm.call(args)):
-        a, b = a.full(), b.full()
-        assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, float(np.max(np.abs(b))))
+    for c, vm in zip(compiled, (landing_step_function(*key), landing_projection_function(*key))):
+        assert c is not vm
+        args = [rng.uniform(-1, 1, vm.size1_in(i)) for i in range(vm.n_in())]
+        for a, b in zip(c.call(args), vm.call(args)):
+            a, b = a.full(), b.full()
+            assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, float(np.max(np.abs(b))))
     compiled_step_function.cache_clear()  # the next test's C comes from the default cache
 
 
