@@ -150,3 +150,18 @@ def test_an_unknown_step_code_is_an_error():
     tree, laws, scene = _case3()
     with pytest.raises(ModelError, match="step_code"):
         _Landing(tree, scene, laws, LandingSettings(step_code="fortran"))
+
+
+def test_the_first_step_is_rk4s_longest_stable_one():
+    """landing()'s default first step: RK4's stability limit for the joint laws at touchdown
+    (case 3: 2 / 750 1/s = 2.7 ms, between 0.3 s / 200 and / 100), duration / 100 without joint
+    laws, duration / 200 for the implicit integrator; a given step is kept."""
+    tree, laws, scene = _case3()
+    T = scene.duration
+    run = _Landing(tree, scene, laws, LandingSettings())
+    assert run.method == "rk4" and T / 200 < run.first_step() < T / 100
+    assert run.first_step() * run.rate == pytest.approx(2.0, rel=1e-12)
+    assert _Landing(tree, scene, (), LandingSettings()).first_step() == pytest.approx(T / 100, rel=1e-12)
+    implicit = _Landing(tree, scene, laws, LandingSettings(integrator="implicit"))
+    assert implicit.first_step() == pytest.approx(T / 200, rel=1e-12)
+    assert _Landing(tree, scene, laws, LandingSettings(step=1e-3)).first_step() == 1e-3
