@@ -212,16 +212,17 @@ class CompiledStep(BufferedFunction):
         super().__init__(step)
         self.projection = BufferedFunction(projection)
         self.projection.args[7][:], self.projection.args[8][:] = p, gravity
-        dofs = list(self.stop_dofs)
-        self.lo, self.hi = joints.lo[dofs], joints.hi[dofs]
+        self.dofs = list(self.stop_dofs)
+        self.lo, self.hi = joints.lo[self.dofs], joints.hi[self.dofs]
         self.lo_all, self.hi_all = joints.lo, joints.hi
+        self.stopless = np.isneginf(joints.lo) & np.isposinf(joints.hi)  # DOFs that no stop row covers
         for name, value in (("mu", mu), ("stiffness", joints.stiffness), ("damping", joints.damping),
                             ("rest", joints.rest), ("p", p), ("gravity", gravity)):
             self.args[STEP_INPUTS.index(name)][:] = value
         self.mu, self.nv = mu, len(joints.stiffness)
 
     def step(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode) -> StepEnd | None:
-        if mode.redundant or np.any(np.delete(mode.stop, self.stop_dofs)):
+        if mode.redundant or np.any(mode.stop[self.stopless]):
             return None
         a = self.args
         a[0][:], a[1][:], a[2][0] = q, v, h
@@ -241,7 +242,7 @@ class CompiledStep(BufferedFunction):
     def active(self, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
         """The mode's rows as numbers: per row (normal, stop, tangent) whether it is closed, and
         each stop row's side."""
-        stops = mode.stop[list(self.stop_dofs)]
+        stops = mode.stop[self.dofs]
         stick = mode.closed & ~mode.sliding & (self.mu > 0)
         return np.concatenate([mode.closed, stops != 0, stick]), stops
 
@@ -250,7 +251,7 @@ class CompiledStep(BufferedFunction):
         being the mode's own (no open contact below the ground, no free joint past a stop before
         or after the correction: the caller checks the first two); None where the numpy path
         must answer (a redundant mode, a joint carried past its stop, a non-finite result)."""
-        if mode.redundant or np.any(np.delete(mode.stop, self.stop_dofs)):
+        if mode.redundant or np.any(mode.stop[self.stopless]):
             return None
         a = self.projection.args
         a[0][:], a[1][:] = q, v

@@ -203,15 +203,18 @@ def main() -> None:
         lines.append(f"| footopt landing (--tolerance {TOLERANCE:g}, {ours.integrator}, step code {args.step_code}) | "
                      f"{ours.step:.3g} | "
                      f"{ours.n_steps} | {err_ours:.1e} | {ours.error_estimate:.1e} | {seconds_ours:.2f} | "
-                     f"{seconds_ours / seconds:.1f} |")
+                     f"{seconds_ours / seconds:.2g} |")
         met = "" if err <= TOLERANCE else " (not met at the shortest step tried)"
         lines.append(f"| MuJoCo, contact stiffness {k:g} 1/s^2 (fixed step, mj_step only){met} | {h:.3g} | "
                      f"{int(round(scene.duration / h))} | {err:.1e} | - | {seconds:.2f} | 1.0 |")
-    ratio = min(seconds_ours / r[3] for r in rows)
+    ratio = min(seconds_ours / r[3] for r in rows)  # against the dearest MuJoCo that meets the accuracy
+    cheapest = max(seconds_ours / r[3] for r in rows)  # and the cheapest
     lines += [
         "",
-        f"**Target not met**: footopt's landing costs {ratio:.1f} x MuJoCo's (target 0.1 x), "
-        f"{ratio / 0.1:.0f} x over it." if ratio > 0.1 else f"**Target met**: {ratio:.2f} x MuJoCo's cost.",
+        (f"**Target not met**: footopt's landing costs {ratio:.2g} x MuJoCo's at best (target 0.1 x), "
+         f"{ratio / 0.1:.2g} x over it" if ratio > 0.1 else f"**Target met** against the dearest MuJoCo: {ratio:.2g} x "
+         "its cost")
+        + (f"; {cheapest:.2g} x the cheapest MuJoCo that meets the accuracy." if len(rows) > 1 else "."),
         "",
         "The figures themselves (each model's converged answer): footopt "
         f"peak_external_norm {reference.peak_external_norm:.4f} N s, total_external "
