@@ -165,3 +165,16 @@ def test_the_first_step_is_rk4s_longest_stable_one():
     implicit = _Landing(tree, scene, laws, LandingSettings(integrator="implicit"))
     assert implicit.first_step() == pytest.approx(T / 200, rel=1e-12)
     assert _Landing(tree, scene, laws, LandingSettings(step=1e-3)).first_step() == 1e-3
+
+
+@pytest.mark.parametrize("seed, sloped", [(1, False), (9, True)])
+def test_random_legs_land_alike_on_the_compiled_step(seed, sloped):
+    """Random legs (30 and 35 events: toe bounces, stops, sliding), one on a slope: the virtual
+    machine's compiled steps take the numpy run's decisions and land 1e-10 from it."""
+    tree, laws, scene = _random_leg(seed)
+    if sloped:
+        scene = replace(scene, terrain=Terrain((-1.0, 1.0), (-0.1, 0.05)))
+    ref = _Landing(tree, scene, laws, LandingSettings(step_code=NUMPY_CODE)).run(5e-4)
+    r = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE)).run(5e-4)
+    assert (r.n_steps, len(r.events)) == (ref.n_steps, len(ref.events))
+    assert landing_difference(r, ref) <= 1e-10 and _rel(r.q_final, ref.q_final) <= 1e-10
