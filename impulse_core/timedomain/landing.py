@@ -1292,8 +1292,10 @@ class _Landing:
         if self.tape is not None:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         end = self.ended(q, v, mode)
-        if end is not None and not np.any(~mode.closed & (end.gap < 0)) and not np.any((mode.stop == 0) & (self.beyond(q) != 0)):
-            projected = self.fast.project(q, v, mode)  # the compiled step's end: its compiled projection
+        own = (end is not None and not np.any(~mode.closed & (end.gap < 0))
+               and not np.any((mode.stop == 0) & (self.beyond(q) != 0)))
+        if own:  # a compiled step's end whose placement is the mode's own: the compiled projection
+            projected = self.fast.project(q, v, mode)
             if projected is not None:
                 return projected
         pt = self.point(q, v)

@@ -165,9 +165,9 @@ def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_d
 @functools.lru_cache(maxsize=16)
 def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]
                            ) -> tuple[ca.Function, ca.Function]:
-    """:func:`landing_step_function` and :func:`landing_projection_function` as C, built once into (or loaded from) the compile cache
-    (:func:`impulse_core.compile.codegen.compile_function`); without a C compiler, a warning
-    and the virtual machine's functions."""
+    """:func:`landing_step_function` and :func:`landing_projection_function` as C, built once
+    into (or loaded from) the compile cache (:func:`impulse_core.compile.codegen.compile_function`);
+    without a C compiler, a warning and the virtual machine's functions."""
     step = landing_step_function(topology, terrain, stop_dofs)
     projection = landing_projection_function(topology, terrain, stop_dofs)
     return tuple(compile_function(f, default_root(), fallback=True).function for f in (step, projection))
