@@ -99,6 +99,16 @@ RK4, IMPLICIT, AUTO = "rk4", "implicit", "auto"
 #: at touchdown (:func:`joint_law_rate`) exceeds this: classical RK4 is stable on the negative
 #: real axis up to 2.785 (a damper's mode) and on the imaginary axis up to 2.828 (a spring's).
 RK4_STABLE = 2.0
+#: The code of the plane's RK4 step (:attr:`LandingSettings.step_code`): one CasADi function
+#: compiled to C through the trusted cache (:mod:`impulse_core.timedomain.landing_step`), the same
+#: function on CasADi's virtual machine, or the numpy reference.
+C_CODE, VM_CODE, NUMPY_CODE = "c", "vm", "numpy"
+#: The default first step (:attr:`LandingSettings.step`) lies within these fractions of the
+#: duration: RK4 takes the longest step within them that is stable for the joint laws at touchdown
+#: (RK4_STABLE / :func:`joint_law_rate`), the implicit integrator the shortest. The step-halving
+#: estimate that follows is what holds the tolerance (case 3: runs at 2.7 and 1.3 ms instead of
+#: 1.5 and 0.75 ms, estimate 4e-7 against a tolerance of 1e-3, 0.6 x the time).
+FIRST_STEPS = (1.0 / 200.0, 1.0 / 100.0)
 #: ROS2's gamma (Verwer, Spee, Blom and Hundsdorfer 1999): L-stable with the exact Jacobian.
 ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
 #: The momentum balance over a landing (the change of the linear momentum minus the contact
@@ -124,7 +134,9 @@ class LandingSettings:
     Attributes:
         tolerance: the error a run must meet (relative difference of its peak impulses, total
             external impulses and final posture from the refined limit, ``MODEL_FORMAT.md``).
-        step: the first Runge-Kutta step (s); None: duration / 200.
+        step: the first Runge-Kutta step (s); None: :data:`FIRST_STEPS` (the implicit integrator
+            duration / 200; RK4 the longest step within them that is stable for the joint laws at
+            touchdown, :meth:`_Landing.first_step`).
         max_refinements: halvings of the step before giving up (the run then warns).
         gap_tolerance: a contact this close to the ground (m) touches.
         max_events: impacts after which a run is abandoned (a chattering contact, or a budget).
@@ -134,6 +146,12 @@ class LandingSettings:
             the first step is beyond RK4's stability for the joint laws at touchdown
             (:data:`RK4_STABLE`), then implicit. One landing keeps one integrator at every step
             length, so that the step-halving estimate compares like with like.
+        step_code: the plane's RK4 steps by one CasADi function of the mode
+            (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
+            compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
+            and a missing compiler falls back to ``vm`` with a warning), ``vm`` on CasADi's
+            virtual machine, ``numpy`` the reference (rows built and solved per stage in numpy;
+            always so in space and for the implicit integrator). All agree to rounding.
     """
 
     tolerance: float = 1e-3
@@ -142,6 +160,7 @@ class LandingSettings:
     gap_tolerance: float = 1e-12
     max_events: int = MAX_EVENTS
     integrator: str = AUTO
+    step_code: str = VM_CODE
 
 
 @dataclass(frozen=True)
@@ -561,6 +580,11 @@ def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray,
     )
 
 
+def _mode_bytes(mode: _Mode) -> bytes:
+    """What of a mode a compiled step depends on, as bytes (:meth:`_Landing.ended`)."""
+    return mode.closed.tobytes() + mode.slip.tobytes() + mode.stop.tobytes() + bytes([mode.redundant])
+
+
 def _solve_rows(
     W: np.ndarray, u: np.ndarray, rows: _Rows, restitution: np.ndarray
 ) -> tuple[UnilateralSolution, np.ndarray, bool]:
@@ -691,9 +715,10 @@ def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
     if not below.size or below[0] == 0:
         return math.nan
     a, b = s[below[0] - 1], s[below[0]]
-    for _ in range(40):  # bisection on the polynomial: cheap
+    c3, c2, c1, c0 = (float(c) for c in coeffs)
+    for _ in range(40):  # bisection on the polynomial: cheap (Horner's rule in floats)
         m = 0.5 * (a + b)
-        a, b = (m, b) if np.polyval(coeffs, m) >= 0 else (a, m)
+        a, b = (m, b) if ((c3 * m + c2) * m + c1) * m + c0 >= 0 else (a, m)
     return float(b)
 
 
@@ -745,11 +770,11 @@ class _Landing:
         self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
         #: The integrator between events (RK4 or IMPLICIT), one for every step length of the landing.
         self.method = settings.integrator
+        #: the joint laws' fastest rate at touchdown (1/s, :func:`joint_law_rate`)
+        self.rate = joint_law_rate(self.mass_matrix_at(self.q0), self.joints.damping, self.joints.stiffness)
         if self.method == AUTO:
-            h0 = settings.step or (scene.duration or 0.0) / 200.0
-            pt = self.mass_matrix_at(self.q0)
-            rate = joint_law_rate(pt, self.joints.damping, self.joints.stiffness)
-            self.method = IMPLICIT if h0 * rate > RK4_STABLE else RK4
+            h0 = settings.step or (scene.duration or 0.0) * FIRST_STEPS[0]
+            self.method = IMPLICIT if h0 * self.rate > RK4_STABLE else RK4
         if self.method not in (RK4, IMPLICIT):
             raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, auto")
         #: circular-cone solves of the current run that fell back to the polyhedral answer
@@ -762,6 +787,43 @@ class _Landing:
         #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol) and
         #: ("project", q, v, mode); q, v are the operation's inputs.
         self.tape: list | None = None
+        #: the plane's compiled RK4 step (None: numpy), and the last compiled step's end (ended())
+        self.fast = self.compiled_step(settings.step_code)
+        self._end: tuple[bytes, bytes, object] | None = None
+
+    def first_step(self) -> float:
+        """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
+        integrator's duration / 200 and RK4's longest step up to duration / 100 at which it is
+        stable for the joint laws at touchdown, but not below duration / 200 (where ``auto``
+        takes RK4, it is stable there)."""
+        if self.settings.step:
+            return self.settings.step
+        T = float(self.scene.duration)
+        shortest, longest = FIRST_STEPS[0] * T, FIRST_STEPS[1] * T
+        if self.method == IMPLICIT:
+            return shortest
+        return min(longest, max(shortest, RK4_STABLE / self.rate if self.rate > 0 else math.inf))
+
+    def compiled_step(self, code: str):
+        """The compiled step of this landing (:mod:`impulse_core.timedomain.landing_step`), or
+        None where the numpy path integrates (``numpy``, space, the implicit integrator)."""
+        if code not in (C_CODE, VM_CODE, NUMPY_CODE):
+            raise ModelError(f"step_code: {code!r} is not one of c, vm, numpy")
+        if code == NUMPY_CODE or self.space is not PLANAR or self.method != RK4:
+            return None
+        from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
+
+        return CompiledStep(self.topology, self.scene.terrain, design_vector(self.tree), self.scene.gravity, self.mu,
+                            self.joints, compiled=code == C_CODE)
+
+    def ended(self, q: np.ndarray, v: np.ndarray, mode: _Mode | None = None):
+        """The last compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` if it
+        ended at (q, v) (in ``mode``, if given), else None."""
+        if self._end is None or self._end[0] != q.tobytes() + v.tobytes():
+            return None
+        if mode is not None and self._end[1] != _mode_bytes(mode):
+            return None
+        return self._end[2]
 
     # ---- dynamics
 
@@ -819,6 +881,10 @@ class _Landing:
         self.steer(q, v, mode, h)
         if self.method == IMPLICIT:
             return self.implicit_step(q, v, mode, h)
+        end = None if self.fast is None else self.fast.step(q, v, h, mode)
+        if end is not None:
+            self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
+            return end.q.copy(), end.v.copy(), end.impulse.copy()
         return self.rk4_step(q, v, mode, h)
 
     def steer(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> None:
@@ -895,12 +961,15 @@ class _Landing:
         fast-spinning light rod resting on its tip (tens of kN of contact force over one step) is
         where the fixed step is too long; the residual is then the step's error, seen in a law
         the motion obeys. Returns (q, v, contact impulses, the step's length)."""
-        p0 = self.point(q, v).momentum[:, 0].copy()
+        p0 = None
         dt = trial
         while True:
             q1, v1, impulse = self.step(q, v, mode, dt)
             if dt <= floor or not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
                 break
+            if p0 is None:
+                end = self.ended(q1, v1, mode)
+                p0 = end.momentum0 if end is not None else self.point(q, v).momentum[:, 0].copy()
             if np.max(np.abs(self.momentum_residual(p0, q1, v1, impulse, dt))) <= rate * dt:
                 break
             dt /= 2.0
@@ -911,9 +980,16 @@ class _Landing:
         """The linear momentum at (q1, v1) minus ``p0``, the contact ``impulse`` ([normal,
         tangential] per contact, along the normals and tangents at (q1, v1)) and the weight's
         impulse over ``dt``."""
-        pt = self.point(q1, v1)
+        end = self.ended(q1, v1)
+        momentum, normal = (end.momentum1, end.normal) if end is not None else (self.point(q1, v1).momentum[:, 0],
+                                                                                 self.point(q1, v1).normal)
         ft = impulse[self.nc :].reshape(self.dims - 1, self.nc).T
-        return pt.momentum[:, 0] - p0 - impulse_vector(pt.normal, impulse[: self.nc], ft) - self.weight(dt)
+        return momentum - p0 - impulse_vector(normal, impulse[: self.nc], ft) - self.weight(dt)
+
+    def kinetic(self, q: np.ndarray, v: np.ndarray) -> float:
+        """The kinetic energy at (q, v)."""
+        end = self.ended(q, v)
+        return end.kinetic if end is not None else self.point(q, v).kinetic
 
     def weight(self, duration: float) -> np.ndarray:
         """The weight's impulse over ``duration`` (world frame: along -y)."""
@@ -942,37 +1018,46 @@ class _Landing:
     def witness_and_rate(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`witness` and the time derivative of the geometric ones (gaps and stop margins;
         NaN for the force and slip witnesses)."""
-        pt = self.point(q, v)
-        rows = _mode_rows(pt, mode, self.mu)
-        _, lam = _accelerations(pt, rows)
-        fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
+        end = self.ended(q, v, mode)
+        if end is None:
+            pt = self.point(q, v)
+            rows = _mode_rows(pt, mode, self.mu)
+            _, lam = _accelerations(pt, rows)
+            fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
+            stop_force = np.zeros(self.nv)
+            stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
+            gap, vn, moving = pt.gap, pt.vn(v), pt.slip
+        else:
+            fn, ft, stop_force, gap, vn, moving = end.fn, end.ft, end.stop_force, end.gap, end.vn, end.slip
         closed, slip = mode.closed, mode.slip
         sticking = closed & ~mode.sliding & (self.mu > 0)
         sliding = closed & mode.sliding & (self.mu > 0)
         gap_tol = self.settings.gap_tolerance
         free = mode.stop == 0
-        stop_force = np.zeros(self.nv)
-        stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
         values = np.concatenate([
-            np.where(closed, np.inf, pt.gap / gap_tol + 1.0),
+            np.where(closed, np.inf, gap / gap_tol + 1.0),
             np.where(closed, fn / self.force_tol + 1.0, np.inf),
             np.where(sticking, (self.mu * fn - np.linalg.norm(ft, axis=1)) / self.force_tol + 1.0, np.inf),
-            np.where(sliding, np.sum(slip * pt.slip, axis=1) / self.speed_tol + 1.0, np.inf),
+            np.where(sliding, np.sum(slip * moving, axis=1) / self.speed_tol + 1.0, np.inf),
             np.where(free, (q - self.joints.lo) / gap_tol + 1.0, np.inf),
             np.where(free, (self.joints.hi - q) / gap_tol + 1.0, np.inf),
             np.where(free, np.inf, stop_force / self.force_tol + 1.0),
         ])
         unknown = np.full(3 * self.nc, np.nan)
-        rates = np.concatenate([pt.vn(v) / gap_tol, unknown, v / gap_tol, -v / gap_tol, np.full(self.nv, np.nan)])
+        rates = np.concatenate([vn / gap_tol, unknown, v / gap_tol, -v / gap_tol, np.full(self.nv, np.nan)])
         return values, rates
 
     def grazing(self, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, h: float) -> float | None:
         """The step fraction where an open contact's gap (cubic Hermite fit over the step) dips
         below the ground and comes back, or None."""
-        p0, p1 = self.point(q0, v0), None
-        g0, d0 = p0.gap, p0.vn(v0) * h
-        p1 = self.point(q1, v1)
-        g1, d1 = p1.gap, p1.vn(v1) * h
+        end = self.ended(q1, v1, mode)
+        if end is not None:  # the step's own ends
+            g0, d0, g1, d1 = end.gap0, end.vn0 * h, end.gap, end.vn * h
+        else:
+            p0 = self.point(q0, v0)
+            g0, d0 = p0.gap, p0.vn(v0) * h
+            p1 = self.point(q1, v1)
+            g1, d1 = p1.gap, p1.vn(v1) * h
         s = np.linspace(0.0, 1.0, 17)[1:-1, None]
         h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
         g = h00 * g0 + h10 * d0 + h01 * g1 + h11 * d1
@@ -1209,6 +1294,13 @@ class _Landing:
         the projection's impulses [normal, tangential] per contact)."""
         if self.tape is not None:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
+        end = self.ended(q, v, mode)
+        own = (end is not None and not np.any(~mode.closed & (end.gap < 0))
+               and not np.any((mode.stop == 0) & (self.beyond(q) != 0)))
+        if own:  # a compiled step's end whose placement is the mode's own: the compiled projection
+            projected = self.fast.project(q, v, mode)
+            if projected is not None:
+                return projected
         pt = self.point(q, v)
         q = q - self.placement(pt, q, mode)[1]
         rows = _mode_rows(pt, mode, self.mu)
@@ -1318,7 +1410,7 @@ class _Landing:
                 )
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, 2.0 * dt)
-            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.point(q1, v1).kinetic <= cap):
+            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.kinetic(q1, v1) <= cap):
                 raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
             _check_chart(q1, self.space, t + dt)
             w = self.witness(q1, v1, mode)
@@ -1457,7 +1549,7 @@ def landing(
     if joints and len(joints) != tree.n_bodies:
         raise ModelError(f"joints: {len(joints)} joint laws for {tree.n_bodies} bodies")
     run = _Landing(tree, scene, joints, settings, space)
-    h = settings.step or scene.duration / 200.0
+    h = run.first_step()
     for halvings in range(settings.max_refinements + 1):  # a step too long for the stiffest joint diverges
         try:
             previous = run.run(h)

@@ -26,7 +26,10 @@ gravity, friction 0.5, restitution 0.8, 0.3 s).
   of the ``mj_step`` loop alone (the contact-force bookkeeping that gives the figures is left
   out: a lower bound of what MuJoCo costs for them, favourable to MuJoCo).
 - Both on one core, in this process, best of 3 (footopt: best of 2); the machine is shared, so
-  the ratio is the figure to read.
+  the ratio is the figure to read. footopt's plane RK4 steps and projections run as compiled C
+  (``--step-code c``, :mod:`impulse_core.timedomain.landing_step`); building that library (tens of
+  seconds, once per leg structure, then loaded from the compile cache) is not timed, as MuJoCo's
+  model compilation is not.
 
 Each model is measured against itself: footopt's rigid impacts and MuJoCo's soft contacts are
 different models of the landing (footopt's first-impact agreement with MuJoCo is in
@@ -47,7 +50,15 @@ import numpy as np
 
 from impulse_core.kinematics.spatial import dof_layout
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, CompliantSettings, ContactLaw
-from impulse_core.timedomain.landing import LandingSettings, _Landing, landing, landing_difference
+from impulse_core.timedomain.landing import (
+    C_CODE,
+    NUMPY_CODE,
+    VM_CODE,
+    LandingSettings,
+    _Landing,
+    landing,
+    landing_difference,
+)
 from impulse_core.timedomain.compliant import relative_difference
 from optimizer.config.model_file import load_model_file
 from optimizer.results.export import to_mjcf
@@ -148,11 +159,15 @@ def mujoco_error(a: dict, ref: dict) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--stiffness", type=float, nargs="+", default=[1e8, 1e6])
+    parser.add_argument("--step-code", default=C_CODE, choices=[C_CODE, VM_CODE, NUMPY_CODE],
+                        help="footopt's RK4 step: compiled C (built into the compile cache first, not timed), "
+                             "CasADi's virtual machine, or numpy")
     args = parser.parse_args()
     model = load_model_file(FILE)
     tree, scene, laws = model.tree, model.scene, model.joints
 
-    settings = LandingSettings(tolerance=TOLERANCE)
+    settings = LandingSettings(tolerance=TOLERANCE, step_code=args.step_code)
+    _Landing(tree, scene, laws, settings)  # builds (or loads) the compiled step: a one-off per leg structure
     seconds_ours, ours = best_time(lambda: landing(tree, scene, laws, settings), 2)
     h0 = scene.duration / 200.0
     reference = _Landing(tree, scene, laws, settings).run(h0 / 64)
@@ -185,17 +200,21 @@ def main() -> None:
         print(f"MuJoCo at {k:g}: step {h:g}, error {err:.2e}, {seconds:.3f} s; footopt {seconds_ours:.3f} s, "
               f"error {err_ours:.2e} (estimate {ours.error_estimate:.2e}, step {ours.step:g})", flush=True)
     for k, h, err, seconds, ref in rows:
-        lines.append(f"| footopt landing (--tolerance {TOLERANCE:g}, {ours.integrator}) | {ours.step:.3g} | "
+        lines.append(f"| footopt landing (--tolerance {TOLERANCE:g}, {ours.integrator}, step code {args.step_code}) | "
+                     f"{ours.step:.3g} | "
                      f"{ours.n_steps} | {err_ours:.1e} | {ours.error_estimate:.1e} | {seconds_ours:.2f} | "
-                     f"{seconds_ours / seconds:.1f} |")
+                     f"{seconds_ours / seconds:.2g} |")
         met = "" if err <= TOLERANCE else " (not met at the shortest step tried)"
         lines.append(f"| MuJoCo, contact stiffness {k:g} 1/s^2 (fixed step, mj_step only){met} | {h:.3g} | "
                      f"{int(round(scene.duration / h))} | {err:.1e} | - | {seconds:.2f} | 1.0 |")
-    ratio = min(seconds_ours / r[3] for r in rows)
+    ratio = min(seconds_ours / r[3] for r in rows)  # against the dearest MuJoCo that meets the accuracy
+    cheapest = max(seconds_ours / r[3] for r in rows)  # and the cheapest
     lines += [
         "",
-        f"**Target not met**: footopt's landing costs {ratio:.1f} x MuJoCo's (target 0.1 x), "
-        f"{ratio / 0.1:.0f} x over it." if ratio > 0.1 else f"**Target met**: {ratio:.2f} x MuJoCo's cost.",
+        (f"**Target not met**: footopt's landing costs {ratio:.2g} x MuJoCo's at best (target 0.1 x), "
+         f"{ratio / 0.1:.2g} x over it" if ratio > 0.1 else f"**Target met** against the dearest MuJoCo: {ratio:.2g} x "
+         "its cost")
+        + (f"; {cheapest:.2g} x the cheapest MuJoCo that meets the accuracy." if len(rows) > 1 else "."),
         "",
         "The figures themselves (each model's converged answer): footopt "
         f"peak_external_norm {reference.peak_external_norm:.4f} N s, total_external "

@@ -1,0 +1,271 @@
+"""The landing's Runge-Kutta step and projection as compiled CasADi functions (the plane).
+
+:meth:`impulse_core.timedomain.landing._Landing.rk4_step` builds each stage's rows and solves
+them in numpy, which costs ~10 x the dynamics call. Here one SX graph per topology, terrain and
+set of joints with stops holds the whole step for every mode: every possible row is present
+(each contact's normal row, each stop's row, each contact's tangent row, in that order) and the
+mode enters as numbers. A row is active (``active`` = 1) or not (0): an inactive row is
+replaced by an identity row with a zero right-hand side, so its multiplier is 0 and the active
+rows' system is the mode's (:func:`impulse_core.timedomain.landing._accelerations`) exactly.
+Its Delassus matrix and the mass matrix are solved by Gaussian elimination without pivoting
+(``landing_derivatives._solve``): the mass matrix is positive definite, the masked Delassus
+matrix block diagonal in the active and inactive rows, the active block that of the numpy path.
+
+The function also returns what the landing loop asks of the step's end point: the witnesses'
+ingredients (gaps, normal velocities, slip, contact forces, stop forces in the mode), the linear
+momentum at both ends (the momentum balance), the normals (the step's impulse vector) and the
+kinetic energy (the divergence check), so that a plain step costs one call; and the projection
+that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
+velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
+corrections) and non-finite results (singular rows) are left to the numpy path.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from impulse_core.compile.cache import default_root
+from impulse_core.compile.codegen import compile_function
+from impulse_core.model.heightfield import Heightfield
+from impulse_core.model.terrain import Terrain
+from impulse_core.timedomain.compliant import BufferedFunction
+from impulse_core.timedomain.landing import _Joints, _Mode, landing_function
+from impulse_core.timedomain.landing_derivatives import _solve
+
+STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "mu", "stiffness", "damping", "rest", "p", "gravity")
+STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
+                "stop_force", "normal", "kinetic")
+
+
+@dataclass(frozen=True)
+class _Args:
+    """The step's symbolic inputs other than (q, v, h)."""
+
+    active: ca.SX  # per row (normal rows, stop rows, tangent rows): 1 closed, 0 open
+    direction: ca.SX  # per contact: its sliding friction's direction (+-1), or 0
+    stop: ca.SX  # per stop row: the stop's side (-1 lower, +1 upper)
+    mu: ca.SX
+    stiffness: ca.SX
+    damping: ca.SX
+    rest: ca.SX
+    p: ca.SX
+    gravity: ca.SX
+
+
+def _point(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args) -> dict:
+    """The dynamics at (q, v) in contact coordinates: normal and tangent rows (the tangent is
+    the normal turned by -90 degrees, :func:`landing.tangent_basis`), the joint laws' torques."""
+    gap, normal, J, bias, M, force, kinetic, momentum, _, _ = fn(q, v, x.p, x.gravity)
+    nx, ny = normal[0, :].T, normal[1, :].T
+    Jx, Jy, bx, by = J[0::2, :], J[1::2, :], bias[0::2], bias[1::2]
+    return dict(
+        gap=gap, normal=normal, Jn=ca.diag(nx) @ Jx + ca.diag(ny) @ Jy, Jt=ca.diag(ny) @ Jx - ca.diag(nx) @ Jy,
+        bn=nx * bx + ny * by, bt=ny * bx - nx * by, M=M,
+        f=force - x.stiffness * (q - x.rest) - x.damping * v, kinetic=kinetic, momentum=momentum[:, 0],
+    )
+
+
+def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    """(a, fn, ft, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on the
+    active rows; F's normal row of a sliding contact is n - mu d t."""
+    nv, nc = pt["M"].shape[0], pt["Jn"].shape[0]
+    E = _stop_rows(x.stop, stop_dofs, nv)
+    Jn, Jt = pt["Jn"], pt["Jt"]
+    G = ca.diag(x.active) @ ca.vertcat(Jn, E, Jt)
+    F = ca.diag(x.active) @ ca.vertcat(Jn - x.mu * ca.diag(x.direction) @ Jt, E, Jt)
+    b = x.active * ca.vertcat(pt["bn"], ca.SX.zeros(len(stop_dofs)), pt["bt"])
+    X = _solve(pt["M"], ca.horzcat(pt["f"], F.T))
+    a0, minv_ft = X[:, 0], X[:, 1:]
+    lam = _solve(G @ minv_ft + ca.diag(1 - x.active), -(G @ a0 + b))
+    fn = lam[:nc]
+    ft = -x.mu * x.direction * fn + lam[nc + len(stop_dofs) :]
+    return a0 + minv_ft @ lam, fn, ft, lam[nc : nc + len(stop_dofs)]
+
+
+def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX]:
+    pt = _point(fn, q, v, x)
+    a, fn_, ft, _ = _masked_forces(pt, x, stop_dofs)
+    return a, ca.vertcat(fn_, ft)
+
+
+@functools.lru_cache(maxsize=16)
+def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]) -> ca.Function:
+    """One classical RK4 step of the landing in a mode given as numbers (module docstring), and
+    its end point's figures (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops."""
+    fn = landing_function(topology, terrain)
+    nv, nc, ns = fn.size1_in(0), fn.size1_out(0), len(stop_dofs)
+    q, v, h = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("h")
+    x = _Args(
+        ca.SX.sym("active", 2 * nc + ns), ca.SX.sym("direction", nc), ca.SX.sym("stop", ns), ca.SX.sym("mu"),
+        ca.SX.sym("stiffness", nv), ca.SX.sym("damping", nv), ca.SX.sym("rest", nv),
+        ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity"),
+    )
+    a1, f1 = _derivative(fn, q, v, x, stop_dofs)
+    v2 = v + 0.5 * h * a1
+    a2, f2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
+    v3 = v + 0.5 * h * a2
+    a3, f3 = _derivative(fn, q + 0.5 * h * v2, v3, x, stop_dofs)
+    v4 = v + h * a3
+    a4, f4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
+    q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
+    v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+    start, end = _point(fn, q, v, x), _point(fn, q1, v1, x)
+    _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
+    outs = [q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4), start["momentum"], end["momentum"], start["gap"],
+            start["Jn"] @ v, end["gap"], end["Jn"] @ v1, end["Jt"] @ v1, fn1, ft1, stop1, end["normal"], end["kinetic"]]
+    inputs = [q, v, h, x.active, x.direction, x.stop, x.mu, x.stiffness, x.damping, x.rest, x.p, x.gravity]
+    return ca.Function("landing_step", inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS))
+
+
+def _masked_correction(M: ca.SX, G: ca.SX, active: ca.SX, residual: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(M^-1 G^T lambda, lambda) with G M^-1 G^T lambda = residual on the active rows of G (the
+    others: lambda = 0): the smallest kinetic-metric change that moves the rows by ``residual``."""
+    G = ca.diag(active) @ G
+    X = _solve(M, G.T)
+    lam = _solve(G @ X + ca.diag(1 - active), active * residual)
+    return X @ lam, lam
+
+
+def _stop_rows(stop: ca.SX, stop_dofs: tuple[int, ...], nv: int) -> ca.SX:
+    """Each stop's velocity row: -side e_j (its margin's rate)."""
+    E = ca.SX.zeros(len(stop_dofs), nv)
+    for r, j in enumerate(stop_dofs):
+        E[r, j] = -stop[r]
+    return E
+
+
+@functools.lru_cache(maxsize=16)
+def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]) -> ca.Function:
+    """:meth:`landing._Landing.project` for a mode given as numbers: the position correction dq
+    (gaps of the ``place`` rows' contacts and their stops' margins to ``limit``, to zero), then
+    the velocity projection onto the mode's rows (``active``, ``stop``: as the step's), both
+    with the rows at (q, v) (q_new = q - dq); its impulses [normal, tangential] per contact."""
+    fn = landing_function(topology, terrain)
+    nv, nc, ns = fn.size1_in(0), fn.size1_out(0), len(stop_dofs)
+    q, v, p, gravity = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity")
+    place, place_stop, limit = ca.SX.sym("place", nc + ns), ca.SX.sym("place_stop", ns), ca.SX.sym("limit", ns)
+    active, stop = ca.SX.sym("active", 2 * nc + ns), ca.SX.sym("stop", ns)
+    x = _Args(active, ca.SX.zeros(nc), stop, ca.SX(0), ca.SX.zeros(nv), ca.SX.zeros(nv), ca.SX.zeros(nv), p, gravity)
+    pt = _point(fn, q, v, x)
+    margin = ca.vertcat(*[-place_stop[r] * (q[j] - limit[r]) for r, j in enumerate(stop_dofs)]) if ns else ca.SX(0, 1)
+    dq, _ = _masked_correction(pt["M"], ca.vertcat(pt["Jn"], _stop_rows(place_stop, stop_dofs, nv)), place,
+                               ca.vertcat(pt["gap"], margin))
+    G = ca.vertcat(pt["Jn"], _stop_rows(stop, stop_dofs, nv), pt["Jt"])
+    dv, lam = _masked_correction(pt["M"], G, active, -(G @ v))
+    return ca.Function("landing_projection", [q, v, place, place_stop, limit, active, stop, p, gravity],
+                       [dq, v + dv, ca.vertcat(lam[:nc], lam[nc + ns :])],
+                       ["q", "v", "place", "place_stop", "limit", "active", "stop", "p", "gravity"],
+                       ["dq", "v1", "impulse"])
+
+
+@functools.lru_cache(maxsize=16)
+def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]
+                           ) -> tuple[ca.Function, ca.Function]:
+    """:func:`landing_step_function` and :func:`landing_projection_function` as C, built once
+    into (or loaded from) the compile cache (:func:`impulse_core.compile.codegen.compile_function`);
+    without a C compiler, a warning and the virtual machine's functions."""
+    step = landing_step_function(topology, terrain, stop_dofs)
+    projection = landing_projection_function(topology, terrain, stop_dofs)
+    return tuple(compile_function(f, default_root(), fallback=True).function for f in (step, projection))
+
+
+@dataclass(frozen=True)
+class StepEnd:
+    """A compiled step's results (copies): the state after it, its contact impulses ([normal,
+    tangential] per contact), and its ends' figures in the step's mode (the plane)."""
+
+    q: np.ndarray
+    v: np.ndarray
+    impulse: np.ndarray
+    momentum0: np.ndarray  # linear momentum at the start
+    momentum1: np.ndarray  # and at the end
+    gap0: np.ndarray  # gaps and normal velocities at the start
+    vn0: np.ndarray
+    gap: np.ndarray  # at the end: gaps, normal and tangential velocities, the mode's forces
+    vn: np.ndarray
+    slip: np.ndarray  # n_c x 1
+    fn: np.ndarray
+    ft: np.ndarray  # n_c x 1
+    stop_force: np.ndarray  # per DOF (0 where no stop row)
+    normal: np.ndarray  # n_c x 2
+    kinetic: float
+
+
+class CompiledStep(BufferedFunction):
+    """:func:`landing_step_function` with the design, gravity, friction and joint laws fixed:
+    ``step(q, v, h, mode)`` -> :class:`StepEnd`, or None where the numpy path must answer (a
+    redundant mode, or a non-finite result); ``compiled``: as C through the compile cache
+    (:func:`impulse_core.compile.codegen.compile_function`; no compiler: the virtual machine)."""
+
+    def __init__(self, topology, terrain: Terrain, p: np.ndarray, gravity: float, mu: float, joints: _Joints,
+                 compiled: bool = False) -> None:
+        self.stop_dofs = tuple(int(j) for j in np.flatnonzero(np.isfinite(joints.lo) | np.isfinite(joints.hi)))
+        if compiled:
+            step, projection = compiled_step_function(topology, terrain, self.stop_dofs)
+        else:
+            step = landing_step_function(topology, terrain, self.stop_dofs)
+            projection = landing_projection_function(topology, terrain, self.stop_dofs)
+        super().__init__(step)
+        self.projection = BufferedFunction(projection)
+        self.projection.args[7][:], self.projection.args[8][:] = p, gravity
+        self.dofs = list(self.stop_dofs)
+        self.lo, self.hi = joints.lo[self.dofs], joints.hi[self.dofs]
+        self.lo_all, self.hi_all = joints.lo, joints.hi
+        self.stopless = np.isneginf(joints.lo) & np.isposinf(joints.hi)  # DOFs that no stop row covers
+        for name, value in (("mu", mu), ("stiffness", joints.stiffness), ("damping", joints.damping),
+                            ("rest", joints.rest), ("p", p), ("gravity", gravity)):
+            self.args[STEP_INPUTS.index(name)][:] = value
+        self.mu, self.nv = mu, len(joints.stiffness)
+
+    def step(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode) -> StepEnd | None:
+        if mode.redundant or np.any(mode.stop[self.stopless]):
+            return None
+        a = self.args
+        a[0][:], a[1][:], a[2][0] = q, v, h
+        sliding = mode.slip[:, 0] if self.mu > 0 else np.zeros(len(mode.closed))
+        a[3][:], a[5][:] = self.active(mode)
+        a[4][:] = sliding * mode.closed
+        self.evaluate()
+        o = [r.copy() for r in self.flat]
+        if not np.isfinite(o[1].sum() + o[10].sum() + o[11].sum()):  # singular rows: NaN or inf, which propagate
+            return None
+        stop_force = np.zeros(self.nv)
+        stop_force[list(self.stop_dofs)] = o[12]
+        return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9][:, None], o[10], o[11][:, None],
+                       stop_force, self.out[13].T.copy(), float(o[14][0]))
+
+
+    def active(self, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
+        """The mode's rows as numbers: per row (normal, stop, tangent) whether it is closed, and
+        each stop row's side."""
+        stops = mode.stop[self.dofs]
+        stick = mode.closed & ~mode.sliding & (self.mu > 0)
+        return np.concatenate([mode.closed, stops != 0, stick]), stops
+
+    def project(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """:meth:`landing._Landing.project` of (q, v) onto ``mode``'s rows, the placement's
+        being the mode's own (no open contact below the ground, no free joint past a stop before
+        or after the correction: the caller checks the first two); None where the numpy path
+        must answer (a redundant mode, a joint carried past its stop, a non-finite result)."""
+        if mode.redundant or np.any(mode.stop[self.stopless]):
+            return None
+        a = self.projection.args
+        a[0][:], a[1][:] = q, v
+        a[5][:], a[6][:] = self.active(mode)
+        a[2][:], a[3][:] = a[5][: len(a[2])], a[6]
+        a[4][:] = np.where(a[6] > 0, self.hi, self.lo)
+        self.projection.evaluate()
+        dq, v1, impulse = (r.copy() for r in self.projection.flat)
+        q1 = q - dq
+        free = mode.stop == 0
+        carried = np.any(free & ((q1 > self.hi_all) | (q1 < self.lo_all)))
+        if carried or not np.isfinite(dq.sum() + v1.sum()):
+            return None
+        return q1, v1, impulse
+
+
+__all__ = ["CompiledStep", "StepEnd", "compiled_step_function", "landing_projection_function", "landing_step_function"]

@@ -1,0 +1,180 @@
+"""The landing's compiled RK4 step (impulse_core.timedomain.landing_step) equals the numpy step
+(rows built and solved per stage) on random modes and legs, its end figures equal the numpy
+witnesses and momenta, C equals the virtual machine, and a landing runs alike on every code."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from impulse_core.model.terrain import Terrain
+from impulse_core.timedomain.landing import (
+    C_CODE,
+    NUMPY_CODE,
+    VM_CODE,
+    LandingSettings,
+    _Landing,
+    _Mode,
+    landing_difference,
+)
+from impulse_core.timedomain.landing_step import (
+    compiled_step_function,
+    landing_projection_function,
+    landing_step_function,
+)
+from tests.impulse_core.test_landing import _random_leg
+
+
+def _case3(friction: float = 0.5, terrain: Terrain | None = None):
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file("configs/landing_case3.yaml")
+    scene = replace(m.scene, friction=friction, terrain=terrain or m.scene.terrain)
+    return m.tree, m.joints, scene
+
+
+def _legs():
+    yield _case3()
+    yield _case3(0.0)
+    yield _case3(0.8, Terrain((-1.0, 1.0), (-0.15, 0.05)))  # sloped: the normals turn the rows
+    for seed in range(3):
+        tree, laws, scene = _random_leg(seed)
+        yield tree, laws, scene
+
+
+def _random_mode(rng: np.random.Generator, run: _Landing) -> _Mode:
+    closed = rng.random(run.nc) < 0.6
+    slip = np.where(closed & (rng.random(run.nc) < 0.5), rng.choice([-1.0, 1.0], run.nc), 0.0)
+    stop = np.zeros(run.nv, int)
+    dofs = list(run.fast.stop_dofs)
+    stop[dofs] = rng.choice([-1, 0, 1], len(dofs))
+    return _Mode(closed, slip, stop)
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.max(np.abs(np.asarray(a) - b), initial=0.0) / max(float(np.max(np.abs(b), initial=0.0)), 1e-300))
+
+
+@pytest.mark.parametrize("leg", range(6))
+def test_the_compiled_step_equals_the_numpy_step(leg):
+    """Random (q, v) near touchdown in random modes (closed, sliding either way, on either stop;
+    a redundant one, e.g. more rows than DOFs, is the numpy path's least-norm split):
+    the compiled step's state, contact impulses, momenta, kinetic energy, and its end's witnesses
+    and their rates, equal the numpy path's to 1e-12 (relative to each list's largest entry); the
+    compiled projection's velocities to 1e-12, its position correction and impulses to 1e-10 (the
+    numpy path's least squares against the compiled elimination)."""
+    tree, laws, scene = list(_legs())[leg]
+    fast = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE, integrator="rk4"))
+    ref = _Landing(tree, scene, laws, LandingSettings(step_code=NUMPY_CODE, integrator="rk4"))
+    rng = np.random.default_rng(leg)
+    projected = 0
+    for _ in range(12):
+        q = fast.q0 + 0.02 * rng.standard_normal(fast.nv)
+        v = rng.standard_normal(fast.nv)
+        mode, h = _random_mode(rng, fast), float(rng.uniform(1e-4, 2e-3))
+        mode.redundant = ref.redundant(ref.point(q, v), mode)  # as resolve() marks it
+        q1, v1, impulse = fast.step(q, v, mode, h)
+        end = fast.ended(q1, v1, mode)
+        assert (end is None) == mode.redundant  # the compiled path answered, but for least-norm forces
+        rq, rv, rimpulse = ref.rk4_step(q, v, mode, h)
+        assert _rel(q1, rq) <= 1e-12 and _rel(v1, rv) <= 1e-12
+        assert _rel(impulse, rimpulse) <= 1e-12 or np.max(np.abs(rimpulse)) == 0.0 == np.max(np.abs(impulse))
+        w, r = fast.witness_and_rate(q1, v1, mode)
+        rw, rr = ref.witness_and_rate(q1, v1, mode)
+        finite = np.isfinite(rw)
+        assert np.array_equal(finite, np.isfinite(w)) and np.array_equal(np.isnan(r), np.isnan(rr))
+        assert _rel(w[finite], rw[finite]) <= 1e-12 and _rel(r[~np.isnan(r)], rr[~np.isnan(rr)]) <= 1e-12
+        if end is None:
+            continue
+        p0, p1 = ref.point(q, v), ref.point(q1, v1)
+        assert _rel(end.momentum0, p0.momentum[:, 0]) <= 1e-12 and _rel(end.momentum1, p1.momentum[:, 0]) <= 1e-12
+        assert _rel(end.gap0, p0.gap) <= 1e-12 and _rel(end.vn0, p0.vn(v)) <= 1e-12
+        assert _rel(end.normal, p1.normal) <= 1e-12 and end.kinetic == pytest.approx(p1.kinetic, rel=1e-12)
+        # the projection after the step: compiled where the placement is the mode's, else numpy's
+        compiled = fast.fast.project(q1, v1, mode) is not None and not np.any(~mode.closed & (end.gap < 0)) \
+            and not np.any((mode.stop == 0) & (fast.beyond(q1) != 0))
+        projected += compiled
+        (pq, pv, pimpulse), (rq, rv, rimpulse) = fast.project(q1, v1, mode), ref.project(q1, v1, mode)
+        assert _rel(pq - q1, rq - q1) <= 1e-10 and _rel(pv, rv) <= 1e-12
+        assert _rel(pimpulse, rimpulse) <= 1e-10 or np.max(np.abs(rimpulse)) == 0.0 == np.max(np.abs(pimpulse))
+    assert projected >= 2
+
+
+def test_a_redundant_mode_is_left_to_numpy():
+    """Least-norm forces (identical toes on one point) are not the compiled solve's: numpy answers."""
+    tree, laws, scene = _case3()
+    run = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE))
+    mode = _Mode(np.ones(run.nc, bool), np.zeros(run.nc), np.zeros(run.nv, int), redundant=True)
+    q1, v1, _ = run.step(run.q0, np.zeros(run.nv), mode, 1e-3)
+    assert run.ended(q1, v1, mode) is None
+
+
+def test_c_equals_the_virtual_machine(tmp_path, monkeypatch):
+    """The step and projection compiled to C through the compile cache give the virtual
+    machine's numbers."""
+    monkeypatch.setenv("FOOTOPT_CACHE_DIR", str(tmp_path))
+    tree, laws, scene = _random_leg(0)
+    run = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE, integrator="rk4"))
+    compiled_step_function.cache_clear()
+    key = (run.topology, scene.terrain, run.fast.stop_dofs)
+    compiled = compiled_step_function(*key)
+    assert len(list(tmp_path.iterdir())) >= 2  # both built into this cache
+    rng = np.random.default_rng(3)
+    for c, vm in zip(compiled, (landing_step_function(*key), landing_projection_function(*key))):
+        assert c is not vm
+        args = [rng.uniform(-1, 1, vm.size1_in(i)) for i in range(vm.n_in())]
+        for a, b in zip(c.call(args), vm.call(args)):
+            a, b = a.full(), b.full()
+            assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, float(np.max(np.abs(b))))
+    compiled_step_function.cache_clear()  # the next test's C comes from the default cache
+
+
+@pytest.mark.parametrize("code", [VM_CODE, C_CODE])
+def test_a_landing_runs_alike_on_every_step_code(code):
+    """Case 3 for 0.1 s at a coarse step (impacts, toe bounces, stops, sliding): the compiled
+    steps take the numpy run's decisions (steps, events) and land 1e-10 from it."""
+    tree, laws, scene = _case3()
+    scene = replace(scene, duration=0.1)
+    ref = _Landing(tree, scene, laws, LandingSettings(step_code=NUMPY_CODE)).run(2e-3)
+    r = _Landing(tree, scene, laws, LandingSettings(step_code=code)).run(2e-3)
+    assert (r.n_steps, len(r.events)) == (ref.n_steps, len(ref.events))
+    assert landing_difference(r, ref) <= 1e-10
+    assert _rel(r.q_final, ref.q_final) <= 1e-10 and _rel(r.v_final, ref.v_final) <= 1e-8
+
+
+def test_an_unknown_step_code_is_an_error():
+    from impulse_core.errors import ModelError
+
+    tree, laws, scene = _case3()
+    with pytest.raises(ModelError, match="step_code"):
+        _Landing(tree, scene, laws, LandingSettings(step_code="fortran"))
+
+
+def test_the_first_step_is_rk4s_longest_stable_one():
+    """landing()'s default first step: RK4's stability limit for the joint laws at touchdown
+    (case 3: 2 / 750 1/s = 2.7 ms, between 0.3 s / 200 and / 100), duration / 100 without joint
+    laws, duration / 200 for the implicit integrator; a given step is kept."""
+    tree, laws, scene = _case3()
+    T = scene.duration
+    run = _Landing(tree, scene, laws, LandingSettings())
+    assert run.method == "rk4" and T / 200 < run.first_step() < T / 100
+    assert run.first_step() * run.rate == pytest.approx(2.0, rel=1e-12)
+    assert _Landing(tree, scene, (), LandingSettings()).first_step() == pytest.approx(T / 100, rel=1e-12)
+    implicit = _Landing(tree, scene, laws, LandingSettings(integrator="implicit"))
+    assert implicit.first_step() == pytest.approx(T / 200, rel=1e-12)
+    assert _Landing(tree, scene, laws, LandingSettings(step=1e-3)).first_step() == 1e-3
+
+
+@pytest.mark.parametrize("seed, sloped", [(1, False), (9, True)])
+def test_random_legs_land_alike_on_the_compiled_step(seed, sloped):
+    """Random legs (30 and 35 events: toe bounces, stops, sliding), one on a slope: the virtual
+    machine's compiled steps take the numpy run's decisions and land 1e-10 from it."""
+    tree, laws, scene = _random_leg(seed)
+    if sloped:
+        scene = replace(scene, terrain=Terrain((-1.0, 1.0), (-0.1, 0.05)))
+    ref = _Landing(tree, scene, laws, LandingSettings(step_code=NUMPY_CODE)).run(5e-4)
+    r = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE)).run(5e-4)
+    assert (r.n_steps, len(r.events)) == (ref.n_steps, len(ref.events))
+    assert landing_difference(r, ref) <= 1e-10 and _rel(r.q_final, ref.q_final) <= 1e-10
