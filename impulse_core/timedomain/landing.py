@@ -809,12 +809,12 @@ class _Landing:
         None where the numpy path integrates (``numpy``, space, the implicit integrator)."""
         if code not in (C_CODE, VM_CODE, NUMPY_CODE):
             raise ModelError(f"step_code: {code!r} is not one of c, vm, numpy")
-        if code == NUMPY_CODE or self.space is not PLANAR or self.method != RK4:
+        if code == NUMPY_CODE or not self.planar or self.method != RK4:
             return None
         from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
 
-        return CompiledStep(self.topology, self.scene.terrain, design_vector(self.tree), self.scene.gravity, self.mu,
-                            self.joints, compiled=code == C_CODE)
+        return CompiledStep(self.topology, self.scene.terrain, design_vector(self.tree, self.space.body_values),
+                            self.scene.gravity, self.mu, self.joints, compiled=code == C_CODE, space=self.space)
 
     def ended(self, q: np.ndarray, v: np.ndarray, mode: _Mode | None = None):
         """The last compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` if it

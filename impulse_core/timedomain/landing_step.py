@@ -30,6 +30,7 @@ import numpy as np
 
 from impulse_core.compile.cache import default_root
 from impulse_core.compile.codegen import compile_function
+from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.timedomain.compliant import BufferedFunction
@@ -93,10 +94,12 @@ def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[
 
 
 @functools.lru_cache(maxsize=16)
-def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]) -> ca.Function:
+def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
+                          space: Space = PLANAR) -> ca.Function:
     """One classical RK4 step of the landing in a mode given as numbers (module docstring), and
-    its end point's figures (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops."""
-    fn = landing_function(topology, terrain)
+    its end point's figures (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops; ``space``:
+    the plane, or PLANAR_OFFSET (centres of mass off the rods: the design vector's layout)."""
+    fn = landing_function(topology, terrain, space)
     nv, nc, ns = fn.size1_in(0), fn.size1_out(0), len(stop_dofs)
     q, v, h = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("h")
     x = _Args(
@@ -139,12 +142,13 @@ def _stop_rows(stop: ca.SX, stop_dofs: tuple[int, ...], nv: int) -> ca.SX:
 
 
 @functools.lru_cache(maxsize=16)
-def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]) -> ca.Function:
+def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
+                                space: Space = PLANAR) -> ca.Function:
     """:meth:`landing._Landing.project` for a mode given as numbers: the position correction dq
     (gaps of the ``place`` rows' contacts and their stops' margins to ``limit``, to zero), then
     the velocity projection onto the mode's rows (``active``, ``stop``: as the step's), both
     with the rows at (q, v) (q_new = q - dq); its impulses [normal, tangential] per contact."""
-    fn = landing_function(topology, terrain)
+    fn = landing_function(topology, terrain, space)
     nv, nc, ns = fn.size1_in(0), fn.size1_out(0), len(stop_dofs)
     q, v, p, gravity = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity")
     place, place_stop, limit = ca.SX.sym("place", nc + ns), ca.SX.sym("place_stop", ns), ca.SX.sym("limit", ns)
@@ -163,13 +167,13 @@ def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_d
 
 
 @functools.lru_cache(maxsize=16)
-def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...]
-                           ) -> tuple[ca.Function, ca.Function]:
+def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
+                           space: Space = PLANAR) -> tuple[ca.Function, ca.Function]:
     """:func:`landing_step_function` and :func:`landing_projection_function` as C, built once
     into (or loaded from) the compile cache (:func:`impulse_core.compile.codegen.compile_function`);
     without a C compiler, a warning and the virtual machine's functions."""
-    step = landing_step_function(topology, terrain, stop_dofs)
-    projection = landing_projection_function(topology, terrain, stop_dofs)
+    step = landing_step_function(topology, terrain, stop_dofs, space)
+    projection = landing_projection_function(topology, terrain, stop_dofs, space)
     return tuple(compile_function(f, default_root(), fallback=True).function for f in (step, projection))
 
 
@@ -202,13 +206,13 @@ class CompiledStep(BufferedFunction):
     (:func:`impulse_core.compile.codegen.compile_function`; no compiler: the virtual machine)."""
 
     def __init__(self, topology, terrain: Terrain, p: np.ndarray, gravity: float, mu: float, joints: _Joints,
-                 compiled: bool = False) -> None:
+                 compiled: bool = False, space: Space = PLANAR) -> None:
         self.stop_dofs = tuple(int(j) for j in np.flatnonzero(np.isfinite(joints.lo) | np.isfinite(joints.hi)))
         if compiled:
-            step, projection = compiled_step_function(topology, terrain, self.stop_dofs)
+            step, projection = compiled_step_function(topology, terrain, self.stop_dofs, space)
         else:
-            step = landing_step_function(topology, terrain, self.stop_dofs)
-            projection = landing_projection_function(topology, terrain, self.stop_dofs)
+            step = landing_step_function(topology, terrain, self.stop_dofs, space)
+            projection = landing_projection_function(topology, terrain, self.stop_dofs, space)
         super().__init__(step)
         self.projection = BufferedFunction(projection)
         self.projection.args[7][:], self.projection.args[8][:] = p, gravity

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from impulse_core.model.terrain import Terrain
+from impulse_core.model.tree import Tree
 from impulse_core.timedomain.landing import (
     C_CODE,
     NUMPY_CODE,
@@ -42,6 +43,8 @@ def _legs():
     for seed in range(3):
         tree, laws, scene = _random_leg(seed)
         yield tree, laws, scene
+    tree, laws, scene = _random_leg(1)  # centres of mass off the rods (PLANAR_OFFSET's design vector)
+    yield Tree(tuple(replace(b, com_offset=(0.01 * (k % 3 - 1), 0.0)) for k, b in enumerate(tree.bodies))), laws, scene
 
 
 def _random_mode(rng: np.random.Generator, run: _Landing) -> _Mode:
@@ -57,7 +60,7 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(np.asarray(a) - b), initial=0.0) / max(float(np.max(np.abs(b), initial=0.0)), 1e-300))
 
 
-@pytest.mark.parametrize("leg", range(6))
+@pytest.mark.parametrize("leg", range(7))
 def test_the_compiled_step_equals_the_numpy_step(leg):
     """Random (q, v) near touchdown in random modes (closed, sliding either way, on either stop;
     a redundant one, e.g. more rows than DOFs, is the numpy path's least-norm split):
@@ -167,11 +170,14 @@ def test_the_first_step_is_rk4s_longest_stable_one():
     assert _Landing(tree, scene, laws, LandingSettings(step=1e-3)).first_step() == 1e-3
 
 
-@pytest.mark.parametrize("seed, sloped", [(1, False), (9, True)])
-def test_random_legs_land_alike_on_the_compiled_step(seed, sloped):
-    """Random legs (30 and 35 events: toe bounces, stops, sliding), one on a slope: the virtual
-    machine's compiled steps take the numpy run's decisions and land 1e-10 from it."""
+@pytest.mark.parametrize("seed, sloped, offsets", [(1, False, False), (9, True, False), (1, False, True)])
+def test_random_legs_land_alike_on_the_compiled_step(seed, sloped, offsets):
+    """Random legs (30 and 35 events: toe bounces, stops, sliding), one on a slope, one with its
+    centres of mass off the rods: the virtual machine's compiled steps take the numpy run's
+    decisions and land 1e-10 from it."""
     tree, laws, scene = _random_leg(seed)
+    if offsets:
+        tree = Tree(tuple(replace(b, com_offset=(0.02, 0.0)) for b in tree.bodies))
     if sloped:
         scene = replace(scene, terrain=Terrain((-1.0, 1.0), (-0.1, 0.05)))
     ref = _Landing(tree, scene, laws, LandingSettings(step_code=NUMPY_CODE)).run(5e-4)
