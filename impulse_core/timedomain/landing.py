@@ -1176,8 +1176,11 @@ class _Landing:
         return np.array([0.0 if k is None else per_dof[k] for k in layout.body_dof[1:]])
 
     def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
-        """Which resting rows stay closed, stick or slide: the contact LCP at the acceleration
-        level (e = 0; a contact already sliding keeps its direction)."""
+        """Which resting rows stay closed, stick or slide: ``mode`` itself where it holds with a
+        margin (:meth:`persists`), else the contact LCP at the acceleration level (e = 0; a
+        contact already sliding keeps its direction)."""
+        if self.persists(q, v, mode):
+            return mode
         pt = self.point(q, v)
         vn = pt.vn(v)
         near = mode.closed | ((pt.gap <= self.settings.gap_tolerance) & (np.abs(vn) <= self.speed_tol))
@@ -1215,6 +1218,29 @@ class _Landing:
         new = self.consistent_slip(pt, v, self.unify(pt, v, self.slide_on_the_edge(q, v, new)), acc_tol)
         new.redundant = self.redundant(pt, new)
         return new
+
+    def persists(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> bool:
+        """Whether ``mode`` (after an impact: the rows it left resting, the contacts' slip as
+        before) holds at (q, v) with a margin: its rows not redundant, its closed rows at rest
+        (slower than the plastic speed, sticking contacts in every direction), every force and slip witness at least one
+        tolerance inside (:meth:`witness_and_rate`), no gap or stop margin negative. Mode
+        persistence: where the contact problem has several answers (toes that can stick with a
+        joint held on its stop, or slide with the stop opening), the run keeps the one it is in;
+        Lemke's method may pick the other at each event, and the run would switch between them
+        every fraction of a microsecond (a study's design did, 2e5 times)."""
+        pt = self.point(q, v)
+        closed_stop = mode.stop != 0
+        sticking = mode.closed & ~mode.sliding
+        at_rest = (np.all(np.abs(pt.vn(v)[mode.closed]) < PLASTIC_SPEED)  # as an impact leaves them: the
+                   and np.all(np.abs(pt.vt(v)[sticking]) < PLASTIC_SPEED)  # projection takes the rest
+                   and np.all(np.abs(v[closed_stop]) < PLASTIC_SPEED))
+        if not at_rest or not (np.any(mode.closed) or np.any(closed_stop)) or self.redundant(pt, mode):
+            return False
+        w, _ = self.witness_and_rate(q, v, mode)
+        nc, nv = self.nc, self.nv
+        geometric = np.concatenate([w[:nc], w[4 * nc : 4 * nc + 2 * nv]])
+        forces = np.concatenate([w[nc : 4 * nc], w[4 * nc + 2 * nv :]])
+        return bool(np.all(geometric >= 1.0) and np.all(forces >= 2.0))
 
     def unify(self, pt: _Point, v: np.ndarray, mode: _Mode) -> _Mode:
         """Resting contacts at one point moving alike (identical toes: their tips coincide to

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from dataclasses import replace
 
 import numpy as np
@@ -479,3 +480,23 @@ def test_a_landing_whose_steps_split_without_end_is_abandoned(monkeypatch):
     monkeypatch.setattr(landing_module, "STEP_BUDGET", 1.5)
     with pytest.raises(NumericalError, match="steps by t = .*momentum balance split its steps"):
         _Landing(tree, scene, laws, LandingSettings()).run(4.6875e-5)
+
+
+STICK_OR_SLIDE = Path(__file__).resolve().parent / "data" / "stick_or_slide.yaml"
+
+
+def test_a_mode_that_holds_persists_where_the_contact_problem_has_two_answers(monkeypatch):
+    """A study design (data/stick_or_slide.yaml): after its heel joint reaches its stop at 33 ms
+    the toes can stick with the stop holding, or slide with it opening. The run keeps the mode
+    it is in (it holds with every force inside its cone and the stop pushing): it lands with few
+    impacts, obeying the laws; re-solving the contact problem at each event instead picks the
+    other answer every time, and the run chatters between the two (then abandoned)."""
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(STICK_OR_SLIDE)
+    settings = LandingSettings(max_events=300)
+    r = _assert_the_laws(model.tree, model.joints, model.scene, 7.5e-4, settings, momentum=1e-5)
+    assert 5 < len(r.events) < 60 and any(e.kind == "stop" for e in r.events)
+    monkeypatch.setattr(_Landing, "persists", lambda self, q, v, mode: False)
+    with pytest.raises(NumericalError, match="more than 300 impacts"):
+        _Landing(model.tree, model.scene, model.joints, settings).run(7.5e-4)
