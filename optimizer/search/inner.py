@@ -139,20 +139,23 @@ def solve(
     x0: np.ndarray,
     warm: Solution | None = None,
 ) -> Solution:
-    """One IPOPT solve from ``x0`` (warm-started with ``warm``'s multipliers when given)."""
+    """One IPOPT solve from ``x0`` (warm-started with ``warm``'s multipliers, on the compiled
+    NLP's warm solver, when given)."""
     c = nlp.compiled
     ubg = c.ubg.copy()
     ubg[0] = eps
     args = dict(x0=x0, p=[*weights, nlp.shape.n_toes], lbx=c.lbx, ubx=c.ubx, lbg=c.lbg, ubg=ubg)
+    solver = c.solver
     if warm is not None:
         args.update(lam_x0=warm.lam_x, lam_g0=warm.lam_g)
+        solver = c.warm_solver or solver
     try:
-        sol = c.solver(**args)
+        sol = solver(**args)
     except RuntimeError:  # CasADi reports a KeyboardInterrupt raised inside IPOPT as an error
         _check_interrupt()
         raise
     _check_interrupt()
-    success = bool(c.solver.stats()["success"])
+    success = bool(solver.stats()["success"])
     return Solution(
         np.array(sol["x"]).ravel(),
         np.array(sol["lam_x"]).ravel(),
