@@ -224,6 +224,10 @@ class NlpCache:
     def _key(self, kind: FootKind) -> str:
         return nlp_key(self._config, kind, self._compiler)
 
+    def building(self, kind: FootKind) -> bool:
+        """Whether the kind's library is being compiled (:meth:`library` would wait for it)."""
+        return self._builds.get(kind) is not None
+
     def compiles(self, kind: FootKind) -> bool:
         """Whether the kind, when not cached, is compiled (else it runs on the virtual machine):
         always with landings (an MX NLP), else when ``solves`` plans :data:`COMPILE_SOLVES` or more."""

@@ -414,7 +414,10 @@ def _sweeps(
     library is built (each loads it from the cache), while the next kinds compile; a kind on the
     virtual machine at once (each worker builds its NLP). The results are the ones a serial sweep
     gives (every shape's sweep depends on the study's seed and the shape only)."""
-    with forked_pool(min(cores() if workers is None else workers, len(shapes))) as pool:
+    # The kinds on the virtual machine are built here, once: the workers inherit them.
+    kinds = dict.fromkeys(foot_kind(config, s) for s in shapes)
+    on_vm = {k: cache[k] for k in kinds if not cache.building(k) and cache.library(k) is None}
+    with forked_pool(min(cores() if workers is None else workers, len(shapes)), _inherit, (on_vm,)) as pool:
         if pool is None:
             yield (sweep_shape(config, build_nlp(config, s, cache)) for s in shapes)
         else:
@@ -442,6 +445,11 @@ def _pooled(
 
 #: A worker's NLPs, by library folder (or by kind, on the virtual machine).
 _WORKER_NLPS: dict = {}
+
+
+def _inherit(on_vm: dict[FootKind, CompiledNlp]) -> None:
+    """A worker's start: the kinds on the virtual machine that the parent built."""
+    _WORKER_NLPS.update(on_vm)
 
 
 def _sweep_in_worker(config: StudyConfig, shape: FootShape, folder) -> Sweep:

@@ -272,3 +272,18 @@ def test_a_warm_started_front_point_is_the_cold_solves_optimum_in_fewer_iteratio
         optima.append(s.f)
     assert optima[1] == pytest.approx(optima[0], rel=1e-7)
     assert iterations[1] < iterations[0]
+
+
+def test_workers_inherit_the_kinds_on_the_virtual_machine(tiny_study: Path, monkeypatch):
+    """The parent builds each kind on the virtual machine once; forked workers inherit it and
+    build none (a worker that did would fail here)."""
+    import optimizer.search.inner as inner
+
+    def no_build(*args, **kwargs):
+        raise AssertionError("a worker built an NLP")
+
+    monkeypatch.setattr(inner, "vm_nlp", no_build)
+    config = load_study(tiny_study)
+    study = open_study(config, optuna.storages.InMemoryStorage())
+    assert inner.run_inner(study, config, workers=2) == len(config.space.shapes())
+    assert study.trials
