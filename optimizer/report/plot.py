@@ -42,15 +42,29 @@ def _plot_path(path: str | Path) -> Path:
     return path
 
 
-def preload_matplotlib() -> None:
-    """Import what the drawings need (before forking workers that draw, so each need not)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: F401
-    from matplotlib.figure import Figure  # noqa: F401
-
-
 #: zlib level of the PNGs written: 1 encodes about 3 x faster than matplotlib's 6, for files
 #: about 10 % larger.
 PNG_COMPRESSION = 1
+
+
+def preload_matplotlib() -> None:
+    """Import what the drawings need and draw a tiny figure of their kinds of artists (before
+    forking workers that draw, so each inherits the fonts, text caches and PNG writer instead of
+    loading them on its first drawing: about 0.09 s CPU each)."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(1, 1), dpi=20)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.plot([0, 1], [0, 1])
+    ax.annotate("0", (0.5, 0.5), fontsize=8)
+    ax.fill_between([0, 1], [0, 0], [1, 1], facecolor="none", hatch="///")
+    ax.legend(handles=ax.lines, labels=["0"], fontsize=8)
+    fig.suptitle("0", fontsize=10)
+    fig.savefig(io.BytesIO(), format="png", pil_kwargs={"compress_level": PNG_COMPRESSION})
 
 
 def _save(fig, path: Path, layout: bool = True) -> Path:
