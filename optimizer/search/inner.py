@@ -2,10 +2,11 @@
 values, and an epsilon-constraint sweep for a front.
 
 The NLP of a kind of foot (:mod:`optimizer.search.compiled`) is compiled to C once and cached on
-disk; identical toes are one merged chain and the toe count is a parameter, so one library
-serves every toe count. Its parameters are the objective weights and the toe count, and its first
-constraint row's upper bound is the epsilon of a solve: every anchor and every front point is a
-re-solve, warm-started from the last.
+disk when the study's solves repay the build (else it runs on CasADi's virtual machine);
+identical toes are one merged chain and the toe count is a parameter, so one NLP serves every
+toe count. Its parameters are the objective weights and the toe count, and its first constraint
+row's upper bound is the epsilon of a solve: every front point is a re-solve, warm-started from
+the last (:data:`optimizer.search.compiled.WARM_OPTIONS`).
 
 Variables (per distinct rod; identical toes share theirs): joint angle, mass, length; and the
 ankle height h above the ground.
