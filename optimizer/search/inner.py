@@ -413,9 +413,9 @@ def _sweeps(
     """The sweeps of ``shapes``, in their order. With more than one worker (and shape), each
     kind's shapes are handed to forked worker processes (:mod:`optimizer.workers`) as soon as its
     library is built (each loads it from the cache), while the next kinds compile; a kind on the
-    virtual machine at once (each worker builds its NLP). The results are the ones a serial sweep
-    gives (every shape's sweep depends on the study's seed and the shape only)."""
-    # The kinds on the virtual machine are built here, once: the workers inherit them.
+    virtual machine at once (its NLP is built here, once, and the workers inherit it by the
+    fork). The results are the ones a serial sweep gives (every shape's sweep depends on the
+    study's seed and the shape only)."""
     kinds = dict.fromkeys(foot_kind(config, s) for s in shapes)
     on_vm = {k: cache[k] for k in kinds if not cache.building(k) and cache.library(k) is None}
     with forked_pool(min(cores() if workers is None else workers, len(shapes)), _inherit, (on_vm,)) as pool:
