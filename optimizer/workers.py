@@ -8,7 +8,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
@@ -25,22 +25,30 @@ def cores() -> int:
 
 
 @contextmanager
-def forked_pool(workers: int) -> Iterator[ProcessPoolExecutor | None]:
+def forked_pool(
+    workers: int, setup: Callable[..., None] | None = None, setup_args: tuple = ()
+) -> Iterator[ProcessPoolExecutor | None]:
     """A pool of ``workers`` forked processes (they inherit what this process has imported and
-    set up), or None when ``workers`` <= 1 or the platform cannot fork. On leaving, queued jobs
-    are cancelled and running ones awaited."""
+    set up), or None when ``workers`` <= 1 or the platform cannot fork. Each worker first calls
+    ``setup(*setup_args)``: the arguments reach it by the fork, not pickled (objects that cannot
+    be pickled, such as CasADi functions, pass). On leaving, queued jobs are cancelled and running
+    ones awaited."""
     if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
         yield None
         return
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"), initializer=_leave_sigint)
+    context = multiprocessing.get_context("fork")
+    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start, initargs=(setup, setup_args))
     try:
         yield pool
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _leave_sigint() -> None:
+def _start(setup: Callable[..., None] | None, args: tuple) -> None:
+    """A worker's start: leave Ctrl-C to the parent, then ``setup(*args)``."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if setup is not None:
+        setup(*args)
 
 
 __all__ = ["WORKERS_ENV", "cores", "forked_pool"]

@@ -59,7 +59,7 @@ from optimizer.design_space import (
 from optimizer.errors import ConfigError
 from optimizer.results.export import ExportFormat, export_text
 from optimizer.report.html import REPORT_FILE, ReportPoint, write_report
-from optimizer.report.plot import plot_top_views, plot_touchdown, plot_views, preload_matplotlib
+from optimizer.report.plot import PNG_COMPRESSION, plot_top_views, plot_touchdown, plot_views, preload_matplotlib
 from optimizer.workers import cores, forked_pool
 from optimizer.results.pareto import non_dominated
 from optimizer.results.scenarios import SCENARIOS_FILE, SCENARIOS_PLOT, write_scenarios
@@ -568,7 +568,7 @@ def plot_front(path: Path, config: StudyConfig, trials: list[RecordedTrial], poi
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, pil_kwargs={"compress_level": PNG_COMPRESSION})
     return path
 
 

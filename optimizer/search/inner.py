@@ -2,10 +2,11 @@
 values, and an epsilon-constraint sweep for a front.
 
 The NLP of a kind of foot (:mod:`optimizer.search.compiled`) is compiled to C once and cached on
-disk; identical toes are one merged chain and the toe count is a parameter, so one library
-serves every toe count. Its parameters are the objective weights and the toe count, and its first
-constraint row's upper bound is the epsilon of a solve: every anchor and every front point is a
-re-solve, warm-started from the last.
+disk when the study's solves repay the build (else it runs on CasADi's virtual machine);
+identical toes are one merged chain and the toe count is a parameter, so one NLP serves every
+toe count. Its parameters are the objective weights and the toe count, and its first constraint
+row's upper bound is the epsilon of a solve: every front point is a re-solve, warm-started from
+the last (:data:`optimizer.search.compiled.WARM_OPTIONS`).
 
 Variables (per distinct rod; identical toes share theirs): joint angle, mass, length; and the
 ankle height h above the ground.
@@ -55,7 +56,7 @@ from optimizer.design_space import (
     assign_lengths,
     constraint_values,
 )
-from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, NlpCache, foot_kind, load_nlp
+from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, FootKind, NlpCache, foot_kind, load_nlp, vm_nlp
 from optimizer.errors import ConfigError, interrupted
 from optimizer.workers import cores, forked_pool
 from optimizer.search.outer import evaluate_design_over_landings, objective_values, record_attrs
@@ -139,20 +140,23 @@ def solve(
     x0: np.ndarray,
     warm: Solution | None = None,
 ) -> Solution:
-    """One IPOPT solve from ``x0`` (warm-started with ``warm``'s multipliers when given)."""
+    """One IPOPT solve from ``x0`` (warm-started with ``warm``'s multipliers, on the compiled
+    NLP's warm solver, when given)."""
     c = nlp.compiled
     ubg = c.ubg.copy()
     ubg[0] = eps
     args = dict(x0=x0, p=[*weights, nlp.shape.n_toes], lbx=c.lbx, ubx=c.ubx, lbg=c.lbg, ubg=ubg)
+    solver = c.solver
     if warm is not None:
         args.update(lam_x0=warm.lam_x, lam_g0=warm.lam_g)
+        solver = c.warm_solver or solver
     try:
-        sol = c.solver(**args)
+        sol = solver(**args)
     except RuntimeError:  # CasADi reports a KeyboardInterrupt raised inside IPOPT as an error
         _check_interrupt()
         raise
     _check_interrupt()
-    success = bool(c.solver.stats()["success"])
+    success = bool(solver.stats()["success"])
     return Solution(
         np.array(sol["x"]).ravel(),
         np.array(sol["lam_x"]).ravel(),
@@ -232,6 +236,14 @@ def anchors(config: StudyConfig, nlp: ShapeNlp, rng: np.random.Generator) -> lis
             if best is not None:
                 solutions[w].append(solve(nlp, w, math.inf, best.x))
     return [b for w in weights if (b := _best(config, nlp, solutions[w])) is not None]
+
+
+def planned_solves(config: StudyConfig) -> int:
+    """The most solves one shape's sweep makes (:func:`anchors`, then :func:`epsilon_sweep`, each
+    of whose front points may be solved twice)."""
+    if len(config.objectives) < 2:
+        return config.search.starts
+    return len(ANCHOR_WEIGHTS) * (config.search.starts + 1) + 2 * config.search.front_points
 
 
 def epsilon_sweep(config: StudyConfig, nlp: ShapeNlp, rng: np.random.Generator) -> Iterator[DesignEvaluation]:
@@ -361,7 +373,8 @@ def run_inner(
     # One kind after another, smallest first: its search runs while the larger ones compile.
     kinds = sorted(dict.fromkeys(foot_kind(config, s) for s in todo), key=lambda k: (sum(k.sizes), k.sizes))
     # A whole-landing study compiles nothing: its NLP lands each iterate (optimizer.search.landing_inner).
-    swept, cache = 0, (None if config.whole_landing else NlpCache(config, kinds))
+    solves = {k: planned_solves(config) * sum(foot_kind(config, s) == k for s in todo) for k in kinds}
+    swept, cache = 0, (None if config.whole_landing else NlpCache(config, kinds, solves=solves))
     order = {k: i for i, k in enumerate(kinds)}
     todo.sort(key=lambda s: order[foot_kind(config, s)])
     sweeps = nullcontext(None) if config.whole_landing else _sweeps(config, todo, cache, workers)
@@ -399,10 +412,13 @@ def _sweeps(
 ) -> Iterator[Iterator[Sweep]]:
     """The sweeps of ``shapes``, in their order. With more than one worker (and shape), each
     kind's shapes are handed to forked worker processes (:mod:`optimizer.workers`) as soon as its
-    library is built (each loads it from the cache), while the next kinds compile; the results
-    are the ones a serial sweep gives (every shape's sweep depends on the study's seed and the
-    shape only). A kind on the virtual machine is swept here."""
-    with forked_pool(min(cores() if workers is None else workers, len(shapes))) as pool:
+    library is built (each loads it from the cache), while the next kinds compile; a kind on the
+    virtual machine at once (its NLP is built here, once, and the workers inherit it by the
+    fork). The results are the ones a serial sweep gives (every shape's sweep depends on the
+    study's seed and the shape only)."""
+    kinds = dict.fromkeys(foot_kind(config, s) for s in shapes)
+    on_vm = {k: cache[k] for k in kinds if not cache.building(k) and cache.library(k) is None}
+    with forked_pool(min(cores() if workers is None else workers, len(shapes)), _inherit, (on_vm,)) as pool:
         if pool is None:
             yield (sweep_shape(config, build_nlp(config, s, cache)) for s in shapes)
         else:
@@ -412,7 +428,7 @@ def _sweeps(
 def _pooled(
     config: StudyConfig, shapes: list[FootShape], cache: NlpCache, pool: ProcessPoolExecutor
 ) -> Iterator[Sweep]:
-    pending: deque[tuple[FootShape, Future | None]] = deque()
+    pending: deque[Future] = deque()
     submitted: set = set()
     for shape in shapes:
         kind = foot_kind(config, shape)
@@ -421,26 +437,30 @@ def _pooled(
             folder = cache.library(kind)
             for s in shapes:
                 if foot_kind(config, s) == kind:
-                    job = None if folder is None else pool.submit(_sweep_in_worker, config, s, folder)
-                    pending.append((s, job))
-        while pending and (pending[0][1] is None or pending[0][1].done()):
-            yield _result(config, cache, *pending.popleft())
+                    pending.append(pool.submit(_sweep_in_worker, config, s, folder))
+        while pending and pending[0].done():
+            yield pending.popleft().result()
     while pending:
-        yield _result(config, cache, *pending.popleft())
+        yield pending.popleft().result()
 
 
-def _result(config: StudyConfig, cache: NlpCache, shape: FootShape, job: Future | None) -> Sweep:
-    return sweep_shape(config, build_nlp(config, shape, cache)) if job is None else job.result()
-
-
+#: A worker's NLPs, by library folder (or by kind, on the virtual machine).
 _WORKER_NLPS: dict = {}
 
 
+def _inherit(on_vm: dict[FootKind, CompiledNlp]) -> None:
+    """A worker's start: the kinds on the virtual machine that the parent built."""
+    _WORKER_NLPS.update(on_vm)
+
+
 def _sweep_in_worker(config: StudyConfig, shape: FootShape, folder) -> Sweep:
-    kind = foot_kind(config, shape)
-    if folder not in _WORKER_NLPS:
-        _WORKER_NLPS[folder] = load_nlp(kind, folder)
-    nlp = ShapeNlp(shape, _WORKER_NLPS[folder], config.space.toe_symmetry is ToeSymmetry.IDENTICAL)
+    """One shape's sweep in a worker: its kind's library from ``folder``, or the kind on the
+    virtual machine (``folder`` None)."""
+    kind: FootKind = foot_kind(config, shape)
+    key = kind if folder is None else folder
+    if key not in _WORKER_NLPS:
+        _WORKER_NLPS[key] = vm_nlp(config, kind) if folder is None else load_nlp(kind, folder)
+    nlp = ShapeNlp(shape, _WORKER_NLPS[key], config.space.toe_symmetry is ToeSymmetry.IDENTICAL)
     return sweep_shape(config, nlp)
 
 
@@ -519,6 +539,7 @@ __all__ = [
     "epsilon_sweep",
     "infeasible_key",
     "interruptible",
+    "planned_solves",
     "realise",
     "run_inner",
     "shape_done_key",

@@ -250,3 +250,40 @@ def test_workers_record_what_one_process_records(tiny_study: Path):
         run_inner(study, config, workers=workers)
         runs.append([(t.params, t.values, t.user_attrs, t.system_attrs) for t in study.trials])
     assert runs[0] and runs[1] == runs[0] and runs[2] == runs[0]
+
+
+def test_a_warm_started_front_point_is_the_cold_solves_optimum_in_fewer_iterations():
+    """The epsilon sweep's warm solver (WARM_OPTIONS: IPOPT takes the previous point's
+    multipliers) reaches the optimum a cold solve from the same point reaches, in fewer
+    iterations (both solves of a front point of the toe-count study's best shape)."""
+    import optimizer.search.inner as inner
+    from optimizer.search.compiled import NlpCache
+
+    config = study_of(DesignSpace(toes=(1, 1), toe_segments=(3, 3), heel_segments=(1, 1)))
+    nlp = inner.build_nlp(config, FootShape(1, 3), NlpCache(config, [], solves={}))
+    (first, _), (second, _) = inner.anchors(config, nlp, inner.shape_seed(config.seed, nlp.shape))
+    eps = 0.5 * (first.f2 + second.f2)
+    iterations, optima = [], []
+    for warm in (None, first):
+        s = inner.solve(nlp, inner.ANCHOR_WEIGHTS[0], eps, first.x, warm)
+        solver = nlp.compiled.solver if warm is None else nlp.compiled.warm_solver
+        assert s.success and s.f2 <= eps + 1e-9
+        iterations.append(solver.stats()["iter_count"])
+        optima.append(s.f)
+    assert optima[1] == pytest.approx(optima[0], rel=1e-7)
+    assert iterations[1] < iterations[0]
+
+
+def test_workers_inherit_the_kinds_on_the_virtual_machine(tiny_study: Path, monkeypatch):
+    """The parent builds each kind on the virtual machine once; forked workers inherit it and
+    build none (a worker that did would fail here)."""
+    import optimizer.search.inner as inner
+
+    def no_build(*args, **kwargs):
+        raise AssertionError("a worker built an NLP")
+
+    monkeypatch.setattr(inner, "vm_nlp", no_build)
+    config = load_study(tiny_study)
+    study = open_study(config, optuna.storages.InMemoryStorage())
+    assert inner.run_inner(study, config, workers=2) == len(config.space.shapes())
+    assert study.trials

@@ -57,3 +57,24 @@ def test_coinciding_rods_share_one_label() -> None:
     where = np.array([[0.0, 0.0], [1.0, 0.5], [1.0, 0.5], [1.0, 0.5 + 1e-12], [2.0, 0.0]])
     groups = _coinciding(["a", "t1", "t2", "t3", "b"], where, extent=2.0)
     assert [names for names, _ in groups] == [["a"], ["t1", "t2", "t3"], ["b"]]
+
+
+@pytest.mark.parametrize("toe_length", [0.05, 2.0])
+def test_the_uncropped_drawing_holds_its_title_legend_and_labels(
+    tmp_path: Path, leg_scene: Scene, toe_length: float, monkeypatch
+) -> None:
+    """The touchdown drawing is sized to its data, not cropped: whether the leg is tall or the
+    foot wide, everything drawn lies inside the figure."""
+    import optimizer.report.plot as plot
+    from optimizer.design_space import FootDesign, Leg, Segment, foot_tree
+
+    design = FootDesign(heel=(Segment(0.1, 0.05, -0.5),), toes=((Segment(toe_length, 0.1, 1.2),),))
+    tree = foot_tree(Leg(), design)
+    figures = []
+    save = plot._save
+    monkeypatch.setattr(plot, "_save", lambda fig, path, layout=True: figures.append(fig) or save(fig, path, layout))
+    plot_touchdown(tree, touchdown_geometry(tree), evaluate(tree, leg_scene), tmp_path / "foot.png", "a long title " * 4)
+    (fig,) = figures
+    drawn = fig.get_tightbbox(fig.canvas.get_renderer())  # inches
+    width, height = fig.get_size_inches()
+    assert drawn.x0 >= 0 and drawn.y0 >= 0 and drawn.x1 <= width and drawn.y1 <= height

@@ -186,3 +186,24 @@ def test_nlp_libraries_come_from_the_trusted_cache_and_a_failed_build_is_said(ti
         on_vm = compiled.NlpCache(config, [kind], directory=tmp_path / "bad")[kind]
     np.testing.assert_array_equal(on_vm.lbx, built.lbx)
     assert not list((tmp_path / "bad").glob(f"{kind.name}_*"))  # nothing half-built was kept
+
+
+def test_a_kind_with_few_solves_runs_on_the_virtual_machine_and_builds_nothing(tiny_study: Path, tmp_path, recwarn):
+    """Below COMPILE_SOLVES planned solves an uncached kind is not compiled (silently); at it, it
+    is; a cached library is used whatever the solves."""
+    import optimizer.search.compiled as compiled
+    from optimizer.search.inner import planned_solves
+
+    config = load_study(tiny_study)
+    kind = compiled.foot_kind(config, FootShape(2, 1))
+    few = compiled.NlpCache(config, [kind], directory=tmp_path, solves={kind: compiled.COMPILE_SOLVES - 1})
+    assert few.library(kind) is None and not list(tmp_path.glob(f"{kind.name}_*"))
+    on_vm = few[kind]
+    assert not recwarn.list  # no warning: the virtual machine is chosen, not fallen back to
+    many = compiled.NlpCache(config, [kind], directory=tmp_path, solves={kind: compiled.COMPILE_SOLVES})
+    assert many.library(kind) is not None
+    np.testing.assert_array_equal(many[kind].lbx, on_vm.lbx)
+    again = compiled.NlpCache(config, [kind], directory=tmp_path, solves={kind: 1})
+    assert again.library(kind) == many.library(kind)
+    # two anchors of `starts` random starts plus one from the other anchor, two solves per front point
+    assert planned_solves(config) == 2 * (config.search.starts + 1) + 2 * config.search.front_points
