@@ -38,7 +38,14 @@ def test_bench_json_keys_and_agreement(leg_file, capsys, tmp_path) -> None:
     assert record["batched_equals_single"] is True
     assert record["lean_equals_full"] is True
     assert record["gradient_equals_autodiff"] is True
+    assert record["gradient_equals_full"] is True
     assert record["gradient_ratio_autodiff"] > 0
+    assert record["gradient_ratio_all"] > 0 and record["gradient_ratio_all_c_loop"] > 0
+    assert 0 < record["n_gradient_values"] < record["n_values"]
+    assert math.isclose(
+        record["gradient_ratio"],
+        record["us_per_design_gradient"] / record[f"us_per_design_batched_{record['gradient_path']}"],
+    )
     assert record["scaling"] == []  # model files: no scaling series unless --sizes
     assert math.isclose(record["ratio"], record["us_per_design_batched"] / record["pinocchio_us_per_call"])
     assert record["gradient_ratio"] > 0
