@@ -111,21 +111,6 @@ def mass_columns(topology: Topology, space: Space) -> tuple[int, ...]:
     return tuple(n * b + j for b in range(topology.n_bodies) for j in at)
 
 
-#: The body values the optimiser's search varies (``optimizer.design_space.design_from``: each
-#: rod's length, mass and joint angle; a splayed toe root's ``rpy`` from its yaw); the others
-#: (``at``, ``com``, ``gyration``, joint axes, radii, mass properties, contact fractions) are
-#: fixed by the foot's construction.
-SEARCH_VALUES = ("length", "mass", "angle", "roll", "pitch", "yaw")
-
-
-def search_columns(topology: Topology, space: Space) -> tuple[int, ...]:
-    """Where every body's ``SEARCH_VALUES`` sit in the design vector of ``space`` (every body's,
-    the fixed leg's and unsplayed rods' too: a superset of what one search varies)."""
-    n = len(space.body_values)
-    at = [j for j, name in enumerate(space.body_values) if name in SEARCH_VALUES]
-    return tuple(n * b + j for b in range(topology.n_bodies) for j in at)
-
-
 def rods_only(tree: Tree, space: Space) -> bool:
     """Whether ``space`` carries mass-property values and every body of ``tree`` has them all
     zero: the rods variant of the hot path (``rods=True``, those values folded to 0) serves it."""

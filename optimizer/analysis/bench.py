@@ -4,8 +4,9 @@ What is timed is the optimiser's hot path, :func:`impulse_core.impact.delassus.l
 (external impulses, Delassus pivots, joint force impulse magnitudes and both norms; equal to
 the full model's outputs to rounding, which :func:`speed_report` checks), and the gradient of both
 norms w.r.t. the design values the optimiser's search varies
-(:func:`impulse_core.impact.delassus.norms_gradient_function` with ``searched=True``; the values:
-:func:`impulse_core.kinematics.spatial.search_columns`): the adjoint of the impact equations,
+(:func:`impulse_core.impact.delassus.norms_gradient_function` with ``columns``
+:func:`optimizer.design_space.search_columns`; every value for a tree not of a foot's layout):
+the adjoint of the impact equations,
 beside CasADi's reverse mode through the whole graph as its peer; the adjoint's gradient w.r.t.
 every design value is timed beside them (the figure before 2026-11-26).
 
@@ -36,8 +37,9 @@ import numpy as np
 from impulse_core.compile.codegen import Backend, Compiled, batch_kernel, compile_function, has_openmp, simd_lanes
 from impulse_core.evaluate import active_contacts, approach_velocity, compiled_model
 from impulse_core.impact.delassus import LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
-from impulse_core.kinematics.spatial import PLANAR, Space, n_values, rods_only, search_columns
+from impulse_core.kinematics.spatial import PLANAR, Space, n_values, rods_only
 from impulse_core.model.tree import Body, ContactSelection, Scene, Topology, Tree, design_vector
+from optimizer.design_space import search_columns
 
 #: Body counts of the scaling series (more toes and more segments per toe).
 SCALING_SIZES = (5, 10, 20, 50, 100, 200)
@@ -286,14 +288,14 @@ def _gradient_paths(
     searched values, and of the adjoint's w.r.t. every value, to ``fns``: (instructions, (the
     first two agree to 1e-8, the searched adjoint's entries equal the full one's to 1e-12),
     every batched path equals single calls)."""
+    columns = _gradient_columns(b)
     grads = {
-        "gradient": norms_gradient_function(b.topology, b.space, rods=b.rods, searched=True),
-        "gradient_autodiff": norms_gradient_function(b.topology, b.space, adjoint=False, rods=b.rods, searched=True),
+        "gradient": norms_gradient_function(b.topology, b.space, rods=b.rods, columns=columns),
+        "gradient_autodiff": norms_gradient_function(b.topology, b.space, adjoint=False, rods=b.rods, columns=columns),
         "gradient_all": norms_gradient_function(b.topology, b.space, rods=b.rods),
     }
     n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
     singles = {k: [g(*(x[:, i] for x in b.args)) for i in b.idx] for k, g in grads.items()}
-    columns = list(search_columns(b.topology, b.space))
     grad_same = (
         all(
             _close(x, y, 1e-8)
@@ -320,6 +322,13 @@ def _gradient_paths(
                 for j in range(grad.n_out())
             )
     return n_grad, grad_same, same
+
+
+def _gradient_columns(b: _Bench) -> list[int]:
+    """The design values the timed gradient is taken w.r.t.: those a search varies
+    (:func:`search_columns`), or every value for a tree not of a foot's layout."""
+    columns = search_columns(b.topology, b.space)
+    return list(range(n_values(b.topology, b.space))) if columns is None else list(columns)
 
 
 def _report(
@@ -353,7 +362,7 @@ def _report(
         n_instructions_gradient_autodiff=n_grad.get("gradient_autodiff"),
         n_instructions_gradient_all=n_grad.get("gradient_all"),
         n_values=n_values(b.topology, b.space),
-        n_gradient_values=len(search_columns(b.topology, b.space)),
+        n_gradient_values=len(_gradient_columns(b)),
         build_ms=b.build_ms,
         compile_s=None if compiled is None else compiled.compile_s,
         backend=Backend.VIRTUAL_MACHINE.value if compiled is None else compiled.backend,
@@ -544,7 +553,10 @@ def format_report(r: SpeedReport) -> str:
                 f"{r.n_instructions_gradient_all or '-'}"
             ),
         ),
-        ("gradient: w.r.t. the values the search varies", f"{r.n_gradient_values} of {r.n_values} per design"),
+        (
+            "gradient w.r.t. the values a search varies (all: no foot)",
+            f"{r.n_gradient_values} of {r.n_values} design values",
+        ),
         ("build the graph (first use of the topology)", f"{r.build_ms:.1f} ms"),
         ("compile to C (or load from the cache)", _fmt(r.compile_s, " s")),
         ("path that ran", r.backend),

@@ -1,7 +1,8 @@
-"""The gradient w.r.t. the values the search varies (``norms_gradient_function(..., searched=True)``,
-what ``footopt bench`` times as "the gradient"): its columns are every value a search changes
-(``design_from`` of two designs), its entries equal the all-values gradient's to 1e-12 and CasADi's
-reverse mode to 1e-10, and central differences of the lean evaluation on spatial case 3."""
+"""The gradient w.r.t. the values a search varies (``norms_gradient_function(..., columns=
+search_columns(...))``, what ``footopt bench`` times as "the gradient"): the columns are exactly the
+values ``design_from`` changes between two designs, its entries equal the all-values gradient's to
+1e-12 and CasADi's reverse mode to 1e-10, and central differences of the lean evaluation on
+spatial case 3."""
 
 from __future__ import annotations
 
@@ -12,10 +13,10 @@ import pytest
 
 from impulse_core.evaluate import active_contacts, approach_velocity
 from impulse_core.impact.delassus import lean_impact_function, norms_gradient_function
-from impulse_core.kinematics.spatial import PLANAR, SPATIAL, rods_only, search_columns
-from impulse_core.model.tree import design_vector
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL, rods_only
+from impulse_core.model.tree import Body, Tree, design_vector
 from optimizer.config.model_file import load_model_file
-from optimizer.design_space import FootLimits, Leg, design_from, foot_tree
+from optimizer.design_space import FootLimits, Leg, design_from, foot_tree, search_columns
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 
@@ -31,22 +32,23 @@ def _case(name: str):
     return model, topology, args
 
 
-def test_search_columns_cover_every_value_a_search_changes() -> None:
-    """Two splayed designs of one shape differ only in the searched columns (and differ in
-    lengths, masses, angles and rpy); a planar space's columns are length, mass, angle."""
-    angles = [((-0.7,), (1.1, 0.1), (1.0, -0.2), (1.2, 0.2)), ((-0.5,), (0.9, -0.1), (1.3, 0.25), (1.0, 0.0))]
+def test_search_columns_are_what_a_search_changes() -> None:
+    """Two splayed designs of one shape (every toe yawed) differ in exactly the searched columns:
+    the foot rods' lengths, masses and angles and the toe roots' rpy; in the plane, the same
+    without rpy; a tree not of a foot's layout has none."""
+    angles = [((-0.7,), (1.1, 0.1), (1.0, -0.2), (1.2, 0.2)), ((-0.5,), (0.9, -0.1), (1.3, 0.25), (1.0, 0.05))]
     masses = [((0.1,), (0.08, 0.04), (0.09, 0.05), (0.07, 0.03)), ((0.12,), (0.06, 0.05), (0.08, 0.02), (0.1, 0.04))]
-    yaws = [(-0.3, 0.0, 0.3), (-0.5, 0.1, 0.4)]
-    trees = [foot_tree(Leg(), design_from(Leg(), a, m, FootLimits(), toe_yaws=y)) for a, m, y in zip(angles, masses, yaws)]
-    p0, p1 = (design_vector(t, SPATIAL.body_values) for t in trees)
-    changed = set(np.flatnonzero(p0 != p1).tolist())
-    columns = set(search_columns(trees[0].topology(), SPATIAL))
-    assert changed <= columns
-    n = len(SPATIAL.body_values)
-    names = {SPATIAL.body_values[k % n] for k in changed}
-    assert names == {"length", "mass", "angle", "roll", "pitch", "yaw"}
-    planar = search_columns(trees[0].topology(), PLANAR)
-    assert [PLANAR.body_values[k % len(PLANAR.body_values)] for k in planar[:3]] == ["length", "mass", "angle"]
+    for space, yaws in ((SPATIAL, [(-0.3, 0.1, 0.3), (-0.5, 0.2, 0.4)]), (PLANAR, [None, None])):
+        trees = [foot_tree(Leg(), design_from(Leg(), a, m, FootLimits(), toe_yaws=y))
+                 for a, m, y in zip(angles, masses, yaws, strict=True)]
+        p0, p1 = (design_vector(t, space.body_values) for t in trees)
+        assert trees[0].n_bodies == 9
+        columns = search_columns(trees[0].topology(), space)
+        assert np.flatnonzero(p0 != p1).tolist() == list(columns)
+        assert len(columns) == (30 if space is SPATIAL else 21)
+    model, topology, _ = _case("spatial_case3")
+    assert search_columns(topology, model.space) == search_columns(trees[0].topology(), SPATIAL)
+    assert search_columns(Tree((Body("base", None, 0.5, 1.0, 0.3, contacts=(1.0,)),)).topology(), PLANAR) is None
 
 
 @pytest.mark.parametrize("name", ["spatial_case3", "paper_case3"])
@@ -55,9 +57,9 @@ def test_searched_gradient_is_the_full_gradients_columns(name: str) -> None:
     model, topology, args = _case(name)
     rods = rods_only(model.tree, model.space)
     columns = list(search_columns(topology, model.space))
-    searched = norms_gradient_function(topology, model.space, rods=rods, searched=True).call(args)
+    searched = norms_gradient_function(topology, model.space, rods=rods, columns=columns).call(args)
     full = norms_gradient_function(topology, model.space, rods=rods).call(args)
-    autodiff = norms_gradient_function(topology, model.space, adjoint=False, rods=rods, searched=True).call(args)
+    autodiff = norms_gradient_function(topology, model.space, adjoint=False, rods=rods, columns=columns).call(args)
     for key in ("d_external_norm", "d_internal_norm"):
         got = np.array(searched[key]).ravel()
         ref = np.array(full[key]).ravel()
@@ -74,8 +76,8 @@ def test_searched_gradient_matches_central_differences_on_spatial_case3() -> Non
     function (step 1e-6, relative 1e-6 of the largest entry)."""
     model, topology, args = _case("spatial_case3")
     lean = lean_impact_function(topology, model.space)
-    out = norms_gradient_function(topology, model.space, rods=True, searched=True).call(args)
     columns = search_columns(topology, model.space)
+    out = norms_gradient_function(topology, model.space, rods=True, columns=columns).call(args)
     h = 1e-6
     for key in ("external_norm", "internal_norm"):
         grad = np.array(out[f"d_{key}"]).ravel()
