@@ -58,7 +58,8 @@ class SpeedReport:
     those paths. "The gradient" is w.r.t. the ``n_gradient_values`` design values the search
     varies (of ``n_values``); ``gradient_ratio_all`` and ``gradient_ratio_all_c_loop``: the
     adjoint's gradient w.r.t. every design value, same paths; ``gradient_equals_full``: the
-    searched gradients equal the full ones' entries to 1e-12; ``rods``: the functions timed are the rods variants (every body's mass-property
+    searched gradients equal the full ones' entries to 1e-12; ``rods``: the functions timed are
+    the rods variants (every body's mass-property
     values zero, folded: ``rods=True`` of :func:`lean_impact_function`)."""
 
     model: str
@@ -291,7 +292,9 @@ def _gradient_paths(
     columns = _gradient_columns(b)
     grads = {
         "gradient": norms_gradient_function(b.topology, b.space, rods=b.rods, columns=columns),
-        "gradient_autodiff": norms_gradient_function(b.topology, b.space, adjoint=False, rods=b.rods, columns=columns),
+        "gradient_autodiff": norms_gradient_function(
+            b.topology, b.space, adjoint=False, rods=b.rods, columns=columns
+        ),
         "gradient_all": norms_gradient_function(b.topology, b.space, rods=b.rods),
     }
     n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
