@@ -48,7 +48,16 @@ from impulse_core.model.support import support_margin as hull_margin
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from optimizer.config.model_file import ModelFile
-from impulse_core.model.tree import UNIFORM_COM, UNIFORM_GYRATION, Body, ContactSelection, Scene, Tree, design_vector
+from impulse_core.model.tree import (
+    UNIFORM_COM,
+    UNIFORM_GYRATION,
+    Body,
+    ContactSelection,
+    Scene,
+    Topology,
+    Tree,
+    design_vector,
+)
 
 #: A constraint value (see :class:`ConstraintValues`) up to this counts as met: room for float
 #: rounding (sums of masses, the linear program's tolerance).
@@ -248,6 +257,25 @@ def foot_tree(leg: Leg, design: FootDesign) -> Tree:
             bodies.append(body)
             parent = len(bodies) - 1
     return Tree(tuple(bodies))
+
+
+def search_columns(topology: Topology, space: Space) -> tuple[int, ...] | None:
+    """The entries of the design vector (``space.body_values`` per body, then the contact
+    fractions) that a search changes in a tree of :func:`foot_tree`'s layout: every foot rod's
+    (below the shank, body 1) length, mass and joint angle (:func:`design_from`), and each toe
+    root's (a child of the shank after the first, the heel) roll, pitch and yaw (its splay,
+    :func:`yaw_rpy`; spatial only). The leg's values, the heel's rpy (yaw 0), positions on the
+    parent, centres of mass, gyrations, axes, radii, mass properties and contact fractions are
+    fixed. None when ``topology`` is not of that layout (a base, the shank its child, every
+    other body below the shank)."""
+    parents = topology.parents
+    if len(parents) < 3 or parents[0] != -1 or parents[1] != 0 or any(p in (-1, 0) for p in parents[2:]):
+        return None
+    n, names = len(space.body_values), space.body_values
+    rod = [names.index(k) for k in ("length", "mass", "angle")]
+    splay = [names.index(k) for k in ("roll", "pitch", "yaw") if k in names]
+    toe_roots = [b for b in range(2, len(parents)) if parents[b] == 1][1:]
+    return tuple(n * b + j for b in range(2, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
 
 
 def yaw_rpy(shank_angle: float, yaw: float) -> tuple[float, float, float]:

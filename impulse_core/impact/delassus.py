@@ -11,7 +11,7 @@ equations (the factorizations are reused, not differentiated).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import Enum
 
@@ -582,6 +582,7 @@ def norms_gradient_function(
     algorithm: LeanAlgorithm = LeanAlgorithm.AUTO,
     adjoint: bool = True,
     rods: bool = False,
+    columns: Sequence[int] | None = None,
 ) -> ca.Function:
     """``external_norm`` and ``internal_norm`` with their gradients w.r.t. every design value
     (``d_external_norm``, ``d_internal_norm``: 1 x n_values each), sharing the forward pass of
@@ -591,7 +592,11 @@ def norms_gradient_function(
     the factorizations are not differentiated); otherwise by CasADi's reverse-mode algorithmic
     differentiation of the whole graph (the independent check of the first). ``rods``: the
     variant for designs whose mass-property values are all zero (``norms_gradient_rods``,
-    :func:`_rods_folded` after differentiating: every entry of the gradients kept).
+    :func:`_rods_folded` after differentiating: every entry of the gradients kept). ``columns``:
+    the gradients w.r.t. these entries of the design vector only (1 x len(columns) each, in
+    that order; the full gradients' entries, ``norms_gradient_columns``): the reverse sweeps
+    drop the partial derivatives into the other values (e.g. the values a search varies,
+    :func:`optimizer.design_space.search_columns`: 30 of 193 for spatial case 3).
     """
     nv = dof_layout(topology, space).nv
     p = ca.SX.sym("p", n_values(topology, space))
@@ -603,8 +608,10 @@ def norms_gradient_function(
         d_external, d_internal = _adjoint_gradients(topology, p, v_minus, e, g)
     else:
         d_external, d_internal = (ca.gradient(x, p) for x in norms)
+    if columns is not None:
+        d_external, d_internal = d_external[list(columns)], d_internal[list(columns)]
     return ca.Function(
-        "norms_gradient_rods" if rods else "norms_gradient",
+        "norms_gradient" + ("" if columns is None else "_columns") + ("_rods" if rods else ""),
         [p, v_minus, e],
         _rods_folded(topology, space, p, [*norms, d_external.T, d_internal.T], rods),
         list(IMPACT_INPUTS),

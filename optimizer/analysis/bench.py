@@ -3,8 +3,12 @@
 What is timed is the optimiser's hot path, :func:`impulse_core.impact.delassus.lean_impact_function`
 (external impulses, Delassus pivots, joint force impulse magnitudes and both norms; equal to
 the full model's outputs to rounding, which :func:`speed_report` checks), and the gradient of both
-norms w.r.t. every design value (:func:`impulse_core.impact.delassus.norms_gradient_function`: the adjoint
-of the impact equations, beside CasADi's reverse mode through the whole graph as its peer).
+norms w.r.t. the design values the optimiser's search varies
+(:func:`impulse_core.impact.delassus.norms_gradient_function` with ``columns``
+:func:`optimizer.design_space.search_columns`; every value for a tree not of a foot's layout):
+the adjoint of the impact equations,
+beside CasADi's reverse mode through the whole graph as its peer; the adjoint's gradient w.r.t.
+every design value is timed beside them (the figure before 2026-11-26).
 
 Batched, four ways, one call from Python per batch: ``Function.map`` on CasADi's virtual
 machine; ``Function.map`` over the compiled function (CasADi's C++ loop calls the C code per
@@ -33,8 +37,9 @@ import numpy as np
 from impulse_core.compile.codegen import Backend, Compiled, batch_kernel, compile_function, has_openmp, simd_lanes
 from impulse_core.evaluate import active_contacts, approach_velocity, compiled_model
 from impulse_core.impact.delassus import LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
-from impulse_core.kinematics.spatial import PLANAR, Space, rods_only
+from impulse_core.kinematics.spatial import PLANAR, Space, n_values, rods_only
 from impulse_core.model.tree import Body, ContactSelection, Scene, Topology, Tree, design_vector
+from optimizer.design_space import search_columns
 
 #: Body counts of the scaling series (more toes and more segments per toe).
 SCALING_SIZES = (5, 10, 20, 50, 100, 200)
@@ -50,7 +55,11 @@ class SpeedReport:
     (the SIMD loop where built, else the C loop, else CasADi's map): the adjoint gradient;
     ``gradient_ratio_autodiff`` the same for CasADi's reverse mode through the whole graph, its
     peer in the same run; ``gradient_ratio_c_loop`` and ``gradient_ratio_map`` the adjoint's on
-    those paths; ``rods``: the functions timed are the rods variants (every body's mass-property
+    those paths. "The gradient" is w.r.t. the ``n_gradient_values`` design values the search
+    varies (of ``n_values``); ``gradient_ratio_all`` and ``gradient_ratio_all_c_loop``: the
+    adjoint's gradient w.r.t. every design value, same paths; ``gradient_equals_full``: the
+    searched gradients equal the full ones' entries to 1e-12; ``rods``: the functions timed are
+    the rods variants (every body's mass-property
     values zero, folded: ``rods=True`` of :func:`lean_impact_function`)."""
 
     model: str
@@ -61,6 +70,9 @@ class SpeedReport:
     n_instructions_full: int
     n_instructions_gradient: int | None
     n_instructions_gradient_autodiff: int | None
+    n_instructions_gradient_all: int | None
+    n_values: int
+    n_gradient_values: int
     build_ms: float
     compile_s: float | None
     backend: str
@@ -83,7 +95,11 @@ class SpeedReport:
     gradient_ratio_autodiff: float | None
     gradient_ratio_c_loop: float | None
     gradient_ratio_map: float | None
+    us_per_design_gradient_all: float | None
+    gradient_ratio_all: float | None
+    gradient_ratio_all_c_loop: float | None
     gradient_equals_autodiff: bool | None
+    gradient_equals_full: bool | None
     pinocchio_us_per_call: float | None
     ratio: float | None
     ratio_one_core: float | None
@@ -171,7 +187,7 @@ def speed_report(
     fast = compiled.fast if compiled is not None else b.lean
     if threads > 1:
         fns["threads"] = _mapped(fast, b.args, batch, threads)
-    n_grad, grad_same = ({}, None)
+    n_grad, grad_same = ({}, (None, None))
     if gradient:
         n_grad, grad_same, grad_twins = _gradient_paths(b, cache_dir if fast is not b.lean else None, fns)
         same &= grad_twins
@@ -266,19 +282,34 @@ def _compiled_paths(b: _Bench, out_map: list, cache_dir: Path, threads: int, fns
     return _CompiledPaths(backend, compile_s, compiled.function, same, openmp, simd_lanes(compiled, b.lean))
 
 
-def _gradient_paths(b: _Bench, cache_dir: Path | None, fns: dict) -> tuple[dict[str, int], bool, bool]:
-    """Add the adjoint's and CasADi's reverse mode's batched paths to ``fns``: (instructions, the
-    two agree to 1e-8, every batched path equals single calls)."""
+def _gradient_paths(
+    b: _Bench, cache_dir: Path | None, fns: dict
+) -> tuple[dict[str, int], tuple[bool, bool], bool]:
+    """Add the batched paths of the adjoint's and CasADi's reverse mode's gradients w.r.t. the
+    searched values, and of the adjoint's w.r.t. every value, to ``fns``: (instructions, (the
+    first two agree to 1e-8, the searched adjoint's entries equal the full one's to 1e-12),
+    every batched path equals single calls)."""
+    columns = _gradient_columns(b)
     grads = {
-        "gradient": norms_gradient_function(b.topology, b.space, rods=b.rods),
-        "gradient_autodiff": norms_gradient_function(b.topology, b.space, adjoint=False, rods=b.rods),
+        "gradient": norms_gradient_function(b.topology, b.space, rods=b.rods, columns=columns),
+        "gradient_autodiff": norms_gradient_function(
+            b.topology, b.space, adjoint=False, rods=b.rods, columns=columns
+        ),
+        "gradient_all": norms_gradient_function(b.topology, b.space, rods=b.rods),
     }
     n_grad = {k: int(g.n_instructions()) for k, g in grads.items()}
     singles = {k: [g(*(x[:, i] for x in b.args)) for i in b.idx] for k, g in grads.items()}
-    grad_same = all(
-        _close(x, y, 1e-8)
-        for one, ref in zip(singles["gradient"], singles["gradient_autodiff"])
-        for x, y in zip(one, ref)
+    grad_same = (
+        all(
+            _close(x, y, 1e-8)
+            for one, ref in zip(singles["gradient"], singles["gradient_autodiff"])
+            for x, y in zip(one, ref)
+        ),
+        all(
+            _close(x, y if k < 2 else y[columns], 1e-12)
+            for one, ref in zip(singles["gradient"], singles["gradient_all"])
+            for k, (x, y) in enumerate(zip(one, ref))
+        ),
     )
     same = True
     for key, grad in grads.items():
@@ -296,9 +327,16 @@ def _gradient_paths(b: _Bench, cache_dir: Path | None, fns: dict) -> tuple[dict[
     return n_grad, grad_same, same
 
 
+def _gradient_columns(b: _Bench) -> list[int]:
+    """The design values the timed gradient is taken w.r.t.: those a search varies
+    (:func:`search_columns`), or every value for a tree not of a foot's layout."""
+    columns = search_columns(b.topology, b.space)
+    return list(range(n_values(b.topology, b.space))) if columns is None else list(columns)
+
+
 def _report(
     name: str, b: _Bench, us: dict[str, float], compiled: _CompiledPaths | None, n_grad: dict[str, int],
-    grad_same: bool | None, same: bool, lean_full: bool,
+    grad_same: tuple[bool | None, bool | None], same: bool, lean_full: bool,
 ) -> SpeedReport:
     """The report from the best round of each path (microseconds per batch, Pinocchio per call)."""
     per_design = {k: t / b.batch for k, t in us.items() if k != "pinocchio"}
@@ -325,6 +363,9 @@ def _report(
         n_instructions_full=int(b.full.n_instructions()),
         n_instructions_gradient=n_grad.get("gradient"),
         n_instructions_gradient_autodiff=n_grad.get("gradient_autodiff"),
+        n_instructions_gradient_all=n_grad.get("gradient_all"),
+        n_values=n_values(b.topology, b.space),
+        n_gradient_values=len(_gradient_columns(b)),
         build_ms=b.build_ms,
         compile_s=None if compiled is None else compiled.compile_s,
         backend=Backend.VIRTUAL_MACHINE.value if compiled is None else compiled.backend,
@@ -347,7 +388,11 @@ def _report(
         gradient_ratio_autodiff=gradient_ratio("gradient_autodiff", path),
         gradient_ratio_c_loop=gradient_ratio("gradient", "kernel"),
         gradient_ratio_map=gradient_ratio("gradient", None),
-        gradient_equals_autodiff=grad_same,
+        us_per_design_gradient_all=per_design.get(f"gradient_all_{path or 'map'}"),
+        gradient_ratio_all=gradient_ratio("gradient_all", path),
+        gradient_ratio_all_c_loop=gradient_ratio("gradient_all", "kernel"),
+        gradient_equals_autodiff=grad_same[0],
+        gradient_equals_full=grad_same[1],
         pinocchio_us_per_call=pin_us,
         ratio=None if pin_us is None else batched / pin_us,
         ratio_one_core=None if pin_us is None else one_core / pin_us,
@@ -504,11 +549,16 @@ def format_report(r: SpeedReport) -> str:
             + (", rods: mass properties folded to 0" if r.rods else ""),
         ),
         (
-            "SX instructions: lean / full model / gradient (adjoint, reverse mode)",
+            "SX instructions: lean / full model / gradient (adjoint, reverse mode; adjoint, all values)",
             (
                 f"{r.n_instructions} / {r.n_instructions_full} / "
-                f"{r.n_instructions_gradient or '-'}, {r.n_instructions_gradient_autodiff or '-'}"
+                f"{r.n_instructions_gradient or '-'}, {r.n_instructions_gradient_autodiff or '-'}; "
+                f"{r.n_instructions_gradient_all or '-'}"
             ),
+        ),
+        (
+            "gradient w.r.t. the values a search varies (all: no foot)",
+            f"{r.n_gradient_values} of {r.n_values} design values",
         ),
         ("build the graph (first use of the topology)", f"{r.build_ms:.1f} ms"),
         ("compile to C (or load from the cache)", _fmt(r.compile_s, " s")),
@@ -545,6 +595,14 @@ def format_report(r: SpeedReport) -> str:
         ),
         (f"reverse-mode gradient / evaluation ({r.gradient_path})", _fmt(r.gradient_ratio_autodiff)),
         (
+            f"gradient w.r.t. all {r.n_values} values (adjoint), batched, {r.gradient_path}",
+            _fmt(r.us_per_design_gradient_all, " us/design", 3),
+        ),
+        (
+            f"all-values gradient / evaluation ({r.gradient_path}; C loop)",
+            f"{_fmt(r.gradient_ratio_all)}; {_fmt(r.gradient_ratio_all_c_loop)}",
+        ),
+        (
             "pinocchio.impulseDynamics (external only)",
             _fmt(r.pinocchio_us_per_call, " us/call")
             if r.pinocchio_us_per_call is not None
@@ -557,6 +615,10 @@ def format_report(r: SpeedReport) -> str:
         (
             "adjoint gradients equal reverse mode's",
             "-" if r.gradient_equals_autodiff is None else "yes" if r.gradient_equals_autodiff else "NO",
+        ),
+        (
+            "searched gradients equal the all-values gradients' entries",
+            "-" if r.gradient_equals_full is None else "yes" if r.gradient_equals_full else "NO",
         ),
     ]
     width = max(len(k) for k, _ in rows)

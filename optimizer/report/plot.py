@@ -251,8 +251,18 @@ def plot_speed(report: SpeedReport, path: str | Path) -> Path:
         (f"compiled, SIMD ({report.simd_lanes} lanes)", report.us_per_design_batched_simd),
         ("C loop, 2 threads", report.us_per_design_batched_kernel_threads),
         ("SIMD, 2 threads", report.us_per_design_batched_simd_threads),
-        (f"gradient, adjoint ({report.gradient_path})", report.us_per_design_gradient),
-        (f"gradient, reverse mode ({report.gradient_path})", report.us_per_design_gradient_autodiff),
+        (
+            f"gradient, {report.n_gradient_values} values, adjoint ({report.gradient_path})",
+            report.us_per_design_gradient,
+        ),
+        (
+            f"gradient, {report.n_gradient_values} values, reverse mode ({report.gradient_path})",
+            report.us_per_design_gradient_autodiff,
+        ),
+        (
+            f"gradient, all {report.n_values} values, adjoint ({report.gradient_path})",
+            report.us_per_design_gradient_all,
+        ),
         ("pinocchio.impulseDynamics (per call)", report.pinocchio_us_per_call),
     ]
     bars = [(label, us) for label, us in bars if us is not None]

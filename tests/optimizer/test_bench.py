@@ -11,7 +11,7 @@ import pytest
 
 from impulse_core.evaluate import active_contacts, approach_velocity, evaluate
 from impulse_core.impact.delassus import lean_impact_function, norms_gradient_function
-from impulse_core.model.tree import design_vector
+from impulse_core.model.tree import Body, Tree, design_vector
 from optimizer.analysis.bench import SCALING_SCENE, scaled_tree, speed_report
 from optimizer.cli.main import main
 
@@ -38,7 +38,13 @@ def test_bench_json_keys_and_agreement(leg_file, capsys, tmp_path) -> None:
     assert record["batched_equals_single"] is True
     assert record["lean_equals_full"] is True
     assert record["gradient_equals_autodiff"] is True
+    assert record["gradient_equals_full"] is True
     assert record["gradient_ratio_autodiff"] > 0
+    assert record["gradient_ratio_all"] > 0 and record["gradient_ratio_all_c_loop"] > 0
+    assert 0 < record["n_gradient_values"] < record["n_values"]
+    evaluation = record[f"us_per_design_batched_{record['gradient_path']}"]
+    assert math.isclose(record["gradient_ratio"], record["us_per_design_gradient"] / evaluation)
+    assert math.isclose(record["gradient_ratio_all"], record["us_per_design_gradient_all"] / evaluation)
     assert record["scaling"] == []  # model files: no scaling series unless --sizes
     assert math.isclose(record["ratio"], record["us_per_design_batched"] / record["pinocchio_us_per_call"])
     assert record["gradient_ratio"] > 0
@@ -95,6 +101,15 @@ def test_norms_gradient_matches_finite_differences(n_bodies) -> None:
             for dp in np.eye(p.size)
         ]
         np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-7)
+
+
+def test_bench_takes_the_gradient_wrt_every_value_of_a_tree_not_of_a_foot_layout() -> None:
+    """No leg above a foot (a lone rod): no searched values to restrict to, so the timed gradient
+    is the all-values one (and equals it)."""
+    tree = Tree((Body("rod", None, 0.5, 1.0, -0.8, contacts=(1.0,)),))
+    report = speed_report("rod", tree, SCALING_SCENE, batch=4, pinocchio=False, threads=1, rounds=1)
+    assert report.n_gradient_values == report.n_values == 7
+    assert report.gradient_equals_full and report.gradient_equals_autodiff
 
 
 def test_scaled_tree_grows_toes_and_segments() -> None:

@@ -225,7 +225,8 @@ def test_bench_times_a_spatial_file_beside_pinocchio(tmp_path: Path) -> None:
     report = json.loads(proc.stdout.strip().splitlines()[-1])
     assert report["batched_equals_single"] and report["lean_equals_full"]
     assert report["n_dof"] == 6 + 8 and report["pinocchio_us_per_call"] > 0
-    assert report["gradient_equals_autodiff"]
+    assert report["gradient_equals_autodiff"] and report["gradient_equals_full"]
+    assert (report["n_gradient_values"], report["n_values"]) == (30, 193)  # foot rods' 7 x 3, toe roots' 3 x rpy
 
 
 def test_support_margin_matches_pinocchio_and_qhull() -> None:
