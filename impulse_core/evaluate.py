@@ -552,10 +552,12 @@ def friction_derivatives(
         (result, d_normal, d_tangential), the Jacobians n_active x n_values.
     """
     result = evaluate(tree, scene, ImpactModel.FRICTION, space)
+    space = values_space(tree, space)  # centres of mass off the rods: their layout
     topology = tree.topology(result.active)
     modes = tuple(result.modes[i] for i in result.active)
     f = mode_impulse_function(
         compiled_metric(topology, space, True), len(result.active), modes, slip_signs(result.tangent_velocity)
     )
-    out = f(p=design_vector(tree), v_minus=result.v_minus, restitution=scene.restitution, mu=scene.friction)
+    out = f(p=design_vector(tree, space.body_values), v_minus=result.v_minus, restitution=scene.restitution,
+            mu=scene.friction)
     return result, np.array(out["d_normal"]), np.array(out["d_tangential"])

@@ -472,8 +472,8 @@ def design_vector(tree: Tree, body_values: tuple[str, ...] = BODY_VALUES) -> np.
             if b.com_offset != (0.0, 0.0):
                 raise ModelError(f"model.bodies[{i}].com_offset: a centre of mass off the rod is read by the rigid "
                                  "impact models, the time-domain ones (sequential, compliant, landing) and spatial "
-                                 "models; this computation (sensitivity analysis, bench study) "
-                                 "takes planar rods only (a leg from footopt import: --com-on-rods)")
+                                 "models; this computation takes planar rods only (a leg from footopt import: "
+                                 "--com-on-rods)")
     per_body = [[getattr(b, name) for name in body_values] for b in tree.bodies]
     contacts = [c for b in tree.bodies for c in b.contacts]
     return np.array([v for row in per_body for v in row] + contacts, dtype=float)

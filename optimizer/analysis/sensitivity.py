@@ -17,6 +17,7 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.evaluate import approach_velocity, compiled_model
+from impulse_core.kinematics.spatial import PLANAR, Space, values_space
 from impulse_core.model.tree import ContactSelection, Scene, Topology, design_vector, value_names
 from optimizer.design_space import FootDesign, Leg, foot_tree, segment_names
 
@@ -52,10 +53,11 @@ class Sensitivity:
 
 
 @functools.lru_cache(maxsize=64)
-def _jacobian_function(topology: Topology) -> ca.Function:
-    """(p, v_minus, restitution) -> (quantities, d quantities / d p) for one topology."""
-    impact = compiled_model(topology).impact
-    p = ca.SX.sym("p", topology.n_values)
+def _jacobian_function(topology: Topology, space: Space = PLANAR) -> ca.Function:
+    """(p, v_minus, restitution) -> (quantities, d quantities / d p) for one topology (``space``:
+    the plane, or PLANAR_OFFSET where a centre of mass is off its rod)."""
+    impact = compiled_model(topology, space).impact
+    p = ca.SX.sym("p", impact.size1_in(0))
     v = ca.SX.sym("v_minus", impact.size1_in(1))
     e = ca.SX.sym("restitution")
     out = impact(p=p, v_minus=v, restitution=e)
@@ -67,13 +69,13 @@ def _jacobian_function(topology: Topology) -> ca.Function:
 def sensitivities(leg: Leg, design: FootDesign, scene: Scene) -> Sensitivity:
     """Exact derivatives of the objectives of ``design`` with every contact hitting."""
     tree = foot_tree(leg, design)
-    topology = tree.topology()
-    fn = _jacobian_function(topology)
-    p = design_vector(tree)
+    topology, space = tree.topology(), values_space(tree, PLANAR)  # a leg's centres of mass off its rods too
+    fn = _jacobian_function(topology, space)
+    p = design_vector(tree, space.body_values)
     v = approach_velocity(topology, scene.speed)
     out = fn(p=p, v_minus=v, restitution=scene.restitution)
     d = np.array(out["dq_dp"])
-    names = value_names(tree)
+    names = value_names(tree, space.body_values)
     rods = segment_names(design.shape)
     mass_cols = [names.index(f"{r}.mass") for r in rods]
     dm = d[:, mass_cols]

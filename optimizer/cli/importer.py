@@ -45,7 +45,7 @@ def add_import(subparsers: argparse._SubParsersAction) -> None:
                    "(repeat for several joints; default: every joint at 0)")
     p.add_argument("--com-on-rods", action="store_true",
                    help="planar: move each centre of mass onto its rod (the inertia taken about that point): the former "
-                   "approximation, which the sensitivity analysis and bench study need; default: carried exactly (com_offset)")
+                   "approximation, for comparison; default: carried exactly (com_offset)")
     p.add_argument("--no-joint-laws", dest="joint_laws", action="store_false",
                    help="leave out the joints' stops, dampers and springs (default: imported, as footopt's "
                    "limits, damping, stiffness and rest; laws it has no key for are named in a warning)")

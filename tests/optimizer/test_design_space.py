@@ -139,18 +139,31 @@ def test_sensitivities_lengths_zero_angles_and_masses_not():
     assert np.allclose(s.budget_neutral_mass.sum(axis=1), 0.0, atol=1e-12)
 
 
-def test_sensitivities_match_finite_differences():
+@pytest.mark.parametrize("offsets", [False, True])
+def test_sensitivities_match_finite_differences(offsets):
+    """A toe angle's derivative against central differences; ``offsets``: a leg whose thigh's and
+    shank's centres of mass are off the rods (their com_y are values too, and matter)."""
+    leg = replace(LEG, thigh_offset=0.03, shank_offset=-0.02) if offsets else LEG
     design = case2()
-    s = sensitivities(LEG, design, SCENE)
+    s = sensitivities(leg, design, SCENE)
+    if offsets:
+        assert abs(s.of("external_norm")["thigh.com_y"]) > 1e-6
+    else:
+        assert "thigh.com_y" not in s.names
     h = 1e-6
     chains = list(design.chains)
     toe = chains[1]
     bumped = (toe[0], Segment(toe[1].length, toe[1].mass, toe[1].joint_angle + h))
-    up = evaluate_design(LEG, FootDesign(heel=chains[0], toes=(bumped,)), SCENE, LIMITS).objectives
+    up = evaluate_design(leg, FootDesign(heel=chains[0], toes=(bumped,)), SCENE, LIMITS).objectives
     bumped = (toe[0], Segment(toe[1].length, toe[1].mass, toe[1].joint_angle - h))
-    down = evaluate_design(LEG, FootDesign(heel=chains[0], toes=(bumped,)), SCENE, LIMITS).objectives
+    down = evaluate_design(leg, FootDesign(heel=chains[0], toes=(bumped,)), SCENE, LIMITS).objectives
     fd = (up.external_norm - down.external_norm) / (2 * h)
     assert math.isclose(s.of("external_norm")["toe1_distal.angle"], fd, rel_tol=1e-5, abs_tol=1e-8)
+    if offsets:
+        up, down = (evaluate_design(replace(leg, thigh_offset=leg.thigh_offset + d), design, SCENE, LIMITS).objectives
+                    for d in (h, -h))
+        fd = (up.external_norm - down.external_norm) / (2 * h)
+        assert math.isclose(s.of("external_norm")["thigh.com_y"], fd, rel_tol=1e-5, abs_tol=1e-8)
 
 
 def test_constraint_values_name_each_violation():
