@@ -21,12 +21,12 @@ Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
   (``impulse_core.impact.coulomb``: Newton's restitution with exact Coulomb friction) over every
   contact that touches and every joint on a stop; an approach slower than
   :data:`PLASTIC_SPEED` is plastic (e = 0), as is one whose rebound the row's free acceleration
-  would end within :data:`MIN_BOUNCE` of the duration or, after the first impact, within
-  :data:`BOUNCE_STEPS` of the run's step, and the row rests from then on (a light toe's cascade of
-  ever shorter bounces, which the step cannot resolve, ends at its first bounce shorter than a
-  quarter step: the threshold halves with the step, so the step-halving estimate below includes
-  what it changes; a landing's settled_at can come early by up to the remaining cascade,
-  h / (4 (1 - e))). After every event the
+  would end within :data:`MIN_BOUNCE` of the duration, and the row rests from then on (on
+  request, :attr:`LandingSettings.bounce_steps`, also one that would end within that many of the
+  run's steps after the first impact: an approximation, off by default, that ends a light toe's
+  cascade of ever shorter bounces early; its threshold halves with the step, so the
+  step-halving estimate includes what it changes, but the events differ from the contract's,
+  and settled_at can come early by up to the remaining cascade, h b / (1 - e)). After every event the
   modes are chosen by the same LCP at the acceleration level (e = 0; sliding contacts keep their
   direction).
 
@@ -85,10 +85,6 @@ PLASTIC_SPEED = 1e-4
 #: duration is plastic too: a contact driven into the ground (a fast-spinning light rod, a stiff
 #: spring) would otherwise chatter at nanosecond intervals without end.
 MIN_BOUNCE = 1e-6
-#: After the first impact, a rebound that the row's free acceleration would end within this many
-#: of the run's steps is plastic too (case 3's light toes: 441 impacts in its first 40 ms become
-#: 24 at step 1.5 ms and the run takes 0.15 x the time, 1e-7 from the converged landing).
-BOUNCE_STEPS = 0.25
 #: The landing has settled once every generalized velocity stays below this.
 SETTLE_SPEED = 1e-3
 #: Events after which the landing is abandoned (a chattering contact).
@@ -152,6 +148,11 @@ class LandingSettings:
             and a missing compiler falls back to ``vm`` with a warning), ``vm`` on CasADi's
             virtual machine, ``numpy`` the reference (rows built and solved per stage in numpy;
             always so in space and for the implicit integrator). All agree to rounding.
+        bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
+            ``MODEL_FORMAT.md`` asks), or b > 0: after the first impact a rebound that the row's
+            free acceleration would end within b steps is plastic (module docstring; case 3's
+            light toes: 441 impacts in 40 ms become 24 at b = 0.25 and step 1.5 ms, the run 0.15 x
+            the time and 1e-7 from the converged landing).
     """
 
     tolerance: float = 1e-3
@@ -161,6 +162,7 @@ class LandingSettings:
     max_events: int = MAX_EVENTS
     integrator: str = AUTO
     step_code: str = VM_CODE
+    bounce_steps: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -780,7 +782,7 @@ class _Landing:
         #: circular-cone solves of the current run that fell back to the polyhedral answer
         self.inexact = 0
         #: a rebound shorter than this (s) is plastic: MIN_BOUNCE of the duration at the first
-        #: impact, and also BOUNCE_STEPS of the step after it (set by :meth:`run`)
+        #: impact, and also ``settings.bounce_steps`` of the step after it (set by :meth:`run`)
         self.min_bounce = MIN_BOUNCE * float(scene.duration or 0.0)
         #: None, or a list that a run appends its committed operations to, in order (what
         #: :mod:`impulse_core.timedomain.landing_derivatives` replays): ("step", q, v, mode, dt,
@@ -1413,7 +1415,7 @@ class _Landing:
         self.inexact = 0
         self.min_bounce = MIN_BOUNCE * T
         q, v, mode, totals = self.first_impact()
-        self.min_bounce = max(MIN_BOUNCE * T, BOUNCE_STEPS * h)
+        self.min_bounce = max(MIN_BOUNCE * T, self.settings.bounce_steps * h)
         energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
         # No energy enters (passive joints, a fixed ground): the kinetic energy stays below what
@@ -1606,7 +1608,6 @@ __all__ = [
     "RK4_STABLE",
     "MODEL_NAME",
     "MIN_BOUNCE",
-    "BOUNCE_STEPS",
     "PLASTIC_SPEED",
     "SETTLE_SPEED",
     "LandingEvent",

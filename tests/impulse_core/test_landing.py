@@ -32,7 +32,6 @@ from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.errors import NumericalError
 from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 from impulse_core.timedomain.landing import (
-    BOUNCE_STEPS,
     MIN_BOUNCE,
     PLASTIC_SPEED,
     SETTLE_SPEED,
@@ -52,20 +51,19 @@ def _rod(mass: float = 2.0, length: float = 0.5, angle: float = -math.pi / 2) ->
     return Tree((Body("rod", None, length, mass, angle, contacts=(1.0,)),))
 
 
-def _elastic(approach: np.ndarray, e: float, g: float, T: float, h: float) -> np.ndarray:
+def _elastic(approach: np.ndarray, e: float, g: float, T: float, h: float, b: float = 0.0) -> np.ndarray:
     """Which impacts of a rod bouncing on its tip rebound: faster than the plastic speed, and
-    (after the first) a rebound 2 e v / g of at least MIN_BOUNCE T and BOUNCE_STEPS h."""
+    (after the first) a rebound 2 e v / g of at least MIN_BOUNCE T and ``b`` steps h."""
     rebound = 2 * e * approach / g
-    threshold = np.full(len(approach), max(MIN_BOUNCE * T, BOUNCE_STEPS * h))
+    threshold = np.full(len(approach), max(MIN_BOUNCE * T, b * h))
     threshold[0] = MIN_BOUNCE * T
     return (approach > PLASTIC_SPEED) & (rebound >= threshold)
 
 
 def test_vertical_rod_bounces_as_derived_by_hand():
     """A rod standing on its tip, dropped at v0 with restitution e: impulse k is m (1 + e) e^k v0
-    at t_k = sum_{j<k} 2 e^(j+1) v0 / g, until the approach is below the plastic speed or the
-    rebound shorter than a quarter step; it then rests, and the ground carries m g for the rest
-    of the landing."""
+    at t_k = sum_{j<k} 2 e^(j+1) v0 / g, until the approach is below the plastic speed; it then
+    rests, and the ground carries m g for the rest of the landing."""
     m, v0, e, T = 2.0, 1.5, 0.5, 0.5
     scene = Scene(speed=v0, restitution=e, gravity=G, duration=T)
     h = 1e-3
@@ -93,17 +91,17 @@ def test_vertical_rod_bounces_as_derived_by_hand():
 
 
 @pytest.mark.parametrize("h, per_step", [(1e-3, False), (1e-4, True), (5e-5, True)])
-def test_a_rebound_too_short_is_plastic(h, per_step, monkeypatch):
+def test_a_rebound_too_short_is_plastic(h, per_step):
     """Under strong gravity (g = 2000 m/s^2) a bounce that gravity ends within MIN_BOUNCE * T
-    (the step rule switched off: before the plastic speed would end it), or after the first impact
-    within a quarter step (the step halved: one more bounce), is plastic: the rod bounces while
-    the rules allow, then rests at the first impact below."""
-    if not per_step:
-        monkeypatch.setattr(landing_module, "BOUNCE_STEPS", 0.0)
+    (before the plastic speed would end it), or, on request (``bounce_steps`` 0.25), after the
+    first impact within a quarter step (the step halved: one more bounce), is plastic: the rod
+    bounces while the rules allow, then rests at the first impact below."""
+    b = 0.25 if per_step else 0.0
     m, v0, e, g, T = 2.0, 1.5, 0.5, 2000.0, 0.3 if not per_step else 0.01
-    r = _Landing(_rod(m), Scene(speed=v0, restitution=e, gravity=g, duration=T), (), LandingSettings()).run(h)
+    scene = Scene(speed=v0, restitution=e, gravity=g, duration=T)
+    r = _Landing(_rod(m), scene, (), LandingSettings(bounce_steps=b)).run(h)
     approach = v0 * e ** np.arange(40)
-    elastic = _elastic(approach, e, g, T, h if per_step else 0.0)
+    elastic = _elastic(approach, e, g, T, h, b)
     n = int(np.argmin(elastic))  # the first plastic one
     assert approach[n] > PLASTIC_SPEED  # the new rules, not the plastic speed, end the bouncing here
     assert len(r.events) == n + 1
