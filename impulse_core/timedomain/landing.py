@@ -740,6 +740,20 @@ class _Totals:
     impulse: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the contact impulses' sum (world)
 
 
+@dataclass(frozen=True)
+class _Trial:
+    """A step of length ``tau`` (:meth:`_Landing.trial`): its end (q, v), contact impulses, the
+    compiled step's end (None: the numpy path's), and the witnesses and their rates at its end."""
+
+    tau: float
+    q: np.ndarray
+    v: np.ndarray
+    impulse: np.ndarray
+    end: tuple | None
+    w: np.ndarray
+    r: np.ndarray
+
+
 class _Landing:
     """The integration of one landing at one step length (module docstring)."""
 
@@ -1066,8 +1080,22 @@ class _Landing:
             return None
         return float(s[np.argmax(np.any(dips, axis=1)), 0])
 
-    def locate(self, q: np.ndarray, v: np.ndarray, mode: _Mode, hi: float, watch: np.ndarray) -> float:
-        """The first step length in (0, hi] at which a watched witness crosses its threshold.
+    def trial(self, q: np.ndarray, v: np.ndarray, mode: _Mode, tau: float) -> _Trial:
+        """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates."""
+        q1, v1, impulse = self.step(q, v, mode, tau)
+        w, r = self.witness_and_rate(q1, v1, mode)
+        return _Trial(tau, q1, v1, impulse, self._end, w, r)
+
+    def take(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: _Trial) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``trial``'s step taken again without its cost: what :meth:`step` of its length would
+        return and leave behind (the mode's steering, the compiled step's end for :meth:`ended`)."""
+        self.steer(q, v, mode, trial.tau)
+        self._end = trial.end
+        return trial.q.copy(), trial.v.copy(), trial.impulse.copy()
+
+    def locate(self, q: np.ndarray, v: np.ndarray, mode: _Mode, first: _Trial, watch: np.ndarray) -> _Trial:
+        """The first step length in (0, ``first.tau``] at which a watched witness crosses its
+        threshold, and that step (``first``: the step at the bracket's end, already taken).
         Witnesses are triggered at -1 (one tolerance below zero) but located at -0.1 tolerances
         (or just below the start's value), so that an impact happens within a fraction of a
         tolerance of the true contact instant. The next guess is the first root of the cubic
@@ -1077,13 +1105,11 @@ class _Landing:
         raw0 = float(np.min(w0[watch])) - 1.0
         offset = min(1.0, max(0.1, 0.1 - raw0))
 
-        def phi(tau: float) -> tuple[np.ndarray, np.ndarray]:
-            q1, v1, _ = self.step(q, v, mode, tau)
-            w, r = self.witness_and_rate(q1, v1, mode)
-            return w[watch] - 1.0 + offset, r[watch]
+        def phi(trial: _Trial) -> tuple[np.ndarray, np.ndarray]:
+            return trial.w[watch] - 1.0 + offset, trial.r[watch]
 
-        lo, (w_lo, r_lo) = 0.0, (w0[watch] - 1.0 + offset, r0[watch])
-        w_hi, r_hi = phi(hi)
+        lo, hi, (w_lo, r_lo), found = 0.0, first.tau, (w0[watch] - 1.0 + offset, r0[watch]), first
+        w_hi, r_hi = phi(first)
         f_lo, f_hi, side = float(np.min(w_lo)), float(np.min(w_hi)), 0
         for _ in range(100):
             if hi - lo <= 1e-14 * max(1.0, hi) or f_hi >= -offset:  # within one location tolerance
@@ -1094,17 +1120,18 @@ class _Landing:
                 mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_lo != f_hi else 0.5 * (lo + hi)
                 if not lo < mid < hi:
                     mid = 0.5 * (lo + hi)
-            w_mid, r_mid = phi(mid)
+            trial = self.trial(q, v, mode, mid)
+            w_mid, r_mid = phi(trial)
             f_mid = float(np.min(w_mid))
             if f_mid < 0:
-                hi, w_hi, r_hi, f_hi = mid, w_mid, r_mid, f_mid
+                hi, w_hi, r_hi, f_hi, found = mid, w_mid, r_mid, f_mid, trial
                 f_lo = f_lo / 2 if side == -1 else f_lo
                 side = -1
             else:
                 lo, w_lo, r_lo, f_lo = mid, w_mid, r_mid, f_mid
                 f_hi = f_hi / 2 if side == 1 else f_hi
                 side = 1
-        return hi
+        return found
 
     def impact(
         self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, contacts: np.ndarray, kind: str
@@ -1413,15 +1440,12 @@ class _Landing:
             if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.kinetic(q1, v1) <= cap):
                 raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
             _check_chart(q1, self.space, t + dt)
-            w = self.witness(q1, v1, mode)
-            graze = None if np.all(w >= 0) else dt
+            w, r = self.witness_and_rate(q1, v1, mode)
+            graze = None if np.all(w >= 0) else _Trial(dt, q1, v1, impulse, self._end, w, r)
             if graze is None:
                 fraction = self.grazing(q, v, q1, v1, mode, dt)
-                graze = None if fraction is None else fraction * dt
-                if graze is not None:
-                    qg, vg, _ = self.step(q, v, mode, graze)
-                    w = self.witness(qg, vg, mode)
-                    graze = graze if np.any(w < 0) else None
+                graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
+                graze = graze if graze is not None and np.any(graze.w < 0) else None
             if graze is None:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
@@ -1433,10 +1457,11 @@ class _Landing:
                 t += dt
                 totals.steps += 1
                 continue
-            tau = self.locate(q, v, mode, graze, w < 0)
+            located = self.locate(q, v, mode, graze, graze.w < 0)
+            tau = located.tau
             if self.tape is not None:
-                self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, w < 0))
-            q_e, v_e, impulse = self.step(q, v, mode, tau)
+                self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, graze.w < 0))
+            q_e, v_e, impulse = self.take(q, v, mode, located)
             self.add(totals, impulse, q_e, v_e)
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau

@@ -184,3 +184,31 @@ def test_random_legs_land_alike_on_the_compiled_step(seed, sloped, offsets):
     r = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE)).run(5e-4)
     assert (r.n_steps, len(r.events)) == (ref.n_steps, len(ref.events))
     assert landing_difference(r, ref) <= 1e-10 and _rel(r.q_final, ref.q_final) <= 1e-10
+
+
+@pytest.mark.parametrize("code", [NUMPY_CODE, VM_CODE])
+def test_an_event_takes_the_step_that_located_it(code, monkeypatch):
+    """locate() returns the step it found the crossing with (its bracket's end, already taken by
+    the run or a trial): that step is a fresh step of its length from the same state, to the
+    bit, with its end's witnesses, a watched one past the location threshold (the bracket's
+    crossing end, not its last trial)."""
+    tree, laws, scene = _case3()
+    run = _Landing(tree, scene, laws, LandingSettings(step_code=code))
+    located = []
+    locate = run.locate
+
+    def recording(q, v, mode, first, watch):
+        found = locate(q, v, mode, first, watch)
+        located.append((q.copy(), v.copy(), mode.copy(), watch, found))
+        return found
+
+    monkeypatch.setattr(run, "locate", recording)
+    run.run(2e-3)
+    assert len(located) >= 10
+    for q, v, mode, watch, found in located:
+        q1, v1, impulse = run.step(q, v, mode, found.tau)
+        w, r = run.witness_and_rate(q1, v1, mode)
+        assert np.array_equal(q1, found.q) and np.array_equal(v1, found.v) and np.array_equal(impulse, found.impulse)
+        assert np.array_equal(w, found.w) and np.array_equal(r, found.r, equal_nan=True)
+        offset = min(1.0, max(0.1, 1.1 - float(np.min(run.witness(q, v, mode)[watch]))))  # locate()'s
+        assert np.min(found.w[watch]) - 1.0 + offset < 0.0  # the bracket's crossing end
