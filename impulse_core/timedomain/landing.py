@@ -695,13 +695,25 @@ def _stacked(fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
     return np.concatenate([fn, ft.T.ravel()])
 
 
-def impulse_vector(normal: np.ndarray, fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
+def impulse_vector(normal: np.ndarray, fn: np.ndarray, ft: np.ndarray, tangent: np.ndarray | None = None
+                   ) -> np.ndarray:
     """The sum over contacts of the ground's impulse vectors: ``fn`` along each contact's
-    ``normal`` (n_c x d) and ``ft`` along its tangents (:func:`tangent_basis`; n_c x (d - 1), or
-    n_c in the plane: the normal turned by -90 degrees)."""
-    tangent = tangent_basis(normal)
+    ``normal`` (n_c x d) and ``ft`` along its tangents (``tangent``, default
+    :func:`tangent_basis`; n_c x (d - 1), or n_c in the plane: the normal turned by -90 degrees)."""
+    tangent = tangent_basis(normal) if tangent is None else tangent
     ft = np.reshape(ft, (len(fn), -1))
     return normal.T @ fn + sum(tangent[:, a].T @ ft[:, a] for a in range(tangent.shape[1]))
+
+
+#: Where :func:`_hermite_root` samples the cubic for its first sign change.
+_ROOT_SAMPLES = np.linspace(0.0, 1.0, 65)
+#: Where :meth:`_Landing.grazing` samples a step (interior points), and the cubic Hermite basis
+#: (h00, h10, h01, h11) there.
+_GRAZE_SAMPLES = np.linspace(0.0, 1.0, 17)[1:-1, None]
+_GRAZE_BASIS = tuple(
+    c[0] * _GRAZE_SAMPLES**3 + c[1] * _GRAZE_SAMPLES**2 + c[2] * _GRAZE_SAMPLES + c[3]
+    for c in ((2, -3, 0, 1), (1, -2, 1, 0), (-2, 3, 0, 0), (1, -1, 0, 0))
+)
 
 
 def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
@@ -709,7 +721,7 @@ def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
     d1 at s = 0, 1) falls below 0; NaN when the slopes are unknown or it does not."""
     if not (math.isfinite(d0) and math.isfinite(d1) and math.isfinite(g0) and math.isfinite(g1)):
         return math.nan
-    s = np.linspace(0.0, 1.0, 65)
+    s = _ROOT_SAMPLES
     coeffs = np.array([2 * g0 + d0 - 2 * g1 + d1, -3 * g0 - 2 * d0 + 3 * g1 - d1, d0, g0])
     below = np.flatnonzero(np.polyval(coeffs, s) < 0)
     if not below.size or below[0] == 0:
@@ -804,6 +816,10 @@ class _Landing:
         #: the plane's compiled RK4 step (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         self._end: tuple[bytes, bytes, object] | None = None
+        self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
+        up = np.tile(np.eye(self.dims)[1], (self.nc, 1))
+        #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
+        self.flat_ground = (up, tangent_basis(up))
 
     def first_step(self) -> float:
         """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
@@ -1043,23 +1059,34 @@ class _Landing:
             gap, vn, moving = pt.gap, pt.vn(v), pt.slip
         else:
             fn, ft, stop_force, gap, vn, moving = end.fn, end.ft, end.stop_force, end.gap, end.vn, end.slip
-        closed, slip = mode.closed, mode.slip
-        sticking = closed & ~mode.sliding & (self.mu > 0)
-        sliding = closed & mode.sliding & (self.mu > 0)
-        gap_tol = self.settings.gap_tolerance
-        free = mode.stop == 0
+        gap_tol, force_tol = self.settings.gap_tolerance, self.force_tol
         values = np.concatenate([
-            np.where(closed, np.inf, gap / gap_tol + 1.0),
-            np.where(closed, fn / self.force_tol + 1.0, np.inf),
-            np.where(sticking, (self.mu * fn - np.linalg.norm(ft, axis=1)) / self.force_tol + 1.0, np.inf),
-            np.where(sliding, np.sum(slip * moving, axis=1) / self.speed_tol + 1.0, np.inf),
-            np.where(free, (q - self.joints.lo) / gap_tol + 1.0, np.inf),
-            np.where(free, (self.joints.hi - q) / gap_tol + 1.0, np.inf),
-            np.where(free, np.inf, stop_force / self.force_tol + 1.0),
+            gap / gap_tol + 1.0,
+            fn / force_tol + 1.0,
+            (self.mu * fn - np.linalg.norm(ft, axis=1)) / force_tol + 1.0,
+            np.sum(mode.slip * moving, axis=1) / self.speed_tol + 1.0,
+            (q - self.joints.lo) / gap_tol + 1.0,
+            (self.joints.hi - q) / gap_tol + 1.0,
+            stop_force / force_tol + 1.0,
         ])
+        values[self.unwatched(mode)] = np.inf
         unknown = np.full(3 * self.nc, np.nan)
         rates = np.concatenate([vn / gap_tol, unknown, v / gap_tol, -v / gap_tol, np.full(self.nv, np.nan)])
         return values, rates
+
+    def unwatched(self, mode: _Mode) -> np.ndarray:
+        """Per witness of :meth:`witness_and_rate`, whether the mode leaves it unwatched (inf):
+        gaps of closed contacts, forces of open ones, cone margins but of sticking contacts, slip
+        but of sliding ones, stop margins of joints on a stop, stop forces of free joints."""
+        key = mode.closed.tobytes() + (mode.slip != 0).tobytes() + mode.stop.tobytes()
+        mask = self._unwatched.get(key)
+        if mask is None:
+            closed, friction, free = mode.closed, self.mu > 0, mode.stop == 0
+            sticking, sliding = closed & ~mode.sliding & friction, closed & mode.sliding & friction
+            mask = np.concatenate([closed, ~closed, ~sticking, ~sliding, ~free, ~free, free])
+            self._unwatched = self._unwatched if len(self._unwatched) < 256 else {}
+            self._unwatched[key] = mask
+        return mask
 
     def grazing(self, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, h: float) -> float | None:
         """The step fraction where an open contact's gap (cubic Hermite fit over the step) dips
@@ -1072,8 +1099,7 @@ class _Landing:
             g0, d0 = p0.gap, p0.vn(v0) * h
             p1 = self.point(q1, v1)
             g1, d1 = p1.gap, p1.vn(v1) * h
-        s = np.linspace(0.0, 1.0, 17)[1:-1, None]
-        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        s, (h00, h10, h01, h11) = _GRAZE_SAMPLES, _GRAZE_BASIS
         g = h00 * g0 + h10 * d0 + h01 * g1 + h11 * d1
         dips = (g < -self.settings.gap_tolerance) & ~mode.closed
         if not np.any(dips):
@@ -1405,8 +1431,8 @@ class _Landing:
         ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
         totals.normal += impulses[: self.nc]
         totals.tangential += ft
-        normal = self.point(q, v).normal if self.sloped else np.tile(np.eye(self.dims)[1], (self.nc, 1))
-        totals.impulse += impulse_vector(normal, impulses[: self.nc], ft)
+        normal, tangent = (self.point(q, v).normal, None) if self.sloped else self.flat_ground
+        totals.impulse += impulse_vector(normal, impulses[: self.nc], ft, tangent)
 
     def run(self, h: float) -> LandingResult:
         """The landing at Runge-Kutta step ``h``."""
