@@ -433,6 +433,8 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
 def _along(directions: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """sum_k directions[:, k] rows[:, k]: per contact, the component of ``rows`` (n_c x d x ...)
     along its direction (n_c x d)."""
+    if directions.shape[1] == 1:  # one direction: no sum
+        return directions[:, 0].reshape((-1,) + (1,) * (rows.ndim - 2)) * rows[:, 0]
     return (directions.reshape(directions.shape + (1,) * (rows.ndim - 2)) * rows).sum(axis=1)
 
 
@@ -702,6 +704,8 @@ def impulse_vector(normal: np.ndarray, fn: np.ndarray, ft: np.ndarray, tangent: 
     :func:`tangent_basis`; n_c x (d - 1), or n_c in the plane: the normal turned by -90 degrees)."""
     tangent = tangent_basis(normal) if tangent is None else tangent
     ft = np.reshape(ft, (len(fn), -1))
+    if tangent.shape[1] == 1:  # the plane
+        return normal.T @ fn + tangent[:, 0].T @ ft[:, 0]
     return normal.T @ fn + sum(tangent[:, a].T @ ft[:, a] for a in range(tangent.shape[1]))
 
 
@@ -817,6 +821,7 @@ class _Landing:
         self.fast = self.compiled_step(settings.step_code)
         self._end: tuple[bytes, bytes, object] | None = None
         self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
+        self._solutions: tuple[_Point | None, dict] = (None, {})  # see mode_solution()
         up = np.tile(np.eye(self.dims)[1], (self.nc, 1))
         #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
         self.flat_ground = (up, tangent_basis(up))
@@ -894,6 +899,23 @@ class _Landing:
             slip_floor=self.speed_tol,
         )
 
+    def mode_solution(self, pt: _Point, mode: _Mode, solve: bool = True
+                      ) -> tuple[_Rows, tuple[np.ndarray, np.ndarray] | None]:
+        """The mode's rows at ``pt`` (:func:`_mode_rows`) and, if ``solve``, its accelerations and
+        row forces (:func:`_accelerations`), kept for the last point asked: an event's mode choice,
+        its checks and the projection after it ask them of one point for one or two modes."""
+        if self._solutions[0] is not pt:
+            self._solutions = (pt, {})
+        known = self._solutions[1]
+        key = _mode_bytes(mode) + mode.core.tobytes()
+        rows, solution = known.get(key, (None, None))
+        if rows is None:
+            rows = _mode_rows(pt, mode, self.mu)
+        if solve and solution is None:
+            solution = _accelerations(pt, rows)
+        known[key] = (rows, solution)
+        return rows, solution
+
     def mass_matrix_at(self, q: np.ndarray) -> np.ndarray:
         """The mass matrix at q."""
         self.call.call(q, np.zeros(self.nv))
@@ -930,8 +952,7 @@ class _Landing:
             return
         mode.core[:] = 0.0
         pt = self.point(q, v)
-        rows = _mode_rows(pt, mode, self.mu)
-        _, lam = _accelerations(pt, rows)
+        rows, (_, lam) = self.mode_solution(pt, mode)
         forces, _ = _contact_forces(rows, lam, self.mu, self.nc)
         moving = np.flatnonzero(mode.closed & mode.sliding)
         X = np.linalg.solve(pt.M, pt.Jt[moving].reshape(-1, self.nv).T)
@@ -995,7 +1016,7 @@ class _Landing:
         dt = trial
         while True:
             q1, v1, impulse = self.step(q, v, mode, dt)
-            if dt <= floor or not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
+            if dt <= floor or not (np.isfinite(q1).all() and np.isfinite(v1).all()):
                 break
             if p0 is None:
                 end = self.ended(q1, v1, mode)
@@ -1023,7 +1044,7 @@ class _Landing:
 
     def weight(self, duration: float) -> np.ndarray:
         """The weight's impulse over ``duration`` (world frame: along -y)."""
-        return -self.mass * self.scene.gravity * duration * np.eye(self.dims)[1]
+        return -self.mass * self.scene.gravity * duration * self.flat_ground[0][0]
 
     def rk4_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One classical Runge-Kutta 4 step: (q, v, contact impulses [normal, tangential])."""
@@ -1051,8 +1072,7 @@ class _Landing:
         end = self.ended(q, v, mode)
         if end is None:
             pt = self.point(q, v)
-            rows = _mode_rows(pt, mode, self.mu)
-            _, lam = _accelerations(pt, rows)
+            rows, (_, lam) = self.mode_solution(pt, mode)
             fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
             stop_force = np.zeros(self.nv)
             stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
@@ -1293,7 +1313,7 @@ class _Landing:
     def redundant(self, pt: _Point, mode: _Mode) -> bool:
         """Whether the mode's rows are redundant (:data:`REDUNDANT`): identical toes resting on
         one point, two sticking contacts of one rod."""
-        rows = _mode_rows(pt, mode, self.mu)
+        rows = self.mode_solution(pt, mode, solve=False)[0]
         if rows.G.shape[0] < 2:
             return False
         s = np.linalg.svd(rows.G @ np.linalg.solve(pt.M, rows.F.T), compute_uv=False)
@@ -1310,8 +1330,7 @@ class _Landing:
         if self.mu <= 0:
             return mode
         for _ in range(self.nc):
-            rows = _mode_rows(pt, mode, self.mu)
-            a, _ = _accelerations(pt, rows)
+            rows, (a, _) = self.mode_solution(pt, mode)
             at = pt.Jt @ a + pt.bt
             starting = mode.closed & mode.sliding & (np.linalg.norm(pt.vt(v), axis=1) <= self.speed_tol)
             wrong = starting & (np.sum(mode.slip * at, axis=1) < -acc_tol)
@@ -1330,8 +1349,7 @@ class _Landing:
         if self.mu <= 0 or not np.any(mode.closed & ~mode.sliding):
             return mode
         pt = self.point(q, v)
-        rows = _mode_rows(pt, mode, self.mu)
-        _, lam = _accelerations(pt, rows)
+        rows, (_, lam) = self.mode_solution(pt, mode)
         fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
         magnitude = np.linalg.norm(ft, axis=1)
         edge = mode.closed & ~mode.sliding & (self.mu * fn - magnitude <= self.force_tol) & (magnitude != 0)
@@ -1356,7 +1374,7 @@ class _Landing:
                 return projected
         pt = self.point(q, v)
         q = q - self.placement(pt, q, mode)[1]
-        rows = _mode_rows(pt, mode, self.mu)
+        rows = self.mode_solution(pt, mode, solve=False)[0]
         if not rows.G.shape[0]:
             return q, v, np.zeros(self.dims * self.nc)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
@@ -1387,7 +1405,7 @@ class _Landing:
 
     def position_correction(self, pt: _Point, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """The smallest (kinetic-metric) change of q that zeroes the mode's closed gaps and stops."""
-        rows = _mode_rows(pt, mode, self.mu)
+        rows = self.mode_solution(pt, mode, solve=False)[0]
         n = rows.n
         if not n:
             return np.zeros_like(q)
@@ -1463,11 +1481,11 @@ class _Landing:
                 )
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, 2.0 * dt)
-            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.kinetic(q1, v1) <= cap):
+            if not (np.isfinite(q1).all() and np.isfinite(v1).all() and self.kinetic(q1, v1) <= cap):
                 raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
             _check_chart(q1, self.space, t + dt)
             w, r = self.witness_and_rate(q1, v1, mode)
-            graze = None if np.all(w >= 0) else _Trial(dt, q1, v1, impulse, self._end, w, r)
+            graze = None if (w >= 0).all() else _Trial(dt, q1, v1, impulse, self._end, w, r)
             if graze is None:
                 fraction = self.grazing(q, v, q1, v1, mode, dt)
                 graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)

@@ -214,6 +214,7 @@ class CompiledStep(BufferedFunction):
             step = landing_step_function(topology, terrain, self.stop_dofs, space)
             projection = landing_projection_function(topology, terrain, self.stop_dofs, space)
         super().__init__(step)
+        self.block, self.spans = self.contiguous()
         self.projection = BufferedFunction(projection)
         self.projection.args[7][:], self.projection.args[8][:] = p, gravity
         self.dofs = list(self.stop_dofs)
@@ -234,14 +235,27 @@ class CompiledStep(BufferedFunction):
         a[0][:], a[1][:], a[2][0] = q, v, h
         a[3][:], a[5][:], a[4][:] = numbers
         self.evaluate()
-        o = [r.copy() for r in self.flat]
+        block = self.block.copy()  # every output at once, as views of one copy
+        o = [block[a:b] for a, b in self.spans]
         if not np.isfinite(o[1].sum() + o[10].sum() + o[11].sum()):  # singular rows: NaN or inf, which propagate
             return None
         stop_force = np.zeros(self.nv)
-        stop_force[list(self.stop_dofs)] = o[12]
+        stop_force[self.dofs] = o[12]
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9][:, None], o[10], o[11][:, None],
-                       stop_force, self.out[13].T.copy(), float(o[14][0]))
+                       stop_force, o[13].reshape(self.out[13].shape, order="F").T, float(o[14][0]))
 
+
+    def contiguous(self) -> tuple[np.ndarray, list[tuple[int, int]]]:
+        """The step's outputs as consecutive slices of one array (one copy per step): the array,
+        and each output's (start, end) in it."""
+        ends = np.cumsum([0] + [len(r) for r in self.flat])
+        block = np.zeros(ends[-1])
+        spans = list(zip(ends[:-1].tolist(), ends[1:].tolist()))
+        for i, (a, b) in enumerate(spans):
+            self.flat[i] = block[a:b]
+            self._buf.set_res(i, memoryview(self.flat[i]))
+            self.out[i] = self.flat[i].reshape(self.out[i].shape, order="F")
+        return block, spans
 
     def numbers(self, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The mode as the functions' numbers (:meth:`active`, and each contact's sliding

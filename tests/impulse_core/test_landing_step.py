@@ -212,3 +212,45 @@ def test_an_event_takes_the_step_that_located_it(code, monkeypatch):
         assert np.array_equal(w, found.w) and np.array_equal(r, found.r, equal_nan=True)
         offset = min(1.0, max(0.1, 1.1 - float(np.min(run.witness(q, v, mode)[watch]))))  # locate()'s
         assert np.min(found.w[watch]) - 1.0 + offset < 0.0  # the bracket's crossing end
+
+
+def test_a_modes_solution_is_kept_per_point():
+    """_Landing.mode_solution keeps the rows and forces of the modes asked at the last point:
+    equal to fresh ones for every mode there, and fresh again at a new point."""
+    from impulse_core.timedomain.landing import _accelerations, _mode_rows
+
+    tree, laws, scene = _case3()
+    run = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE))
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        q, v = run.q0 + 0.02 * rng.standard_normal(run.nv), rng.standard_normal(run.nv)
+        pt = run.point(q, v)
+        for mode in [_random_mode(rng, run) for _ in range(4)] * 2:
+            rows, (a, lam) = run.mode_solution(pt, mode)
+            fresh = _mode_rows(pt, mode, run.mu)
+            ra, rlam = _accelerations(pt, fresh)
+            assert np.array_equal(rows.G, fresh.G) and np.array_equal(rows.F, fresh.F)
+            assert np.array_equal(a, ra) and np.array_equal(lam, rlam)
+
+
+def test_along_and_the_unilateral_lcp_as_written_out():
+    """The shortcuts of _along (one direction: no sum) and of unilateral_lcp's matrix (filled in
+    place) equal their written-out forms: the per-contact sum and the block matrix of the law."""
+    from impulse_core.impact.coulomb import unilateral_lcp
+    from impulse_core.timedomain.landing import _along
+
+    rng = np.random.default_rng(2)
+    for shape in [(4, 1), (4, 1, 5), (0, 1, 5), (4, 2), (4, 2, 5), (4, 3, 5)]:
+        d, r = rng.standard_normal(shape[:2]), rng.standard_normal(shape)
+        assert np.array_equal(_along(d, r), (d.reshape(d.shape + (1,) * (r.ndim - 2)) * r).sum(axis=1))
+    for n, m in [(3, 2), (1, 0), (4, 4), (2, 1)]:
+        W, u = rng.standard_normal((n + m, n + m)), rng.standard_normal(n + m)
+        owner, e, mu = rng.choice(n, m, replace=False), rng.uniform(0, 1, n), rng.uniform(0, 1, m)
+        Wnn, Wnt, Wtn, Wtt = W[:n, :n], W[:n, n:], W[n:, :n], W[n:, n:]
+        E, eye, zero = np.zeros((m, n)), np.eye(m), np.zeros((m, m))
+        E[np.arange(m), owner] = mu
+        block = np.block([[Wnn, Wnt, -Wnt, np.zeros((n, m))], [Wtn, Wtt, -Wtt, eye], [-Wtn, -Wtt, Wtt, eye],
+                          [E, -eye, -eye, zero]])
+        M, q = unilateral_lcp(W, u, owner, e, mu)
+        assert np.array_equal(M, block)
+        assert np.array_equal(q, np.concatenate([(1 + e) * u[:n], u[n:], -u[n:], np.zeros(m)]))
