@@ -822,6 +822,13 @@ class _Landing:
         self._end: tuple[bytes, bytes, object] | None = None
         self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
         self._solutions: tuple[_Point | None, dict] = (None, {})  # see mode_solution()
+        gap_tol, nc, nv = settings.gap_tolerance, self.nc, self.nv
+        #: the witnesses' tolerances (:meth:`witness_and_rate`): gaps, forces, cone margins, slip,
+        #: stop margins (twice), stop forces; and the NaN rates of the force and slip witnesses
+        self.witness_scale = np.concatenate([np.full(nc, gap_tol), np.full(2 * nc, self.force_tol),
+                                             np.full(nc, self.speed_tol), np.full(2 * nv, gap_tol),
+                                             np.full(nv, self.force_tol)])
+        self.unknown_rates = (np.full(3 * nc, np.nan), np.full(nv, np.nan))
         up = np.tile(np.eye(self.dims)[1], (self.nc, 1))
         #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
         self.flat_ground = (up, tangent_basis(up))
@@ -1079,19 +1086,14 @@ class _Landing:
             gap, vn, moving = pt.gap, pt.vn(v), pt.slip
         else:
             fn, ft, stop_force, gap, vn, moving = end.fn, end.ft, end.stop_force, end.gap, end.vn, end.slip
-        gap_tol, force_tol = self.settings.gap_tolerance, self.force_tol
-        values = np.concatenate([
-            gap / gap_tol + 1.0,
-            fn / force_tol + 1.0,
-            (self.mu * fn - np.linalg.norm(ft, axis=1)) / force_tol + 1.0,
-            np.sum(mode.slip * moving, axis=1) / self.speed_tol + 1.0,
-            (q - self.joints.lo) / gap_tol + 1.0,
-            (self.joints.hi - q) / gap_tol + 1.0,
-            stop_force / force_tol + 1.0,
-        ])
+        if ft.shape[1] == 1:  # the plane: |ft| and s . d of one tangent
+            cone, slip = self.mu * fn - np.abs(ft[:, 0]), mode.slip[:, 0] * moving[:, 0]
+        else:
+            cone, slip = self.mu * fn - np.linalg.norm(ft, axis=1), np.sum(mode.slip * moving, axis=1)
+        lo, hi = self.joints.lo, self.joints.hi
+        values = np.concatenate([gap, fn, cone, slip, q - lo, hi - q, stop_force]) / self.witness_scale + 1.0
         values[self.unwatched(mode)] = np.inf
-        unknown = np.full(3 * self.nc, np.nan)
-        rates = np.concatenate([vn / gap_tol, unknown, v / gap_tol, -v / gap_tol, np.full(self.nv, np.nan)])
+        rates = np.concatenate([vn, self.unknown_rates[0], v, -v, self.unknown_rates[1]]) / self.settings.gap_tolerance
         return values, rates
 
     def unwatched(self, mode: _Mode) -> np.ndarray:
@@ -1285,9 +1287,10 @@ class _Landing:
         d = rows.dof >= 0
         new.stop[rows.dof[d & rest]] = stops[rows.dof[d & rest]]
         new.redundant = self.redundant(pt, new)
-        new = self.consistent_slip(pt, v, self.unify(pt, v, self.slide_on_the_edge(q, v, new)), acc_tol)
-        new.redundant = self.redundant(pt, new)
-        return new
+        checked = self.consistent_slip(pt, v, self.unify(pt, v, self.slide_on_the_edge(q, v, new)), acc_tol)
+        if checked is not new:  # the checks changed the mode (they return it unchanged otherwise)
+            checked.redundant = self.redundant(pt, checked)
+        return checked
 
     def unify(self, pt: _Point, v: np.ndarray, mode: _Mode) -> _Mode:
         """Resting contacts at one point moving alike (identical toes: their tips coincide to

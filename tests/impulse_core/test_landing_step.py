@@ -254,3 +254,37 @@ def test_along_and_the_unilateral_lcp_as_written_out():
         M, q = unilateral_lcp(W, u, owner, e, mu)
         assert np.array_equal(M, block)
         assert np.array_equal(q, np.concatenate([(1 + e) * u[:n], u[n:], -u[n:], np.zeros(m)]))
+
+
+def test_resolve_marks_a_mode_redundant_exactly_when_its_rows_are(monkeypatch):
+    """Every mode resolve() chooses in a landing (two identical toes on one point) carries the
+    redundant flag of its own rows: where its checks kept the first answer (the flag is that
+    answer's) and where they changed it (here made to, with the flag flipped: it is recomputed)."""
+    from tests.impulse_core.test_landing import _identical_toes
+
+    tree, laws, scene = _identical_toes()
+    run = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE, integrator="rk4"))
+    chosen = []
+    resolve = run.resolve
+
+    def recording(q, v, mode):
+        new = resolve(q, v, mode)
+        chosen.append((q.copy(), v.copy(), mode.copy(), new.copy()))
+        return new
+
+    monkeypatch.setattr(run, "resolve", recording)
+    run.run(1e-3)
+    assert len(chosen) >= 10 and any(new.redundant for *_, new in chosen)
+    for q, v, _, new in chosen:
+        assert new.redundant == run.redundant(run.point(q, v), replace(new, redundant=False))
+    checks = run.consistent_slip
+
+    def changing(pt, v, mode, acc_tol):
+        out = checks(pt, v, mode, acc_tol).copy()
+        out.redundant = not out.redundant
+        return out
+
+    monkeypatch.setattr(run, "consistent_slip", changing)
+    for q, v, mode, _ in chosen:
+        new = resolve(q, v, mode)
+        assert new.redundant == run.redundant(run.point(q, v), replace(new, redundant=False))
