@@ -422,7 +422,9 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
     the plane (n_y, -n_x) (+x on flat ground); in space t_x, x's projection on the tangent plane,
     and t_z = t_x x n (x and z on flat ground), so that a planar normal gives the planar tangent."""
     if normal.shape[1] == 2:
-        return np.column_stack([normal[:, 1], -normal[:, 0]])[:, None, :]
+        tangent = np.empty((len(normal), 1, 2))
+        tangent[:, 0, 0], tangent[:, 0, 1] = normal[:, 1], -normal[:, 0]
+        return tangent
     t_x = np.array([1.0, 0.0, 0.0]) - normal[:, :1] * normal
     t_x /= np.sqrt(np.einsum("ij,ij->i", t_x, t_x))[:, None]
     (a, b, c), (x, y, z) = t_x.T, normal.T
@@ -1370,7 +1372,7 @@ class _Landing:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         end = self.ended(q, v, mode)
         own = (end is not None and not np.any(~mode.closed & (end.gap < 0))
-               and not np.any((mode.stop == 0) & (self.beyond(q) != 0)))
+               and not np.any((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))))
         if own:  # a compiled step's end whose placement is the mode's own: the compiled projection
             projected = self.fast.project(q, v, mode)
             if projected is not None:
