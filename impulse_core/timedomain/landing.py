@@ -1136,7 +1136,8 @@ class _Landing:
         w, r = self.witness_and_rate(q1, v1, mode)
         return _Trial(tau, q1, v1, impulse, self._end, w, r)
 
-    def take(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: _Trial) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def take(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: _Trial
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``trial``'s step taken again without its cost: what :meth:`step` of its length would
         return and leave behind (the mode's steering, the compiled step's end for :meth:`ended`)."""
         self.steer(q, v, mode, trial.tau)
