@@ -147,17 +147,14 @@ def unilateral_lcp(
     """
     n, m = len(restitution), len(owner)
     Wnn, Wnt, Wtn, Wtt = W[:n, :n], W[:n, n:], W[n:, :n], W[n:, n:]
-    E = np.zeros((m, n))
-    E[np.arange(m), owner] = mu
-    eye, zero = np.eye(m), np.zeros((m, m))
-    M = np.block(
-        [
-            [Wnn, Wnt, -Wnt, np.zeros((n, m))],
-            [Wtn, Wtt, -Wtt, eye],
-            [-Wtn, -Wtt, Wtt, eye],
-            [E, -eye, -eye, zero],
-        ]
-    )
+    M = np.zeros((n + 3 * m, n + 3 * m))
+    t, s, b = slice(n, n + m), slice(n + m, n + 2 * m), slice(n + 2 * m, n + 3 * m)  # lambda_t+, lambda_t-, beta
+    M[:n, :n], M[:n, t], M[:n, s] = Wnn, Wnt, -Wnt
+    M[t, :n], M[t, t], M[t, s] = Wtn, Wtt, -Wtt
+    M[s, :n], M[s, t], M[s, s] = -Wtn, -Wtt, Wtt
+    M[t, b] = M[s, b] = np.eye(m)
+    M[n + 2 * m + np.arange(m), owner] = mu
+    M[b, t] = M[b, s] = -np.eye(m)
     un, ut = u[:n], u[n:]
     q = np.concatenate([(1.0 + np.asarray(restitution)) * un, ut, -ut, np.zeros(m)])
     return M, q
@@ -184,7 +181,7 @@ def scaled_lemke(M: np.ndarray, q: np.ndarray, d: np.ndarray, u: np.ndarray, wha
     speed = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
     Ms, qs = d[:, None] * M * d[None, :], d * q / speed
     z = lemke(Ms, qs)
-    rng = np.random.default_rng(0)
+    rng = None if z is not None else np.random.default_rng(0)
     for _ in range(RETRIES):  # a degenerate path (extreme conditioning): other covering vectors
         if z is not None:
             break

@@ -424,7 +424,9 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
     the plane (n_y, -n_x) (+x on flat ground); in space t_x, x's projection on the tangent plane,
     and t_z = t_x x n (x and z on flat ground), so that a planar normal gives the planar tangent."""
     if normal.shape[1] == 2:
-        return np.column_stack([normal[:, 1], -normal[:, 0]])[:, None, :]
+        tangent = np.empty((len(normal), 1, 2))
+        tangent[:, 0, 0], tangent[:, 0, 1] = normal[:, 1], -normal[:, 0]
+        return tangent
     t_x = np.array([1.0, 0.0, 0.0]) - normal[:, :1] * normal
     t_x /= np.sqrt(np.einsum("ij,ij->i", t_x, t_x))[:, None]
     (a, b, c), (x, y, z) = t_x.T, normal.T
@@ -435,6 +437,8 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
 def _along(directions: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """sum_k directions[:, k] rows[:, k]: per contact, the component of ``rows`` (n_c x d x ...)
     along its direction (n_c x d)."""
+    if directions.shape[1] == 1:  # one direction: no sum
+        return directions[:, 0].reshape((-1,) + (1,) * (rows.ndim - 2)) * rows[:, 0]
     return (directions.reshape(directions.shape + (1,) * (rows.ndim - 2)) * rows).sum(axis=1)
 
 
@@ -697,13 +701,27 @@ def _stacked(fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
     return np.concatenate([fn, ft.T.ravel()])
 
 
-def impulse_vector(normal: np.ndarray, fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
+def impulse_vector(normal: np.ndarray, fn: np.ndarray, ft: np.ndarray, tangent: np.ndarray | None = None
+                   ) -> np.ndarray:
     """The sum over contacts of the ground's impulse vectors: ``fn`` along each contact's
-    ``normal`` (n_c x d) and ``ft`` along its tangents (:func:`tangent_basis`; n_c x (d - 1), or
-    n_c in the plane: the normal turned by -90 degrees)."""
-    tangent = tangent_basis(normal)
+    ``normal`` (n_c x d) and ``ft`` along its tangents (``tangent``, default
+    :func:`tangent_basis`; n_c x (d - 1), or n_c in the plane: the normal turned by -90 degrees)."""
+    tangent = tangent_basis(normal) if tangent is None else tangent
     ft = np.reshape(ft, (len(fn), -1))
+    if tangent.shape[1] == 1:  # the plane
+        return normal.T @ fn + tangent[:, 0].T @ ft[:, 0]
     return normal.T @ fn + sum(tangent[:, a].T @ ft[:, a] for a in range(tangent.shape[1]))
+
+
+#: Where :func:`_hermite_root` samples the cubic for its first sign change.
+_ROOT_SAMPLES = np.linspace(0.0, 1.0, 65)
+#: Where :meth:`_Landing.grazing` samples a step (interior points), and the cubic Hermite basis
+#: (h00, h10, h01, h11) there.
+_GRAZE_SAMPLES = np.linspace(0.0, 1.0, 17)[1:-1, None]
+_GRAZE_BASIS = tuple(
+    c[0] * _GRAZE_SAMPLES**3 + c[1] * _GRAZE_SAMPLES**2 + c[2] * _GRAZE_SAMPLES + c[3]
+    for c in ((2, -3, 0, 1), (1, -2, 1, 0), (-2, 3, 0, 0), (1, -1, 0, 0))
+)
 
 
 def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
@@ -711,7 +729,7 @@ def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
     d1 at s = 0, 1) falls below 0; NaN when the slopes are unknown or it does not."""
     if not (math.isfinite(d0) and math.isfinite(d1) and math.isfinite(g0) and math.isfinite(g1)):
         return math.nan
-    s = np.linspace(0.0, 1.0, 65)
+    s = _ROOT_SAMPLES
     coeffs = np.array([2 * g0 + d0 - 2 * g1 + d1, -3 * g0 - 2 * d0 + 3 * g1 - d1, d0, g0])
     below = np.flatnonzero(np.polyval(coeffs, s) < 0)
     if not below.size or below[0] == 0:
@@ -740,6 +758,20 @@ class _Totals:
     moving_until: float = 0.0
     steps: int = 0
     impulse: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the contact impulses' sum (world)
+
+
+@dataclass(frozen=True)
+class _Trial:
+    """A step of length ``tau`` (:meth:`_Landing.trial`): its end (q, v), contact impulses, the
+    compiled step's end (None: the numpy path's), and the witnesses and their rates at its end."""
+
+    tau: float
+    q: np.ndarray
+    v: np.ndarray
+    impulse: np.ndarray
+    end: tuple | None
+    w: np.ndarray
+    r: np.ndarray
 
 
 class _Landing:
@@ -792,6 +824,18 @@ class _Landing:
         #: the plane's compiled RK4 step (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         self._end: tuple[bytes, bytes, object] | None = None
+        self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
+        self._solutions: tuple[_Point | None, dict] = (None, {})  # see mode_solution()
+        gap_tol, nc, nv = settings.gap_tolerance, self.nc, self.nv
+        #: the witnesses' tolerances (:meth:`witness_and_rate`): gaps, forces, cone margins, slip,
+        #: stop margins (twice), stop forces; and the NaN rates of the force and slip witnesses
+        self.witness_scale = np.concatenate([np.full(nc, gap_tol), np.full(2 * nc, self.force_tol),
+                                             np.full(nc, self.speed_tol), np.full(2 * nv, gap_tol),
+                                             np.full(nv, self.force_tol)])
+        self.unknown_rates = (np.full(3 * nc, np.nan), np.full(nv, np.nan))
+        up = np.tile(np.eye(self.dims)[1], (self.nc, 1))
+        #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
+        self.flat_ground = (up, tangent_basis(up))
 
     def first_step(self) -> float:
         """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
@@ -866,6 +910,23 @@ class _Landing:
             slip_floor=self.speed_tol,
         )
 
+    def mode_solution(self, pt: _Point, mode: _Mode, solve: bool = True
+                      ) -> tuple[_Rows, tuple[np.ndarray, np.ndarray] | None]:
+        """The mode's rows at ``pt`` (:func:`_mode_rows`) and, if ``solve``, its accelerations and
+        row forces (:func:`_accelerations`), kept for the last point asked: an event's mode choice,
+        its checks and the projection after it ask them of one point for one or two modes."""
+        if self._solutions[0] is not pt:
+            self._solutions = (pt, {})
+        known = self._solutions[1]
+        key = _mode_bytes(mode) + mode.core.tobytes()
+        rows, solution = known.get(key, (None, None))
+        if rows is None:
+            rows = _mode_rows(pt, mode, self.mu)
+        if solve and solution is None:
+            solution = _accelerations(pt, rows)
+        known[key] = (rows, solution)
+        return rows, solution
+
     def mass_matrix_at(self, q: np.ndarray) -> np.ndarray:
         """The mass matrix at q."""
         self.call.call(q, np.zeros(self.nv))
@@ -902,8 +963,7 @@ class _Landing:
             return
         mode.core[:] = 0.0
         pt = self.point(q, v)
-        rows = _mode_rows(pt, mode, self.mu)
-        _, lam = _accelerations(pt, rows)
+        rows, (_, lam) = self.mode_solution(pt, mode)
         forces, _ = _contact_forces(rows, lam, self.mu, self.nc)
         moving = np.flatnonzero(mode.closed & mode.sliding)
         X = np.linalg.solve(pt.M, pt.Jt[moving].reshape(-1, self.nv).T)
@@ -967,7 +1027,7 @@ class _Landing:
         dt = trial
         while True:
             q1, v1, impulse = self.step(q, v, mode, dt)
-            if dt <= floor or not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
+            if dt <= floor or not (np.isfinite(q1).all() and np.isfinite(v1).all()):
                 break
             if p0 is None:
                 end = self.ended(q1, v1, mode)
@@ -995,7 +1055,7 @@ class _Landing:
 
     def weight(self, duration: float) -> np.ndarray:
         """The weight's impulse over ``duration`` (world frame: along -y)."""
-        return -self.mass * self.scene.gravity * duration * np.eye(self.dims)[1]
+        return -self.mass * self.scene.gravity * duration * self.flat_ground[0][0]
 
     def rk4_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One classical Runge-Kutta 4 step: (q, v, contact impulses [normal, tangential])."""
@@ -1023,31 +1083,36 @@ class _Landing:
         end = self.ended(q, v, mode)
         if end is None:
             pt = self.point(q, v)
-            rows = _mode_rows(pt, mode, self.mu)
-            _, lam = _accelerations(pt, rows)
+            rows, (_, lam) = self.mode_solution(pt, mode)
             fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
             stop_force = np.zeros(self.nv)
             stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
             gap, vn, moving = pt.gap, pt.vn(v), pt.slip
         else:
             fn, ft, stop_force, gap, vn, moving = end.fn, end.ft, end.stop_force, end.gap, end.vn, end.slip
-        closed, slip = mode.closed, mode.slip
-        sticking = closed & ~mode.sliding & (self.mu > 0)
-        sliding = closed & mode.sliding & (self.mu > 0)
-        gap_tol = self.settings.gap_tolerance
-        free = mode.stop == 0
-        values = np.concatenate([
-            np.where(closed, np.inf, gap / gap_tol + 1.0),
-            np.where(closed, fn / self.force_tol + 1.0, np.inf),
-            np.where(sticking, (self.mu * fn - np.linalg.norm(ft, axis=1)) / self.force_tol + 1.0, np.inf),
-            np.where(sliding, np.sum(slip * moving, axis=1) / self.speed_tol + 1.0, np.inf),
-            np.where(free, (q - self.joints.lo) / gap_tol + 1.0, np.inf),
-            np.where(free, (self.joints.hi - q) / gap_tol + 1.0, np.inf),
-            np.where(free, np.inf, stop_force / self.force_tol + 1.0),
-        ])
-        unknown = np.full(3 * self.nc, np.nan)
-        rates = np.concatenate([vn / gap_tol, unknown, v / gap_tol, -v / gap_tol, np.full(self.nv, np.nan)])
+        if ft.shape[1] == 1:  # the plane: |ft| and s . d of one tangent
+            cone, slip = self.mu * fn - np.abs(ft[:, 0]), mode.slip[:, 0] * moving[:, 0]
+        else:
+            cone, slip = self.mu * fn - np.linalg.norm(ft, axis=1), np.sum(mode.slip * moving, axis=1)
+        lo, hi = self.joints.lo, self.joints.hi
+        values = np.concatenate([gap, fn, cone, slip, q - lo, hi - q, stop_force]) / self.witness_scale + 1.0
+        values[self.unwatched(mode)] = np.inf
+        rates = np.concatenate([vn, self.unknown_rates[0], v, -v, self.unknown_rates[1]]) / self.settings.gap_tolerance
         return values, rates
+
+    def unwatched(self, mode: _Mode) -> np.ndarray:
+        """Per witness of :meth:`witness_and_rate`, whether the mode leaves it unwatched (inf):
+        gaps of closed contacts, forces of open ones, cone margins but of sticking contacts, slip
+        but of sliding ones, stop margins of joints on a stop, stop forces of free joints."""
+        key = mode.closed.tobytes() + (mode.slip != 0).tobytes() + mode.stop.tobytes()
+        mask = self._unwatched.get(key)
+        if mask is None:
+            closed, friction, free = mode.closed, self.mu > 0, mode.stop == 0
+            sticking, sliding = closed & ~mode.sliding & friction, closed & mode.sliding & friction
+            mask = np.concatenate([closed, ~closed, ~sticking, ~sliding, ~free, ~free, free])
+            self._unwatched = self._unwatched if len(self._unwatched) < 256 else {}
+            self._unwatched[key] = mask
+        return mask
 
     def grazing(self, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, h: float) -> float | None:
         """The step fraction where an open contact's gap (cubic Hermite fit over the step) dips
@@ -1060,16 +1125,30 @@ class _Landing:
             g0, d0 = p0.gap, p0.vn(v0) * h
             p1 = self.point(q1, v1)
             g1, d1 = p1.gap, p1.vn(v1) * h
-        s = np.linspace(0.0, 1.0, 17)[1:-1, None]
-        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        s, (h00, h10, h01, h11) = _GRAZE_SAMPLES, _GRAZE_BASIS
         g = h00 * g0 + h10 * d0 + h01 * g1 + h11 * d1
         dips = (g < -self.settings.gap_tolerance) & ~mode.closed
         if not np.any(dips):
             return None
         return float(s[np.argmax(np.any(dips, axis=1)), 0])
 
-    def locate(self, q: np.ndarray, v: np.ndarray, mode: _Mode, hi: float, watch: np.ndarray) -> float:
-        """The first step length in (0, hi] at which a watched witness crosses its threshold.
+    def trial(self, q: np.ndarray, v: np.ndarray, mode: _Mode, tau: float) -> _Trial:
+        """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates."""
+        q1, v1, impulse = self.step(q, v, mode, tau)
+        w, r = self.witness_and_rate(q1, v1, mode)
+        return _Trial(tau, q1, v1, impulse, self._end, w, r)
+
+    def take(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: _Trial
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``trial``'s step taken again without its cost: what :meth:`step` of its length would
+        return and leave behind (the mode's steering, the compiled step's end for :meth:`ended`)."""
+        self.steer(q, v, mode, trial.tau)
+        self._end = trial.end
+        return trial.q.copy(), trial.v.copy(), trial.impulse.copy()
+
+    def locate(self, q: np.ndarray, v: np.ndarray, mode: _Mode, first: _Trial, watch: np.ndarray) -> _Trial:
+        """The first step length in (0, ``first.tau``] at which a watched witness crosses its
+        threshold, and that step (``first``: the step at the bracket's end, already taken).
         Witnesses are triggered at -1 (one tolerance below zero) but located at -0.1 tolerances
         (or just below the start's value), so that an impact happens within a fraction of a
         tolerance of the true contact instant. The next guess is the first root of the cubic
@@ -1079,13 +1158,11 @@ class _Landing:
         raw0 = float(np.min(w0[watch])) - 1.0
         offset = min(1.0, max(0.1, 0.1 - raw0))
 
-        def phi(tau: float) -> tuple[np.ndarray, np.ndarray]:
-            q1, v1, _ = self.step(q, v, mode, tau)
-            w, r = self.witness_and_rate(q1, v1, mode)
-            return w[watch] - 1.0 + offset, r[watch]
+        def phi(trial: _Trial) -> tuple[np.ndarray, np.ndarray]:
+            return trial.w[watch] - 1.0 + offset, trial.r[watch]
 
-        lo, (w_lo, r_lo) = 0.0, (w0[watch] - 1.0 + offset, r0[watch])
-        w_hi, r_hi = phi(hi)
+        lo, hi, (w_lo, r_lo), found = 0.0, first.tau, (w0[watch] - 1.0 + offset, r0[watch]), first
+        w_hi, r_hi = phi(first)
         f_lo, f_hi, side = float(np.min(w_lo)), float(np.min(w_hi)), 0
         for _ in range(100):
             if hi - lo <= 1e-14 * max(1.0, hi) or f_hi >= -offset:  # within one location tolerance
@@ -1096,17 +1173,18 @@ class _Landing:
                 mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_lo != f_hi else 0.5 * (lo + hi)
                 if not lo < mid < hi:
                     mid = 0.5 * (lo + hi)
-            w_mid, r_mid = phi(mid)
+            trial = self.trial(q, v, mode, mid)
+            w_mid, r_mid = phi(trial)
             f_mid = float(np.min(w_mid))
             if f_mid < 0:
-                hi, w_hi, r_hi, f_hi = mid, w_mid, r_mid, f_mid
+                hi, w_hi, r_hi, f_hi, found = mid, w_mid, r_mid, f_mid, trial
                 f_lo = f_lo / 2 if side == -1 else f_lo
                 side = -1
             else:
                 lo, w_lo, r_lo, f_lo = mid, w_mid, r_mid, f_mid
                 f_hi = f_hi / 2 if side == 1 else f_hi
                 side = 1
-        return hi
+        return found
 
     def impact(
         self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, contacts: np.ndarray, kind: str
@@ -1217,9 +1295,10 @@ class _Landing:
         d = rows.dof >= 0
         new.stop[rows.dof[d & rest]] = stops[rows.dof[d & rest]]
         new.redundant = self.redundant(pt, new)
-        new = self.consistent_slip(pt, v, self.unify(pt, v, self.slide_on_the_edge(q, v, new)), acc_tol)
-        new.redundant = self.redundant(pt, new)
-        return new
+        checked = self.consistent_slip(pt, v, self.unify(pt, v, self.slide_on_the_edge(q, v, new)), acc_tol)
+        if checked is not new:  # the checks changed the mode (they return it unchanged otherwise)
+            checked.redundant = self.redundant(pt, checked)
+        return checked
 
     def persists(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> bool:
         """Whether ``mode`` (after an impact: the rows it left resting, the contacts' slip as
@@ -1268,7 +1347,7 @@ class _Landing:
     def redundant(self, pt: _Point, mode: _Mode) -> bool:
         """Whether the mode's rows are redundant (:data:`REDUNDANT`): identical toes resting on
         one point, two sticking contacts of one rod."""
-        rows = _mode_rows(pt, mode, self.mu)
+        rows = self.mode_solution(pt, mode, solve=False)[0]
         if rows.G.shape[0] < 2:
             return False
         s = np.linalg.svd(rows.G @ np.linalg.solve(pt.M, rows.F.T), compute_uv=False)
@@ -1285,8 +1364,7 @@ class _Landing:
         if self.mu <= 0:
             return mode
         for _ in range(self.nc):
-            rows = _mode_rows(pt, mode, self.mu)
-            a, _ = _accelerations(pt, rows)
+            rows, (a, _) = self.mode_solution(pt, mode)
             at = pt.Jt @ a + pt.bt
             starting = mode.closed & mode.sliding & (np.linalg.norm(pt.vt(v), axis=1) <= self.speed_tol)
             wrong = starting & (np.sum(mode.slip * at, axis=1) < -acc_tol)
@@ -1305,8 +1383,7 @@ class _Landing:
         if self.mu <= 0 or not np.any(mode.closed & ~mode.sliding):
             return mode
         pt = self.point(q, v)
-        rows = _mode_rows(pt, mode, self.mu)
-        _, lam = _accelerations(pt, rows)
+        rows, (_, lam) = self.mode_solution(pt, mode)
         fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
         magnitude = np.linalg.norm(ft, axis=1)
         edge = mode.closed & ~mode.sliding & (self.mu * fn - magnitude <= self.force_tol) & (magnitude != 0)
@@ -1324,14 +1401,14 @@ class _Landing:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         end = self.ended(q, v, mode)
         own = (end is not None and not np.any(~mode.closed & (end.gap < 0))
-               and not np.any((mode.stop == 0) & (self.beyond(q) != 0)))
+               and not np.any((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))))
         if own:  # a compiled step's end whose placement is the mode's own: the compiled projection
             projected = self.fast.project(q, v, mode)
             if projected is not None:
                 return projected
         pt = self.point(q, v)
         q = q - self.placement(pt, q, mode)[1]
-        rows = _mode_rows(pt, mode, self.mu)
+        rows = self.mode_solution(pt, mode, solve=False)[0]
         if not rows.G.shape[0]:
             return q, v, np.zeros(self.dims * self.nc)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
@@ -1362,7 +1439,7 @@ class _Landing:
 
     def position_correction(self, pt: _Point, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """The smallest (kinetic-metric) change of q that zeroes the mode's closed gaps and stops."""
-        rows = _mode_rows(pt, mode, self.mu)
+        rows = self.mode_solution(pt, mode, solve=False)[0]
         n = rows.n
         if not n:
             return np.zeros_like(q)
@@ -1406,8 +1483,8 @@ class _Landing:
         ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
         totals.normal += impulses[: self.nc]
         totals.tangential += ft
-        normal = self.point(q, v).normal if self.sloped else np.tile(np.eye(self.dims)[1], (self.nc, 1))
-        totals.impulse += impulse_vector(normal, impulses[: self.nc], ft)
+        normal, tangent = (self.point(q, v).normal, None) if self.sloped else self.flat_ground
+        totals.impulse += impulse_vector(normal, impulses[: self.nc], ft, tangent)
 
     def run(self, h: float) -> LandingResult:
         """The landing at Runge-Kutta step ``h``."""
@@ -1438,18 +1515,15 @@ class _Landing:
                 )
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, 2.0 * dt)
-            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1)) and self.kinetic(q1, v1) <= cap):
+            if not (np.isfinite(q1).all() and np.isfinite(v1).all() and self.kinetic(q1, v1) <= cap):
                 raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
             _check_chart(q1, self.space, t + dt)
-            w = self.witness(q1, v1, mode)
-            graze = None if np.all(w >= 0) else dt
+            w, r = self.witness_and_rate(q1, v1, mode)
+            graze = None if (w >= 0).all() else _Trial(dt, q1, v1, impulse, self._end, w, r)
             if graze is None:
                 fraction = self.grazing(q, v, q1, v1, mode, dt)
-                graze = None if fraction is None else fraction * dt
-                if graze is not None:
-                    qg, vg, _ = self.step(q, v, mode, graze)
-                    w = self.witness(qg, vg, mode)
-                    graze = graze if np.any(w < 0) else None
+                graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
+                graze = graze if graze is not None and np.any(graze.w < 0) else None
             if graze is None:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
@@ -1461,10 +1535,11 @@ class _Landing:
                 t += dt
                 totals.steps += 1
                 continue
-            tau = self.locate(q, v, mode, graze, w < 0)
+            located = self.locate(q, v, mode, graze, graze.w < 0)
+            tau = located.tau
             if self.tape is not None:
-                self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, w < 0))
-            q_e, v_e, impulse = self.step(q, v, mode, tau)
+                self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, graze.w < 0))
+            q_e, v_e, impulse = self.take(q, v, mode, located)
             self.add(totals, impulse, q_e, v_e)
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau

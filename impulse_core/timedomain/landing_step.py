@@ -34,7 +34,7 @@ from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.timedomain.compliant import BufferedFunction
-from impulse_core.timedomain.landing import _Joints, _Mode, landing_function
+from impulse_core.timedomain.landing import _Joints, _Mode, _mode_bytes, landing_function
 from impulse_core.timedomain.landing_derivatives import _solve
 
 STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "mu", "stiffness", "damping", "rest", "p", "gravity")
@@ -214,6 +214,7 @@ class CompiledStep(BufferedFunction):
             step = landing_step_function(topology, terrain, self.stop_dofs, space)
             projection = landing_projection_function(topology, terrain, self.stop_dofs, space)
         super().__init__(step)
+        self.block, self.spans = self.contiguous()
         self.projection = BufferedFunction(projection)
         self.projection.args[7][:], self.projection.args[8][:] = p, gravity
         self.dofs = list(self.stop_dofs)
@@ -224,24 +225,51 @@ class CompiledStep(BufferedFunction):
                             ("rest", joints.rest), ("p", p), ("gravity", gravity)):
             self.args[STEP_INPUTS.index(name)][:] = value
         self.mu, self.nv = mu, len(joints.stiffness)
+        self._numbers: dict[bytes, tuple | None] = {}  # see numbers()
 
     def step(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode) -> StepEnd | None:
-        if mode.redundant or np.any(mode.stop[self.stopless]):
+        numbers = self.numbers(mode)
+        if numbers is None:
             return None
         a = self.args
         a[0][:], a[1][:], a[2][0] = q, v, h
-        sliding = mode.slip[:, 0] if self.mu > 0 else np.zeros(len(mode.closed))
-        a[3][:], a[5][:] = self.active(mode)
-        a[4][:] = sliding * mode.closed
+        a[3][:], a[5][:], a[4][:] = numbers
         self.evaluate()
-        o = [r.copy() for r in self.flat]
+        block = self.block.copy()  # every output at once, as views of one copy
+        o = [block[a:b] for a, b in self.spans]
         if not np.isfinite(o[1].sum() + o[10].sum() + o[11].sum()):  # singular rows: NaN or inf, which propagate
             return None
         stop_force = np.zeros(self.nv)
-        stop_force[list(self.stop_dofs)] = o[12]
+        stop_force[self.dofs] = o[12]
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9][:, None], o[10], o[11][:, None],
-                       stop_force, self.out[13].T.copy(), float(o[14][0]))
+                       stop_force, o[13].reshape(self.out[13].shape, order="F").T, float(o[14][0]))
 
+
+    def contiguous(self) -> tuple[np.ndarray, list[tuple[int, int]]]:
+        """The step's outputs as consecutive slices of one array (one copy per step): the array,
+        and each output's (start, end) in it."""
+        ends = np.cumsum([0] + [len(r) for r in self.flat])
+        block = np.zeros(ends[-1])
+        spans = list(zip(ends[:-1].tolist(), ends[1:].tolist()))
+        for i, (a, b) in enumerate(spans):
+            self.flat[i] = block[a:b]
+            self._buf.set_res(i, memoryview(self.flat[i]))
+            self.out[i] = self.flat[i].reshape(self.out[i].shape, order="F")
+        return block, spans
+
+    def numbers(self, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The mode as the functions' numbers (:meth:`active`, and each contact's sliding
+        direction, 0 where open or sticking), kept per mode; None where the numpy path answers (a
+        redundant mode, a stop on a DOF without stop rows)."""
+        key = _mode_bytes(mode)
+        numbers = self._numbers.get(key, False)
+        if numbers is False:
+            numpy = mode.redundant or np.any(mode.stop[self.stopless])
+            sliding = mode.slip[:, 0] if self.mu > 0 else np.zeros(len(mode.closed))
+            numbers = None if numpy else (*self.active(mode), sliding * mode.closed)
+            self._numbers = self._numbers if len(self._numbers) < 256 else {}
+            self._numbers[key] = numbers
+        return numbers
 
     def active(self, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
         """The mode's rows as numbers: per row (normal, stop, tangent) whether it is closed, and
@@ -255,11 +283,12 @@ class CompiledStep(BufferedFunction):
         being the mode's own (no open contact below the ground, no free joint past a stop before
         or after the correction: the caller checks the first two); None where the numpy path
         must answer (a redundant mode, a joint carried past its stop, a non-finite result)."""
-        if mode.redundant or np.any(mode.stop[self.stopless]):
+        numbers = self.numbers(mode)
+        if numbers is None:
             return None
         a = self.projection.args
         a[0][:], a[1][:] = q, v
-        a[5][:], a[6][:] = self.active(mode)
+        a[5][:], a[6][:] = numbers[:2]
         a[2][:], a[3][:] = a[5][: len(a[2])], a[6]
         a[4][:] = np.where(a[6] > 0, self.hi, self.lo)
         self.projection.evaluate()

@@ -184,3 +184,107 @@ def test_random_legs_land_alike_on_the_compiled_step(seed, sloped, offsets):
     r = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE)).run(5e-4)
     assert (r.n_steps, len(r.events)) == (ref.n_steps, len(ref.events))
     assert landing_difference(r, ref) <= 1e-10 and _rel(r.q_final, ref.q_final) <= 1e-10
+
+
+@pytest.mark.parametrize("code", [NUMPY_CODE, VM_CODE])
+def test_an_event_takes_the_step_that_located_it(code, monkeypatch):
+    """locate() returns the step it found the crossing with (its bracket's end, already taken by
+    the run or a trial): that step is a fresh step of its length from the same state, to the
+    bit, with its end's witnesses, a watched one past the location threshold (the bracket's
+    crossing end, not its last trial)."""
+    tree, laws, scene = _case3()
+    run = _Landing(tree, scene, laws, LandingSettings(step_code=code))
+    located = []
+    locate = run.locate
+
+    def recording(q, v, mode, first, watch):
+        found = locate(q, v, mode, first, watch)
+        located.append((q.copy(), v.copy(), mode.copy(), watch, found))
+        return found
+
+    monkeypatch.setattr(run, "locate", recording)
+    run.run(2e-3)
+    assert len(located) >= 10
+    for q, v, mode, watch, found in located:
+        q1, v1, impulse = run.step(q, v, mode, found.tau)
+        w, r = run.witness_and_rate(q1, v1, mode)
+        assert np.array_equal(q1, found.q) and np.array_equal(v1, found.v) and np.array_equal(impulse, found.impulse)
+        assert np.array_equal(w, found.w) and np.array_equal(r, found.r, equal_nan=True)
+        offset = min(1.0, max(0.1, 1.1 - float(np.min(run.witness(q, v, mode)[watch]))))  # locate()'s
+        assert np.min(found.w[watch]) - 1.0 + offset < 0.0  # the bracket's crossing end
+
+
+def test_a_modes_solution_is_kept_per_point():
+    """_Landing.mode_solution keeps the rows and forces of the modes asked at the last point:
+    equal to fresh ones for every mode there, and fresh again at a new point."""
+    from impulse_core.timedomain.landing import _accelerations, _mode_rows
+
+    tree, laws, scene = _case3()
+    run = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE))
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        q, v = run.q0 + 0.02 * rng.standard_normal(run.nv), rng.standard_normal(run.nv)
+        pt = run.point(q, v)
+        for mode in [_random_mode(rng, run) for _ in range(4)] * 2:
+            rows, (a, lam) = run.mode_solution(pt, mode)
+            fresh = _mode_rows(pt, mode, run.mu)
+            ra, rlam = _accelerations(pt, fresh)
+            assert np.array_equal(rows.G, fresh.G) and np.array_equal(rows.F, fresh.F)
+            assert np.array_equal(a, ra) and np.array_equal(lam, rlam)
+
+
+def test_along_and_the_unilateral_lcp_as_written_out():
+    """The shortcuts of _along (one direction: no sum) and of unilateral_lcp's matrix (filled in
+    place) equal their written-out forms: the per-contact sum and the block matrix of the law."""
+    from impulse_core.impact.coulomb import unilateral_lcp
+    from impulse_core.timedomain.landing import _along
+
+    rng = np.random.default_rng(2)
+    for shape in [(4, 1), (4, 1, 5), (0, 1, 5), (4, 2), (4, 2, 5), (4, 3, 5)]:
+        d, r = rng.standard_normal(shape[:2]), rng.standard_normal(shape)
+        assert np.array_equal(_along(d, r), (d.reshape(d.shape + (1,) * (r.ndim - 2)) * r).sum(axis=1))
+    for n, m in [(3, 2), (1, 0), (4, 4), (2, 1)]:
+        W, u = rng.standard_normal((n + m, n + m)), rng.standard_normal(n + m)
+        owner, e, mu = rng.choice(n, m, replace=False), rng.uniform(0, 1, n), rng.uniform(0, 1, m)
+        Wnn, Wnt, Wtn, Wtt = W[:n, :n], W[:n, n:], W[n:, :n], W[n:, n:]
+        E, eye, zero = np.zeros((m, n)), np.eye(m), np.zeros((m, m))
+        E[np.arange(m), owner] = mu
+        block = np.block([[Wnn, Wnt, -Wnt, np.zeros((n, m))], [Wtn, Wtt, -Wtt, eye], [-Wtn, -Wtt, Wtt, eye],
+                          [E, -eye, -eye, zero]])
+        M, q = unilateral_lcp(W, u, owner, e, mu)
+        assert np.array_equal(M, block)
+        assert np.array_equal(q, np.concatenate([(1 + e) * u[:n], u[n:], -u[n:], np.zeros(m)]))
+
+
+def test_resolve_marks_a_mode_redundant_exactly_when_its_rows_are(monkeypatch):
+    """Every mode resolve() chooses in a landing (two identical toes on one point) carries the
+    redundant flag of its own rows: where its checks kept the first answer (the flag is that
+    answer's) and where they changed it (here made to, with the flag flipped: it is recomputed)."""
+    from tests.impulse_core.test_landing import _identical_toes
+
+    tree, laws, scene = _identical_toes()
+    run = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE, integrator="rk4"))
+    chosen = []
+    resolve = run.resolve
+
+    def recording(q, v, mode):
+        new = resolve(q, v, mode)
+        chosen.append((q.copy(), v.copy(), mode.copy(), new.copy()))
+        return new
+
+    monkeypatch.setattr(run, "resolve", recording)
+    run.run(1e-3)
+    assert len(chosen) >= 10 and any(new.redundant for *_, new in chosen)
+    for q, v, _, new in chosen:
+        assert new.redundant == run.redundant(run.point(q, v), replace(new, redundant=False))
+    checks = run.consistent_slip
+
+    def changing(pt, v, mode, acc_tol):
+        out = checks(pt, v, mode, acc_tol).copy()
+        out.redundant = not out.redundant
+        return out
+
+    monkeypatch.setattr(run, "consistent_slip", changing)
+    for q, v, mode, _ in chosen:
+        new = resolve(q, v, mode)
+        assert new.redundant == run.redundant(run.point(q, v), replace(new, redundant=False))
