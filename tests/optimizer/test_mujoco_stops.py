@@ -14,6 +14,7 @@ Newton's ``stop_restitution`` e; the exported hinge's stiff limit rebounds with 
 
 from __future__ import annotations
 
+import dataclasses
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -107,3 +108,32 @@ def test_the_whole_exported_file_rebounds_too(e: float):
     ratios = np.array([rebound_ratio(_mujoco(e, STOP_TIMESTEP / 10, fixed=False), p) for p in (0.25, 0.75)])
     report("stops", f"e = {e}: floating file, rebound {ratios.min():.4f}..{ratios.max():.4f}")
     assert np.max(np.abs(ratios - e)) <= FLOATING
+
+
+def test_the_drop_holds_the_stops_tuned_for_its_own_step():
+    """``footopt drop`` (``drop_record``): MuJoCo's model holds the arm's stop tuned for the drop's
+    step (the compliant rung's, ~5e-6 s at 1e8 1/s^2), where it rebounds with e as the export's at
+    its stated step (the same steps per period, ten closing phases, within 0.035); the stop is not
+    reached in the first impact's window, so the impulses are those without stops."""
+    from impulse_core.evaluate import evaluate
+    from optimizer.cli.drop import drop_record
+
+    e = 0.6
+    scene = dataclasses.replace(SCENE, restitution=0.5, duration=None)  # the drop's contacts need e > 0
+    rigid = evaluate(TREE, scene)
+    with_stops = drop_record(TREE, scene, 1e8, rigid, joints=_laws(e))
+    without = drop_record(TREE, scene, 1e8, rigid)
+    h = with_stops["settings"]["timestep"]
+    assert h < STOP_TIMESTEP / 100
+    k, b = stop_parameters(e, h)
+    assert with_stops["settings"]["stops"] == {"arm": [-k, -b]} and without["settings"]["stops"] == {}
+    assert with_stops["external"]["mujoco"] == without["external"]["mujoco"]
+    root = ET.fromstring(to_mjcf(TREE, SCENE, joints=_laws(e), stop_timestep=h))
+    foot = root.find("worldbody/body")
+    foot.remove(foot.find("freejoint"))
+    m = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
+    m.opt.gravity[:] = 0.0
+    m.opt.timestep = h
+    ratios = np.array([rebound_ratio(m, p) for p in np.linspace(0.05, 0.95, 10)])
+    report("stops", f"e = {e}: drop's step {h:.3g} s, rebound {ratios.min():.4f}..{ratios.max():.4f}")
+    assert np.max(np.abs(ratios - e)) <= AT_STEP
