@@ -46,7 +46,8 @@ def add_drop(subparsers: argparse._SubParsersAction) -> None:
             "Drop a model file's leg in MuJoCo with the scene's approach (speed or velocity, angular velocity), "
             "frictionless soft contacts of the given stiffness, and print each contact's normal impulse and each "
             "joint's impulse: footopt's rigid answer, footopt's compliant rung with the same contact law, and "
-            "MuJoCo's, with the contact settings used. Needs the mujoco package (pip install mujoco)."
+            "MuJoCo's, with the contact settings used. The joints' stops are stiff limits rebounding with their "
+            "stop_restitution at the drop's step. Needs the mujoco package (pip install mujoco)."
         ),
     )
     p.add_argument("model", metavar="MODEL.yaml", help="a model file (a design from a run folder's designs/)")
