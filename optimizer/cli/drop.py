@@ -1,6 +1,8 @@
 """``footopt drop``: a design dropped in MuJoCo, its impulses beside footopt's. Registered in
 :data:`optimizer.cli.main.SUBCOMMANDS`. On flat ground the model dropped is ``footopt export``'s
-MJCF with contact spheres and the ground added (``mujoco_bridge.exported_for_drop``).
+MJCF with contact spheres and the ground added (``mujoco_bridge.exported_for_drop``), and with the
+model's stops as stiff limits rebounding with their ``stop_restitution``, tuned for the drop's own
+time step (``export.stop_parameters``; springs and dampers left out: they give no impulse).
 
 MuJoCo's contacts are soft: the drop uses its direct contact parameters (``solref = (-k, -b)``,
 a constant impedance; :mod:`optimizer.validation.mujoco_bridge`) with footopt's compliant rung's
@@ -22,6 +24,7 @@ import numpy as np
 from impulse_core.errors import FootoptError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
+from impulse_core.model.joints import JointLaw
 from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact
 from optimizer.cli.status import EXIT_FAILURE, EXIT_OK, EXIT_USAGE, warn
 from optimizer.errors import ConfigError
@@ -43,7 +46,8 @@ def add_drop(subparsers: argparse._SubParsersAction) -> None:
             "Drop a model file's leg in MuJoCo with the scene's approach (speed or velocity, angular velocity), "
             "frictionless soft contacts of the given stiffness, and print each contact's normal impulse and each "
             "joint's impulse: footopt's rigid answer, footopt's compliant rung with the same contact law, and "
-            "MuJoCo's, with the contact settings used. Needs the mujoco package (pip install mujoco)."
+            "MuJoCo's, with the contact settings used. The joints' stops are stiff limits rebounding with their "
+            "stop_restitution at the drop's step. Needs the mujoco package (pip install mujoco)."
         ),
     )
     p.add_argument("model", metavar="MODEL.yaml", help="a model file (a design from a run folder's designs/)")
@@ -74,7 +78,7 @@ def run_drop(args: argparse.Namespace) -> int:
             warn(f"{args.model}: scene.duration is left out: the drop compares the first impact")
         scene = replace(model.scene, duration=None)  # the first impact
         rigid = evaluate_landing(model.tree, scene, "auto", space=model.space)
-        record = drop_record(model.tree, scene, args.stiffness, rigid, model.space)
+        record = drop_record(model.tree, scene, args.stiffness, rigid, model.space, model.joints)
     except NumericalError as e:
         _error(args.model, f"numerical failure: {e}")
         return EXIT_FAILURE
@@ -95,19 +99,27 @@ def _check_spatial(model) -> None:  # type: ignore[no-untyped-def]
                           "(footopt evaluate solves the exact circular cone)", model.path)
 
 
-def drop_record(tree, scene, stiffness: float, rigid, space: Space = PLANAR) -> dict:  # type: ignore[no-untyped-def]
-    """The three answers and the settings, as JSON-able data."""
-    from optimizer.results.export import to_mjcf
+def stops_only(joints: tuple[JointLaw, ...]) -> tuple[JointLaw, ...]:
+    """The joint laws' stops and their restitution, without springs and dampers (no impulse)."""
+    return tuple(JointLaw(limits=law.limits, stop_restitution=law.stop_restitution) for law in joints)
+
+
+def drop_record(tree, scene, stiffness: float, rigid, space: Space = PLANAR,  # type: ignore[no-untyped-def]
+                joints: tuple[JointLaw, ...] = ()) -> dict:
+    """The three answers and the settings, as JSON-able data; ``joints``: the model's joint laws,
+    whose stops MuJoCo's model holds (:func:`stops_only`, tuned for the drop's step)."""
+    from optimizer.results.export import stop_parameters, to_mjcf
     from optimizer.validation.mujoco_bridge import drop, drop_spatial
 
     settings = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=stiffness, gravity=scene.gravity)
     frictional = scene.friction > 0  # the compliant rung is frictionless: no column then
+    stops = stops_only(joints)
     soft = simulate_impact(tree, replace(scene, friction=0.0), settings, space=space)
     steps = int(round(soft.duration / soft.timestep)) * (FRICTION_WINDOW if frictional else 1)
     if space is SPATIAL:
-        mj = drop_spatial(tree, scene, settings, steps, soft.timestep)
+        mj = drop_spatial(tree, scene, settings, steps, soft.timestep, joints=stops)
     else:
-        exported = to_mjcf(tree, scene)  # footopt export's MJCF (its joint laws give no impulse: left out)
+        exported = to_mjcf(tree, scene, joints=stops, stop_timestep=soft.timestep)  # footopt export's MJCF
         mj = drop(tree, scene, settings, steps, soft.timestep, v_minus=pre_impact_velocity(tree.topology(), scene),
                   exported=exported if scene.terrain.is_flat else None)
     b = float(np.mean(soft.damping))
@@ -124,7 +136,10 @@ def drop_record(tree, scene, stiffness: float, rigid, space: Space = PLANAR) -> 
                      "friction": scene.friction, "cone": "elliptic" if frictional else None,
                      "rigid_model": _model_name(rigid),
                      "mjcf": "footopt export's, with contact spheres and ground" if scene.terrain.is_flat
-                     else "the bridge's (terrain)", "space": space.name},
+                     else "the bridge's (terrain)", "space": space.name,
+                     "stops": {tree.bodies[i].name: [-k, -b] for i, law in enumerate(stops) if law.limits is not None
+                               for k, b in [stop_parameters(law.stop_restitution, soft.timestep)]}
+                     if scene.terrain.is_flat else {}},
     }
     if frictional:
         record["tangential"] = {"footopt": _floats(rigid.tangential), "mujoco": _floats(mj.external_vector[:, 0])}
@@ -147,6 +162,9 @@ def format_drop(path: str, r: dict) -> str:
     lines = [f"{path} dropped in MuJoCo: solref ({s['solref'][0]:g}, {s['solref'][1]:.4g}), solimp d {s['solimp_d']:g}, "
              f"timestep {s['timestep']:.3g} s x {s['steps']} steps ({1e3 * s['window']:.3g} ms), {contact}",
              f"{'':<24}{'footopt (' + str(s['rigid_model']) + ')':>22}{'compliant':>14}{'MuJoCo':>14}"]
+    if s.get("stops"):
+        stops = ", ".join(f"{name} ({k:.4g}, {b:.4g})" for name, (k, b) in s["stops"].items())
+        lines.insert(1, f"stops as limits, solreflimit {stops} (rebounding with each stop's restitution)")
     kinds = [("external", r["contacts"]), ("tangential", r["contacts"]), ("internal", r["joints"])]
     for kind, names in kinds:
         if kind not in r:
@@ -162,4 +180,4 @@ def _cell(values: list[float] | None, k: int) -> str:
     return "-" if values is None else f"{values[k]:.6g}"
 
 
-__all__ = ["DEFAULT_STIFFNESS", "add_drop", "drop_record", "format_drop", "run_drop"]
+__all__ = ["DEFAULT_STIFFNESS", "add_drop", "drop_record", "format_drop", "run_drop", "stops_only"]

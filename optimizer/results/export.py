@@ -13,7 +13,9 @@ are escaped, never pasted into text); the callers write the files. What the file
   angle, so that the zero configuration is the touchdown posture; a joint law (stops, spring,
   damper) is carried over where the format has it, relative to that zero: URDF ``<limit>`` and
   ``<dynamics damping>`` (URDF has no springs: the file says so), MJCF ``range``, ``stiffness``,
-  ``springref`` and ``damping``; a stop's restitution has no counterpart (the file says so);
+  ``springref`` and ``damping``; a stop's restitution has no URDF counterpart (the file says so),
+  and in MJCF each stop is a stiff limit (``solreflimit``, ``solimplimit``: :func:`stop_parameters`)
+  rebounding with the stop's restitution;
 - a floating base whose zero pose is the touchdown pose (base origin above ``scene.base_x``,
   lowered until its first contact touches the scene's ground): MJCF, a ``freejoint`` on the base
   body placed there; URDF, the root link (to be loaded with a free-flyer), whose frame is then the
@@ -47,7 +49,7 @@ from impulse_core.model.rods import (
 )
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, JointKind, Scene, Tree, tensor_problem
-from impulse_core.timedomain.compliant import scene_ground, touchdown_configuration
+from impulse_core.timedomain.compliant import damping_ratio_for_restitution, scene_ground, touchdown_configuration
 from optimizer.errors import ConfigError
 
 #: Each principal moment of inertia is written as at least this (kg m^2).
@@ -56,6 +58,14 @@ INERTIA_FLOOR = 1e-9
 GRAVITY = 9.81
 #: Radius of the rods' visual cylinders and capsules (m): drawing only, no mass, no collision.
 VISUAL_RADIUS = 0.005
+#: MuJoCo's default time step (s), which the exported MJCF keeps: its stops are tuned for it.
+STOP_TIMESTEP = 0.002
+#: Time steps per period of a stop's spring (MuJoCo's semi-implicit Euler step): the stop's
+#: rebound ratio is within 0.035 of its restitution at this step, whatever the phase of the step
+#: at which it closes, converging as the step shrinks (tests/optimizer/test_export.py).
+STOP_STEPS_PER_PERIOD = 40
+#: A stop's constant impedance (MuJoCo's ``solimplimit = (d, d, ...)``), as the drop's contacts.
+STOP_IMPEDANCE = 0.9999
 #: URDF's effort and velocity limits of a joint with stops (the model has no motors: unbounded).
 UNBOUNDED = 1e9
 #: Characters XML 1.0 cannot hold (control characters other than tab and line breaks, and non-characters).
@@ -281,21 +291,24 @@ def to_mjcf(
     gravity: float = GRAVITY,
     joints: tuple[JointLaw, ...] = (),
     space: Space = PLANAR,
+    stop_timestep: float = STOP_TIMESTEP,
 ) -> str:
-    """The MJCF of ``tree``: ``qpos0`` is the touchdown pose; gravity ``gravity`` (m/s^2) along -y."""
+    """The MJCF of ``tree``: ``qpos0`` is the touchdown pose; gravity ``gravity`` (m/s^2) along -y;
+    the stops tuned for MuJoCo steps of ``stop_timestep`` (s; :func:`stop_parameters`)."""
     check_names(tree)
     check_inertias(tree)
     root = ET.Element("mujoco", model=_xml_safe(name))
-    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints, space)))
+    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints, space, stop_timestep)))
     ET.SubElement(root, "compiler", angle="radian")
     ET.SubElement(root, "option", gravity=_xyz((0.0, -gravity, 0.0)))
-    _mjcf_body(ET.SubElement(root, "worldbody"), tree, 0, base_pose(tree, scene, space), children(tree), joints)
+    _mjcf_body(ET.SubElement(root, "worldbody"), tree, 0, base_pose(tree, scene, space), children(tree), joints,
+               stop_timestep)
     return _text(root, declaration=False)
 
 
 def _mjcf_body(
     parent: ET.Element, tree: Tree, i: int, frame: Frame, kids: tuple[tuple[int, ...], ...],
-    joints: tuple[JointLaw, ...] = (),
+    joints: tuple[JointLaw, ...] = (), stop_timestep: float = STOP_TIMESTEP,
 ) -> None:
     """Body ``i`` (and its subtree) inside ``parent``, its frame at ``frame`` in the parent's."""
     b = tree.bodies[i]
@@ -303,7 +316,7 @@ def _mjcf_body(
     if b.parent is None:
         ET.SubElement(body, "freejoint", name=b.name)
     elif b.joint is JointKind.REVOLUTE:
-        law = _mjcf_law(_law(joints, i), b.angle)
+        law = _mjcf_law(_law(joints, i), b.angle, stop_timestep)
         ET.SubElement(body, "joint", name=b.name, type="hinge", axis=_axis_text(b), **law)
     tensor = inertia_tensor(b, INERTIA_FLOOR)
     if b.is_rod:  # principal axes = body axes
@@ -318,7 +331,7 @@ def _mjcf_body(
         ET.SubElement(body, "site", name=contact_frame_name(b, k), pos=_xyz(contact_point(b, k)))
     for child in kids[i]:
         placed = (joint_origin(tree, child), body_rotation(tree.bodies[child]))
-        _mjcf_body(body, tree, child, placed, kids, joints)
+        _mjcf_body(body, tree, child, placed, kids, joints, stop_timestep)
 
 
 #: A general body's principal moments are written at least this fraction of their sum inside
@@ -340,11 +353,31 @@ def _inside_triangle(I: np.ndarray) -> np.ndarray:
     return 0.5 * (out + out.T)
 
 
-def _mjcf_law(law: JointLaw, angle: float) -> dict[str, str]:
-    """A hinge's attributes for a joint law: ``range`` (limited), ``stiffness`` about
-    ``springref``, ``damping``."""
+def stop_parameters(restitution: float, timestep: float = STOP_TIMESTEP) -> tuple[float, float]:
+    """MuJoCo's direct limit parameters ``(k, b)`` of a stop (``solreflimit = (-k, -b)``, 1/s^2
+    and 1/s), for a constant impedance :data:`STOP_IMPEDANCE`: the joint angle's overshoot past
+    the stop follows x'' = -k x - b x' while the stop pushes (released, not reversed), whatever
+    the inertia behind it. k: :data:`STOP_STEPS_PER_PERIOD` steps of ``timestep`` per period;
+    b: the damping ratio at which that clipped spring-damper rebounds with ``restitution``
+    (:func:`damping_ratio_for_restitution`), at most the one with b * timestep = 1 (a
+    semi-implicit step removes a step's velocity in one step and no more: more damping rebounds
+    in one step). e = 0 takes that most damped one, which rebounds with about 0.021."""
+    omega = 2.0 * math.pi / (STOP_STEPS_PER_PERIOD * timestep)
+    most = 1.0 / (2.0 * omega * timestep)
+    zeta = most if restitution <= 0.0 else min(damping_ratio_for_restitution(restitution), most)
+    return omega * omega, 2.0 * zeta * omega
+
+
+def _mjcf_law(law: JointLaw, angle: float, stop_timestep: float = STOP_TIMESTEP) -> dict[str, str]:
+    """A hinge's attributes for a joint law: ``range`` (limited) with the stops' stiff limit
+    (:func:`stop_parameters` at ``stop_timestep``), ``stiffness`` about ``springref``, ``damping``."""
     limits, rest = _relative(law, angle)
-    out = {} if limits is None else {"limited": "true", "range": _xyz(limits)}
+    out: dict[str, str] = {}
+    if limits is not None:
+        k, b = stop_parameters(law.stop_restitution, stop_timestep)
+        d = _f(STOP_IMPEDANCE)
+        out = {"limited": "true", "range": _xyz(limits), "solreflimit": _xyz((-k, -b)),
+               "solimplimit": f"{d} {d} 0.001 0.5 2"}
     if law.stiffness:
         out |= {"stiffness": _f(law.stiffness), "springref": _f(rest)}
     if law.damping:
@@ -357,7 +390,8 @@ def _mjcf_law(law: JointLaw, angle: float) -> dict[str, str]:
 
 
 def _note(
-    tree: Tree, scene: Scene, fmt: ExportFormat, joints: tuple[JointLaw, ...] = (), space: Space = PLANAR
+    tree: Tree, scene: Scene, fmt: ExportFormat, joints: tuple[JointLaw, ...] = (), space: Space = PLANAR,
+    stop_timestep: float = STOP_TIMESTEP,
 ) -> str:
     """The comment at the top of a file: what it holds and where it departs from the model."""
     origin, R = base_pose(tree, scene, space)
@@ -397,9 +431,20 @@ def _note(
         lines.append(f"URDF has no joint springs: the torsional springs of {', '.join(sprung)} are not written.")
     elif sprung:
         lines.append("Joint springs: stiffness about springref (the rest angle less the touchdown angle).")
+    stopped = [tree.bodies[i].name for i, law in enumerate(joints) if law.limits is not None]
     bouncy = [tree.bodies[i].name for i, law in enumerate(joints) if law.limits is not None and law.stop_restitution]
-    if bouncy:
+    if bouncy and fmt is ExportFormat.URDF:
         lines.append(f"The stops' restitution of {', '.join(bouncy)} has no counterpart in the format: not written.")
+    elif stopped and fmt is ExportFormat.MJCF:
+        k, _ = stop_parameters(0.0, stop_timestep)
+        lines += [
+            f"Stops ({', '.join(stopped)}): stiff limits rebounding with the stop's restitution: direct",
+            "solreflimit (-k, -b): the overshoot x follows x'' = -k x - b x' while the stop pushes (any inertia),",
+            f"k = {_f(k)} 1/s^2 ({STOP_STEPS_PER_PERIOD} steps of {_f(stop_timestep)} s per period), b for the restitution",
+            f"(at most 1/timestep: restitution 0 rebounds with about 0.02); solimplimit d = {_f(STOP_IMPEDANCE)}.",
+            f"Stable and accurate at timestep {_f(stop_timestep)} s or shorter (rebound within 0.035 of the restitution",
+            "at it, closer as the step shrinks); a longer step needs a softer k (docs/MODEL_FORMAT.md, Export).",
+        ]
     return "\n" + "\n".join(lines) + "\n"
 
 
@@ -431,6 +476,7 @@ __all__ = [
     "contact_frame_name",
     "export_text",
     "quaternion_of",
+    "stop_parameters",
     "rpy_of",
     "to_mjcf",
     "to_urdf",

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.model.joints import JointLaw
 from impulse_core.model.rods import centre_of_mass, children, contact_point, inertia_tensor, joint_origin
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import JointKind, Scene, Tree
@@ -364,6 +365,7 @@ def drop_spatial(
     n_steps: int,
     timestep: float,
     effective_mass: np.ndarray | None = None,
+    joints: tuple[JointLaw, ...] = (),
 ) -> MujocoDrop:
     """A spatial model (``model.space: spatial``) dropped in MuJoCo on flat ground, as :func:`drop`
     drops a planar one: ``footopt export``'s MJCF (a freejoint base at the touchdown pose, hinges
@@ -373,6 +375,7 @@ def drop_spatial(
     ``timestep``. Impulse vectors and joint impulses are 3D (world frame); ``v_plus`` is in our
     order (base origin velocity, world angular velocity, joint rates). ``effective_mass``: the
     penalty law's (:func:`contact_parameters`; required for it: the planar default does not apply).
+    ``joints``: joint laws the exported file carries (its stops tuned for ``timestep``).
     """
     import mujoco  # lazy: a test and study dependency only
 
@@ -387,7 +390,8 @@ def drop_spatial(
     if settings.law is ContactLaw.PENALTY and effective_mass is None:
         raise ValueError("drop_spatial: the penalty law needs each contact's effective mass")
     stiffness, damping = contact_parameters(tree, scene, settings, FLAT, 0.0, effective_mass)
-    text = exported_for_drop(to_mjcf(tree, scene, space=SPATIAL), tree, FLAT, timestep, stiffness, damping, settings)
+    exported = to_mjcf(tree, scene, joints=joints, space=SPATIAL, stop_timestep=timestep)
+    text = exported_for_drop(exported, tree, FLAT, timestep, stiffness, damping, settings)
     m = mujoco.MjModel.from_xml_string(text)
     d = mujoco.MjData(m)
     free = m.joint(tree.bodies[0].name)

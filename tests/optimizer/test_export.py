@@ -365,6 +365,9 @@ def test_joint_laws_are_carried_over_relative_to_the_touchdown_angle(tmp_path):
     urdf = to_urdf(tree, model.scene, joints=laws)
     p = pin.buildModelFromXML(urdf, pin.JointModelFreeFlyer())
     assert "URDF has no joint springs" in urdf
+    bouncy = tuple(dataclasses.replace(law, stop_restitution=0.5) if law.limits else law for law in laws)
+    assert "has no counterpart in the format: not written" in to_urdf(tree, model.scene, joints=bouncy)
+    assert "Stops (" not in urdf and "Stops (" in to_mjcf(tree, model.scene, joints=bouncy)
     for i, (b, law) in enumerate(zip(tree.bodies, laws)):
         if i == 0 or b.joint is not JointKind.REVOLUTE:
             continue
