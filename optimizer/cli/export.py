@@ -7,6 +7,7 @@ exists (without ``--force``), one line on stderr naming the file or the option.
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from impulse_core.errors import FootoptError
@@ -39,6 +40,9 @@ def add_export(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="urdf or mjcf (default: from OUT's suffix, .urdf, or .xml / .mjcf for MJCF)",
     )
+    p.add_argument("--stop-timestep", type=float, default=None, metavar="S",
+                   help="MJCF: tune the stops' stiff limits for MuJoCo steps of S seconds (default: MuJoCo's "
+                        "default step, 0.002; a longer step needs softer stops)")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     p.set_defaults(run=run_export)
 
@@ -52,9 +56,14 @@ def run_export(args: argparse.Namespace) -> int:
     if name is None:
         _error("--format", f"give urdf or mjcf (the suffix of {args.out} names neither)")
         return EXIT_USAGE
+    step = args.stop_timestep
+    if step is not None and not (math.isfinite(step) and step > 0):
+        _error("--stop-timestep", f"must be a time step > 0 (s), got {step!r}")
+        return EXIT_USAGE
     try:
         model = load_model_file(args.model)
-        text = export_text(model.tree, model.scene, ExportFormat(name), Path(args.model).stem, model.joints, model.space)
+        text = export_text(model.tree, model.scene, ExportFormat(name), Path(args.model).stem, model.joints,
+                           model.space, **({} if step is None else {"stop_timestep": step}))
     except FootoptError as e:
         _error(args.model, str(e))
         return EXIT_USAGE

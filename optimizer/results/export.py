@@ -146,11 +146,13 @@ def export_text(
     name: str = "footopt",
     joints: tuple[JointLaw, ...] = (),
     space: Space = PLANAR,
+    stop_timestep: float = STOP_TIMESTEP,
 ) -> str:
-    """The description of ``tree`` (and its joint laws) at its touchdown in ``scene``, in ``fmt``."""
+    """The description of ``tree`` (and its joint laws) at its touchdown in ``scene``, in ``fmt``
+    (MJCF: the stops tuned for MuJoCo steps of ``stop_timestep`` s)."""
     if fmt is ExportFormat.URDF:
         return to_urdf(tree, scene, name, joints, space)
-    return to_mjcf(tree, scene, name, joints=joints, space=space)
+    return to_mjcf(tree, scene, name, joints=joints, space=space, stop_timestep=stop_timestep)
 
 
 def _law(joints: tuple[JointLaw, ...], i: int) -> JointLaw:

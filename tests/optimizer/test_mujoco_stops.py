@@ -137,3 +137,30 @@ def test_the_drop_holds_the_stops_tuned_for_its_own_step():
     ratios = np.array([rebound_ratio(m, p) for p in np.linspace(0.05, 0.95, 10)])
     report("stops", f"e = {e}: drop's step {h:.3g} s, rebound {ratios.min():.4f}..{ratios.max():.4f}")
     assert np.max(np.abs(ratios - e)) <= AT_STEP
+
+
+def test_export_tunes_the_stops_for_a_stated_step(tmp_path, capsys):
+    """``footopt export --stop-timestep S``: the stops' limits are tuned for MuJoCo steps of S (the
+    file's solreflimit is stop_parameters(e, S)), and at that step the exported hinge rebounds
+    with e to the stated step's tolerance; a bad step is refused naming the option."""
+    from optimizer.cli.main import main
+    from optimizer.config.model_file import ModelFile, format_model_file
+
+    e, step = 0.6, 0.01
+    model = tmp_path / "arm.yaml"
+    model.write_text(format_model_file(ModelFile(TREE, SCENE, joints=_laws(e))), encoding="utf-8")
+    out = tmp_path / "arm.xml"
+    assert main(["export", str(model), "-o", str(out), "--stop-timestep", str(step)]) == 0
+    root = ET.fromstring(out.read_text(encoding="utf-8"))
+    foot = root.find("worldbody/body")
+    foot.remove(foot.find("freejoint"))
+    m = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
+    m.opt.gravity[:], m.opt.timestep = 0.0, step
+    k, b = stop_parameters(e, step)
+    assert tuple(m.jnt_solref[m.joint("arm").id]) == pytest.approx((-k, -b), rel=1e-12)
+    ratios = np.array([rebound_ratio(m, p) for p in np.linspace(0.05, 0.95, 5)])
+    assert np.max(np.abs(ratios - e)) <= AT_STEP
+    capsys.readouterr()
+    assert main(["export", str(model), "-o", str(tmp_path / "x.xml"), "--stop-timestep", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert "--stop-timestep" in err and len(err.strip().splitlines()) == 1
