@@ -25,7 +25,8 @@ within 1e-6 m of the lowest hit (a rolled landing meets the ground with one side
 Scores: mean and worst (max) of external_norm and internal_norm over the landings; the best
 splay minimises the mean internal_norm (the joints' load).
 
-Run from the repository root: ``python studies/splayed_toes/run.py``; writes results.md,
+Run from the repository root: ``python studies/splayed_toes/run.py``; writes results.md (keeping
+its section 3, by whole_landing.py),
 splay.csv and splay.png here (and part 1's files).
 """
 
@@ -52,6 +53,7 @@ REPO = HERE.parents[1]
 LANDINGS = 200
 SPLAYS = np.round(np.linspace(0.0, 0.8, 17), 3)
 SEED = 20261125
+WHOLE = "## 3. Whole landings in space"  # results.md's section by whole_landing.py, kept by main
 
 
 def splayed(tree: Tree, s: float) -> Tree:
@@ -240,7 +242,7 @@ def optimised_text(feet: dict, rows: list[dict], margins: dict, timing: dict) ->
         "rolled landings the splayed foot's first impact is lower, because it meets one toe (or the heel) first:",
         "the planar foot's two toes lie on one line, so a roll does not separate them and both hit together.",
         "As in part 2, only the first impact is scored: the splayed foot's other toe lands later and that impact",
-        "is not in these figures (the whole landing in space is not written yet), so the rolled ratios overstate",
+        "is not in these figures (section 3 lands the feet whole, in space), so the rolled ratios overstate",
         "the gain by an amount not measured here. Both feet weigh the budget (0.5 kg);",
         "one seed, one budget of trials, one set of landing ranges.",
         "",
@@ -287,7 +289,9 @@ def main() -> None:
         *part1,
         *part2,
     ])
-    (HERE / "results.md").write_text(text, encoding="utf-8")
+    old = (HERE / "results.md").read_text(encoding="utf-8") if (HERE / "results.md").exists() else ""
+    kept = old[old.index(WHOLE):] if WHOLE in old else ""  # whole_landing.py's section
+    (HERE / "results.md").write_text(text + ("\n" + kept if kept else ""), encoding="utf-8")
     print(text)
 
 
@@ -336,7 +340,7 @@ def sweep() -> list[str]:
         "one toe first. The first impact then takes one toe's impulse, and the other toes' later impacts are",
         "not scored. So on first impacts a splayed foot looks better on average and no better in the worst",
         "landing (the heel-first ones); whether splay spreads the whole landing's impulses needs the whole",
-        "landing in space (issue #13's model is planar so far). What splay does give is a foot that stands: the",
+        "landing in space (section 3). What splay does give is a foot that stands: the",
         f"support margin (the centre of mass inside the contacts' hull) is {round(1e3 * planar['support_margin'], 1) + 0.0:+.1f} mm for the",
         f"planar foot (its contacts on one line) and {1e3 * best['support_margin']:+.1f} mm at the best splay.",
         "Every splay's scores are in `splay.csv`; one",
