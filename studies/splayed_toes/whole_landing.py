@@ -19,7 +19,8 @@ Speed: ``LandingSettings(tolerance=TOLERANCE, bounce_steps=BOUNCE_STEPS)``; boun
 rebound shorter than a quarter step plastic (the light heel's chatter: fewer, not the contract's,
 events; the first event is unchanged, and the peaks of landings 0 and 150, both feet, were within 2 % of
 the contract's run at tolerance 1e-3 and 0.04 s). Tolerance 1e-2 and bounce_steps keep a landing at
-5-25 s of compute; one that takes longer than ``LIMIT`` is dropped (landing 201: its planar foot ran past 200 s in a trial).
+5-25 s of compute; one that takes longer than ``LIMIT`` is dropped (landing 201: its planar foot ran
+past 200 s in a trial).
 
 Writes whole_landing.csv, whole_landing.png and section 3 of results.md (replacing it if there).
 Run from the repository root: ``python studies/splayed_toes/whole_landing.py [--report]`` (--report:
