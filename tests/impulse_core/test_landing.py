@@ -258,6 +258,7 @@ def test_a_pole_with_its_centre_of_mass_off_the_rod_settles_as_derived():
     assert r.final_angles[1] == pytest.approx(theta, abs=1e-7)
     _assert_the_laws(tree, laws, replace(scene, duration=0.3), 1e-3)
 
+
 PLANK_MJCF = """
 <mujoco>
   <compiler angle="radian"/>
