@@ -684,10 +684,15 @@ def foot_support_margin(leg: Leg, design: FootDesign) -> float:
     return hull_margin(geometry.contacts[:, [0, 2]], com[[0, 2]])
 
 
+def base_turn(v_plus: np.ndarray, planar: bool) -> float:
+    """|angular velocity| of the base (the thigh) in a reported velocity: in the plane DOF 2 is its
+    rate, in space DOFs 3-5 its angular velocity, whose norm is taken."""
+    return abs(float(v_plus[2])) if planar else float(np.linalg.norm(v_plus[3:6]))
+
+
 def objectives(result: ImpactResult, space: Space = PLANAR) -> Objectives:
-    """The designer's objectives from the core's result (base: the thigh; in the plane DOF 2 is
-    its rate, in space DOFs 3-5 its angular velocity, whose norm is taken)."""
-    turn = abs(float(result.v_plus[2])) if space is PLANAR else float(np.linalg.norm(result.v_plus[3:6]))
+    """The designer's objectives from the core's result (:func:`base_turn` after the impact)."""
+    turn = base_turn(result.v_plus, space is PLANAR)
     return Objectives(
         external_norm=result.external_norm,
         internal_norm=result.internal_norm,
@@ -1047,8 +1052,7 @@ def landing_objectives(result: LandingResult) -> Objectives:
     """The designer's objectives from a whole landing: its first event's (the base's turn as in
     :func:`objectives`), and its own."""
     first = result.events[0]
-    planar = result.space == PLANAR.name
-    turn = abs(float(first.v_plus[2])) if planar else float(np.linalg.norm(first.v_plus[3:6]))
+    turn = base_turn(first.v_plus, result.space == PLANAR.name)
     return Objectives(
         external_norm=first.external_norm,
         internal_norm=first.internal_norm,
@@ -1130,6 +1134,7 @@ __all__ = [
     "intended_contacts",
     "landing_scene",
     "newton_impulses",
+    "base_turn",
     "objectives",
     "segment_names",
     "segment_suffixes",

@@ -21,7 +21,6 @@ import numpy as np
 from impulse_core.model.tree import Scene
 from optimizer.config.model_file import joint_law, load_yaml, read_text
 from optimizer.config.yaml_fields import describe as _describe
-from optimizer.config.yaml_fields import join as _join
 from optimizer.config.yaml_fields import mapping as _checked_mapping
 from optimizer.config.yaml_fields import number as _number
 from optimizer.config.yaml_fields import positive as _positive

@@ -3,6 +3,7 @@ display needed)."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -10,9 +11,11 @@ import numpy as np
 
 from impulse_core.evaluate import Geometry, ImpactResult, touchdown_geometry
 from impulse_core.kinematics.spatial import SPATIAL, Space
+from impulse_core.model import heightfield
 from impulse_core.model.support import convex_hull, support_margin
 from impulse_core.model.terrain import FLAT, height, slope_normal, vertical_clearance
 from impulse_core.model.tree import Scene, Tree
+from impulse_core.timedomain.compliant import spatial_ground, touchdown_configuration
 from optimizer.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -322,9 +325,6 @@ VIEWS = (("side (x forward, y up)", 0, 1), ("front (z lateral, y up)", 2, 1), ("
 def ground_section(points: np.ndarray, scene: Scene, space: Space, h: int) -> tuple[np.ndarray, np.ndarray]:
     """The ground's height along world axis ``h`` (x or z) under ``points`` (in space through
     their mean position across: the scene's heightfield, or its flat ground)."""
-    from impulse_core.model import heightfield
-    from impulse_core.timedomain.compliant import spatial_ground
-
     across = np.linspace(points[:, h].min() - 0.1, points[:, h].max() + 0.1, 200)
     if space.joint_axis is not None:
         return across, height(scene.terrain, across)
@@ -336,11 +336,6 @@ def ground_section(points: np.ndarray, scene: Scene, space: Space, h: int) -> tu
 def _placed_on(tree: Tree, geometry: Geometry, scene: Scene) -> tuple[Geometry, np.ndarray]:
     """The touchdown geometry where the scene's heightfield puts it (base at ``base_x``,
     ``base_z``, lowered onto the ground) and the ground's upward normal at each contact."""
-    import dataclasses
-
-    from impulse_core.model import heightfield
-    from impulse_core.timedomain.compliant import touchdown_configuration
-
     hf = scene.heightfield
     shift = touchdown_configuration(tree, hf, scene.base_x, space=SPATIAL, base_z=scene.base_z)[:3]
     placed = dataclasses.replace(geometry, origins=geometry.origins + shift, tips=geometry.tips + shift,

@@ -35,7 +35,7 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.errors import NumericalError
-from impulse_core.timedomain.landing import LandingSettings, landing
+from impulse_core.timedomain.landing import landing
 from impulse_core.timedomain.landing_derivatives import LAW_VALUES, _joint_dofs, body_values, landing_gradient, taped_run
 from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (

@@ -41,7 +41,6 @@ Run: python studies/whole_landing/speed.py [--stiffness K ...]  (writes speed.md
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import time
 from pathlib import Path
