@@ -58,6 +58,7 @@ from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import cone_unilateral
 from impulse_core.impact.coulomb import UnilateralSolution, solve_unilateral
+from impulse_core.impact.laws import least_norm_split, redundant
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
@@ -257,6 +258,10 @@ class LandingResult:
     #: 16-gon (polyhedral) answer was used (:func:`impulse_core.impact.cone.cone_unilateral`)
     inexact: int = 0
     momentum_balance: float = 0.0
+    #: impacts whose rows were redundant: the velocities after are unique, the split is not
+    #: (frictionless: the smallest-norm non-negative split, as the lcp rung; with friction: the
+    #: one the law's solver reaches, as the friction rung)
+    non_unique: int = 0
 
     @property
     def peak_external_norm(self) -> float:
@@ -812,7 +817,7 @@ class _Landing:
         if self.method not in (RK4, IMPLICIT):
             raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, auto")
         #: circular-cone solves of the current run that fell back to the polyhedral answer
-        self.inexact = 0
+        self.inexact = self.non_unique = 0
         #: a rebound shorter than this (s) is plastic: MIN_BOUNCE of the duration at the first
         #: impact, and also ``settings.bounce_steps`` of the step after it (set by :meth:`run`)
         self.min_bounce = MIN_BOUNCE * float(scene.duration or 0.0)
@@ -1201,6 +1206,10 @@ class _Landing:
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
         sol, _, exact = _solve_rows(rows.G @ minv_gt, u, rows, e)
         self.inexact += not exact
+        if redundant(rows.G):
+            self.non_unique += 1
+            if self.mu == 0:  # the lcp rung's split (G has no tangent rows without friction)
+                sol = replace(sol, normal=least_norm_split(rows.G, sol.normal))
         if self.tape is not None:
             self.tape.append(("impact", q.copy(), v.copy(), rows, e.copy(), sol))
         lam = np.concatenate([sol.normal, sol.tangential])
@@ -1214,9 +1223,11 @@ class _Landing:
         # resting afterwards: no bounce, or a plastic row left slower than the plastic speed (it
         # rests unless the forces pull it away; the velocity projection takes the rest)
         after = (sol.velocity[: rows.n] <= self.speed_tol) | ((e == 0) & (sol.velocity[: rows.n] < PLASTIC_SPEED))
+        # a contact above the ground (``contacts: all`` makes every one hit at t = 0) stays open
+        on_ground = pt.gap[np.maximum(rows.contact, 0)] <= self.scene.contact_tolerance + self.settings.gap_tolerance
         new = mode.copy()
         new.closed[:] = False
-        new.closed[rows.contact[(rows.contact >= 0) & after]] = True
+        new.closed[rows.contact[(rows.contact >= 0) & after & on_ground]] = True
         new.stop[:] = 0
         at = rows.dof[(rows.dof >= 0) & after]
         new.stop[at] = stops[at]
@@ -1489,7 +1500,7 @@ class _Landing:
     def run(self, h: float) -> LandingResult:
         """The landing at Runge-Kutta step ``h``."""
         T = float(self.scene.duration)
-        self.inexact = 0
+        self.inexact = self.non_unique = 0
         self.min_bounce = MIN_BOUNCE * T
         q, v, mode, totals = self.first_impact()
         self.min_bounce = max(MIN_BOUNCE * T, self.settings.bounce_steps * h)
@@ -1617,6 +1628,7 @@ class _Landing:
             trajectory=(np.array(totals.times), np.array(totals.states)),
             space=self.space.name,
             inexact=self.inexact,
+            non_unique=self.non_unique,
         )
 
 

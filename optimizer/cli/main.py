@@ -283,8 +283,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         try:
             model = load_model_file(file)
             result = _evaluate(model, args.model, *options)
-            if result is None:
-                _error(file, "numerical failure: the impact solve returned no finite answer (extreme values?)")
+            if isinstance(result, str):
+                _error(file, f"numerical failure: {result}")
                 status = max(status, EXIT_FAILURE)
                 continue
             if args.json:
@@ -423,10 +423,10 @@ def _evaluate(
     sequential: SequentialSettings | None = None,
     whole: LandingSettings | None = None,
     compliant_tolerance: float | None = None,
-) -> Result | None:
-    """The landing of one model file by the model named on the command line, or None when the
-    numerics fail (overflow, a singular solve, a diverging integration): a status to report, not
-    a traceback (the cause is printed once, as one line)."""
+) -> Result | str:
+    """The landing of one model file by the model named on the command line, or the cause (one
+    line) when the numerics fail (overflow, a singular solve, a diverging integration): a status
+    to report, not a traceback."""
     with np.errstate(all="ignore"):
         try:
             result = evaluate_landing(
@@ -440,9 +440,9 @@ def _evaluate(
                 compliant_tolerance,
                 model.space,
             )
-        except (np.linalg.LinAlgError, NumericalError):
-            return None
-    return result if is_finite(result) else None
+        except (np.linalg.LinAlgError, NumericalError) as e:
+            return str(e).splitlines()[0] if str(e) else "a singular solve"
+    return result if is_finite(result) else "the impact solve returned no finite answer (extreme values?)"
 
 
 def run_bench(args: argparse.Namespace) -> int:

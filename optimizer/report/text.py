@@ -149,6 +149,12 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
             f"{r.tolerance:g} at a Runge-Kutta step of {r.step:.3g} s (the contacts may chatter; the answer is "
             "the finest run)"
         )
+    if isinstance(r, LandingResult) and r.non_unique:
+        shown = "the smallest-norm non-negative split" if model.scene.friction == 0 else "the split the friction law's solver reaches"
+        out.append(
+            f"{r.non_unique} impact{'s' if r.non_unique != 1 else ''} of the landing had redundant rows: the velocities "
+            f"after are unique, the split of the impulse is not; {shown} is shown"
+        )
     if isinstance(r, LandingResult) and r.inexact:
         out.append(
             f"{r.inexact} impacts or contact-mode choices of the landing did not meet the exact circular-cone friction "

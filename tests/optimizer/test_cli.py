@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import optimizer.cli.main
+from impulse_core.errors import NumericalError
 from impulse_core.evaluate import evaluate
 from impulse_core.model.tree import Scene, Tree
 from optimizer.cli.main import main
@@ -508,3 +509,13 @@ def test_json_warnings_are_the_reports_warnings(capsys) -> None:
     record = json.loads(capsys.readouterr().out)
     assert record["model"] == "decoupled" and record["warnings"] == printed
     assert any("no error bound" in w for w in printed)
+
+
+def test_a_numerical_failure_names_its_cause(leg_file: Path, monkeypatch, capsys) -> None:
+    """The solver's own one-line reason reaches the user (it was replaced by a generic line)."""
+    def turned(*args, **kwargs):
+        raise NumericalError("the base turned 289 degrees from its touchdown orientation by t = 0.0167 s\nmore")
+
+    monkeypatch.setattr(optimizer.cli.main, "evaluate_landing", turned)
+    assert main(["evaluate", str(leg_file)]) == 1
+    _assert_one_error_line(capsys.readouterr().err, leg_file, "numerical failure: the base turned 289 degrees")
