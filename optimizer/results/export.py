@@ -5,9 +5,10 @@ are escaped, never pasted into text); the callers write the files. What the file
 (``docs/MODEL_FORMAT.md``, "Export"):
 
 - one link (URDF) or body (MJCF) per rod, named as the rod, with the rod's mass, centre of mass and
-  inertia tensor about it (``impulse_core.model.rods``); a slender rod has no inertia about its own
-  axis, written as :data:`INERTIA_FLOOR` (MuJoCo, and a floating base's mass matrix, need it
-  positive; planar motion never turns a rod about its own axis, so the impulses do not change);
+  inertia tensor about it (``impulse_core.model.rods``). URDF holds the tensor footopt's dynamics
+  use (:func:`dynamics_inertia`: a rod without radius has m (1e-7 L)^2 about its own axis, the
+  kinematic core's floor), so Pinocchio's impulses are footopt's; MJCF raises every principal
+  moment to :data:`INERTIA_FLOOR` (MuJoCo refuses smaller ones);
 - one joint per other rod, named as the rod: revolute about z (URDF ``continuous``, or
   ``revolute`` with its stops as limits) or fixed; each joint's origin holds the rod's touchdown
   angle, so that the zero configuration is the touchdown posture; a joint law (stops, spring,
@@ -36,7 +37,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from impulse_core.kinematics.spatial import PLANAR, Space
+from impulse_core.kinematics.spatial import AXIAL_GYRATION_FLOOR, PLANAR, Space
 from impulse_core.model.rods import (
     body_rotation,
     centre_of_mass,
@@ -238,6 +239,32 @@ def quaternion_of(R: np.ndarray) -> tuple[float, float, float, float]:
 _CYLINDER_ON_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
 
 
+def dynamics_inertia(b: Body) -> np.ndarray:
+    """The inertia tensor about the centre of mass (rod frame) that footopt's dynamics use: the
+    model's, plus the kinematic core's axial floor m (AXIAL_GYRATION_FLOOR L)^2 about the rod's
+    own axis (positive, and so small that it moves no impulse: docs/MODEL_FORMAT.md)."""
+    return inertia_tensor(b) + np.diag([b.mass * (AXIAL_GYRATION_FLOOR * b.length) ** 2, 0.0, 0.0])
+
+
+_URDF_INERTIA_NOTE = (
+    "Inertia: as the model, about each rod's centre of mass, as footopt's dynamics use it: a rod without",
+    f"radius has m ({AXIAL_GYRATION_FLOOR:g} L)^2 about its own axis (x), footopt's own floor, so the impulses are footopt's.",
+)
+
+
+def _mjcf_inertia_note(planar: bool) -> tuple[str, ...]:
+    """What the MJCF's inertia floor changes (MuJoCo refuses principal moments below 1e-15)."""
+    return (
+        "Inertia: as the model, about each rod's centre of mass; a slender rod has none about its own axis (x),",
+        f"written here as {INERTIA_FLOOR:g} kg m^2 because MuJoCo needs positive inertia; "
+        + ("planar motion never turns a rod about" if planar else "a rod with a radius has m r^2 / 2. Where the"),
+        "its own axis, so the impulses do not change." if planar
+        else "floor stands in for a rod without radius, a motion turning the rod about its axis feels it: the impulses",
+        *(() if planar else ("can differ from footopt's by about 1e-9 kg m^2 / (the smallest inertia the impact "
+                             "sees), relative; the URDF holds footopt's own values.",)),
+    )
+
+
 def _urdf_link(b: Body, frame: Frame) -> ET.Element:
     """A rod's link: inertial and a visual cylinder, the rod's frame at ``frame`` in the link."""
     link = ET.Element("link", name=b.name)
@@ -245,7 +272,7 @@ def _urdf_link(b: Body, frame: Frame) -> ET.Element:
     com, R = _placed(frame, centre_of_mass(b), np.eye(3))
     ET.SubElement(inertial, "origin", xyz=_xyz(com), rpy=_xyz(rpy_of(R)))
     ET.SubElement(inertial, "mass", value=_f(b.mass))
-    tensor = inertia_tensor(b, INERTIA_FLOOR)  # about the centre of mass, in the rod's frame (the origin's)
+    tensor = dynamics_inertia(b)  # about the centre of mass, in the rod's frame (the origin's)
     axes = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
     ET.SubElement(inertial, "inertia", {key: _f(tensor[r, c]) for key, (r, c) in axes.items()})
     visual = ET.SubElement(link, "visual")
@@ -397,9 +424,9 @@ def _note(
 ) -> str:
     """The comment at the top of a file: what it holds and where it departs from the model."""
     origin, R = base_pose(tree, scene, space)
-    thin = sum(b.inertia < INERTIA_FLOOR for b in tree.bodies if b.is_rod)
-    general = [b.name for b in tree.bodies if not b.is_rod]
-    needs = "MuJoCo needs" if fmt is ExportFormat.MJCF else "a floating base's mass matrix needs"
+    mjcf = fmt is ExportFormat.MJCF
+    thin = sum(b.inertia < INERTIA_FLOOR for b in tree.bodies if b.is_rod) if mjcf else 0
+    general = [b.name for b in tree.bodies if not b.is_rod] if mjcf else []
     planar = space is PLANAR
     lines = [
         f"footopt export: {tree.n_bodies} rods of a {space.name} model (docs/MODEL_FORMAT.md, Export).",
@@ -408,11 +435,7 @@ def _note(
         "The zero configuration is the touchdown posture: each joint's origin holds its touchdown angle;",
         f"the base origin is at ({_f(origin[0])}, {_f(origin[1])}, 0) m, the base turned by "
         + (f"{_f(math.atan2(R[1, 0], R[0, 0]))} rad about z." if planar else f"rpy {_xyz(rpy_of(R))} rad."),
-        "Inertia: as the model, about each rod's centre of mass; a slender rod has none about its own axis (x),",
-        f"written here as {INERTIA_FLOOR:g} kg m^2 because {needs} positive inertia; "
-        + ("planar motion never turns" if planar else "a rod with a radius has m r^2 / 2. Where that"),
-        "a rod about its own axis, so the impulses do not change." if planar
-        else "floor stands in, the model's own axial floor (docs/MODEL_FORMAT.md) differs by < 1e-12.",
+        *(_mjcf_inertia_note(planar) if mjcf else _URDF_INERTIA_NOTE),
     ]
     if thin:
         lines.append(f"{thin} rod(s) have less than {INERTIA_FLOOR:g} kg m^2 across the rod too: raised to it.")
@@ -471,6 +494,7 @@ def _xyz(values) -> str:
 __all__ = [
     "GRAVITY",
     "INERTIA_FLOOR",
+    "dynamics_inertia",
     "ExportFormat",
     "base_pose",
     "check_inertias",

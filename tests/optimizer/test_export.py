@@ -153,7 +153,7 @@ def test_urdf_inertias_in_pinocchio_are_the_models(name: str, tree: Tree, scene:
     expected: dict[str | None, pin.Inertia] = {}
     for i, b in enumerate(tree.bodies):
         R = pin.utils.rotate("z", turn[i])
-        rod = pin.Inertia(b.mass, np.array([*coms[i], 0.0]), R @ expected_inertia(b) @ R.T)
+        rod = pin.Inertia(b.mass, np.array([*coms[i], 0.0]), R @ expected_inertia(b, "urdf") @ R.T)
         key = moving_joint(tree, i)
         expected[key] = expected[key] + rod if key in expected else rod
     worst = 0.0
@@ -185,9 +185,12 @@ def inertia_in_body_frame(m, body: int) -> np.ndarray:
     return R @ np.diag(m.body_inertia[body]) @ R.T
 
 
-def expected_inertia(b: Body) -> np.ndarray:
-    """The model's tensor about the centre of mass in the rod's frame, the rod axis floored."""
+def expected_inertia(b: Body, fmt: str = "mjcf") -> np.ndarray:
+    """The model's tensor about the centre of mass in the rod's frame: in MJCF every moment
+    raised to MuJoCo's floor, in URDF the dynamics' own (the rod axis at m (1e-7 L)^2)."""
     across = b.mass * (b.gyration * b.length) ** 2
+    if fmt == "urdf":
+        return np.diag([b.mass * (1e-7 * b.length) ** 2, across, across])
     return np.diag([INERTIA_FLOOR, max(across, INERTIA_FLOOR), max(across, INERTIA_FLOOR)])
 
 
@@ -291,8 +294,9 @@ def test_joints_frames_and_the_note():
     kinds = {m.joint(j).name: int(m.jnt_type[j]) for j in range(m.njnt)}
     assert kinds == {"base": mujoco.mjtJoint.mjJNT_FREE, "hinge": mujoco.mjtJoint.mjJNT_HINGE}
     np.testing.assert_array_equal(m.jnt_axis[m.joint("hinge").id], [0.0, 0.0, 1.0])
-    for text in (to_urdf(tree, scene), to_mjcf(tree, scene)):
-        assert "1e-09 kg m^2" in text and "1 rod(s) have less than 1e-09 kg m^2 across the rod too" in text
+    mjcf, urdf = to_mjcf(tree, scene), to_urdf(tree, scene)
+    assert "1e-09 kg m^2" in mjcf and "1 rod(s) have less than 1e-09 kg m^2 across the rod too" in mjcf
+    assert "1e-09" not in urdf and "m (1e-07 L)^2 about its own axis (x), footopt's own floor" in urdf
 
 
 def test_names_are_escaped_and_clashes_refused():
