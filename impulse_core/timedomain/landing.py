@@ -465,6 +465,11 @@ class _Joints:
     def energy(self, q: np.ndarray) -> float:
         return float(0.5 * np.sum(self.stiffness * (q - self.rest) ** 2))
 
+    @functools.cached_property
+    def stopped(self) -> np.ndarray:
+        """Per DOF: whether it has a stop."""
+        return np.isfinite(self.lo) | np.isfinite(self.hi)
+
 
 def joint_arrays(tree: Tree, laws: tuple[JointLaw, ...], q0: np.ndarray, space: Space = PLANAR) -> _Joints:
     """:class:`_Joints` of ``laws`` (one per body; () = all free), rest angles defaulting to the
@@ -1120,8 +1125,9 @@ class _Landing:
         return mask
 
     def grazing(self, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, h: float) -> float | None:
-        """The step fraction where an open contact's gap (cubic Hermite fit over the step) dips
-        below the ground and comes back, or None."""
+        """The step fraction where an open contact's gap dips below the ground and comes back, or
+        a free joint passes its stop and comes back (a stiff spring turns it within one step),
+        on cubic Hermite fits over the step; or None."""
         end = self.ended(q1, v1, mode)
         if end is not None:  # the step's own ends
             g0, d0, g1, d1 = end.gap0, end.vn0 * h, end.gap, end.vn * h
@@ -1132,7 +1138,12 @@ class _Landing:
             g1, d1 = p1.gap, p1.vn(v1) * h
         s, (h00, h10, h01, h11) = _GRAZE_SAMPLES, _GRAZE_BASIS
         g = h00 * g0 + h10 * d0 + h01 * g1 + h11 * d1
-        dips = (g < -self.settings.gap_tolerance) & ~mode.closed
+        tol = self.settings.gap_tolerance
+        dips = (g < -tol) & ~mode.closed
+        if self.joints.stopped.any():
+            x = h00 * q0 + h10 * v0 * h + h01 * q1 + h11 * v1 * h
+            past = ((x > self.joints.hi + tol) | (x < self.joints.lo - tol)) & (mode.stop == 0)
+            dips = np.hstack([dips, past])
         if not np.any(dips):
             return None
         return float(s[np.argmax(np.any(dips, axis=1)), 0])
@@ -1546,10 +1557,17 @@ class _Landing:
                 t += dt
                 totals.steps += 1
                 continue
-            located = self.locate(q, v, mode, graze, graze.w < 0)
+            watch = graze.w < 0
+            located = self.locate(q, v, mode, graze, watch)
+            for _ in range(8):  # a witness that crossed earlier and came back by the step's end
+                missed = (located.w < 0) & ~watch
+                if not np.any(missed):
+                    break
+                watch = located.w < 0
+                located = self.locate(q, v, mode, located, watch)
             tau = located.tau
             if self.tape is not None:
-                self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, graze.w < 0))
+                self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, watch))
             q_e, v_e, impulse = self.take(q, v, mode, located)
             self.add(totals, impulse, q_e, v_e)
             self.record(totals, t, v, t + tau, q_e, v_e)

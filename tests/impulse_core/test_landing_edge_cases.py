@@ -1,0 +1,98 @@
+"""Whole landings found wrong by a random sweep of model files: ``contacts: all`` (contacts above
+the ground hit at t = 0 by the paper's assumption), redundant contacts (the split of the impulse
+is not unique), and a stiff joint that passes its stop and turns back within one step."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from impulse_core.evaluate import evaluate
+from impulse_core.impact.laws import ImpactModel
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL
+from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.model.tree import Body, ContactSelection, JointKind, Scene, Tree
+from impulse_core.timedomain.landing import LandingSettings, _Landing, landing
+
+SETTINGS = LandingSettings(step=1e-3)
+
+
+@pytest.mark.parametrize("space", [PLANAR, SPATIAL], ids=["planar", "spatial"])
+def test_a_contact_above_the_ground_hits_at_t0_and_then_flies_free(space):
+    """A tilted rod with ``contacts: all``: its upper contact takes its share of the first impact
+    (the lcp rung's answer) and is then in the air, not held at its height: the momentum balance
+    holds (a contact kept closed 4 cm above the ground was projected down onto it, 2e-2), and it
+    touches down later by itself."""
+    rod = Tree((Body("rod", None, 0.4, 0.5, -0.3, contacts=(0.5, 1.0)),))
+    scene = Scene(speed=0.6, velocity_x=0.8, restitution=0.0, selection=ContactSelection.ALL, gravity=9.81,
+                  duration=0.2)
+    r = landing(rod, scene, (), SETTINGS, space)
+    first = evaluate(rod, scene, ImpactModel.LCP, space)
+    assert np.max(np.abs(r.events[0].external - first.external)) <= 1e-9 * np.max(first.external)
+    assert r.momentum_balance <= 1e-6
+    later = [e for e in r.events[1:] if e.external[0] > 0]
+    assert later and later[0].time > 0.01  # the upper contact (0.5) lands on its own, later
+
+
+def test_redundant_frictionless_contacts_take_the_lcp_rungs_split():
+    """Two rods welded into one body with four contacts in a row on the ground (a plank: three
+    base DOFs, four rows): Newton's law fixes the velocity after, not the split; the landing's
+    first event takes the lcp rung's smallest-norm non-negative split and counts the impact as
+    non-unique."""
+    plank = Tree((
+        Body("a", None, 0.3, 1.0, 0.0, contacts=(0.0, 1.0)),
+        Body("b", 0, 0.2, 0.7, 0.0, joint=JointKind.FIXED, contacts=(0.5, 1.0)),
+    ))
+    scene = Scene(speed=2.0, restitution=0.5, angular_velocity=1.5, selection=ContactSelection.ALL, gravity=9.81,
+                  duration=0.05)
+    r = landing(plank, scene, (), SETTINGS)
+    first = evaluate(plank, scene, ImpactModel.LCP)
+    assert not first.split_unique
+    assert np.max(np.abs(r.events[0].external - first.external)) <= 1e-9 * np.max(first.external)
+    assert r.non_unique >= 1
+    assert math.isclose(np.sum(r.events[0].external), np.sum(first.external), rel_tol=1e-12)
+
+
+def test_a_stop_passed_and_left_within_one_step_is_an_event():
+    """A light stiff joint between close stops and an elastic contact: the spring turns the joint
+    back within one step, so the step's end is inside the stops; the crossing must still be
+    located (the step's cubic fit, and a witness negative at the located instant). Missed, the
+    joint sat 4e-5 rad past its stop until the next touchdown's projection moved it back
+    (momentum balance 2.3e-4 > the contract's 1e-4) and the event count grew as the step shrank
+    (453, 979, 1639 at 1, 0.5, 0.25 ms); located, it converges (78 events at every step)."""
+    tree = Tree((
+        Body("b0", None, 0.2124, 1.165, -0.1229, contacts=(0.0,)),
+        Body("b1", 0, 0.2857, 2.982, -0.0596, gyration=0.2695),
+    ))
+    laws = (FREE, JointLaw(stiffness=134.8, damping=0.02406, limits=(-0.1484, -0.04115)))
+    scene = Scene(speed=1.9218, restitution=1.0, gravity=9.81, duration=0.2)
+    runs = []
+    for h in (1e-3, 5e-4):
+        run = _Landing(tree, scene, laws, LandingSettings(), PLANAR)
+        r = run.run(h)
+        q = r.trajectory[1]
+        assert np.max(q[:, 3]) <= laws[1].limits[1] + 1e-9 and np.min(q[:, 3]) >= laws[1].limits[0] - 1e-9
+        assert r.momentum_balance <= 1e-6
+        runs.append(r)
+    assert [e.kind for e in runs[0].events] == [e.kind for e in runs[1].events]
+    assert sum(e.kind == "stop" for e in runs[0].events) >= 10
+
+
+def test_a_step_whose_joint_passes_its_stop_and_returns_is_a_graze():
+    """The step's cubic (Hermite) fit of a free joint's angle, from its ends' angles and rates:
+    inside the stops at both ends, moving in, then out, past the upper stop in between: the
+    step is cut there (as for a contact's gap that dips and comes back)."""
+    tree = Tree((Body("b0", None, 0.2, 1.0, -0.1, contacts=(0.0,)), Body("b1", 0, 0.3, 2.0, -0.06)))
+    laws = (FREE, JointLaw(stiffness=100.0, limits=(-0.15, -0.04)))
+    run = _Landing(tree, Scene(speed=1.0, gravity=9.81, duration=0.1), laws, LandingSettings(), PLANAR)
+    free = run.first_impact()[2]
+    free.closed[:] = False
+    free.stop[:] = 0
+    q0 = run.q0 + np.array([0.0, 1.0, 0.0, 0.0])  # a metre up: no contact near the ground
+    q0[3] = -0.04 - 1e-4
+    q1, v0, v1 = q0.copy(), np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.0, 0.0, 0.0, -1.0])
+    fraction = run.grazing(q0, v0, q1, v1, free, 1e-3)  # peak 1.5e-4 rad past the stop, mid-step
+    assert fraction is not None and 0 < fraction < 0.5  # the first sample past the stop
+    assert run.grazing(q0, v0, q1, -v1, free, 1e-3) is None  # moving in and on out: the step's end sees it
