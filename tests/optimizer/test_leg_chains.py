@@ -77,15 +77,19 @@ def optimized(folder: Path, study: str, capsys) -> list[tuple[dict, dict, Path]]
     return list(zip(rows, records, files, strict=True))
 
 
-def test_a_three_rod_imported_leg_runs_an_outer_study_that_reevaluates(tmp_path, capsys):
+@pytest.mark.parametrize("method", ["outer", "inner"])
+def test_a_three_rod_imported_leg_runs_a_study_that_reevaluates(tmp_path, capsys, method):
+    """Both searches on solo12's shoulder, upper and lower leg (planar): each front design's model
+    file gives the recorded objectives again, its leg the file's rods, its foot at the ankle."""
     leg_file = solo_leg(tmp_path)
-    config = load_study(_study(tmp_path, STUDY))
+    study = STUDY if method == "outer" else STUDY.replace("method: outer", "method: inner, inner: {front_points: 2, starts: 2}")
+    config = load_study(_study(tmp_path, study))
     assert isinstance(config.leg, LegChain) and len(config.leg.rods) == 3
     again = tmp_path / "again.yaml"
     again.write_text(format_study(config))  # the study written back names the leg file
     assert load_study(again) == config
     source = load_model_file(leg_file).tree.bodies
-    for row, rec, path in optimized(tmp_path, STUDY, capsys):
+    for row, rec, path in optimized(tmp_path, study, capsys):
         for key in ("external_norm", "internal_norm", "max_internal"):
             assert rec[key] == pytest.approx(float(row[key]), rel=1e-9, abs=1e-15), key
         bodies = load_model_file(path).tree.bodies
@@ -217,3 +221,27 @@ def test_a_leg_chains_joint_laws_need_a_whole_landing(tmp_path):
     design = design_from(config.leg, ((-0.6,), (0.9,)), ((0.02,), (0.03,)), config.limits)
     assert foot_joint_laws(config.leg, design)[:3] == laws
     assert isinstance(laws[1], JointLaw)
+
+
+def test_the_landing_search_differentiates_a_three_rod_leg(tmp_path):
+    """The inner search over whole landings maps the exact landing gradient onto its variables
+    from the foot's bodies below the chain (its springs and stops too): finite differences agree."""
+    from impulse_core.timedomain.landing import landing
+    from optimizer.design_space import STUDY_LANDING, FootShape
+    from optimizer.search.landing_inner import _Landed, build_landing_nlp, start_landing
+
+    solo_leg(tmp_path, joint_laws=True)
+    text = STUDY.replace("friction: 0.0}", "friction: 0.0, gravity: 9.81, duration: 0.02}").replace(
+        "[external_norm, internal_norm]", "[peak_external_norm, peak_internal_norm]").replace(
+        "method: outer, trials: 16, startup_trials: 8", "method: inner")
+    nlp = build_landing_nlp(load_study(_study(tmp_path, text)), FootShape(1, 1))
+    x0 = start_landing(nlp, np.random.default_rng(0))
+    tree, laws, scene = _Landed(nlp).model(x0)
+    nlp.step = landing(tree, scene, laws, dataclasses.replace(STUDY_LANDING, tolerance=1e-3)).step  # as a solve sets it
+    g = _Landed(nlp).gradient(x0)
+    fd = np.zeros_like(g)
+    for j in range(nlp.n_x):
+        e = np.zeros(nlp.n_x)
+        e[j] = 1e-6
+        fd[:, j] = (_Landed(nlp).values(x0 + e) - _Landed(nlp).values(x0 - e)) / 2e-6
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
