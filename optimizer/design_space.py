@@ -355,23 +355,24 @@ def foot_space(leg: Leg | LegChain, design: FootDesign) -> Space:
     return SPATIAL if design.spatial or leg_chain(leg).spatial else PLANAR
 
 
-def search_columns(topology: Topology, space: Space) -> tuple[int, ...] | None:
+def search_columns(topology: Topology, space: Space, leg_rods: int = 2) -> tuple[int, ...] | None:
     """The entries of the design vector (``space.body_values`` per body, then the contact
-    fractions) that a search changes in a tree of :func:`foot_tree`'s layout: every foot rod's
-    (below the shank, body 1) length, mass and joint angle (:func:`design_from`), and each toe
-    root's (a child of the shank after the first, the heel) roll, pitch and yaw (its splay,
-    :func:`yaw_rpy`; spatial only). The leg's values, the heel's rpy (yaw 0), positions on the
-    parent, centres of mass, gyrations, axes, radii, mass properties and contact fractions are
-    fixed. None when ``topology`` is not of that layout (a base, the shank its child, every
-    other body below the shank)."""
-    parents = topology.parents
-    if len(parents) < 3 or parents[0] != -1 or parents[1] != 0 or any(p in (-1, 0) for p in parents[2:]):
+    fractions) that a search changes in a tree of :func:`foot_tree`'s layout on a leg of
+    ``leg_rods`` rods: every foot rod's (below the leg's last rod, the shank: body ``leg_rods - 1``)
+    length, mass and joint angle (:func:`design_from`), and each toe root's (a child of the shank
+    after the first, the heel) roll, pitch and yaw (its splay, :meth:`LegChain.root_rpy`; spatial
+    only). The leg's values, the heel's rpy, positions on the parent, centres of mass, gyrations,
+    axes, radii, mass properties and contact fractions are fixed. None when ``topology`` is not of
+    that layout (the leg a chain from the base, every other body below its last rod)."""
+    parents, shank = topology.parents, leg_rods - 1
+    if (len(parents) <= leg_rods or parents[0] != -1 or any(parents[k] != k - 1 for k in range(1, leg_rods))
+            or any(p < shank for p in parents[leg_rods:])):
         return None
     n, names = len(space.body_values), space.body_values
     rod = [names.index(k) for k in ("length", "mass", "angle")]
     splay = [names.index(k) for k in ("roll", "pitch", "yaw") if k in names]
-    toe_roots = [b for b in range(2, len(parents)) if parents[b] == 1][1:]
-    return tuple(n * b + j for b in range(2, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
+    toe_roots = [b for b in range(leg_rods, len(parents)) if parents[b] == shank][1:]
+    return tuple(n * b + j for b in range(leg_rods, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
 
 
 def yaw_rpy(shank_angle: float, yaw: float) -> tuple[float, float, float]:

@@ -245,3 +245,19 @@ def test_the_landing_search_differentiates_a_three_rod_leg(tmp_path):
         e[j] = 1e-6
         fd[:, j] = (_Landed(nlp).values(x0 + e) - _Landed(nlp).values(x0 - e)) / 2e-6
     assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
+def test_search_columns_skip_a_chains_rods():
+    """The searched entries of the design vector on a three-rod leg: the two-rod leg's, one body on."""
+    from impulse_core.kinematics.spatial import PLANAR, SPATIAL
+    from optimizer.design_space import search_columns
+
+    leg, limits = Leg(), FootLimits()
+    chain = _split_thigh(leg)
+    for space, yaws in ((PLANAR, None), (SPATIAL, symmetric_yaws(2, 0.3))):
+        design = design_from(chain, ((-0.6,), (0.9, 0.2), (1.0, 0.1)), ((0.1,), (0.1, 0.05), (0.15, 0.1)), limits,
+                             toe_yaws=yaws)
+        topology = foot_tree(chain, design).topology()
+        two = search_columns(foot_tree(leg, design).topology(), space)
+        assert search_columns(topology, space, leg_rods=3) == tuple(c + len(space.body_values) for c in two)
+        assert search_columns(topology, space, leg_rods=4) is None
