@@ -1,9 +1,11 @@
 """The parametric foot: a fixed leg, a heel chain and ``n`` toe chains, as frozen dataclasses,
 mapped to the impulse core's ``Tree``; its geometry, constraints and objectives.
 
-The leg is the paper's: the thigh (floating base) and the shank hang from the hip in a fixed
-touchdown posture; at the shank's tip (the ankle) hang, each by a passive revolute joint, a heel
-chain and ``n`` toe chains. Every chain is a serial chain of uniform rods; its last rod carries a
+The leg is the paper's (:class:`Leg`): the thigh (floating base) and the shank hang from the hip
+in a fixed touchdown posture; or any chain of rods read from a model file (:class:`LegChain`,
+e.g. ``footopt import`` of a robot's leg, planar or spatial). At its ankle (the shank's tip, or
+the chain's ankle on its last rod) hang, each by a passive revolute joint, a heel chain and ``n``
+toe chains. Every chain is a serial chain of uniform rods; its last rod carries a
 contact at its tip. All chain tips are meant to touch the ground at once.
 
 Why lengths are not search variables. With uniform rods (centre of mass and joints at fixed
@@ -30,6 +32,11 @@ vertical plane through the ankle along (cos psi_i, 0, -sin psi_i), so a point of
 planar chain, so the same linear program levels the tips; a toe's reach is its forward (x)
 distance, x cos psi_i. The heel stays in the sagittal plane (yaw 0). The model file says it by the
 toe's root rod's ``rpy``: Rz(-phi_s) Ry(psi_i) Rz(phi_s), phi_s the shank's absolute angle.
+
+A spatial leg (:class:`LegChain` in SPATIAL): the foot's chains hang in the world's vertical plane
+through the ankle as above; phi_s is the angle of the last rod's direction projected on that plane
+(x, y), and every chain root carries the ``rpy`` of W_R_L^T Ry(psi_i) Rz(phi_s) (W_R_L: the last
+rod's frame in the world at touchdown), so that its joint angles count from phi_s as in the plane.
 """
 
 from __future__ import annotations
@@ -37,6 +44,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields, replace
 from enum import Enum
+from itertools import accumulate
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linprog
@@ -46,6 +55,7 @@ from impulse_core.errors import NumericalError
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space, values_space
 from impulse_core.model.support import support_margin as hull_margin
 from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.model.rods import body_rotation, rotation_z, rpy_of
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from optimizer.config.model_file import ModelFile
 from impulse_core.model.tree import (
@@ -119,6 +129,87 @@ class Leg:
     def shank_angle(self) -> float:
         """Absolute angle of the shank (rad)."""
         return self.thigh_angle + self.knee_angle
+
+    @property
+    def chain(self) -> LegChain:
+        """The leg as a chain of two rods, ``thigh`` (the base) and ``shank``."""
+        return LegChain(
+            (Body("thigh", None, self.thigh_length, self.thigh_mass, self.thigh_angle, com=self.thigh_com,
+                  gyration=self.thigh_gyration, com_offset=(self.thigh_offset, 0.0)),
+             Body("shank", 0, self.shank_length, self.shank_mass, self.knee_angle, com=self.shank_com,
+                  gyration=self.shank_gyration, com_offset=(self.shank_offset, 0.0))),
+            (FREE, self.knee),
+        )
+
+
+@dataclass(frozen=True)
+class LegChain:
+    """A fixed leg of one or more rods in its touchdown posture, as a model file gives it
+    (``leg: {file: F}``, e.g. ``footopt import`` of a robot's leg): the foot hangs at its ankle.
+
+    Attributes:
+        rods: the leg's bodies, base first, each the child of the one before (no contacts).
+        joints: each rod's joint law (the base's: free); springs, dampers and stops act over a
+            whole landing.
+        space: PLANAR (every joint about z) or SPATIAL (each rod its ``rpy`` and ``axis``).
+        ankle: where the foot hangs on the last rod, as a fraction of its length (the file's
+            contact there, which ``footopt import`` puts at the ankle; 1.0: the tip).
+        file: the model file it was read from (what a written study names; not compared).
+    """
+
+    rods: tuple[Body, ...]
+    joints: tuple[JointLaw, ...]
+    space: Space = PLANAR
+    ankle: float = 1.0
+    file: Path | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def spatial(self) -> bool:
+        return self.space is SPATIAL
+
+    def rotations(self) -> tuple[np.ndarray, ...]:
+        """Each rod's frame in the world at touchdown, W_R_k (3 x 3)."""
+        out: list[np.ndarray] = []
+        for b in self.rods:
+            out.append(body_rotation(b) if not out else out[-1] @ body_rotation(b))
+        return tuple(out)
+
+    def directions(self) -> np.ndarray:
+        """Each rod's unit direction in the world (rods x 3): in the plane (cos, sin, 0) of its
+        absolute angle."""
+        if not self.spatial:
+            return np.array([[math.cos(phi), math.sin(phi), 0.0] for phi in accumulate(b.angle for b in self.rods)])
+        return np.array([R[:, 0] for R in self.rotations()])
+
+    @property
+    def foot_angle(self) -> float:
+        """phi_s: the absolute angle the foot's joint angles count from (rad): the last rod's
+        (in space its direction projected on the vertical plane x, y)."""
+        if not self.spatial:
+            return list(accumulate(b.angle for b in self.rods))[-1]
+        d = self.directions()[-1]
+        return math.atan2(d[1], d[0])
+
+    def points(self) -> np.ndarray:
+        """The base's start and every joint of the leg, from the base down, relative to the
+        ankle, in the world (rods x 3, m): the hip and the knee of a two-rod leg."""
+        u = self.directions()
+        p = [-(self.ankle * self.rods[-1].length) * u[-1]]
+        for k in range(len(self.rods) - 2, -1, -1):  # back up the chain: the child's joint at ``at`` on rod k
+            p.append(p[-1] - (self.rods[k + 1].at * self.rods[k].length) * u[k])
+        return np.array(p[::-1])
+
+    def root_rpy(self, yaw: float) -> tuple[float, float, float]:
+        """The ``rpy`` of a foot chain's root (on the last rod) that turns the chain by ``yaw``
+        about the vertical (module docstring); the plane's foot at yaw 0 needs none."""
+        if not self.spatial:
+            return (0.0, 0.0, 0.0) if yaw == 0.0 else yaw_rpy(self.foot_angle, yaw)
+        return rpy_of(self.rotations()[-1].T @ rotation_y(yaw) @ rotation_z(self.foot_angle))
+
+
+def leg_chain(leg: Leg | LegChain) -> LegChain:
+    """Any study leg as a chain (the two-rod :class:`Leg`'s thigh and shank)."""
+    return leg if isinstance(leg, LegChain) else leg.chain
 
 
 @dataclass(frozen=True, order=True)
@@ -236,68 +327,71 @@ def segment_names(shape: FootShape) -> tuple[str, ...]:
     return tuple(n for chain in chain_names(shape) for n in chain)
 
 
-def foot_tree(leg: Leg, design: FootDesign) -> Tree:
-    """The design as the impulse core's tree: thigh (base), shank, then each chain (heel first),
-    hanging from the shank's tip; one contact at each chain's tip. Every declared contact is
-    one that must touch at touchdown (see :func:`intended_contacts`). A splayed foot's toe roots
-    carry the ``rpy`` of :func:`yaw_rpy` (evaluate such a tree with ``space=SPATIAL``)."""
-    bodies = [
-        Body("thigh", None, leg.thigh_length, leg.thigh_mass, leg.thigh_angle, com=leg.thigh_com,
-             gyration=leg.thigh_gyration, com_offset=(leg.thigh_offset, 0.0)),
-        Body("shank", 0, leg.shank_length, leg.shank_mass, leg.knee_angle, com=leg.shank_com,
-             gyration=leg.shank_gyration, com_offset=(leg.shank_offset, 0.0)),
-    ]
-    for names, chain, yaw in zip(chain_names(design.shape), design.chains, design.chain_yaws, strict=True):
-        parent = 1
-        for k, (name, s) in enumerate(zip(names, chain, strict=True)):
-            tip = (1.0,) if k == len(chain) - 1 else ()
+def foot_tree(leg: Leg | LegChain, design: FootDesign) -> Tree:
+    """The design as the impulse core's tree: the leg's rods (thigh, the base, and shank), then
+    each chain (heel first), hanging from the ankle; one contact at each chain's tip. Every
+    declared contact is one that must touch at touchdown (see :func:`intended_contacts`). A
+    splayed toe's root, and every root on a spatial leg, carries the ``rpy`` of
+    :meth:`LegChain.root_rpy` (evaluate such a tree with :func:`foot_space`)."""
+    chain = leg_chain(leg)
+    if chain.spatial and not design.spatial:
+        raise ValueError("foot_tree: a spatial leg takes a spatial foot (toe_yaws)")
+    bodies = list(chain.rods)
+    ankle = len(bodies) - 1
+    for names, rods, yaw in zip(chain_names(design.shape), design.chains, design.chain_yaws, strict=True):
+        parent = ankle
+        for k, (name, s) in enumerate(zip(names, rods, strict=True)):
+            tip = (1.0,) if k == len(rods) - 1 else ()
             body = Body(name, parent, s.length, s.mass, s.joint_angle, contacts=tip)
-            if k == 0 and yaw != 0.0:  # a splayed toe's root (a toe at yaw 0 stays in the plane)
-                body = replace(body, rpy=yaw_rpy(leg.shank_angle, yaw))
+            if k == 0:  # the chain's root, at the ankle
+                body = replace(body, at=chain.ankle, rpy=chain.root_rpy(yaw))
             bodies.append(body)
             parent = len(bodies) - 1
     return Tree(tuple(bodies))
 
 
-def search_columns(topology: Topology, space: Space) -> tuple[int, ...] | None:
+def foot_space(leg: Leg | LegChain, design: FootDesign) -> Space:
+    """The space the design's tree moves in: SPATIAL for a splayed foot or a spatial leg."""
+    return SPATIAL if design.spatial or leg_chain(leg).spatial else PLANAR
+
+
+def search_columns(topology: Topology, space: Space, leg_rods: int = 2) -> tuple[int, ...] | None:
     """The entries of the design vector (``space.body_values`` per body, then the contact
-    fractions) that a search changes in a tree of :func:`foot_tree`'s layout: every foot rod's
-    (below the shank, body 1) length, mass and joint angle (:func:`design_from`), and each toe
-    root's (a child of the shank after the first, the heel) roll, pitch and yaw (its splay,
-    :func:`yaw_rpy`; spatial only). The leg's values, the heel's rpy (yaw 0), positions on the
-    parent, centres of mass, gyrations, axes, radii, mass properties and contact fractions are
-    fixed. None when ``topology`` is not of that layout (a base, the shank its child, every
-    other body below the shank)."""
-    parents = topology.parents
-    if len(parents) < 3 or parents[0] != -1 or parents[1] != 0 or any(p in (-1, 0) for p in parents[2:]):
+    fractions) that a search changes in a tree of :func:`foot_tree`'s layout on a leg of
+    ``leg_rods`` rods: every foot rod's (below the leg's last rod, the shank: body ``leg_rods - 1``)
+    length, mass and joint angle (:func:`design_from`), and each toe root's (a child of the shank
+    after the first, the heel) roll, pitch and yaw (its splay, :meth:`LegChain.root_rpy`; spatial
+    only). The leg's values, the heel's rpy, positions on the parent, centres of mass, gyrations,
+    axes, radii, mass properties and contact fractions are fixed. None when ``topology`` is not of
+    that layout (the leg a chain from the base, every other body below its last rod)."""
+    parents, shank = topology.parents, leg_rods - 1
+    if (len(parents) <= leg_rods or parents[0] != -1 or any(parents[k] != k - 1 for k in range(1, leg_rods))
+            or any(p < shank for p in parents[leg_rods:])):
         return None
     n, names = len(space.body_values), space.body_values
     rod = [names.index(k) for k in ("length", "mass", "angle")]
     splay = [names.index(k) for k in ("roll", "pitch", "yaw") if k in names]
-    toe_roots = [b for b in range(2, len(parents)) if parents[b] == 1][1:]
-    return tuple(n * b + j for b in range(2, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
+    toe_roots = [b for b in range(leg_rods, len(parents)) if parents[b] == shank][1:]
+    return tuple(n * b + j for b in range(leg_rods, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
 
 
 def yaw_rpy(shank_angle: float, yaw: float) -> tuple[float, float, float]:
     """The ``rpy`` (URDF: Rz(c) Ry(b) Rx(a)) of a toe root hanging from a shank at absolute angle
     ``shank_angle`` (about z, the base without ``rpy``) that turns the toe's chain by ``yaw`` about
     the world's vertical: Rz(-phi) Ry(yaw) Rz(phi)."""
-
-    def rz(a: float) -> np.ndarray:
-        c, s = math.cos(a), math.sin(a)
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-    c, s = math.cos(yaw), math.sin(yaw)
-    ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-    R = rz(-shank_angle) @ ry @ rz(shank_angle)
-    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    return (math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0]))
+    return rpy_of(rotation_z(-shank_angle) @ rotation_y(yaw) @ rotation_z(shank_angle))
 
 
-def foot_joint_laws(leg: Leg, design: FootDesign, stop_restitution: float = 0.0) -> tuple[JointLaw, ...]:
-    """The joint law of every body of :func:`foot_tree`: the thigh (the base: free), the knee,
+def rotation_y(angle: float) -> np.ndarray:
+    """The rotation by ``angle`` (rad) about y (the world's vertical)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def foot_joint_laws(leg: Leg | LegChain, design: FootDesign, stop_restitution: float = 0.0) -> tuple[JointLaw, ...]:
+    """The joint law of every body of :func:`foot_tree`: the leg's (the base: free; the knee...),
     then each foot rod's joint."""
-    return (FREE, leg.knee, *(s.joint_law(stop_restitution) for s in design.segments))
+    return (*leg_chain(leg).joints, *(s.joint_law(stop_restitution) for s in design.segments))
 
 
 def intended_contacts(design: FootDesign) -> tuple[int, ...]:
@@ -305,11 +399,12 @@ def intended_contacts(design: FootDesign) -> tuple[int, ...]:
     return tuple(range(len(design.chains)))
 
 
-def absolute_angles(leg: Leg, design: FootDesign) -> tuple[tuple[float, ...], ...]:
-    """Absolute angle of every foot rod at touchdown, per chain (rad)."""
+def absolute_angles(leg: Leg | LegChain, design: FootDesign) -> tuple[tuple[float, ...], ...]:
+    """Absolute angle of every foot rod at touchdown, per chain, in the chain's plane (rad)."""
     out = []
+    phi_s = leg_chain(leg).foot_angle
     for chain in design.chains:
-        phi, angles = leg.shank_angle, []
+        phi, angles = phi_s, []
         for s in chain:
             phi += s.joint_angle
             angles.append(phi)
@@ -628,7 +723,8 @@ class FootGeometry:
     Attributes:
         tips: (x, y) of each chain tip, heel first.
         joints: (x, y) of the joints inside the chains (not the ankle).
-        leg_points: (x, y) of the hip and the knee.
+        leg_points: (x, y) of the leg's base start and joints (the hip and the knee; in space
+            the points' x and height).
         tips_z: lateral position (z) of each chain tip (zeros for a planar foot).
     """
 
@@ -653,7 +749,7 @@ class FootGeometry:
         return float(points[:, 1].min() - self.ground)
 
 
-def foot_geometry(leg: Leg, design: FootDesign) -> FootGeometry:
+def foot_geometry(leg: Leg | LegChain, design: FootDesign) -> FootGeometry:
     """Where the chain tips and joints are at touchdown, the ankle at the origin."""
     tips, joints, lateral = [], [], []
     for chain, angles, yaw in zip(design.chains, absolute_angles(leg, design), design.chain_yaws, strict=True):
@@ -664,15 +760,11 @@ def foot_geometry(leg: Leg, design: FootDesign) -> FootGeometry:
             (tips if k == len(chain) - 1 else joints).append(turned)
         if design.spatial:  # the chain's plane turned by its yaw (module docstring)
             lateral.append(-p[0] * math.sin(yaw))
-    u_shank = np.array([math.cos(leg.shank_angle), math.sin(leg.shank_angle)])
-    u_thigh = np.array([math.cos(leg.thigh_angle), math.sin(leg.thigh_angle)])
-    knee = -leg.shank_length * u_shank
-    hip = knee - leg.thigh_length * u_thigh
     tips_z = np.array(lateral) if design.spatial else None
-    return FootGeometry(np.array(tips), np.array(joints).reshape(-1, 2), np.array([hip, knee]), tips_z)
+    return FootGeometry(np.array(tips), np.array(joints).reshape(-1, 2), leg_chain(leg).points()[:, :2], tips_z)
 
 
-def foot_support_margin(leg: Leg, design: FootDesign) -> float:
+def foot_support_margin(leg: Leg | LegChain, design: FootDesign) -> float:
     """The support margin of the design's model (m): the signed distance from the whole tree's
     centre of mass, projected on the ground (x, z), to the boundary of the convex hull of its
     contacts' projections, > 0 inside (:mod:`impulse_core.model.support`; as ``footopt evaluate``
@@ -703,7 +795,7 @@ def objectives(result: ImpactResult, space: Space = PLANAR) -> Objectives:
 
 
 def constraint_values(
-    leg: Leg, design: FootDesign, limits: FootLimits, result: ImpactResult | None = None
+    leg: Leg | LegChain, design: FootDesign, limits: FootLimits, result: ImpactResult | None = None
 ) -> ConstraintValues:
     """Every constraint's value for ``design``; the impact-dependent ones (pulling, energy
     gain) are 0 when ``result`` is None."""
@@ -758,7 +850,7 @@ class LengthAssignment:
 
 
 def assign_lengths(
-    leg: Leg,
+    leg: Leg | LegChain,
     shape: FootShape,
     joint_angles: tuple[tuple[float, ...], ...],
     masses: tuple[tuple[float, ...], ...],
@@ -943,7 +1035,7 @@ def with_lengths(design_angles_masses: FootDesign, assignment: LengthAssignment)
 
 
 def design_from(
-    leg: Leg,
+    leg: Leg | LegChain,
     joint_angles: tuple[tuple[float, ...], ...],
     masses: tuple[tuple[float, ...], ...],
     limits: FootLimits,
@@ -989,7 +1081,7 @@ class DesignEvaluation:
         return self.objectives is not None and self.constraints.feasible
 
 
-def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimits) -> DesignEvaluation:
+def evaluate_design(leg: Leg | LegChain, design: FootDesign, scene: Scene, limits: FootLimits) -> DesignEvaluation:
     """Impact, objectives and constraints of one design (by the rung ``auto`` picks: the exact
     Coulomb law when the scene has friction).
 
@@ -998,6 +1090,7 @@ def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimi
     ``contacts: lowest`` so that ``footopt evaluate`` checks it independently.
     """
     tree = foot_tree(leg, design)
+    space = foot_space(leg, design)
     scene_all = Scene(
         speed=scene.speed,
         restitution=scene.restitution,
@@ -1007,8 +1100,8 @@ def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimi
     )
     try:
         with np.errstate(all="ignore"):
-            result = evaluate(tree, scene_all, space=design.space)
-            newton = newton_impulses(tree, scene_all, design.space)
+            result = evaluate(tree, scene_all, space=space)
+            newton = newton_impulses(tree, scene_all, space)
     except (ArithmeticError, np.linalg.LinAlgError, NumericalError):
         return DesignEvaluation(design, None, constraint_values(leg, design, limits))
     if not (np.all(np.isfinite(newton)) and np.isfinite(result.external_norm) and np.isfinite(result.internal_norm)):
@@ -1018,7 +1111,7 @@ def evaluate_design(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimi
     # the complementarity answer (the contact separates): a foot whose intended contact does not
     # take part is not the design asked for.
     values = replace(values, pulling=max(values.pulling, float(-newton.min())))
-    return DesignEvaluation(design, objectives(result, design.space), values)
+    return DesignEvaluation(design, objectives(result, space), values)
 
 
 def newton_impulses(tree: Tree, scene: Scene, space: Space = PLANAR) -> np.ndarray:
@@ -1036,11 +1129,11 @@ def landing_scene(scene: Scene, limits: FootLimits) -> Scene:
     return replace(scene, selection=ContactSelection.LOWEST, contact_tolerance=limits.contact_tolerance)
 
 
-def design_model(leg: Leg, design: FootDesign, scene: Scene, limits: FootLimits, stop_restitution: float = 0.0) -> ModelFile:
+def design_model(leg: Leg | LegChain, design: FootDesign, scene: Scene, limits: FootLimits, stop_restitution: float = 0.0) -> ModelFile:
     """The design's model file (its scene: :func:`landing_scene`; joint laws where any acts)."""
     joints = foot_joint_laws(leg, design, stop_restitution)
     laws = joints if any(not j.is_default for j in joints) else ()
-    return ModelFile(foot_tree(leg, design), landing_scene(scene, limits), joints=laws, space=design.space)
+    return ModelFile(foot_tree(leg, design), landing_scene(scene, limits), joints=laws, space=foot_space(leg, design))
 
 
 #: A study's budget for one design's landing: a design that needs more impacts or finer steps
@@ -1068,7 +1161,7 @@ def landing_objectives(result: LandingResult) -> Objectives:
 
 
 def evaluate_design_landing(
-    leg: Leg, design: FootDesign, scene: Scene, limits: FootLimits, stop_restitution: float, tolerance: float
+    leg: Leg | LegChain, design: FootDesign, scene: Scene, limits: FootLimits, stop_restitution: float, tolerance: float
 ) -> DesignEvaluation:
     """The whole landing of one design (``scene.duration``), its objectives and constraints.
 
@@ -1082,7 +1175,7 @@ def evaluate_design_landing(
     try:
         with np.errstate(all="ignore"):
             result = landing(tree, landing_scene(scene, limits), laws, replace(STUDY_LANDING, tolerance=tolerance),
-                             design.space)
+                             foot_space(leg, design))
     except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
         return DesignEvaluation(design, None, geometric)
     objectives = landing_objectives(result)
@@ -1110,6 +1203,7 @@ __all__ = [
     "JointRanges",
     "LANDING_OBJECTIVES",
     "Leg",
+    "LegChain",
     "LengthAssignment",
     "MassMode",
     "Objective",
@@ -1127,6 +1221,8 @@ __all__ = [
     "landing_objectives",
     "foot_geometry",
     "foot_joint_laws",
+    "foot_space",
+    "leg_chain",
     "foot_support_margin",
     "symmetric_yaws",
     "yaw_rpy",

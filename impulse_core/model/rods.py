@@ -65,6 +65,14 @@ def rotation_rpy(rpy: tuple[float, float, float]) -> np.ndarray:
     return Rz @ Ry @ Rx
 
 
+def rpy_of(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF's (roll, pitch, yaw) of a rotation: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+    if math.hypot(R[0, 0], R[1, 0]) < 1e-12:  # gimbal lock: yaw 0, roll takes the rest
+        return math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0
+    return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
+
+
 def unit_axis(body: Body) -> np.ndarray:
     """The body's joint axis made unit length (the frame after ``rpy``)."""
     k = np.array(body.axis, dtype=float)
@@ -115,5 +123,6 @@ __all__ = [
     "body_rotation",
     "rotation_axis",
     "rotation_rpy",
+    "rpy_of",
     "unit_axis",
     "centre_of_mass", "children", "contact_point", "depth_first", "inertia_tensor", "joint_origin", "rotation_z"]

@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Scene
 from optimizer.config.model_file import joint_law, load_yaml, read_text
 from optimizer.config.yaml_fields import describe as _describe
@@ -33,11 +34,13 @@ from optimizer.design_space import (
     JointLawSpace,
     JointRanges,
     Leg,
+    LegChain,
     MassMode,
     Objective,
     SplayMode,
     SplaySpace,
     ToeSymmetry,
+    leg_chain,
 )
 from optimizer.errors import ConfigError
 from optimizer.evaluation.scenarios import (
@@ -101,7 +104,7 @@ class StudyConfig:
         storage: an Optuna storage URL, or None for a journal file in the run directory.
         scene: the landing (straight down; friction, gravity and a duration for whole-landing
             objectives).
-        leg: the fixed leg and its posture.
+        leg: the fixed leg and its posture: thigh and shank, or a chain of rods from a model file.
         space: toe count, rods per toe and per heel, toe symmetry.
         limits: the constraints.
         objectives: what to minimise (at least one; the first two span the plotted front).
@@ -115,7 +118,7 @@ class StudyConfig:
     seed: int
     storage: str | None
     scene: Scene
-    leg: Leg
+    leg: Leg | LegChain
     space: DesignSpace
     limits: FootLimits
     objectives: tuple[Objective, ...]
@@ -228,11 +231,21 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
         landings=None if top.get("landings") is None else _landings(top["landings"]),
         statistic=_statistic(top.get("statistic", {})),
     )
+    _check_leg(config)
     _check_whole_landing(config)
     _check_spatial(config)
     if config.landings is not None:
         _check_landings(config, config.landings)
     return config
+
+
+def _check_leg(config: StudyConfig) -> None:
+    """A spatial leg needs a spatial design space (the plane's foot cannot hang from it)."""
+    leg = config.leg
+    if isinstance(leg, LegChain) and leg.spatial and not config.space.spatial:
+        raise ConfigError(f"leg.file: {leg.file} is a spatial leg: it needs design_space.space: spatial (search.method: "
+                          "outer); a planar design space takes a planar leg (footopt import --space planar, when the "
+                          "leg's joint axes are parallel)")
 
 
 def _check_spatial(config: StudyConfig) -> None:
@@ -355,9 +368,11 @@ def _check_whole_landing(config: StudyConfig) -> None:
             f"scene.friction: the inner search optimises frictionless landings only (0), got "
             f"{config.scene.friction!r}; search.method: outer takes friction (the exact Coulomb law per design)"
         )
-    if not config.space.joint_laws.empty or config.leg.knee != Leg().knee:
-        where = "design_space.joint_laws" if not config.space.joint_laws.empty else "leg.shank"
-        hint = "" if where != "leg.shank" else " (a leg file from footopt import: --no-joint-laws leaves them out)"
+    leg_laws = any(not law.is_default for law in leg_chain(config.leg).joints)
+    if not config.space.joint_laws.empty or leg_laws:
+        where = ("design_space.joint_laws" if not config.space.joint_laws.empty
+                 else "leg.file" if isinstance(config.leg, LegChain) else "leg.shank")
+        hint = "" if where == "design_space.joint_laws" else " (a leg file from footopt import: --no-joint-laws leaves them out)"
         raise ConfigError(f"{where}: springs, dampers and stops act only over a whole landing: add a landing "
                           "objective (peak_external_norm, peak_internal_norm, peak_max_internal, settled_at, "
                           f"energy_absorbed){hint}")
@@ -397,7 +412,7 @@ def _scene(data: Any) -> Scene:
     return Scene(speed=speed, restitution=e, friction=friction, gravity=gravity, duration=duration)
 
 
-def _leg(data: Any, folder: Path | None = None) -> Leg:
+def _leg(data: Any, folder: Path | None = None) -> Leg | LegChain:
     m = _mapping(data, "leg", LEG_KEYS)
     if "file" in m:
         if len(m) > 1:
@@ -436,10 +451,13 @@ def _planar_offset(value: Any, where: str) -> float:
     return _number(value[0], f"{where}[0]")
 
 
-def _leg_file(value: Any, folder: Path | None) -> Leg:
-    """``leg: {file: F}``: a planar model file of two rods (``footopt import`` of a hip-knee-ankle
-    chain): the base is the thigh, its child the shank, whose tip is the ankle where the design
-    space hangs the foot. Its scene and contacts are the model file's own and not used."""
+def _leg_file(value: Any, folder: Path | None) -> Leg | LegChain:
+    """``leg: {file: F}``: a model file's chain of rods (``footopt import`` from the hip, or the
+    thigh, to the ankle), planar or spatial: the base first, each rod the child of the one before;
+    the foot hangs at the last rod's contact (the ankle, where import puts it) or, without one, at
+    its tip. The joints' laws come along. Its scene and other contacts are not used. Two planar
+    rods joined at the thigh's tip, the ankle at the shank's tip, are the study's thigh and shank
+    (:class:`Leg`, as ``leg: {thigh, shank}`` writes them)."""
     from optimizer.config.model_file import load_model_file
     from impulse_core.kinematics.spatial import PLANAR
     from impulse_core.model.tree import JointKind
@@ -452,20 +470,29 @@ def _leg_file(value: Any, folder: Path | None) -> Leg:
     except ConfigError as e:
         raise ConfigError(f"leg.file: {path}: {e}") from None
     bodies = model.tree.bodies
-    if model.space is not PLANAR:
-        raise ConfigError(f"leg.file: {path} is a spatial model: the design space hangs a planar foot on a planar "
-                          "leg (footopt import --space planar, when the leg's joint axes are parallel)")
-    if len(bodies) != 2:
-        raise ConfigError(f"leg.file: {path} has {len(bodies)} rods: the design space hangs the foot on a two-rod "
-                          "leg (thigh: the floating base, shank: its child; import from the thigh to the ankle)")
-    thigh, shank = bodies
-    if shank.joint is not JointKind.REVOLUTE or shank.at != 1.0:
-        raise ConfigError(f"leg.file: {path}: the shank must hang from the thigh's tip (at: 1.0) by a revolute joint")
-    knee = model.joints[1] if model.joints else Leg().knee
-    return Leg(thigh_length=thigh.length, thigh_mass=thigh.mass, thigh_angle=thigh.angle, shank_length=shank.length,
-               shank_mass=shank.mass, knee_angle=shank.angle, knee=knee, thigh_com=thigh.com,
-               thigh_gyration=thigh.gyration, shank_com=shank.com, shank_gyration=shank.gyration,
-               thigh_offset=thigh.com_offset[0], shank_offset=shank.com_offset[0])
+    for k, b in enumerate(bodies[1:], start=1):
+        if b.parent != k - 1:
+            raise ConfigError(f"leg.file: {path}: rod '{b.name}' hangs from '{bodies[b.parent].name}', not from "
+                              f"'{bodies[k - 1].name}': a leg is a chain, each rod the child of the one before")
+    for b in bodies:
+        if re.fullmatch(r"(heel|toe\d+)(_.*)?", b.name):
+            raise ConfigError(f"leg.file: {path}: rod '{b.name}' takes a foot rod's name (heel..., toe<i>...): "
+                              "rename it")
+    last = bodies[-1]
+    if len(last.contacts) > 1:
+        raise ConfigError(f"leg.file: {path}: its last rod '{last.name}' has {len(last.contacts)} contacts: the foot "
+                          "hangs at one ankle (one contact on the last rod, or none: its tip)")
+    ankle = last.contacts[0] if last.contacts else 1.0
+    joints = model.joints or tuple(FREE for _ in bodies)
+    if (model.space is PLANAR and len(bodies) == 2 and bodies[1].joint is JointKind.REVOLUTE
+            and bodies[1].at == 1.0 and ankle == 1.0):
+        thigh, shank = bodies
+        return Leg(thigh_length=thigh.length, thigh_mass=thigh.mass, thigh_angle=thigh.angle,
+                   shank_length=shank.length, shank_mass=shank.mass, knee_angle=shank.angle, knee=joints[1],
+                   thigh_com=thigh.com, thigh_gyration=thigh.gyration, shank_com=shank.com,
+                   shank_gyration=shank.gyration, thigh_offset=thigh.com_offset[0], shank_offset=shank.com_offset[0])
+    rods = tuple(replace(b, contacts=()) for b in bodies)
+    return LegChain(rods, joints, model.space, ankle, path.resolve())
 
 
 def _space(data: Any) -> DesignSpace:
@@ -604,10 +631,7 @@ def format_study(config: StudyConfig, header_comment: str | None = None) -> str:
         f"  gravity: {f(s.gravity)}",
         f"  duration: {'null' if s.duration is None else f(s.duration)}",
         "leg:",
-        f"  thigh: {{length: {f(leg.thigh_length)}, mass: {f(leg.thigh_mass)}, angle: {f(leg.thigh_angle)}"
-        f"{_mass_text(leg, 'thigh')}}}",
-        f"  shank: {{length: {f(leg.shank_length)}, mass: {f(leg.shank_mass)}, angle: {f(leg.knee_angle)}"
-        f"{_mass_text(leg, 'shank')}{_knee_text(leg)}}}",
+        *_leg_lines(leg),
         "design_space:",
         f"  toes: [{sp.toes[0]}, {sp.toes[1]}]",
         f"  toe_segments: [{sp.toe_segments[0]}, {sp.toe_segments[1]}]",
@@ -655,6 +679,21 @@ def _landings_lines(config: StudyConfig) -> list[str]:
         lines.append("statistic:")
         lines += [f"  {o.value}: {_string_text(st.text)}" for o, st in config.statistic]
     return lines
+
+
+def _leg_lines(leg: Leg | LegChain) -> list[str]:
+    """``leg:``'s lines: the thigh and shank inline, or a chain's model file (its absolute path)."""
+    if isinstance(leg, LegChain):
+        if leg.file is None:
+            raise ValueError("format_study: a leg chain without its model file cannot be written")
+        return [f"  file: {_string_text(str(leg.file))}"]
+    f = _float_text
+    return [
+        f"  thigh: {{length: {f(leg.thigh_length)}, mass: {f(leg.thigh_mass)}, angle: {f(leg.thigh_angle)}"
+        f"{_mass_text(leg, 'thigh')}}}",
+        f"  shank: {{length: {f(leg.shank_length)}, mass: {f(leg.shank_mass)}, angle: {f(leg.knee_angle)}"
+        f"{_mass_text(leg, 'shank')}{_knee_text(leg)}}}",
+    ]
 
 
 def _mass_text(leg: Leg, rod: str) -> str:

@@ -44,7 +44,7 @@ from optimizer.config.model_file import ModelFile
 from optimizer.errors import ConfigError
 from optimizer.imports.description import FIXED, REVOLUTE, Description
 from optimizer.imports.laws import footopt_angle, imported_laws, laws_summary
-from optimizer.results.export import rpy_of
+from impulse_core.model.rods import rpy_of
 
 #: footopt's world from the description's (rows: footopt's x, y, z in the description's axes).
 TO_FOOTOPT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])

@@ -46,6 +46,7 @@ from impulse_core.model.rods import (
     depth_first,
     inertia_tensor,
     joint_origin,
+    rpy_of,
     unit_axis,
 )
 from impulse_core.model.joints import FREE, JointLaw
@@ -205,14 +206,6 @@ def _placed(frame: Frame, point: np.ndarray, turn: np.ndarray) -> Frame:
     frame sits at ``frame``."""
     origin, R = frame
     return origin + R @ point, R @ turn
-
-
-def rpy_of(R: np.ndarray) -> tuple[float, float, float]:
-    """URDF's (roll, pitch, yaw) of a rotation: R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    if math.hypot(R[0, 0], R[1, 0]) < 1e-12:  # gimbal lock: yaw 0, roll takes the rest
-        return math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0
-    return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
 
 
 def quaternion_of(R: np.ndarray) -> tuple[float, float, float, float]:

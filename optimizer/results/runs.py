@@ -43,6 +43,7 @@ import numpy as np
 import optuna
 
 from impulse_core.evaluate import evaluate, touchdown_geometry
+from impulse_core.kinematics.spatial import PLANAR
 from optimizer.config.model_file import Reference, dump_model_file
 from optimizer.config.study_config import StudyConfig, format_study, load_study, redact_url
 from optimizer.design_space import (
@@ -53,6 +54,7 @@ from optimizer.design_space import (
     foot_geometry,
     foot_support_margin,
     design_model,
+    foot_space,
     foot_tree,
     landing_scene,
 )
@@ -313,8 +315,8 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
     for t in front:
         rel = Path(DESIGNS_DIR) / f"trial_{t.number:05d}.yaml"
         design = t.evaluation.design
-        tree = foot_tree(config.leg, design)
-        result = evaluate(tree, scene, space=design.space)
+        tree, space = foot_tree(config.leg, design), foot_space(config.leg, design)
+        result = evaluate(tree, scene, space=space)
         reference = Reference(
             source=f"footopt optimize, study '{config.name}', trial {t.number} ({t.method} search)",
             external=tuple(float(x) for x in result.external),
@@ -336,13 +338,13 @@ def export_front(run_dir: Path, config: StudyConfig, study: optuna.Study) -> lis
                                      config.space.joint_laws.stop_restitution), reference=reference)
         dump_model_file(model, run_dir / rel, header_comment=header)
         for fmt in ExportFormat:
-            extra = {"space": design.space} if design.spatial else {}
+            extra = {"space": space} if space is not PLANAR else {}
             text = export_text(tree, scene, fmt, name=rel.stem, joints=model.joints, **extra)
             (run_dir / rel).with_suffix(fmt.suffix).write_text(text, encoding="utf-8")
         title = f"trial {t.number} ({t.evaluation.design.shape.label})"
         drawing = run_dir / rel.with_suffix(DRAWING_SUFFIX)
-        if design.spatial:
-            drawings.append((plot_views, (tree, touchdown_geometry(tree, design.space), result, drawing, title)))
+        if space is not PLANAR:
+            drawings.append((plot_views, (tree, touchdown_geometry(tree, space), result, drawing, title)))
         else:
             drawings.append((plot_touchdown, (tree, touchdown_geometry(tree), result, drawing, title, scene)))
         points.append(FrontPoint(t.number, t.method, t.evaluation, rel))

@@ -55,6 +55,7 @@ from optimizer.design_space import (
     ToeSymmetry,
     foot_geometry,
     foot_tree,
+    leg_chain,
 )
 from optimizer.evaluation.statistics import Statistic, StatisticKind
 
@@ -524,10 +525,11 @@ def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult, approach=Non
     space = values_space(tree, PLANAR)  # a leg with centres of mass off its rods: their offsets too
     p = ca.SX(ca.DM(design_vector(tree, space.body_values)))
     width = len(space.body_values)
-    body, body_mult = 2, [ca.SX(1)]  # the shank's joint impulse is counted once
+    legs = len(leg_chain(config.leg).rods)
+    body, body_mult = legs, [ca.SX(1)] * (legs - 1)  # the leg's joint impulses are counted once
     for c, k in enumerate(kind.sizes):
         for _ in range(k):
-            i = body - 2
+            i = body - legs
             # The impulses of a straight-down approach do not depend on the rods' lengths (rods
             # scale with their length: com and radius of gyration are fractions of it), so that
             # impact sees fixed ones and its derivatives skip the lengths (tested against
@@ -568,7 +570,7 @@ def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add) -> Non
     leg, lim = config.leg, config.limits
     phi = {}
     for chain in distinct:
-        acc = leg.shank_angle
+        acc = leg_chain(leg).foot_angle
         for i in chain:
             acc = acc + a[i]
             phi[i] = acc

@@ -53,6 +53,7 @@ from optimizer.design_space import (
     evaluate_design_landing,
     foot_joint_laws,
     foot_tree,
+    leg_chain,
     landing_scene,
     with_lengths,
 )
@@ -144,9 +145,9 @@ class LandingNlp:
         return out
 
     def rod_index(self) -> list[tuple[int, int, str, str]]:
-        """Per foot body of the tree (thigh and shank excluded, tree order): (its body index, the
+        """Per foot body of the tree (the leg's rods excluded, tree order): (its body index, the
         distinct rod it takes its values from, its family's root or inner name)."""
-        out, body = [], 2
+        out, body = [], len(leg_chain(self.config.leg).rods)
         starts = np.cumsum((0, *self.sizes[:-1]))
         chains = [0] + ([1] * self.shape.n_toes if self.identical else list(range(1, 1 + self.shape.n_toes)))
         for c in chains:

@@ -8,7 +8,11 @@
    absolute angle comes from the same import rooted at the hip (the thigh joint on the chain).
 2. ``footopt optimize`` of the same Go1-sized foot search (go1.yaml) on that leg and on footopt's
    default leg (default.yaml): the inner search, 6 foot shapes.
-3. The two fronts: ``fronts.csv``, ``fronts.png`` and the numbers quoted in results.md.
+3. The same leg from the hip (three rods: hip, thigh, calf; planar: ``go1_hip_leg.yaml``) under the
+   same search (go1_hip.yaml), and from the trunk (four rods, spatial: ``go1_trunk_leg.yaml``) under
+   a spatial design space (splayed toes, the outer search: go1_trunk.yaml), beside the two-rod leg
+   read as spatial in that space (go1_splay.yaml).
+4. The fronts: ``fronts.csv``, ``fronts.png`` and the numbers quoted in results.md.
 
 Run from anywhere: ``.venv/bin/python studies/imported_leg/run.py`` (about 30 s on one core).
 """
@@ -25,6 +29,12 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ANGLES = {"FL_thigh_joint": 0.9, "FL_calf_joint": -1.8}
+#: (study file, leg label): the planar search's three legs, then the spatial search's two.
+STUDIES = (("go1.yaml", "go1"), ("default.yaml", "default"), ("go1_hip.yaml", "go1_hip"),
+           ("go1_splay.yaml", "go1_splay"), ("go1_trunk.yaml", "go1_trunk"))
+LABELS = {"go1": "Go1 thigh and calf (2 rods)", "default": "default leg (0.7 m, 1 kg rods)",
+          "go1_hip": "Go1 hip, thigh, calf (3 rods)", "go1_splay": "Go1 thigh and calf, splayed toes",
+          "go1_trunk": "Go1 trunk to calf (4 rods, spatial), splayed toes"}
 
 
 def go1_urdf() -> Path:
@@ -33,7 +43,7 @@ def go1_urdf() -> Path:
 
 
 def write_leg(out: Path) -> str:
-    """The two-rod leg file; returns its summary."""
+    """The two-rod leg file; returns its summary (the chains from the hip and the trunk beside it)."""
     from impulse_core.model.tree import Tree
     from optimizer.config.model_file import format_model_file
     from optimizer.imports.leg import import_leg
@@ -49,6 +59,10 @@ def write_leg(out: Path) -> str:
     note = (f"{leg.summary()}\nstudies/imported_leg/run.py: the thigh's absolute angle set to {thigh_angle:.6g} rad "
             f"(thigh joint {ANGLES['FL_thigh_joint']} rad, from the import rooted at FL_hip).")
     out.write_text(format_model_file(model, header_comment=note))
+    for root, name, angles in (("FL_hip", "go1_hip_leg.yaml", ANGLES),
+                               ("trunk", "go1_trunk_leg.yaml", {"FL_hip_joint": 0.0, **ANGLES})):
+        chain = import_leg(desc, root, "FL_foot", angles=angles, joint_laws=False)
+        (out.parent / name).write_text(format_model_file(chain.model, header_comment=chain.summary()))
     return note
 
 
@@ -68,7 +82,7 @@ def front(run: Path) -> list[dict[str, str]]:
 def main() -> None:
     print(write_leg(HERE / "go1_leg.yaml"))
     fronts = {}
-    for study, leg in (("go1.yaml", "go1"), ("default.yaml", "default")):
+    for study, leg in STUDIES:
         run, seconds = optimize(study)
         fronts[leg] = front(run)
         print(f"{leg}: {len(fronts[leg])} Pareto designs in {seconds:.1f} s")
@@ -89,19 +103,20 @@ def plot(fronts: dict[str, list[dict[str, str]]]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4.2))
-    for (leg, rows), marker in zip(fronts.items(), "os", strict=True):
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
+    for (leg, rows), marker in zip(fronts.items(), "os^Dv", strict=True):
+        ax = axes[1 if leg in ("go1_splay", "go1_trunk") else 0]
         x = [float(r["external_norm"]) for r in rows]
         y = [float(r["internal_norm"]) for r in rows]
-        label = "Go1 front left leg (footopt import)" if leg == "go1" else "default leg (0.7 m, 1 kg rods)"
         shapes = ", ".join(sorted({r["shape"] for r in rows}))
-        ax.plot(x, y, marker=marker, linestyle="-", label=f"{label}: {len(rows)} designs, shapes {shapes}")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("external_norm (N s)")
-    ax.set_ylabel("internal_norm (N s)")
-    ax.set_title("Pareto fronts (toes x rods): 0.1 kg foot, 1 m/s plastic landing", fontsize=10)
-    ax.legend(fontsize=8)
+        ax.plot(x, y, marker=marker, linestyle="-", label=f"{LABELS[leg]}: {len(rows)} designs, shapes {shapes}")
+    for ax, title in zip(axes, ("planar feet, inner search", "splayed (spatial) feet, outer search"), strict=True):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("external_norm (N s)")
+        ax.set_ylabel("internal_norm (N s)")
+        ax.set_title(f"{title}: 0.1 kg foot, 1 m/s plastic landing", fontsize=10)
+        ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(HERE / "fronts.png", dpi=120)
 

@@ -176,6 +176,8 @@ def test_leg_from_an_imported_model_file(tmp_path: Path):
 
 
 def test_leg_file_is_refused_when_the_design_space_cannot_hang_a_foot_on_it(tmp_path: Path):
+    """Any chain of rods is a leg (tests/optimizer/test_leg_chains.py); its joint laws need a whole
+    landing, a spatial one a spatial design space."""
     from optimizer.config.model_file import format_model_file
     from optimizer.imports.leg import import_leg
     from optimizer.imports.read import read_description
@@ -185,8 +187,8 @@ def test_leg_file_is_refused_when_the_design_space_cannot_hang_a_foot_on_it(tmp_
     (tmp_path / "three.yaml").write_text(format_model_file(import_leg(desc, "FL_SHOULDER", "FL_FOOT", com_on_rods=True).model))
     (tmp_path / "spatial.yaml").write_text(format_model_file(import_leg(desc, "base_link", "FL_FOOT").model))
     cases = {
-        "{file: three.yaml}": "leg.file: .* has 3 rods: the design space hangs the foot on a two-rod leg",
-        "{file: spatial.yaml}": "leg.file: .* is a spatial model",
+        "{file: three.yaml}": "leg.file: springs, dampers and stops act only over a whole landing",
+        "{file: spatial.yaml}": "leg.file: .* is a spatial leg: it needs design_space.space: spatial",
         "{file: missing.yaml}": "leg.file: .*missing.yaml: file not found",
         "{file: three.yaml, thigh: {length: 1.0}}": "leg.file: give the leg as a file or as thigh and shank, not both",
         "{file: 3}": "leg.file: ",
