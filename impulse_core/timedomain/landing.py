@@ -121,7 +121,8 @@ STEP_BUDGET = 64
 
 
 class Diverged(NumericalError):
-    """The integration blew up: the step is too long for the model's fastest motion."""
+    """The integration blew up, or its steps overran their budget (the momentum balance split them):
+    the step is too long for the model's fastest motion; :func:`landing` halves it."""
 
 
 @dataclass(frozen=True)
@@ -1531,7 +1532,7 @@ class _Landing:
         while t < T * (1 - 1e-12):
             q1, v1, impulse, dt = self.balanced_step(q, v, mode, min(trial, T - t), rate, h / 2.0**MAX_SPLITS)
             if totals.steps > STEP_BUDGET * T / h:
-                raise NumericalError(
+                raise Diverged(  # landing() halves the step, as for a diverging run
                     f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
                     "balance split its steps: a light rod spinning fast)"
                 )

@@ -11,6 +11,7 @@ import pytest
 
 from impulse_core.evaluate import evaluate
 from impulse_core.impact.laws import ImpactModel
+import impulse_core.timedomain.landing as landing_module
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, ContactSelection, JointKind, Scene, Tree
@@ -96,3 +97,17 @@ def test_a_step_whose_joint_passes_its_stop_and_returns_is_a_graze():
     fraction = run.grazing(q0, v0, q1, v1, free, 1e-3)  # peak 1.5e-4 rad past the stop, mid-step
     assert fraction is not None and 0 < fraction < 0.5  # the first sample past the stop
     assert run.grazing(q0, v0, q1, -v1, free, 1e-3) is None  # moving in and on out: the step's end sees it
+
+
+def test_a_run_that_overruns_its_step_budget_is_retried_at_half_the_step(monkeypatch):
+    """A run whose steps the momentum balance splits beyond the budget (a light rod spinning
+    fast) is a step too long, as a diverging one: ``landing`` halves it and answers (it raised).
+    Here the budget is lowered to 1 x T / h so that the first step (2 ms, 111 steps) overruns."""
+    tree = Tree((Body("b0", None, 0.2124, 1.165, -0.1229, contacts=(0.0,)),
+                 Body("b1", 0, 0.2857, 2.982, -0.0596, gyration=0.2695)))
+    laws = (FREE, JointLaw(stiffness=134.8, damping=0.02406, limits=(-0.1484, -0.04115)))
+    scene = Scene(speed=1.9218, restitution=1.0, gravity=9.81, duration=0.2)
+    first = _Landing(tree, scene, laws, LandingSettings(), PLANAR).first_step()
+    monkeypatch.setattr(landing_module, "STEP_BUDGET", 1.0)
+    r = landing(tree, scene, laws, LandingSettings(), PLANAR)
+    assert r.step <= first / 4 and r.n_steps <= r.duration / r.step
