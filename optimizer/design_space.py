@@ -38,6 +38,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 from enum import Enum
 
+import casadi as ca
 import numpy as np
 from scipy.optimize import linprog
 
@@ -278,20 +279,16 @@ def search_columns(topology: Topology, space: Space) -> tuple[int, ...] | None:
     return tuple(n * b + j for b in range(2, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
 
 
-def yaw_rpy(shank_angle: float, yaw: float) -> tuple[float, float, float]:
+def yaw_rpy(shank_angle: float, yaw):
     """The ``rpy`` (URDF: Rz(c) Ry(b) Rx(a)) of a toe root hanging from a shank at absolute angle
     ``shank_angle`` (about z, the base without ``rpy``) that turns the toe's chain by ``yaw`` about
-    the world's vertical: Rz(-phi) Ry(yaw) Rz(phi)."""
-
-    def rz(a: float) -> np.ndarray:
-        c, s = math.cos(a), math.sin(a)
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-    c, s = math.cos(yaw), math.sin(yaw)
-    ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-    R = rz(-shank_angle) @ ry @ rz(shank_angle)
-    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    return (math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0]))
+    the world's vertical: R = Rz(-phi) Ry(yaw) Rz(phi), read off in closed form. ``yaw`` a float
+    gives floats; a CasADi symbol gives expressions (the inner search's spatial NLP)."""
+    c, s = ca.cos(yaw), ca.sin(yaw)
+    cp, sp = math.cos(shank_angle), math.sin(shank_angle)
+    r00, r10, r20 = c * cp * cp + sp * sp, (1 - c) * sp * cp, -s * cp
+    r21, r22 = s * sp, c
+    return (ca.atan2(r21, r22), ca.atan2(-r20, ca.sqrt(r00 * r00 + r10 * r10)), ca.atan2(r10, r00))
 
 
 def foot_joint_laws(leg: Leg, design: FootDesign, stop_restitution: float = 0.0) -> tuple[JointLaw, ...]:
