@@ -700,12 +700,30 @@ def _splayed_impact(config: StudyConfig, topology, p) -> dict[str, ca.SX]:
     }
 
 
+def support_edges(kind: FootKind, topology, p, masses) -> tuple[ca.SX, ca.SX]:
+    """The splayed foot's support polygon in the NLP's fixed contact order (heel, then the toes
+    by decreasing yaw: counter-clockwise seen in (x, z) when the yaws are ordered): for each edge
+    (P, Q), d = Q - P, the cross product s = d x (c - P) with c the whole tree's centre of mass
+    projected on the ground (|d| times c's signed distance to the edge's line, > 0 inside), and
+    |d|^2. Symbolic in the design vector ``p`` and the bodies' ``masses`` (two toes or more)."""
+    geometry = compiled_geometry(topology, SPATIAL)(p=p)
+    coms, contacts = geometry["coms"], geometry["contacts"]
+    total = sum(masses[1:], masses[0])
+    com = sum((masses[b] * coms[:, b] for b in range(1, len(masses))), masses[0] * coms[:, 0]) / total
+    c = ca.vertcat(com[0], com[2])
+    order = [0, *range(kind.splayed_toes, 0, -1)]
+    corners = [ca.vertcat(contacts[0, i], contacts[2, i]) for i in order]
+    cross, squared = [], []
+    for P, Q in zip(corners, corners[1:] + corners[:1], strict=True):
+        d, w = Q - P, c - P
+        cross.append(d[0] * w[1] - d[1] * w[0])
+        squared.append(ca.sumsqr(d))
+    return ca.vertcat(*cross), ca.vertcat(*squared)
+
+
 def _support_rows(config: StudyConfig, kind: FootKind, topology, p, masses, add) -> None:
     """The support margin (``constraints.support_margin``, b): the centre of mass's ground
-    projection c (x, z) at least b inside the contacts' hull, smoothly, in a fixed contact order:
-    heel, then the toes by decreasing yaw (counter-clockwise seen in (x, z), as the yaws are
-    ordered). For each edge (p, q), d = q - p and the cross product s = d x (c - p) (|d| times
-    c's signed distance to the edge's line, > 0 inside):
+    projection at least b inside the contacts' hull, smoothly, per edge of :func:`support_edges`:
 
         s >= 0   and   s^2 >= b^2 |d|^2   (b > 0; b <= 0: s >= 0 alone)
 
@@ -717,20 +735,11 @@ def _support_rows(config: StudyConfig, kind: FootKind, topology, p, masses, add)
     and the heel span no area: no rows (the realised design's margin decides)."""
     if kind.splayed_toes < 2:
         return
-    geometry = compiled_geometry(topology, SPATIAL)(p=p)
-    coms, contacts = geometry["coms"], geometry["contacts"]
-    total = sum(masses[1:], masses[0])
-    com = sum((masses[b] * coms[:, b] for b in range(1, len(masses))), masses[0] * coms[:, 0]) / total
-    c = ca.vertcat(com[0], com[2])
-    order = [0, *range(kind.splayed_toes, 0, -1)]
-    corners = [ca.vertcat(contacts[0, i], contacts[2, i]) for i in order]
+    cross, squared = support_edges(kind, topology, p, masses)
+    add(cross, 0.0, math.inf)
     b = float(config.limits.support_margin)
-    for P, Q in zip(corners, corners[1:] + corners[:1], strict=True):
-        d, w = Q - P, c - P
-        cross = d[0] * w[1] - d[1] * w[0]
-        add(cross, 0.0, math.inf)
-        if b > 0:
-            add(cross**2 - (b + TIGHTEN) ** 2 * ca.sumsqr(d), 0.0, math.inf)
+    if b > 0:
+        add(cross**2 - (b + TIGHTEN) ** 2 * squared, 0.0, math.inf)
 
 
 def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add, lengths=None, turns=None) -> None:
@@ -786,6 +795,9 @@ __all__ = [
     "NlpCache",
     "foot_kind",
     "load_nlp",
+    "support_edges",
+    "toe_yaws",
     "values_function",
+    "yaw_count",
     "vm_nlp",
 ]

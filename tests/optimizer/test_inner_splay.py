@@ -30,7 +30,8 @@ from optimizer.design_space import (
     evaluate_design,
     foot_support_margin,
 )
-from optimizer.search.compiled import NlpCache, foot_kind
+from optimizer.search import compiled
+from optimizer.search.compiled import NlpCache, foot_kind, support_edges
 from optimizer.search.inner import ShapeNlp, _evaluate, run_inner, start_point
 from optimizer.search.outer import open_study, recorded_trials, run_outer
 
@@ -163,3 +164,31 @@ def test_inner_is_no_worse_than_a_longer_outer_search():
         return np.array([min(o.external_norm for o in found), min(o.internal_norm for o in found)])
 
     assert np.all(best(inner) <= best(outer) * (1 + 1e-9)), (best(inner), best(outer), t_inner, t_outer)
+
+
+@pytest.mark.parametrize("n_toes", [2, 3])
+def test_support_rows_are_the_support_margin_of_the_evaluated_design(n_toes: int):
+    """The NLP's support polygon (its design vector built from the NLP's variables, the toes'
+    yaws as rpy, the edges in its fixed order): the smallest signed edge distance of the centre
+    of mass is the support margin of the design :func:`_evaluate` builds (its model file's), on
+    random level starts inside the hull (one-rod identical toes: their tips on a circle about the
+    ankle, so the fixed order is the hull's and the rows are exact), and of the same sign outside."""
+    config = config_of(toes=(n_toes, n_toes))
+    nlp = vm_nlp_of(config, FootShape(n_toes, 1))
+    kind = nlp.compiled.kind
+    rng = np.random.default_rng(7)
+    margins = []
+    for _ in range(6):
+        x = start_point(config, nlp, rng)
+        angles, masses, lengths = nlp.unpack(x)
+        flat = [np.concatenate([np.array(ch) for ch in block]) for block in (angles, masses, lengths)]
+        p, body_masses, topology = compiled._splayed_values(config, kind, *map(ca.DM, flat), nlp.toe_yaws(x))
+        cross, squared = (np.array(ca.evalf(v)).ravel() for v in support_edges(kind, topology, p, body_masses))
+        design = _evaluate(config, nlp, angles, masses, lengths, nlp.toe_yaws(x)).design
+        margins.append(foot_support_margin(config.leg, design))
+        edge = np.min(cross / np.sqrt(squared))
+        if margins[-1] >= 0:  # inside: the distance to the boundary is the nearest edge line's
+            assert edge == pytest.approx(margins[-1], abs=1e-12)
+        else:  # outside: some edge line has it on its outer side, no further than the hull
+            assert margins[-1] - 1e-12 <= edge < 0
+    assert min(margins) < 0 < max(margins)  # inside and outside both seen
