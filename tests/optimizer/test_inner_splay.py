@@ -37,7 +37,7 @@ from optimizer.search.outer import open_study, recorded_trials, run_outer
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
 
-BOUND = 0.02
+BOUND = 0.06  # binds on the tiny study (its optimum without it stands at about 0.03 m)
 STUDY = {
     "name": "tiny_splay_inner",
     "seed": 1,
@@ -82,6 +82,7 @@ def test_every_design_is_feasible_reevaluates_and_stands(study: optuna.Study):
             assert again.objectives.value(Objective(name)) == pytest.approx(value, rel=1e-9, abs=1e-15)
         assert max(v for _, v in again.constraints.items()) <= FEASIBILITY_TOL
         assert foot_support_margin(config.leg, e.design) >= BOUND - FEASIBILITY_TOL
+    assert min(foot_support_margin(config.leg, e.design) for e in found) < BOUND + 1e-6  # the margin binds
 
 
 def test_front_files_reevaluate_through_the_cli(tmp_path: Path, capsys, monkeypatch):
@@ -148,7 +149,11 @@ def test_nlp_gradient_is_the_central_difference_of_the_evaluation(symmetry, spla
 
 
 def test_inner_is_no_worse_than_a_longer_outer_search():
+    """On the tiny study at a support margin of 2 cm (at 6 cm the outer search's 120 trials find
+    no feasible foot), each objective's best: the inner search's (about 0.5 s) at most the outer
+    search's (120 trials, several times longer)."""
     config = config_of(toes=(2, 2))
+    config = dataclasses.replace(config, limits=dataclasses.replace(config.limits, support_margin=0.02))
     t = time.perf_counter()
     inner = open_study(config, optuna.storages.InMemoryStorage())
     run_inner(inner, config, workers=1)
