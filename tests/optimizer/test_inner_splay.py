@@ -28,11 +28,12 @@ from optimizer.design_space import (
     SplaySpace,
     ToeSymmetry,
     evaluate_design,
+    foot_geometry,
     foot_support_margin,
 )
 from optimizer.search import compiled
 from optimizer.search.compiled import NlpCache, foot_kind, support_edges
-from optimizer.search.inner import ShapeNlp, _evaluate, run_inner, start_point
+from optimizer.search.inner import ShapeNlp, _evaluate, anchors, run_inner, start_point
 from optimizer.search.outer import open_study, recorded_trials, run_outer
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -197,3 +198,20 @@ def test_support_rows_are_the_support_margin_of_the_evaluated_design(n_toes: int
         else:  # outside: some edge line has it on its outer side, no further than the hull
             assert margins[-1] - 1e-12 <= edge < 0
     assert min(margins) < 0 < max(margins)  # inside and outside both seen
+
+
+def test_each_anchor_is_feasible_as_the_nlp_left_it():
+    """The NLP's rows are the evaluation's constraints: each anchor's own point (its lengths and
+    yaws, before :func:`realise` could re-choose lengths) evaluates feasible, with the support
+    margin and a toe's forward reach (cos(yaw) times its run) at their bounds."""
+    config = parse_study({**STUDY, "constraints": {**STUDY["constraints"], "foot_length": [0.1, 0.2]}})
+    nlp = vm_nlp_of(config, FootShape(2, 1))
+    found = anchors(config, nlp, np.random.default_rng(0))
+    assert len(found) == 2
+    reaches = []
+    for s, _ in found:
+        own = _evaluate(config, nlp, *nlp.unpack(s.x), nlp.toe_yaws(s.x))
+        assert own.feasible
+        assert foot_support_margin(config.leg, own.design) == pytest.approx(BOUND, abs=1e-6)
+        reaches.append(foot_geometry(config.leg, own.design).reaches.max())
+    assert max(reaches) == pytest.approx(0.2, abs=1e-6)
