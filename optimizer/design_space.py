@@ -279,7 +279,7 @@ def search_columns(topology: Topology, space: Space) -> tuple[int, ...] | None:
     return tuple(n * b + j for b in range(2, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
 
 
-def yaw_rpy(shank_angle: float, yaw):
+def yaw_rpy(shank_angle: float, yaw: float | ca.SX) -> tuple:
     """The ``rpy`` (URDF: Rz(c) Ry(b) Rx(a)) of a toe root hanging from a shank at absolute angle
     ``shank_angle`` (about z, the base without ``rpy``) that turns the toe's chain by ``yaw`` about
     the world's vertical: R = Rz(-phi) Ry(yaw) Rz(phi), read off in closed form. ``yaw`` a float

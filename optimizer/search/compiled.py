@@ -32,6 +32,7 @@ import hashlib
 import math
 import tempfile
 import warnings
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,7 +46,7 @@ from impulse_core.compile.cache import default_root as cache_dir
 from impulse_core.compile.codegen import find_compiler
 from impulse_core.evaluate import approach_velocity, compiled_geometry, compiled_model
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, values_space
-from impulse_core.model.tree import design_vector
+from impulse_core.model.tree import Topology, design_vector
 from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
     LENGTH_FLOOR,
@@ -135,7 +136,7 @@ def yaw_count(splay: SplaySpace, n_toes: int) -> int:
     return 1 if splay.mode is SplayMode.SYMMETRIC else n_toes
 
 
-def toe_yaws(splay: SplaySpace, n_toes: int, values) -> tuple:
+def toe_yaws(splay: SplaySpace, n_toes: int, values: Sequence) -> tuple:
     """Every toe's yaw from the NLP's yaw variables ``values`` (floats or CasADi symbols; empty
     when :func:`yaw_count` is 0), as :func:`optimizer.search.outer.suggest_yaws` spreads them."""
     lo = splay.splay[0]
@@ -649,7 +650,9 @@ def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult, approach=Non
     }
 
 
-def _splayed_values(config: StudyConfig, kind: FootKind, a, m, L, yaws) -> tuple:
+def _splayed_values(
+    config: StudyConfig, kind: FootKind, a: ca.SX, m: ca.SX, L: ca.SX, yaws: Sequence
+) -> tuple[ca.SX, list, Topology]:
     """The splayed foot's tree as the core's design vector (SPATIAL layout), symbolic in the
     NLP's angles, masses and lengths (every chain its own lengths) and the toes' yaws (each toe
     root's ``rpy``, :func:`optimizer.design_space.yaw_rpy`); with every body's mass and the
@@ -679,7 +682,7 @@ def _splayed_values(config: StudyConfig, kind: FootKind, a, m, L, yaws) -> tuple
     return p, masses, tree.topology()
 
 
-def _splayed_impact(config: StudyConfig, topology, p) -> dict[str, ca.SX]:
+def _splayed_impact(config: StudyConfig, topology: Topology, p: ca.SX) -> dict[str, ca.SX]:
     """The splayed foot's impact (Newton's law, eq. 11, in space; straight down) and its
     objectives as :func:`optimizer.design_space.objectives` reads them: no toe merged, the base's
     turn the norm of its angular velocity (``omega``: 3 x 1)."""
@@ -700,7 +703,7 @@ def _splayed_impact(config: StudyConfig, topology, p) -> dict[str, ca.SX]:
     }
 
 
-def support_edges(kind: FootKind, topology, p, masses) -> tuple[ca.SX, ca.SX]:
+def support_edges(kind: FootKind, topology: Topology, p: ca.SX, masses: list) -> tuple[ca.SX, ca.SX]:
     """The splayed foot's support polygon in the NLP's fixed contact order (heel, then the toes
     by decreasing yaw: counter-clockwise seen in (x, z) when the yaws are ordered): for each edge
     (P, Q), d = Q - P, the cross product s = d x (c - P) with c the whole tree's centre of mass
@@ -721,7 +724,9 @@ def support_edges(kind: FootKind, topology, p, masses) -> tuple[ca.SX, ca.SX]:
     return ca.vertcat(*cross), ca.vertcat(*squared)
 
 
-def _support_rows(config: StudyConfig, kind: FootKind, topology, p, masses, add) -> None:
+def _support_rows(
+    config: StudyConfig, kind: FootKind, topology: Topology, p: ca.SX, masses: list, add: Callable
+) -> None:
     """The support margin (``constraints.support_margin``, b): the centre of mass's ground
     projection at least b inside the contacts' hull, smoothly, per edge of :func:`support_edges`:
 

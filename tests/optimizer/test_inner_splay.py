@@ -33,7 +33,7 @@ from optimizer.design_space import (
 )
 from optimizer.search import compiled
 from optimizer.search.compiled import NlpCache, foot_kind, support_edges
-from optimizer.search.inner import ShapeNlp, _evaluate, anchors, run_inner, start_point
+from optimizer.search.inner import ShapeNlp, _evaluate, anchors, build_nlp, run_inner, start_point
 from optimizer.search.outer import open_study, recorded_trials, run_outer
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -58,8 +58,7 @@ def config_of(**space):
 def vm_nlp_of(config, shape: FootShape) -> ShapeNlp:
     """The shape's NLP on CasADi's virtual machine (no C build: zero planned solves)."""
     kind = foot_kind(config, shape)
-    cache = NlpCache(config, [kind], solves={kind: 0})
-    return ShapeNlp(shape, cache[kind], config.space.toe_symmetry is ToeSymmetry.IDENTICAL, config.space.splay)
+    return build_nlp(config, shape, NlpCache(config, [kind], solves={kind: 0}))
 
 
 @pytest.fixture(scope="module")
