@@ -47,6 +47,7 @@ from enum import Enum
 from itertools import accumulate
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 from scipy.optimize import linprog
 
@@ -375,11 +376,16 @@ def search_columns(topology: Topology, space: Space, leg_rods: int = 2) -> tuple
     return tuple(n * b + j for b in range(leg_rods, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
 
 
-def yaw_rpy(shank_angle: float, yaw: float) -> tuple[float, float, float]:
+def yaw_rpy(shank_angle: float, yaw: float | ca.SX) -> tuple:
     """The ``rpy`` (URDF: Rz(c) Ry(b) Rx(a)) of a toe root hanging from a shank at absolute angle
     ``shank_angle`` (about z, the base without ``rpy``) that turns the toe's chain by ``yaw`` about
-    the world's vertical: Rz(-phi) Ry(yaw) Rz(phi)."""
-    return rpy_of(rotation_z(-shank_angle) @ rotation_y(yaw) @ rotation_z(shank_angle))
+    the world's vertical: R = Rz(-phi) Ry(yaw) Rz(phi), read off in closed form. ``yaw`` a float
+    gives floats; a CasADi symbol gives expressions (the inner search's spatial NLP)."""
+    c, s = ca.cos(yaw), ca.sin(yaw)
+    cp, sp = math.cos(shank_angle), math.sin(shank_angle)
+    r00, r10, r20 = c * cp * cp + sp * sp, (1 - c) * sp * cp, -s * cp
+    r21, r22 = s * sp, c
+    return (ca.atan2(r21, r22), ca.atan2(-r20, ca.sqrt(r00 * r00 + r10 * r10)), ca.atan2(r10, r00))
 
 
 def rotation_y(angle: float) -> np.ndarray:

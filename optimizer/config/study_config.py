@@ -246,6 +246,9 @@ def _check_leg(config: StudyConfig) -> None:
         raise ConfigError(f"leg.file: {leg.file} is a spatial leg: it needs design_space.space: spatial (search.method: "
                           "outer); a planar design space takes a planar leg (footopt import --space planar, when the "
                           "leg's joint axes are parallel)")
+    if isinstance(leg, LegChain) and leg.spatial and config.search.method is SearchMethod.INNER:
+        raise ConfigError(f"leg.file: {leg.file} is a spatial leg: the inner search (IPOPT) hangs splayed toes on a "
+                          "planar leg; search.method: outer takes a spatial one")
 
 
 def _check_spatial(config: StudyConfig) -> None:
@@ -255,9 +258,13 @@ def _check_spatial(config: StudyConfig) -> None:
             raise ConfigError("constraints.support_margin: needs design_space.space: spatial (a planar foot's "
                               "contacts lie on one line: its margin is at most 0)")
         return
-    if config.search.method is SearchMethod.INNER:
-        raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only; "
-                          "search.method: outer searches spatial ones")
+    if config.search.method is SearchMethod.INNER and config.landings is not None:
+        raise ConfigError("landings: the inner search (IPOPT) over a spatial design space scores the nominal "
+                          "landing's first impact only; search.method: outer scores spatial feet over landings")
+    if config.search.method is SearchMethod.INNER and config.whole_landing:
+        raise ConfigError("design_space.space: the inner search (IPOPT) over whole landings takes planar design "
+                          "spaces only (the landing's derivatives are planar); search.method: outer lands spatial "
+                          "feet whole")
 
 
 def _check_landings(config: StudyConfig, landings: Landings) -> None:

@@ -10,7 +10,9 @@ objectives follow exactly:
     internal_norm^2 = sum_(shank, heel) |F|^2 + sum_toe |F|^2 / n,   max_internal likewise
 
 and the toe count is a parameter of the NLP: one library serves every toe count. Independent
-toes keep one chain per toe (multiplicity 1).
+toes keep one chain per toe (multiplicity 1). Splayed (spatial) toes are never merged: one NLP per
+toe count, on the whole spatial tree (:func:`_splayed_values`, :func:`_splayed_impact`,
+:func:`_support_rows`; the inner search's module docstring).
 
 A library holds CasADi's generated NLP functions (objective, constraints, their exact gradient,
 Jacobian and the Hessian of the Lagrangian, :meth:`casadi.Function.generate_dependencies`) and a
@@ -30,6 +32,7 @@ import hashlib
 import math
 import tempfile
 import warnings
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,9 +44,9 @@ import impulse_core
 from impulse_core.compile.cache import CompileError, compiler_identity, entry_key, lookup, run_compilers, store
 from impulse_core.compile.cache import default_root as cache_dir
 from impulse_core.compile.codegen import find_compiler
-from impulse_core.evaluate import approach_velocity, compiled_model
-from impulse_core.kinematics.spatial import PLANAR, values_space
-from impulse_core.model.tree import design_vector
+from impulse_core.evaluate import approach_velocity, compiled_geometry, compiled_model
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL, values_space
+from impulse_core.model.tree import Topology, design_vector
 from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
     LENGTH_FLOOR,
@@ -52,10 +55,14 @@ from optimizer.design_space import (
     MassMode,
     Objective,
     Segment,
+    SplayMode,
+    SplaySpace,
     ToeSymmetry,
     foot_geometry,
     foot_tree,
     leg_chain,
+    symmetric_yaws,
+    yaw_rpy,
 )
 from optimizer.evaluation.statistics import Statistic, StatisticKind
 
@@ -81,26 +88,72 @@ VALUE_OUTPUTS = (
 @dataclass(frozen=True)
 class FootKind:
     """What one compiled NLP covers: the rods of the heel and of each toe, and how many
-    distinct toe chains (1 for identical toes, whatever their number)."""
+    distinct toe chains (1 for identical toes, whatever their number). A splayed (spatial) foot
+    is one NLP per toe count (``splayed_toes``: its toe chains, each at its own yaw; 0: planar),
+    with ``yaws`` yaw variables (see the inner search's module docstring)."""
 
     heel_segments: int
     toe_segments: int
     distinct_toes: int
+    splayed_toes: int = 0
+    yaws: int = 0
 
     @property
     def name(self) -> str:
         """A C identifier (shape labels such as ``3x1+h2`` are not)."""
-        return f"foot_h{self.heel_segments}_t{self.toe_segments}_k{self.distinct_toes}"
+        splay = f"_s{self.splayed_toes}_y{self.yaws}" if self.spatial else ""
+        return f"foot_h{self.heel_segments}_t{self.toe_segments}_k{self.distinct_toes}{splay}"
+
+    @property
+    def spatial(self) -> bool:
+        return self.splayed_toes > 0
 
     @property
     def sizes(self) -> tuple[int, ...]:
-        """Rods per distinct chain, heel first."""
+        """Rods per distinct chain (its angles and masses), heel first."""
         return (self.heel_segments, *([self.toe_segments] * self.distinct_toes))
+
+    @property
+    def length_sizes(self) -> tuple[int, ...]:
+        """Rods per chain whose lengths are variables, heel first: the distinct chains in the
+        plane; every chain of a splayed foot (a toe's reach depends on its yaw, so identical
+        toes share angles and masses but level their tips with lengths of their own)."""
+        return (self.heel_segments, *([self.toe_segments] * self.splayed_toes)) if self.spatial else self.sizes
+
+    @property
+    def chain_of(self) -> tuple[int, ...]:
+        """The distinct chain (of :attr:`sizes`) of each chain of :attr:`length_sizes`."""
+        if not self.spatial:
+            return tuple(range(len(self.sizes)))
+        return (0, *((1 if self.distinct_toes == 1 else i + 1) for i in range(self.splayed_toes)))
+
+
+def yaw_count(splay: SplaySpace, n_toes: int) -> int:
+    """The NLP's yaw variables: one splay (symmetric, two toes or more) or one yaw per toe; none
+    when the range is fixed ([x, x]), as :func:`optimizer.search.outer.suggest_yaws` asks."""
+    lo, hi = splay.splay
+    if lo == hi or (splay.mode is SplayMode.SYMMETRIC and n_toes == 1):
+        return 0
+    return 1 if splay.mode is SplayMode.SYMMETRIC else n_toes
+
+
+def toe_yaws(splay: SplaySpace, n_toes: int, values: Sequence) -> tuple:
+    """Every toe's yaw from the NLP's yaw variables ``values`` (floats or CasADi symbols; empty
+    when :func:`yaw_count` is 0), as :func:`optimizer.search.outer.suggest_yaws` spreads them."""
+    lo = splay.splay[0]
+    if splay.mode is SplayMode.SYMMETRIC:
+        return symmetric_yaws(n_toes, values[0] if len(values) else lo)
+    return tuple(values) if len(values) else (lo,) * n_toes
 
 
 def foot_kind(config: StudyConfig, shape: FootShape) -> FootKind:
     identical = config.space.toe_symmetry is ToeSymmetry.IDENTICAL
-    return FootKind(shape.heel_segments, shape.toe_segments, 1 if identical else shape.n_toes)
+    distinct = 1 if identical else shape.n_toes
+    if not config.space.spatial:
+        return FootKind(shape.heel_segments, shape.toe_segments, distinct)
+    splay = config.space.splay
+    assert splay is not None
+    return FootKind(shape.heel_segments, shape.toe_segments, distinct, shape.n_toes, yaw_count(splay, shape.n_toes))
 
 
 @dataclass(frozen=True)
@@ -131,6 +184,10 @@ class CompiledNlp:
         return sum(self.kind.sizes)
 
     @property
+    def n_lengths(self) -> int:
+        return sum(self.kind.length_sizes)
+
+    @property
     def n_x(self) -> int:
         return int(self.lbx.size)
 
@@ -157,6 +214,7 @@ def nlp_key(config: StudyConfig, kind: FootKind, compiler: str) -> str:
         repr(tuple(o.value for o in config.objectives)),
         repr((config.landings, tuple(config.statistic_of(o) for o in config.objectives))),
         repr(kind),
+        *((repr(config.space.splay),) if kind.spatial else ()),
         _source_hash(),
         ca.__version__,
         compiler_identity(compiler),
@@ -356,12 +414,19 @@ def _graph(config: StudyConfig, kind: FootKind) -> _Graph:
     starts = np.cumsum((0, *sizes[:-1]))
     distinct = [list(range(s, s + k)) for s, k in zip(starts, sizes, strict=True)]
     sym = ca.SX if config.landings is None else ca.MX
-    a, m, L = sym.sym("joint_angle", n), sym.sym("mass", n), sym.sym("length", n)
-    h = sym.sym("ankle_height")
+    a, m = sym.sym("joint_angle", n), sym.sym("mass", n)
+    L, h = sym.sym("length", sum(kind.length_sizes)), sym.sym("ankle_height")
+    psi = sym.sym("yaw", kind.yaws)
     params = sym.sym("params", 3)  # w1, w2, toe count
     n_toes = params[2] if kind.distinct_toes == 1 else sym(1)
     mult = [sym(1)] + [n_toes] * kind.distinct_toes
-    if config.landings is None:
+    if kind.spatial:  # every toe its own chain: each counts once
+        splay = config.space.splay
+        assert splay is not None
+        yaws = toe_yaws(splay, kind.splayed_toes, [psi[j] for j in range(kind.yaws)])
+        p_tree, masses, topology = _splayed_values(config, kind, a, m, L, yaws)
+        impact = _splayed_impact(config, topology, p_tree)
+    elif config.landings is None:
         impact = _merged_impact(config, kind, a, m, mult)
     else:
         impact = _scenario_impacts(config, kind, a, m, L, n_toes)
@@ -388,22 +453,39 @@ def _graph(config: StudyConfig, kind: FootKind) -> _Graph:
     g.insert(0, f2)  # the epsilon row comes first
     lbg.insert(0, -math.inf)
     ubg.insert(0, math.inf)
-    _geometric_rows(config, distinct, a, m, L, h, mult, add)
+    if kind.spatial:  # every chain of the tree: identical toes repeat their angles and masses
+        chains = [distinct[c] for c in kind.chain_of]
+        starts_L = np.cumsum((0, *kind.length_sizes[:-1]))
+        lengths = [list(range(s, s + k)) for s, k in zip(starts_L, kind.length_sizes, strict=True)]
+        turns = [1.0, *(ca.cos(y) for y in yaws)]
+        _geometric_rows(config, chains, a, m, L, h, [sym(1)] * len(chains), add, lengths, turns)
+        for j in range(kind.yaws - 1):  # per-toe yaws in order: a relabelling of the toes (docstring)
+            add(psi[j + 1] - psi[j], 0.0, math.inf)
+        if lim.support_margin is not None:
+            _support_rows(config, kind, topology, p_tree, masses, add)
+    else:
+        _geometric_rows(config, distinct, a, m, L, h, mult, add)
     add(ca.vec(impact["external"]), TIGHTEN, math.inf)
     # No energy row: Newton's law gives E_after - E_before = (1 - e) sum(lambda_c v-_c) / 2 <= 0
     # once every lambda >= 0 and every contact approaches (v-_c < 0); the realised design is
     # evaluated by the model ``auto`` picks, which checks both.
 
-    x = ca.vertcat(a, m, L, h, *extra)
+    x = ca.vertcat(a, m, L, h, psi, *extra)
     a_lo, a_hi = [], []
     for chain, bounds in zip(distinct, _chain_limits(config, kind), strict=True):
         a_lo += [bounds[j][0] for j in range(len(chain))]
         a_hi += [bounds[j][1] for j in range(len(chain))]
     k = sum(e.numel() for e in extra)
-    lbx = np.concatenate([a_lo, [lim.min_link_mass * (1 + 1e-6)] * n, [LENGTH_FLOOR] * n, [0.0], [0.0] * k])
-    ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n, [math.inf], [math.inf] * k])
+    n_L = L.numel()
+    yaw_lo, yaw_hi = config.space.splay.splay if kind.spatial else (0.0, 0.0)
+    lbx = np.concatenate([a_lo, [lim.min_link_mass * (1 + 1e-6)] * n, [LENGTH_FLOOR] * n_L, [0.0],
+                          [yaw_lo] * kind.yaws, [0.0] * k])
+    ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n_L, [math.inf], [yaw_hi] * kind.yaws,
+                          [math.inf] * k])
     nlp = {"x": x, "p": params, "f": params[0] * f1 + params[1] * f2, "g": ca.vertcat(*g)}
-    if config.landings is None:
+    if kind.spatial:  # the values of the NLP's design variables (the evaluation is evaluate_design's)
+        values = _values(impact, ca.vertcat(a, m, L, h, psi), params[2], "foot_values", "design")
+    elif config.landings is None:
         values = _values(impact, ca.vertcat(a, m), params[2], "foot_values")
     else:  # the nominal scene's values, on SX symbols of their own
         values = values_function(config, kind, "foot_values")
@@ -415,13 +497,16 @@ def _per_scenario(o: Objective, impact: dict, variable, add):
     ``base_angular_velocity`` get one epigraph variable per scenario."""
     if o in (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM, Objective.ENERGY_AFTER):
         return impact[o.value]
-    u = variable(f"epigraph_{o.value}", impact["omega"].numel())
+    omega = impact["omega"]  # 1 x S in the plane, 3 x 1 in space
+    u = variable(f"epigraph_{o.value}", omega.shape[1])
     if o is Objective.MAX_INTERNAL:
         for j in range(impact["scaled_magnitude"].shape[0]):
             add(u - impact["scaled_magnitude"][j, :].T, 0.0, math.inf)
-    else:  # base angular velocity: |omega| <= u
-        add(u - impact["omega"].T, 0.0, math.inf)
-        add(u + impact["omega"].T, 0.0, math.inf)
+    elif omega.shape[0] == 1:  # base angular velocity: |omega| <= u
+        add(u - omega.T, 0.0, math.inf)
+        add(u + omega.T, 0.0, math.inf)
+    else:  # in space |omega| <= u as u^2 - |omega|^2 >= 0 (u >= 0 by its bound): smooth at omega = 0
+        add(u**2 - ca.sum1(omega**2).T, 0.0, math.inf)
     return u.T
 
 
@@ -450,11 +535,14 @@ def _statistic(statistic: Statistic, u, variable, add):
     raise ValueError(f"the inner search takes no {statistic.text} statistic")
 
 
-def _values(impact: dict[str, ca.SX], angles_masses: ca.SX, n_toes: ca.SX, name: str) -> ca.Function:
-    """``(angles and masses, toe count)`` -> ``VALUE_OUTPUTS``."""
+def _values(
+    impact: dict[str, ca.SX], angles_masses: ca.SX, n_toes: ca.SX, name: str, input_name: str = "angles_masses"
+) -> ca.Function:
+    """``(angles and masses, toe count)`` -> ``VALUE_OUTPUTS`` (a splayed foot: its NLP's design
+    variables, ``input_name`` ``design``, in place of the angles and masses)."""
     lam = impact["per_toe_external"]
     outs = [impact[k] for k in VALUE_OUTPUTS[:6]] + [ca.mmin(lam) if lam.shape[0] else ca.SX(0)]
-    return ca.Function(name, [angles_masses, n_toes], outs, ["angles_masses", "n_toes"], list(VALUE_OUTPUTS))
+    return ca.Function(name, [angles_masses, n_toes], outs, [input_name, "n_toes"], list(VALUE_OUTPUTS))
 
 
 def values_function(config: StudyConfig, kind: FootKind, name: str | None = None) -> ca.Function:
@@ -564,31 +652,135 @@ def _merged_impact(config: StudyConfig, kind: FootKind, a, m, mult, approach=Non
     }
 
 
-def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add) -> None:
+def _splayed_values(
+    config: StudyConfig, kind: FootKind, a: ca.SX, m: ca.SX, L: ca.SX, yaws: Sequence
+) -> tuple[ca.SX, list, Topology]:
+    """The splayed foot's tree as the core's design vector (SPATIAL layout), symbolic in the
+    NLP's angles, masses and lengths (every chain its own lengths) and the toes' yaws (each toe
+    root's ``rpy``, :func:`optimizer.design_space.yaw_rpy`); with every body's mass and the
+    topology."""
+    n_toes = kind.splayed_toes
+    rod = Segment(0.1, 0.1, 0.0)
+    template = FootDesign(heel=(rod,) * kind.heel_segments, toes=((rod,) * kind.toe_segments,) * n_toes,
+                          toe_yaws=(0.1,) * n_toes)
+    tree = foot_tree(config.leg, template)
+    names = SPATIAL.body_values
+    width, col = len(names), {k: names.index(k) for k in ("length", "mass", "angle", "roll", "pitch", "yaw")}
+    p = ca.SX(ca.DM(design_vector(tree, names)))
+    masses = [ca.SX(b.mass) for b in tree.bodies]
+    starts = np.cumsum((0, *kind.sizes[:-1]))
+    chain = leg_chain(config.leg)  # a planar leg (the study file refuses a spatial one here)
+    body, k = len(chain.rods), 0
+    for c, d in enumerate(kind.chain_of):
+        for j in range(kind.length_sizes[c]):
+            i = int(starts[d]) + j
+            p[width * body + col["length"]], p[width * body + col["mass"]] = L[k], m[i]
+            p[width * body + col["angle"]] = a[i]
+            masses[body] = m[i]
+            if c > 0 and j == 0:  # a toe root: its yaw about the vertical
+                rpy = yaw_rpy(chain.foot_angle, yaws[c - 1])
+                for key, value in zip(("roll", "pitch", "yaw"), rpy, strict=True):
+                    p[width * body + col[key]] = value
+            body, k = body + 1, k + 1
+    return p, masses, tree.topology()
+
+
+def _splayed_impact(config: StudyConfig, topology: Topology, p: ca.SX) -> dict[str, ca.SX]:
+    """The splayed foot's impact (Newton's law, eq. 11, in space; straight down) and its
+    objectives as :func:`optimizer.design_space.objectives` reads them: no toe merged, the base's
+    turn the norm of its angular velocity (``omega``: 3 x 1)."""
+    v_minus = ca.DM(approach_velocity(topology, config.scene.speed, SPATIAL))
+    out = compiled_model(topology, SPATIAL).impact(p=p, v_minus=v_minus, restitution=config.scene.restitution)
+    lam, mag, omega = out["external"], out["internal_magnitude"], out["v_plus"][3:6]
+    return {
+        "external": lam,
+        "per_toe_external": lam,
+        "external_norm": ca.norm_2(lam),
+        "internal_norm": ca.norm_2(mag),
+        "scaled_magnitude": mag,
+        "max_internal": ca.mmax(mag),
+        "omega": omega,
+        "base_angular_velocity": ca.norm_2(omega),
+        "energy_after": out["energy_after"],
+        "energy_before": out["energy_before"],
+    }
+
+
+def support_edges(kind: FootKind, topology: Topology, p: ca.SX, masses: list) -> tuple[ca.SX, ca.SX]:
+    """The splayed foot's support polygon in the NLP's fixed contact order (heel, then the toes
+    by decreasing yaw: counter-clockwise seen in (x, z) when the yaws are ordered): for each edge
+    (P, Q), d = Q - P, the cross product s = d x (c - P) with c the whole tree's centre of mass
+    projected on the ground (|d| times c's signed distance to the edge's line, > 0 inside), and
+    |d|^2. Symbolic in the design vector ``p`` and the bodies' ``masses`` (two toes or more)."""
+    geometry = compiled_geometry(topology, SPATIAL)(p=p)
+    coms, contacts = geometry["coms"], geometry["contacts"]
+    total = sum(masses[1:], masses[0])
+    com = sum((masses[b] * coms[:, b] for b in range(1, len(masses))), masses[0] * coms[:, 0]) / total
+    c = ca.vertcat(com[0], com[2])
+    order = [0, *range(kind.splayed_toes, 0, -1)]
+    corners = [ca.vertcat(contacts[0, i], contacts[2, i]) for i in order]
+    cross, squared = [], []
+    for P, Q in zip(corners, corners[1:] + corners[:1], strict=True):
+        d, w = Q - P, c - P
+        cross.append(d[0] * w[1] - d[1] * w[0])
+        squared.append(ca.sumsqr(d))
+    return ca.vertcat(*cross), ca.vertcat(*squared)
+
+
+def _support_rows(
+    config: StudyConfig, kind: FootKind, topology: Topology, p: ca.SX, masses: list, add: Callable
+) -> None:
+    """The support margin (``constraints.support_margin``, b): the centre of mass's ground
+    projection at least b inside the contacts' hull, smoothly, per edge of :func:`support_edges`:
+
+        s >= 0   and   s^2 >= b^2 |d|^2   (b > 0; b <= 0: s >= 0 alone)
+
+    smooth, and exact on a degenerate edge (d = 0: nothing asked). Sound for any order: a point
+    at least b left of every edge's line of a closed polygon is at least b inside its vertices'
+    hull (the edges wind around it), so a realised design meets the true margin; exact when the
+    order is the hull's (identical toes: their tips on a circle about the ankle, the heel behind).
+    A bound b <= 0 is met by keeping c inside (conservative: the true margin may go to b). One toe
+    and the heel span no area: no rows (the realised design's margin decides)."""
+    if kind.splayed_toes < 2:
+        return
+    cross, squared = support_edges(kind, topology, p, masses)
+    add(cross, 0.0, math.inf)
+    b = float(config.limits.support_margin)
+    if b > 0:
+        add(cross**2 - (b + TIGHTEN) ** 2 * squared, 0.0, math.inf)
+
+
+def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add, lengths=None, turns=None) -> None:
     """Rows of the NLP that only the geometry and the masses set (level tips, mass per length,
-    foot length, clearance, foot mass)."""
+    foot length, clearance, foot mass). ``distinct``: each chain's rods (indices of ``a`` and
+    ``m``); ``lengths``: each chain's indices of ``L`` (None: those of ``distinct``); ``turns``:
+    each chain's forward run per metre of its run in its plane (a splayed toe's cos(yaw); None:
+    1), as :func:`optimizer.design_space.assign_lengths` has them."""
     leg, lim = config.leg, config.limits
-    phi = {}
+    lengths = distinct if lengths is None else lengths
+    turns = [1.0] * len(distinct) if turns is None else turns
+    phi = []
     for chain in distinct:
-        acc = leg_chain(leg).foot_angle
+        acc, angles = leg_chain(leg).foot_angle, []
         for i in chain:
             acc = acc + a[i]
-            phi[i] = acc
-    drop = {i: -ca.sin(v) for i, v in phi.items()}
-    run = {i: ca.cos(v) for i, v in phi.items()}
-    for chain in distinct:
-        add(sum(L[i] * drop[i] for i in chain) - h, 0.0, 0.0)
+            angles.append(acc)
+        phi.append(angles)
+    rods = [list(zip(chain, ls, angles, strict=True)) for chain, ls, angles in zip(distinct, lengths, phi, strict=True)]
+    for chain in rods:
+        add(sum(L[k] * -ca.sin(v) for _, k, v in chain) - h, 0.0, 0.0)
     lo_rho, hi_rho = lim.mass_per_length
-    for i in phi:
-        add(m[i] - hi_rho * L[i], -math.inf, -TIGHTEN * hi_rho)
-        add(lo_rho * L[i] - m[i], -math.inf, -TIGHTEN)
-    heel_run = sum(L[i] * run[i] for i in distinct[0])
+    for chain in rods:
+        for i, k, _ in chain:
+            add(m[i] - hi_rho * L[k], -math.inf, -TIGHTEN * hi_rho)
+            add(lo_rho * L[k] - m[i], -math.inf, -TIGHTEN)
+    heel_run = turns[0] * sum(L[k] * ca.cos(v) for _, k, v in rods[0])
     lo_f, hi_f = lim.foot_length
-    for chain in distinct[1:]:
-        add(sum(L[i] * run[i] for i in chain) - heel_run, lo_f + TIGHTEN, hi_f - TIGHTEN)
-    for chain in distinct:
+    for chain, turn in zip(rods[1:], turns[1:], strict=True):
+        add(turn * sum(L[k] * ca.cos(v) for _, k, v in chain) - heel_run, lo_f + TIGHTEN, hi_f - TIGHTEN)
+    for chain in rods:
         for j in range(len(chain) - 1):
-            add(h - sum(L[i] * drop[i] for i in chain[: j + 1]), lim.min_clearance + TIGHTEN, math.inf)
+            add(h - sum(L[k] * -ca.sin(v) for _, k, v in chain[: j + 1]), lim.min_clearance + TIGHTEN, math.inf)
     rod = (Segment(0.1, 0.1, 0.0),)
     leg_y = foot_geometry(leg, FootDesign(heel=rod, toes=(rod,))).leg_points[:, 1]
     for y in (0.0, *leg_y):
@@ -611,6 +803,9 @@ __all__ = [
     "NlpCache",
     "foot_kind",
     "load_nlp",
+    "support_edges",
+    "toe_yaws",
     "values_function",
+    "yaw_count",
     "vm_nlp",
 ]

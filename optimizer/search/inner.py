@@ -27,6 +27,30 @@ budget exactly, its own lengths (or, when they miss a limit by rounding, lengths
 :func:`assign_lengths`), its objectives and impact constraints from the compiled ``foot_values``,
 its geometric constraints from :func:`constraint_values`; it is kept only if every constraint
 holds there: the NLP's own tolerances never decide what is exported.
+
+Splayed toes (``design_space.space: spatial``; :func:`optimizer.search.compiled._splayed_values`).
+In space identical toes at different yaws take different impulses, so no toe is merged: the NLP
+is the whole tree's (Newton's law in space, eq. 11, straight down), one NLP per toe count (a
+kind per shape; the toe-count parameter is unused). Identical toes share their angles and masses
+(independent toes have their own); every toe has lengths of its own (in space the impulses do
+depend on the lengths once the base turns about an axis other than a toe's joint axes, and a
+toe's reach, cos(yaw) times its run in its plane, differs from toe to toe, as the outer search's
+linear program has it). The yaw variables are as ``design_space`` asks: one ``splay`` s (toes
+spread from -s to +s; none for one toe) or one yaw per toe, in order (psi_1 <= ... <= psi_n: any
+foot is one such after relabelling its toes); a fixed range [x, x] is a constant. Extra rows:
+
+            F_min <= cos(psi_i) reach_i(x) - heel <= F_max   every toe's forward reach
+            s_e >= 0,  s_e^2 >= b^2 |d_e|^2                 support margin b, per hull edge e
+
+(:func:`optimizer.search.compiled._support_rows`: the centre of mass's projection left of every
+edge of the contacts in a fixed order, heel then toes by decreasing yaw; sound in any order,
+exact when that order is the hull's). ``base_angular_velocity`` is the norm of the base's angular
+velocity, by an epigraph u^2 >= |omega|^2. A one-toe shape with a positive support margin is
+infeasible before any solve (one toe and the heel span no area). The realised design is
+evaluated as the outer search evaluates splayed feet (:func:`evaluate_design`: the core's
+``evaluate`` in space, the support margin of its model file). Friction, ``landings:`` and whole
+landings are refused for a spatial inner search when the study is read (naming
+``scene.friction``, ``landings`` and ``design_space.space``): the outer search takes them.
 """
 
 from __future__ import annotations
@@ -52,11 +76,22 @@ from optimizer.design_space import (
     MassMode,
     Objectives,
     Segment,
+    SplaySpace,
     ToeSymmetry,
     assign_lengths,
     constraint_values,
+    evaluate_design,
 )
-from optimizer.search.compiled import VALUE_OUTPUTS, CompiledNlp, FootKind, NlpCache, foot_kind, load_nlp, vm_nlp
+from optimizer.search.compiled import (
+    VALUE_OUTPUTS,
+    CompiledNlp,
+    FootKind,
+    NlpCache,
+    foot_kind,
+    load_nlp,
+    toe_yaws,
+    vm_nlp,
+)
 from optimizer.errors import ConfigError, interrupted
 from optimizer.workers import cores, forked_pool
 from optimizer.search.outer import evaluate_design_over_landings, objective_values, record_attrs
@@ -85,18 +120,22 @@ class ShapeNlp:
     shape: FootShape
     compiled: CompiledNlp
     identical: bool
+    splay: SplaySpace | None = None
 
     @property
     def multiplicity(self) -> tuple[int, ...]:
         return (1, *([self.shape.n_toes] if self.identical else [1] * self.shape.n_toes))
 
     def unpack(self, x: np.ndarray) -> tuple[tuple[tuple[float, ...], ...], ...]:
-        """(joint angles, masses, lengths) per distinct chain from the NLP's x."""
-        n = self.compiled.n_rods
+        """(joint angles, masses) per distinct chain and lengths per chain of the kind's
+        ``length_sizes`` (:meth:`expand_lengths` makes them the design's) from the NLP's x."""
+        c = self.compiled
+        n, n_L = c.n_rods, c.n_lengths
+        blocks = ((x[:n], c.kind.sizes), (x[n : 2 * n], c.kind.sizes), (x[2 * n : 2 * n + n_L], c.kind.length_sizes))
         out = []
-        for block in (x[:n], x[n : 2 * n], x[2 * n : 3 * n]):
+        for block, sizes in blocks:
             chains, i = [], 0
-            for k in self.compiled.kind.sizes:
+            for k in sizes:
                 chains.append(tuple(float(v) for v in block[i : i + k]))
                 i += k
             out.append(tuple(chains))
@@ -106,31 +145,51 @@ class ShapeNlp:
         """Distinct chains (heel, toe[, toe...]) to the design's chains (heel, every toe)."""
         return (per_chain[0], *([per_chain[1]] * self.shape.n_toes if self.identical else per_chain[1:]))
 
+    def expand_lengths(self, lengths: tuple) -> tuple:
+        """The NLP's lengths (:meth:`unpack`) to the design's chains: a splayed foot has every
+        chain's already."""
+        return tuple(lengths) if self.compiled.kind.spatial else self.expand(lengths)
+
+    def toe_yaws(self, x: np.ndarray) -> tuple[float, ...] | None:
+        """Every toe's yaw at the NLP's x (None: a planar foot)."""
+        c = self.compiled
+        if not c.kind.spatial:
+            return None
+        assert self.splay is not None
+        i = 2 * c.n_rods + c.n_lengths + 1
+        return tuple(float(v) for v in toe_yaws(self.splay, self.shape.n_toes, x[i : i + c.kind.yaws]))
+
 
 def build_nlp(config: StudyConfig, shape: FootShape, cache: NlpCache | None = None) -> ShapeNlp:
     """The NLP of ``shape``: its kind's compiled NLP (from ``cache``, or a new one)."""
     cache = NlpCache(config, []) if cache is None else cache
-    return ShapeNlp(shape, cache[foot_kind(config, shape)], config.space.toe_symmetry is ToeSymmetry.IDENTICAL)
+    return ShapeNlp(shape, cache[foot_kind(config, shape)], config.space.toe_symmetry is ToeSymmetry.IDENTICAL,
+                    config.space.splay)
 
 
 def start_point(config: StudyConfig, nlp: ShapeNlp, rng: np.random.Generator) -> np.ndarray | None:
-    """A random start: angles uniform in their limits, mass shares uniform, lengths and ankle
-    height from the linear program (so the start is level), epigraph variables at 1."""
+    """A random start: angles uniform in their limits, mass shares uniform, yaws uniform in
+    their range (per toe: in order), lengths and ankle height from the linear program (so the
+    start is level), epigraph variables at 1."""
     lim, c = config.limits, nlp.compiled
-    n = c.n_rods
+    n, n_L, n_yaw = c.n_rods, c.n_lengths, c.kind.yaws
     a = rng.uniform(c.lbx[:n], c.ubx[:n])
     shares = rng.uniform(0.05, 1.0, n)
     mult = np.concatenate([[nlp.multiplicity[k]] * s for k, s in enumerate(c.kind.sizes)])
     used = lim.foot_mass if lim.mass_mode is MassMode.EQUAL else lim.foot_mass * 0.9
     free = used - np.sum(mult) * lim.min_link_mass
     m = lim.min_link_mass + free * shares / np.sum(mult * shares)
-    angles, masses, _ = nlp.unpack(np.concatenate([a, m, m]))
-    assignment = assign_lengths(config.leg, nlp.shape, nlp.expand(angles), nlp.expand(masses), lim)
+    at = 2 * n + n_L + 1
+    psi = np.sort(rng.uniform(c.lbx[at : at + n_yaw], c.ubx[at : at + n_yaw]))
+    x = np.concatenate([a, m, np.ones(n_L), [0.0], psi])
+    angles, masses, _ = nlp.unpack(x)
+    assignment = assign_lengths(config.leg, nlp.shape, nlp.expand(angles), nlp.expand(masses), lim,
+                                toe_yaws=nlp.toe_yaws(x))
     if assignment is None:
         return None
-    lengths = assignment.lengths[: len(c.kind.sizes)]
+    lengths = assignment.lengths[: len(c.kind.length_sizes)]
     L = np.concatenate([np.array(ch) for ch in lengths])
-    return np.concatenate([a, m, L, [assignment.ankle_height], np.ones(c.n_x - 3 * n - 1)])
+    return np.concatenate([a, m, L, [assignment.ankle_height], psi, np.ones(c.n_x - at - n_yaw)])
 
 
 def solve(
@@ -171,6 +230,7 @@ def realise(config: StudyConfig, nlp: ShapeNlp, x: np.ndarray) -> DesignEvaluati
     """The design of an NLP point (see the module docstring); None when it is not feasible."""
     lim = config.limits
     angles, masses, lengths = nlp.unpack(x)
+    yaws = nlp.toe_yaws(x)
     if lim.mass_mode is MassMode.EQUAL:
         mult = nlp.multiplicity
         total = sum(mult[c] * sum(ms) for c, ms in enumerate(masses))
@@ -178,28 +238,32 @@ def realise(config: StudyConfig, nlp: ShapeNlp, x: np.ndarray) -> DesignEvaluati
         free = total - n_all * lim.min_link_mass
         target = lim.foot_mass - n_all * lim.min_link_mass
         masses = tuple(tuple(lim.min_link_mass + (v - lim.min_link_mass) * target / free for v in ms) for ms in masses)
-    evaluation = _evaluate(config, nlp, angles, masses, lengths)
+    evaluation = _evaluate(config, nlp, angles, masses, lengths, yaws)
     if evaluation is not None and evaluation.feasible:
         return evaluation
-    assignment = assign_lengths(config.leg, nlp.shape, nlp.expand(angles), nlp.expand(masses), lim)
+    assignment = assign_lengths(config.leg, nlp.shape, nlp.expand(angles), nlp.expand(masses), lim, toe_yaws=yaws)
     if assignment is None:
         return None
-    evaluation = _evaluate(config, nlp, angles, masses, assignment.lengths[: len(angles)])
+    evaluation = _evaluate(config, nlp, angles, masses, assignment.lengths[: len(lengths)], yaws)
     return evaluation if evaluation is not None and evaluation.feasible else None
 
 
-def _evaluate(config: StudyConfig, nlp: ShapeNlp, angles, masses, lengths) -> DesignEvaluation | None:
-    """Objectives and constraint values of a design given per distinct chain: the impact from
+def _evaluate(config: StudyConfig, nlp: ShapeNlp, angles, masses, lengths, yaws=None) -> DesignEvaluation | None:
+    """Objectives and constraint values of a design given per distinct chain (lengths as
+    :meth:`ShapeNlp.unpack` gives them; ``yaws``: a splayed foot's toe yaws): the impact from
     the compiled ``foot_values``, the geometry from :func:`constraint_values`. With landings, the
     statistics as the outer search scores them (every scenario by the model ``auto`` picks), not
-    the NLP's own values."""
+    the NLP's own values; a splayed foot as the outer search evaluates it (:func:`evaluate_design`,
+    the core's ``evaluate`` in space, with its support margin), not by the NLP's values."""
     chains = [
         tuple(Segment(L, m, a) for a, m, L in zip(ac, mc, lc, strict=True))
-        for ac, mc, lc in zip(nlp.expand(angles), nlp.expand(masses), nlp.expand(tuple(lengths)), strict=True)
+        for ac, mc, lc in zip(nlp.expand(angles), nlp.expand(masses), nlp.expand_lengths(lengths), strict=True)
     ]
-    design = FootDesign(heel=chains[0], toes=tuple(chains[1:]))
+    design = FootDesign(heel=chains[0], toes=tuple(chains[1:]), toe_yaws=yaws)
     if config.landings is not None:
         return evaluate_design_over_landings(config, design)
+    if design.spatial:
+        return evaluate_design(config.leg, design, config.scene, config.limits)
     c = nlp.compiled
     angles_masses = np.array([v for block in (angles, masses) for ch in block for v in ch], dtype=float)
     out = dict(zip(VALUE_OUTPUTS, (float(v) for v in c.values(angles_masses, nlp.shape.n_toes)), strict=True))
@@ -350,12 +414,13 @@ def run_inner(
         The number of shapes swept now.
 
     Raises:
-        ConfigError: a spatial design space (splayed toes): the inner search's compiled NLPs are
-            planar; the outer search takes it (the study file's validation says so first).
+        ConfigError: a spatial design space scored over landings or a whole landing: the spatial
+            NLP is the nominal first impact's; the outer search takes them (the study file's
+            validation says so first).
     """
-    if config.space.spatial:
-        raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only; "
-                          "search.method: outer searches spatial ones")
+    if config.space.spatial and (config.landings is not None or config.whole_landing):
+        raise ConfigError("design_space.space: the inner search (IPOPT) over a spatial design space scores the "
+                          "first impact of the nominal landing only; search.method: outer takes landings")
     shapes = config.space.shapes()
     sp = config.space
     distributions = {
@@ -364,14 +429,10 @@ def run_inner(
         "heel_segments": optuna.distributions.IntDistribution(*sp.heel_segments),
     }
     done = sum(1 for s in shapes if study.user_attrs.get(shape_done_key(s)))
-    lim = config.limits
-    todo = [
-        s
-        for s in shapes
-        if not study.user_attrs.get(shape_done_key(s)) and s.n_links * lim.min_link_mass <= lim.foot_mass
-    ]
+    todo = [s for s in shapes if not study.user_attrs.get(shape_done_key(s)) and _why_infeasible(config, s) is None]
     # One kind after another, smallest first: its search runs while the larger ones compile.
-    kinds = sorted(dict.fromkeys(foot_kind(config, s) for s in todo), key=lambda k: (sum(k.sizes), k.sizes))
+    kinds = sorted(dict.fromkeys(foot_kind(config, s) for s in todo),
+                   key=lambda k: (sum(k.sizes), k.sizes, k.splayed_toes))
     # A whole-landing study compiles nothing: its NLP lands each iterate (optimizer.search.landing_inner).
     solves = {k: planned_solves(config) * sum(foot_kind(config, s) == k for s in todo) for k in kinds}
     swept, cache = 0, (None if config.whole_landing else NlpCache(config, kinds, solves=solves))
@@ -382,13 +443,14 @@ def run_inner(
         for shape in sorted(shapes, key=lambda s: order.get(foot_kind(config, s), -1)):
             if study.user_attrs.get(shape_done_key(shape)):
                 continue
-            if shape.n_links * lim.min_link_mass <= lim.foot_mass:  # else no design of it is feasible
+            why = _why_infeasible(config, shape)
+            if why is None:
                 if config.whole_landing:
                     _record_landing_shape(study, config, shape, distributions)
                 else:
                     _record_shape(study, config, shape, *next(results), distributions)
-            else:
-                study.set_user_attr(infeasible_key(shape), NO_MASS)
+            else:  # no design of it is feasible
+                study.set_user_attr(infeasible_key(shape), why)
             study.set_user_attr(shape_done_key(shape), True)
             done, swept = done + 1, swept + 1
             if progress is not None:
@@ -460,7 +522,7 @@ def _sweep_in_worker(config: StudyConfig, shape: FootShape, folder) -> Sweep:
     key = kind if folder is None else folder
     if key not in _WORKER_NLPS:
         _WORKER_NLPS[key] = vm_nlp(config, kind) if folder is None else load_nlp(kind, folder)
-    nlp = ShapeNlp(shape, _WORKER_NLPS[key], config.space.toe_symmetry is ToeSymmetry.IDENTICAL)
+    nlp = ShapeNlp(shape, _WORKER_NLPS[key], config.space.toe_symmetry is ToeSymmetry.IDENTICAL, config.space.splay)
     return sweep_shape(config, nlp)
 
 
@@ -500,10 +562,21 @@ def _record_shape(
 
 #: Why a shape has no feasible design, as the study files' fields say it (see ``infeasible_key``).
 NO_MASS = "constraints.min_link_mass x its rods exceeds constraints.foot_mass"
+NO_AREA = "constraints.support_margin > 0: one toe and the heel span no area"
 NO_POSTURE = (
     "no level touchdown posture meets constraints.foot_length, constraints.min_clearance, "
     "constraints.joint_angles and constraints.mass_per_length together"
 )
+
+
+def _why_infeasible(config: StudyConfig, shape: FootShape) -> str | None:
+    """Why no design of ``shape`` can be feasible, before any solve (None: it may be)."""
+    lim = config.limits
+    if shape.n_links * lim.min_link_mass > lim.foot_mass:
+        return NO_MASS
+    if config.space.spatial and shape.n_toes < 2 and (lim.support_margin or 0.0) > 0:
+        return NO_AREA
+    return None
 
 
 def _diagnose(config: StudyConfig, nlp: ShapeNlp, shape: FootShape, tries: int = 8) -> str:
@@ -513,11 +586,10 @@ def _diagnose(config: StudyConfig, nlp: ShapeNlp, shape: FootShape, tries: int =
     starts = [x for x in (start_point(config, nlp, rng) for _ in range(tries)) if x is not None]
     if not starts:
         return NO_POSTURE
-    n = nlp.compiled.n_rods
     missed: set[str] | None = None
     for x in starts:
-        angles, masses, lengths = nlp.unpack(np.concatenate([x[:n], x[n : 2 * n], x[2 * n : 3 * n]]))
-        ev = _evaluate(config, nlp, angles, masses, lengths)
+        angles, masses, lengths = nlp.unpack(x)
+        ev = _evaluate(config, nlp, angles, masses, lengths, nlp.toe_yaws(x))
         names = {k for k, v in ev.constraints.violations() if v > 0} if ev is not None else set()
         missed = names if missed is None else missed & names
     fields = sorted(CONSTRAINT_FIELDS.get(k) or f"{k} (physics)" for k in missed or ())

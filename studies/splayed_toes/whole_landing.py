@@ -284,8 +284,10 @@ def reading(rows: list[dict]) -> list[str]:
 def write_results(lines: list[str]) -> None:
     path = HERE / "results.md"
     text = path.read_text(encoding="utf-8")
-    head = text.split(SECTION)[0].rstrip("\n")
-    path.write_text(head + "\n\n" + "\n".join(lines), encoding="utf-8")
+    head, _, rest = text.partition(SECTION)
+    tail = rest[rest.index("\n## ") + 1:] if "\n## " in rest else ""  # later sections (4: the searches), kept
+    text = head.rstrip("\n") + "\n\n" + "\n".join(lines) + ("\n\n" + tail if tail else "")
+    path.write_text(text, encoding="utf-8")
 
 
 def read_rows() -> list[dict]:

@@ -191,9 +191,11 @@ def test_constraint_values_follow_the_bound():
     assert not hasattr(constraint_values(Leg(), design, LIMITS), "support_margin")
 
 
-def test_inner_search_refuses_a_spatial_design_space():
-    with pytest.raises(ConfigError, match=r"^design_space\.space: the inner search"):
-        parse_study({**study(), "search": {"method": "inner"}})
-    config = parse_study(study())
+def test_inner_search_refuses_a_spatial_design_space_over_landings():
+    """The spatial inner search scores the nominal first impact (tests/optimizer/test_inner_splay.py)."""
+    parse_study({**study(), "search": {"method": "inner"}})
+    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over a spatial design space"):
+        parse_study({**study(), "search": {"method": "inner"}, "landings": {"count": 4, "speed": [3.0, 3.5]}})
+    config = parse_study({**study(), "landings": {"count": 4, "speed": [3.0, 3.5]}})
     with pytest.raises(ConfigError, match=r"^design_space\.space"):
         run_inner(open_study(config, optuna.storages.InMemoryStorage()), config)

@@ -260,3 +260,47 @@ def test_search_columns_skip_a_chains_rods():
         two = search_columns(foot_tree(leg, design).topology(), space)
         assert search_columns(topology, space, leg_rods=3) == tuple(c + len(space.body_values) for c in two)
         assert search_columns(topology, space, leg_rods=4) is None
+
+
+def test_a_spatial_leg_is_refused_by_the_inner_search(tmp_path, capsys):
+    """The inner search's spatial NLP turns each toe root by yaw_rpy about a planar leg's foot
+    angle: a spatial leg is refused in one line naming leg.file and the search that takes it."""
+    solo_leg(tmp_path, root="base_link")
+    study = _study(tmp_path, SPATIAL.replace("method: outer, trials: 16, startup_trials: 8", "method: inner"))
+    with pytest.raises(ConfigError, match=r"leg.file: .*leg.yaml is a spatial leg: the inner search .* outer"):
+        load_study(study)
+    assert main(["optimize", str(study), "--out", str(tmp_path / "run"), "--quiet"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_the_spatial_inner_search_hangs_splayed_toes_on_a_three_rod_leg(tmp_path, capsys):
+    """The inner search's spatial NLP on solo12's three planar rods: the foot starts after the
+    leg's rods (not at body 2) and each front design re-evaluates to its recorded objectives."""
+    solo_leg(tmp_path)
+    study = SPATIAL.replace("method: outer, trials: 16, startup_trials: 8", "method: inner, inner: {front_points: 1, starts: 4}")
+    study = study.replace("toes: [1, 2]", "toes: [2, 2]").replace("toe_segments: [1, 2]", "toe_segments: [1, 1]")
+    for row, rec, path in optimized(tmp_path, study, capsys):
+        for key in ("external_norm", "internal_norm"):
+            assert rec[key] == pytest.approx(float(row[key]), rel=1e-9, abs=1e-15), key
+        bodies = load_model_file(path).tree.bodies
+        assert all(b.parent >= 2 for b in bodies[3:]) and len(bodies) == 3 + 1 + 2
+
+
+def test_the_spatial_nlp_on_a_three_rod_leg_is_the_evaluated_design(tmp_path):
+    """The spatial NLP's objective rows at a start point equal evaluate_design's on the design
+    they make: the NLP writes the foot after the chain's three rods, turned about its foot angle."""
+    import casadi as ca
+    from optimizer.design_space import FootShape, Objective
+    from optimizer.search.inner import _evaluate, build_nlp, start_point
+
+    solo_leg(tmp_path)
+    config = load_study(_study(tmp_path, SPATIAL.replace("method: outer, trials: 16, startup_trials: 8", "method: inner")))
+    nlp = build_nlp(config, FootShape(2, 1))
+    c = nlp.compiled
+    x = start_point(config, nlp, np.random.default_rng(4))
+    n_design = 2 * c.n_rods + c.n_lengths + 1 + c.kind.yaws
+    design = ca.SX.sym("design", n_design)
+    rows = np.array(ca.Function("v", [design], [ca.vertcat(*c.values(design, 2)[:2])])(x[:n_design])).ravel()
+    ev = _evaluate(config, nlp, *nlp.unpack(x), nlp.toe_yaws(x))
+    expected = [ev.objectives.value(Objective(k)) for k in ("external_norm", "internal_norm")]
+    np.testing.assert_allclose(rows, expected, rtol=1e-10)
