@@ -1115,7 +1115,9 @@ def _check_directions(mode: _Mode, d: np.ndarray, mu: float) -> None:
     """The carried slip directions are the run's (space): else the replay has missed a rule."""
     moving = _moving(mode, mu)
     gap = np.abs(mode.slip[moving] - d.reshape(mode.slip.shape)[moving])
-    if np.max(gap, initial=0.0) > 1e-7:
+    # a missed rule differs at O(1); an ill-conditioned event time (a slow touchdown) moves the
+    # replayed state, and with it d, by more than rounding
+    if np.max(gap, initial=0.0) > 1e-5:
         raise NumericalError(f"a sliding contact's direction differs from the run's by {np.max(gap):.1e}: not replayed")
 
 

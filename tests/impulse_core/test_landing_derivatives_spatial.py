@@ -46,12 +46,13 @@ IMPLICIT_SETTINGS = LandingSettings(integrator=IMPLICIT)
 
 def _two_rod_leg() -> tuple[Tree, tuple[JointLaw, ...], Scene, LandingSettings]:
     """A thigh and a shank rolled 0.2 and yawed 0.15 rad at a sprung, damped knee, landing on the
-    shank's tip with a lateral velocity and a roll rate; friction 1 (it sticks)."""
+    shank's tip with a lateral velocity and a roll rate, plastically, with friction 0.4: the tip
+    sticks, then starts sliding (its direction the cone's fixed point) and slides on."""
     bodies = (Body("thigh", None, 0.4, 2.0, -1.2),
               Body("shank", 0, 0.4, 1.0, -0.6, contacts=(1.0,), rpy=(0.2, 0.0, 0.15), radius=0.01))
     laws = (FREE, JointLaw(stiffness=60.0, damping=0.8, rest=-0.55))
-    scene = Scene(speed=1.5, velocity_x=0.2, velocity_z=0.15, angular_velocity_x=0.3, restitution=0.3, friction=1.0,
-                  gravity=G, duration=0.02)
+    scene = Scene(speed=1.5, velocity_x=0.2, velocity_z=0.15, angular_velocity_x=0.3, restitution=0.0, friction=0.4,
+                  gravity=G, duration=0.03)
     return Tree(bodies), laws, scene, IMPLICIT_SETTINGS
 
 
@@ -116,6 +117,8 @@ def test_the_cases_have_what_they_are_named_for(gradients):
     assert any(item[0] == "step" and any(item[1][1]) for item in splayed.sequence)
     assert any(1 in item[4][1] for item in splayed.sequence if item[0] == "impact")
     assert any(2 in item[4][1] for item in two_rod.sequence if item[0] == "impact")  # a sticking impact
+    slides = [item[1][1] for item in two_rod.sequence if item[0] == "step"]
+    assert (0,) in slides and (1,) in slides  # sticking, then sliding
     for name, g in gradients.items():
         tree, laws, _, _ = _case(name)
         assert g.names == design_names(tree, SPATIAL) and np.array_equal(g.theta, design_theta(tree, laws, SPATIAL))
