@@ -242,9 +242,9 @@ def _check_spatial(config: StudyConfig) -> None:
             raise ConfigError("constraints.support_margin: needs design_space.space: spatial (a planar foot's "
                               "contacts lie on one line: its margin is at most 0)")
         return
-    if config.search.method is SearchMethod.INNER:
-        raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only; "
-                          "search.method: outer searches spatial ones")
+    if config.search.method is SearchMethod.INNER and not config.whole_landing:
+        raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only, but over a "
+                          "whole landing (scene.duration); search.method: outer searches spatial ones")
 
 
 def _check_landings(config: StudyConfig, landings: Landings) -> None:

@@ -353,9 +353,9 @@ def run_inner(
         ConfigError: a spatial design space (splayed toes): the inner search's compiled NLPs are
             planar; the outer search takes it (the study file's validation says so first).
     """
-    if config.space.spatial:
-        raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only; "
-                          "search.method: outer searches spatial ones")
+    if config.space.spatial and not config.whole_landing:
+        raise ConfigError("design_space.space: the inner search (IPOPT) takes planar design spaces only, but over a "
+                          "whole landing (scene.duration); search.method: outer searches spatial ones")
     shapes = config.space.shapes()
     sp = config.space
     distributions = {
