@@ -7,8 +7,9 @@ computation operation by operation with CasADi functions symbolic in the design 
 sensitivities dz/dtheta of every quantity z by the chain rule with each operation's exact
 Jacobian (CasADi's algorithmic differentiation):
 
-* each Runge-Kutta step in its segment's mode (the same closed rows, slip directions and stops:
-  M a = f + F^T lambda, G a + b = 0), with the contact-force quadrature;
+* each step of the run's integrator (classical RK4, or ROS2 where the run is implicit) in its
+  segment's mode (the same closed rows, slip directions and stops: M a = f + F^T lambda,
+  G a + b = 0), with the contact-force quadrature;
 * each projection after a step or an event (positions, then velocities; its impulses counted),
   with the rows it used;
 * each event time implicitly: the witness w that crossed (a gap, a stop margin, a normal force,
@@ -27,6 +28,29 @@ Jacobian (CasADi's algorithmic differentiation):
   that of the discretisation itself: central differences of the numeric landing at the same h
   agree with it while the sequence does not change (``tests/impulse_core/test_landing_derivatives.py``).
 
+In space (``space=SPATIAL``; ``tests/impulse_core/test_landing_derivatives_spatial.py``) the
+replay is the same, with what the plane's single tangent hides:
+
+* a sliding contact's force is n - mu u^T t along u = :func:`~landing.slip_direction` of its
+  slip s at each stage, the direction d its mode carries and the step's regularisation core
+  (:meth:`~landing._Landing.steer`: h mu f_n w at the step's start). u, d and core are functions
+  of the state and theta like the rest: each step computes its core, after a regular step d
+  follows the slip (:meth:`~landing._Landing.follow_slip`), and a mode an event chooses starts
+  each sliding contact with the d it carried (the mode persisted), its slip s / |s| (it slid on
+  through the event) or, for a contact starting to slide, the fixed point d = a_t(d) / |a_t(d)|
+  of the circular cone's law at the acceleration level (its slip acceleration a_t in the mode);
+  the replay carries d with its sensitivities and checks it against the run's at every step;
+* a sliding impact's tangential impulse lies on the cone's edge against the slip after it,
+  lambda_t = -mu lambda_n w / |w| (w the two tangent rows' velocities after): nonlinear in
+  lambda, so the impact is one Newton step on its mode's equations from the run's lambda*, whose
+  value is lambda* to rounding and whose derivative is the implicit function theorem's. An impact
+  where the cone's solver fell back to its polyhedral answer (the run's ``inexact``) does not meet
+  those equations and is refused (NumericalError), as is a slip direction the replay does not
+  reproduce (two contacts at one point made to slide alike, a contact put on the cone's edge);
+* both integrators are replayed (a spatial landing takes RK4 unless ``auto`` finds the joint laws
+  too stiff for it, as in the plane; the run always integrates by the numpy path there, whose
+  arithmetic the replay repeats), so the derivative is that of the run the tool reports.
+
 Forward rather than adjoint sensitivities: every operation's Jacobian w.r.t. (x, theta) is one
 call, the sweep is a product of small dense matrices, and peaks at intermediate events need no
 second pass.
@@ -39,8 +63,11 @@ and ``final_angles``. ``settled_at`` is not differentiable (a threshold crossing
 linear interpolation, constant where the landing never settles): it is not offered.
 
 theta (:func:`design_names`): the tree's design vector (:func:`~impulse_core.model.tree.design_vector`:
-lengths, masses, angles, ..., and ``com_y`` where a centre of mass is off its rod), then per revolute joint its law's stiffness, damping, rest,
-limits[0], limits[1]. A joint whose ``rest`` is None rests at its touchdown angle, so the
+lengths, masses, angles, ..., and ``com_y`` where a centre of mass is off its rod; in space
+SPATIAL's values per body, rpy angles, axes, radii, offsets and tensors among them), then per
+revolute joint its law's stiffness, damping, rest, limits[0], limits[1]. In space
+``final_angles`` are the base's rotation coordinates (3, about its touchdown orientation, which
+its design values set), then each joint's angle. A joint whose ``rest`` is None rests at its touchdown angle, so the
 derivative w.r.t. its angle carries it and the rest entry's is 0; a joint without stops has 0
 derivatives for its limit entries (their values are reported as 0). The touchdown height
 follows the lowest contact (where several are lowest, the first: a one-sided derivative; on a
@@ -71,10 +98,10 @@ import numpy as np
 from impulse_core.errors import NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.coulomb import LEMKE_TOL
-from impulse_core.kinematics.spatial import PLANAR, dof_layout, values_space
+from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Scene, Tree, design_vector, value_names
-from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, subtree_incidence
+from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, ground_expression, spatial_ground, subtree_incidence
 from impulse_core.timedomain.landing import (
     IMPLICIT,
     ROS2_GAMMA,
@@ -126,35 +153,36 @@ class LandingGradient:
     timings: dict
 
 
-def _joint_dofs(tree: Tree) -> list[tuple[int, int]]:
-    layout = dof_layout(tree.topology(), PLANAR)
+def _joint_dofs(tree: Tree, space: Space = PLANAR) -> list[tuple[int, int]]:
+    layout = dof_layout(tree.topology(), space)
     return [(b, layout.body_dof[b]) for b in range(1, tree.n_bodies) if layout.body_dof[b] is not None]
 
 
-def body_values(tree: Tree) -> tuple[str, ...]:
+def body_values(tree: Tree, space: Space = PLANAR) -> tuple[str, ...]:
     """The design vector's values per body: the plane's, with ``com_y`` where a centre of mass
-    is off its rod (PLANAR_OFFSET)."""
-    return values_space(tree, PLANAR).body_values
+    is off its rod (PLANAR_OFFSET); in space SPATIAL's (rpy, axis, radius, offsets, tensor)."""
+    return values_space(tree, space).body_values
 
 
-def design_names(tree: Tree) -> tuple[str, ...]:
+def design_names(tree: Tree, space: Space = PLANAR) -> tuple[str, ...]:
     """Names of theta's entries: the design vector's, then each revolute joint's law values."""
-    laws = [f"{tree.bodies[b].name}.{name}" for b, _ in _joint_dofs(tree) for name in LAW_VALUES]
-    return value_names(tree, body_values(tree)) + tuple(laws)
+    laws = [f"{tree.bodies[b].name}.{name}" for b, _ in _joint_dofs(tree, space) for name in LAW_VALUES]
+    return value_names(tree, body_values(tree, space)) + tuple(laws)
 
 
-def design_theta(tree: Tree, laws: tuple[JointLaw, ...]) -> np.ndarray:
+def design_theta(tree: Tree, laws: tuple[JointLaw, ...], space: Space = PLANAR) -> np.ndarray:
     """theta of ``tree`` and its joint laws (a rest of None: the touchdown angle; no stops: 0)."""
     laws = laws or (FREE,) * tree.n_bodies
     extra = []
-    for b, _ in _joint_dofs(tree):
+    for b, _ in _joint_dofs(tree, space):
         law = laws[b]
         lo, hi = law.limits if law.limits is not None else (0.0, 0.0)
         extra += [law.stiffness, law.damping, tree.bodies[b].angle if law.rest is None else law.rest, lo, hi]
-    return np.concatenate([design_vector(tree, body_values(tree)), np.array(extra, dtype=float)])
+    return np.concatenate([design_vector(tree, body_values(tree, space)), np.array(extra, dtype=float)])
 
 
-def apply_theta(tree: Tree, laws: tuple[JointLaw, ...], theta: np.ndarray) -> tuple[Tree, tuple[JointLaw, ...]]:
+def apply_theta(tree: Tree, laws: tuple[JointLaw, ...], theta: np.ndarray, space: Space = PLANAR
+                ) -> tuple[Tree, tuple[JointLaw, ...]]:
     """The tree and joint laws with the values of ``theta`` (:func:`design_theta`'s layout; a rest
     of None stays None, following the angle; a joint without stops keeps none)."""
     from dataclasses import replace
@@ -162,11 +190,11 @@ def apply_theta(tree: Tree, laws: tuple[JointLaw, ...], theta: np.ndarray) -> tu
     from impulse_core.model.tree import with_values
 
     theta = np.asarray(theta, dtype=float)
-    values = body_values(tree)
+    values = body_values(tree, space)
     n_p = len(design_vector(tree, values))
     new_tree = with_values(tree, theta[:n_p], values)
     out = list(laws or (FREE,) * tree.n_bodies)
-    for i, (b, _) in enumerate(_joint_dofs(tree)):
+    for i, (b, _) in enumerate(_joint_dofs(tree, space)):
         k, c, rest, lo, hi = theta[n_p + len(LAW_VALUES) * i : n_p + len(LAW_VALUES) * (i + 1)]
         law = out[b]
         out[b] = replace(law, stiffness=float(k), damping=float(c), rest=None if law.rest is None else float(rest),
@@ -182,7 +210,12 @@ class _Op:
     def __init__(self, name: str, inputs: list, outputs: list) -> None:
         outputs = [ca.vec(o) for o in outputs]
         self.n_out, self.n_in = len(outputs), len(inputs)
-        jacs = [ca.jacobian(o, i) for o in outputs for i in inputs]
+        # one Jacobian of every output w.r.t. every input (shared work), split into blocks
+        J = ca.jacobian(ca.vertcat(*outputs), ca.vertcat(*inputs))
+        rows = np.cumsum([0] + [o.shape[0] for o in outputs])
+        cols = np.cumsum([0] + [i.shape[0] for i in inputs])
+        jacs = [J[int(rows[a]) : int(rows[a + 1]), int(cols[b]) : int(cols[b + 1])]
+                for a in range(len(outputs)) for b in range(len(inputs))]
         self.f = ca.Function(name, inputs, outputs + jacs)
         self.shapes = [(o.shape[0], i.shape[0]) for o in outputs for i in inputs]
 
@@ -194,32 +227,43 @@ class _Op:
 
 
 def _mode_key(mode: _Mode) -> tuple:
-    return (tuple(int(x) for x in mode.closed), tuple(int(x) for x in mode.side), tuple(int(x) for x in mode.stop))
+    """A mode's discrete part: closed contacts, the plane's slip signs (space: which contacts slide;
+    the direction is a continuous quantity carried by the replay), stops."""
+    slip = mode.side if mode.slip.shape[1] == 1 else mode.sliding
+    return (tuple(int(x) for x in mode.closed), tuple(int(x) for x in slip), tuple(int(x) for x in mode.stop))
 
 
-def _mode_of(key: tuple) -> _Mode:
-    return _Mode(np.array(key[0], bool), np.array(key[1], int), np.array(key[2], int))
+def _moving(mode: _Mode, mu: float) -> np.ndarray:
+    """Per contact: closed and sliding with friction (its force turns with the slip in space)."""
+    return mode.closed & mode.sliding if mu > 0 else np.zeros(len(mode.closed), bool)
 
 
 class _Symbolic:
     """The landing's operations as CasADi functions of (x = [q; v], theta, ...), built once per
-    mode or impact and cached."""
+    mode or impact and cached. In space the operations of a mode with sliding contacts also take
+    d, the slip directions the mode carries (n_c x 2 flattened, :attr:`_Mode.slip`), and a step
+    returns its regularisation core (:meth:`_Landing.steer`)."""
 
     def __init__(self, run: _Landing, laws: tuple[JointLaw, ...]) -> None:
         self.run = run
         tree = run.tree
         self.tree, self.nv, self.nc = tree, run.nv, run.nc
-        self.values = run.space.body_values  # the plane's, or PLANAR_OFFSET's
-        self.fn = landing_function(run.topology, run.scene.terrain, run.space)
+        self.space, self.planar, self.dims = run.space, run.planar, run.dims
+        self.nt = run.dims - 1  # tangents per contact
+        self.values = run.space.body_values  # the plane's, PLANAR_OFFSET's or SPATIAL's
+        self.ground = run.scene.terrain if run.planar else spatial_ground(run.scene)
+        self.fn = landing_function(run.topology, self.ground, run.space)
         self.n_p = len(design_vector(tree, self.values))
-        self.dofs = _joint_dofs(tree)
+        self.dofs = _joint_dofs(tree, run.space)
         self.n_theta = self.n_p + len(LAW_VALUES) * len(self.dofs)
         self.laws = laws or (FREE,) * tree.n_bodies
         self.mu, self.gravity = run.mu, run.scene.gravity
+        self.floor = run.speed_tol  # below this slip speed a sliding contact keeps its direction d
         self.S = subtree_incidence(tree)
         self.cache: dict = {}
         self.x = ca.SX.sym("x", 2 * self.nv)
         self.th = ca.SX.sym("theta", self.n_theta)
+        self.d = ca.SX.sym("d", self.nt * self.nc)  # space: the carried slip directions
 
     # ---- pieces of theta
 
@@ -242,38 +286,83 @@ class _Symbolic:
     # ---- the landing's numerics, symbolically
 
     def point(self, q: ca.SX, v: ca.SX, th: ca.SX) -> dict:
+        """The dynamics at (q, v): gap, per contact its normal and tangents (lists of d-vectors),
+        Jn (n_c x nv), Jt and bt (one per tangent: n_c x nv, n_c), bn, slip (per contact, its
+        tangential velocities), M, f (springs and dampers included), kinetic, momentum, com."""
         o = self.fn(q, v, th[: self.n_p], self.gravity)
-        _, _, Jc, bias, M, force, kinetic, momentum, com, C = o
-        pairs = [_gap(self.run.scene.terrain, C[0, i], C[1, i]) for i in range(self.nc)]
-        gap = ca.vertcat(*[g for g, _, _ in pairs])
-        nx, ny = ca.vertcat(*[a for _, a, _ in pairs]), ca.vertcat(*[b for _, _, b in pairs])
-        Jx, Jy = Jc[0::2, :], Jc[1::2, :]
-        bx, by = bias[0::2], bias[1::2]
+        gap, N, Jc, bias, M, force, kinetic, momentum, com, C = o
         k, c, rest, _, _ = self.law_arrays(th)
-        Jn = ca.diag(nx) @ Jx + ca.diag(ny) @ Jy if self.nc else ca.SX(0, self.nv)
-        Jt = ca.diag(ny) @ Jx - ca.diag(nx) @ Jy if self.nc else ca.SX(0, self.nv)
-        return dict(
-            gap=gap, nx=nx, ny=ny, Jn=Jn, Jt=Jt, bn=nx * bx + ny * by, bt=ny * bx - nx * by, M=M,
-            f=force - k * (q - rest) - c * v, kinetic=kinetic, momentum=momentum, com=com,
-        )
+        pt = dict(M=M, f=force - k * (q - rest) - c * v, kinetic=kinetic, momentum=momentum, com=com)
+        if self.planar:
+            pairs = [_gap(self.run.scene.terrain, C[0, i], C[1, i]) for i in range(self.nc)]
+            gap = ca.vertcat(*[g for g, _, _ in pairs])
+            nx, ny = ca.vertcat(*[a for _, a, _ in pairs]), ca.vertcat(*[b for _, _, b in pairs])
+            Jx, Jy = Jc[0::2, :], Jc[1::2, :]
+            bx, by = bias[0::2], bias[1::2]
+            Jn = ca.diag(nx) @ Jx + ca.diag(ny) @ Jy if self.nc else ca.SX(0, self.nv)
+            Jt = ca.diag(ny) @ Jx - ca.diag(nx) @ Jy if self.nc else ca.SX(0, self.nv)
+            normals = [ca.vertcat(nx[i], ny[i]) for i in range(self.nc)]
+            tangents = [[ca.vertcat(ny[i], -nx[i])] for i in range(self.nc)]
+            pt.update(gap=gap, Jn=Jn, Jt=[Jt], bn=nx * bx + ny * by, bt=[ny * bx - nx * by])
+        else:
+            normals = [N[:, i] for i in range(self.nc)]
+            tangents = [_tangents(n) for n in normals]
+            J = [Jc[3 * i : 3 * i + 3, :] for i in range(self.nc)]
+            bb = [bias[3 * i : 3 * i + 3] for i in range(self.nc)]
+            def rows(vecs, mats):
+                return ca.vertcat(*[a.T @ m for a, m in zip(vecs, mats)]) if self.nc else ca.SX(0, self.nv)
 
-    def rows(self, pt: dict, contacts, slip, stops) -> tuple[ca.SX, ca.SX, ca.SX, _Rows]:
-        """G, F, b of :func:`landing._rows` symbolically, and the rows' bookkeeping (numeric)."""
+            def values(vecs, b):
+                return ca.vertcat(*[ca.dot(a, x) for a, x in zip(vecs, b)]) if self.nc else ca.SX(0, 1)
+
+            pt.update(gap=gap, Jn=rows(normals, J), bn=values(normals, bb),
+                      Jt=[rows([t[a] for t in tangents], J) for a in range(self.nt)],
+                      bt=[values([t[a] for t in tangents], bb) for a in range(self.nt)])
+        pt.update(normal=normals, tangent=tangents,
+                  slip=[ca.vertcat(*[pt["Jt"][a][i, :] @ v for a in range(self.nt)]) for i in range(self.nc)])
+        return pt
+
+    def directions(self, pt: dict, mode: _Mode, d: ca.SX, core) -> list:
+        """Per contact, the unit direction its sliding friction opposes (a list of n_t entries), or
+        None: the plane's +-1; in space :func:`landing.slip_direction` of the slip at ``pt``, the
+        carried direction ``d`` and the step's ``core``."""
+        moving = _moving(mode, self.mu)
+        out: list = [None] * self.nc
+        for i in np.flatnonzero(moving):
+            if self.planar:
+                out[i] = [float(mode.side[i])]
+                continue
+            di = d[self.nt * i : self.nt * (i + 1)]
+            s = pt["slip"][i]
+            speed = _norm(s)
+            along = ca.logic_and(ca.dot(s, di) > 0, speed > self.floor)
+            lifted = s + ca.fmax(core[i] - speed, 0.0) * di
+            u = ca.if_else(along, lifted / _norm(lifted), di)
+            out[i] = [u[a] for a in range(self.nt)]
+        return out
+
+    def rows(self, pt: dict, contacts, sliding: np.ndarray, stops, u: list) -> tuple[ca.SX, ca.SX, ca.SX, _Rows]:
+        """G, F, b of :func:`landing._rows` symbolically (``sliding`` per contact, ``u`` its
+        direction), and the rows' bookkeeping (numeric)."""
         contacts = np.asarray(contacts, int)
         dofs = np.flatnonzero(stops)
         mu = self.mu
-        sliding = slip[contacts] if mu > 0 else np.zeros(len(contacts), int)
-        sticking = contacts[sliding == 0] if mu > 0 else contacts[:0]
+        sliding = sliding[contacts] if mu > 0 else np.zeros(len(contacts), bool)
+        sticking = contacts[~sliding] if mu > 0 else contacts[:0]
         G_stop = np.zeros((len(dofs), self.nv))
         G_stop[np.arange(len(dofs)), dofs] = -stops[dofs]
         Jn, Jt = pt["Jn"], pt["Jt"]
         sel = lambda A, idx: ca.vertcat(*[A[int(i), :] for i in idx]) if len(idx) else ca.SX(0, self.nv)  # noqa: E731
         selv = lambda a, idx: ca.vertcat(*[a[int(i)] for i in idx]) if len(idx) else ca.SX(0, 1)  # noqa: E731
-        Fn = ca.vertcat(*[Jn[int(i), :] - mu * float(s) * Jt[int(i), :] for i, s in zip(contacts, sliding)]) \
-            if len(contacts) else ca.SX(0, self.nv)
-        G = ca.vertcat(sel(Jn, contacts), ca.SX(ca.DM(G_stop)), sel(Jt, sticking))
-        F = ca.vertcat(Fn, ca.SX(ca.DM(G_stop)), sel(Jt, sticking))
-        b = ca.vertcat(selv(pt["bn"], contacts), ca.SX.zeros(len(dofs)), selv(pt["bt"], sticking))
+        Fn = [Jn[int(i), :] - mu * sum(u[i][a] * Jt[a][int(i), :] for a in range(self.nt))
+              if s and u[i] is not None else Jn[int(i), :]
+              for i, s in zip(contacts, sliding)]
+        Fn = ca.vertcat(*Fn) if len(contacts) else ca.SX(0, self.nv)
+        tangent_rows = ca.vertcat(*[sel(Jt[a], sticking) for a in range(self.nt)])
+        G = ca.vertcat(sel(Jn, contacts), ca.SX(ca.DM(G_stop)), tangent_rows)
+        F = ca.vertcat(Fn, ca.SX(ca.DM(G_stop)), tangent_rows)
+        b = ca.vertcat(selv(pt["bn"], contacts), ca.SX.zeros(len(dofs)),
+                       *[selv(pt["bt"][a], sticking) for a in range(self.nt)])
         info = _Rows(
             np.zeros((0, 0)), np.zeros((0, 0)), np.zeros(0),
             np.concatenate([contacts, -np.ones(len(dofs), int)]),
@@ -282,12 +371,13 @@ class _Symbolic:
         )
         return G, F, b, info
 
-    def mode_rows(self, pt: dict, mode: _Mode):
-        return self.rows(pt, np.flatnonzero(mode.closed), mode.side, mode.stop)
+    def mode_rows(self, pt: dict, mode: _Mode, u: list):
+        return self.rows(pt, np.flatnonzero(mode.closed), mode.sliding, mode.stop, u)
 
-    def accelerations(self, pt: dict, mode: _Mode) -> tuple[ca.SX, ca.SX, ca.SX, _Rows]:
+    def accelerations(self, pt: dict, mode: _Mode, d: ca.SX, core) -> tuple[ca.SX, ca.SX, ca.SX, _Rows]:
         """(a, lambda, [fn; ft] per contact, rows) of the mode at the point."""
-        G, F, b, info = self.mode_rows(pt, mode)
+        u = self.directions(pt, mode, d, core)
+        G, F, b, info = self.mode_rows(pt, mode, u)
         X = _solve(pt["M"], ca.horzcat(pt["f"], F.T))
         a0, minv_ft = X[:, 0], X[:, 1:]
         if G.shape[0] == 0:
@@ -296,42 +386,50 @@ class _Symbolic:
         else:
             lam = _solve(G @ minv_ft, -(G @ a0 + b))
             a = a0 + minv_ft @ lam
-        return a, lam, self.contact_forces(info, lam, mode.side, self.mu), info
+        return a, lam, self.contact_forces(info, lam, u, self.mu), info
 
-    def contact_forces(self, info: _Rows, lam: ca.SX, slip, mu: float) -> ca.SX:
-        fn, ft = [ca.SX(0)] * self.nc, [ca.SX(0)] * self.nc
+    def contact_forces(self, info: _Rows, lam: ca.SX, u: list, mu: float) -> ca.SX:
+        """[fn; ft (first tangent of every contact, then the second's)] of the rows' multipliers;
+        a contact with a direction in ``u`` has -mu u fn."""
+        fn = [ca.SX(0)] * self.nc
+        ft = [[ca.SX(0)] * self.nc for _ in range(self.nt)]
         for r, c in enumerate(info.contact):
             if c >= 0:
                 fn[c] = lam[r]
-                ft[c] = -mu * float(slip[c]) * lam[r]
+                if u[c] is not None:
+                    for a in range(self.nt):
+                        ft[a][c] = -mu * u[c][a] * lam[r]
+        m = len(info.owner)
         for k, r in enumerate(info.owner):
-            ft[int(info.contact[r])] = lam[info.n + k]
-        return ca.vertcat(*fn, *ft) if self.nc else ca.SX(0, 1)
+            for a in range(self.nt):
+                ft[a][int(info.contact[r])] = lam[info.n + a * m + k]
+        return ca.vertcat(*fn, *[f for row in ft for f in row]) if self.nc else ca.SX(0, 1)
 
-    def derivative(self, q, v, th, mode):
+    def derivative(self, q, v, th, mode, d, core):
         pt = self.point(q, v, th)
-        a, _, forces, _ = self.accelerations(pt, mode)
+        a, _, forces, _ = self.accelerations(pt, mode, d, core)
         return a, forces
 
-    def rk4(self, q, v, th, mode, h):
-        a1, f1 = self.derivative(q, v, th, mode)
-        a2, f2 = self.derivative(q + 0.5 * h * v, v + 0.5 * h * a1, th, mode)
+    def rk4(self, q, v, th, mode, h, d, core):
+        a1, f1 = self.derivative(q, v, th, mode, d, core)
+        a2, f2 = self.derivative(q + 0.5 * h * v, v + 0.5 * h * a1, th, mode, d, core)
         v2 = v + 0.5 * h * a1
-        a3, f3 = self.derivative(q + 0.5 * h * v2, v + 0.5 * h * a2, th, mode)
+        a3, f3 = self.derivative(q + 0.5 * h * v2, v + 0.5 * h * a2, th, mode, d, core)
         v3 = v + 0.5 * h * a2
-        a4, f4 = self.derivative(q + h * v3, v + h * a3, th, mode)
+        a4, f4 = self.derivative(q + h * v3, v + h * a3, th, mode, d, core)
         v4 = v + h * a3
         q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
         v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
         return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
 
-    def ros2(self, q, v, th, mode, h):
+    def ros2(self, q, v, th, mode, h, d, core):
         """:meth:`landing._Landing.implicit_step` symbolically (ROS2 with the joint laws in its
         matrix)."""
         g = ROS2_GAMMA * h
         k, c, _, _, _ = self.law_arrays(th)
         pt = self.point(q, v, th)
-        G, F, b, info = self.mode_rows(pt, mode)
+        u = self.directions(pt, mode, d, core)
+        G, F, b, info = self.mode_rows(pt, mode, u)
         W = pt["M"] + ca.diag(g * c + g * g * k)
 
         def constrained(rhs, row_rhs):
@@ -345,32 +443,99 @@ class _Symbolic:
         k1v, nu1 = constrained(pt["f"] - g * k * v, -b)
         k1q = v + g * k1v
         q2, v2 = q + h * k1q, v + h * k1v
-        a2, f2 = self.derivative(q2, v2, th, mode)
+        a2, f2 = self.derivative(q2, v2, th, mode, d, core)
         rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
         k2v, nu2 = constrained(pt["M"] @ rv - g * k * rq, G @ rv)
         k2q = rq + g * k2v
-        f1 = self.contact_forces(info, nu1, mode.side, self.mu)
-        f3 = self.contact_forces(info, nu2, mode.side, self.mu)
+        f1 = self.contact_forces(info, nu1, u, self.mu)
+        f3 = self.contact_forces(info, nu2, u, self.mu)
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
-    def integrate(self, q, v, th, mode, h, method):
-        """One step of the run's integrator (``rk4`` or ``implicit``)."""
-        return self.ros2(q, v, th, mode, h) if method == IMPLICIT else self.rk4(q, v, th, mode, h)
+    def steer(self, q, v, th, mode, h, d) -> ca.SX:
+        """:meth:`landing._Landing.steer`: per contact the core h mu f_n w of a sliding one (its
+        normal force with the exact direction at the step's start, w the trace of its tangential
+        inverse mass), 0 elsewhere and in the plane."""
+        core = ca.SX.zeros(self.nc)
+        moving = np.flatnonzero(_moving(mode, self.mu))
+        if self.planar or not len(moving):
+            return core
+        pt = self.point(q, v, th)
+        _, _, forces, _ = self.accelerations(pt, mode, d, ca.SX.zeros(self.nc))
+        for i in moving:
+            rows = ca.vertcat(*[pt["Jt"][a][int(i), :] for a in range(self.nt)])
+            w = ca.trace(rows @ _solve(pt["M"], rows.T))
+            core[int(i)] = h * self.mu * ca.fmax(forces[int(i)], 0.0) * w
+        return core
+
+    def integrate(self, q, v, th, mode, h, method, d):
+        """One step of the run's integrator (``rk4`` or ``implicit``): (q, v, impulses, core)."""
+        core = self.steer(q, v, th, mode, h, d)
+        step = self.ros2 if method == IMPLICIT else self.rk4
+        return (*step(q, v, th, mode, h, d, core), core)
 
     def split(self, x):
         return x[: self.nv], x[self.nv :]
 
+    def inputs(self, *args) -> list:
+        """An operation's inputs: ``args``, then the carried slip directions in space."""
+        return [*args] if self.planar else [*args, self.d]
+
     # ---- cached functions
 
     def step(self, mode: _Mode, method: str) -> _Op:
-        """(x, theta, h) -> (x after one step of the mode by the run's integrator, contact
-        impulses [fn; ft])."""
+        """(x, theta, h[, d]) -> (x after one step of the mode by the run's integrator, contact
+        impulses [fn; ft][, the step's core])."""
         key = ("step", method, _mode_key(mode))
         if key not in self.cache:
             h = ca.SX.sym("h")
             q, v = self.split(self.x)
-            q1, v1, imp = self.integrate(q, v, self.th, mode, h, method)
-            self.cache[key] = _Op("step", [self.x, self.th, h], [ca.vertcat(q1, v1), imp])
+            q1, v1, imp, core = self.integrate(q, v, self.th, mode, h, method, self.d)
+            outs = [ca.vertcat(q1, v1), imp] + ([] if self.planar else [core])
+            self.cache[key] = _Op("step", self.inputs(self.x, self.th, h), outs)
+        return self.cache[key]
+
+    def follow(self, mode: _Mode) -> _Op:
+        """(x, theta, d, core) -> d after :meth:`landing._Landing.follow_slip` at x (space)."""
+        key = ("follow", _mode_key(mode))
+        if key not in self.cache:
+            core = ca.SX.sym("core", self.nc)
+            q, v = self.split(self.x)
+            u = self.directions(self.point(q, v, self.th), mode, self.d, core)
+            d = ca.vertcat(*[self.d[self.nt * i : self.nt * (i + 1)] if u[i] is None else ca.vertcat(*u[i])
+                             for i in range(self.nc)])
+            self.cache[key] = _Op("follow", [self.x, self.th, self.d, core], [d])
+        return self.cache[key]
+
+    def new_directions(self, mode: _Mode, kinds: tuple) -> _Op:
+        """(x, theta, d) -> the slip directions a mode chosen at an event starts with (space):
+        per contact ``kinds`` is "keep" (its direction carried), "slip" (its slip s / |s| at x:
+        the contact slid on through the event) or "start" (it starts sliding: the direction of its
+        slip acceleration in the mode, the fixed point d = a_t(d) / |a_t(d)| of the circular cone's
+        law; one Newton step from the run's d, whose derivative is the implicit function
+        theorem's)."""
+        key = ("directions", _mode_key(mode), kinds)
+        if key not in self.cache:
+            q, v = self.split(self.x)
+            pt = self.point(q, v, self.th)
+            start = [i for i, k in enumerate(kinds) if k == "start"]
+            parts = []
+            for i, k in enumerate(kinds):
+                di = self.d[self.nt * i : self.nt * (i + 1)]
+                parts.append(pt["slip"][i] / _norm(pt["slip"][i]) if k == "slip" else di)
+            d = ca.vertcat(*parts)
+            if start:
+                a, _, _, _ = self.accelerations(pt, mode, d, ca.SX.zeros(self.nc))
+                residual = []
+                for i in start:
+                    at = ca.vertcat(*[pt["Jt"][j][i, :] @ a + pt["bt"][j][i] for j in range(self.nt)])
+                    residual.append(d[self.nt * i : self.nt * (i + 1)] - at / _norm(at))
+                R = ca.vertcat(*residual)
+                idx = [self.nt * i + j for i in start for j in range(self.nt)]
+                z = ca.vertcat(*[d[j] for j in idx])
+                step = _solve(ca.jacobian(R, z), R)
+                for n, j in enumerate(idx):
+                    d[j] = d[j] - step[n]
+            self.cache[key] = _Op("directions", [self.x, self.th, self.d], [d])
         return self.cache[key]
 
     def project(self, mode: _Mode, lifted: tuple, beyond: tuple = ()) -> _Op:
@@ -386,19 +551,20 @@ class _Symbolic:
             if beyond:  # free joints past a stop, put back onto it
                 place.stop = np.where(place.stop == 0, np.array(beyond, int), place.stop)
             dq = self.position_correction(pt, q, th, place)
-            G, _, _, info = self.mode_rows(pt, mode)
+            none = [None] * self.nc
+            G, _, _, info = self.rows(pt, np.flatnonzero(mode.closed), mode.sliding, mode.stop, none)
             if G.shape[0] == 0:
-                out = [ca.vertcat(q - dq, v), ca.SX.zeros(2 * self.nc)]
+                out = [ca.vertcat(q - dq, v), ca.SX.zeros(self.dims * self.nc)]
             else:
                 minv_gt = _solve(pt["M"], G.T)
                 impulse = -_solve(G @ minv_gt, G @ v)
-                imp = self.contact_forces(info, impulse, np.zeros(self.nc, int), 0.0)
+                imp = self.contact_forces(info, impulse, none, 0.0)
                 out = [ca.vertcat(q - dq, v + minv_gt @ impulse), imp]
             self.cache[key] = _Op("project", [self.x, self.th], out)
         return self.cache[key]
 
     def position_correction(self, pt, q, th, place: _Mode):
-        G, _, _, info = self.mode_rows(pt, place)
+        G, _, _, info = self.rows(pt, np.flatnonzero(place.closed), place.sliding, place.stop, [None] * self.nc)
         n = info.n
         if n == 0:
             return ca.SX.zeros(self.nv)
@@ -415,7 +581,7 @@ class _Symbolic:
         minv_gt = _solve(pt["M"], Gn.T)
         return minv_gt @ _solve(Gn @ minv_gt, ca.vertcat(*residual))
 
-    def witness(self, q, v, th, mode: _Mode, index: int, ft_sign: float) -> ca.SX:
+    def witness(self, q, v, th, mode: _Mode, index: int, ft_sign: float, d, core) -> ca.SX:
         """The raw (unscaled) witness ``index`` of :meth:`_Landing.witness_and_rate`."""
         nc, nv = self.nc, self.nv
         pt = self.point(q, v, th)
@@ -425,30 +591,38 @@ class _Symbolic:
         if group in (4, 5):
             _, _, _, lo, hi = self.law_arrays(th)
             return q[i] - lo[i] if group == 4 else hi[i] - q[i]
-        if group == 3:
-            return float(mode.side[i]) * (pt["Jt"][i, :] @ v)
-        _, lam, forces, info = self.accelerations(pt, mode)
+        if group == 3:  # the slip along the mode's direction
+            if self.planar:
+                return float(mode.side[i]) * pt["slip"][i][0]
+            return ca.dot(d[self.nt * i : self.nt * (i + 1)], pt["slip"][i])
+        _, lam, forces, info = self.accelerations(pt, mode, d, core)
         if group == 1:
             return forces[i]
-        if group == 2:
-            return self.mu * forces[i] - ft_sign * forces[nc + i]
+        if group == 2:  # the cone's margin
+            ft = [forces[nc * (1 + a) + i] for a in range(self.nt)]
+            return self.mu * forces[i] - (ft_sign * ft[0] if self.planar else _norm(ca.vertcat(*ft)))
         r = int(np.flatnonzero(info.dof == i)[0])  # group 6: the stop's force
         return lam[r]
 
     def event_witness(self, mode: _Mode, index: int, ft_sign: float, method: str) -> _Op:
-        """(x, theta, tau) -> the witness ``index`` after a step of tau from x."""
+        """(x, theta, tau[, d]) -> the witness ``index`` after a step of tau from x."""
         key = ("witness", method, _mode_key(mode), index, ft_sign)
         if key not in self.cache:
             tau = ca.SX.sym("tau")
             q, v = self.split(self.x)
-            q1, v1, _ = self.integrate(q, v, self.th, mode, tau, method)
-            w = self.witness(q1, v1, self.th, mode, index, ft_sign)
-            self.cache[key] = _Op("witness", [self.x, self.th, tau], [w])
+            q1, v1, _, core = self.integrate(q, v, self.th, mode, tau, method, self.d)
+            w = self.witness(q1, v1, self.th, mode, index, ft_sign, self.d, core)
+            self.cache[key] = _Op("witness", self.inputs(self.x, self.th, tau), [w])
         return self.cache[key]
 
     def impact(self, rows: _Rows, e: np.ndarray, modes: tuple) -> _Op:
-        """(x, theta, e) -> (v after, fn, ft, joint impulses 2 x joints) of the impact over
-        ``rows`` in the law's modes ``modes`` (:func:`_impact_modes`), e the rows' restitutions."""
+        """(x, theta, e[, lambda*]) -> (v after, fn, ft, joint impulses d x joints) of the impact
+        over ``rows`` in the law's modes ``modes`` (:func:`_impact_modes`), e the rows'
+        restitutions. In the plane the mode's equations are linear; in space a sliding contact's
+        impulse lies on the circular cone's edge against its slip after the impact,
+        lambda_t = -mu lambda_n w / |w| (w = the tangent rows' velocities after), so the impulse
+        is one Newton step on the mode's equations from the run's lambda* (a solution: the value is
+        lambda* to rounding, the derivative the implicit function theorem's)."""
         n, m = rows.n, len(rows.owner)
         pushing, tangent = modes
         key = ("impact", tuple(rows.contact), tuple(rows.dof), modes)
@@ -458,41 +632,66 @@ class _Symbolic:
             e = ca.SX.sym("restitution", n)
             pt = self.point(q, v, th)
             stops = np.zeros(self.nv, int)
-            for r, d in enumerate(rows.dof):
-                if d >= 0:
-                    stops[d] = int(np.rint(-rows.G[r, d]))
-            G, _, _, _ = self.rows(pt, rows.contact[rows.contact >= 0], np.zeros(self.nc, int), stops)
+            for r, dof in enumerate(rows.dof):
+                if dof >= 0:
+                    stops[dof] = int(np.rint(-rows.G[r, dof]))
+            none = [None] * self.nc
+            G, _, _, _ = self.rows(pt, rows.contact[rows.contact >= 0], np.zeros(self.nc, bool), stops, none)
             minv_gt = _solve(pt["M"], G.T)
             W = G @ minv_gt
             u = G @ v
-            K, r = [], []
-            for i in range(n):
-                if pushing[i]:
-                    K.append(W[i, :])
-                    r.append(-(1.0 + e[i]) * u[i])
-                else:
-                    K.append(_unit(n + m, i))
-                    r.append(0)
-            for k, mode in enumerate(tangent):
-                i = int(rows.owner[k])
-                if mode == 2:
-                    K.append(W[n + k, :])
-                    r.append(-u[n + k])
-                else:
-                    K.append(_unit(n + m, n + k) + self.mu * float(mode) * _unit(n + m, i))
-                    r.append(0)
-            lam = _solve(ca.vcat(K), ca.vcat(r)) if n + m else ca.SX(0, 1)
+            inputs = [self.x, th, e]
+            if self.planar:
+                K, r = [], []
+                for i in range(n):
+                    if pushing[i]:
+                        K.append(W[i, :])
+                        r.append(-(1.0 + e[i]) * u[i])
+                    else:
+                        K.append(_unit(n + m, i))
+                        r.append(0)
+                for k, mode in enumerate(tangent):
+                    i = int(rows.owner[k])
+                    if mode == 2:
+                        K.append(W[n + k, :])
+                        r.append(-u[n + k])
+                    else:
+                        K.append(_unit(n + m, n + k) + self.mu * float(mode) * _unit(n + m, i))
+                        r.append(0)
+                lam = _solve(ca.vcat(K), ca.vcat(r)) if n + m else ca.SX(0, 1)
+            else:
+                star = ca.SX.sym("lambda", n + self.nt * m)
+                inputs.append(star)
+                after = W @ star + u
+                R = [after[i] + e[i] * u[i] if pushing[i] else star[i] for i in range(n)]
+                tangential = [[] for _ in range(self.nt)]
+                for k, mode in enumerate(tangent):
+                    i = int(rows.owner[k])
+                    at = [n + a * m + k for a in range(self.nt)]
+                    w = ca.vertcat(*[after[j] for j in at])
+                    for a, j in enumerate(at):
+                        if mode == 0:
+                            tangential[a].append(star[j])
+                        elif mode == 2:
+                            tangential[a].append(w[a])
+                        else:  # sliding: on the cone's edge against the slip after
+                            tangential[a].append(star[j] + self.mu * star[i] * w[a] / _norm(w))
+                R = ca.vertcat(*R, *[x for rows_a in tangential for x in rows_a])
+                lam = star - _solve(ca.jacobian(R, star), R) if n + m else ca.SX(0, 1)
             v_plus = v + minv_gt @ lam
-            forces = self.contact_forces(rows, lam, np.zeros(self.nc, int), self.mu)
-            fn, ft = forces[: self.nc], forces[self.nc :]
-            Fx = pt["nx"] * fn + pt["ny"] * ft
-            Fy = pt["ny"] * fn - pt["nx"] * ft
+            forces = self.contact_forces(rows, lam, none, self.mu)
+            fn = forces[: self.nc]
+            ft = [forces[self.nc * (1 + a) : self.nc * (2 + a)] for a in range(self.nt)]
             after = self.point(q, v_plus, th)["momentum"]
             S = ca.DM(self.S)
-            joint = after - pt["momentum"] - ca.vertcat((S @ Fx).T, (S @ Fy).T)
-            # the joint impulses as vectors (x row, y row): their norms are taken where a peak is
+            F = [ca.vertcat(*[pt["normal"][c][k] * fn[c]
+                              + sum(pt["tangent"][c][a][k] * ft[a][c] for a in range(self.nt))
+                              for c in range(self.nc)]) for k in range(self.dims)]
+            joint = after - pt["momentum"] - ca.vertcat(*[(S @ Fk).T for Fk in F])
+            # the joint impulses as vectors (x, y[, z] rows): their norms are taken where a peak is
             # differentiated, since sqrt at a zero joint impulse would put 0 * inf = NaN in reverse mode
-            self.cache[key] = _Op("impact", [self.x, self.th, e], [v_plus, fn, ft, joint[:, 1:]])
+            outs = [v_plus, fn, ca.vertcat(*ft), joint[:, 1:]] + ([] if self.planar else [lam])
+            self.cache[key] = _Op("impact", inputs, outs)
         return self.cache[key]
 
     def touchdown(self, lowest: int, lowest_x: float) -> _Op:
@@ -503,23 +702,32 @@ class _Symbolic:
             th = self.th
             run = self.run
             q = ca.SX.zeros(self.nv)
-            layout = dof_layout(run.topology, PLANAR)
+            layout = dof_layout(run.topology, run.space)
             q[0] = float(run.q0[0])
-            q[2] = self.angle(th, 0)
+            if self.planar:
+                q[2] = self.angle(th, 0)
+            else:  # the base's orientation is its design values' (rotation coordinates 0), z the scene's
+                q[2] = float(run.q0[2])
             for b in range(1, self.tree.n_bodies):
                 if layout.body_dof[b] is not None:
                     q[layout.body_dof[b]] = self.angle(th, b)
-            v = ca.DM(pre_impact_velocity(run.topology, run.scene))
+            v = ca.DM(pre_impact_velocity(run.topology, run.scene, run.space))
             C = self.fn(q, v, th[: self.n_p], self.gravity)[9]
             x, y = C[0, lowest], C[1, lowest]
-            q[1] = TOUCHDOWN_CLEARANCE - (y - _terrain_height(run.scene.terrain, x, lowest_x))
+            if self.planar:
+                ground = _terrain_height(run.scene.terrain, x, lowest_x)
+            else:  # the heightfield's height under the contact: y - gap / n_y
+                gap, normal = ground_expression(self.ground, C[:, lowest])
+                ground = y - gap / normal[1]
+            q[1] = TOUCHDOWN_CLEARANCE - (y - ground)
             pt = self.point(q, v, th)
             mass = sum(th[len(self.values) * b + self.values.index("mass")] for b in range(self.tree.n_bodies))
             self.cache[key] = _Op("touchdown", [th], [q, pt["kinetic"], pt["com"], mass])
         return self.cache[key]
 
     def final(self) -> _Op:
-        """(x, theta) -> (kinetic + spring energy, com height, final angles)."""
+        """(x, theta) -> (kinetic + spring energy, com height, final angles: the plane's base
+        angle, in space the base's rotation coordinates; then each joint's)."""
         key = ("final",)
         if key not in self.cache:
             q, v = self.split(self.x)
@@ -527,11 +735,25 @@ class _Symbolic:
             pt = self.point(q, v, th)
             k, _, rest, _, _ = self.law_arrays(th)
             energy = pt["kinetic"] + 0.5 * ca.sum1(k * (q - rest) ** 2)
-            layout = dof_layout(self.run.topology, PLANAR)
-            angles = [q[2]] + [self.angle(th, b) if layout.body_dof[b] is None else q[layout.body_dof[b]]
-                               for b in range(1, self.tree.n_bodies)]
+            layout = dof_layout(self.run.topology, self.space)
+            base = [q[2]] if self.planar else [q[3], q[4], q[5]]
+            angles = base + [self.angle(th, b) if layout.body_dof[b] is None else q[layout.body_dof[b]]
+                             for b in range(1, self.tree.n_bodies)]
             self.cache[key] = _Op("final", [self.x, th], [energy, pt["com"], ca.vertcat(*angles)])
         return self.cache[key]
+
+
+def _norm(x: ca.SX) -> ca.SX:
+    """|x|, finite with finite derivatives at 0 (a branch not taken must not put NaN in if_else)."""
+    return ca.sqrt(ca.fmax(ca.dot(x, x), 1e-300))
+
+
+def _tangents(n: ca.SX) -> list:
+    """:func:`landing.tangent_basis` of one spatial normal: t_x (x's projection on the tangent
+    plane, made unit) and t_z = t_x x n."""
+    t_x = ca.DM([1.0, 0.0, 0.0]) - n[0] * n
+    t_x = t_x / ca.norm_2(t_x)
+    return [t_x, ca.cross(t_x, n)]
 
 
 def _gap(terrain, px: ca.SX, py: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -612,8 +834,9 @@ def _symbolic(run: _Landing, laws: tuple[JointLaw, ...]) -> _Symbolic:
     of one topology builds each mode's functions, and CasADi their derivatives, once."""
     laws = laws or (FREE,) * run.tree.n_bodies
     scene = run.scene
-    key = (run.topology, run.space.body_values, scene.terrain, run.mu, scene.gravity, scene.base_x, scene.velocity, scene.angular_velocity_3d,
-           tuple(law.rest is None for law in laws), tuple(law.limits is None for law in laws))
+    key = (run.topology, run.space, scene.terrain, scene.heightfield, run.mu, scene.gravity, scene.base_x, scene.base_z,
+           scene.velocity, scene.angular_velocity_3d, tuple(law.rest is None for law in laws),
+           tuple(law.limits is None for law in laws))
     if key not in _SYMBOLIC:
         if len(_SYMBOLIC) >= 16:
             _SYMBOLIC.pop(next(iter(_SYMBOLIC)))
@@ -671,14 +894,17 @@ def _impact_modes(rows: _Rows, sol, speed: float) -> tuple:
     impulse_tol = LEMKE_TOL * 1e3 * max(float(np.max(np.abs(sol.normal), initial=0.0)), np.finfo(float).tiny)
     pushing = sol.normal > impulse_tol
     tangent = []
-    for k in range(len(rows.owner)):
+    m = len(rows.owner)
+    tangents = (len(sol.velocity) - n) // m if m else 1
+    for k in range(m):
         i = int(rows.owner[k])
+        w = sol.velocity[n + k :: m] if tangents > 1 else sol.velocity[n + k : n + k + 1]
         if not pushing[i]:
             tangent.append(0)
-        elif abs(sol.velocity[n + k]) <= 1e-9 * speed:
+        elif np.linalg.norm(w) <= 1e-9 * speed:
             tangent.append(2)
-        else:
-            tangent.append(int(np.sign(sol.velocity[n + k])))
+        else:  # sliding: the plane's slip sign; in space 1 (the slip's direction is continuous)
+            tangent.append(int(np.sign(w[0])) if tangents == 1 else 1)
     return tuple(int(x) for x in pushing), tuple(tangent)
 
 
@@ -690,16 +916,17 @@ def _crossing(run: _Landing, q, v, mode: _Mode, tau: float, watch: np.ndarray) -
     idx = np.flatnonzero(watch)
     i = int(idx[np.argmin(w[idx])])
     sign = 1.0
-    if run.nc <= i < 4 * run.nc and (i // run.nc) == 2:
+    if run.planar and run.nc <= i < 4 * run.nc and (i // run.nc) == 2:
         _, forces = run.derivative(q1, v1, mode)
         sign = float(np.sign(forces[run.nc + i % run.nc])) or 1.0
     return i, sign
 
 
 def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
-              settings: LandingSettings = LandingSettings()) -> tuple[LandingResult, list, _Landing]:
-    """One numeric landing at the fixed Runge-Kutta ``step`` with its tape."""
-    run = _Landing(tree, scene, laws, settings)
+              settings: LandingSettings = LandingSettings(), space: Space = PLANAR
+              ) -> tuple[LandingResult, list, _Landing]:
+    """One numeric landing at the fixed Runge-Kutta ``step`` (in ``space``) with its tape."""
+    run = _Landing(tree, scene, laws, settings, space)
     run.tape = []
     result = run.run(step)
     tape, run.tape = run.tape, None  # the run may be kept (a cached structure): not its tape
@@ -712,40 +939,61 @@ def landing_gradient(
     laws: tuple[JointLaw, ...] = (),
     settings: LandingSettings = LandingSettings(),
     step: float | None = None,
+    space: Space = PLANAR,
 ) -> LandingGradient:
     """The landing's objectives and their exact derivatives w.r.t. theta (module docstring) along
     the event sequence of the run at ``step`` (None: the step :func:`landing` reports at
-    ``settings``, which costs that landing first).
+    ``settings``, which costs that landing first), in the plane or in ``space``.
 
     Raises:
         ModelError: as :func:`landing`.
-        NumericalError: as :func:`landing`; or redundant rows in some mode (not differentiable).
+        NumericalError: as :func:`landing`; or redundant rows in some mode, or (space) an impact
+            off the circular cone's exact law or a slip direction the replay does not reproduce
+            (not differentiable).
     """
     t0 = time.perf_counter()
-    theta = design_theta(tree, laws)
+    theta = design_theta(tree, laws, space)
     if step is None:
-        step = landing(tree, scene, laws, settings).step
-    result, tape, run = taped_run(tree, scene, laws, step, settings)
+        step = landing(tree, scene, laws, settings, space).step
+    result, tape, run = taped_run(tree, scene, laws, step, settings, space)
     t1 = time.perf_counter()
     sym = _symbolic(run, laws)
-    nc, nv, n_theta = sym.nc, sym.nv, sym.n_theta
+    nc, nv, n_theta, dims = sym.nc, sym.nv, sym.n_theta, sym.dims
 
     # touchdown: the lowest contact (the first where several tie) sets the height
-    from impulse_core.model.terrain import vertical_clearance
-
     geometry = run.point(np.array([run.q0[0], 0.0, *run.q0[2:]]), np.zeros(nv)).contacts
-    lowest = int(np.argmin(vertical_clearance(scene.terrain, geometry)))
+    if run.planar:
+        from impulse_core.model.terrain import vertical_clearance
+
+        clearance = vertical_clearance(scene.terrain, geometry)
+    else:
+        from impulse_core.model.heightfield import vertical_clearance as clearance_above
+
+        clearance = clearance_above(sym.ground, geometry)
+    lowest = int(np.argmin(clearance))
     (q0, e_before, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(theta)
     d_e_before, d_height0, d_mass = J[1][0], J[2][0], J[3][0]  # 1 x n_theta each
     # forward sensitivities: each quantity z carries dz/dtheta (rows: its entries)
-    x = np.concatenate([q0, pre_impact_velocity(run.topology, scene)])
+    x = np.concatenate([q0, pre_impact_velocity(run.topology, scene, run.space)])
     S = np.vstack([J[0][0], np.zeros((nv, n_theta))])
-    totals, S_totals = np.zeros(2 * nc), np.zeros((2 * nc, n_theta))
+    totals, S_totals = np.zeros(dims * nc), np.zeros((dims * nc, n_theta))
+    # space: the slip directions the mode carries, and the last step's core (:meth:`_Landing.steer`)
+    nd = sym.nt * nc
+    d, S_d = np.zeros(nd), np.zeros((nd, n_theta))
+    core, S_core = np.zeros(nc), np.zeros((nc, n_theta))
     t, dt = 0.0, np.zeros(n_theta)
     T = float(scene.duration)
     events = []  # per impact: (fn, d fn, joint impulses, their derivative)
     signature = []
     checked: set = set()
+    previous = None
+
+    def chain(J: list, dh: np.ndarray | None = None) -> np.ndarray:
+        """An output's derivative from its Jacobians w.r.t. (x, theta[, h][, d])."""
+        out = J[0] @ S + J[1]
+        if dh is not None:
+            out = out + np.outer(J[2], dh)
+        return out if run.planar else out + J[-1] @ S_d
 
     for entry in tape:
         kind = entry[0]
@@ -757,7 +1005,9 @@ def landing_gradient(
             if _mode_key(mode) not in checked:
                 _check_rows(run, q, v, mode)
                 checked.add(_mode_key(mode))
-        if kind in ("step", "event_step"):
+            if not run.planar:
+                _check_directions(mode, d, run.mu)
+            extra = [] if run.planar else [d]
             if kind == "step":
                 _, q, v, mode, h, final = entry
                 h, dh = (T - t, -dt) if final else (h, np.zeros(n_theta))
@@ -765,30 +1015,41 @@ def landing_gradient(
                 _, q, v, mode, tau, watch = entry
                 index, sign = item[2]
                 op = sym.event_witness(mode, index, sign, run.method)
-                (c,), _ = op(np.concatenate([q, v]), theta, tau)
-                (w,), Jw = op(x, theta, tau)
+                (c,), _ = op(np.concatenate([q, v]), theta, tau, *extra)
+                (w,), Jw = op(x, theta, tau, *extra)
                 rate = float(Jw[0][2][0, 0])
                 if rate == 0 or not math.isfinite(rate):
                     raise NumericalError("an event's witness does not cross (a graze): no derivative of its time")
                 # the event time: where the witness reaches its value at the located tau (one
                 # Newton correction; its derivative is the implicit function theorem's)
                 h = tau - float(w[0] - c[0]) / rate
-                dh = -(Jw[0][0] @ S + Jw[0][1])[0] / rate
-            (x1, imp), J = sym.step(mode, run.method)(x, theta, h)
-            S_totals = S_totals + J[1][0] @ S + J[1][1] + np.outer(J[1][2], dh)
-            S = J[0][0] @ S + J[0][1] + np.outer(J[0][2], dh)
-            x, totals, t, dt = x1, totals + imp, t + h, dt + dh
+                dh = -chain(Jw[0])[0] / rate
+            outs, J = sym.step(mode, run.method)(x, theta, h, *extra)
+            S_totals = S_totals + chain(J[1], dh)
+            if not run.planar:
+                core, S_core = outs[2], chain(J[2], dh)
+            S = chain(J[0], dh)
+            x, totals, t, dt = outs[0], totals + outs[1], t + h, dt + dh
         elif kind == "impact":
             _, q, v, rows, e, sol = entry
-            (v_plus, fn, ft, joint), J = sym.impact(rows, e, item[4])(x, theta, e)
-            d = [Jo[0] @ S + Jo[1] for Jo in J]
+            star = [] if run.planar else [np.concatenate([sol.normal, sol.tangential])]
+            outs, J = sym.impact(rows, e, item[4])(x, theta, e, *star)
+            v_plus, fn, ft, joint = outs[:4]
+            if star:  # the run's impulse meets the mode's equations at the run's own state (not its polyhedral answer)
+                lam = np.asarray(sym.impact(rows, e, item[4]).f(np.concatenate([q, v]), theta, e, star[0])[4]).ravel()
+                if np.max(np.abs(lam - star[0]), initial=0.0) > 1e-6 * max(np.max(np.abs(star[0])), 1e-300):
+                    raise NumericalError("an impact off the circular cone's exact law (its polyhedral answer): "
+                                         "no derivative")
+            d_out = [Jo[0] @ S + Jo[1] for Jo in J]
             x = np.concatenate([x[:nv], v_plus])
-            S = np.vstack([S[:nv], d[0]])
+            S = np.vstack([S[:nv], d_out[0]])
             totals = totals + np.concatenate([fn, ft])
-            S_totals = S_totals + np.vstack([d[1], d[2]])
-            events.append((fn, d[1], joint, d[3]))
+            S_totals = S_totals + np.vstack([d_out[1], d_out[2]])
+            events.append((fn, d_out[1], joint, d_out[3]))
         elif kind == "project":
             _, q, v, mode = entry
+            if not run.planar and previous != "step":  # an event chose this mode: its slip directions
+                d, S_d = _event_directions(sym, run.point(q, v).slip, mode, x, theta, d, S, S_d)
             place, _ = run.placement(run.point(q, v), q, mode)
             lifted = tuple(int(i) for i in np.flatnonzero(place.closed & ~mode.closed))
             put_back = np.where(mode.stop == 0, place.stop, 0)
@@ -797,6 +1058,11 @@ def landing_gradient(
             S_totals = S_totals + J[1][0] @ S + J[1][1]
             S = J[0][0] @ S + J[0][1]
             x, totals = x1, totals + imp
+            if not run.planar and previous == "step" and np.any(_moving(mode, run.mu)):
+                (d1,), Jf = sym.follow(mode)(x, theta, d, core)
+                S_d = Jf[0][0] @ S + Jf[0][1] + Jf[0][2] @ S_d + Jf[0][3] @ S_core
+                d = d1
+        previous = kind
     (energy, com, angles), J = sym.final()(x, theta)
     d_energy, d_com, d_angles = (Jo[0] @ S + Jo[1] for Jo in J)
     brought = e_before[0] + float(mass[0]) * scene.gravity * (height0[0] - com[0])
@@ -825,7 +1091,8 @@ def landing_gradient(
     _, _, joint, d_joint = events[chosen["peak_max_internal"]]
     magnitudes = result.events[chosen["peak_max_internal"]].internal_magnitude
     j = int(np.argmax(magnitudes)) if magnitudes.size else -1
-    peak_max = norm_and_derivative(joint[2 * j : 2 * j + 2], d_joint[2 * j : 2 * j + 2]) if j >= 0 else (0.0, np.zeros(n_theta))
+    peak_max = (norm_and_derivative(joint[dims * j : dims * (j + 1)], d_joint[dims * j : dims * (j + 1)]) if j >= 0
+                else (0.0, np.zeros(n_theta)))
     peak_events = {"peak_external_norm": (chosen["peak_external_norm"], -1),
                    "peak_internal_norm": (chosen["peak_internal_norm"], -1),
                    "peak_max_internal": (chosen["peak_max_internal"], j)}
@@ -835,14 +1102,54 @@ def landing_gradient(
     values, jacobian = {}, {}
     for k, name in enumerate(SCALARS):
         values[name], jacobian[name] = float(out[k]), jac[k].copy()
-    nb = tree.n_bodies
     values["total_external"], jacobian["total_external"] = out[4 : 4 + nc].copy(), jac[4 : 4 + nc].copy()
-    values["final_angles"], jacobian["final_angles"] = out[4 + nc : 4 + nc + nb].copy(), jac[4 + nc :].copy()
+    values["final_angles"], jacobian["final_angles"] = out[4 + nc :].copy(), jac[4 + nc :].copy()
     return LandingGradient(
-        values=values, jacobian=jacobian, theta=theta, names=design_names(tree), sequence=tuple(signature),
+        values=values, jacobian=jacobian, theta=theta, names=design_names(tree, space), sequence=tuple(signature),
         peak_events=peak_events, ties=ties, result=result,
         timings={"run": t1 - t0, "sensitivities": t2 - t1},
     )
+
+
+def _check_directions(mode: _Mode, d: np.ndarray, mu: float) -> None:
+    """The carried slip directions are the run's (space): else the replay has missed a rule."""
+    moving = _moving(mode, mu)
+    gap = np.abs(mode.slip[moving] - d.reshape(mode.slip.shape)[moving])
+    # a missed rule differs at O(1); an ill-conditioned event time (a slow touchdown) moves the
+    # replayed state, and with it d, by more than rounding
+    if np.max(gap, initial=0.0) > 1e-5:
+        raise NumericalError(f"a sliding contact's direction differs from the run's by {np.max(gap):.1e}: not replayed")
+
+
+def _event_directions(sym: _Symbolic, slip: np.ndarray, mode: _Mode, x: np.ndarray, theta: np.ndarray, d: np.ndarray,
+                      S: np.ndarray, S_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The slip directions (and their derivatives) of a mode that an event chose (space): each
+    sliding contact's is the one it carried (the mode persisted), its slip's s / |s| at the event
+    (``slip``, the run's at x), or the fixed point of a contact starting to slide
+    (:meth:`_Symbolic.new_directions`); the others take the run's (no effect)."""
+    target = mode.slip.reshape(-1)
+    moving = _moving(mode, sym.mu)
+    nt = sym.nt
+    d_in, S_in = d.copy(), S_d.copy()
+    kinds = []
+    for i in range(sym.nc):
+        at = slice(nt * i, nt * (i + 1))
+        speed = float(np.linalg.norm(slip[i]))
+        if moving[i] and np.max(np.abs(d[at] - target[at])) <= 1e-9:
+            kinds.append("keep")
+            continue
+        if moving[i] and speed > 0 and np.max(np.abs(slip[i] / speed - target[at])) <= 1e-9:
+            kinds.append("slip")
+        else:
+            kinds.append("start" if moving[i] else "keep")
+        d_in[at], S_in[at] = target[at], 0.0
+    if not np.any(moving):
+        return d_in, S_in
+    (d_out,), J = sym.new_directions(mode, tuple(kinds))(x, theta, d_in)
+    if np.max(np.abs(d_out - target)) > 1e-6:
+        raise NumericalError("a contact starting to slide in space whose direction is not the circular cone's "
+                             f"(off by {np.max(np.abs(d_out - target)):.1e}): no derivative")
+    return d_out, J[0][0] @ S + J[0][1] + J[0][2] @ S_in
 
 
 def _check_rows(run: _Landing, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:

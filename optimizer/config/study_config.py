@@ -260,11 +260,8 @@ def _check_spatial(config: StudyConfig) -> None:
         return
     if config.search.method is SearchMethod.INNER and config.landings is not None:
         raise ConfigError("landings: the inner search (IPOPT) over a spatial design space scores the nominal "
-                          "landing's first impact only; search.method: outer scores spatial feet over landings")
-    if config.search.method is SearchMethod.INNER and config.whole_landing:
-        raise ConfigError("design_space.space: the inner search (IPOPT) over whole landings takes planar design "
-                          "spaces only (the landing's derivatives are planar); search.method: outer lands spatial "
-                          "feet whole")
+                          "landing only (its first impact, or its whole landing); search.method: outer scores "
+                          "spatial feet over landings")
 
 
 def _check_landings(config: StudyConfig, landings: Landings) -> None:

@@ -418,9 +418,9 @@ def run_inner(
             NLP is the nominal first impact's; the outer search takes them (the study file's
             validation says so first).
     """
-    if config.space.spatial and (config.landings is not None or config.whole_landing):
-        raise ConfigError("design_space.space: the inner search (IPOPT) over a spatial design space scores the "
-                          "first impact of the nominal landing only; search.method: outer takes landings")
+    if config.space.spatial and config.landings is not None:
+        raise ConfigError("landings: the inner search (IPOPT) over a spatial design space scores the nominal "
+                          "landing (its first impact, or its whole landing); search.method: outer takes landings")
     shapes = config.space.shapes()
     sp = config.space
     distributions = {

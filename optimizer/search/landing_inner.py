@@ -3,11 +3,19 @@ gradient (:func:`impulse_core.timedomain.landing_derivatives.landing_gradient`),
 epsilon-constraint sweep for a front, as :mod:`optimizer.search.inner` does for the first impact.
 
 Variables per shape: per distinct rod its joint angle, mass and length, the ankle height (as the
-first-impact NLP: identical toes share theirs), and each joint family's searched law values
-(stiffness, damping, stop travel; a fixed range [x, x] is a constant). Constraints: the same
+first-impact NLP: identical toes share theirs), each joint family's searched law values
+(stiffness, damping, stop travel; a fixed range [x, x] is a constant), and for a spatial design
+space (splayed toes, ``design_space.splay``) the splay: one symmetric ``splay`` or each toe's
+``yaw`` (a fixed range is a constant). A toe's yaw turns its root rod's ``rpy``
+(:func:`optimizer.design_space.yaw_rpy`), whose derivative is exact (:func:`rpy_rates`); the
+landing and its gradient are then spatial (``space=SPATIAL``). Constraints: the same
 geometric rows (:func:`optimizer.search.compiled._geometric_rows`: level tips, mass per length,
-foot length, clearance, foot mass), symbolic with exact derivatives. Objectives (at most two,
-each a landing objective but ``settled_at``, which has no derivative): a CasADi callback that lands
+foot length, clearance, foot mass), symbolic with exact derivatives. Splayed toes reach forward
+by cos(yaw) of their run in their plane: each toe's forward reach has its lower bound as a row
+of its own, while the plane's row keeps the in-plane run below the upper bound (stricter than
+the forward reach's: sound, a little conservative). The support margin (``constraints.
+support_margin``) is not a row: the realised design's evaluation checks it, as every constraint.
+Objectives (at most two, each a landing objective but ``settled_at``, which has no derivative): a CasADi callback that lands
 the design numerically at a fixed Runge-Kutta step, and its Jacobian callback, the exact gradient
 along that landing's own event sequence, chained from the tree's values to the NLP's. IPOPT uses
 a limited-memory Hessian.
@@ -35,6 +43,7 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.errors import NumericalError
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.timedomain.landing import landing
 from impulse_core.timedomain.landing_derivatives import LAW_VALUES, _joint_dofs, body_values, landing_gradient, taped_run
 from optimizer.config.study_config import StudyConfig
@@ -48,6 +57,7 @@ from optimizer.design_space import (
     MassMode,
     Objective,
     Segment,
+    SplayMode,
     ToeSymmetry,
     assign_lengths,
     evaluate_design_landing,
@@ -55,9 +65,11 @@ from optimizer.design_space import (
     foot_tree,
     leg_chain,
     landing_scene,
+    symmetric_yaws,
     with_lengths,
+    yaw_rpy,
 )
-from optimizer.search.compiled import _chain_limits, _geometric_rows, foot_kind
+from optimizer.search.compiled import TIGHTEN, _chain_limits, _geometric_rows, foot_kind
 
 #: IPOPT's options for a landing solve: limited-memory Hessian (only first derivatives exist).
 LANDING_IPOPT = {
@@ -80,6 +92,8 @@ class LandingNlp:
         config, shape: the study and the foot shape.
         identical: identical toes share their rods' values.
         laws: the searched law variables, (family, key) in x's order after the ankle height.
+        yaws: the searched splay variables after them (``splay``, or ``toe<i>.yaw``; none in the
+            plane or where the range is fixed).
         lbx, ubx, lbg, ubg: bounds; constraint row 0 is f2 (its upper bound: a solve's epsilon).
         step: the Runge-Kutta step of the current solve (set by :func:`solve_landing`).
         sequences: the distinct event sequences the gradient was derived along (a count of
@@ -95,6 +109,7 @@ class LandingNlp:
     lbg: np.ndarray
     ubg: np.ndarray
     geometric: ca.Function
+    yaws: tuple[str, ...] = ()
     step: float = 0.0
     sequences: set = field(default_factory=set)
     evaluations: int = 0
@@ -110,7 +125,35 @@ class LandingNlp:
 
     @property
     def n_x(self) -> int:
-        return 3 * self.n_rods + 1 + len(self.laws)
+        return 3 * self.n_rods + 1 + len(self.laws) + len(self.yaws)
+
+    @property
+    def spatial(self) -> bool:
+        return self.config.space.spatial
+
+    @property
+    def space(self):
+        return SPATIAL if self.spatial else PLANAR
+
+    def toe_yaws(self, x: np.ndarray) -> tuple[tuple[float, ...] | None, np.ndarray]:
+        """Each toe's yaw at x (None: the planar foot) and its derivative w.r.t. the splay
+        variables (toes x yaw variables)."""
+        n_toes = self.shape.n_toes
+        if not self.spatial:
+            return None, np.zeros((n_toes, 0))
+        splay = self.config.space.splay
+        lo = splay.splay[0]
+        values = {name: float(x[3 * self.n_rods + 1 + len(self.laws) + k]) for k, name in enumerate(self.yaws)}
+        d = np.zeros((n_toes, len(self.yaws)))
+        if splay.mode is SplayMode.SYMMETRIC:
+            yaws = symmetric_yaws(n_toes, values.get("splay", lo))
+            if self.yaws and n_toes > 1:  # toe i at -s + 2 s i / (n - 1)
+                d[:, 0] = -1.0 + 2.0 * np.arange(n_toes) / (n_toes - 1)
+            return yaws, d
+        yaws = tuple(values.get(f"toe{i + 1}.yaw", lo) for i in range(n_toes))
+        for k, name in enumerate(self.yaws):
+            d[int(name[3:].split(".")[0]) - 1, k] = 1.0
+        return yaws, d
 
     def design(self, x: np.ndarray) -> FootDesign:
         """The foot of an NLP point."""
@@ -127,7 +170,7 @@ class LandingNlp:
                 i += 1
             chains.append(tuple(chain))
         toes = (chains[1],) * self.shape.n_toes if self.identical else tuple(chains[1:])
-        return FootDesign(heel=chains[0], toes=toes)
+        return FootDesign(heel=chains[0], toes=toes, toe_yaws=self.toe_yaws(x)[0])
 
     def family_laws(self, x: np.ndarray) -> dict[str, dict]:
         """Each family's law values at x (searched ones from x, fixed ones their value)."""
@@ -160,10 +203,11 @@ class LandingNlp:
     def chain_rule(self, x: np.ndarray, tree, names: tuple[str, ...], d_theta: np.ndarray) -> np.ndarray:
         """d/dx from d/dtheta (rows: objectives) for the tree of x."""
         n = self.n_rods
-        values = body_values(tree)  # the plane's, with com_y on a leg whose centres of mass are off the rods
+        values = body_values(tree, self.space)  # the plane's (com_y off the rods), or SPATIAL's
         width = len(values)
-        n_p = len(names) - len(LAW_VALUES) * len(_joint_dofs(tree))
-        law_at = {b: n_p + len(LAW_VALUES) * i for i, (b, _) in enumerate(_joint_dofs(tree))}
+        dofs = _joint_dofs(tree, self.space)
+        n_p = len(names) - len(LAW_VALUES) * len(dofs)
+        law_at = {b: n_p + len(LAW_VALUES) * i for i, (b, _) in enumerate(dofs)}
         family = self.family_laws(x)
         out = np.zeros((d_theta.shape[0], self.n_x))
         searched = {key: 3 * n + 1 + k for k, key in enumerate(self.laws)}
@@ -181,7 +225,27 @@ class LandingNlp:
             for key, k in (("stiffness", 0), ("damping", 1)):
                 if (fam, key) in searched:
                     out[:, searched[(fam, key)]] += d_theta[:, base + k]
+        if self.yaws:  # each toe root's rpy turns with its yaw
+            yaws, d_yaws = self.toe_yaws(x)
+            roots = [body for body, rod, fam in self.rod_index() if fam == "toe_root"]
+            rpy = [values.index(k) for k in ("roll", "pitch", "yaw")]
+            first = 3 * n + 1 + len(self.laws)
+            for i, body in enumerate(roots):
+                d_rpy = d_theta[:, [width * body + j for j in rpy]] @ rpy_rates(leg_chain(self.config.leg).foot_angle, yaws[i])
+                out[:, first : first + len(self.yaws)] += np.outer(d_rpy, d_yaws[i])
         return out
+
+
+def rpy_rates(shank_angle: float, yaw: float) -> np.ndarray:
+    """d(roll, pitch, yaw)/d psi of :func:`optimizer.design_space.yaw_rpy` (a toe root turned by
+    psi about the world's vertical): R(psi) = Rz(-phi) Ry(psi) Rz(phi) turns about
+    a = Rz(-phi) e_y = (sin phi, cos phi, 0) at unit rate, and the rpy rates of a world angular
+    velocity w solve w = c' e_z + b' Rz(c) e_y + a' Rz(c) Ry(b) e_x (R = Rz(c) Ry(b) Rx(a))."""
+    _, b, c = yaw_rpy(shank_angle, yaw)
+    axis = np.array([math.sin(shank_angle), math.cos(shank_angle), 0.0])
+    cb, sb, cc, sc = math.cos(b), math.sin(b), math.cos(c), math.sin(c)
+    E = np.array([[cc * cb, -sc, 0.0], [sc * cb, cc, 0.0], [-sb, 0.0, 1.0]])  # columns: the roll, pitch, yaw axes
+    return np.linalg.solve(E, axis)
 
 
 def build_landing_nlp(config: StudyConfig, shape: FootShape) -> LandingNlp:
@@ -203,9 +267,18 @@ def build_landing_nlp(config: StudyConfig, shape: FootShape) -> LandingNlp:
                 laws.append((name, key))
                 lo_law.append(r[0])
                 hi_law.append(r[1])
+    yaws, lo_yaw, hi_yaw = [], [], []
+    splay = config.space.splay
+    if splay is not None and splay.splay[0] != splay.splay[1]:
+        if splay.mode is SplayMode.SYMMETRIC:
+            yaws = ["splay"] if shape.n_toes > 1 else []
+        else:
+            yaws = [f"toe{i + 1}.yaw" for i in range(shape.n_toes)]
+        lo_yaw, hi_yaw = [splay.splay[0]] * len(yaws), [splay.splay[1]] * len(yaws)
     a, m, L = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n), ca.SX.sym("length", n)
     h = ca.SX.sym("ankle_height")
     w = ca.SX.sym("law", len(laws))
+    psi = ca.SX.sym("splay", len(yaws))
     mult = [ca.SX(1)] + [ca.SX(shape.n_toes if kind.distinct_toes == 1 else 1)] * kind.distinct_toes
     g, lbg, ubg = [], [], []
 
@@ -215,18 +288,44 @@ def build_landing_nlp(config: StudyConfig, shape: FootShape) -> LandingNlp:
         ubg.append(hi)
 
     _geometric_rows(config, distinct, a, m, L, h, mult, add)
-    x = ca.vertcat(a, m, L, h, w)
+    if splay is not None:
+        _forward_reach_rows(config, shape, distinct, a, L, yaws, psi, add)
+    x = ca.vertcat(a, m, L, h, w, psi)
     geometric = ca.Function("geometric", [x], [ca.vertcat(*g)])
     a_lo, a_hi = [], []
     for chain, bounds in zip(distinct, _chain_limits(config, kind), strict=True):
         a_lo += [bounds[j][0] for j in range(len(chain))]
         a_hi += [bounds[j][1] for j in range(len(chain))]
-    lbx = np.concatenate([a_lo, [lim.min_link_mass * (1 + 1e-6)] * n, [LENGTH_FLOOR] * n, [0.0], lo_law])
-    ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n, [math.inf], hi_law])
+    lbx = np.concatenate([a_lo, [lim.min_link_mass * (1 + 1e-6)] * n, [LENGTH_FLOOR] * n, [0.0], lo_law, lo_yaw])
+    ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n, [math.inf], hi_law, hi_yaw])
     return LandingNlp(
         config, shape, config.space.toe_symmetry is ToeSymmetry.IDENTICAL, tuple(laws), lbx, ubx,
-        np.array([-math.inf, *lbg]), np.array([math.inf, *ubg]), geometric,
+        np.array([-math.inf, *lbg]), np.array([math.inf, *ubg]), geometric, tuple(yaws),
     )
+
+
+def _forward_reach_rows(config: StudyConfig, shape: FootShape, distinct, a, L, yaws: list, psi, add) -> None:
+    """Splayed toes: each toe's forward reach (its in-plane run times cos(yaw), less the heel's
+    run) at least the foot length's lower bound (module docstring)."""
+    lo_f = config.limits.foot_length[0]
+    splay = config.space.splay
+    runs = []
+    for chain in distinct:
+        acc, run = leg_chain(config.leg).foot_angle, 0
+        for i in chain:
+            acc = acc + a[i]
+            run = run + L[i] * ca.cos(acc)
+        runs.append(run)
+    values = {name: psi[k] for k, name in enumerate(yaws)}
+    n_toes = shape.n_toes
+    if splay.mode is SplayMode.SYMMETRIC:
+        s = values.get("splay", splay.splay[0])
+        toe_yaw = [-s + 2.0 * s * i / (n_toes - 1) for i in range(n_toes)] if n_toes > 1 else [0.0]
+    else:
+        toe_yaw = [values.get(f"toe{i + 1}.yaw", splay.splay[0]) for i in range(n_toes)]
+    for i, yaw in enumerate(toe_yaw):
+        run = runs[1] if len(distinct) == 2 else runs[1 + i]  # identical toes: one distinct chain
+        add(run * ca.cos(yaw) - runs[0], lo_f + TIGHTEN, math.inf)
 
 
 def landing_objectives_of(config: StudyConfig) -> tuple[Objective, ...]:
@@ -260,7 +359,7 @@ class _Landed:
         try:
             tree, laws, scene = self.model(x)
             with np.errstate(all="ignore"):
-                r, _, _ = taped_run(tree, scene, laws, self.nlp.step, STUDY_LANDING)
+                r, _, _ = taped_run(tree, scene, laws, self.nlp.step, STUDY_LANDING, self.nlp.space)
             f = np.array([o.sign * getattr(r, o.value) for o in self.objectives])
         except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
             f = np.full(len(self.objectives), np.nan)
@@ -274,7 +373,7 @@ class _Landed:
         try:
             tree, laws, scene = self.model(x)
             with np.errstate(all="ignore"):
-                gr = landing_gradient(tree, scene, laws, STUDY_LANDING, step=self.nlp.step)
+                gr = landing_gradient(tree, scene, laws, STUDY_LANDING, step=self.nlp.step, space=self.nlp.space)
             self.nlp.sequences.add(hash(gr.sequence))
             d = np.vstack([o.sign * gr.jacobian[o.value] for o in self.objectives])
             g = self.nlp.chain_rule(x, tree, gr.names, d)
@@ -375,14 +474,14 @@ def start_landing(nlp: LandingNlp, rng: np.random.Generator) -> np.ndarray | Non
     used = lim.foot_mass if lim.mass_mode is MassMode.EQUAL else lim.foot_mass * 0.9
     free = used - np.sum(mult) * lim.min_link_mass
     m = lim.min_link_mass + free * shares / np.sum(mult * shares)
-    design = nlp.design(np.concatenate([a, m, np.full(n, 0.1), [0.0], nlp.lbx[3 * n + 1 :]]))
+    w = rng.uniform(nlp.lbx[3 * n + 1 :], nlp.ubx[3 * n + 1 :])  # law values, then splay
+    design = nlp.design(np.concatenate([a, m, np.full(n, 0.1), [0.0], w]))
     angles = tuple(tuple(s.joint_angle for s in c) for c in design.chains)
     masses = tuple(tuple(s.mass for s in c) for c in design.chains)
-    assignment = assign_lengths(cfg.leg, nlp.shape, angles, masses, lim)
+    assignment = assign_lengths(cfg.leg, nlp.shape, angles, masses, lim, toe_yaws=design.toe_yaws)
     if assignment is None:
         return None
     L = np.concatenate([np.array(c) for c in assignment.lengths[: len(nlp.sizes)]])
-    w = rng.uniform(nlp.lbx[3 * n + 1 :], nlp.ubx[3 * n + 1 :])
     return np.concatenate([a, m, L, [assignment.ankle_height], w])
 
 
@@ -394,7 +493,8 @@ def solve_landing(nlp: LandingNlp, weights: tuple[float, float], eps: float, x0:
     tree, laws, scene = landed0.model(x0)
     try:
         with np.errstate(all="ignore"):
-            nlp.step = landing(tree, scene, laws, replace(STUDY_LANDING, tolerance=cfg.search.landing_tolerance)).step
+            nlp.step = landing(tree, scene, laws, replace(STUDY_LANDING, tolerance=cfg.search.landing_tolerance),
+                               nlp.space).step
     except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
         return LandingSolution(x0, False, math.nan, math.nan, "start point does not land")
     s, landed = solver(nlp, options)
@@ -420,6 +520,7 @@ def realise_landing(nlp: LandingNlp, x: np.ndarray) -> DesignEvaluation | None:
             heel=tuple(replace(s, mass=lim.min_link_mass + (s.mass - lim.min_link_mass) * scale) for s in design.heel),
             toes=tuple(tuple(replace(s, mass=lim.min_link_mass + (s.mass - lim.min_link_mass) * scale) for s in t)
                        for t in design.toes),
+            toe_yaws=design.toe_yaws,
         )
     def evaluate(d: FootDesign) -> DesignEvaluation | None:
         ev = evaluate_design_landing(cfg.leg, d, cfg.scene, lim, cfg.space.joint_laws.stop_restitution,
@@ -432,7 +533,7 @@ def realise_landing(nlp: LandingNlp, x: np.ndarray) -> DesignEvaluation | None:
     # off the constraints (an unfinished solve, or rounding): the lengths from the linear program
     angles = tuple(tuple(s.joint_angle for s in c) for c in design.chains)
     masses = tuple(tuple(s.mass for s in c) for c in design.chains)
-    assignment = assign_lengths(cfg.leg, nlp.shape, angles, masses, lim)
+    assignment = assign_lengths(cfg.leg, nlp.shape, angles, masses, lim, toe_yaws=design.toe_yaws)
     return None if assignment is None else evaluate(with_lengths(design, assignment))
 
 
@@ -480,6 +581,7 @@ __all__ = [
     "build_landing_nlp",
     "landing_sweep",
     "realise_landing",
+    "rpy_rates",
     "solve_landing",
     "start_landing",
 ]

@@ -16,7 +16,6 @@ from __future__ import annotations
 import re
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL  # noqa: E402
 from impulse_core.timedomain.landing import LandingSettings, landing  # noqa: E402
 from impulse_core.timedomain.landing_derivatives import (  # noqa: E402
     SCALARS,
@@ -35,15 +35,18 @@ from impulse_core.timedomain.landing_derivatives import (  # noqa: E402
 from optimizer.config.model_file import load_model_file  # noqa: E402
 from tests.impulse_core.test_landing import _random_leg  # noqa: E402
 from tests.impulse_core.test_landing_derivatives import _stop_leg  # noqa: E402
+from tests.impulse_core.test_landing_derivatives_spatial import _splayed_stop_leg  # noqa: E402
 
 
 def cases():
     m = load_model_file(ROOT / "configs/landing_case3.yaml")
-    yield "landing_case3 (0.3 s, friction 0.5, springs, knee stops)", m.tree, m.joints, m.scene
+    yield "landing_case3 (0.3 s, friction 0.5, springs, knee stops)", m.tree, m.joints, m.scene, PLANAR
     tree, laws, scene = _stop_leg()
-    yield "knee stop leg (0.04 s, frictionless)", tree, laws, scene
+    yield "knee stop leg (0.04 s, frictionless)", tree, laws, scene, PLANAR
     tree, laws, scene = _random_leg(0)
-    yield "random leg 0 (0.05 s, friction 1)", tree, laws, scene
+    yield "random leg 0 (0.05 s, friction 1)", tree, laws, scene, PLANAR
+    tree, laws, scene, _ = _splayed_stop_leg()
+    yield "splayed knee stop leg, space (0.02 s, friction 0.8, toe and heel yawed, oblique)", tree, laws, scene, SPATIAL
 
 
 def vector(r) -> np.ndarray:
@@ -55,25 +58,25 @@ def main() -> None:
              "warm / landing() | cold / landing() | central FD (2 n runs) / landing() | rel. error vs FD, 3 directions | "
              "the same, masses and laws only, toes tied |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for name, tree, laws, scene in cases():
+    for name, tree, laws, scene, space in cases():
         settings = LandingSettings()
         t0 = time.perf_counter()
-        result = landing(tree, scene, laws, settings)
+        result = landing(tree, scene, laws, settings, space)
         t_landing = time.perf_counter() - t0
         h = result.step
         t0 = time.perf_counter()
-        taped_run(tree, scene, laws, h)
+        taped_run(tree, scene, laws, h, space=space)
         t_run = time.perf_counter() - t0
         t0 = time.perf_counter()
-        g = landing_gradient(tree, scene, laws, settings, step=h)
+        g = landing_gradient(tree, scene, laws, settings, step=h, space=space)
         t_cold = time.perf_counter() - t0
-        searched = np.array([n.endswith(("length", "mass", "angle", "stiffness", "damping"))
+        searched = np.array([n.endswith(("length", "mass", "angle", "roll", "pitch", "yaw", "stiffness", "damping"))
                              for n in g.names])
         # a second design of the same structure: masses and lengths 0.1 % larger
         theta2 = g.theta * (1 + 1e-3 * np.array([n.endswith(("length", "mass")) for n in g.names]))
-        tree2, laws2 = apply_theta(tree, laws, theta2)
+        tree2, laws2 = apply_theta(tree, laws, theta2, space)
         t0 = time.perf_counter()
-        landing_gradient(tree2, scene, laws2, settings, step=h)
+        landing_gradient(tree2, scene, laws2, settings, step=h, space=space)
         t_warm = time.perf_counter() - t0
         print(name, "landing()", t_landing, "run", t_run, "cold", t_cold, "warm", t_warm, flush=True)
         J = np.vstack([g.jacobian[k] for k in SCALARS] + [g.jacobian["total_external"], g.jacobian["final_angles"]])
@@ -84,8 +87,8 @@ def main() -> None:
             eps = 1e-6
             ends, same = [], True
             for sgn in (1, -1):
-                t, l = apply_theta(tree, laws, g.theta + sgn * eps * u)
-                r, tape, run = taped_run(t, scene, l, h)
+                t, l = apply_theta(tree, laws, g.theta + sgn * eps * u, space)
+                r, tape, run = taped_run(t, scene, l, h, space=space)
                 ends.append(vector(r))
                 same = same and sequence_signature(tape, run) == g.sequence
             fd, exact = (ends[0] - ends[1]) / (2 * eps), J @ u
@@ -102,8 +105,8 @@ def main() -> None:
         u = np.array([draw[k] for k in groups]) * np.maximum(1.0, np.abs(g.theta)) * still
         ends, same = [], True
         for sgn in (1, -1):
-            t, l = apply_theta(tree, laws, g.theta + sgn * 1e-6 * u)
-            r, tape, run = taped_run(t, scene, l, h)
+            t, l = apply_theta(tree, laws, g.theta + sgn * 1e-6 * u, space)
+            r, tape, run = taped_run(t, scene, l, h, space=space)
             ends.append(vector(r))
             same = same and sequence_signature(tape, run) == g.sequence
         fd, exact = (ends[0] - ends[1]) / 2e-6, J @ u
@@ -127,7 +130,8 @@ def main() -> None:
         "event sequence at +- eps differs from the reported one (so the difference quotient straddles a change "
         "of sequence: where the objectives are continuous across it (micro-events at tolerance thresholds) the "
         "quotient still agrees; where they are not, it is no test of the derivative). The directions move lengths, "
-        "masses, angles and joint-law values; the last column masses and law values only, which move no tip, with "
+        "masses, angles (rpy angles in space) and joint-law values; the last column masses and law values only, "
+        "which move no tip, with "
         "every numbered toe's values moved alike. landing_case3's soles all touch at once (`contacts: all`, level "
         "tips), so its touchdown height, the lowest contact's, has a kink in the lengths and angles that a central "
         "difference straddles; and its three toes are identical, so moving one toe's values alone breaks their "

@@ -1,0 +1,185 @@
+"""Exact derivatives of the whole landing in space (impulse_core.timedomain.landing_derivatives
+with ``space=SPATIAL``).
+
+Seeded spatial legs: a sprung two-rod leg whose shank is rolled and yawed out of the plane,
+landing obliquely on one sticking contact (the implicit integrator, ROS2, forced: its replay in
+space), and a splayed foot (toe and heel yawed about the vertical through the ankle) with
+friction and a knee stop (contacts sliding along a 2D direction that turns with the slip, sliding
+impacts on the circular cone's edge, the knee reaching its stop). For each:
+- the replayed graph's values equal the numeric landing's (same step) to 1e-10;
+- the exact derivatives agree with central differences of the numeric landing at the same step
+  along seeded random directions over lengths, masses, angles, rpy angles and joint-law values,
+  the event sequence the same at +- the step;
+- a planar leg read as spatial gives the planar gradient (the entries both have; the plane's base
+  angle is the spatial base angle plus the rotation coordinate about z).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from impulse_core.kinematics.spatial import SPATIAL
+from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.model.rods import rotation_rpy
+from impulse_core.model.tree import Body, Scene, Tree
+from impulse_core.timedomain.landing import IMPLICIT, LandingSettings
+from impulse_core.timedomain.landing_derivatives import (
+    SCALARS,
+    apply_theta,
+    design_names,
+    design_theta,
+    landing_gradient,
+    sequence_signature,
+    taped_run,
+)
+from tests.conftest import report
+from tests.impulse_core.test_compliant_spatial import rpy_of
+from tests.impulse_core.test_landing_derivatives import EPS, G, STEP, _stop_leg
+
+CASES = ("two_rod", "splayed_stop")
+#: The two-rod leg's integrator: ROS2 (its replay in space).
+IMPLICIT_SETTINGS = LandingSettings(integrator=IMPLICIT)
+
+
+def _two_rod_leg() -> tuple[Tree, tuple[JointLaw, ...], Scene, LandingSettings]:
+    """A thigh and a shank rolled 0.2 and yawed 0.15 rad at a sprung, damped knee, landing on the
+    shank's tip with a lateral velocity and a roll rate, plastically, with friction 0.4: the tip
+    sticks, then starts sliding (its direction the cone's fixed point) and slides on."""
+    bodies = (Body("thigh", None, 0.4, 2.0, -1.2),
+              Body("shank", 0, 0.4, 1.0, -0.6, contacts=(1.0,), rpy=(0.2, 0.0, 0.15), radius=0.01))
+    laws = (FREE, JointLaw(stiffness=60.0, damping=0.8, rest=-0.55))
+    scene = Scene(speed=1.5, velocity_x=0.2, velocity_z=0.15, angular_velocity_x=0.3, restitution=0.0, friction=0.4,
+                  gravity=G, duration=0.03)
+    return Tree(bodies), laws, scene, IMPLICIT_SETTINGS
+
+
+def _splayed_stop_leg() -> tuple[Tree, tuple[JointLaw, ...], Scene, LandingSettings]:
+    """The planar stop leg (test_landing_derivatives) with its toe and heel turned about the
+    vertical through the ankle by seeded angles up to 0.5 rad, rods of radius 5 mm, the knee's
+    upper stop 3 mrad from touchdown, friction 0.8 and an oblique approach."""
+    tree, laws, scene = _stop_leg()
+    rng = np.random.default_rng(11)
+    phi = tree.bodies[0].angle + tree.bodies[1].angle
+    bodies = list(tree.bodies[:2])
+    for b in tree.bodies[2:]:
+        turn = rotation_rpy((0.0, rng.uniform(-0.5, 0.5), 0.0))  # about the vertical, in the leg's frame
+        R = rotation_rpy((0.0, 0.0, -phi)) @ turn @ rotation_rpy((0.0, 0.0, phi))
+        bodies.append(replace(b, rpy=rpy_of(R), radius=0.005))
+    knee = tree.bodies[1].angle
+    laws = (laws[0], replace(laws[1], limits=(knee - 0.1, knee + 0.003)), *laws[2:])
+    scene = replace(scene, friction=0.8, velocity_z=0.2, angular_velocity_x=0.3, angular_velocity_y=-0.2, duration=0.02)
+    return Tree(tuple(bodies)), laws, scene, LandingSettings()
+
+
+def _case(name: str) -> tuple[Tree, tuple[JointLaw, ...], Scene, LandingSettings]:
+    return _two_rod_leg() if name == "two_rod" else _splayed_stop_leg()
+
+
+@pytest.fixture(scope="module")
+def gradients() -> dict:
+    out = {}
+    for name in CASES:
+        tree, laws, scene, settings = _case(name)
+        out[name] = landing_gradient(tree, scene, laws, settings, step=STEP, space=SPATIAL)
+    return out
+
+
+def _objectives(name: str, theta: np.ndarray) -> tuple[np.ndarray, tuple]:
+    tree, laws, scene, settings = _case(name)
+    t, l = apply_theta(tree, laws, theta, SPATIAL)
+    r, tape, run = taped_run(t, scene, l, STEP, settings, SPATIAL)
+    values = np.concatenate([[getattr(r, k) for k in SCALARS], r.total_external, r.final_angles])
+    return values, sequence_signature(tape, run)
+
+
+def _jacobian(g) -> np.ndarray:
+    return np.vstack([g.jacobian[k] for k in SCALARS] + [g.jacobian["total_external"], g.jacobian["final_angles"]])
+
+
+def _searched(g) -> np.ndarray:
+    """Entries a direction may move: lengths, masses, angles, rpy angles, radii that are not 0,
+    springs, dampers, and the rest angles and stops that the laws give."""
+    J = _jacobian(g)
+    return np.array([n.endswith(("length", "mass", "angle", "roll", "pitch", "yaw", "stiffness", "damping"))
+                     or (n.endswith("radius") and g.theta[i] > 0)
+                     or (n.endswith(("rest", "limits[0]", "limits[1]")) and bool(np.any(J[:, i])))
+                     for i, n in enumerate(g.names)])
+
+
+def test_the_cases_have_what_they_are_named_for(gradients):
+    two_rod, splayed = gradients["two_rod"], gradients["splayed_stop"]
+    assert two_rod.result.integrator == "implicit" and splayed.result.integrator == "rk4"
+    assert any(e.kind == "stop" for e in splayed.result.events)
+    # sliding between impacts and sliding impacts (the cone's edge against a 2D slip)
+    assert any(item[0] == "step" and any(item[1][1]) for item in splayed.sequence)
+    assert any(1 in item[4][1] for item in splayed.sequence if item[0] == "impact")
+    assert any(2 in item[4][1] for item in two_rod.sequence if item[0] == "impact")  # a sticking impact
+    slides = [item[1][1] for item in two_rod.sequence if item[0] == "step"]
+    assert (0,) in slides and (1,) in slides  # sticking, then sliding
+    for name, g in gradients.items():
+        tree, laws, _, _ = _case(name)
+        assert g.names == design_names(tree, SPATIAL) and np.array_equal(g.theta, design_theta(tree, laws, SPATIAL))
+        assert len(g.values["final_angles"]) == tree.n_bodies + 2  # rotation coordinates, then joints
+        J = _jacobian(g)
+        assert np.all(np.isfinite(J))
+        yaw = [i for i, n in enumerate(g.names) if n.endswith(".yaw") and g.theta[i] != 0]
+        assert yaw and np.max(np.abs(J[:, yaw])) > 1e-3 * np.max(np.abs(J))  # out of the plane matters
+        # the event sequence is reported: the taped run's
+        _, sequence = _objectives(name, g.theta)
+        assert g.sequence == sequence and any(item[0] == "impact" for item in g.sequence)
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_replayed_values_equal_the_landing(gradients, name):
+    g = gradients[name]
+    r = g.result
+    for k in SCALARS:
+        assert g.values[k] == pytest.approx(getattr(r, k), rel=1e-10, abs=1e-12), k
+    assert np.max(np.abs(g.values["total_external"] - r.total_external)) <= 1e-10 * np.max(np.abs(r.total_external))
+    assert np.max(np.abs(g.values["final_angles"] - r.final_angles)) <= 1e-10
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_gradients_agree_with_central_differences(gradients, name):
+    """Two seeded random directions over every searched entry: J u against central differences
+    of the numeric landing at the same step, the event sequence unchanged at both ends."""
+    g = gradients[name]
+    J = _jacobian(g)
+    rng = np.random.default_rng(7)
+    scale = np.maximum(1.0, np.abs(g.theta)) * _searched(g)
+    worst = 0.0
+    for _ in range(2):
+        u = rng.standard_normal(len(g.theta)) * scale
+        plus, seq_plus = _objectives(name, g.theta + EPS * u)
+        minus, seq_minus = _objectives(name, g.theta - EPS * u)
+        assert seq_plus == g.sequence and seq_minus == g.sequence
+        fd, exact = (plus - minus) / (2 * EPS), J @ u
+        error = np.abs(fd - exact) / np.maximum(np.abs(exact), 1e-6)
+        assert np.all(error <= 1e-4), error
+        worst = max(worst, float(np.max(error)))
+    report("landing-gradient-spatial", f"{name}: {len(g.result.events)} events, J u vs central differences {worst:.1e}")
+
+
+def test_a_planar_leg_read_as_spatial_gives_the_planar_gradient():
+    """The planar stop leg (knee stop, springs, a second touchdown) landed as a spatial tree: each
+    entry theta has in the plane has the same derivative in space (1e-8 of the largest), and the
+    plane's base angle is the base's ``angle`` plus the rotation coordinate about z."""
+    tree, laws, scene = _stop_leg()
+    scene = replace(scene, duration=0.015)
+    planar = landing_gradient(tree, scene, laws, step=STEP)
+    spatial = landing_gradient(tree, scene, laws, step=STEP, space=SPATIAL)
+    assert any(e.kind == "stop" for e in planar.result.events)
+    at = [spatial.names.index(n) for n in planar.names]
+    for k in SCALARS:
+        ours, theirs = spatial.jacobian[k][at], planar.jacobian[k]
+        assert np.max(np.abs(ours - theirs)) <= 1e-8 * np.max(np.abs(theirs)), k
+    ours, theirs = spatial.jacobian["total_external"][:, at], planar.jacobian["total_external"]
+    assert np.max(np.abs(ours - theirs)) <= 1e-8 * np.max(np.abs(theirs))
+    angles = spatial.jacobian["final_angles"][:, at]
+    base = angles[2] + (np.arange(len(at)) == planar.names.index("thigh.angle"))
+    theirs = planar.jacobian["final_angles"]
+    assert np.max(np.abs(np.vstack([base, angles[3:]]) - theirs)) <= 1e-8 * np.max(np.abs(theirs))
+    assert np.max(np.abs(angles[:2])) <= 1e-10 * np.max(np.abs(theirs))  # nothing turns out of the plane
