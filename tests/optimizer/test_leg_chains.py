@@ -304,3 +304,33 @@ def test_the_spatial_nlp_on_a_three_rod_leg_is_the_evaluated_design(tmp_path):
     ev = _evaluate(config, nlp, *nlp.unpack(x), nlp.toe_yaws(x))
     expected = [ev.objectives.value(Objective(k)) for k in ("external_norm", "internal_norm")]
     np.testing.assert_allclose(rows, expected, rtol=1e-10)
+
+
+def test_the_spatial_landing_nlp_turns_toes_about_a_three_rod_legs_foot_angle(tmp_path):
+    """The whole-landing inner search in space on solo12's three planar rods: the toe's yaw
+    derivative (chained through its root's rpy about the chain's foot angle) is the central
+    difference of the landed objectives."""
+    import re
+    from dataclasses import replace
+
+    from impulse_core.kinematics.spatial import SPATIAL
+    from impulse_core.timedomain.landing import landing
+    from optimizer.design_space import STUDY_LANDING, FootShape
+    from optimizer.search.landing_inner import _Landed, build_landing_nlp, start_landing
+    from tests.optimizer.test_landing_inner_spatial import SPATIAL_LANDING_YAML
+
+    solo_leg(tmp_path)
+    config = load_study(_study(tmp_path, re.sub(r"leg:.*?\n(?=\S)", "leg: {file: leg.yaml}\n", SPATIAL_LANDING_YAML,
+                                                flags=re.S)))
+    nlp = build_landing_nlp(config, FootShape(1, 1))
+    x0 = start_landing(nlp, np.random.default_rng(0))
+    landed = _Landed(nlp)
+    tree, laws, scene = landed.model(x0)
+    assert len(tree.bodies) == 5 and tree.bodies[4].rpy != (0.0, 0.0, 0.0)
+    nlp.step = landing(tree, scene, laws, replace(STUDY_LANDING, tolerance=1e-2), SPATIAL).step
+    yaw = np.zeros(nlp.n_x)
+    yaw[-1] = 1.0
+    exact = landed.gradient(x0) @ yaw
+    fd = (_Landed(nlp).values(x0 + 1e-6 * yaw) - _Landed(nlp).values(x0 - 1e-6 * yaw)) / 2e-6
+    assert np.abs(exact).max() > 1e-4
+    np.testing.assert_allclose(exact, fd, rtol=1e-5, atol=1e-9)
