@@ -124,7 +124,11 @@ def test_the_cases_have_what_they_are_named_for(gradients):
 
 @pytest.mark.parametrize("name", CASES)
 def test_replayed_values_equal_the_landing(gradients, name):
-    g = gradients[name]
+    assert_replay_is_the_landing(gradients[name])
+
+
+def assert_replay_is_the_landing(g) -> None:
+    """The replay's objectives are the numeric landing's (the same run, replayed)."""
     r = g.result
     for k in SCALARS:
         assert g.values[k] == pytest.approx(getattr(r, k), rel=1e-10, abs=1e-12), k
