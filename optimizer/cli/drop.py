@@ -2,7 +2,10 @@
 :data:`optimizer.cli.main.SUBCOMMANDS`. On flat ground the model dropped is ``footopt export``'s
 MJCF with contact spheres and the ground added (``mujoco_bridge.exported_for_drop``), and with the
 model's stops as stiff limits rebounding with their ``stop_restitution``, tuned for the drop's own
-time step (``export.stop_parameters``; springs and dampers left out: they give no impulse).
+time step (``export.stop_parameters``; springs and dampers left out: they give no impulse). A
+spatial model drops the same way, with friction (elliptic cones beside footopt's circular cone)
+and on a ``scene.heightfield`` (each contact on the heightfield's tangent plane at its touchdown
+point, ``mujoco_bridge.tangent_planes``; footopt's side the sequential rigid model ``auto`` picks).
 
 MuJoCo's contacts are soft: the drop uses its direct contact parameters (``solref = (-k, -b)``,
 a constant impedance; :mod:`optimizer.validation.mujoco_bridge`) with footopt's compliant rung's
@@ -27,7 +30,6 @@ from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.model.joints import JointLaw
 from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact
 from optimizer.cli.status import EXIT_FAILURE, EXIT_OK, EXIT_USAGE, warn
-from optimizer.errors import ConfigError
 from optimizer.cli.status import error as _error
 from optimizer.report.text import contact_names, joint_names
 
@@ -44,9 +46,11 @@ def add_drop(subparsers: argparse._SubParsersAction) -> None:
         help="drop a design in MuJoCo and print its impulses beside footopt's",
         description=(
             "Drop a model file's leg in MuJoCo with the scene's approach (speed or velocity, angular velocity), "
-            "frictionless soft contacts of the given stiffness, and print each contact's normal impulse and each "
-            "joint's impulse: footopt's rigid answer, footopt's compliant rung with the same contact law, and "
-            "MuJoCo's, with the contact settings used. The joints' stops are stiff limits rebounding with their "
+            "soft contacts of the given stiffness (with scene.friction: Coulomb friction on elliptic cones; on a "
+            "spatial scene.heightfield: its tangent plane under each contact), and print each contact's normal "
+            "(and tangential) impulse and each joint's impulse: footopt's answer (the model footopt evaluate "
+            "picks), footopt's compliant rung with the same contact law, and MuJoCo's, with the contact settings "
+            "used. The joints' stops are stiff limits rebounding with their "
             "stop_restitution at the drop's step. Needs the mujoco package (pip install mujoco)."
         ),
     )
@@ -72,8 +76,6 @@ def run_drop(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     try:
         model = load_model_file(args.model)
-        if model.space is SPATIAL:
-            _check_spatial(model)
         if model.scene.duration is not None:
             warn(f"{args.model}: scene.duration is left out: the drop compares the first impact")
         scene = replace(model.scene, duration=None)  # the first impact
@@ -87,16 +89,6 @@ def run_drop(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     print(json.dumps(record) if args.json else format_drop(args.model, record))
     return EXIT_OK
-
-
-def _check_spatial(model) -> None:  # type: ignore[no-untyped-def]
-    """What a spatial drop takes: flat ground, no friction (ConfigError naming the field)."""
-    scene = model.scene
-    if scene.heightfield is not None and not scene.heightfield.is_flat:
-        raise ConfigError("scene.heightfield: a spatial drop lands on flat ground only", model.path)
-    if scene.friction > 0:
-        raise ConfigError(f"scene.friction: a spatial drop is frictionless so far, got {scene.friction!r} "
-                          "(footopt evaluate solves the exact circular cone)", model.path)
 
 
 def stops_only(joints: tuple[JointLaw, ...]) -> tuple[JointLaw, ...]:
@@ -135,14 +127,21 @@ def drop_record(tree, scene, stiffness: float, rigid, space: Space = PLANAR,  # 
                      "steps": steps, "window": steps * soft.timestep, "gravity": scene.gravity,
                      "friction": scene.friction, "cone": "elliptic" if frictional else None,
                      "rigid_model": _model_name(rigid),
+                     "condim": 3 if frictional else 1, "impratio": 1.0,
                      "mjcf": "footopt export's, with contact spheres and ground" if scene.terrain.is_flat
                      else "the bridge's (terrain)", "space": space.name,
                      "stops": {tree.bodies[i].name: [-k, -b] for i, law in enumerate(stops) if law.limits is not None
                                for k, b in [stop_parameters(law.stop_restitution, soft.timestep)]}
                      if scene.terrain.is_flat else {}},
     }
-    if frictional:
-        record["tangential"] = {"footopt": _floats(rigid.tangential), "mujoco": _floats(mj.external_vector[:, 0])}
+    if space is SPATIAL:
+        uneven = scene.heightfield is not None and not scene.heightfield.is_flat
+        record["settings"]["ground"] = ("the heightfield's tangent plane at each contact's touchdown point"
+                                        if uneven else "flat")
+        record["touchdown"] = {"point": _rows(mj.touchdown_point), "normal": _rows(mj.touchdown_normal)}
+    if frictional:  # the ground's impulse on each contact along x (space: [x, z])
+        mj_t = mj.external_vector[:, 0] if space is PLANAR else mj.external_vector[:, [0, 2]]
+        record["tangential"] = {"footopt": _rows(rigid.tangential), "mujoco": _rows(mj_t)}
     return record
 
 
@@ -155,13 +154,23 @@ def _floats(x) -> list[float]:  # type: ignore[no-untyped-def]
     return [float(v) for v in np.asarray(x, dtype=float).ravel()]
 
 
+def _rows(x) -> list:  # type: ignore[no-untyped-def]
+    """Per contact: a number (plane) or a list (space: [x, z] tangents, 3D points; NaN as None)."""
+    a = np.asarray(x, dtype=float)
+    return [None if np.isnan(v) else float(v) for v in a] if a.ndim == 1 else \
+        [[None if np.isnan(v) else float(v) for v in row] for row in a]
+
+
 def format_drop(path: str, r: dict) -> str:
     """The table: one row per contact and per joint, the three answers side by side."""
     s = r["settings"]
-    contact = "frictionless" if not s["friction"] else f"friction {s['friction']:g} on elliptic cones"
+    contact = ("frictionless (condim 1)" if not s["friction"]
+               else f"friction {s['friction']:g} on elliptic cones (condim 3, impratio {s['impratio']:g})")
     lines = [f"{path} dropped in MuJoCo: solref ({s['solref'][0]:g}, {s['solref'][1]:.4g}), solimp d {s['solimp_d']:g}, "
              f"timestep {s['timestep']:.3g} s x {s['steps']} steps ({1e3 * s['window']:.3g} ms), {contact}",
              f"{'':<24}{'footopt (' + str(s['rigid_model']) + ')':>22}{'compliant':>14}{'MuJoCo':>14}"]
+    if s.get("ground", "flat") != "flat":
+        lines.insert(1, f"ground: {s['ground']} (footopt: {s['rigid_model']} on the heightfield)")
     if s.get("stops"):
         stops = ", ".join(f"{name} ({k:.4g}, {b:.4g})" for name, (k, b) in s["stops"].items())
         lines.insert(1, f"stops as limits, solreflimit {stops} (rebounding with each stop's restitution)")
@@ -176,8 +185,11 @@ def format_drop(path: str, r: dict) -> str:
     return "\n".join(lines)
 
 
-def _cell(values: list[float] | None, k: int) -> str:
-    return "-" if values is None else f"{values[k]:.6g}"
+def _cell(values: list | None, k: int) -> str:
+    if values is None:
+        return "-"
+    v = values[k]
+    return "[" + ", ".join(f"{c:.4g}" for c in v) + "]" if isinstance(v, list) else f"{v:.6g}"
 
 
 __all__ = ["DEFAULT_STIFFNESS", "add_drop", "drop_record", "format_drop", "run_drop", "stops_only"]

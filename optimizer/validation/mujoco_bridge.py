@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.model import heightfield as hfield
+from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import JointLaw
 from impulse_core.model.rods import centre_of_mass, children, contact_point, inertia_tensor, joint_origin
 from impulse_core.model.terrain import Terrain
@@ -231,6 +233,9 @@ class MujocoDrop:
         loaded_at_end: a contact carries force in the final state (the impact was not over).
         timestep, n_steps: MuJoCo's integration.
         mjcf: the model text.
+        touchdown_point: where each contact first touched (n_c x 3, world; the contact sphere's
+            centre projected onto the ground along the contact normal; NaN: never touched).
+        touchdown_normal: the ground's upward unit normal there (n_c x 3, world).
     """
 
     external: np.ndarray
@@ -243,6 +248,8 @@ class MujocoDrop:
     timestep: float
     n_steps: int
     mjcf: str
+    touchdown_point: np.ndarray | None = None
+    touchdown_normal: np.ndarray | None = None
 
 
 def drop(
@@ -298,7 +305,7 @@ def drop(
     geom_contact = {m.geom(f"contact{j}").id: j for j in range(len(tree.contacts))}
     body_ids = [m.body(b.name).id for b in tree.bodies]
 
-    impulse, impulse_vec, joint_impulse, touchdown, loaded = _integrate_drop(
+    impulse, impulse_vec, joint_impulse, touchdown, loaded, _, _ = _integrate_drop(
         m, d, geom_contact, body_ids, n_steps, timestep, dims=2)
     joint = joint_impulse[1:]
     internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
@@ -320,12 +327,14 @@ def _integrate_drop(m, d, geom_contact: dict[int, int], body_ids: list[int], n_s
                     dims: int):  # type: ignore[no-untyped-def]
     """``n_steps`` of MuJoCo from ``d``, integrating each contact's normal impulse, its force
     vector (world axes, the first ``dims``), the joint reactions (``cfrc_int``, the force the parent
-    exerts on each body) while a contact pushes, and each contact's first touch; then whether a
-    contact still pushes at the end."""
+    exerts on each body) while a contact pushes, and each contact's first touch (time, the point
+    under the sphere's centre on the ground, the ground's upward normal); then whether a contact
+    still pushes at the end."""
     import mujoco
 
     nc = len(geom_contact)
     impulse, impulse_vec = np.zeros(nc), np.zeros((nc, dims))
+    point, normal = np.full((nc, 3), np.nan), np.full((nc, 3), np.nan)
     joint_impulse = np.zeros((len(body_ids), dims))
     touchdown = np.full(nc, np.nan)
     f6 = np.zeros(6)
@@ -343,6 +352,8 @@ def _integrate_drop(m, d, geom_contact: dict[int, int], body_ids: list[int], n_s
                 continue
             if math.isnan(touchdown[j]):
                 touchdown[j] = step * timestep
+                normal[j] = sign * np.array(con.frame[:3])  # geom1 -> geom2: up when the sphere is geom2
+                point[j] = d.geom_xpos[con.geom1 if sign < 0 else con.geom2] - con.dist * normal[j]
             mujoco.mj_contactForce(m, d, i, f6)  # contact frame: normal, then the two tangents
             impulse[j] += timestep * f6[0]
             F[j] += sign * (f6[:3] @ np.array(con.frame).reshape(3, 3))[:dims]
@@ -355,7 +366,45 @@ def _integrate_drop(m, d, geom_contact: dict[int, int], body_ids: list[int], n_s
     for i in range(d.ncon):
         mujoco.mj_contactForce(m, d, i, f6)
         loaded = loaded or f6[0] > 0.0
-    return impulse, impulse_vec, joint_impulse, touchdown, loaded
+    return impulse, impulse_vec, joint_impulse, touchdown, loaded, point, normal
+
+
+def tangent_planes(mjcf: str, ground: Heightfield, points: np.ndarray, radius: float = CONTACT_RADIUS) -> str:
+    """A droppable MJCF (:func:`exported_for_drop`) whose flat ground is replaced by one plane
+    per contact: the heightfield's tangent plane at the ground point below the contact's
+    touchdown position ``points`` (n_c x 3, world, m; normal as ``heightfield.normal``), lowered
+    by ``radius`` along its normal, that contact's sphere colliding with its own plane only (an
+    explicit ``<contact><pair>`` with the sphere's solref, solimp, condim and friction).
+
+    Why planes and not a MuJoCo ``hfield``: MuJoCo splits each grid cell into two triangles, which
+    differ from footopt's bilinear patch inside a twisted cell by up to |twist| / 4 (3.75 mm on
+    configs/spatial_heightfield.yaml's rising cell), and collides spheres with the triangles'
+    prisms. A first impact needs only the ground's height and normal at each touching contact,
+    which the tangent plane carries exactly; a contact slides ~|v_t| x the impact window (about
+    1 mm) over it, where the plane departs from the patch at second order (curvature x 1e-6 m^2).
+    """
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(mjcf)
+    world = root.find("worldbody")
+    flat = world.find("geom[@name='ground']")
+    world.remove(flat)
+    P = np.atleast_2d(np.asarray(points, dtype=float))
+    x, z = P[:, 0], P[:, 2]
+    on_ground = np.column_stack([x, hfield.height(ground, x, z), z])
+    n = hfield.normal(ground, x, z)
+    pairs = ET.SubElement(root, "contact")
+    for j in range(len(P)):
+        sphere = root.find(f".//geom[@name='contact{j}']")
+        sphere.set("contype", "0")  # only its pair collides
+        ET.SubElement(world, "geom", name=f"ground{j}", type="plane", size="0 0 1",
+                      pos=_v(on_ground[j] - radius * n[j]), zaxis=_v(n[j]), contype="0", conaffinity="0")
+        mu = float((sphere.get("friction") or "0").split()[0]) if sphere.get("condim") == "3" else 0.0
+        attrs = {k: sphere.get(k) for k in ("condim", "solref", "solimp")}
+        if mu > 0:
+            attrs["friction"] = f"{_f(mu)} {_f(mu)} 0 0 0"
+        ET.SubElement(pairs, "pair", geom1=f"contact{j}", geom2=f"ground{j}", **attrs)
+    return ET.tostring(root, encoding="unicode")
 
 
 def drop_spatial(
@@ -367,35 +416,43 @@ def drop_spatial(
     effective_mass: np.ndarray | None = None,
     joints: tuple[JointLaw, ...] = (),
 ) -> MujocoDrop:
-    """A spatial model (``model.space: spatial``) dropped in MuJoCo on flat ground, as :func:`drop`
-    drops a planar one: ``footopt export``'s MJCF (a freejoint base at the touchdown pose, hinges
-    about each rod's own axis) with the bridge's ground and contact spheres
-    (:func:`exported_for_drop`), the scene's approach (``qvel``: the base origin's world velocity,
-    the angular velocity in the base frame), ``n_steps`` semi-implicit Euler steps of
-    ``timestep``. Impulse vectors and joint impulses are 3D (world frame); ``v_plus`` is in our
-    order (base origin velocity, world angular velocity, joint rates). ``effective_mass``: the
-    penalty law's (:func:`contact_parameters`; required for it: the planar default does not apply).
-    ``joints``: joint laws the exported file carries (its stops tuned for ``timestep``).
+    """A spatial model (``model.space: spatial``) dropped in MuJoCo, as :func:`drop` drops a planar
+    one: ``footopt export``'s MJCF (a freejoint base, hinges about each rod's own axis) with the
+    bridge's contact spheres and ground (:func:`exported_for_drop`; with ``scene.friction`` > 0
+    Coulomb friction on elliptic cones, condim 3), the base origin at the scene's touchdown
+    position (``base_x``, ``base_z``, lowered onto the ground), the scene's approach (``qvel``: the
+    base origin's world velocity, the angular velocity in the base frame), ``n_steps``
+    semi-implicit Euler steps of ``timestep``. On a ``scene.heightfield`` that is not flat each
+    contact lands on the heightfield's tangent plane below its touchdown position
+    (:func:`tangent_planes`, which says why). Impulse vectors and joint impulses are 3D (world
+    frame); ``v_plus`` is in our order (base origin velocity, world angular velocity, joint
+    rates). ``effective_mass``: the penalty law's (:func:`contact_parameters`; required for it:
+    the planar default does not apply). ``joints``: joint laws the exported file carries (its
+    stops tuned for ``timestep``).
     """
     import mujoco  # lazy: a test and study dependency only
 
-    from impulse_core.evaluate import pre_impact_velocity
+    from impulse_core.evaluate import pre_impact_velocity, touchdown_geometry
     from impulse_core.kinematics.spatial import SPATIAL
     from impulse_core.model.rods import body_rotation
-    from impulse_core.model.terrain import FLAT
+    from impulse_core.model.terrain import FLAT, flat
+    from impulse_core.timedomain.compliant import landing_ground
     from optimizer.results.export import to_mjcf
 
-    if not (scene.terrain.is_flat and (scene.heightfield is None or scene.heightfield.is_flat)):
-        raise ValueError("drop_spatial: flat ground only")
     if settings.law is ContactLaw.PENALTY and effective_mass is None:
         raise ValueError("drop_spatial: the penalty law needs each contact's effective mass")
+    ground, base_x, base_z = landing_ground(scene, None, None, SPATIAL)  # a heightfield in space
+    q0 = touchdown_configuration(tree, ground, base_x, space=SPATIAL, base_z=base_z)  # clearance as the rung
     stiffness, damping = contact_parameters(tree, scene, settings, FLAT, 0.0, effective_mass)
     exported = to_mjcf(tree, scene, joints=joints, space=SPATIAL, stop_timestep=timestep)
-    text = exported_for_drop(exported, tree, FLAT, timestep, stiffness, damping, settings)
+    text = exported_for_drop(exported, tree, flat(ground.level), timestep, stiffness, damping, settings,
+                             scene.friction)  # the flat ground, replaced by tangent planes below if uneven
+    if not ground.is_flat:
+        text = tangent_planes(text, ground, touchdown_geometry(tree, SPATIAL).contacts + q0[:3])
     m = mujoco.MjModel.from_xml_string(text)
     d = mujoco.MjData(m)
     free = m.joint(tree.bodies[0].name)
-    d.qpos[free.qposadr[0] + 1] += TOUCHDOWN_CLEARANCE  # as the compliant rung
+    d.qpos[free.qposadr[0] : free.qposadr[0] + 3] = q0[:3]  # the touchdown orientation stays qpos0's
     layout = dof_layout(tree.topology(), SPATIAL)
     v0 = pre_impact_velocity(tree.topology(), scene, SPATIAL)
     R = body_rotation(tree.bodies[0])  # the base frame at touchdown, in the world
@@ -406,7 +463,7 @@ def drop_spatial(
     d.qvel[joints] = v0[6:]
     geom_contact = {m.geom(f"contact{j}").id: j for j in range(len(tree.contacts))}
     body_ids = [m.body(b.name).id for b in tree.bodies]
-    impulse, impulse_vec, joint_impulse, touchdown, loaded = _integrate_drop(
+    impulse, impulse_vec, joint_impulse, touchdown, loaded, point, normal = _integrate_drop(
         m, d, geom_contact, body_ids, n_steps, timestep, dims=3)
     body_rot = np.array(d.xmat[m.body(tree.bodies[0].name).id]).reshape(3, 3)
     v_plus = np.concatenate([d.qvel[base : base + 3], body_rot @ d.qvel[base + 3 : base + 6], d.qvel[joints]])
@@ -422,7 +479,9 @@ def drop_spatial(
         timestep=timestep,
         n_steps=n_steps,
         mjcf=text,
+        touchdown_point=point,
+        touchdown_normal=normal,
     )
 
 
-__all__ = ["CONTACT_RADIUS", "MujocoDrop", "build_mjcf", "contact_parameters", "drop", "drop_spatial"]
+__all__ = ["CONTACT_RADIUS", "MujocoDrop", "build_mjcf", "contact_parameters", "drop", "drop_spatial", "tangent_planes"]
