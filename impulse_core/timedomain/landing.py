@@ -645,6 +645,10 @@ def _accelerations(pt: _Point, rows: _Rows) -> tuple[np.ndarray, np.ndarray]:
     return a0 + minv_ft @ lam, lam
 
 
+#: A closed contact the contact LCP leaves unloaded rests on while the mode's force on it is above
+#: -HOLD_FORCE force tolerances (:meth:`_Landing.held`; a force witness is located below -0.1).
+HOLD_FORCE = 0.05
+
 #: Contacts closer than this (m) are at one point (:meth:`_Landing.unify`).
 COINCIDENT = 1e-9
 #: Rows whose matrix G M^-1 F^T has a singular value below this times its largest are redundant.
@@ -1308,6 +1312,7 @@ class _Landing:
                 slip = self.no_slip()  # let the sliding contacts stick or slide afresh
         acc_tol = 1e-9 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
         rest = sol.normal > self.force_tol  # an unloaded row opens (if it sinks, it touches again)
+        rest |= self.held(pt, mode, rows, sol, acc_tol)
         new = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
         c = rows.contact >= 0
         new.closed[rows.contact[c & rest]] = True
@@ -1322,6 +1327,27 @@ class _Landing:
         if checked is not new:  # the checks changed the mode (they return it unchanged otherwise)
             checked.redundant = self.redundant(pt, checked)
         return checked
+
+    def held(self, pt: _Point, mode: _Mode, rows: _Rows, sol: UnilateralSolution, acc_tol: float) -> np.ndarray:
+        """Per normal row of ``rows``: a closed contact that the acceleration-level LCP ``sol``
+        leaves unloaded (force within the force tolerance) and not accelerating away (within
+        ``acc_tol``), while the mode's own force on it does not pull (above -:data:`HOLD_FORCE`
+        force tolerances). Both answers then meet the law, and the contact rests on, as a
+        plastic touchdown leaves it: opened, it would touch down again at the closed rows' drift
+        (one gap tolerance), microseconds later, with an impulse of rounding (a rod's tip resting
+        on the point where the next rod's root rests, the LCP loading either one: f25's 685
+        touchdowns in 0.05 s). When its force pulls, its witness opens it (located below -0.1
+        tolerances, below the hold), so an unloading contact is never held at its own event."""
+        c = rows.contact >= 0
+        candidates = c & (sol.normal[: rows.n] <= self.force_tol) & (sol.velocity[: rows.n] <= acc_tol)
+        candidates &= mode.closed[np.maximum(rows.contact, 0)]
+        if not np.any(candidates):
+            return np.zeros(rows.n, bool)
+        probe = mode.copy()
+        probe.redundant = self.redundant(pt, probe)
+        mode_rows, (_, lam) = self.mode_solution(pt, probe)
+        fn = _contact_forces(mode_rows, lam, self.mu, self.nc)[0]
+        return candidates & (fn[np.maximum(rows.contact, 0)] >= -HOLD_FORCE * self.force_tol)
 
     def persists(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> bool:
         """Whether ``mode`` (after an impact: the rows it left resting, the contacts' slip as

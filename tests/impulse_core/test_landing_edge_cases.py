@@ -5,6 +5,8 @@ is not unique), and a stiff joint that passes its stop and turns back within one
 from __future__ import annotations
 
 import math
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -111,3 +113,31 @@ def test_a_run_that_overruns_its_step_budget_is_retried_at_half_the_step(monkeyp
     monkeypatch.setattr(landing_module, "STEP_BUDGET", 1.0)
     r = landing(tree, scene, laws, LandingSettings(), PLANAR)
     assert r.step <= first / 4 and r.n_steps <= r.duration / r.step
+
+
+TIP_ON_NEXT_ROOT = Path(__file__).resolve().parent / "data" / "tip_on_next_root.yaml"
+
+
+def test_a_contact_at_its_twins_point_rests_and_does_not_touch_down_again(monkeypatch):
+    """A random spatial leg (data/tip_on_next_root.yaml, the sweep's f25) whose rod's tip contact
+    sits on the next rod's root contact: once both rest there, the contact LCP loads either one
+    and leaves the other unloaded, not pulling away. Opened, the unloaded one touched down again
+    at the loaded one's drift (one gap tolerance) microseconds later with an impulse of rounding:
+    685 touchdowns in 0.05 s, 15 in 8 ms here. It rests on (a plastic touchdown rests from then
+    on): the landing has the real touchdowns only and obeys the laws (first event the friction
+    rung's, impulses >= 0 inside the cone, the momentum balance)."""
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(TIP_ON_NEXT_ROOT)
+    scene = replace(model.scene, duration=0.008)
+    step = 2.5e-4  # the run's first step at the file's 0.05 s, where the chatter was found
+    r = _Landing(model.tree, scene, model.joints, LandingSettings(max_events=300), model.space).run(step)
+    assert len(r.events) <= 8
+    assert all(e.kind == "touchdown" and e.external.sum() > 1e-9 for e in r.events)
+    first = evaluate(model.tree, scene, ImpactModel.FRICTION, model.space)  # the twins' split is not unique
+    assert r.events[0].external.sum() == pytest.approx(first.external.sum(), rel=1e-9)
+    assert np.sum(r.events[0].tangential, axis=0) == pytest.approx(np.sum(first.tangential, axis=0), rel=1e-9, abs=1e-12)
+    for e in r.events:
+        assert np.all(e.external >= -1e-12 * e.external.max())  # the cone solver's rounding: -1e-32
+        assert np.all(np.linalg.norm(e.tangential, axis=1) <= scene.friction * e.external + 1e-12)
+    assert r.momentum_balance <= 1e-5
