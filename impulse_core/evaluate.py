@@ -47,6 +47,8 @@ from impulse_core.impact.laws import (
     least_norm_split,
     redundant,
     row_space_split,
+    share_among_twins,
+    twin_groups,
 )
 from impulse_core.impact.mode_derivatives import mode_impulse_function, slip_signs
 from impulse_core.impact.nnls import least_distance
@@ -389,8 +391,9 @@ def _spatial_friction(c: _Impact) -> _Solution:
     law = cone_impact(A, J @ c.v_minus, c.scene.restitution, c.scene.friction)
     split_unique = not redundant(J, A)
     tangential = law.tangential if c.scene.friction > 0 else np.zeros((n, 2))
+    normal, tangential = _shared(J, n, split_unique, law.normal, tangential)
     out = compiled_friction(c.topology, c.space)(
-        p=c.p, v_minus=c.v_minus, external=law.normal, tangential=tangential.T.ravel()
+        p=c.p, v_minus=c.v_minus, external=normal, tangential=tangential.T.ravel()
     )
     modes = [ContactMode.SEPARATING] * len(c.tree.contacts)
     for k, i in enumerate(c.topology.active):
@@ -400,7 +403,7 @@ def _spatial_friction(c: _Impact) -> _Solution:
         f"may fall short of the cone's by up to {100 * (1 - np.cos(np.pi / POLYGON)):.1f}% and its slip direction "
         f"by up to {np.degrees(np.pi / POLYGON):.1f} degrees",
     )
-    return _Solution(ImpactModel.FRICTION, law.normal, tangential, split_unique, out, tuple(modes), notes)
+    return _Solution(ImpactModel.FRICTION, normal, tangential, split_unique, out, tuple(modes), notes)
 
 
 def _friction(c: _Impact) -> _Solution:
@@ -411,13 +414,25 @@ def _friction(c: _Impact) -> _Solution:
     J, A, _, _ = _metric(c, tangent=True)
     law = coulomb_impact(A, J @ c.v_minus, c.scene.restitution, c.scene.friction)
     split_unique = not redundant(J, A) if c.scene.friction > 0 else not redundant(J[:n], A[:n, :n])
+    normal, tangential = _shared(J, n, split_unique, law.normal, law.tangential)
     out = compiled_friction(c.topology, c.space)(
-        p=c.p, v_minus=c.v_minus, external=law.normal, tangential=law.tangential
+        p=c.p, v_minus=c.v_minus, external=normal, tangential=tangential
     )
     modes = [ContactMode.SEPARATING] * len(c.tree.contacts)
     for k, i in enumerate(c.topology.active):
         modes[i] = law.modes[k]
-    return _Solution(ImpactModel.FRICTION, law.normal, law.tangential, split_unique, out, tuple(modes))
+    return _Solution(ImpactModel.FRICTION, normal, tangential, split_unique, out, tuple(modes))
+
+
+def _shared(J: np.ndarray, n: int, split_unique: bool, normal: np.ndarray, tangential: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Where the split is not unique, twin contacts' impulses (identical normal and tangent rows
+    of J: n normal rows, then each tangent's n rows) shared equally, as the landing shares them
+    (:func:`impulse_core.impact.laws.share_among_twins`)."""
+    if split_unique:
+        return normal, tangential
+    rows = J.reshape(-1, n, J.shape[1]).transpose(1, 0, 2).reshape(n, -1)
+    return share_among_twins(twin_groups(rows), normal, tangential)
 
 
 def _friction_relaxed(c: _Impact) -> _Solution:

@@ -167,6 +167,34 @@ def redundant(J: np.ndarray, A: np.ndarray | None = None) -> bool:
     return _left_null_space(J).shape[1] > 0
 
 
+def twin_groups(rows: np.ndarray, tol: float = 1e-12) -> list[np.ndarray]:
+    """Groups (two or more, by index) of contacts whose rows are identical (``rows``: one row per
+    contact, its normal and tangent Jacobian rows end to end; within ``tol`` of the largest
+    entry): contacts at one point of one motion, as identical toes' tips or a rod's tip on the
+    next rod's root. Their impulses act alike, so only their sum is defined."""
+    scale = tol * max(float(np.max(np.abs(rows), initial=0.0)), 1e-300)
+    groups, seen = [], np.zeros(len(rows), bool)
+    for i in range(len(rows)):
+        if seen[i]:
+            continue
+        same = np.flatnonzero(np.max(np.abs(rows - rows[i]), axis=1) <= scale)
+        seen[same] = True
+        if len(same) > 1:
+            groups.append(same)
+    return groups
+
+
+def share_among_twins(groups: list[np.ndarray], *impulses: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Each array of per-contact impulses (first axis: contacts) with every twin group's entries
+    replaced by their mean: the smallest-norm split of the same effect (the twins' rows are one
+    row), inside each contact's cone when the members were (the cones are one convex cone)."""
+    out = tuple(np.array(x, dtype=float, copy=True) for x in impulses)
+    for g in groups:
+        for x in out:
+            x[g] = np.mean(x[g], axis=0)
+    return out
+
+
 def least_norm_split(J: np.ndarray, lam: np.ndarray, P: np.ndarray | None = None) -> np.ndarray:
     """The smallest-norm impulse with the same effect as ``lam`` (J^T lambda = J^T lam, hence the
     same post-impact velocity) that stays admissible (P lambda >= 0; default lambda >= 0).
@@ -254,4 +282,6 @@ __all__ = [
     "least_norm_split",
     "redundant",
     "row_space_split",
+    "share_among_twins",
+    "twin_groups",
 ]

@@ -58,7 +58,7 @@ from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import cone_unilateral
 from impulse_core.impact.coulomb import UnilateralSolution, solve_unilateral
-from impulse_core.impact.laws import least_norm_split, redundant
+from impulse_core.impact.laws import least_norm_split, redundant, share_among_twins, twin_groups
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
@@ -1222,7 +1222,8 @@ class _Landing:
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
         sol, _, exact = _solve_rows(rows.G @ minv_gt, u, rows, e)
         self.inexact += not exact
-        if redundant(rows.G):
+        split_unique = not redundant(rows.G)
+        if not split_unique:
             self.non_unique += 1
             if self.mu == 0:  # the lcp rung's split (G has no tangent rows without friction)
                 sol = replace(sol, normal=least_norm_split(rows.G, sol.normal))
@@ -1231,6 +1232,10 @@ class _Landing:
         lam = np.concatenate([sol.normal, sol.tangential])
         v_plus = v + minv_gt @ lam
         fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
+        if not split_unique and self.mu > 0:  # twins share alike, as in the friction rung
+            c = rows.contact[rows.contact >= 0]
+            groups = twin_groups(np.hstack([pt.Jn[c], pt.Jt[c].reshape(len(c), -1)]))
+            fn[c], ft[c] = share_among_twins(groups, fn[c], ft[c])
         F = pt.normal.T * fn + sum(pt.tangent[:, a].T * ft[:, a] for a in range(self.dims - 1))
         joint = self.point(q, v_plus).momentum - pt.momentum - F @ self.in_subtree.T
         internal, magnitude = joint_impulses(joint)

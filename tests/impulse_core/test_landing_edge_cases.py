@@ -141,3 +141,23 @@ def test_a_contact_at_its_twins_point_rests_and_does_not_touch_down_again(monkey
         assert np.all(e.external >= -1e-12 * e.external.max())  # the cone solver's rounding: -1e-32
         assert np.all(np.linalg.norm(e.tangential, axis=1) <= scene.friction * e.external + 1e-12)
     assert r.momentum_balance <= 1e-5
+
+
+def test_twin_contacts_share_the_impact_alike_in_the_landing_and_the_friction_rung():
+    """The same leg's touchdown: b3's tip and b4's root are one point of one motion (twins), so
+    only their sum is defined; both the landing's first event and the friction rung give each
+    twin half (the smallest-norm split, inside the cone), so the two agree contact by contact and
+    joint by joint (1e-9), not only in sum (their solvers reached different splits)."""
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(TIP_ON_NEXT_ROOT)
+    scene = replace(model.scene, duration=0.001)
+    e = _Landing(model.tree, scene, model.joints, LandingSettings(), model.space).run(2.5e-4).events[0]
+    first = evaluate(model.tree, scene, ImpactModel.FRICTION, model.space)
+    assert not first.split_unique
+    scale = np.max(first.external)
+    assert np.max(np.abs(e.external - first.external)) <= 1e-9 * scale
+    assert np.max(np.abs(e.tangential - first.tangential)) <= 1e-9 * scale
+    assert np.max(np.abs(e.internal_magnitude - first.internal_magnitude)) <= 1e-9 * np.max(first.internal_magnitude)
+    assert first.external[3] == pytest.approx(first.external[4], rel=1e-12) and first.external[3] > 0.1 * scale
+    assert np.linalg.norm(first.tangential[3]) <= scene.friction * first.external[3] * (1 + 1e-9)
