@@ -56,7 +56,7 @@ from impulse_core.errors import NumericalError
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space, values_space
 from impulse_core.model.support import support_margin as hull_margin
 from impulse_core.model.joints import FREE, JointLaw
-from impulse_core.model.rods import body_rotation, rotation_z, rpy_of
+from impulse_core.model.rods import body_rotation, rotation_rpy, rotation_z, rpy_of
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from optimizer.config.model_file import ModelFile
 from impulse_core.model.tree import (
@@ -125,11 +125,6 @@ class Leg:
     shank_gyration: float = UNIFORM_GYRATION
     thigh_offset: float = 0.0
     shank_offset: float = 0.0
-
-    @property
-    def shank_angle(self) -> float:
-        """Absolute angle of the shank (rad)."""
-        return self.thigh_angle + self.knee_angle
 
     @property
     def chain(self) -> LegChain:
@@ -205,7 +200,7 @@ class LegChain:
         about the vertical (module docstring); the plane's foot at yaw 0 needs none."""
         if not self.spatial:
             return (0.0, 0.0, 0.0) if yaw == 0.0 else yaw_rpy(self.foot_angle, yaw)
-        return rpy_of(self.rotations()[-1].T @ rotation_y(yaw) @ rotation_z(self.foot_angle))
+        return rpy_of(self.rotations()[-1].T @ rotation_rpy((0.0, yaw, 0.0)) @ rotation_z(self.foot_angle))
 
 
 def leg_chain(leg: Leg | LegChain) -> LegChain:
@@ -386,12 +381,6 @@ def yaw_rpy(shank_angle: float, yaw: float | ca.SX) -> tuple:
     r00, r10, r20 = c * cp * cp + sp * sp, (1 - c) * sp * cp, -s * cp
     r21, r22 = s * sp, c
     return (ca.atan2(r21, r22), ca.atan2(-r20, ca.sqrt(r00 * r00 + r10 * r10)), ca.atan2(r10, r00))
-
-
-def rotation_y(angle: float) -> np.ndarray:
-    """The rotation by ``angle`` (rad) about y (the world's vertical)."""
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def foot_joint_laws(leg: Leg | LegChain, design: FootDesign, stop_restitution: float = 0.0) -> tuple[JointLaw, ...]:
