@@ -337,6 +337,25 @@ def chart_rates(phi: Any) -> Any:
     return eye + b * K + c * (K @ K)
 
 
+def continued_rotation_vector(R: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """The rotation vector of ``R`` nearest to ``previous``. R's representatives are
+    (theta + 2 pi k) u (theta in [0, pi], u its unit axis, k any integer); the nearest to
+    ``previous`` keeps a turning base's rotation vector continuous and unwrapped (a planar base's
+    turn: its angle, not wrapped to one turn)."""
+    from scipy.spatial.transform import Rotation
+
+    rv = Rotation.from_matrix(R).as_rotvec()
+    theta, size = float(np.linalg.norm(rv)), float(np.linalg.norm(previous))
+    if theta > 1e-12:
+        u = rv / theta
+    elif size > 0.0:
+        u = np.asarray(previous, dtype=float) / size
+    else:
+        return rv
+    k = round((float(u @ previous) - theta) / (2.0 * math.pi))
+    return (theta + 2.0 * math.pi * k) * u
+
+
 def world_velocity(q: np.ndarray, v: np.ndarray, space: Space = PLANAR) -> np.ndarray:
     """The core's generalized velocity (base origin velocity, world angular velocity, joint rates)
     of the rates ``v`` of the configuration ``q``: the same in the plane; in space the rotation
@@ -1434,6 +1453,7 @@ __all__ = [
     "world_velocity",
     "chart_rates",
     "chart_rotation",
+    "continued_rotation_vector",
     "simulate_impact",
     "simulate_to_tolerance",
     "compliant_difference",

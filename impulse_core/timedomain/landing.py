@@ -53,6 +53,7 @@ from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
@@ -62,12 +63,15 @@ from impulse_core.impact.laws import least_norm_split, redundant, share_among_tw
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
+from impulse_core.model.rods import rotation_rpy
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import ContactSelection, Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
     DYNAMICS_INPUTS,
     BufferedCall,
     _check_chart,
+    chart_rotation,
+    continued_rotation_vector,
     _require_known,
     expressions,
     ground_expression,
@@ -118,6 +122,10 @@ MAX_SPLITS = 14
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
 STEP_BUDGET = 64
+#: Space: beyond this |phi| (rad) the base's rotation coordinates are re-centred on its current
+#: orientation (:meth:`_Landing.rechart`), far inside the chart's good region (singular at
+#: |phi| = 2 pi), so a base may turn any number of times.
+RECHART = 3.0
 
 
 class Diverged(NumericalError):
@@ -773,6 +781,7 @@ class _Totals:
     moving_until: float = 0.0
     steps: int = 0
     impulse: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the contact impulses' sum (world)
+    chart_q: np.ndarray | None = None  # the last recorded q, in the rotation coordinates of its time
 
 
 @dataclass(frozen=True)
@@ -802,7 +811,14 @@ class _Landing:
         self.planar = space.joint_axis is not None
         ground = scene.terrain if self.planar else spatial_ground(scene)
         fn = landing_function(self.topology, ground, space)
-        self.call = BufferedCall(fn, design_vector(tree, space.body_values), scene.gravity)
+        #: the design vector; a run's re-centred rotation coordinates change the base's orientation
+        #: in the call's copy (:meth:`rechart`), and the next run starts from this one again
+        self.design = design_vector(tree, space.body_values)
+        self.call = BufferedCall(fn, self.design, scene.gravity)
+        #: space: the turns the re-centrings put into the base's orientation (None: none), and the
+        #: last reported rotation vector since touchdown (:meth:`reported`)
+        self.chart: np.ndarray | None = None
+        self.turn = np.zeros(3)
         self._last: tuple[tuple[bytes, bytes], _Point] | None = None  # see point()
         base_z = 0.0 if self.planar else float(scene.base_z)
         self.q0 = touchdown_configuration(tree, ground, scene.base_x, space=space, base_z=base_z)
@@ -1507,8 +1523,59 @@ class _Landing:
 
     # ---- the run
 
+    # ---- the base's rotation coordinates (space)
+
+    def base_rotation(self) -> np.ndarray:
+        """The base's orientation in the call's design vector: R(rpy) R(axis, angle)."""
+        names, p = self.space.body_values, self.call.args[2]
+        rpy = tuple(float(p[names.index(k)]) for k in ("roll", "pitch", "yaw"))
+        k = np.array([float(p[names.index(k)]) for k in ("axis_x", "axis_y", "axis_z")])
+        k /= np.linalg.norm(k)
+        angle = float(p[names.index("angle")])
+        kk = np.outer(k, k)
+        turn = kk + math.cos(angle) * (np.eye(3) - kk) + math.sin(angle) * np.array(
+            [[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        return rotation_rpy(rpy) @ turn
+
+    def set_chart(self, design: np.ndarray, chart: np.ndarray | None) -> None:
+        """Evaluate the dynamics with ``design`` from now on (the kept points are dropped)."""
+        self.call.args[2][:] = design
+        self.chart = chart
+        self._last, self._solutions, self._end = None, (None, {}), None
+
+    def rechart(self, q: np.ndarray, v: np.ndarray, totals: _Totals) -> tuple[np.ndarray, np.ndarray]:
+        """Re-centre the base's rotation coordinates phi = q[3:6] on its current orientation: the
+        base's orientation in the design vector becomes Exp(phi) times it (as an axis and an
+        angle, rpy 0), phi becomes 0 and its rates S(phi) phi', the world angular velocity. The
+        tree's placement and motion are the same, up to rounding."""
+        self.turn = self.reported(q)[3:6]
+        E = chart_rotation(q[3:6])
+        rotvec = Rotation.from_matrix(E @ self.base_rotation()).as_rotvec()
+        angle = float(np.linalg.norm(rotvec))
+        names, design = self.space.body_values, self.call.args[2].copy()
+        design[[names.index(k) for k in ("roll", "pitch", "yaw")]] = 0.0
+        design[[names.index(k) for k in ("axis_x", "axis_y", "axis_z")]] = rotvec / angle if angle > 0 else (0, 0, 1)
+        design[names.index("angle")] = angle
+        q_new, v_new = q.copy(), world_velocity(q, v, self.space)
+        q_new[3:6] = 0.0
+        self.set_chart(design, E if self.chart is None else E @ self.chart)
+        totals.chart_q = q_new.copy()
+        if self.tape is not None:
+            self.tape.append(("rechart", q.copy(), v.copy()))
+        return q_new, v_new
+
+    def reported(self, q: np.ndarray) -> np.ndarray:
+        """q as reported: in space the base's rotation vector since touchdown (continued through
+        the re-centrings, not wrapped), else q itself."""
+        if self.chart is None:
+            return q.copy()
+        out = q.copy()
+        out[3:6] = self.turn = continued_rotation_vector(chart_rotation(q[3:6]) @ self.chart, self.turn)
+        return out
+
     def first_impact(self) -> tuple[np.ndarray, np.ndarray, _Mode, _Totals]:
         """t = 0: the first-impact law over the contacts the scene selects."""
+        self.set_chart(self.design, None)
         q = self.q0.copy()
         v = pre_impact_velocity(self.topology, self.scene, self.space)
         none = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
@@ -1561,6 +1628,8 @@ class _Landing:
         rate = MOMENTUM_BALANCE * reference / T  # the steps' momentum residual per second
         trial = h  # the next step's length: h, or h / 2^k after the momentum balance split a step
         while t < T * (1 - 1e-12):
+            if not self.planar and float(np.linalg.norm(q[3:6])) > RECHART:
+                q, v = self.rechart(q, v, totals)
             q1, v1, impulse, dt = self.balanced_step(q, v, mode, min(trial, T - t), rate, h / 2.0**MAX_SPLITS)
             if totals.steps > STEP_BUDGET * T / h:
                 raise Diverged(  # landing() halves the step, as for a diverging run
@@ -1614,8 +1683,9 @@ class _Landing:
         gravity_work = self.mass * self.scene.gravity * (height0 - pt.com_height)
         residual = pt.momentum[:, 0] - p0 - totals.impulse - self.weight(T)
         balance = float(np.max(np.abs(residual))) / reference
-        return replace(self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work),
-                       momentum_balance=balance)
+        out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
+        self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
+        return replace(out, momentum_balance=balance)
 
     def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals) -> tuple[np.ndarray, np.ndarray, _Mode]:
         """Handle the event at (q, v): an impact where a contact touches or a joint reaches a
@@ -1642,10 +1712,11 @@ class _Landing:
         from (t0, v0) to (t1, v1), or a jump (t0 = t1) at an impact. Where every velocity falls
         below SETTLE_SPEED within a step, the crossing is interpolated linearly (exact under
         constant deceleration)."""
-        q0 = totals.states[-1] if totals.states else q1
+        q0 = q1 if totals.chart_q is None else totals.chart_q
         v0, v1 = world_velocity(q0, v0, self.space), world_velocity(q1, v1, self.space)
+        totals.chart_q = q1.copy()
         totals.times.append(t1)
-        totals.states.append(q1.copy())
+        totals.states.append(self.reported(q1))
         if np.max(np.abs(v1)) >= SETTLE_SPEED:
             totals.moving_until = math.nan  # still moving at t1
         elif math.isnan(totals.moving_until):
@@ -1657,6 +1728,7 @@ class _Landing:
     def result(self, totals: _Totals, q: np.ndarray, v: np.ndarray, h: float, energy_before: float,
                energy_final: float, gravity_work: float) -> LandingResult:
         layout = dof_layout(self.topology, self.space)
+        v_world, q = world_velocity(q, v, self.space), self.reported(q)
         base = [q[2]] if self.planar else list(q[3:6])
         angles = base + [b.angle if k is None else q[k] for b, k in zip(self.tree.bodies[1:], layout.body_dof[1:])]
         settled = None if math.isnan(totals.moving_until) else totals.moving_until
@@ -1666,7 +1738,7 @@ class _Landing:
             total_tangential=self.public_tangential(totals.tangential),
             settled_at=settled,
             q_final=q.copy(),
-            v_final=world_velocity(q, v, self.space),
+            v_final=v_world,
             final_angles=np.array(angles, dtype=float),
             energy_before=float(energy_before),
             energy_final=float(energy_final),

@@ -104,6 +104,7 @@ from impulse_core.model.tree import Scene, Tree, design_vector, value_names
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, ground_expression, spatial_ground, subtree_incidence
 from impulse_core.timedomain.landing import (
     IMPLICIT,
+    RECHART,
     ROS2_GAMMA,
     LandingResult,
     LandingSettings,
@@ -997,6 +998,9 @@ def landing_gradient(
 
     for entry in tape:
         kind = entry[0]
+        if kind == "rechart":
+            raise NumericalError(f"the base turned more than {RECHART:g} rad: its rotation coordinates were "
+                                 "re-centred, which the derivatives' replay does not follow")
         item = _signature(entry, run)
         if item is not None:
             signature.append(item)

@@ -178,3 +178,18 @@ def test_a_planar_leg_read_as_spatial_gives_the_planar_gradient():
     theirs = planar.jacobian["final_angles"]
     assert np.max(np.abs(np.vstack([base, angles[3:]]) - theirs)) <= 1e-8 * np.max(np.abs(theirs))
     assert np.max(np.abs(angles[:2])) <= 1e-10 * np.max(np.abs(theirs))  # nothing turns out of the plane
+
+
+def test_a_landing_whose_base_turned_past_the_chart_is_refused(monkeypatch):
+    """The replay does not follow a re-centring of the base's rotation coordinates (a base that
+    turned more than RECHART rad): the derivatives are refused with a NumericalError saying so,
+    not given along the wrong coordinates."""
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain import landing as module
+    from impulse_core.timedomain import landing_derivatives
+
+    tree, laws, scene, settings = _two_rod_leg()
+    monkeypatch.setattr(module, "RECHART", 1e-3)
+    monkeypatch.setattr(landing_derivatives, "RECHART", 1e-3)
+    with pytest.raises(NumericalError, match="re-centred"):
+        landing_gradient(tree, replace(scene, duration=0.005), laws, settings, step=STEP, space=SPATIAL)
