@@ -42,6 +42,7 @@ rod's frame in the world at touchdown), so that its joint angles count from phi_
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, fields, replace
 from enum import Enum
 from itertools import accumulate
@@ -369,6 +370,21 @@ def search_columns(topology: Topology, space: Space, leg_rods: int = 2) -> tuple
     splay = [names.index(k) for k in ("roll", "pitch", "yaw") if k in names]
     toe_roots = [b for b in range(leg_rods, len(parents)) if parents[b] == shank][1:]
     return tuple(n * b + j for b in range(leg_rods, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
+
+
+#: Names only a foot's rods take (footopt's designs: ``heel``, ``heel_...``, ``toe<i>``,
+#: ``toe<i>_...``; a leg file's rods may not: ``leg.file``).
+FOOT_ROD_NAME = re.compile(r"(heel|toe\d+)(_.*)?")
+
+
+def leg_rod_count(tree: Tree) -> int | None:
+    """The number of leg rods of a tree of :func:`foot_tree`'s layout (a footopt design's model
+    file, whatever its leg): the rods before its first foot rod (named as :data:`FOOT_ROD_NAME`).
+    None when no rod is named as a foot rod, the base is, or a rod after the first foot rod is not
+    (then the tree is no footopt design: :func:`search_columns` has nothing to go by)."""
+    foot = [bool(FOOT_ROD_NAME.fullmatch(b.name)) for b in tree.bodies]
+    first = foot.index(True) if True in foot else 0
+    return first if first > 0 and all(foot[first:]) else None
 
 
 def yaw_rpy(shank_angle: float, yaw: float | ca.SX) -> tuple:
