@@ -23,7 +23,14 @@ are escaped, never pasted into text); the callers write the files. What the file
   world frame at touchdown, the base rod's frame sitting in it at the touchdown pose;
 - one frame per contact, ``<rod>_contact<k>``: a massless link on a fixed joint (URDF), a site
   (MJCF);
-- footopt's axes: x forward, y up, z lateral; MJCF's gravity along -y.
+- footopt's axes: x forward, y up, z lateral; MJCF's gravity along -y;
+- a spatial scene's ``scene.heightfield`` (the base pose is then the touchdown on it): MJCF, an
+  ``<hfield>`` asset and geom (:func:`mjcf_ground`) on a regular grid (:func:`regular_heightfield`:
+  an uneven grid on a common step, or refused naming ``scene.heightfield.x``/``.z``), the geom
+  turned so that MuJoCo's elevation axis is footopt's y; the comment states the float32 rounding of
+  the heights and the largest distance between MuJoCo's two triangles per cell and footopt's
+  bilinear patch (:attr:`RegularHeightfield.triangulation_error`); URDF has no terrain (the comment
+  says so).
 """
 
 from __future__ import annotations
@@ -494,7 +501,9 @@ def regular_heightfield(hf: Heightfield) -> RegularHeightfield:
     return RegularHeightfield(x, z, hfield.height(hf, x[:, None], z[None, :]))
 
 
-def mjcf_ground(root: ET.Element, world: ET.Element, hf: Heightfield, regular: RegularHeightfield | None = None) -> None:
+def mjcf_ground(
+    root: ET.Element, world: ET.Element, hf: Heightfield, regular: RegularHeightfield | None = None
+) -> None:
     """The heightfield ``hf`` as the ground of an MJCF (``root``, its ``world`` body): a flat one as
     a plane at its height; any other as an ``<hfield>`` asset and geom named
     :data:`HFIELD_NAME` on :func:`regular_heightfield`'s grid: heights normalised to [0, 1]
@@ -582,25 +591,28 @@ def _note(
 
 def _ground_note(hf: Heightfield, fmt: ExportFormat, ground: bool = True) -> list[str]:
     """What the file says about the scene's heightfield (the base pose is the touchdown on it)."""
-    shape = f"{len(hf.x)} x {len(hf.z)} points, x in [{_f(hf.x[0])}, {_f(hf.x[-1])}], z in [{_f(hf.z[0])}, {_f(hf.z[-1])}] m"
+    shape = (f"{len(hf.x)} x {len(hf.z)} points, x in [{_f(hf.x[0])}, {_f(hf.x[-1])}], "
+             f"z in [{_f(hf.z[0])}, {_f(hf.z[-1])}] m")
     if fmt is ExportFormat.URDF:
-        return [f"URDF has no terrain: scene.heightfield ({shape}) is not written; the pose above is the touchdown on it."]
+        return [f"URDF has no terrain: scene.heightfield ({shape}) is not written;",
+                "the pose above is the touchdown on it."]
     if not ground:
         return [f"scene.heightfield ({shape}): not written here; the pose above is the touchdown on it."]
     if hf.is_flat:
         return [f"Ground: scene.heightfield is flat ({shape}): a plane '{HFIELD_NAME}' at y = {_f(hf.level)} m."]
     g = regular_heightfield(hf)
     lo, hi = float(g.heights.min()), float(g.heights.max())
-    grid = (f"the model's uneven grid on a common step, a regular {len(g.x)} x {len(g.z)} grid: each model point a node,"
-            " each node on footopt's bilinear ground" if len(g.x) != len(hf.x) or len(g.z) != len(hf.z)
-            else "on the model's own regular grid")
+    uneven = len(g.x) != len(hf.x) or len(g.z) != len(hf.z)
+    grid = (f"the model's uneven grid on a common step, a regular {len(g.x)} x {len(g.z)} grid: each model point "
+            "a node, each node on footopt's bilinear ground" if uneven else "on the model's own regular grid")
     return [
         f"Ground: scene.heightfield ({shape}) as the MuJoCo hfield '{HFIELD_NAME}',",
         f"{grid}; heights normalised to [0, 1] x elevation {_f(hi - lo)} m above y = {_f(lo)} m.",
         "The geom's quat turns MuJoCo's z (the elevation) onto footopt's y (up); its rows run along -z.",
-        f"MuJoCo keeps the heights as float32 (within {_f((hi - lo) * HFIELD_ROUNDING)} m at the nodes) and splits each cell",
-        f"into two triangles: they leave footopt's bilinear patch by up to {_f(g.triangulation_error)} m (|twist| / 4,",
-        "at the centre of the most twisted cell). Beyond the grid MuJoCo has no ground (footopt's stays flat at the edge's height).",
+        f"MuJoCo keeps the heights as float32 (within {_f((hi - lo) * HFIELD_ROUNDING)} m at the nodes) and splits each",
+        f"cell into two triangles: they leave footopt's bilinear patch by up to {_f(g.triangulation_error)} m",
+        "(|twist| / 4, at the centre of the most twisted cell). Beyond the grid MuJoCo has no ground",
+        "(footopt's stays flat at the edge's height).",
     ]
 
 
@@ -624,7 +636,9 @@ def _xyz(values) -> str:
 
 __all__ = [
     "GRAVITY",
+    "HFIELD_NAME",
     "INERTIA_FLOOR",
+    "RegularHeightfield",
     "dynamics_inertia",
     "ExportFormat",
     "base_pose",
@@ -632,7 +646,9 @@ __all__ = [
     "check_names",
     "contact_frame_name",
     "export_text",
+    "mjcf_ground",
     "quaternion_of",
+    "regular_heightfield",
     "stop_parameters",
     "rpy_of",
     "to_mjcf",
