@@ -26,7 +26,8 @@ are escaped, never pasted into text); the callers write the files. What the file
 - footopt's axes: x forward, y up, z lateral; MJCF's gravity along -y;
 - a spatial scene's ``scene.heightfield`` (the base pose is then the touchdown on it): MJCF, an
   ``<hfield>`` asset and geom (:func:`mjcf_ground`) on a regular grid (:func:`regular_heightfield`:
-  an uneven grid on a common step, or refused naming ``scene.heightfield.x``/``.z``), the geom
+  an uneven grid on a common step, or refused naming ``scene.heightfield.x``/``.z``; a flat skirt
+  beyond it as far as the robot reaches, :func:`ground_cover`), the geom
   turned so that MuJoCo's elevation axis is footopt's y; the comment states the float32 rounding of
   the heights and the largest distance between MuJoCo's two triangles per cell and footopt's
   bilinear patch (:attr:`RegularHeightfield.triangulation_error`); URDF has no terrain (the comment
@@ -338,7 +339,7 @@ def to_mjcf(
     check_names(tree)
     check_inertias(tree)
     hf = scene.heightfield if ground and space is not PLANAR else None
-    regular = None if hf is None or hf.is_flat else regular_heightfield(hf)  # refuses an incommensurate grid
+    regular = None if hf is None or hf.is_flat else regular_heightfield(hf, ground_cover(tree, scene, space))
     root = ET.Element("mujoco", model=_xml_safe(name))
     root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints, space, stop_timestep, ground)))
     ET.SubElement(root, "compiler", angle="radian")
@@ -436,6 +437,8 @@ def _mjcf_law(law: JointLaw, angle: float, stop_timestep: float = STOP_TIMESTEP)
 HFIELD_NAME = "heightfield"
 #: Most cells per axis of the regular grid an uneven ``scene.heightfield`` is written on.
 HFIELD_MAX_CELLS = 1000
+#: Most cells of the flat skirt beyond the grid on each side of an axis.
+HFIELD_SKIRT_MAX_CELLS = 200
 #: An uneven grid's points must lie within this fraction of the common step of a regular node.
 HFIELD_GRID_TOLERANCE = 1e-9
 #: Least depth (m) of the hfield's solid base below its lowest point (MuJoCo's ``base_z``; at
@@ -468,37 +471,63 @@ class RegularHeightfield:
         return float(np.max(np.abs(H[:-1, :-1] - H[1:, :-1] - H[:-1, 1:] + H[1:, 1:]))) / 4.0
 
 
-def _regular_axis(grid: tuple[float, ...], where: str, single_span: float) -> np.ndarray:
+def _regular_axis(grid: tuple[float, ...], where: str, cover: tuple[float, float]) -> np.ndarray:
     """Evenly spaced nodes through every point of ``grid`` (from its first to its last point, the
-    fewest cells whose step divides every spacing); a one-point grid (ground constant along it):
-    it and two nodes ``single_span`` / 2 either side. ConfigError naming ``where`` when no step divides
-    the spacings within :data:`HFIELD_MAX_CELLS` cells."""
+    fewest cells whose step divides every spacing), then a skirt of whole steps out to ``cover``
+    (lo, hi) where it lies beyond the grid, at most :data:`HFIELD_SKIRT_MAX_CELLS` a side; a
+    one-point grid (ground constant along it): it and one node either side, reaching ``cover``.
+    ConfigError naming ``where`` when no step divides the spacings within :data:`HFIELD_MAX_CELLS`
+    cells."""
     g = np.asarray(grid, dtype=float)
     if len(g) == 1:
-        return g[0] + np.array([-0.5, 0.0, 0.5]) * single_span
+        reach = max(g[0] - cover[0], cover[1] - g[0], 1e-3)
+        return g[0] + np.array([-reach, 0.0, reach])
     span = g[-1] - g[0]
     for cells in range(len(g) - 1, HFIELD_MAX_CELLS + 1):
         t = (g - g[0]) / span * cells
         k = np.rint(t).astype(int)
         if np.all(np.abs(t - k) <= HFIELD_GRID_TOLERANCE):
-            nodes = g[0] + np.arange(cells + 1) * (span / cells)
+            step = span / cells
+            nodes = g[0] + np.arange(cells + 1) * step
             nodes[k] = g  # the model's points exactly
-            return nodes
+            below, above = (min(max(0, math.ceil(d / step - 1e-9)), HFIELD_SKIRT_MAX_CELLS)
+                            for d in (g[0] - cover[0], cover[1] - g[-1]))
+            return np.concatenate([g[0] - step * np.arange(below, 0, -1), nodes, g[-1] + step * np.arange(1, above + 1)])
     raise ConfigError(
         f"{where}: its spacings {_xyz(np.diff(g))} m are no whole multiples of one step within {HFIELD_MAX_CELLS} "
         "cells; MuJoCo's hfield is a regular grid: give spacings that share a step (e.g. 0.1, 0.2, 0.3)"
     )
 
 
-def regular_heightfield(hf: Heightfield) -> RegularHeightfield:
+def regular_heightfield(
+    hf: Heightfield, cover: tuple[tuple[float, float], tuple[float, float]] | None = None
+) -> RegularHeightfield:
     """``hf`` on a regular grid (MuJoCo's hfield): the model's grid where evenly spaced, else the
-    coarsest regular grid through all its points (:func:`_regular_axis`), footopt's bilinear
-    heights at every node: the model's own at its points, and along every cell of the model the
-    same bilinear patch. An axis with one point spans the other axis's extent."""
-    span_x, span_z = hf.x[-1] - hf.x[0], hf.z[-1] - hf.z[0]
-    x = _regular_axis(hf.x, "scene.heightfield.x", span_z or 1.0)
-    z = _regular_axis(hf.z, "scene.heightfield.z", span_x or 1.0)
+    coarsest regular grid through all its points, with a flat skirt out to ``cover`` ((x lo, x
+    hi), (z lo, z hi); default the grid itself, an axis of one point spanning the other's extent)
+    (:func:`_regular_axis`); footopt's heights at every node: the model's own at its points, along
+    every cell of the model the same bilinear patch, in the skirt footopt's flat extension (its
+    cells untwisted: MuJoCo's triangles are that ground exactly)."""
+    if cover is None:
+        half = 0.5 * max(hf.x[-1] - hf.x[0], hf.z[-1] - hf.z[0], 1.0)
+        cover = ((hf.x[0] - half, hf.x[-1] + half) if len(hf.x) == 1 else (hf.x[0], hf.x[-1]),
+                 (hf.z[0] - half, hf.z[-1] + half) if len(hf.z) == 1 else (hf.z[0], hf.z[-1]))
+    x = _regular_axis(hf.x, "scene.heightfield.x", cover[0])
+    z = _regular_axis(hf.z, "scene.heightfield.z", cover[1])
     return RegularHeightfield(x, z, hfield.height(hf, x[:, None], z[None, :]))
+
+
+def ground_cover(tree: Tree, scene: Scene, space: Space) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Where the exported hfield reaches ((x lo, x hi), (z lo, z hi), m): the heightfield's grid and
+    the contacts at touchdown, and beyond them the rods' total length (as far as the robot reaches)."""
+    from impulse_core.evaluate import touchdown_geometry
+
+    hf = scene.heightfield
+    origin, _ = base_pose(tree, scene, space)
+    P = touchdown_geometry(tree, space).contacts + origin
+    reach = float(sum(b.length for b in tree.bodies))
+    return ((min(hf.x[0], P[:, 0].min()) - reach, max(hf.x[-1], P[:, 0].max()) + reach),
+            (min(hf.z[0], P[:, 2].min()) - reach, max(hf.z[-1], P[:, 2].max()) + reach))
 
 
 def mjcf_ground(
@@ -585,11 +614,15 @@ def _note(
             "at it, closer as the step shrinks); a longer step needs a softer k (docs/MODEL_FORMAT.md, Export).",
         ]
     if scene.heightfield is not None and not planar:
-        lines += _ground_note(scene.heightfield, fmt, ground)
+        cover = None if fmt is ExportFormat.URDF or not ground else ground_cover(tree, scene, space)
+        lines += _ground_note(scene.heightfield, fmt, ground, cover)
     return "\n" + "\n".join(lines) + "\n"
 
 
-def _ground_note(hf: Heightfield, fmt: ExportFormat, ground: bool = True) -> list[str]:
+def _ground_note(
+    hf: Heightfield, fmt: ExportFormat, ground: bool = True,
+    cover: tuple[tuple[float, float], tuple[float, float]] | None = None,
+) -> list[str]:
     """What the file says about the scene's heightfield (the base pose is the touchdown on it)."""
     shape = (f"{len(hf.x)} x {len(hf.z)} points, x in [{_f(hf.x[0])}, {_f(hf.x[-1])}], "
              f"z in [{_f(hf.z[0])}, {_f(hf.z[-1])}] m")
@@ -600,19 +633,22 @@ def _ground_note(hf: Heightfield, fmt: ExportFormat, ground: bool = True) -> lis
         return [f"scene.heightfield ({shape}): not written here; the pose above is the touchdown on it."]
     if hf.is_flat:
         return [f"Ground: scene.heightfield is flat ({shape}): a plane '{HFIELD_NAME}' at y = {_f(hf.level)} m."]
-    g = regular_heightfield(hf)
+    g = regular_heightfield(hf, cover)
     lo, hi = float(g.heights.min()), float(g.heights.max())
-    uneven = len(g.x) != len(hf.x) or len(g.z) != len(hf.z)
-    grid = (f"the model's uneven grid on a common step, a regular {len(g.x)} x {len(g.z)} grid: each model point "
-            "a node, each node on footopt's bilinear ground" if uneven else "on the model's own regular grid")
+    inner = regular_heightfield(hf)
+    uneven = len(inner.x) != len(hf.x) or len(inner.z) != len(hf.z)
+    grid = (f"the model's uneven grid on a common step ({len(inner.x)} x {len(inner.z)} nodes: each model point "
+            "a node, each node on footopt's bilinear ground)" if uneven else "on the model's own regular grid")
     return [
         f"Ground: scene.heightfield ({shape}) as the MuJoCo hfield '{HFIELD_NAME}',",
         f"{grid}; heights normalised to [0, 1] x elevation {_f(hi - lo)} m above y = {_f(lo)} m.",
         "The geom's quat turns MuJoCo's z (the elevation) onto footopt's y (up); its rows run along -z.",
         f"MuJoCo keeps the heights as float32 (within {_f((hi - lo) * HFIELD_ROUNDING)} m at the nodes) and splits each",
         f"cell into two triangles: they leave footopt's bilinear patch by up to {_f(g.triangulation_error)} m",
-        "(|twist| / 4, at the centre of the most twisted cell). Beyond the grid MuJoCo has no ground",
-        "(footopt's stays flat at the edge's height).",
+        "(|twist| / 4, at the centre of the most twisted cell). Beyond the grid a flat skirt (footopt's flat",
+        "extension, the edge's heights: exact in triangles) out to the rods' total length beyond the grid and the",
+        f"contacts (at most {HFIELD_SKIRT_MAX_CELLS} cells a side): {len(g.x)} x {len(g.z)} nodes, x in "
+        f"[{_f(g.x[0])}, {_f(g.x[-1])}], z in [{_f(g.z[0])}, {_f(g.z[-1])}] m; beyond that MuJoCo has no ground.",
     ]
 
 
@@ -637,6 +673,7 @@ def _xyz(values) -> str:
 __all__ = [
     "GRAVITY",
     "HFIELD_NAME",
+    "HFIELD_SKIRT_MAX_CELLS",
     "INERTIA_FLOOR",
     "RegularHeightfield",
     "dynamics_inertia",
@@ -646,6 +683,7 @@ __all__ = [
     "check_names",
     "contact_frame_name",
     "export_text",
+    "ground_cover",
     "mjcf_ground",
     "quaternion_of",
     "regular_heightfield",

@@ -26,7 +26,9 @@ from optimizer.errors import ConfigError
 from optimizer.results.export import (
     HFIELD_NAME,
     HFIELD_ROUNDING,
+    HFIELD_SKIRT_MAX_CELLS,
     base_pose,
+    ground_cover,
     regular_heightfield,
     to_mjcf,
     to_urdf,
@@ -97,7 +99,8 @@ def _ray_height(m, d, x: float, z: float) -> float:
 @pytest.mark.parametrize("name", list(FIELDS))
 def test_mujocos_hfield_holds_footopts_heights_at_every_node(name: str) -> None:
     """MuJoCo's nodes (its geometry, not ours) lie on footopt's ground; every model grid point is a
-    node; a ray down at each model point hits footopt's height (float32: the range x 2^-24)."""
+    node; a ray down beside each model point (1e-7 m) hits footopt's height (float32: the range x
+    2^-24, and 1e-8 for the ray)."""
     hf = FIELDS[name]
     m, d = _model(EXAMPLE.tree, hf)
     P = _nodes(m, d).reshape(-1, 3)
@@ -110,8 +113,9 @@ def test_mujocos_hfield_holds_footopts_heights_at_every_node(name: str) -> None:
     for x in hf.x:
         for z in hf.z:
             assert np.min(np.hypot(P[:, 0] - x, P[:, 2] - z)) < 1e-12  # a node
-            x_in = np.clip(x, P[:, 0].min() + 1e-9, P[:, 0].max() - 1e-9)  # a ray on the very edge may miss
-            z_in = np.clip(z, P[:, 2].min() + 1e-9, P[:, 2].max() - 1e-9)
+            # 1e-7 m off the node: a ray through a triangle's very vertex can slip between the
+            # triangles in mj_ray (measured: it then hits far below)
+            x_in, z_in = x + 1e-7, z + 1e-7
             assert abs(_ray_height(m, d, x_in, z_in) - hfield.height(hf, x_in, z_in)) <= tol + 1e-8
 
 
@@ -141,6 +145,43 @@ def test_cell_centres_follow_the_triangles_and_the_stated_largest_difference(nam
     assert f"bilinear patch by up to {g.triangulation_error!r} m\n(|twist| / 4" in note
     if name == "example":  # the rising cell's twist 0.015 (x 0.4..0.8), split in two on the step 0.2: 0.0075 / 4
         assert g.triangulation_error == pytest.approx(0.001875, abs=1e-15)
+
+
+@pytest.mark.parametrize("name", list(FIELDS))
+def test_the_skirt_beyond_the_grid_is_footopts_flat_extension(name: str) -> None:
+    """Beyond the grid the hfield goes on as footopt's ground does (flat: the edge's heights) out
+    to the rods' total length past the grid and the touchdown contacts (``ground_cover``, read from
+    MuJoCo's geom: its centre +- size); rays down at random points there hit footopt's height."""
+    hf = FIELDS[name]
+    m, d = _model(EXAMPLE.tree, hf)
+    geom = m.geom(HFIELD_NAME)
+    rx, ry = m.hfield_size[geom.dataid[0]][:2]
+    centre = d.geom_xpos[geom.id]
+    (xlo, xhi), (zlo, zhi) = ground_cover(EXAMPLE.tree, _scene(hf), SPATIAL)
+    reach = sum(b.length for b in EXAMPLE.tree.bodies)
+    assert xhi - xlo > 2 * reach and zhi - zlo > 2 * reach
+    assert centre[0] - rx <= xlo + 1e-12 and centre[0] + rx >= xhi - 1e-12
+    assert centre[2] - ry <= zlo + 1e-12 and centre[2] + ry >= zhi - 1e-12
+    tol = _tol(hf)
+    points = RNG.uniform((xlo, zlo), (xhi, zhi), (200, 2))
+    outside = [(x, z) for x, z in points if not (hf.x[0] <= x <= hf.x[-1] and hf.z[0] <= z <= hf.z[-1])]
+    assert len(outside) > 150
+    err = max(abs(_ray_height(m, d, x, z) - hfield.height(hf, x, z)) for x, z in outside)
+    report("export heightfield", f"{name}: skirt x [{xlo:.2f}, {xhi:.2f}], z [{zlo:.2f}, {zhi:.2f}] m, "
+                                 f"rays at {len(outside)} points beyond the grid: {err:.2g} m")
+    assert err <= tol + 1e-8
+    if name == "example":  # as docs/MODEL_FORMAT.md says: rods of 2.9 m in all
+        assert reach == pytest.approx(2.9, abs=1e-12) and (m.hfield_ncol[0], m.hfield_nrow[0]) == (36, 23)
+        assert "36 x 23 nodes, x in [-3.2, 3.8], z in [-3.3, 3.3] m" in to_mjcf(EXAMPLE.tree, _scene(hf), space=SPATIAL)
+
+
+def test_the_skirt_stops_at_its_cell_limit() -> None:
+    """A fine grid (1 mm step) with a far cover: 200 cells a side, no more."""
+    hf = Heightfield.from_arrays([0.0, 0.001, 0.002], [0.0, 0.001], [[0.0, 0.001], [0.0, 0.0], [0.002, 0.0]])
+    g = regular_heightfield(hf, ((-5.0, 5.0), (-0.0005, 0.0015)))
+    assert len(g.x) == 3 + 2 * HFIELD_SKIRT_MAX_CELLS and g.x[0] == pytest.approx(-0.2, abs=1e-12)
+    assert len(g.z) == 2 + 2  # half a step beyond each side: one whole step
+    assert np.all(g.heights[:HFIELD_SKIRT_MAX_CELLS + 1, 1:-1] == np.array(hf.heights)[0])  # the edge's heights
 
 
 def test_a_sphere_placed_on_a_node_touches_at_footopts_height() -> None:
@@ -189,7 +230,8 @@ def test_a_sphere_placed_on_a_node_touches_at_footopts_height() -> None:
 def test_the_robot_stands_at_its_touchdown_on_footopts_ground() -> None:
     """The exported base pose is the touchdown on the heightfield: base origin above (base_x,
     base_z) as footopt's touchdown configuration (clearance 0); MuJoCo's contact sites lie on or
-    above footopt's ground, the lowest on it (1e-12); the URDF's root holds the same pose."""
+    above footopt's ground, the lowest on it (1e-12); the URDF's contact frames in Pinocchio's
+    neutral pose are the same points (1e-12), and its comment says it has no terrain."""
     tree, scene = EXAMPLE.tree, EXAMPLE.scene
     q = touchdown_configuration(tree, scene.heightfield, scene.base_x, clearance=0.0, space=SPATIAL,
                                 base_z=scene.base_z)
@@ -203,7 +245,13 @@ def test_the_robot_stands_at_its_touchdown_on_footopts_ground() -> None:
     assert np.allclose(sites, touchdown_geometry(tree, SPATIAL).contacts + origin, atol=1e-12)
     urdf = to_urdf(tree, scene, space=SPATIAL)
     assert "URDF has no terrain: scene.heightfield (3 x 3 points" in urdf
-    assert ET.fromstring(urdf.split("\n", 1)[1]).find("joint/origin") is not None
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromXML(urdf, pin.JointModelFreeFlyer())
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    frames = np.array([data.oMf[model.getFrameId(f"{tree.bodies[b].name}_contact{k}", pin.BODY)].translation
+                       for b, k in tree.contacts])
+    assert np.allclose(frames, sites, atol=1e-12)  # Pinocchio's neutral pose: the same touchdown on the heightfield
 
 
 def test_a_flat_heightfield_is_a_plane_and_drop_leaves_the_ground_out() -> None:
