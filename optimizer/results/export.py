@@ -492,7 +492,8 @@ def _regular_axis(grid: tuple[float, ...], where: str, cover: tuple[float, float
             nodes[k] = g  # the model's points exactly
             below, above = (min(max(0, math.ceil(d / step - 1e-9)), HFIELD_SKIRT_MAX_CELLS)
                             for d in (g[0] - cover[0], cover[1] - g[-1]))
-            return np.concatenate([g[0] - step * np.arange(below, 0, -1), nodes, g[-1] + step * np.arange(1, above + 1)])
+            skirt = step * np.arange(1, max(below, above) + 1)
+            return np.concatenate([g[0] - skirt[:below][::-1], nodes, g[-1] + skirt[:above]])
     raise ConfigError(
         f"{where}: its spacings {_xyz(np.diff(g))} m are no whole multiples of one step within {HFIELD_MAX_CELLS} "
         "cells; MuJoCo's hfield is a regular grid: give spacings that share a step (e.g. 0.1, 0.2, 0.3)"
@@ -643,7 +644,8 @@ def _ground_note(
         f"Ground: scene.heightfield ({shape}) as the MuJoCo hfield '{HFIELD_NAME}',",
         f"{grid}; heights normalised to [0, 1] x elevation {_f(hi - lo)} m above y = {_f(lo)} m.",
         "The geom's quat turns MuJoCo's z (the elevation) onto footopt's y (up); its rows run along -z.",
-        f"MuJoCo keeps the heights as float32 (within {_f((hi - lo) * HFIELD_ROUNDING)} m at the nodes) and splits each",
+        f"MuJoCo keeps the heights as float32 (within {_f((hi - lo) * HFIELD_ROUNDING)} m at the nodes) and splits "
+        "each",
         f"cell into two triangles: they leave footopt's bilinear patch by up to {_f(g.triangulation_error)} m",
         "(|twist| / 4, at the centre of the most twisted cell). Beyond the grid a flat skirt (footopt's flat",
         "extension, the edge's heights: exact in triangles) out to the rods' total length beyond the grid and the",
