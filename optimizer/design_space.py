@@ -375,14 +375,18 @@ def search_columns(topology: Topology, space: Space, leg_rods: int = 2) -> tuple
 #: Names only a foot's rods take (footopt's designs: ``heel``, ``heel_...``, ``toe<i>``,
 #: ``toe<i>_...``; a leg file's rods may not: ``leg.file``).
 FOOT_ROD_NAME = re.compile(r"(heel|toe\d+)(_.*)?")
+#: A foot rod's name as :func:`leg_rod_count` reads it: any name starting ``heel`` or ``toe``
+#: (footopt's own, :data:`FOOT_ROD_NAME`, and hand-written feet: the paper's ``toe``, ``toe_distal``).
+FOOT_NAME_START = re.compile(r"heel|toe")
 
 
 def leg_rod_count(tree: Tree) -> int | None:
     """The number of leg rods of a tree of :func:`foot_tree`'s layout (a footopt design's model
-    file, whatever its leg): the rods before its first foot rod (named as :data:`FOOT_ROD_NAME`).
-    None when no rod is named as a foot rod, the base is, or a rod after the first foot rod is not
-    (then the tree is no footopt design: :func:`search_columns` has nothing to go by)."""
-    foot = [bool(FOOT_ROD_NAME.fullmatch(b.name)) for b in tree.bodies]
+    file, whatever its leg; a hand-written foot named alike): the rods before its first foot rod
+    (a name starting ``heel`` or ``toe``: :data:`FOOT_NAME_START`; footopt's leg files may not
+    take footopt's own foot names, :data:`FOOT_ROD_NAME`). None when no rod is named so, the base
+    is, or a rod after the first foot rod is not (no foot to go by: :func:`search_columns`)."""
+    foot = [bool(FOOT_NAME_START.match(b.name)) for b in tree.bodies]
     first = foot.index(True) if True in foot else 0
     return first if first > 0 and all(foot[first:]) else None
 

@@ -5,8 +5,8 @@ What is timed is the optimiser's hot path, :func:`impulse_core.impact.delassus.l
 the full model's outputs to rounding, which :func:`speed_report` checks), and the gradient of both
 norms w.r.t. the design values the optimiser's search varies
 (:func:`impulse_core.impact.delassus.norms_gradient_function` with ``columns``
-:func:`optimizer.design_space.search_columns` on a leg of the rods before the first rod named as
-a foot rod, :func:`gradient_columns`; every value for a tree that is no footopt design):
+:func:`optimizer.design_space.search_columns` on a leg of the rods before the first rod named
+``heel...`` or ``toe...``, :func:`gradient_columns`; every value for a tree that is no footopt design):
 the adjoint of the impact equations,
 beside CasADi's reverse mode through the whole graph as its peer; the adjoint's gradient w.r.t.
 every design value is timed beside them (the figure before 2026-11-26).
@@ -333,13 +333,13 @@ def _gradient_paths(
 def gradient_columns(tree: Tree, topology: Topology, space: Space) -> tuple[list[int], str]:
     """The design values the timed gradient is taken w.r.t., and which they are in words: on a
     footopt design (:func:`foot_tree`'s layout, whatever its leg: the rods before the first one
-    named as a foot rod, :func:`leg_rod_count`) those a search varies (:func:`search_columns`);
-    on any other tree every value."""
+    named ``heel...`` or ``toe...``, :func:`leg_rod_count`) those a search varies
+    (:func:`search_columns`); on any other tree every value."""
     legs = leg_rod_count(tree)
     columns = None if legs is None else search_columns(topology, space, legs)
     if columns is None:
         return list(range(n_values(topology, space))), (
-            "every value: not a footopt design (a chain of leg rods, then only rods named heel..., toe<i>...)")
+            "every value: not a footopt design (a chain of leg rods, then only rods named heel..., toe...)")
     names = ", ".join(b.name for b in tree.bodies[:legs])
     splay = " and the toe roots' rpy" if "yaw" in space.body_values else ""
     return list(columns), (f"the foot rods' lengths, masses and joint angles{splay}, below a leg of {legs} "

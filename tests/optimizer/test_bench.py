@@ -41,7 +41,7 @@ def test_bench_json_keys_and_agreement(leg_file, capsys, tmp_path) -> None:
     assert record["gradient_equals_full"] is True
     assert record["gradient_ratio_autodiff"] > 0
     assert record["gradient_ratio_all"] > 0 and record["gradient_ratio_all_c_loop"] > 0
-    # leg.yaml (thigh, shank, foot) is no footopt design (no rod named heel..., toe<i>...): every value
+    # leg.yaml (thigh, shank, foot) is no footopt design (no rod named heel..., toe...): every value
     assert record["n_gradient_values"] == record["n_values"]
     assert record["gradient_values"].startswith("every value: not a footopt design")
     evaluation = record[f"us_per_design_batched_{record['gradient_path']}"]

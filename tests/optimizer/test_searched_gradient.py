@@ -143,3 +143,20 @@ def test_bench_columns_follow_the_files_leg(spatial: bool, tmp_path: Path, capsy
     renamed = Tree(tuple(dataclasses.replace(b, name=b.name.replace("heel", "pad")) for b in tree.bodies))
     every, words = gradient_columns(renamed, topology, space)
     assert every == list(range(len(p))) and words.startswith("every value: not a footopt design")
+
+
+def test_bench_columns_of_every_example_file() -> None:
+    """Every file in configs/ has a two-rod leg: the columns the two-rod rule gave (the paper's
+    hand-written feet, named heel, toe, toe_proximal..., too); spatial case 3: 30 of 193."""
+    from optimizer.analysis.bench import gradient_columns
+
+    files = [p for p in sorted(CONFIGS.glob("*.yaml")) if "\nmodel:" in p.read_text()]
+    assert len(files) == 7  # the model files; the rest are study configs
+    for path in files:
+        model = load_model_file(path)
+        topology = model.tree.topology()
+        columns, words = gradient_columns(model.tree, topology, model.space)
+        assert columns == list(search_columns(topology, model.space, 2)), path.name
+        assert "below a leg of 2 rods (thigh, shank)" in words, path.name
+        if path.stem == "spatial_case3":
+            assert (len(columns), len(design_vector(model.tree, model.space.body_values))) == (30, 193)
