@@ -128,7 +128,8 @@ def test_bench_columns_follow_the_files_leg(spatial: bool, tmp_path: Path, capsy
     # what a search changes on this leg: design_from's values, and nothing of the leg's
     other = design_from(chain, ((-0.5,), (0.8, 0.25), (1.1, 0.05)), ((0.12,), (0.08, 0.06), (0.1, 0.08)), FootLimits(),
                         toe_yaws=(-0.5, 0.4) if spatial else None)
-    changed = np.flatnonzero(design_vector(design_model(chain, other, Scene(), FootLimits()).tree, space.body_values) != p)
+    other_tree = design_model(chain, other, Scene(), FootLimits()).tree
+    changed = np.flatnonzero(design_vector(other_tree, space.body_values) != p)
     assert columns == changed.tolist()
     assert min(columns) == 3 * n  # the heel, body 3: not the shank (body 2) as on a two-rod leg
     assert len(columns) == (5 * 3 + 2 * 3 if spatial else 5 * 3)  # 5 foot rods' length, mass, angle; 2 toes' rpy
