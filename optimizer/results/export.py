@@ -637,7 +637,7 @@ def _ground_note(
     g = regular_heightfield(hf, cover)
     lo, hi = float(g.heights.min()), float(g.heights.max())
     inner = regular_heightfield(hf)
-    uneven = len(inner.x) != len(hf.x) or len(inner.z) != len(hf.z)
+    uneven = any(len(a) > 1 and len(b) != len(a) for a, b in ((hf.x, inner.x), (hf.z, inner.z)))
     grid = (f"the model's uneven grid on a common step ({len(inner.x)} x {len(inner.z)} nodes: each model point "
             "a node, each node on footopt's bilinear ground)" if uneven else "on the model's own regular grid")
     return [
