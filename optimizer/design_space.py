@@ -42,6 +42,7 @@ rod's frame in the world at touchdown), so that its joint angles count from phi_
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, fields, replace
 from enum import Enum
 from itertools import accumulate
@@ -369,6 +370,25 @@ def search_columns(topology: Topology, space: Space, leg_rods: int = 2) -> tuple
     splay = [names.index(k) for k in ("roll", "pitch", "yaw") if k in names]
     toe_roots = [b for b in range(leg_rods, len(parents)) if parents[b] == shank][1:]
     return tuple(n * b + j for b in range(leg_rods, len(parents)) for j in sorted(rod + (splay if b in toe_roots else [])))
+
+
+#: Names only a foot's rods take (footopt's designs: ``heel``, ``heel_...``, ``toe<i>``,
+#: ``toe<i>_...``; a leg file's rods may not: ``leg.file``).
+FOOT_ROD_NAME = re.compile(r"(heel|toe\d+)(_.*)?")
+#: A foot rod's name as :func:`leg_rod_count` reads it: any name starting ``heel`` or ``toe``
+#: (footopt's own, :data:`FOOT_ROD_NAME`, and hand-written feet: the paper's ``toe``, ``toe_distal``).
+FOOT_NAME_START = re.compile(r"heel|toe")
+
+
+def leg_rod_count(tree: Tree) -> int | None:
+    """The number of leg rods of a tree of :func:`foot_tree`'s layout (a footopt design's model
+    file, whatever its leg; a hand-written foot named alike): the rods before its first foot rod
+    (a name starting ``heel`` or ``toe``: :data:`FOOT_NAME_START`; footopt's leg files may not
+    take footopt's own foot names, :data:`FOOT_ROD_NAME`). None when no rod is named so, the base
+    is, or a rod after the first foot rod is not (no foot to go by: :func:`search_columns`)."""
+    foot = [bool(FOOT_NAME_START.match(b.name)) for b in tree.bodies]
+    first = foot.index(True) if True in foot else 0
+    return first if first > 0 and all(foot[first:]) else None
 
 
 def yaw_rpy(shank_angle: float, yaw: float | ca.SX) -> tuple:

@@ -5,7 +5,8 @@ What is timed is the optimiser's hot path, :func:`impulse_core.impact.delassus.l
 the full model's outputs to rounding, which :func:`speed_report` checks), and the gradient of both
 norms w.r.t. the design values the optimiser's search varies
 (:func:`impulse_core.impact.delassus.norms_gradient_function` with ``columns``
-:func:`optimizer.design_space.search_columns`; every value for a tree not of a foot's layout):
+:func:`optimizer.design_space.search_columns` on a leg of the rods before the first rod named
+``heel...`` or ``toe...``, :func:`gradient_columns`; every value for a tree that is no footopt design):
 the adjoint of the impact equations,
 beside CasADi's reverse mode through the whole graph as its peer; the adjoint's gradient w.r.t.
 every design value is timed beside them (the figure before 2026-11-26).
@@ -39,7 +40,7 @@ from impulse_core.evaluate import active_contacts, approach_velocity, compiled_m
 from impulse_core.impact.delassus import LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
 from impulse_core.kinematics.spatial import PLANAR, Space, n_values, rods_only
 from impulse_core.model.tree import Body, ContactSelection, Scene, Topology, Tree, design_vector
-from optimizer.design_space import search_columns
+from optimizer.design_space import leg_rod_count, search_columns
 
 #: Body counts of the scaling series (more toes and more segments per toe).
 SCALING_SIZES = (5, 10, 20, 50, 100, 200)
@@ -56,7 +57,8 @@ class SpeedReport:
     ``gradient_ratio_autodiff`` the same for CasADi's reverse mode through the whole graph, its
     peer in the same run; ``gradient_ratio_c_loop`` and ``gradient_ratio_map`` the adjoint's on
     those paths. "The gradient" is w.r.t. the ``n_gradient_values`` design values the search
-    varies (of ``n_values``); ``gradient_ratio_all`` and ``gradient_ratio_all_c_loop``: the
+    varies (of ``n_values``), ``gradient_values`` says which and why (:func:`gradient_columns`);
+    ``gradient_ratio_all`` and ``gradient_ratio_all_c_loop``: the
     adjoint's gradient w.r.t. every design value, same paths; ``gradient_equals_full``: the
     searched gradients equal the full ones' entries to 1e-12; ``rods``: the functions timed are
     the rods variants (every body's mass-property
@@ -73,6 +75,7 @@ class SpeedReport:
     n_instructions_gradient_all: int | None
     n_values: int
     n_gradient_values: int
+    gradient_values: str
     build_ms: float
     compile_s: float | None
     backend: str
@@ -327,11 +330,25 @@ def _gradient_paths(
     return n_grad, grad_same, same
 
 
+def gradient_columns(tree: Tree, topology: Topology, space: Space) -> tuple[list[int], str]:
+    """The design values the timed gradient is taken w.r.t., and which they are in words: on a
+    footopt design (:func:`foot_tree`'s layout, whatever its leg: the rods before the first one
+    named ``heel...`` or ``toe...``, :func:`leg_rod_count`) those a search varies
+    (:func:`search_columns`); on any other tree every value."""
+    legs = leg_rod_count(tree)
+    columns = None if legs is None else search_columns(topology, space, legs)
+    if columns is None:
+        return list(range(n_values(topology, space))), (
+            "every value: not a footopt design (a chain of leg rods, then only rods named heel..., toe...)")
+    names = ", ".join(b.name for b in tree.bodies[:legs])
+    splay = " and the toe roots' rpy" if "yaw" in space.body_values else ""
+    return list(columns), (f"the foot rods' lengths, masses and joint angles{splay}, below a leg of {legs} "
+                           f"rod{'s' * (legs > 1)} ({names})")
+
+
 def _gradient_columns(b: _Bench) -> list[int]:
-    """The design values the timed gradient is taken w.r.t.: those a search varies
-    (:func:`search_columns`), or every value for a tree not of a foot's layout."""
-    columns = search_columns(b.topology, b.space)
-    return list(range(n_values(b.topology, b.space))) if columns is None else list(columns)
+    """:func:`gradient_columns` of the bench's tree."""
+    return gradient_columns(b.tree, b.topology, b.space)[0]
 
 
 def _report(
@@ -366,6 +383,7 @@ def _report(
         n_instructions_gradient_all=n_grad.get("gradient_all"),
         n_values=n_values(b.topology, b.space),
         n_gradient_values=len(_gradient_columns(b)),
+        gradient_values=gradient_columns(b.tree, b.topology, b.space)[1],
         build_ms=b.build_ms,
         compile_s=None if compiled is None else compiled.compile_s,
         backend=Backend.VIRTUAL_MACHINE.value if compiled is None else compiled.backend,
@@ -557,9 +575,10 @@ def format_report(r: SpeedReport) -> str:
             ),
         ),
         (
-            "gradient w.r.t. the values a search varies (all: no foot)",
+            "gradient w.r.t. the values a search varies (all: not a footopt design)",
             f"{r.n_gradient_values} of {r.n_values} design values",
         ),
+        ("  which", r.gradient_values),
         ("build the graph (first use of the topology)", f"{r.build_ms:.1f} ms"),
         ("compile to C (or load from the cache)", _fmt(r.compile_s, " s")),
         ("path that ran", r.backend),

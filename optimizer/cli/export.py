@@ -29,7 +29,9 @@ def add_export(subparsers: argparse._SubParsersAction) -> None:
             "a site). The zero configuration is the touchdown posture and pose (base origin above scene.base_x, "
             "its first contact on the ground); axes as footopt's: x forward, y up, z lateral (MJCF gravity along "
             "-y). A rod's inertia about its own axis, zero in the model, is written as 1e-9 kg m^2 (the file "
-            "says so). See MODEL_FORMAT.md, 'Export'."
+            "says so). A spatial file's scene.heightfield: the robot stands at its touchdown on it, and the MJCF "
+            "holds it as a MuJoCo hfield (an uneven grid on a common step; the file states how far MuJoCo's "
+            "triangles leave footopt's bilinear ground); URDF has no terrain. See MODEL_FORMAT.md, 'Export'."
         ),
     )
     p.add_argument("model", metavar="MODEL.yaml", help="a model file (MODEL_FORMAT.md)")

@@ -28,6 +28,7 @@ from optimizer.config.yaml_fields import positive as _positive
 from optimizer.config.yaml_fields import required as _required
 from optimizer.config.yaml_fields import string as _string
 from optimizer.design_space import (
+    FOOT_ROD_NAME,
     JOINT_FAMILIES,
     DesignSpace,
     FootLimits,
@@ -479,7 +480,7 @@ def _leg_file(value: Any, folder: Path | None) -> Leg | LegChain:
             raise ConfigError(f"leg.file: {path}: rod '{b.name}' hangs from '{bodies[b.parent].name}', not from "
                               f"'{bodies[k - 1].name}': a leg is a chain, each rod the child of the one before")
     for b in bodies:
-        if re.fullmatch(r"(heel|toe\d+)(_.*)?", b.name):
+        if FOOT_ROD_NAME.fullmatch(b.name):
             raise ConfigError(f"leg.file: {path}: rod '{b.name}' takes a foot rod's name (heel..., toe<i>...): "
                               "rename it")
     last = bodies[-1]

@@ -23,7 +23,15 @@ are escaped, never pasted into text); the callers write the files. What the file
   world frame at touchdown, the base rod's frame sitting in it at the touchdown pose;
 - one frame per contact, ``<rod>_contact<k>``: a massless link on a fixed joint (URDF), a site
   (MJCF);
-- footopt's axes: x forward, y up, z lateral; MJCF's gravity along -y.
+- footopt's axes: x forward, y up, z lateral; MJCF's gravity along -y;
+- a spatial scene's ``scene.heightfield`` (the base pose is then the touchdown on it): MJCF, an
+  ``<hfield>`` asset and geom (:func:`mjcf_ground`) on a regular grid (:func:`regular_heightfield`:
+  an uneven grid on a common step, or refused naming ``scene.heightfield.x``/``.z``; a flat skirt
+  beyond it as far as the robot reaches, :func:`ground_cover`), the geom
+  turned so that MuJoCo's elevation axis is footopt's y; the comment states the float32 rounding of
+  the heights and the largest distance between MuJoCo's two triangles per cell and footopt's
+  bilinear patch (:attr:`RegularHeightfield.triangulation_error`); URDF has no terrain (the comment
+  says so).
 """
 
 from __future__ import annotations
@@ -33,7 +41,7 @@ import re
 import xml.etree.ElementTree as ET
 from enum import Enum
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -49,6 +57,8 @@ from impulse_core.model.rods import (
     rpy_of,
     unit_axis,
 )
+from impulse_core.model import heightfield as hfield
+from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, JointKind, Scene, Tree, tensor_problem
 from impulse_core.timedomain.compliant import damping_ratio_for_restitution, scene_ground, touchdown_configuration
@@ -131,13 +141,19 @@ Frame = tuple[np.ndarray, np.ndarray]
 
 def base_pose(tree: Tree, scene: Scene, space: Space = PLANAR) -> Frame:
     """The base rod's frame at touchdown in the world: origin (m) and rotation. Planar: above
-    ``scene.base_x``, lowered until the first contact touches the scene's ground; spatial (flat
-    ground): above the world origin, its lowest contact on y = 0."""
+    ``scene.base_x``, lowered until the first contact touches the scene's ground; spatial on a
+    ``scene.heightfield``: above (``base_x``, ``base_z``), lowered until the first contact touches
+    the heightfield (footopt's bilinear ground); spatial otherwise (flat ground): above the world
+    origin, its lowest contact on y = 0."""
     if space is PLANAR:
         q = touchdown_configuration(tree, *scene_ground(scene), clearance=0.0)
         return np.array([q[0], q[1], 0.0]), body_rotation(replace(tree.bodies[0], angle=float(q[2])))
     from impulse_core.evaluate import touchdown_geometry
 
+    if scene.heightfield is not None:
+        q = touchdown_configuration(tree, scene.heightfield, scene.base_x, clearance=0.0, space=space,
+                                    base_z=scene.base_z)
+        return np.array(q[:3], dtype=float), body_rotation(tree.bodies[0])
     return np.array([0.0, -touchdown_geometry(tree, space).ground_height, 0.0]), body_rotation(tree.bodies[0])
 
 
@@ -314,17 +330,24 @@ def to_mjcf(
     joints: tuple[JointLaw, ...] = (),
     space: Space = PLANAR,
     stop_timestep: float = STOP_TIMESTEP,
+    ground: bool = True,
 ) -> str:
     """The MJCF of ``tree``: ``qpos0`` is the touchdown pose; gravity ``gravity`` (m/s^2) along -y;
-    the stops tuned for MuJoCo steps of ``stop_timestep`` (s; :func:`stop_parameters`)."""
+    the stops tuned for MuJoCo steps of ``stop_timestep`` (s; :func:`stop_parameters`). A spatial
+    scene's ``scene.heightfield`` is written as the ground (:func:`mjcf_ground`) unless ``ground``
+    is False (``footopt drop`` adds its own)."""
     check_names(tree)
     check_inertias(tree)
+    hf = scene.heightfield if ground and space is not PLANAR else None
+    regular = None if hf is None or hf.is_flat else regular_heightfield(hf, ground_cover(tree, scene, space))
     root = ET.Element("mujoco", model=_xml_safe(name))
-    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints, space, stop_timestep)))
+    root.append(ET.Comment(_note(tree, scene, ExportFormat.MJCF, joints, space, stop_timestep, ground)))
     ET.SubElement(root, "compiler", angle="radian")
     ET.SubElement(root, "option", gravity=_xyz((0.0, -gravity, 0.0)))
-    _mjcf_body(ET.SubElement(root, "worldbody"), tree, 0, base_pose(tree, scene, space), children(tree), joints,
-               stop_timestep)
+    world = ET.SubElement(root, "worldbody")
+    if hf is not None:
+        mjcf_ground(root, world, hf, regular)
+    _mjcf_body(world, tree, 0, base_pose(tree, scene, space), children(tree), joints, stop_timestep)
     return _text(root, declaration=False)
 
 
@@ -408,12 +431,140 @@ def _mjcf_law(law: JointLaw, angle: float, stop_timestep: float = STOP_TIMESTEP)
 
 
 # --------------------------------------------------------------------------------------------
+# The ground: scene.heightfield as a MuJoCo hfield
+
+#: The MJCF names of the ground's hfield asset and geom.
+HFIELD_NAME = "heightfield"
+#: Most cells per axis of the regular grid an uneven ``scene.heightfield`` is written on.
+HFIELD_MAX_CELLS = 1000
+#: Most cells of the flat skirt beyond the grid on each side of an axis.
+HFIELD_SKIRT_MAX_CELLS = 200
+#: An uneven grid's points must lie within this fraction of the common step of a regular node.
+HFIELD_GRID_TOLERANCE = 1e-9
+#: Least depth (m) of the hfield's solid base below its lowest point (MuJoCo's ``base_z``; at
+#: least the heights' range too).
+HFIELD_BASE = 0.1
+#: The hfield's local axes (columns) in footopt's world: its x along x, its y (MuJoCo's rows)
+#: along -z, its z (the elevation) along y, up.
+HFIELD_AXES = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+#: MuJoCo stores an hfield's normalised heights as float32: each within 2^-24 of the range.
+HFIELD_ROUNDING = 2.0**-24
+
+
+@dataclass(frozen=True)
+class RegularHeightfield:
+    """footopt's ground on a regular grid (MuJoCo's hfield): nodes ``x`` and ``z`` (m, evenly
+    spaced; every point of the model's grid is one of them) and ``heights[i, j]``, footopt's
+    bilinear ground at (x[i], z[j]) (m)."""
+
+    x: np.ndarray
+    z: np.ndarray
+    heights: np.ndarray
+
+    @property
+    def triangulation_error(self) -> float:
+        """The largest distance (m, vertical) between footopt's bilinear ground and MuJoCo's two
+        triangles per cell: |twist| / 4 of the cell with the largest twist, at its centre
+        (h00 - h10 - h01 + h11 the twist; either diagonal: the patch less the triangles is
+        +-twist u v or +-twist v (1 - u), at most 1/4 of it)."""
+        H = self.heights
+        return float(np.max(np.abs(H[:-1, :-1] - H[1:, :-1] - H[:-1, 1:] + H[1:, 1:]))) / 4.0
+
+
+def _regular_axis(grid: tuple[float, ...], where: str, cover: tuple[float, float]) -> np.ndarray:
+    """Evenly spaced nodes through every point of ``grid`` (from its first to its last point, the
+    fewest cells whose step divides every spacing), then a skirt of whole steps out to ``cover``
+    (lo, hi) where it lies beyond the grid, at most :data:`HFIELD_SKIRT_MAX_CELLS` a side; a
+    one-point grid (ground constant along it): it and one node either side, reaching ``cover``.
+    ConfigError naming ``where`` when no step divides the spacings within :data:`HFIELD_MAX_CELLS`
+    cells."""
+    g = np.asarray(grid, dtype=float)
+    if len(g) == 1:
+        reach = max(g[0] - cover[0], cover[1] - g[0], 1e-3)
+        return g[0] + np.array([-reach, 0.0, reach])
+    span = g[-1] - g[0]
+    for cells in range(len(g) - 1, HFIELD_MAX_CELLS + 1):
+        t = (g - g[0]) / span * cells
+        k = np.rint(t).astype(int)
+        if np.all(np.abs(t - k) <= HFIELD_GRID_TOLERANCE):
+            step = span / cells
+            nodes = g[0] + np.arange(cells + 1) * step
+            nodes[k] = g  # the model's points exactly
+            below, above = (min(max(0, math.ceil(d / step - 1e-9)), HFIELD_SKIRT_MAX_CELLS)
+                            for d in (g[0] - cover[0], cover[1] - g[-1]))
+            skirt = step * np.arange(1, max(below, above) + 1)
+            return np.concatenate([g[0] - skirt[:below][::-1], nodes, g[-1] + skirt[:above]])
+    raise ConfigError(
+        f"{where}: its spacings {_xyz(np.diff(g))} m are no whole multiples of one step within {HFIELD_MAX_CELLS} "
+        "cells; MuJoCo's hfield is a regular grid: give spacings that share a step (e.g. 0.1, 0.2, 0.3)"
+    )
+
+
+def regular_heightfield(
+    hf: Heightfield, cover: tuple[tuple[float, float], tuple[float, float]] | None = None
+) -> RegularHeightfield:
+    """``hf`` on a regular grid (MuJoCo's hfield): the model's grid where evenly spaced, else the
+    coarsest regular grid through all its points, with a flat skirt out to ``cover`` ((x lo, x
+    hi), (z lo, z hi); default the grid itself, an axis of one point spanning the other's extent)
+    (:func:`_regular_axis`); footopt's heights at every node: the model's own at its points, along
+    every cell of the model the same bilinear patch, in the skirt footopt's flat extension (its
+    cells untwisted: MuJoCo's triangles are that ground exactly)."""
+    if cover is None:
+        half = 0.5 * max(hf.x[-1] - hf.x[0], hf.z[-1] - hf.z[0], 1.0)
+        cover = ((hf.x[0] - half, hf.x[-1] + half) if len(hf.x) == 1 else (hf.x[0], hf.x[-1]),
+                 (hf.z[0] - half, hf.z[-1] + half) if len(hf.z) == 1 else (hf.z[0], hf.z[-1]))
+    x = _regular_axis(hf.x, "scene.heightfield.x", cover[0])
+    z = _regular_axis(hf.z, "scene.heightfield.z", cover[1])
+    return RegularHeightfield(x, z, hfield.height(hf, x[:, None], z[None, :]))
+
+
+def ground_cover(tree: Tree, scene: Scene, space: Space) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Where the exported hfield reaches ((x lo, x hi), (z lo, z hi), m): the heightfield's grid and
+    the contacts at touchdown, and beyond them the rods' total length (as far as the robot reaches)."""
+    from impulse_core.evaluate import touchdown_geometry
+
+    hf = scene.heightfield
+    origin, _ = base_pose(tree, scene, space)
+    P = touchdown_geometry(tree, space).contacts + origin
+    reach = float(sum(b.length for b in tree.bodies))
+    return ((min(hf.x[0], P[:, 0].min()) - reach, max(hf.x[-1], P[:, 0].max()) + reach),
+            (min(hf.z[0], P[:, 2].min()) - reach, max(hf.z[-1], P[:, 2].max()) + reach))
+
+
+def mjcf_ground(
+    root: ET.Element, world: ET.Element, hf: Heightfield, regular: RegularHeightfield | None = None
+) -> None:
+    """The heightfield ``hf`` as the ground of an MJCF (``root``, its ``world`` body): a flat one as
+    a plane at its height; any other as an ``<hfield>`` asset and geom named
+    :data:`HFIELD_NAME` on :func:`regular_heightfield`'s grid: heights normalised to [0, 1]
+    (MuJoCo's own normalisation then leaves them) times ``elevation`` = their range, above the
+    geom at the lowest height; the geom turned by :data:`HFIELD_AXES` (MuJoCo's elevation along
+    footopt's y; its rows, along -z, listed from the first z up: MuJoCo's first row is its +y
+    edge)."""
+    R = quaternion_of(HFIELD_AXES)
+    if hf.is_flat:
+        ET.SubElement(world, "geom", name=HFIELD_NAME, type="plane", size="0 0 1", pos=_xyz((0.0, hf.level, 0.0)),
+                      quat=_xyz(R))
+        return
+    g = regular_heightfield(hf) if regular is None else regular
+    lo, hi = float(g.heights.min()), float(g.heights.max())
+    unit = (g.heights - lo) / (hi - lo)
+    size = (0.5 * (g.x[-1] - g.x[0]), 0.5 * (g.z[-1] - g.z[0]), hi - lo, max(HFIELD_BASE, hi - lo))
+    asset = ET.Element("asset")
+    root.insert(list(root).index(world), asset)
+    ET.SubElement(asset, "hfield", name=HFIELD_NAME, nrow=str(len(g.z)), ncol=str(len(g.x)), size=_xyz(size),
+                  elevation=_xyz(unit.T.ravel()))
+    centre = (0.5 * (g.x[0] + g.x[-1]), lo, 0.5 * (g.z[0] + g.z[-1]))
+    ET.SubElement(world, "geom", name=HFIELD_NAME, type="hfield", hfield=HFIELD_NAME, pos=_xyz(centre), quat=_xyz(R))
+
+
+# --------------------------------------------------------------------------------------------
 # Text
 
 
 def _note(
     tree: Tree, scene: Scene, fmt: ExportFormat, joints: tuple[JointLaw, ...] = (), space: Space = PLANAR,
-    stop_timestep: float = STOP_TIMESTEP,
+    stop_timestep: float = STOP_TIMESTEP, ground: bool = True,
 ) -> str:
     """The comment at the top of a file: what it holds and where it departs from the model."""
     origin, R = base_pose(tree, scene, space)
@@ -426,7 +577,7 @@ def _note(
         "Axes as footopt's: x forward, y up, z lateral; "
         + ("planar joints turn about z. SI units." if planar else "each joint turns about its own axis. SI units."),
         "The zero configuration is the touchdown posture: each joint's origin holds its touchdown angle;",
-        f"the base origin is at ({_f(origin[0])}, {_f(origin[1])}, 0) m, the base turned by "
+        f"the base origin is at ({_f(origin[0])}, {_f(origin[1])}, {_f(origin[2])}) m, the base turned by "
         + (f"{_f(math.atan2(R[1, 0], R[0, 0]))} rad about z." if planar else f"rpy {_xyz(rpy_of(R))} rad."),
         *(_mjcf_inertia_note(planar) if mjcf else _URDF_INERTIA_NOTE),
     ]
@@ -463,7 +614,44 @@ def _note(
             f"Stable and accurate at timestep {_f(stop_timestep)} s or shorter (rebound within 0.035 of the restitution",
             "at it, closer as the step shrinks); a longer step needs a softer k (docs/MODEL_FORMAT.md, Export).",
         ]
+    if scene.heightfield is not None and not planar:
+        cover = None if fmt is ExportFormat.URDF or not ground else ground_cover(tree, scene, space)
+        lines += _ground_note(scene.heightfield, fmt, ground, cover)
     return "\n" + "\n".join(lines) + "\n"
+
+
+def _ground_note(
+    hf: Heightfield, fmt: ExportFormat, ground: bool = True,
+    cover: tuple[tuple[float, float], tuple[float, float]] | None = None,
+) -> list[str]:
+    """What the file says about the scene's heightfield (the base pose is the touchdown on it)."""
+    shape = (f"{len(hf.x)} x {len(hf.z)} points, x in [{_f(hf.x[0])}, {_f(hf.x[-1])}], "
+             f"z in [{_f(hf.z[0])}, {_f(hf.z[-1])}] m")
+    if fmt is ExportFormat.URDF:
+        return [f"URDF has no terrain: scene.heightfield ({shape}) is not written;",
+                "the pose above is the touchdown on it."]
+    if not ground:
+        return [f"scene.heightfield ({shape}): not written here; the pose above is the touchdown on it."]
+    if hf.is_flat:
+        return [f"Ground: scene.heightfield is flat ({shape}): a plane '{HFIELD_NAME}' at y = {_f(hf.level)} m."]
+    g = regular_heightfield(hf, cover)
+    lo, hi = float(g.heights.min()), float(g.heights.max())
+    inner = regular_heightfield(hf)
+    uneven = any(len(a) > 1 and len(b) != len(a) for a, b in ((hf.x, inner.x), (hf.z, inner.z)))
+    grid = (f"the model's uneven grid on a common step ({len(inner.x)} x {len(inner.z)} nodes: each model point "
+            "a node, each node on footopt's bilinear ground)" if uneven else "on the model's own regular grid")
+    return [
+        f"Ground: scene.heightfield ({shape}) as the MuJoCo hfield '{HFIELD_NAME}',",
+        f"{grid}; heights normalised to [0, 1] x elevation {_f(hi - lo)} m above y = {_f(lo)} m.",
+        "The geom's quat turns MuJoCo's z (the elevation) onto footopt's y (up); its rows run along -z.",
+        f"MuJoCo keeps the heights as float32 (within {_f((hi - lo) * HFIELD_ROUNDING)} m at the nodes) and splits "
+        "each",
+        f"cell into two triangles: they leave footopt's bilinear patch by up to {_f(g.triangulation_error)} m",
+        "(|twist| / 4, at the centre of the most twisted cell). Beyond the grid a flat skirt (footopt's flat",
+        "extension, the edge's heights: exact in triangles) out to the rods' total length beyond the grid and the",
+        f"contacts (at most {HFIELD_SKIRT_MAX_CELLS} cells a side): {len(g.x)} x {len(g.z)} nodes, x in "
+        f"[{_f(g.x[0])}, {_f(g.x[-1])}], z in [{_f(g.z[0])}, {_f(g.z[-1])}] m; beyond that MuJoCo has no ground.",
+    ]
 
 
 def _text(root: ET.Element, declaration: bool) -> str:
@@ -486,7 +674,10 @@ def _xyz(values) -> str:
 
 __all__ = [
     "GRAVITY",
+    "HFIELD_NAME",
+    "HFIELD_SKIRT_MAX_CELLS",
     "INERTIA_FLOOR",
+    "RegularHeightfield",
     "dynamics_inertia",
     "ExportFormat",
     "base_pose",
@@ -494,7 +685,10 @@ __all__ = [
     "check_names",
     "contact_frame_name",
     "export_text",
+    "ground_cover",
+    "mjcf_ground",
     "quaternion_of",
+    "regular_heightfield",
     "stop_parameters",
     "rpy_of",
     "to_mjcf",

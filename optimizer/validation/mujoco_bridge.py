@@ -444,7 +444,7 @@ def drop_spatial(
     ground, base_x, base_z = landing_ground(scene, None, None, SPATIAL)  # a heightfield in space
     q0 = touchdown_configuration(tree, ground, base_x, space=SPATIAL, base_z=base_z)  # clearance as the rung
     stiffness, damping = contact_parameters(tree, scene, settings, FLAT, 0.0, effective_mass)
-    exported = to_mjcf(tree, scene, joints=joints, space=SPATIAL, stop_timestep=timestep)
+    exported = to_mjcf(tree, scene, joints=joints, space=SPATIAL, stop_timestep=timestep, ground=False)
     text = exported_for_drop(exported, tree, flat(ground.level), timestep, stiffness, damping, settings,
                              scene.friction)  # the flat ground, replaced by tangent planes below if uneven
     if not ground.is_flat:
