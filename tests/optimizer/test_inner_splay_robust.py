@@ -282,3 +282,11 @@ def test_spatial_whole_landings_over_landings_are_refused():
             "restitution": 0.8, "duration": 0.05}, "statistic": {}}
     with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over spatial whole landings"):
         parse_study(text)
+
+
+def test_the_cli_refuses_a_roll_with_exit_status_2(tmp_path: Path, capsys):
+    path = tmp_path / "study.yaml"
+    path.write_text(json.dumps({**STUDY, "landings": {**LANDINGS, "roll": {"uniform": [-0.1, 0.1]}}}), encoding="utf-8")
+    assert main(["optimize", str(path), "--out", str(tmp_path / "run"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "landings.roll: the inner search varies" in err and len(err.strip().splitlines()) == 1
