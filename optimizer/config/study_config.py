@@ -258,9 +258,6 @@ def _check_spatial(config: StudyConfig) -> None:
             raise ConfigError("constraints.support_margin: needs design_space.space: spatial (a planar foot's "
                               "contacts lie on one line: its margin is at most 0)")
         return
-    if config.search.method is SearchMethod.INNER and config.landings is not None and config.whole_landing:
-        raise ConfigError("landings: the inner search (IPOPT) over spatial whole landings scores the nominal "
-                          "landing only; search.method: outer scores spatial whole landings over landings")
 
 
 def _check_landings(config: StudyConfig, landings: Landings) -> None:
@@ -289,7 +286,11 @@ INNER_SPATIAL_PARAMETERS = (*INNER_PARAMETERS, "velocity_z", "roll_rate")
 
 
 def _check_inner_landings(config: StudyConfig, landings: Landings) -> None:
-    """The inner search takes landings whose statistics its NLP can differentiate exactly."""
+    """The inner search takes landings whose statistics its NLP can differentiate exactly: of
+    first impacts (its NLP over whole landings lands the nominal scene only)."""
+    if config.whole_landing:
+        raise ConfigError("landings: the inner search (IPOPT) over whole landings scores the nominal landing only; "
+                          "search.method: outer scores whole landings over landings")
     allowed = INNER_SPATIAL_PARAMETERS if config.space.spatial else INNER_PARAMETERS
     for name in landings.names:
         if name not in allowed:

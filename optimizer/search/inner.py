@@ -57,8 +57,8 @@ angular_velocity] (world frame) with its restitution, what the outer search writ
 scenario's model file, and each objective is its statistic over the scenarios; the realised
 design is scored by the outer search's evaluation over the landings. A roll or a pitch (which
 contacts hit) and friction are refused when the study is read (naming ``landings.<name>`` or
-``scene.friction``), and so are spatial whole landings over landings (naming ``landings``): the
-outer search takes them.
+``scene.friction``), and so are whole landings over landings (naming ``landings``, in the plane
+too): the outer search takes them.
 """
 
 from __future__ import annotations
@@ -422,12 +422,12 @@ def run_inner(
         The number of shapes swept now.
 
     Raises:
-        ConfigError: spatial whole landings scored over landings: that NLP is the nominal
-            landing's; the outer search takes them (the study file's validation says so first).
+        ConfigError: whole landings scored over landings: that NLP lands the nominal scene
+            only; the outer search takes them (the study file's validation says so first).
     """
-    if config.space.spatial and config.landings is not None and config.whole_landing:
-        raise ConfigError("landings: the inner search (IPOPT) over spatial whole landings scores the nominal "
-                          "landing only; search.method: outer scores spatial whole landings over landings")
+    if config.landings is not None and config.whole_landing:
+        raise ConfigError("landings: the inner search (IPOPT) over whole landings scores the nominal landing only; "
+                          "search.method: outer scores whole landings over landings")
     shapes = config.space.shapes()
     sp = config.space
     distributions = {

@@ -19,7 +19,16 @@ import pytest
 
 from optimizer.cli.main import main
 from optimizer.config.study_config import parse_study
-from optimizer.design_space import FEASIBILITY_TOL, FootShape, Objective, design_model, foot_support_margin
+from optimizer.design_space import (
+    FEASIBILITY_TOL,
+    FootShape,
+    Objective,
+    SplayMode,
+    SplaySpace,
+    ToeSymmetry,
+    design_model,
+    foot_support_margin,
+)
 from optimizer.errors import ConfigError
 from optimizer.evaluation.robust import evaluate_over_landings
 from optimizer.evaluation.statistics import StatisticKind, parse_statistic
@@ -133,12 +142,22 @@ def aux_rows(nlp: ShapeNlp) -> np.ndarray:
     return np.flatnonzero(pattern[:, n_design:].any(axis=1))
 
 
-def test_per_scenario_impacts_are_the_outer_evaluation():
+@pytest.mark.parametrize(
+    ("space", "shape"),
+    [
+        ({}, FootShape(2, 1)),
+        ({"toe_symmetry": ToeSymmetry.INDEPENDENT, "splay": SplaySpace((-0.5, 0.7), SplayMode.PER_TOE)}, FootShape(3, 2)),
+        ({"splay": SplaySpace((0.3, 0.3))}, FootShape(1, 2)),  # one toe, no yaw variable
+    ],
+)
+def test_per_scenario_impacts_are_the_outer_evaluation(space: dict, shape: FootShape):
     """Every first-impact objective per scenario (the approach a 6-vector: lateral velocity and
     roll rate too) against each scenario's spatial model file evaluated by the model ``auto``
-    picks: 1e-9."""
+    picks: 1e-9; identical toes with a symmetric splay, independent toes each at its own yaw,
+    one toe at a fixed yaw."""
     config = config_of()
-    nlp = vm_nlp_of(config)
+    config = dataclasses.replace(config, space=dataclasses.replace(config.space, **space))
+    nlp = vm_nlp_of(config, shape)
     for x in newton_starts(config, nlp, 3, seed=0):
         ours = per_scenario(config, nlp, x)
         design = _evaluate(config, nlp, *nlp.unpack(x), nlp.toe_yaws(x)).design
@@ -277,10 +296,17 @@ def test_what_changes_which_contacts_hit_is_refused(landings, message):
     assert "\n" not in str(info.value)
 
 
-def test_spatial_whole_landings_over_landings_are_refused():
+@pytest.mark.parametrize("space", ["spatial", "planar"])
+def test_whole_landings_over_landings_are_refused(space: str):
+    """The inner search over whole landings lands the nominal scene only, in space and in the
+    plane (where it once scored the nominal landing silently)."""
     text = {**STUDY, "objectives": ["peak_external_norm", "peak_internal_norm"], "scene": {"speed": 3.43,
             "restitution": 0.8, "duration": 0.05}, "statistic": {}}
-    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over spatial whole landings"):
+    if space == "planar":
+        text["design_space"] = {"toes": [2, 2], "toe_segments": [1, 1]}
+        text["constraints"] = {k: v for k, v in text["constraints"].items() if k != "support_margin"}
+        text["landings"] = {k: v for k, v in LANDINGS.items() if k not in ("roll_rate", "velocity_z")}
+    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over whole landings"):
         parse_study(text)
 
 
