@@ -259,10 +259,6 @@ def _check_spatial(config: StudyConfig) -> None:
             raise ConfigError("constraints.support_margin: needs design_space.space: spatial (a planar foot's "
                               "contacts lie on one line: its margin is at most 0)")
         return
-    if config.search.method is SearchMethod.INNER and config.landings is not None:
-        raise ConfigError("landings: the inner search (IPOPT) over a spatial design space scores the nominal "
-                          "landing only (its first impact, or its whole landing); search.method: outer scores "
-                          "spatial feet over landings")
 
 
 def _check_landings(config: StudyConfig, landings: Landings) -> None:
@@ -283,15 +279,23 @@ def _check_landings(config: StudyConfig, landings: Landings) -> None:
 
 
 #: What the inner search's landings may vary: the approach and the restitution of one level
-#: first impact (a pitch, a step or friction changes which contacts hit, or the law).
+#: first impact (a pitch, a roll, a step or friction changes which contacts hit, or the law).
 INNER_PARAMETERS = ("speed", "velocity_x", "angular_velocity", "restitution")
+#: ... and over a spatial design space, the rest of the approach: a lateral velocity and a roll
+#: rate change the impact's right-hand side only, not which contacts hit.
+INNER_SPATIAL_PARAMETERS = (*INNER_PARAMETERS, "velocity_z", "roll_rate")
 
 
 def _check_inner_landings(config: StudyConfig, landings: Landings) -> None:
-    """The inner search takes landings whose statistics its NLP can differentiate exactly."""
+    """The inner search takes landings whose statistics its NLP can differentiate exactly: of
+    first impacts (its NLP over whole landings lands the nominal scene only)."""
+    if config.whole_landing:
+        raise ConfigError("landings: the inner search (IPOPT) over whole landings scores the nominal landing only; "
+                          "search.method: outer scores whole landings over landings")
+    allowed = INNER_SPATIAL_PARAMETERS if config.space.spatial else INNER_PARAMETERS
     for name in landings.names:
-        if name not in INNER_PARAMETERS:
-            raise ConfigError(f"landings.{name}: the inner search varies {', '.join(INNER_PARAMETERS)} only "
+        if name not in allowed:
+            raise ConfigError(f"landings.{name}: the inner search varies {', '.join(allowed)} only "
                               "(a level first impact); search.method: outer takes every parameter")
     for objective in config.objectives[:2]:
         stat = config.statistic_of(objective)

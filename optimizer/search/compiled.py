@@ -12,7 +12,8 @@ objectives follow exactly:
 and the toe count is a parameter of the NLP: one library serves every toe count. Independent
 toes keep one chain per toe (multiplicity 1). Splayed (spatial) toes are never merged: one NLP per
 toe count, on the whole spatial tree (:func:`_splayed_values`, :func:`_splayed_impact`,
-:func:`_support_rows`; the inner search's module docstring).
+:func:`_support_rows`; the inner search's module docstring); over landings its impact is one
+mapped call over the scenarios, as in the plane (:func:`_splayed_scenario_impacts`).
 
 A library holds CasADi's generated NLP functions (objective, constraints, their exact gradient,
 Jacobian and the Hessian of the Lagrangian, :meth:`casadi.Function.generate_dependencies`) and a
@@ -22,7 +23,8 @@ objectives, the kind of foot, the source of the modules that build it, the CasAD
 compiler and its flags. A warm study loads it without building any symbolic model.
 
 Compiling pays only for enough solves: a kind that is not cached yet and will see fewer than
-:data:`COMPILE_SOLVES` solves runs on CasADi's virtual machine instead (no library is built).
+:data:`COMPILE_SOLVES` solves (splayed toes over landings: :data:`COMPILE_SCENARIO_SOLVES` solves
+x scenarios) runs on CasADi's virtual machine instead (no library is built).
 """
 
 from __future__ import annotations
@@ -226,8 +228,13 @@ def nlp_key(config: StudyConfig, kind: FootKind, compiler: str) -> str:
 #: rather than being compiled: the toe-count study measured (CPU) gcc at 0.5 / 0.8 / 1.2 s for
 #: its one-, two- and three-rod toes' libraries, and the virtual machine's extra cost at 0.9 /
 #: 1.7 / 2.9 ms per solve (IPOPT's own work dominates either way), so a build repays itself after
-#: 400-560 solves. An MX NLP (a study with landings) is always compiled.
+#: 400-560 solves. A planar MX NLP (a study with landings) is always compiled.
 COMPILE_SOLVES = 500
+#: Solves x scenarios below which an uncached spatial MX NLP (splayed toes over landings) runs on
+#: the virtual machine: on two one-rod splayed toes, gcc took 13-17 s and the virtual machine
+#: 0.20 s more per solve over 5 scenarios (28 iterations) and 1.3 s more over 20 (36 iterations),
+#: so a build repays itself after about 300 scenario-solves.
+COMPILE_SCENARIO_SOLVES = 300
 
 #: Niceness added per place in the build order (the first kind's build runs at the search's own).
 NICENESS_STEP = 5
@@ -289,9 +296,14 @@ class NlpCache:
 
     def compiles(self, kind: FootKind) -> bool:
         """Whether the kind, when not cached, is compiled (else it runs on the virtual machine):
-        always with landings (an MX NLP), else when ``solves`` plans :data:`COMPILE_SOLVES` or more."""
+        in the plane always with landings (an MX NLP), in space with landings when ``solves``
+        plans :data:`COMPILE_SCENARIO_SOLVES` or more solves x scenarios, without landings when
+        it plans :data:`COMPILE_SOLVES` or more."""
         planned = math.inf if self._solves is None else self._solves.get(kind, 0)
-        return self._config.landings is not None or planned >= COMPILE_SOLVES
+        landings = self._config.landings
+        if landings is None:
+            return planned >= COMPILE_SOLVES
+        return not kind.spatial or planned * landings.count >= COMPILE_SCENARIO_SOLVES
 
     def _start(self, kind: FootKind, niceness: int = 0) -> tuple[_Graph, Future] | None:
         """Generate the kind's C and start compiling it, unless it is cached, cannot be compiled,
@@ -424,8 +436,14 @@ def _graph(config: StudyConfig, kind: FootKind) -> _Graph:
         splay = config.space.splay
         assert splay is not None
         yaws = toe_yaws(splay, kind.splayed_toes, [psi[j] for j in range(kind.yaws)])
-        p_tree, masses, topology = _splayed_values(config, kind, a, m, L, yaws)
-        impact = _splayed_impact(config, topology, p_tree)
+        if config.landings is None:
+            p_tree, masses, topology = _splayed_values(config, kind, a, m, L, yaws)
+            impact = _splayed_impact(config, topology, p_tree)
+        else:  # the tree's values as one call, its impact mapped over the scenarios
+            tree, topology = _splayed_tree_function(config, kind)
+            p_tree, body_masses = tree(a, m, L, psi)
+            masses = [body_masses[b] for b in range(body_masses.numel())]
+            impact = _splayed_scenario_impacts(config, topology, p_tree)
     elif config.landings is None:
         impact = _merged_impact(config, kind, a, m, mult)
     else:
@@ -483,7 +501,9 @@ def _graph(config: StudyConfig, kind: FootKind) -> _Graph:
     ubx = np.concatenate([a_hi, [lim.foot_mass] * n, [math.inf] * n_L, [math.inf], [yaw_hi] * kind.yaws,
                           [math.inf] * k])
     nlp = {"x": x, "p": params, "f": params[0] * f1 + params[1] * f2, "g": ca.vertcat(*g)}
-    if kind.spatial:  # the values of the NLP's design variables (the evaluation is evaluate_design's)
+    if kind.spatial and config.landings is not None:  # the nominal scene's, on SX symbols of their own
+        values = _splayed_values_function(config, kind)
+    elif kind.spatial:  # the values of the NLP's design variables (the evaluation is evaluate_design's)
         values = _values(impact, ca.vertcat(a, m, L, h, psi), params[2], "foot_values", "design")
     elif config.landings is None:
         values = _values(impact, ca.vertcat(a, m), params[2], "foot_values")
@@ -497,7 +517,7 @@ def _per_scenario(o: Objective, impact: dict, variable, add):
     ``base_angular_velocity`` get one epigraph variable per scenario."""
     if o in (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM, Objective.ENERGY_AFTER):
         return impact[o.value]
-    omega = impact["omega"]  # 1 x S in the plane, 3 x 1 in space
+    omega = impact["omega"]  # 1 x S in the plane, 3 x S in space
     u = variable(f"epigraph_{o.value}", omega.shape[1])
     if o is Objective.MAX_INTERNAL:
         for j in range(impact["scaled_magnitude"].shape[0]):
@@ -557,18 +577,23 @@ def values_function(config: StudyConfig, kind: FootKind, name: str | None = None
 SCENARIO_OUTPUTS = ("external", "scaled_magnitude", "omega", "external_norm", "internal_norm", "energy_after")
 
 
-def scenario_approach(config: StudyConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Each scenario's base velocity before the impact ([vx, vy, omega] columns, 3 x S) and
-    restitution (1 x S), as :func:`optimizer.evaluation.batched.scenario_inputs` sets them."""
+def scenario_approach(config: StudyConfig, spatial: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Each scenario's base velocity before the impact and restitution (1 x S): in the plane
+    [vx, vy, omega] columns (3 x S), as :func:`optimizer.evaluation.batched.scenario_inputs` sets
+    them; in space (``spatial``) [vx, vy, vz, wx, wy, wz] columns (6 x S, world frame), as
+    :func:`optimizer.evaluation.scenarios.overrides` writes ``scene.velocity`` [velocity_x,
+    -speed, velocity_z] and ``scene.angular_velocity`` [roll_rate, 0, angular_velocity]."""
     assert config.landings is not None
     s, draws = config.scene, config.landings.draw()
     column = dict(zip(config.landings.names, draws.T, strict=True))
     ones = np.ones(len(draws))
-    base = np.vstack([
-        column.get("velocity_x", 0.0) * ones,
-        -column.get("speed", s.speed) * ones,
-        column.get("angular_velocity", 0.0) * ones,
-    ])
+    vx, vy = column.get("velocity_x", 0.0) * ones, -column.get("speed", s.speed) * ones
+    wz = column.get("angular_velocity", 0.0) * ones
+    if spatial:
+        base = np.vstack([vx, vy, column.get("velocity_z", 0.0) * ones, column.get("roll_rate", 0.0) * ones,
+                          0.0 * ones, wz])
+    else:
+        base = np.vstack([vx, vy, wz])
     return base, (column.get("restitution", s.restitution) * ones)[None, :]
 
 
@@ -685,12 +710,17 @@ def _splayed_values(
     return p, masses, tree.topology()
 
 
-def _splayed_impact(config: StudyConfig, topology: Topology, p: ca.SX) -> dict[str, ca.SX]:
-    """The splayed foot's impact (Newton's law, eq. 11, in space; straight down) and its
-    objectives as :func:`optimizer.design_space.objectives` reads them: no toe merged, the base's
-    turn the norm of its angular velocity (``omega``: 3 x 1)."""
-    v_minus = ca.DM(approach_velocity(topology, config.scene.speed, SPATIAL))
-    out = compiled_model(topology, SPATIAL).impact(p=p, v_minus=v_minus, restitution=config.scene.restitution)
+def _splayed_impact(config: StudyConfig, topology: Topology, p: ca.SX, approach=None) -> dict[str, ca.SX]:
+    """The splayed foot's impact (Newton's law, eq. 11, in space) and its objectives as
+    :func:`optimizer.design_space.objectives` reads them: no toe merged, the base's turn the norm
+    of its angular velocity (``omega``: 3 x 1). ``approach``: (base velocity [vx, vy, vz, wx, wy,
+    wz], restitution), symbolic, the joints at rest; None: the study's scene, straight down."""
+    if approach is None:
+        v_minus, e = ca.DM(approach_velocity(topology, config.scene.speed, SPATIAL)), config.scene.restitution
+    else:
+        base, e = approach
+        v_minus = ca.vertcat(base, ca.SX(len(approach_velocity(topology, 0.0, SPATIAL)) - base.numel(), 1))
+    out = compiled_model(topology, SPATIAL).impact(p=p, v_minus=v_minus, restitution=e)
     lam, mag, omega = out["external"], out["internal_magnitude"], out["v_plus"][3:6]
     return {
         "external": lam,
@@ -704,6 +734,42 @@ def _splayed_impact(config: StudyConfig, topology: Topology, p: ca.SX) -> dict[s
         "energy_after": out["energy_after"],
         "energy_before": out["energy_before"],
     }
+
+
+def _splayed_tree_function(config: StudyConfig, kind: FootKind) -> tuple[ca.Function, Topology]:
+    """``(angles, masses, lengths, yaw variables)`` -> (the design vector, every body's mass) of
+    :func:`_splayed_values`, on SX symbols of its own (an MX NLP calls it), and the topology."""
+    n = sum(kind.sizes)
+    a, m = ca.SX.sym("joint_angle", n), ca.SX.sym("mass", n)
+    L, psi = ca.SX.sym("length", sum(kind.length_sizes)), ca.SX.sym("yaw", kind.yaws)
+    splay = config.space.splay
+    assert splay is not None
+    yaws = toe_yaws(splay, kind.splayed_toes, [psi[j] for j in range(kind.yaws)])
+    p, masses, topology = _splayed_values(config, kind, a, m, L, yaws)
+    f = ca.Function("splayed_tree", [a, m, L, psi], [p, ca.vertcat(*masses)], ["a", "m", "L", "yaw"], ["p", "masses"])
+    return f, topology
+
+
+def _splayed_scenario_impacts(config: StudyConfig, topology: Topology, p) -> dict:
+    """``SCENARIO_OUTPUTS`` of the splayed foot (design vector ``p``, symbolic) over the study's
+    landings: one mapped call of one landing's impact (rows x S; ``omega`` 3 x S)."""
+    base, e = scenario_approach(config, spatial=True)
+    q = ca.SX.sym("p", p.numel())
+    approach = (ca.SX.sym("base_velocity", 6), ca.SX.sym("restitution"))
+    impact = _splayed_impact(config, topology, q, approach)
+    f = ca.Function("splayed_scenario", [q, *approach], [impact[k] for k in SCENARIO_OUTPUTS], ["p", "base", "e"],
+                    list(SCENARIO_OUTPUTS))
+    return dict(zip(SCENARIO_OUTPUTS, f.map(base.shape[1])(p, ca.DM(base), ca.DM(e)), strict=True))
+
+
+def _splayed_values_function(config: StudyConfig, kind: FootKind) -> ca.Function:
+    """The splayed foot's nominal ``VALUE_OUTPUTS`` in the NLP's design variables (angles,
+    masses, lengths, ankle height, yaws), on SX symbols of their own (an NLP over landings)."""
+    f, topology = _splayed_tree_function(config, kind)
+    design = ca.SX.sym("design", 2 * sum(kind.sizes) + sum(kind.length_sizes) + 1 + kind.yaws)
+    n, n_L = sum(kind.sizes), sum(kind.length_sizes)
+    p, _ = f(design[:n], design[n : 2 * n], design[2 * n : 2 * n + n_L], design[2 * n + n_L + 1 :])
+    return _values(_splayed_impact(config, topology, p), design, ca.SX.sym("n_toes"), "foot_values", "design")
 
 
 def support_edges(kind: FootKind, topology: Topology, p: ca.SX, masses: list) -> tuple[ca.SX, ca.SX]:
@@ -793,6 +859,7 @@ def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add, length
 
 
 __all__ = [
+    "COMPILE_SCENARIO_SOLVES",
     "COMPILE_SOLVES",
     "IPOPT_OPTIONS",
     "TIGHTEN",

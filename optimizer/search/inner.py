@@ -48,9 +48,17 @@ exact when that order is the hull's). ``base_angular_velocity`` is the norm of t
 velocity, by an epigraph u^2 >= |omega|^2. A one-toe shape with a positive support margin is
 infeasible before any solve (one toe and the heel span no area). The realised design is
 evaluated as the outer search evaluates splayed feet (:func:`evaluate_design`: the core's
-``evaluate`` in space, the support margin of its model file). Friction, ``landings:`` and whole
-landings are refused for a spatial inner search when the study is read (naming
-``scene.friction``, ``landings`` and ``design_space.space``): the outer search takes them.
+``evaluate`` in space, the support margin of its model file).
+
+Over ``landings:`` (level first impacts) a splayed foot's NLP maps the whole tree's impact over
+the scenarios, as the plane's does (:func:`optimizer.search.compiled._splayed_scenario_impacts`):
+each scenario's approach is [velocity_x, -speed, velocity_z] and [roll_rate, 0,
+angular_velocity] (world frame) with its restitution, what the outer search writes into the
+scenario's model file, and each objective is its statistic over the scenarios; the realised
+design is scored by the outer search's evaluation over the landings. A roll or a pitch (which
+contacts hit) and friction are refused when the study is read (naming ``landings.<name>`` or
+``scene.friction``), and so are whole landings over landings (naming ``landings``, in the plane
+too): the outer search takes them.
 """
 
 from __future__ import annotations
@@ -414,13 +422,12 @@ def run_inner(
         The number of shapes swept now.
 
     Raises:
-        ConfigError: a spatial design space scored over landings or a whole landing: the spatial
-            NLP is the nominal first impact's; the outer search takes them (the study file's
-            validation says so first).
+        ConfigError: whole landings scored over landings: that NLP lands the nominal scene
+            only; the outer search takes them (the study file's validation says so first).
     """
-    if config.space.spatial and config.landings is not None:
-        raise ConfigError("landings: the inner search (IPOPT) over a spatial design space scores the nominal "
-                          "landing (its first impact, or its whole landing); search.method: outer takes landings")
+    if config.landings is not None and config.whole_landing:
+        raise ConfigError("landings: the inner search (IPOPT) over whole landings scores the nominal landing only; "
+                          "search.method: outer scores whole landings over landings")
     shapes = config.space.shapes()
     sp = config.space
     distributions = {

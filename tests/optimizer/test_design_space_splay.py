@@ -191,11 +191,17 @@ def test_constraint_values_follow_the_bound():
     assert not hasattr(constraint_values(Leg(), design, LIMITS), "support_margin")
 
 
-def test_inner_search_refuses_a_spatial_design_space_over_landings():
-    """The spatial inner search scores the nominal first impact (tests/optimizer/test_inner_splay.py)."""
-    parse_study({**study(), "search": {"method": "inner"}})
-    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over a spatial design space"):
-        parse_study({**study(), "search": {"method": "inner"}, "landings": {"count": 4, "speed": [3.0, 3.5]}})
-    config = parse_study({**study(), "landings": {"count": 4, "speed": [3.0, 3.5]}})
-    with pytest.raises(ConfigError, match=r"^landings: the inner search"):
+def test_inner_search_takes_a_spatial_design_space_over_level_landings():
+    """The spatial inner search scores level first impacts whose approach varies
+    (tests/optimizer/test_inner_splay_robust.py); what changes which contacts hit (a roll) is
+    refused naming the field, and so are spatial whole landings over landings, by the study file
+    and by :func:`run_inner` alike."""
+    level = {"count": 4, "speed": [3.0, 3.5], "velocity_z": [-0.2, 0.2], "roll_rate": [-0.5, 0.5]}
+    config = parse_study({**study(), "search": {"method": "inner"}, "landings": level})
+    assert config.landings is not None and config.landings.names == ("speed", "roll_rate", "velocity_z")
+    with pytest.raises(ConfigError, match=r"^landings\.roll: the inner search varies"):
+        parse_study({**study(), "search": {"method": "inner"}, "landings": {**level, "roll": [0.0, 0.1]}})
+    whole = {**study(), "objectives": ["peak_external_norm"], "scene": {"duration": 0.05}, "landings": level}
+    config = parse_study(whole)
+    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over whole landings"):
         run_inner(open_study(config, optuna.storages.InMemoryStorage()), config)
