@@ -26,7 +26,7 @@ from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.rods import rotation_rpy
 from impulse_core.model.tree import Body, Scene, Tree
 from impulse_core.timedomain.compliant import chart_rates
-from impulse_core.timedomain.landing import SETTLE_SPEED, LandingResult, LandingSettings, _Landing
+from impulse_core.timedomain.landing import SETTLE_SPEED, LandingResult, LandingSettings, _Landing, balanced_length
 from tests.conftest import report
 from tests.impulse_core.test_compliant_spatial import rpy_of
 from tests.impulse_core.test_landing import G, _random_leg
@@ -390,3 +390,50 @@ def test_re_centring_the_rotation_coordinates_moves_nothing(monkeypatch):
     for name in ("final_angles", "final_base", "total_external", "v_final"):
         a, b, c = (getattr(r, name) for r in (rare, often, finer))
         assert np.max(np.abs(a - b)) <= np.max(np.abs(a - c)), name
+
+
+def _light_damped_tip() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
+    """A random spatial model that took minutes (studies/whole_landing/spatial_chatter.md, f400,
+    rounded): an 11 cm base and a 3 cm, 22 g rod on a damper whose rate is 2e5 1/s, bouncing off
+    (e = 1) into flight; the implicit integrator at h x rate = 50."""
+    bodies = (Body("b0", None, 0.11, 0.107, -2.06, radius=0.0015),
+              Body("b1", 0, 0.033, 0.022, -2.42, at=0.33, com=0.12, contacts=(0.0,), rpy=(0.53, -0.31, -0.43)))
+    laws = (FREE, JointLaw(stiffness=1.93, damping=0.224, limits=(-2.555, -2.397), stop_restitution=0.78))
+    scene = Scene(speed=3.67, velocity_x=0.64, velocity_z=0.46, restitution=1.0, friction=0.3, gravity=G,
+                  duration=2e-3)
+    return Tree(bodies), laws, scene
+
+
+def test_the_momentum_balanced_step_grows_by_its_residual():
+    """Where the balance sets the step (ROS2 at h x rate >> 1, after a split), the next trial
+    doubles only where the residual's ratio, grown as dt^2, stays within the share: measured 227
+    accepted steps for 239 step calls (doubling after every split: 212 for 425, each accepted
+    step cost a rejected trial; as if it grew as dt^3, too cautious: 286 for 298), and the balance
+    holds. Runs at h and h / 2 whose steps the balance set stay one run (lengths h / 2^k), which
+    :func:`landing` tells by their equal step counts."""
+    tree, laws, scene = _light_damped_tip()
+    run = _Landing(tree, scene, laws, LandingSettings(step=2.5e-4, integrator="implicit"), SPATIAL)
+    calls = {"step": 0, "balanced_step": 0}
+    for name in calls:
+        method = getattr(run, name)
+
+        def counted(*args, _method=method, _name=name):
+            calls[_name] += 1
+            return _method(*args)
+
+        setattr(run, name, counted)
+    r = run.run(2.5e-4)
+    assert len(r.events) == 1 and r.momentum_balance < 2e-5
+    report("landing balanced steps", f"light damped tip: {calls['balanced_step']} accepted steps, "
+                                     f"{calls['step']} step calls")
+    assert calls["balanced_step"] > 100  # the balance sets the step
+    assert calls["step"] < 1.1 * calls["balanced_step"] and calls["step"] < 270
+    half = run.run(1.25e-4)
+    assert half.n_steps == r.n_steps and np.array_equal(half.final_angles, r.final_angles)
+
+
+def test_the_balanced_length_doubles_where_the_order_allows():
+    """2 dt once the ratio times 2^p is within 1 (p = 2: ROS2, 4: RK4), else dt."""
+    assert balanced_length(1e-3, 0.25, 2) == 2e-3 and balanced_length(1e-3, 0.26, 2) == 1e-3
+    assert balanced_length(1e-3, 1 / 16, 4) == 2e-3 and balanced_length(1e-3, 0.07, 4) == 1e-3
+    assert balanced_length(1e-3, 0.0, 2) == 2e-3
