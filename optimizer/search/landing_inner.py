@@ -14,7 +14,13 @@ foot length, clearance, foot mass), symbolic with exact derivatives. Splayed toe
 by cos(yaw) of their run in their plane: each toe's forward reach has its lower bound as a row
 of its own, while the plane's row keeps the in-plane run below the upper bound (stricter than
 the forward reach's: sound, a little conservative). The support margin (``constraints.
-support_margin``) is not a row: the realised design's evaluation checks it, as every constraint.
+support_margin``, two toes or more) is rows too, those of the first-impact NLP
+(:func:`optimizer.search.compiled._support_rows`: per edge of the contacts in a fixed order, heel
+then toes by decreasing yaw, s >= 0 and s^2 >= b^2 |d|^2), on the whole spatial tree of the
+NLP's point (:func:`landing_tree_values`: identical toes repeat their chain's angles, masses and
+lengths, as :meth:`LandingNlp.design` does), with exact derivatives; per-toe yaws are then kept in
+order (a relabelling of the toes), so that order is the hull's wherever the toes' tips are.
+The realised design's evaluation still checks the margin, as every constraint.
 Objectives (at most two, each a landing objective but ``settled_at``, which has no derivative): a CasADi callback that lands
 the design numerically at a fixed Runge-Kutta step, and its Jacobian callback, the exact gradient
 along that landing's own event sequence, chained from the tree's values to the NLP's. IPOPT uses
@@ -89,6 +95,9 @@ LANDING_IPOPT = {
     "ipopt.acceptable_tol": 1e-4,
     "print_time": False,
 }
+#: The support margin rows' length unit (m): s ~ |d| x distance is 1e-3 m^2 and its squared row
+#: 1e-6 m^4, below IPOPT's default constraint tolerance (1e-4) unscaled; in 0.1 m both are O(0.1-1).
+MARGIN_UNIT = 0.1
 #: The law values a family may search, in the NLP's order.
 LAW_KEYS = ("stiffness", "damping", "stop")
 
@@ -349,9 +358,9 @@ def landing_tree_values(kind: FootKind, distinct: list, a, m, L, psi, config: St
 
 def _landing_support_rows(config: StudyConfig, kind: FootKind, distinct: list, a, m, L, psi, add) -> None:
     """The support margin's rows (:func:`optimizer.search.compiled._support_rows`) on the tree of
-    the landing NLP's point (:func:`landing_tree_values`)."""
+    the landing NLP's point (:func:`landing_tree_values`), in units of :data:`MARGIN_UNIT`."""
     p, masses, topology = landing_tree_values(kind, distinct, a, m, L, psi, config)
-    _support_rows(config, kind, topology, p, masses, add)
+    _support_rows(config, kind, topology, p, masses, add, MARGIN_UNIT)
 
 
 def landing_objectives_of(config: StudyConfig) -> tuple[Objective, ...]:

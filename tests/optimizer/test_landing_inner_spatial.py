@@ -126,11 +126,13 @@ def _edge_terms(config, design) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
 
 
 def _margin_rows(nlp, x):
-    """The support margin's rows of the NLP at x (the last 2 x edges rows of ``geometric``):
-    cross products, then s^2 - (b + TIGHTEN)^2 |d|^2."""
+    """The support margin's rows of the NLP at x (the last 2 x edges rows of ``geometric``), in m:
+    cross products s, then s^2 - (b + TIGHTEN)^2 |d|^2."""
+    from optimizer.search.landing_inner import MARGIN_UNIT
+
     n_edges = nlp.shape.n_toes + 1
     g = np.asarray(nlp.geometric(x)).ravel()
-    return g[-2 * n_edges : -n_edges], g[-n_edges:]
+    return g[-2 * n_edges : -n_edges] * MARGIN_UNIT**2, g[-n_edges:] * MARGIN_UNIT**4
 
 
 @pytest.fixture(scope="module", params=sorted(MARGIN_STUDIES))
@@ -159,7 +161,7 @@ def test_the_support_margin_rows_are_the_realised_designs_edge_terms(margin_nlp)
         design = nlp.design(x)
         s, dd, corners, c = _edge_terms(config, design)
         cross, squared = _margin_rows(nlp, x)
-        assert np.max(np.abs(cross - s)) <= 1e-12 and np.max(np.abs(squared - (s**2 - (b + TIGHTEN) ** 2 * dd))) <= 1e-12
+        assert np.max(np.abs(cross - s)) <= 1e-14 and np.max(np.abs(squared - (s**2 - (b + TIGHTEN) ** 2 * dd))) <= 1e-16
         margin = foot_support_margin(config.leg, design)
         d, e = np.roll(corners, -1, axis=0) - corners, np.roll(corners, -2, axis=0) - corners
         if np.min(d[:, 0] * e[:, 1] - d[:, 1] * e[:, 0]) > 0:  # a convex polygon counter-clockwise: the order is the hull's
@@ -179,6 +181,7 @@ def test_the_support_margin_rows_gradient_agrees_with_central_differences(margin
     import casadi as ca
 
     from optimizer.search.compiled import TIGHTEN
+    from optimizer.search.landing_inner import MARGIN_UNIT
 
     nlp, config = margin_nlp, margin_nlp.config
     n_edges = nlp.shape.n_toes + 1
@@ -186,9 +189,9 @@ def test_the_support_margin_rows_gradient_agrees_with_central_differences(margin
     J = ca.Function("J", [xs], [ca.jacobian(nlp.geometric(xs)[-2 * n_edges :], xs)])
     b = config.limits.support_margin + TIGHTEN
 
-    def rows(x):
+    def rows(x):  # the NLP's rows, in its unit
         s, dd, _, _ = _edge_terms(config, nlp.design(x))
-        return np.concatenate([s, s**2 - b**2 * dd])
+        return np.concatenate([s / MARGIN_UNIT**2, (s**2 - b**2 * dd) / MARGIN_UNIT**4])
 
     rng = np.random.default_rng(7)
     for _ in range(3):
