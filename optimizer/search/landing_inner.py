@@ -18,8 +18,9 @@ support_margin``, two toes or more) is rows too, those of the first-impact NLP
 (:func:`optimizer.search.compiled._support_rows`: per edge of the contacts in a fixed order, heel
 then toes by decreasing yaw, s >= 0 and s^2 >= b^2 |d|^2), on the whole spatial tree of the
 NLP's point (:func:`landing_tree_values`: identical toes repeat their chain's angles, masses and
-lengths, as :meth:`LandingNlp.design` does), with exact derivatives; per-toe yaws are then kept in
-order (a relabelling of the toes), so that order is the hull's wherever the toes' tips are.
+lengths, as :meth:`LandingNlp.design` does), with exact derivatives, in units of
+:data:`MARGIN_UNIT`; per-toe yaws are then kept in order (a relabelling of the toes), so the
+fixed order follows the yaws (the rows are exact where it is the hull's, sound elsewhere).
 The realised design's evaluation still checks the margin, as every constraint.
 Objectives (at most two, each a landing objective but ``settled_at``, which has no derivative): a CasADi callback that lands
 the design numerically at a fixed Runge-Kutta step, and its Jacobian callback, the exact gradient

@@ -202,3 +202,51 @@ def test_the_support_margin_rows_gradient_agrees_with_central_differences(margin
             eps = 1e-6
             fd = (rows(x + eps * u) - rows(x - eps * u)) / (2 * eps)
             assert np.max(np.abs(fd - G @ u)) <= 1e-7 * max(1.0, np.max(np.abs(G @ u))), (u, fd, G @ u)
+
+
+#: Two identical toes, symmetric splay in [0.1, 0.6] rad, a 3 cm support margin, one objective.
+SWEEP_MARGIN_YAML = _margin_yaml("2, 2", "splay: [0.1, 0.6]", 0.03).replace(
+    "[peak_external_norm, energy_absorbed]", "[peak_external_norm]"
+)
+
+
+def test_a_landing_sweep_with_margin_rows_records_only_designs_within_the_margin(tmp_path, monkeypatch):
+    """The landing NLP's objective swapped for the splay (cheap: no landing per iterate; its
+    minimum narrows the support polygon): without the rows IPOPT's optimum leaves the margin, with
+    them the NLP's solution meets its rows and the margin, and every design the sweep records
+    (realised and landed by the study's evaluation) meets the margin."""
+    import math
+
+    import optimizer.search.landing_inner as landing_inner
+    from optimizer.design_space import foot_support_margin
+    from optimizer.search.landing_inner import _Landed, landing_sweep, realise_landing, solve_landing
+
+    monkeypatch.setattr(_Landed, "values", lambda self, x: np.array([x[-1]]))
+    monkeypatch.setattr(_Landed, "gradient", lambda self, x: np.eye(len(x))[-1:])
+    path = tmp_path / "margin.yaml"
+    path.write_text(SWEEP_MARGIN_YAML, encoding="utf-8")
+    config, shape = load_study(path), FootShape(2, 1)
+    b = config.limits.support_margin
+    nlp, free = build_landing_nlp(config, shape), build_landing_nlp(config, shape, margin_rows=False)
+    assert nlp.yaws == ("splay",)
+    x0 = start_landing(nlp, np.random.default_rng(config.seed))  # the sweep's own first start
+    unconstrained = solve_landing(free, (1.0, 0.0), math.inf, x0)
+    assert unconstrained.x[-1] == pytest.approx(0.1, abs=1e-6)  # the splay at its lower bound
+    assert foot_support_margin(config.leg, free.design(unconstrained.x)) < b
+    assert realise_landing(free, unconstrained.x) is None  # the evaluation drops it
+
+    solutions = []
+
+    def recording(*args, **kwargs):
+        solutions.append(solve_landing(*args, **kwargs))
+        return solutions[-1]
+
+    monkeypatch.setattr(landing_inner, "solve_landing", recording)
+    records = list(landing_sweep(nlp, np.random.default_rng(config.seed)))
+    assert len(solutions) == 1 and solutions[0].success
+    cross, squared = _margin_rows(nlp, solutions[0].x)
+    # the rows (m^2, m^4) to IPOPT's tolerance, within TIGHTEN's room (2 b TIGHTEN |d|^2 ~ 1e-10)
+    assert np.all(cross >= 0) and np.min(squared) >= -1e-11
+    assert solutions[0].x[-1] > 0.1 + 1e-3  # the margin, not the bound, stops the splay
+    assert foot_support_margin(config.leg, nlp.design(solutions[0].x)) >= b
+    assert len(records) == 1 and all(foot_support_margin(config.leg, r.design) >= b for r in records)
