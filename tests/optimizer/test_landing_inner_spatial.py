@@ -161,10 +161,11 @@ def test_the_support_margin_rows_are_the_realised_designs_edge_terms(margin_nlp)
         design = nlp.design(x)
         s, dd, corners, c = _edge_terms(config, design)
         cross, squared = _margin_rows(nlp, x)
-        assert np.max(np.abs(cross - s)) <= 1e-14 and np.max(np.abs(squared - (s**2 - (b + TIGHTEN) ** 2 * dd))) <= 1e-16
+        assert np.max(np.abs(cross - s)) <= 1e-14
+        assert np.max(np.abs(squared - (s**2 - (b + TIGHTEN) ** 2 * dd))) <= 1e-16
         margin = foot_support_margin(config.leg, design)
         d, e = np.roll(corners, -1, axis=0) - corners, np.roll(corners, -2, axis=0) - corners
-        if np.min(d[:, 0] * e[:, 1] - d[:, 1] * e[:, 0]) > 0:  # a convex polygon counter-clockwise: the order is the hull's
+        if np.min(d[:, 0] * e[:, 1] - d[:, 1] * e[:, 0]) > 0:  # convex, counter-clockwise: the hull's order
             hull_order += 1
             edge_margin = float(np.min(s / np.sqrt(dd)))
             if margin >= 0:
