@@ -345,7 +345,7 @@ def _forward_reach_rows(config: StudyConfig, shape: FootShape, distinct, a, L, y
         add(run * ca.cos(yaw) - runs[0], lo_f + TIGHTEN, math.inf)
 
 
-def landing_tree_values(kind: FootKind, distinct: list, a, m, L, psi, config: StudyConfig) -> tuple:
+def landing_tree_values(config: StudyConfig, kind: FootKind, distinct: list, a, m, L, psi) -> tuple:
     """The whole spatial tree's design vector (:func:`optimizer.search.compiled._splayed_values`),
     every body's mass and the topology, symbolic in the landing NLP's angles, masses and lengths
     (per distinct rod: identical toes repeat theirs, as :meth:`LandingNlp.design` does) and its
@@ -360,7 +360,7 @@ def landing_tree_values(kind: FootKind, distinct: list, a, m, L, psi, config: St
 def _landing_support_rows(config: StudyConfig, kind: FootKind, distinct: list, a, m, L, psi, add) -> None:
     """The support margin's rows (:func:`optimizer.search.compiled._support_rows`) on the tree of
     the landing NLP's point (:func:`landing_tree_values`), in units of :data:`MARGIN_UNIT`."""
-    p, masses, topology = landing_tree_values(kind, distinct, a, m, L, psi, config)
+    p, masses, topology = landing_tree_values(config, kind, distinct, a, m, L, psi)
     _support_rows(config, kind, topology, p, masses, add, MARGIN_UNIT)
 
 
@@ -501,7 +501,8 @@ def solver(nlp: LandingNlp, options: dict | None = None) -> tuple[ca.Function, _
 
 def start_landing(nlp: LandingNlp, rng: np.random.Generator) -> np.ndarray | None:
     """A random level start (as the first-impact search's): angles uniform in their limits, mass
-    shares uniform, lengths and ankle height from the linear program; law values uniform."""
+    shares uniform, lengths and ankle height from the linear program; law values uniform; per-toe
+    yaws uniform, sorted (the order the margin rows keep)."""
     cfg, lim = nlp.config, nlp.config.limits
     n = nlp.n_rods
     a = rng.uniform(nlp.lbx[:n], nlp.ubx[:n])
