@@ -794,7 +794,7 @@ def support_edges(kind: FootKind, topology: Topology, p: ca.SX, masses: list) ->
 
 
 def _support_rows(
-    config: StudyConfig, kind: FootKind, topology: Topology, p: ca.SX, masses: list, add: Callable
+    config: StudyConfig, kind: FootKind, topology: Topology, p: ca.SX, masses: list, add: Callable, unit: float = 1.0
 ) -> None:
     """The support margin (``constraints.support_margin``, b): the centre of mass's ground
     projection at least b inside the contacts' hull, smoothly, per edge of :func:`support_edges`:
@@ -806,14 +806,17 @@ def _support_rows(
     hull (the edges wind around it), so a realised design meets the true margin; exact when the
     order is the hull's (identical toes: their tips on a circle about the ankle, the heel behind).
     A bound b <= 0 is met by keeping c inside (conservative: the true margin may go to b). One toe
-    and the heel span no area: no rows (the realised design's margin decides)."""
+    and the heel span no area: no rows (the realised design's margin decides). ``unit``: the rows'
+    length unit (m; s in unit^2, the second row in unit^4), their scale for the solver."""
     if kind.splayed_toes < 2:
         return
     cross, squared = support_edges(kind, topology, p, masses)
+    if unit != 1.0:
+        cross, squared = cross / unit**2, squared / unit**2
     add(cross, 0.0, math.inf)
-    b = float(config.limits.support_margin)
+    b = float(config.limits.support_margin) / unit
     if b > 0:
-        add(cross**2 - (b + TIGHTEN) ** 2 * squared, 0.0, math.inf)
+        add(cross**2 - (b + TIGHTEN / unit) ** 2 * squared, 0.0, math.inf)
 
 
 def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add, lengths=None, turns=None) -> None:

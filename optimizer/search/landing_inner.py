@@ -14,7 +14,14 @@ foot length, clearance, foot mass), symbolic with exact derivatives. Splayed toe
 by cos(yaw) of their run in their plane: each toe's forward reach has its lower bound as a row
 of its own, while the plane's row keeps the in-plane run below the upper bound (stricter than
 the forward reach's: sound, a little conservative). The support margin (``constraints.
-support_margin``) is not a row: the realised design's evaluation checks it, as every constraint.
+support_margin``, two toes or more) is rows too, those of the first-impact NLP
+(:func:`optimizer.search.compiled._support_rows`: per edge of the contacts in a fixed order, heel
+then toes by decreasing yaw, s >= 0 and s^2 >= b^2 |d|^2), on the whole spatial tree of the
+NLP's point (:func:`landing_tree_values`: identical toes repeat their chain's angles, masses and
+lengths, as :meth:`LandingNlp.design` does), with exact derivatives, in units of
+:data:`MARGIN_UNIT`; per-toe yaws are then kept in order (a relabelling of the toes), so the
+fixed order follows the yaws (the rows are exact where it is the hull's, sound elsewhere).
+The realised design's evaluation still checks the margin, as every constraint.
 Objectives (at most two, each a landing objective but ``settled_at``, which has no derivative): a CasADi callback that lands
 the design numerically at a fixed Runge-Kutta step, and its Jacobian callback, the exact gradient
 along that landing's own event sequence, chained from the tree's values to the NLP's. IPOPT uses
@@ -69,7 +76,16 @@ from optimizer.design_space import (
     with_lengths,
     yaw_rpy,
 )
-from optimizer.search.compiled import TIGHTEN, _chain_limits, _geometric_rows, foot_kind
+from optimizer.search.compiled import (
+    TIGHTEN,
+    FootKind,
+    _chain_limits,
+    _geometric_rows,
+    _splayed_values,
+    _support_rows,
+    foot_kind,
+    toe_yaws,
+)
 
 #: IPOPT's options for a landing solve: limited-memory Hessian (only first derivatives exist).
 LANDING_IPOPT = {
@@ -80,6 +96,9 @@ LANDING_IPOPT = {
     "ipopt.acceptable_tol": 1e-4,
     "print_time": False,
 }
+#: The support margin rows' length unit (m): s ~ |d| x distance is 1e-3 m^2 and its squared row
+#: 1e-6 m^4, below IPOPT's default constraint tolerance (1e-4) unscaled; in 0.1 m both are O(0.1-1).
+MARGIN_UNIT = 0.1
 #: The law values a family may search, in the NLP's order.
 LAW_KEYS = ("stiffness", "damping", "stop")
 
@@ -248,8 +267,9 @@ def rpy_rates(shank_angle: float, yaw: float) -> np.ndarray:
     return np.linalg.solve(E, axis)
 
 
-def build_landing_nlp(config: StudyConfig, shape: FootShape) -> LandingNlp:
-    """The landing NLP of ``shape`` (see the module docstring)."""
+def build_landing_nlp(config: StudyConfig, shape: FootShape, margin_rows: bool = True) -> LandingNlp:
+    """The landing NLP of ``shape`` (see the module docstring). ``margin_rows=False`` leaves the
+    support margin's rows out (the realised design's evaluation alone checks it; for comparison)."""
     lim = config.limits
     kind = foot_kind(config, shape)
     sizes = kind.sizes
@@ -284,12 +304,16 @@ def build_landing_nlp(config: StudyConfig, shape: FootShape) -> LandingNlp:
 
     def add(expr, lo, hi):
         g.append(expr)
-        lbg.append(lo)
-        ubg.append(hi)
+        lbg.extend([lo] * expr.numel())
+        ubg.extend([hi] * expr.numel())
 
     _geometric_rows(config, distinct, a, m, L, h, mult, add)
     if splay is not None:
         _forward_reach_rows(config, shape, distinct, a, L, yaws, psi, add)
+        if margin_rows and lim.support_margin is not None and shape.n_toes > 1:
+            for j in range(len(yaws) - 1):  # per-toe yaws in order: the rows' contact order (docstring)
+                add(psi[j + 1] - psi[j], 0.0, math.inf)
+            _landing_support_rows(config, kind, distinct, a, m, L, psi, add)
     x = ca.vertcat(a, m, L, h, w, psi)
     geometric = ca.Function("geometric", [x], [ca.vertcat(*g)])
     a_lo, a_hi = [], []
@@ -316,16 +340,28 @@ def _forward_reach_rows(config: StudyConfig, shape: FootShape, distinct, a, L, y
             acc = acc + a[i]
             run = run + L[i] * ca.cos(acc)
         runs.append(run)
-    values = {name: psi[k] for k, name in enumerate(yaws)}
-    n_toes = shape.n_toes
-    if splay.mode is SplayMode.SYMMETRIC:
-        s = values.get("splay", splay.splay[0])
-        toe_yaw = [-s + 2.0 * s * i / (n_toes - 1) for i in range(n_toes)] if n_toes > 1 else [0.0]
-    else:
-        toe_yaw = [values.get(f"toe{i + 1}.yaw", splay.splay[0]) for i in range(n_toes)]
-    for i, yaw in enumerate(toe_yaw):
+    for i, yaw in enumerate(toe_yaws(splay, shape.n_toes, [psi[k] for k in range(len(yaws))])):
         run = runs[1] if len(distinct) == 2 else runs[1 + i]  # identical toes: one distinct chain
         add(run * ca.cos(yaw) - runs[0], lo_f + TIGHTEN, math.inf)
+
+
+def landing_tree_values(config: StudyConfig, kind: FootKind, distinct: list, a, m, L, psi) -> tuple:
+    """The whole spatial tree's design vector (:func:`optimizer.search.compiled._splayed_values`),
+    every body's mass and the topology, symbolic in the landing NLP's angles, masses and lengths
+    (per distinct rod: identical toes repeat theirs, as :meth:`LandingNlp.design` does) and its
+    splay variables ``psi``."""
+    splay = config.space.splay
+    assert splay is not None
+    lengths = ca.vertcat(*[L[i] for c in kind.chain_of for i in distinct[c]])
+    yaws = toe_yaws(splay, kind.splayed_toes, [psi[j] for j in range(psi.numel())])
+    return _splayed_values(config, kind, a, m, lengths, yaws)
+
+
+def _landing_support_rows(config: StudyConfig, kind: FootKind, distinct: list, a, m, L, psi, add) -> None:
+    """The support margin's rows (:func:`optimizer.search.compiled._support_rows`) on the tree of
+    the landing NLP's point (:func:`landing_tree_values`), in units of :data:`MARGIN_UNIT`."""
+    p, masses, topology = landing_tree_values(config, kind, distinct, a, m, L, psi)
+    _support_rows(config, kind, topology, p, masses, add, MARGIN_UNIT)
 
 
 def landing_objectives_of(config: StudyConfig) -> tuple[Objective, ...]:
@@ -465,7 +501,8 @@ def solver(nlp: LandingNlp, options: dict | None = None) -> tuple[ca.Function, _
 
 def start_landing(nlp: LandingNlp, rng: np.random.Generator) -> np.ndarray | None:
     """A random level start (as the first-impact search's): angles uniform in their limits, mass
-    shares uniform, lengths and ankle height from the linear program; law values uniform."""
+    shares uniform, lengths and ankle height from the linear program; law values uniform; per-toe
+    yaws uniform, sorted (the order the margin rows keep)."""
     cfg, lim = nlp.config, nlp.config.limits
     n = nlp.n_rods
     a = rng.uniform(nlp.lbx[:n], nlp.ubx[:n])
@@ -475,6 +512,8 @@ def start_landing(nlp: LandingNlp, rng: np.random.Generator) -> np.ndarray | Non
     free = used - np.sum(mult) * lim.min_link_mass
     m = lim.min_link_mass + free * shares / np.sum(mult * shares)
     w = rng.uniform(nlp.lbx[3 * n + 1 :], nlp.ubx[3 * n + 1 :])  # law values, then splay
+    if len(nlp.yaws) > 1:  # per-toe yaws in increasing order (any foot is one such, relabelled)
+        w[len(nlp.laws) :] = np.sort(w[len(nlp.laws) :])
     design = nlp.design(np.concatenate([a, m, np.full(n, 0.1), [0.0], w]))
     angles = tuple(tuple(s.joint_angle for s in c) for c in design.chains)
     masses = tuple(tuple(s.mass for s in c) for c in design.chains)

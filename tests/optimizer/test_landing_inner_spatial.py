@@ -91,3 +91,163 @@ def test_a_spatial_inner_landing_study_runs_and_its_front_re_evaluates(nlp, tmp_
         r = landing(m.tree, m.scene, m.joints, replace(STUDY_LANDING, tolerance=1e-2), m.space)
         for key in ("energy_absorbed", "peak_external_norm"):
             assert getattr(r, key) == pytest.approx(float(row[key]), rel=1e-9), key
+
+
+#: Two or three toes splayed (symmetric, or per toe with independent toes), a support margin.
+def _margin_yaml(toes: str, splay: str, margin: float) -> str:
+    return SPATIAL_LANDING_YAML.replace("toes: [1, 1]", f"toes: [{toes}]").replace(
+        "splay: [0.1, 0.4]\n  splay_mode: per_toe", splay
+    ).replace("constraints: {min_link_mass: 0.02}", f"constraints: {{min_link_mass: 0.02, support_margin: {margin}}}")
+
+
+MARGIN_STUDIES = {
+    "symmetric": (_margin_yaml("3, 3", "splay: [0.1, 0.6]", 0.01), FootShape(3, 1)),
+    "per_toe": (_margin_yaml("2, 2", "splay: [-0.5, 0.5]\n  splay_mode: per_toe\n  toe_symmetry: independent", 0.01),
+                FootShape(2, 1)),
+}
+
+
+def _edge_terms(config, design) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The realised design's edge terms, numerically (the evaluation's geometry): per edge of the
+    NLP's contact order (heel, then toes by decreasing yaw) s = d x (c - P) and |d|^2; and the
+    corners and the centre of mass on the ground."""
+    from impulse_core.evaluate import touchdown_geometry
+    from optimizer.design_space import foot_tree
+
+    tree = foot_tree(config.leg, design)
+    geometry = touchdown_geometry(tree, SPATIAL)
+    masses = np.array([b.mass for b in tree.bodies])
+    c = (masses @ geometry.coms / masses.sum())[[0, 2]]
+    n_toes = len(design.toes)
+    corners = geometry.contacts[[0, *range(n_toes, 0, -1)]][:, [0, 2]]
+    d = np.roll(corners, -1, axis=0) - corners
+    w = c - corners
+    return d[:, 0] * w[:, 1] - d[:, 1] * w[:, 0], np.sum(d**2, axis=1), corners, c
+
+
+def _margin_rows(nlp, x):
+    """The support margin's rows of the NLP at x (the last 2 x edges rows of ``geometric``), in m:
+    cross products s, then s^2 - (b + TIGHTEN)^2 |d|^2."""
+    from optimizer.search.landing_inner import MARGIN_UNIT
+
+    n_edges = nlp.shape.n_toes + 1
+    g = np.asarray(nlp.geometric(x)).ravel()
+    return g[-2 * n_edges : -n_edges] * MARGIN_UNIT**2, g[-n_edges:] * MARGIN_UNIT**4
+
+
+@pytest.fixture(scope="module", params=sorted(MARGIN_STUDIES))
+def margin_nlp(request, tmp_path_factory):
+    text, shape = MARGIN_STUDIES[request.param]
+    path = tmp_path_factory.mktemp("landing_margin") / "margin.yaml"
+    path.write_text(text, encoding="utf-8")
+    return build_landing_nlp(load_study(path), shape)
+
+
+def test_the_support_margin_rows_are_the_realised_designs_edge_terms(margin_nlp):
+    """At random level points (yaws random in their range): the rows are the design's edge terms;
+    where the contact order is the hull's, min s / |d| is the study's support margin (to 1e-9)."""
+    from optimizer.design_space import foot_support_margin
+    from optimizer.search.compiled import TIGHTEN
+
+    nlp, config = margin_nlp, margin_nlp.config
+    without = build_landing_nlp(config, nlp.shape, margin_rows=False)
+    order = max(len(nlp.yaws) - 1, 0)  # per-toe yaws kept in order
+    assert nlp.geometric.size1_out(0) == without.geometric.size1_out(0) + order + 2 * (nlp.shape.n_toes + 1)
+    rng = np.random.default_rng(5)
+    b, hull_order, inside = config.limits.support_margin, 0, 0
+    for _ in range(12):
+        x = start_landing(nlp, rng)
+        assert x is not None
+        design = nlp.design(x)
+        s, dd, corners, c = _edge_terms(config, design)
+        cross, squared = _margin_rows(nlp, x)
+        assert np.max(np.abs(cross - s)) <= 1e-14
+        assert np.max(np.abs(squared - (s**2 - (b + TIGHTEN) ** 2 * dd))) <= 1e-16
+        margin = foot_support_margin(config.leg, design)
+        d, e = np.roll(corners, -1, axis=0) - corners, np.roll(corners, -2, axis=0) - corners
+        if np.min(d[:, 0] * e[:, 1] - d[:, 1] * e[:, 0]) > 0:  # convex, counter-clockwise: the hull's order
+            hull_order += 1
+            edge_margin = float(np.min(s / np.sqrt(dd)))
+            if margin >= 0:
+                inside += 1
+                assert edge_margin == pytest.approx(margin, abs=1e-9)
+            else:  # outside: some edge's line is crossed, by no more than the hull's distance
+                assert margin - 1e-12 <= edge_margin < 0
+    assert hull_order >= 6 and inside >= 3
+
+
+def test_the_support_margin_rows_gradient_agrees_with_central_differences(margin_nlp):
+    """d rows / dx (CasADi's, exact) against central differences of the realised design's edge
+    terms (numeric), along random directions and along each variable."""
+    import casadi as ca
+
+    from optimizer.search.compiled import TIGHTEN
+    from optimizer.search.landing_inner import MARGIN_UNIT
+
+    nlp, config = margin_nlp, margin_nlp.config
+    n_edges = nlp.shape.n_toes + 1
+    xs = ca.SX.sym("x", nlp.n_x)
+    J = ca.Function("J", [xs], [ca.jacobian(nlp.geometric(xs)[-2 * n_edges :], xs)])
+    b = config.limits.support_margin + TIGHTEN
+
+    def rows(x):  # the NLP's rows, in its unit
+        s, dd, _, _ = _edge_terms(config, nlp.design(x))
+        return np.concatenate([s / MARGIN_UNIT**2, (s**2 - b**2 * dd) / MARGIN_UNIT**4])
+
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        x = start_landing(nlp, rng)
+        G = np.asarray(J(x))
+        assert np.any(G[:, -len(nlp.yaws):])  # the splay moves the edges
+        for u in [rng.standard_normal(nlp.n_x), *np.eye(nlp.n_x)]:
+            eps = 1e-6
+            fd = (rows(x + eps * u) - rows(x - eps * u)) / (2 * eps)
+            assert np.max(np.abs(fd - G @ u)) <= 1e-7 * max(1.0, np.max(np.abs(G @ u))), (u, fd, G @ u)
+
+
+#: Two identical toes, symmetric splay in [0.1, 0.6] rad, a 3 cm support margin, one objective.
+SWEEP_MARGIN_YAML = _margin_yaml("2, 2", "splay: [0.1, 0.6]", 0.03).replace(
+    "[peak_external_norm, energy_absorbed]", "[peak_external_norm]"
+)
+
+
+def test_a_landing_sweep_with_margin_rows_records_only_designs_within_the_margin(tmp_path, monkeypatch):
+    """The landing NLP's objective swapped for the splay (cheap: no landing per iterate; its
+    minimum narrows the support polygon): without the rows IPOPT's optimum leaves the margin, with
+    them the NLP's solution meets its rows and the margin, and every design the sweep records
+    (realised and landed by the study's evaluation) meets the margin."""
+    import math
+
+    import optimizer.search.landing_inner as landing_inner
+    from optimizer.design_space import foot_support_margin
+    from optimizer.search.landing_inner import _Landed, landing_sweep, realise_landing, solve_landing
+
+    monkeypatch.setattr(_Landed, "values", lambda self, x: np.array([x[-1]]))
+    monkeypatch.setattr(_Landed, "gradient", lambda self, x: np.eye(len(x))[-1:])
+    path = tmp_path / "margin.yaml"
+    path.write_text(SWEEP_MARGIN_YAML, encoding="utf-8")
+    config, shape = load_study(path), FootShape(2, 1)
+    b = config.limits.support_margin
+    nlp, free = build_landing_nlp(config, shape), build_landing_nlp(config, shape, margin_rows=False)
+    assert nlp.yaws == ("splay",)
+    x0 = start_landing(nlp, np.random.default_rng(config.seed))  # the sweep's own first start
+    unconstrained = solve_landing(free, (1.0, 0.0), math.inf, x0)
+    assert unconstrained.x[-1] == pytest.approx(0.1, abs=1e-6)  # the splay at its lower bound
+    assert foot_support_margin(config.leg, free.design(unconstrained.x)) < b
+    assert realise_landing(free, unconstrained.x) is None  # the evaluation drops it
+
+    solutions = []
+
+    def recording(*args, **kwargs):
+        solutions.append(solve_landing(*args, **kwargs))
+        return solutions[-1]
+
+    monkeypatch.setattr(landing_inner, "solve_landing", recording)
+    records = list(landing_sweep(nlp, np.random.default_rng(config.seed)))
+    assert len(solutions) == 1 and solutions[0].success
+    cross, squared = _margin_rows(nlp, solutions[0].x)
+    # the rows (m^2, m^4) to IPOPT's tolerance, within TIGHTEN's room (2 b TIGHTEN |d|^2 ~ 1e-10)
+    assert np.all(cross >= 0) and np.min(squared) >= -1e-11
+    assert solutions[0].x[-1] > 0.1 + 1e-3  # the margin, not the bound, stops the splay
+    assert foot_support_margin(config.leg, nlp.design(solutions[0].x)) >= b
+    assert len(records) == 1 and all(foot_support_margin(config.leg, r.design) >= b for r in records)
