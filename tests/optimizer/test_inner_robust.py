@@ -133,15 +133,7 @@ def test_gradient_of_the_statistics_is_exact(tmp_path):
     rng = np.random.default_rng(3)
     x = next(x for x in (start_point(config, nlp, rng) for _ in range(20)) if x is not None)
     x = x + rng.uniform(0.0, 0.05, x.size) * (np.arange(x.size) >= 3 * c.n_rods + 1)
-    grad = c.solver.get_function("nlp_grad_f")  # the library's own exact gradient
-    p = [1.0, 0.7, nlp.shape.n_toes]
-    exact = np.array(grad(x, p)[1]).ravel()
-    h = 1e-6
-    for i in range(c.n_x):
-        step = np.zeros(c.n_x)
-        step[i] = h
-        fd = (float(grad(x + step, p)[0]) - float(grad(x - step, p)[0])) / (2 * h)
-        assert exact[i] == pytest.approx(fd, rel=1e-5, abs=1e-8), f"variable {i}"
+    assert_objective_gradient(c.solver.get_function("nlp_grad_f"), x, [1.0, 0.7, nlp.shape.n_toes])
 
 
 def test_inner_minima_beat_a_sample_scored_over_the_landings(tmp_path):
@@ -214,3 +206,15 @@ def test_an_epigraph_objective_first_keeps_the_epsilon_row_first(landings: bool)
     second = np.sort([t.evaluation.objectives.external_norm for t in recorded_trials(study)])
     assert len(second) == 2 + config.search.front_points
     np.testing.assert_allclose(second, np.linspace(second[0], second[-1], second.size), rtol=1e-4)
+
+
+def assert_objective_gradient(grad: ca.Function, x: np.ndarray, p: list) -> None:
+    """An NLP's exact objective gradient (``nlp_grad_f``, the library's own) against central
+    differences of its objective in every variable."""
+    exact = np.array(grad(x, p)[1]).ravel()
+    h = 1e-6
+    for i in range(x.size):
+        step = np.zeros(x.size)
+        step[i] = h
+        fd = (float(grad(x + step, p)[0]) - float(grad(x - step, p)[0])) / (2 * h)
+        assert exact[i] == pytest.approx(fd, rel=1e-5, abs=1e-8), f"variable {i}"

@@ -55,7 +55,7 @@ def config_of(**space):
     return dataclasses.replace(config, space=dataclasses.replace(config.space, **space))
 
 
-def vm_nlp_of(config, shape: FootShape) -> ShapeNlp:
+def vm_nlp_of(config, shape: FootShape = FootShape(2, 1)) -> ShapeNlp:
     """The shape's NLP on CasADi's virtual machine (no C build: zero planned solves)."""
     kind = foot_kind(config, shape)
     return build_nlp(config, shape, NlpCache(config, [kind], solves={kind: 0}))

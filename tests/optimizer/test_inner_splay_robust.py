@@ -34,9 +34,10 @@ from optimizer.evaluation.robust import evaluate_over_landings
 from optimizer.evaluation.statistics import StatisticKind, parse_statistic
 from optimizer.report import plot
 from optimizer.search import compiled
-from optimizer.search.compiled import NlpCache, foot_kind
-from optimizer.search.inner import ShapeNlp, _evaluate, build_nlp, start_point
+from optimizer.search.inner import ShapeNlp, _evaluate, start_point
 from optimizer.search.outer import evaluate_design_over_landings, recorded_trials
+from tests.optimizer.test_inner_robust import assert_objective_gradient
+from tests.optimizer.test_inner_splay import vm_nlp_of
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
 
@@ -69,12 +70,6 @@ def config_of(objectives=("external_norm", "base_angular_velocity"), **statistic
     config = parse_study({**STUDY, "objectives": list(objectives)})
     stats = tuple((Objective(k), parse_statistic(v, k)) for k, v in statistic.items())
     return dataclasses.replace(config, statistic=stats) if stats else config
-
-
-def vm_nlp_of(config, shape: FootShape = FootShape(2, 1)) -> ShapeNlp:
-    """The shape's NLP on CasADi's virtual machine (no C build: zero planned solves)."""
-    kind = foot_kind(config, shape)
-    return build_nlp(config, shape, NlpCache(config, [kind], solves={kind: 0}))
 
 
 def per_scenario(config, nlp: ShapeNlp, x: np.ndarray) -> dict[str, np.ndarray]:
@@ -236,15 +231,7 @@ def test_gradient_with_auxiliary_variables_is_exact():
     c = nlp.compiled
     (x,) = newton_starts(config, nlp, 1, seed=2)
     z = with_aux(config, nlp, x) + np.random.default_rng(3).uniform(0.0, 0.05, c.n_x) * (np.arange(c.n_x) >= 9)
-    grad = c.solver.get_function("nlp_grad_f")
-    p = [1.0, 0.7, 2.0]
-    exact = np.array(grad(z, p)[1]).ravel()
-    h = 1e-6
-    for i in range(c.n_x):
-        step = np.zeros(c.n_x)
-        step[i] = h
-        fd = (float(grad(z + step, p)[0]) - float(grad(z - step, p)[0])) / (2 * h)
-        assert exact[i] == pytest.approx(fd, rel=1e-5, abs=1e-8), f"variable {i}"
+    assert_objective_gradient(c.solver.get_function("nlp_grad_f"), z, [1.0, 0.7, 2.0])
 
 
 def test_tiny_study_runs_and_its_front_reevaluates(tmp_path: Path, capsys, monkeypatch):
