@@ -439,8 +439,10 @@ HFIELD_NAME = "heightfield"
 HFIELD_MAX_CELLS = 1000
 #: Most cells of the flat skirt beyond the grid on each side of an axis.
 HFIELD_SKIRT_MAX_CELLS = 200
-#: An uneven grid's points must lie within this fraction of the common step of a regular node.
-HFIELD_GRID_TOLERANCE = 1e-9
+#: An uneven grid's points must lie within this fraction of the common step of a regular node
+#: (a regular grid written to rounded decimals: 0.266667, 0.266666); MuJoCo's nodes are then up
+#: to this fraction of a step from the model's points, which the file states (``node_shift``).
+HFIELD_GRID_TOLERANCE = 1e-5
 #: Least depth (m) of the hfield's solid base below its lowest point (MuJoCo's ``base_z``; at
 #: least the heights' range too).
 HFIELD_BASE = 0.1
@@ -469,6 +471,13 @@ class RegularHeightfield:
         +-twist u v or +-twist v (1 - u), at most 1/4 of it)."""
         H = self.heights
         return float(np.max(np.abs(H[:-1, :-1] - H[1:, :-1] - H[:-1, 1:] + H[1:, 1:]))) / 4.0
+
+    @property
+    def node_shift(self) -> float:
+        """The largest distance (m) between a node here (a model point) and MuJoCo's evenly spaced
+        node in its place: 0 on an exactly regular grid, within :data:`HFIELD_GRID_TOLERANCE` of a
+        step where the model's points were rounded."""
+        return max(float(np.max(np.abs(a - np.linspace(a[0], a[-1], len(a))))) for a in (self.x, self.z))
 
 
 def _regular_axis(grid: tuple[float, ...], where: str, cover: tuple[float, float]) -> np.ndarray:
@@ -647,7 +656,10 @@ def _ground_note(
         f"MuJoCo keeps the heights as float32 (within {_f((hi - lo) * HFIELD_ROUNDING)} m at the nodes) and splits "
         "each",
         f"cell into two triangles: they leave footopt's bilinear patch by up to {_f(g.triangulation_error)} m",
-        "(|twist| / 4, at the centre of the most twisted cell). Beyond the grid a flat skirt (footopt's flat",
+        "(|twist| / 4, at the centre of the most twisted cell)."
+        + (f" MuJoCo's evenly spaced nodes sit up to {_f(g.node_shift)} m from the model's rounded points."
+           if g.node_shift > 0 else ""),
+        "Beyond the grid a flat skirt (footopt's flat",
         "extension, the edge's heights: exact in triangles) out to the rods' total length beyond the grid and the",
         f"contacts (at most {HFIELD_SKIRT_MAX_CELLS} cells a side): {len(g.x)} x {len(g.z)} nodes, x in "
         f"[{_f(g.x[0])}, {_f(g.x[-1])}], z in [{_f(g.z[0])}, {_f(g.z[-1])}] m; beyond that MuJoCo has no ground.",

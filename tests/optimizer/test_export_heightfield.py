@@ -284,3 +284,23 @@ def test_an_incommensurate_grid_is_refused_in_one_line(tmp_path: Path, capsys) -
     good.write_text(text)
     assert main(["export", str(good), "-o", str(tmp_path / "leg.xml")]) == 0
     assert (tmp_path / "leg.xml").read_text() == to_mjcf(EXAMPLE.tree, EXAMPLE.scene, "good", space=SPATIAL)
+
+
+def test_a_regular_grid_written_to_rounded_decimals_is_exported_and_says_how_far_nodes_moved() -> None:
+    """z = linspace(-0.4, 0.4, 4) written to six decimals (spacings 0.266667, 0.266666, 0.266667:
+    a regular grid a user typed) is exported, not refused: MuJoCo's evenly spaced nodes sit within
+    1e-5 of a step of the model's points, the file states that distance, and each node holds the
+    model's height at its point (MuJoCo's node within the stated shift of the point)."""
+    z = [-0.4, -0.133333, 0.133333, 0.4]
+    hf = Heightfield.from_arrays([-0.3, 0.1, 0.5], z, RNG.uniform(0.0, 0.03, (3, 4)))
+    g = regular_heightfield(hf, ground_cover(EXAMPLE.tree, _scene(hf), SPATIAL))  # the grid written, skirt and all
+    assert 0.0 < g.node_shift <= 1e-5 * (0.8 / 3)
+    text = to_mjcf(EXAMPLE.tree, _scene(hf), space=SPATIAL)
+    assert f"sit up to {g.node_shift!r} m from the model's rounded points" in text
+    m, d = _model(EXAMPLE.tree, hf)
+    P = _nodes(m, d).reshape(-1, 3)
+    for i, x in enumerate(hf.x):
+        for j, zj in enumerate(hf.z):
+            k = int(np.argmin(np.hypot(P[:, 0] - x, P[:, 2] - zj)))
+            assert np.hypot(P[k, 0] - x, P[k, 2] - zj) <= g.node_shift + 1e-12
+            assert abs(P[k, 1] - hf.heights[i][j]) <= _tol(hf)
