@@ -31,6 +31,25 @@ IPOPT treats as an evaluation error and cuts the step. The step length is fixed 
 is one function of the design during a solve; every design found is then realised and evaluated
 by the study's own landing (:func:`optimizer.design_space.evaluate_design_landing`, its step
 refined to the tolerance): that evaluation, not the NLP's, decides what is recorded.
+
+Over ``landings:`` (in the plane) the NLP scores what the outer search's evaluation computes
+(:func:`optimizer.search.outer.evaluate_design_over_landings`): each scenario's scene is built as
+it builds it (the design's model file with the scenario's overrides, :func:`scenario_scenes`;
+``speed``, ``velocity_x``, ``angular_velocity``, ``restitution`` and ``friction`` are the scene's
+constants, the same for every design) and landed at its own step (the one ``landing()`` reports
+at the start point with the evaluation's settings, :func:`landing_settings`). The callback returns
+every scenario's objectives and the Jacobian callback each one's exact gradient along its own
+event sequence (S landings and S gradients per iterate). Each objective is its statistic over the
+scenarios as the first-impact NLP writes it (:func:`optimizer.search.compiled._statistic`):
+``mean`` and ``std`` as written (CasADi's chain rule through the callbacks), ``max`` by an
+epigraph variable t with one row t >= u_s per scenario (no kink for IPOPT: the active scenario's
+gradient enters through its row's multiplier), ``cvar:q`` in Rockafellar and Uryasev's form
+(a level and one excess per scenario). The extra variables start tight at each start point and
+are dropped from the solution. A maximised objective (``energy_absorbed``) takes ``mean`` or
+``std`` only (the epigraph of a maximised ``max`` would not be tight), a quantile is refused, and
+so are a pitch or a step (the tree, or a ground placed by the design) and spatial design spaces
+over landings, when the study is read (naming the field). A scenario that fails numerically
+makes the iterate's values NaN, as the nominal landing does.
 """
 
 from __future__ import annotations
