@@ -409,7 +409,7 @@ class _Landed:
         return (self.nlp.step,) if self.nlp.config.landings is None else self.nlp.steps
 
     def model(self, x: np.ndarray):
-        """The tree, joint laws and nominal scene of x."""
+        """The tree, joint laws and first scored scene of x (without ``landings``: the nominal one)."""
         tree, laws, scenes = self.models(x)
         return tree, laws, scenes[0]
 
