@@ -284,14 +284,18 @@ INNER_PARAMETERS = ("speed", "velocity_x", "angular_velocity", "restitution")
 #: ... and over a spatial design space, the rest of the approach: a lateral velocity and a roll
 #: rate change the impact's right-hand side only, not which contacts hit.
 INNER_SPATIAL_PARAMETERS = (*INNER_PARAMETERS, "velocity_z", "roll_rate")
+#: What the inner search over whole landings may vary: the scene's constants (each landing is
+#: differentiated along its own event sequence); not a pitch (the tree) nor a step (placed by the
+#: design's contacts).
+INNER_LANDING_PARAMETERS = (*INNER_PARAMETERS, "friction")
 
 
 def _check_inner_landings(config: StudyConfig, landings: Landings) -> None:
     """The inner search takes landings whose statistics its NLP can differentiate exactly: of
-    first impacts (its NLP over whole landings lands the nominal scene only)."""
+    level first impacts, or of whole landings in the plane (:func:`check_inner_whole_landings`)."""
     if config.whole_landing:
-        raise ConfigError("landings: the inner search (IPOPT) over whole landings scores the nominal landing only; "
-                          "search.method: outer scores whole landings over landings")
+        check_inner_whole_landings(config, landings)
+        return
     allowed = INNER_SPATIAL_PARAMETERS if config.space.spatial else INNER_PARAMETERS
     for name in landings.names:
         if name not in allowed:
@@ -305,6 +309,26 @@ def _check_inner_landings(config: StudyConfig, landings: Landings) -> None:
         if stat.kind is StatisticKind.STD and objective in (Objective.MAX_INTERNAL, Objective.BASE_ANGULAR_VELOCITY):
             raise ConfigError(f"statistic.{objective.value}: the inner search cannot take the std of a maximum "
                               "(its epigraph would not be tight); use mean, max or cvar:q, or search.method: outer")
+
+
+def check_inner_whole_landings(config: StudyConfig, landings: Landings) -> None:
+    """Whole landings over landings in the inner search: the plane's scene constants, and
+    statistics its NLP writes smoothly or by an epigraph (one of a minimised objective)."""
+    if config.space.spatial:
+        raise ConfigError("landings: the inner search (IPOPT) over whole landings takes landings in the plane only; "
+                          "search.method: outer scores spatial whole landings over landings")
+    for name in landings.names:
+        if name not in INNER_LANDING_PARAMETERS:
+            raise ConfigError(f"landings.{name}: the inner search over whole landings varies "
+                              f"{', '.join(INNER_LANDING_PARAMETERS)} only; search.method: outer takes every parameter")
+    for objective in config.objectives[:2]:
+        stat = config.statistic_of(objective)
+        if stat.kind is StatisticKind.QUANTILE:
+            raise ConfigError(f"statistic.{objective.value}: the inner search takes mean, std, max or cvar:q "
+                              "(a quantile is neither smooth nor convex); use cvar:q or search.method: outer")
+        if objective.sign < 0 and stat.kind in (StatisticKind.MAX, StatisticKind.CVAR):
+            raise ConfigError(f"statistic.{objective.value}: the inner search cannot maximise a {stat.kind.value} "
+                              "(its epigraph would not be tight); use mean or std, or search.method: outer")
 
 
 def _landings(data: Any) -> Landings:
@@ -824,5 +848,6 @@ __all__ = [
     "StudyConfig",
     "format_study",
     "load_study",
+    "check_inner_whole_landings",
     "parse_study",
 ]

@@ -57,8 +57,8 @@ angular_velocity] (world frame) with its restitution, what the outer search writ
 scenario's model file, and each objective is its statistic over the scenarios; the realised
 design is scored by the outer search's evaluation over the landings. A roll or a pitch (which
 contacts hit) and friction are refused when the study is read (naming ``landings.<name>`` or
-``scene.friction``), and so are whole landings over landings (naming ``landings``, in the plane
-too): the outer search takes them.
+``scene.friction``): the outer search takes them. Whole landings over landings (in the plane):
+:mod:`optimizer.search.landing_inner`.
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import optuna
 
-from optimizer.config.study_config import StudyConfig
+from optimizer.config.study_config import StudyConfig, check_inner_whole_landings
 from optimizer.design_space import (
     CONSTRAINT_FIELDS,
     DesignEvaluation,
@@ -100,7 +100,7 @@ from optimizer.search.compiled import (
     toe_yaws,
     vm_nlp,
 )
-from optimizer.errors import ConfigError, interrupted
+from optimizer.errors import interrupted
 from optimizer.workers import cores, forked_pool
 from optimizer.search.outer import evaluate_design_over_landings, objective_values, record_attrs
 
@@ -422,12 +422,11 @@ def run_inner(
         The number of shapes swept now.
 
     Raises:
-        ConfigError: whole landings scored over landings: that NLP lands the nominal scene
-            only; the outer search takes them (the study file's validation says so first).
+        ConfigError: whole landings over landings the NLP cannot score (the study file's
+            validation says so first, :func:`check_inner_whole_landings`).
     """
     if config.landings is not None and config.whole_landing:
-        raise ConfigError("landings: the inner search (IPOPT) over whole landings scores the nominal landing only; "
-                          "search.method: outer scores whole landings over landings")
+        check_inner_whole_landings(config, config.landings)
     shapes = config.space.shapes()
     sp = config.space
     distributions = {

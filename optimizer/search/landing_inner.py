@@ -38,6 +38,25 @@ IPOPT treats as an evaluation error and cuts the step. The step length is fixed 
 is one function of the design during a solve; every design found is then realised and evaluated
 by the study's own landing (:func:`optimizer.design_space.evaluate_design_landing`, its step
 refined to the tolerance): that evaluation, not the NLP's, decides what is recorded.
+
+Over ``landings:`` (in the plane) the NLP scores what the outer search's evaluation computes
+(:func:`optimizer.search.outer.evaluate_design_over_landings`): each scenario's scene is built as
+it builds it (the design's model file with the scenario's overrides, :func:`scenario_scenes`;
+``speed``, ``velocity_x``, ``angular_velocity``, ``restitution`` and ``friction`` are the scene's
+constants, the same for every design) and landed at its own step (the one ``landing()`` reports
+at the start point with the evaluation's settings, :func:`landing_settings`). The callback returns
+every scenario's objectives and the Jacobian callback each one's exact gradient along its own
+event sequence (S landings and S gradients per iterate). Each objective is its statistic over the
+scenarios as the first-impact NLP writes it (:func:`optimizer.search.compiled._statistic`):
+``mean`` and ``std`` as written (CasADi's chain rule through the callbacks), ``max`` by an
+epigraph variable t with one row t >= u_s per scenario (no kink for IPOPT: the active scenario's
+gradient enters through its row's multiplier), ``cvar:q`` in Rockafellar and Uryasev's form
+(a level and one excess per scenario). The extra variables start tight at each start point and
+are dropped from the solution. A maximised objective (``energy_absorbed``) takes ``mean`` or
+``std`` only (the epigraph of a maximised ``max`` would not be tight), a quantile is refused, and
+so are a pitch or a step (the tree, or a ground placed by the design) and spatial design spaces
+over landings, when the study is read (naming the field). A scenario that fails numerically
+makes the iterate's values NaN, as the nominal landing does.
 """
 
 from __future__ import annotations
@@ -51,7 +70,8 @@ import numpy as np
 
 from impulse_core.errors import NumericalError
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
-from impulse_core.timedomain.landing import landing
+from impulse_core.model.tree import Scene
+from impulse_core.timedomain.landing import LandingSettings, landing
 from impulse_core.timedomain.landing_derivatives import LAW_VALUES, _joint_dofs, body_values, landing_gradient, taped_run
 from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
@@ -67,6 +87,7 @@ from optimizer.design_space import (
     SplayMode,
     ToeSymmetry,
     assign_lengths,
+    design_model,
     evaluate_design_landing,
     foot_joint_laws,
     foot_tree,
@@ -76,12 +97,15 @@ from optimizer.design_space import (
     with_lengths,
     yaw_rpy,
 )
+from optimizer.evaluation.scenarios import model_data, overrides, scenario_model
+from optimizer.evaluation.statistics import StatisticKind
 from optimizer.search.compiled import (
     TIGHTEN,
     FootKind,
     _chain_limits,
     _geometric_rows,
     _splayed_values,
+    _statistic,
     _support_rows,
     foot_kind,
     toe_yaws,
@@ -115,6 +139,8 @@ class LandingNlp:
             plane or where the range is fixed).
         lbx, ubx, lbg, ubg: bounds; constraint row 0 is f2 (its upper bound: a solve's epsilon).
         step: the Runge-Kutta step of the current solve (set by :func:`solve_landing`).
+        steps: over ``landings``, each scenario's step of the current solve (``step`` unused).
+        scenes: the scenes of the landings scored (:func:`scenario_scenes`, set on first use).
         sequences: the distinct event sequences the gradient was derived along (a count of
             re-derivations, for the record).
     """
@@ -133,6 +159,8 @@ class LandingNlp:
     sequences: set = field(default_factory=set)
     evaluations: int = 0
     gradients: int = 0
+    steps: tuple[float, ...] = ()
+    scenes: tuple = ()
 
     @property
     def sizes(self) -> tuple[int, ...]:
@@ -369,9 +397,33 @@ def landing_objectives_of(config: StudyConfig) -> tuple[Objective, ...]:
     return tuple(config.objectives[:2])
 
 
+def landing_settings(config: StudyConfig) -> LandingSettings:
+    """The landing settings the study's evaluation uses: the study's landing
+    (:data:`STUDY_LANDING` at ``search.landing_tolerance``) for the nominal scene, and over
+    ``landings`` the outer search's (each scenario as ``footopt evaluate`` runs it:
+    :func:`optimizer.evaluation.robust.scenario_objectives`, the default settings)."""
+    if config.landings is None:
+        return replace(STUDY_LANDING, tolerance=config.search.landing_tolerance)
+    return LandingSettings()
+
+
+def scenario_scenes(config: StudyConfig, design: FootDesign) -> tuple[Scene, ...]:
+    """The scene of each landing the NLP scores: the nominal one (:func:`landing_scene`), or over
+    ``landings`` each scenario's, as the outer search builds it (the design's model file with the
+    scenario's overrides, :func:`optimizer.evaluation.scenarios.scenario_model`). The parameters
+    the inner search varies (``INNER_LANDING_PARAMETERS``) are the scene's constants: the same
+    for every design."""
+    if config.landings is None:
+        return (landing_scene(config.scene, config.limits),)
+    model = design_model(config.leg, design, config.scene, config.limits, config.space.joint_laws.stop_restitution)
+    data, names = model_data(model), config.landings.names
+    return tuple(scenario_model(data, overrides(model, names, row)).scene for row in config.landings.draw())
+
+
 class _Landed:
-    """The NLP's numeric landing at x, cached for the last x: objective values, and on request
-    their gradient along that landing's event sequence."""
+    """The NLP's numeric landings at x, cached for the last x: each objective's signed value per
+    scenario (objective-major: objective j's S values at j S .. j S + S - 1; S = 1 without
+    ``landings``), and on request their gradients, each along its own landing's event sequence."""
 
     def __init__(self, nlp: LandingNlp) -> None:
         self.nlp = nlp
@@ -381,24 +433,48 @@ class _Landed:
         self.x_g: np.ndarray | None = None
         self.g: np.ndarray | None = None
 
+    @property
+    def n_scenarios(self) -> int:
+        return 1 if self.nlp.config.landings is None else self.nlp.config.landings.count
+
+    @property
+    def n_f(self) -> int:
+        return len(self.objectives) * self.n_scenarios
+
+    def steps(self) -> tuple[float, ...]:
+        """Each scenario's Runge-Kutta step (the nominal one: ``nlp.step``)."""
+        return (self.nlp.step,) if self.nlp.config.landings is None else self.nlp.steps
+
     def model(self, x: np.ndarray):
+        """The tree, joint laws and first scored scene of x (without ``landings``: the nominal one)."""
+        tree, laws, scenes = self.models(x)
+        return tree, laws, scenes[0]
+
+    def models(self, x: np.ndarray):
+        """The tree, joint laws and every scenario's scene of x (the scenes computed once)."""
         cfg = self.nlp.config
         design = self.nlp.design(x)
         tree = foot_tree(cfg.leg, design)
         laws = foot_joint_laws(cfg.leg, design, cfg.space.joint_laws.stop_restitution)
-        return tree, laws, landing_scene(cfg.scene, cfg.limits)
+        if not self.nlp.scenes:
+            self.nlp.scenes = scenario_scenes(cfg, design)
+        return tree, laws, self.nlp.scenes
 
     def values(self, x: np.ndarray) -> np.ndarray:
         if self.x_f is not None and np.array_equal(x, self.x_f):
             return self.f
         self.nlp.evaluations += 1
+        settings = landing_settings(self.nlp.config)
+        f = np.full((len(self.objectives), self.n_scenarios), np.nan)
         try:
-            tree, laws, scene = self.model(x)
-            with np.errstate(all="ignore"):
-                r, _, _ = taped_run(tree, scene, laws, self.nlp.step, STUDY_LANDING, self.nlp.space)
-            f = np.array([o.sign * getattr(r, o.value) for o in self.objectives])
+            tree, laws, scenes = self.models(x)
+            for k, (scene, step) in enumerate(zip(scenes, self.steps(), strict=True)):
+                with np.errstate(all="ignore"):
+                    r, _, _ = taped_run(tree, scene, laws, step, settings, self.nlp.space)
+                f[:, k] = [o.sign * getattr(r, o.value) for o in self.objectives]
         except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
-            f = np.full(len(self.objectives), np.nan)
+            f[:] = np.nan
+        f = f.ravel()
         self.x_f, self.f = x.copy(), f
         return f
 
@@ -406,15 +482,20 @@ class _Landed:
         if self.x_g is not None and np.array_equal(x, self.x_g):
             return self.g
         self.nlp.gradients += 1
+        settings = landing_settings(self.nlp.config)
+        n_o, n_s = len(self.objectives), self.n_scenarios
+        g = np.full((n_o, n_s, self.nlp.n_x), np.nan)
         try:
-            tree, laws, scene = self.model(x)
-            with np.errstate(all="ignore"):
-                gr = landing_gradient(tree, scene, laws, STUDY_LANDING, step=self.nlp.step, space=self.nlp.space)
-            self.nlp.sequences.add(hash(gr.sequence))
-            d = np.vstack([o.sign * gr.jacobian[o.value] for o in self.objectives])
-            g = self.nlp.chain_rule(x, tree, gr.names, d)
+            tree, laws, scenes = self.models(x)
+            for k, (scene, step) in enumerate(zip(scenes, self.steps(), strict=True)):
+                with np.errstate(all="ignore"):
+                    gr = landing_gradient(tree, scene, laws, settings, step=step, space=self.nlp.space)
+                self.nlp.sequences.add(hash(gr.sequence))
+                d = np.vstack([o.sign * gr.jacobian[o.value] for o in self.objectives])
+                g[:, k, :] = self.nlp.chain_rule(x, tree, gr.names, d)
         except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
-            g = np.full((len(self.objectives), self.nlp.n_x), np.nan)
+            g[:] = np.nan
+        g = g.reshape(n_o * n_s, self.nlp.n_x)
         self.x_g, self.g = x.copy(), g
         return g
 
@@ -485,18 +566,80 @@ class LandingSolution:
 
 def solver(nlp: LandingNlp, options: dict | None = None) -> tuple[ca.Function, _Landed]:
     """IPOPT on the landing NLP: parameters (w1, w2), row 0 = f2 (``options`` override
-    :data:`LANDING_IPOPT`)."""
+    :data:`LANDING_IPOPT`). Over ``landings`` each objective is its statistic over the scenarios'
+    values (:func:`optimizer.search.compiled._statistic`, the first-impact NLP's form: ``max`` and
+    ``cvar`` by epigraph variables appended to x, one row per scenario)."""
     landed = _Landed(nlp)
-    n_f = len(landed.objectives)
-    F = _Objectives(landed, nlp.n_x, n_f)
+    F = _Objectives(landed, nlp.n_x, landed.n_f)
     x = ca.MX.sym("x", nlp.n_x)
     p = ca.MX.sym("p", 2)
-    f = F(x)
-    f2 = f[1] if n_f > 1 else ca.MX(0)
-    problem = {"x": x, "p": p, "f": p[0] * f[0] + p[1] * f2, "g": ca.vertcat(f2, nlp.geometric(x))}
+    f, extra, rows = statistic_objectives(nlp, landed, F(x))
+    f2 = f[1] if len(f) > 1 else ca.MX(0)
+    g = ca.vertcat(f2, nlp.geometric(x), *(r for r, _, _ in rows))
+    problem = {"x": ca.vertcat(x, *extra), "p": p, "f": p[0] * f[0] + p[1] * f2, "g": g}
     s = ca.nlpsol("landing_nlp", "ipopt", problem, {**LANDING_IPOPT, **(options or {})})
     s._keep = F  # the callback must outlive the solver
     return s, landed
+
+
+def statistic_objectives(nlp: LandingNlp, landed: _Landed, values) -> tuple[list, list, list]:
+    """The signed objectives of the NLP from the callback's per-scenario values (an MX column),
+    the statistic's extra variables and its rows (expression, lower, upper bound). A statistic
+    is of the objective's value (not its sign): f = sign * statistic(sign * values)."""
+    S = landed.n_scenarios
+    extra, rows = [], []
+
+    def variable(name: str, size: int = 1):
+        extra.append(ca.MX.sym(name, size))
+        return extra[-1]
+
+    def add(expr, lo: float, hi: float) -> None:
+        rows.append((expr, np.full(expr.numel(), lo), np.full(expr.numel(), hi)))
+
+    out = []
+    for j, o in enumerate(landed.objectives):
+        u = values[j * S : (j + 1) * S].T
+        if nlp.config.landings is None:
+            out.append(u)
+        else:
+            out.append(o.sign * _statistic(nlp.config.statistic_of(o), o.sign * u, variable, add))
+    return out, extra, rows
+
+
+def _extra_start(nlp: LandingNlp, landed: _Landed, x: np.ndarray) -> np.ndarray:
+    """The statistics' extra variables at x, in :func:`statistic_objectives`' order, tight: a
+    ``max`` level the largest value, a ``cvar`` level its minimising kink and each excess above it."""
+    if nlp.config.landings is None:
+        return np.zeros(0)
+    S = landed.n_scenarios
+    f = landed.values(x)
+    out: list[float] = []
+    for j, o in enumerate(landed.objectives):
+        stat = nlp.config.statistic_of(o)
+        u = o.sign * f[j * S : (j + 1) * S]
+        if not np.all(np.isfinite(u)):
+            u = np.zeros(S)
+        if stat.kind is StatisticKind.MAX:
+            out.append(float(np.max(u)))
+        elif stat.kind is StatisticKind.CVAR:
+            q = float(stat.q)
+            t = min(u, key=lambda t: t + np.maximum(u - t, 0.0).sum() / ((1.0 - q) * S))
+            out += [float(t), *np.maximum(u - t, 0.0)]
+    return np.array(out)
+
+
+def _extra_bounds(nlp: LandingNlp) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of the statistics' extra variables: a level free, an excess >= 0."""
+    lo: list[float] = []
+    for o in landing_objectives_of(nlp.config):
+        if nlp.config.landings is None:
+            continue
+        stat = nlp.config.statistic_of(o)
+        if stat.kind is StatisticKind.MAX:
+            lo.append(-math.inf)
+        elif stat.kind is StatisticKind.CVAR:
+            lo += [-math.inf] + [0.0] * nlp.config.landings.count
+    return np.array(lo), np.full(len(lo), math.inf)
 
 
 def start_landing(nlp: LandingNlp, rng: np.random.Generator) -> np.ndarray | None:
@@ -524,31 +667,47 @@ def start_landing(nlp: LandingNlp, rng: np.random.Generator) -> np.ndarray | Non
     return np.concatenate([a, m, L, [assignment.ankle_height], w])
 
 
-def solve_landing(nlp: LandingNlp, weights: tuple[float, float], eps: float, x0: np.ndarray,
-                  options: dict | None = None) -> LandingSolution:
-    """One IPOPT solve from x0, at the step ``landing()`` reports at x0 (study tolerance)."""
-    cfg = nlp.config
-    landed0 = _Landed(nlp)
-    tree, laws, scene = landed0.model(x0)
+def set_steps(nlp: LandingNlp, x0: np.ndarray) -> bool:
+    """Fix the solve's Runge-Kutta steps: each scored landing's step as ``landing()`` reports it
+    at x0 with the evaluation's settings (:func:`landing_settings`); False when one fails."""
+    landed = _Landed(nlp)
+    tree, laws, scenes = landed.models(x0)
+    settings = landing_settings(nlp.config)
     try:
         with np.errstate(all="ignore"):
-            nlp.step = landing(tree, scene, laws, replace(STUDY_LANDING, tolerance=cfg.search.landing_tolerance),
-                               nlp.space).step
+            steps = tuple(landing(tree, scene, laws, settings, nlp.space).step for scene in scenes)
     except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
+        return False
+    nlp.step, nlp.steps = steps[0], steps
+    return True
+
+
+def solve_landing(nlp: LandingNlp, weights: tuple[float, float], eps: float, x0: np.ndarray,
+                  options: dict | None = None) -> LandingSolution:
+    """One IPOPT solve from x0 (the design's variables), at the steps ``landing()`` reports at x0
+    (:func:`set_steps`); the statistics' extra variables start tight at x0 and are dropped from
+    the solution."""
+    x0 = np.asarray(x0, dtype=float)[: nlp.n_x]
+    if not set_steps(nlp, x0):
         return LandingSolution(x0, False, math.nan, math.nan, "start point does not land")
     s, landed = solver(nlp, options)
-    ubg = nlp.ubg.copy()
+    _, _, rows = statistic_objectives(nlp, landed, ca.MX.sym("v", landed.n_f))
+    lo_e, hi_e = _extra_bounds(nlp)
+    lbg = np.concatenate([nlp.lbg, *(lo for _, lo, _ in rows)])
+    ubg = np.concatenate([nlp.ubg, *(hi for _, _, hi in rows)])
     ubg[0] = eps
-    sol = s(x0=x0, p=list(weights), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=ubg)
+    sol = s(x0=np.concatenate([x0, _extra_start(nlp, landed, x0)]), p=list(weights),
+            lbx=np.concatenate([nlp.lbx, lo_e]), ubx=np.concatenate([nlp.ubx, hi_e]), lbg=lbg, ubg=ubg)
     stats = s.stats()
-    x = np.asarray(sol["x"]).ravel()
+    x = np.asarray(sol["x"]).ravel()[: nlp.n_x]
     return LandingSolution(x, bool(stats["success"]), float(sol["f"]), float(np.asarray(sol["g"]).ravel()[0]),
                            str(stats["return_status"]))
 
 
 def realise_landing(nlp: LandingNlp, x: np.ndarray) -> DesignEvaluation | None:
-    """The design of an NLP point, evaluated by the study's landing (masses rescaled to the
-    budget in EQUAL mode); None when it is not feasible."""
+    """The design of an NLP point, evaluated by the study's landing, over ``landings`` by the outer
+    search's evaluation (masses rescaled to the budget in EQUAL mode); None when it is not
+    feasible."""
     cfg, lim = nlp.config, nlp.config.limits
     design = nlp.design(x)
     if lim.mass_mode is MassMode.EQUAL:
@@ -562,8 +721,13 @@ def realise_landing(nlp: LandingNlp, x: np.ndarray) -> DesignEvaluation | None:
             toe_yaws=design.toe_yaws,
         )
     def evaluate(d: FootDesign) -> DesignEvaluation | None:
-        ev = evaluate_design_landing(cfg.leg, d, cfg.scene, lim, cfg.space.joint_laws.stop_restitution,
-                                     cfg.search.landing_tolerance)
+        if cfg.landings is not None:  # the outer search's evaluation over the landings
+            from optimizer.search.outer import evaluate_design_over_landings
+
+            ev = evaluate_design_over_landings(cfg, d)
+        else:
+            ev = evaluate_design_landing(cfg.leg, d, cfg.scene, lim, cfg.space.joint_laws.stop_restitution,
+                                         cfg.search.landing_tolerance)
         return ev if ev.objectives is not None and ev.feasible else None
 
     ev = evaluate(design)
@@ -620,7 +784,10 @@ __all__ = [
     "build_landing_nlp",
     "landing_sweep",
     "realise_landing",
+    "landing_settings",
     "rpy_rates",
+    "scenario_scenes",
+    "set_steps",
     "solve_landing",
     "start_landing",
 ]

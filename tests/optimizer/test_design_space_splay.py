@@ -203,5 +203,6 @@ def test_inner_search_takes_a_spatial_design_space_over_level_landings():
         parse_study({**study(), "search": {"method": "inner"}, "landings": {**level, "roll": [0.0, 0.1]}})
     whole = {**study(), "objectives": ["peak_external_norm"], "scene": {"duration": 0.05}, "landings": level}
     config = parse_study(whole)
-    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over whole landings"):
+    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over whole landings takes landings in "
+                                          r"the plane only"):
         run_inner(open_study(config, optuna.storages.InMemoryStorage()), config)
