@@ -1156,6 +1156,12 @@ def design_model(leg: Leg | LegChain, design: FootDesign, scene: Scene, limits: 
 STUDY_LANDING = LandingSettings(max_refinements=4, max_events=1000)
 
 
+def study_landing(tolerance: float) -> LandingSettings:
+    """The landing settings of a study's evaluations: :data:`STUDY_LANDING` at the study's
+    ``search.landing_tolerance``, the nominal scene's and every scenario's over ``landings``."""
+    return replace(STUDY_LANDING, tolerance=tolerance)
+
+
 def landing_objectives(result: LandingResult) -> Objectives:
     """The designer's objectives from a whole landing: its first event's (the base's turn as in
     :func:`objectives`), and its own."""
@@ -1189,8 +1195,7 @@ def evaluate_design_landing(
     geometric = constraint_values(leg, design, limits)
     try:
         with np.errstate(all="ignore"):
-            result = landing(tree, landing_scene(scene, limits), laws, replace(STUDY_LANDING, tolerance=tolerance),
-                             foot_space(leg, design))
+            result = landing(tree, landing_scene(scene, limits), laws, study_landing(tolerance), foot_space(leg, design))
     except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
         return DesignEvaluation(design, None, geometric)
     objectives = landing_objectives(result)

@@ -322,6 +322,7 @@ def _evaluate_over_landings(args: argparse.Namespace) -> int:
     """``footopt evaluate --landings STUDY.yaml MODEL.yaml...``: each file's statistics over the
     study's landings (each scenario by the model ``auto`` picks)."""
     from optimizer.config.study_config import load_study
+    from optimizer.design_space import study_landing
     from optimizer.evaluation.robust import evaluate_over_landings
 
     try:
@@ -335,7 +336,8 @@ def _evaluate_over_landings(args: argparse.Namespace) -> int:
     status = EXIT_OK
     for file in args.files:
         try:
-            robust = evaluate_over_landings(load_model_file(file), config.landings, config.statistic_of)
+            robust = evaluate_over_landings(load_model_file(file), config.landings, config.statistic_of,
+                                            study_landing(config.search.landing_tolerance))
         except FootoptError as e:
             _error(file, str(e))
             status = EXIT_USAGE

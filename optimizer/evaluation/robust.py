@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from impulse_core.errors import NumericalError
-from impulse_core.timedomain.landing import LandingResult
+from impulse_core.timedomain.landing import LandingResult, LandingSettings
 from optimizer.config.model_file import ModelFile
 from optimizer.design_space import Objective, Objectives, landing_objectives, objectives
 from optimizer.evaluation.batched import FIRST_IMPACT, first_impact_values, first_impact_values_many
@@ -45,11 +45,12 @@ class RobustEvaluation:
     statistics: Objectives | None
 
 
-def scenario_objectives(model: ModelFile) -> Objectives | None:
-    """One model file's objectives by the model ``auto`` picks (None if the numerics fail)."""
+def scenario_objectives(model: ModelFile, whole: LandingSettings | None = None) -> Objectives | None:
+    """One model file's objectives by the model ``auto`` picks (None if the numerics fail); a
+    whole landing with the settings ``whole`` (default ``footopt evaluate``'s)."""
     with np.errstate(all="ignore"):
         try:
-            result = evaluate_landing(model.tree, model.scene, "auto", joints=model.joints, space=model.space)
+            result = evaluate_landing(model.tree, model.scene, "auto", joints=model.joints, whole=whole, space=model.space)
         except (np.linalg.LinAlgError, NumericalError):
             return None
     inner = getattr(result, "result", None)
@@ -58,17 +59,18 @@ def scenario_objectives(model: ModelFile) -> Objectives | None:
 
 
 def scenario_table(
-    model: ModelFile, names: tuple[str, ...], draws: np.ndarray, batched: np.ndarray | None = None
+    model: ModelFile, names: tuple[str, ...], draws: np.ndarray, batched: np.ndarray | None = None,
+    whole: LandingSettings | None = None,
 ) -> tuple[tuple[str, ...], np.ndarray]:
     """Every scenario's objectives: their names and one row per scenario (NaN: the evaluation
     failed). Batchable first impacts together (:func:`first_impact_values`, or ``batched`` when
-    the caller evaluated them already), the rest one by one."""
+    the caller evaluated them already), the rest one by one (whole landings with ``whole``)."""
     table = first_impact_values(model, names, draws) if batched is None else batched.copy()
     todo = np.flatnonzero(np.isnan(table).any(axis=1))
     if todo.size == 0:
         return FIRST_IMPACT, table
     data = model_data(model)
-    found = {int(k): scenario_objectives(scenario_model(data, overrides(model, names, draws[k]))) for k in todo}
+    found = {int(k): scenario_objectives(scenario_model(data, overrides(model, names, draws[k])), whole) for k in todo}
     done = [o for o in found.values() if o is not None]
     keys = tuple(f.name for f in fields(Objectives) if done and getattr(done[0], f.name) is not None) or FIRST_IMPACT
     if keys != FIRST_IMPACT:
@@ -87,29 +89,33 @@ def statistics_of(keys: tuple[str, ...], table: np.ndarray, statistic: Callable[
 
 
 def statistics_over_landings(
-    model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic]
+    model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic],
+    whole: LandingSettings | None = None,
 ) -> Objectives | None:
     """``evaluate_over_landings(...).statistics`` without the rows (the searches' path)."""
-    return statistics_of(*scenario_table(model, landings.names, landings.draw()), statistic)
+    return statistics_of(*scenario_table(model, landings.names, landings.draw(), whole=whole), statistic)
 
 
 def statistics_over_landings_many(
-    models: list[ModelFile], landings: Landings, statistic: Callable[[Objective], Statistic]
+    models: list[ModelFile], landings: Landings, statistic: Callable[[Objective], Statistic],
+    whole: LandingSettings | None = None,
 ) -> list[Objectives | None]:
     """:func:`statistics_over_landings` of many designs: their batchable scenarios in one call
     per structure and contact set (:func:`first_impact_values_many`)."""
     draws = landings.draw()
     batched = first_impact_values_many(models, landings.names, draws)
-    return [statistics_of(*scenario_table(m, landings.names, draws, b), statistic) for m, b in zip(models, batched, strict=True)]
+    return [statistics_of(*scenario_table(m, landings.names, draws, b, whole), statistic)
+            for m, b in zip(models, batched, strict=True)]
 
 
 def evaluate_over_landings(
-    model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic]
+    model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic],
+    whole: LandingSettings | None = None,
 ) -> RobustEvaluation:
     """``model`` on every scenario of ``landings`` (:func:`scenario_table`), each row with its
-    overrides, and the statistics."""
+    overrides, and the statistics; whole landings with ``whole`` (a study's: :func:`study_landing`)."""
     draws = landings.draw()
-    keys, table = scenario_table(model, landings.names, draws)
+    keys, table = scenario_table(model, landings.names, draws, whole=whole)
     rows = tuple(
         ScenarioRow(k, overrides(model, landings.names, values),
                     None if np.isnan(row).any() else Objectives(**dict(zip(keys, map(float, row), strict=True))))

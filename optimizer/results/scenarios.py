@@ -14,7 +14,7 @@ import json
 from pathlib import Path
 
 from optimizer.config.study_config import StudyConfig
-from optimizer.design_space import FootDesign, Objective, design_model
+from optimizer.design_space import FootDesign, Objective, design_model, study_landing
 from optimizer.evaluation.robust import RobustEvaluation, evaluate_over_landings
 
 SCENARIOS_FILE, SCENARIOS_PLOT = "scenarios.csv", "scenarios.png"
@@ -26,7 +26,8 @@ def front_scenarios(config: StudyConfig, designs: list[tuple[str, FootDesign]]) 
     out = []
     for design_id, design in designs:
         model = design_model(config.leg, design, config.scene, config.limits, config.space.joint_laws.stop_restitution)
-        out.append((design_id, evaluate_over_landings(model, config.landings, config.statistic_of)))
+        out.append((design_id, evaluate_over_landings(model, config.landings, config.statistic_of,
+                                                      study_landing(config.search.landing_tolerance))))
     return out
 
 

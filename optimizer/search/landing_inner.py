@@ -77,7 +77,6 @@ from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
     JOINT_FAMILIES,
     LENGTH_FLOOR,
-    STUDY_LANDING,
     DesignEvaluation,
     FootDesign,
     FootShape,
@@ -93,6 +92,7 @@ from optimizer.design_space import (
     foot_tree,
     leg_chain,
     landing_scene,
+    study_landing,
     symmetric_yaws,
     with_lengths,
     yaw_rpy,
@@ -398,13 +398,9 @@ def landing_objectives_of(config: StudyConfig) -> tuple[Objective, ...]:
 
 
 def landing_settings(config: StudyConfig) -> LandingSettings:
-    """The landing settings the study's evaluation uses: the study's landing
-    (:data:`STUDY_LANDING` at ``search.landing_tolerance``) for the nominal scene, and over
-    ``landings`` the outer search's (each scenario as ``footopt evaluate`` runs it:
-    :func:`optimizer.evaluation.robust.scenario_objectives`, the default settings)."""
-    if config.landings is None:
-        return replace(STUDY_LANDING, tolerance=config.search.landing_tolerance)
-    return LandingSettings()
+    """The landing settings the study's evaluation uses, for the nominal scene and every
+    scenario over ``landings`` alike (:func:`optimizer.design_space.study_landing`)."""
+    return study_landing(config.search.landing_tolerance)
 
 
 def scenario_scenes(config: StudyConfig, design: FootDesign) -> tuple[Scene, ...]:

@@ -48,6 +48,7 @@ from optimizer.design_space import (
     design_model,
     evaluate_design,
     evaluate_design_landing,
+    study_landing,
     symmetric_yaws,
 )
 from optimizer.evaluation.robust import statistics_over_landings_many
@@ -458,7 +459,8 @@ def evaluate_designs_over_landings(config: StudyConfig, designs: list[FootDesign
     assert config.landings is not None
     e = config.space.joint_laws.stop_restitution
     models = [design_model(config.leg, d, config.scene, config.limits, e) for d in designs]
-    found = statistics_over_landings_many(models, config.landings, config.statistic_of)
+    found = statistics_over_landings_many(models, config.landings, config.statistic_of,
+                                          study_landing(config.search.landing_tolerance))
     return [DesignEvaluation(d, s, constraint_values(config.leg, d, config.limits)) for d, s in zip(designs, found, strict=True)]
 
 

@@ -179,3 +179,30 @@ def test_a_tiny_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_p
         again = evaluate_design_over_landings(config, t.evaluation.design)
         for o in (Objective.PEAK_EXTERNAL_NORM, Objective.ENERGY_ABSORBED):
             assert again.objectives.value(o) == pytest.approx(t.evaluation.objectives.value(o), rel=1e-12)
+
+
+def test_every_scenario_lands_with_the_studys_landing_settings(tmp_path, monkeypatch):
+    """Over landings, the outer search (and so the inner search's NLP, which scores what it
+    computes) lands every scenario with the study's settings (``search.landing_tolerance``,
+    :func:`study_landing`), as the nominal scene's landing: not ``footopt evaluate``'s defaults,
+    which ignored the study's tolerance."""
+    from optimizer.design_space import study_landing
+    from optimizer.evaluation import robust
+
+    seen = []
+    real = robust.evaluate_landing
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("whole"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(robust, "evaluate_landing", spy)
+    path = tmp_path / "robust.yaml"
+    path.write_text(robust_yaml("{peak_external_norm: max, energy_absorbed: mean}", "outer")
+                    .replace("landing_tolerance: 1.0e-2", "landing_tolerance: 3.0e-4"), encoding="utf-8")
+    cfg = load_study(path)
+    nlp = build_landing_nlp(cfg, FootShape(1, 1))
+    x = start_landing(nlp, np.random.default_rng(0))
+    assert evaluate_design_over_landings(cfg, nlp.design(x)).objectives is not None
+    assert len(seen) == 3 and all(s == study_landing(3e-4) for s in seen)
+    assert landing_settings(cfg) == study_landing(3e-4)
