@@ -21,6 +21,7 @@ from impulse_core.kinematics import dynamics as dyn
 from impulse_core.kinematics.spatial import (
     GROUND_NORMAL,
     PLANAR,
+    BodyValues,
     DofLayout,
     Kinematics,
     Space,
@@ -264,6 +265,7 @@ class _LeanGraph:
     Attributes:
         outputs: ``LEAN_OUTPUTS``.
         kin, layout, motions, inertias: the tree at touchdown (world frame).
+        values: the bodies' design values (:func:`unpack_values`).
         delta_v: generalized velocity change (nv x 1).
         delassus: the L^T D L factor of the Delassus matrix A (paper eq. 11).
         solve_mass: tau -> M^-1 tau.
@@ -275,6 +277,7 @@ class _LeanGraph:
     layout: DofLayout
     motions: tuple[dyn.JointMotion, ...]
     inertias: tuple[dyn.SpatialInertia, ...]
+    values: tuple[BodyValues, ...]
     delta_v: ca.SX
     delassus: dyn.LTDL
     solve_mass: Callable[[ca.SX], ca.SX]
@@ -368,6 +371,7 @@ def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus:
         layout,
         motions,
         inertias,
+        values,
         rates(dv),
         fA,
         lambda tau: rates(dyn.impulse_response(art, {}, tau)[1]),
@@ -421,6 +425,7 @@ def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: c
         layout,
         S,
         inertias,
+        values,
         dv,
         fA,
         lambda tau: dyn.solve(f, tau),
@@ -532,9 +537,11 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
 
         dg/dp = d/dp [ g + a^T (J^T lambda - M dv) - nu^T J (dv + (1 + e) v_minus) ]
 
-    with lambda, dv, a and nu held fixed: derivatives of kinematics only (J x and
-    a^T M dv = sum over bodies of twist(a) . momentum(dv), one forward velocity pass each),
-    one reverse sweep per norm over a graph without the factorizations. (Both brackets vanish
+    with lambda, dv, a and nu held fixed: derivatives of kinematics only (J x and a^T M dv, one
+    forward velocity pass each; a^T M dv by :func:`dyn.kinetic_bilinear`, at the centres of mass
+    without world-frame inertias, and the internal norm's momenta as m v_G: 22 % fewer
+    instructions for spatial case 3 than twist . momentum about the joints), one reverse sweep
+    per norm over a graph without the factorizations. (Both brackets vanish
     at the solution: the first is the impulse balance, the second J v_plus + e J v_minus, the
     restitution law.)
     """
@@ -548,14 +555,11 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
     def velocities(x: ca.SX) -> tuple[tuple[ca.SX, ...], tuple[ca.SX, ...]]:
         return dyn.body_velocities(topology.parents, g.kin, g.layout, g.motions, x)
 
-    omega_dv, vel_dv = velocities(dv_h)
-    momenta = [g.inertias[b].momentum(omega_dv[b], vel_dv[b]) for b in range(topology.n_bodies)]
-    internal_norm = _lean_outputs(
-        topology, contact_bodies(topology), GROUND_NORMAL, [m[1] for m in momenta], lam_h, pivots
-    )[4]
-    omega_a, vel_a = velocities(a_h)
-    a_M_dv = sum((omega_a[b].T @ L + vel_a[b].T @ P for b, (L, P) in enumerate(momenta)), ca.SX(0))
-    psi = lam_h.T @ _normal_velocities(topology, g.kin, omega_a, vel_a) - a_M_dv
+    twists_dv, twists_a = velocities(dv_h), velocities(a_h)
+    momenta = [v.mass * w for v, w in zip(g.values, dyn.com_velocities(g.kin, *twists_dv))]
+    internal_norm = _lean_outputs(topology, contact_bodies(topology), GROUND_NORMAL, momenta, lam_h, pivots)[4]
+    a_M_dv = dyn.kinetic_bilinear(g.kin, g.values, twists_a, twists_dv)
+    psi = lam_h.T @ _normal_velocities(topology, g.kin, *twists_a) - a_M_dv
     psi = psi - nu_h.T @ _normal_velocities(topology, g.kin, *velocities(u_h))
     seeds = ca.substitute(
         ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)), ca.vertcat(lam_h, dv_h), ca.vertcat(lam, dv)

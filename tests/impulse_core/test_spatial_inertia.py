@@ -12,15 +12,24 @@ import functools
 import json
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
 from impulse_core.compile.batch import batch_evaluator
 from impulse_core.errors import ModelError
 from impulse_core.evaluate import evaluate, pre_impact_velocity
-from impulse_core.impact.delassus import norms_gradient_function
+from impulse_core.impact.delassus import mass_matrix_function, norms_gradient_function
 from impulse_core.impact.laws import ImpactModel
-from impulse_core.kinematics.spatial import PLANAR, SPATIAL
+from impulse_core.kinematics import dynamics as dyn
+from impulse_core.kinematics.spatial import (
+    PLANAR,
+    SPATIAL,
+    dof_layout,
+    forward_kinematics,
+    n_values,
+    unpack_values,
+)
 from impulse_core.model.rods import centre_of_mass, inertia_tensor
 from impulse_core.model.tree import SPATIAL_BODY_VALUES, Tree, design_vector, tensor_matrix
 from tests.conftest import random_tree, report
@@ -174,3 +183,27 @@ def test_a_tensor_of_no_rigid_body_is_refused_naming_the_field(tensor, message) 
         Tree((dataclasses.replace(b, tensor=tensor),) + general_trees()[0].bodies[1:])
     with pytest.raises(ModelError, match=r"model\.bodies\[0\]\.com_offset"):
         Tree((dataclasses.replace(b, com_offset=(0.0, float("inf"))),) + general_trees()[0].bodies[1:])
+
+
+def test_kinetic_bilinear_is_the_mass_matrix_bilinear_form() -> None:
+    """``dynamics.kinetic_bilinear`` (the adjoint gradient's a^T M dv at the centres of mass)
+    equals x^T M y with M the tree's mass matrix (1e-12 relative), on general bodies (offsets,
+    full tensors) and on rods."""
+    rng = np.random.default_rng(SEED)
+    trees = [*general_trees()[:4], *spatial_trees()[:2]]
+    for tree in trees:
+        topology = tree.topology()
+        layout = dof_layout(topology, SPATIAL)
+        p = ca.SX.sym("p", n_values(topology, SPATIAL))
+        x, y = ca.SX.sym("x", layout.nv), ca.SX.sym("y", layout.nv)
+        values = unpack_values(topology, p, SPATIAL)
+        kin = forward_kinematics(topology, values, SPATIAL)
+        motions = dyn.joint_motions(kin, layout, SPATIAL)
+        twists = [dyn.body_velocities(topology.parents, kin, layout, motions, z) for z in (x, y)]
+        f = ca.Function("xMy", [p, x, y], [dyn.kinetic_bilinear(kin, values, *twists)])
+        p0 = design_vector(tree, SPATIAL_BODY_VALUES)
+        M = np.array(mass_matrix_function(topology, SPATIAL)(p0)[0])
+        for _ in range(3):
+            x0, y0 = rng.normal(size=layout.nv), rng.normal(size=layout.nv)
+            scale = np.abs(M).max() * np.abs(x0).max() * np.abs(y0).max() * layout.nv**2
+            assert abs(float(f(p0, x0, y0)) - x0 @ M @ y0) <= 1e-12 * scale
