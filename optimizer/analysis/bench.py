@@ -371,6 +371,7 @@ def _report(
         return per_design[timed] / per_design[on or map_path] if timed in per_design else None
 
     pin_us = us.get("pinocchio")
+    columns, which = gradient_columns(b.tree, b.topology, b.space)
     return SpeedReport(
         model=name,
         n_bodies=b.tree.n_bodies,
@@ -382,8 +383,8 @@ def _report(
         n_instructions_gradient_autodiff=n_grad.get("gradient_autodiff"),
         n_instructions_gradient_all=n_grad.get("gradient_all"),
         n_values=n_values(b.topology, b.space),
-        n_gradient_values=len(_gradient_columns(b)),
-        gradient_values=gradient_columns(b.tree, b.topology, b.space)[1],
+        n_gradient_values=len(columns),
+        gradient_values=which,
         build_ms=b.build_ms,
         compile_s=None if compiled is None else compiled.compile_s,
         backend=Backend.VIRTUAL_MACHINE.value if compiled is None else compiled.backend,

@@ -302,13 +302,19 @@ def _check_inner_landings(config: StudyConfig, landings: Landings) -> None:
             raise ConfigError(f"landings.{name}: the inner search varies {', '.join(allowed)} only "
                               "(a level first impact); search.method: outer takes every parameter")
     for objective in config.objectives[:2]:
-        stat = config.statistic_of(objective)
-        if stat.kind is StatisticKind.QUANTILE:
-            raise ConfigError(f"statistic.{objective.value}: the inner search takes mean, std, max or cvar:q "
-                              "(a quantile is neither smooth nor convex); use cvar:q or search.method: outer")
+        stat = _inner_statistic(config, objective)
         if stat.kind is StatisticKind.STD and objective in (Objective.MAX_INTERNAL, Objective.BASE_ANGULAR_VELOCITY):
             raise ConfigError(f"statistic.{objective.value}: the inner search cannot take the std of a maximum "
                               "(its epigraph would not be tight); use mean, max or cvar:q, or search.method: outer")
+
+
+def _inner_statistic(config: StudyConfig, objective: Objective) -> Statistic:
+    """The statistic of ``objective``, refused for the inner search if a quantile."""
+    stat = config.statistic_of(objective)
+    if stat.kind is StatisticKind.QUANTILE:
+        raise ConfigError(f"statistic.{objective.value}: the inner search takes mean, std, max or cvar:q "
+                          "(a quantile is neither smooth nor convex); use cvar:q or search.method: outer")
+    return stat
 
 
 def check_inner_whole_landings(config: StudyConfig, landings: Landings) -> None:
@@ -322,10 +328,7 @@ def check_inner_whole_landings(config: StudyConfig, landings: Landings) -> None:
             raise ConfigError(f"landings.{name}: the inner search over whole landings varies "
                               f"{', '.join(INNER_LANDING_PARAMETERS)} only; search.method: outer takes every parameter")
     for objective in config.objectives[:2]:
-        stat = config.statistic_of(objective)
-        if stat.kind is StatisticKind.QUANTILE:
-            raise ConfigError(f"statistic.{objective.value}: the inner search takes mean, std, max or cvar:q "
-                              "(a quantile is neither smooth nor convex); use cvar:q or search.method: outer")
+        stat = _inner_statistic(config, objective)
         if objective.sign < 0 and stat.kind in (StatisticKind.MAX, StatisticKind.CVAR):
             raise ConfigError(f"statistic.{objective.value}: the inner search cannot maximise a {stat.kind.value} "
                               "(its epigraph would not be tight); use mean or std, or search.method: outer")

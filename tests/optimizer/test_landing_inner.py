@@ -67,14 +67,18 @@ def test_the_nlp_gradient_agrees_with_central_differences_along_level_directions
         _, tape, run = taped_run(t, s, l, nlp.step)
         return sequence_signature(tape, run)
 
-    seq0 = sequence(x0)
     rng = np.random.default_rng(3)
     for _ in range(2):
-        u = _tangent(nlp, x0, rng)
-        eps = 1e-6
-        assert sequence(x0 + eps * u) == seq0 and sequence(x0 - eps * u) == seq0
-        fd = (_Landed(nlp).values(x0 + eps * u) - _Landed(nlp).values(x0 - eps * u)) / (2 * eps)
-        assert np.all(np.abs(fd - G @ u) <= 1e-4 * np.maximum(np.abs(G @ u), 1e-3)), (fd, G @ u)
+        assert_gradient_along(nlp, x0, G, _tangent(nlp, x0, rng), sequence)
+
+
+def assert_gradient_along(nlp, x0: np.ndarray, G: np.ndarray, u: np.ndarray, sequence, eps: float = 1e-6) -> None:
+    """The landed values' exact gradient ``G`` along ``u`` against central differences of fresh
+    landings, the event sequence(s) the same at x0 +- eps u (``sequence``: x -> its signature)."""
+    seq0 = sequence(x0)
+    assert sequence(x0 + eps * u) == seq0 and sequence(x0 - eps * u) == seq0
+    fd = (_Landed(nlp).values(x0 + eps * u) - _Landed(nlp).values(x0 - eps * u)) / (2 * eps)
+    assert np.all(np.abs(fd - G @ u) <= 1e-4 * np.maximum(np.abs(G @ u), 1e-3)), (fd, G @ u)
 
 
 def test_a_few_ipopt_iterations_lower_the_landing_objective(nlp):
