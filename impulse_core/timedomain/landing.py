@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import casadi as ca
@@ -173,6 +174,22 @@ class LandingSettings:
     integrator: str = AUTO
     step_code: str = VM_CODE
     bounce_steps: float = 0.0
+
+
+@dataclass(frozen=True)
+class LandingProgress:
+    """Where a run of :func:`landing` is: the step halving's run (0 first) and its Runge-Kutta
+    step (s), the time reached t of the duration (s), and the impacts so far."""
+
+    run: int
+    step: float
+    t: float
+    duration: float
+    impacts: int
+
+
+#: Told of a run's progress after each accepted step and each event (:func:`landing`'s ``progress``).
+Progress = Callable[[LandingProgress], None]
 
 
 @dataclass(frozen=True)
@@ -1622,8 +1639,9 @@ class _Landing:
         normal, tangent = (self.point(q, v).normal, None) if self.sloped else self.flat_ground
         totals.impulse += impulse_vector(normal, impulses[: self.nc], ft, tangent)
 
-    def run(self, h: float) -> LandingResult:
-        """The landing at Runge-Kutta step ``h``."""
+    def run(self, h: float, progress: Progress | None = None, index: int = 0) -> LandingResult:
+        """The landing at Runge-Kutta step ``h`` (``progress``: told after each step and event,
+        as run ``index`` of the step halving)."""
         T = float(self.scene.duration)
         self.inexact = self.non_unique = 0
         self.min_bounce = MIN_BOUNCE * T
@@ -1672,6 +1690,8 @@ class _Landing:
                 self.record(totals, t, v0, t + dt, q, v)
                 t += dt
                 totals.steps += 1
+                if progress is not None:
+                    progress(LandingProgress(index, h, t, T, len(totals.events)))
                 continue
             watch = graze.w < 0
             located = self.locate(q, v, mode, graze, watch)
@@ -1694,6 +1714,8 @@ class _Landing:
             if len(totals.events) > self.settings.max_events:
                 raise NumericalError(f"the landing took more than {self.settings.max_events} impacts by t = {t:.6g} s")
             q, v, mode = self.event(q_e, v_e, mode, t, totals)
+            if progress is not None:
+                progress(LandingProgress(index, h, t, T, len(totals.events)))
         pt = self.point(q, v)
         gravity_work = self.mass * self.scene.gravity * (height0 - pt.com_height)
         residual = pt.momentum[:, 0] - p0 - totals.impulse - self.weight(T)
@@ -1785,12 +1807,13 @@ def landing_difference(a: LandingResult, b: LandingResult) -> float:
 
 def landing(
     tree: Tree, scene: Scene, joints: tuple[JointLaw, ...] = (), settings: LandingSettings = LandingSettings(),
-    space: Space = PLANAR,
+    space: Space = PLANAR, progress: Progress | None = None,
 ) -> LandingResult:
     """The whole landing of ``tree`` (module docstring; in ``space``), to ``settings.tolerance``: the step is
     halved from ``settings.step`` until two successive runs differ by at most the tolerance
     (:func:`landing_difference`); the finer run is returned with that difference as its
-    ``error_estimate`` (an unmet tolerance: ``converged`` is False).
+    ``error_estimate`` (an unmet tolerance: ``converged`` is False). ``progress`` is told where
+    each run is (:class:`LandingProgress`; a run that diverged is followed by one at half its step).
 
     Raises:
         ModelError: no ``scene.duration``, or joint laws that do not match the tree.
@@ -1804,7 +1827,7 @@ def landing(
     h = run.first_step()
     for halvings in range(settings.max_refinements + 1):  # a step too long for the stiffest joint diverges
         try:
-            previous = run.run(h)
+            previous = run.run(h, progress, halvings)
             break
         except Diverged:
             if halvings == settings.max_refinements:
@@ -1812,9 +1835,9 @@ def landing(
             h /= 2.0
     error = math.inf
     current = previous
-    for _ in range(settings.max_refinements):
+    for k in range(settings.max_refinements):
         h /= 2.0
-        current = run.run(h)
+        current = run.run(h, progress, halvings + 1 + k)
         # runs whose steps the momentum balance split alike (all of them: an unstable RK4 step)
         # are one run: their difference says nothing, and the halving goes on
         error = landing_difference(current, previous) if current.n_steps != previous.n_steps else math.inf
@@ -1835,6 +1858,7 @@ __all__ = [
     "PLASTIC_SPEED",
     "SETTLE_SPEED",
     "LandingEvent",
+    "LandingProgress",
     "LandingResult",
     "LandingSettings",
     "landing",

@@ -35,7 +35,7 @@ from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
 from optimizer.design_space import Objective
 from optimizer.errors import ConfigError, interrupted
-from impulse_core.timedomain.landing import LandingSettings
+from impulse_core.timedomain.landing import LandingProgress, LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown, plot_views
 from impulse_core.kinematics.spatial import PLANAR
@@ -429,7 +429,7 @@ def _evaluate(
     """The landing of one model file by the model named on the command line, or the cause (one
     line) when the numerics fail (overflow, a singular solve, a diverging integration): a status
     to report, not a traceback."""
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), _LandingBar() as bar:
         try:
             result = evaluate_landing(
                 model.tree,
@@ -441,10 +441,42 @@ def _evaluate(
                 whole,
                 compliant_tolerance,
                 model.space,
+                bar.show,
             )
         except (np.linalg.LinAlgError, NumericalError) as e:
             return str(e).splitlines()[0] if str(e) else "a singular solve"
     return result if is_finite(result) else "the impact solve returned no finite answer (extreme values?)"
+
+
+class _LandingBar:
+    """A whole landing's progress on stderr, on a terminal only (tqdm's ``disable=None``): one
+    bar from 0 to the duration per run of the step halving, with its step and impacts so far;
+    gone once the landing ends."""
+
+    def __init__(self) -> None:
+        self.bar, self.run = None, -1
+
+    def __enter__(self) -> _LandingBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+    def show(self, p: LandingProgress) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=p.duration, unit="s", disable=None, leave=False, dynamic_ncols=True,
+                            desc=f"landing, run {p.run + 1} (step {p.step:.3g} s)", postfix=f"{p.impacts} impacts",
+                            bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of {total:.4g} s{postfix}")
+        if p.run != self.run:
+            self.run = p.run
+            self.bar.set_description_str(f"landing, run {p.run + 1} (step {p.step:.3g} s)", refresh=False)
+            self.bar.set_postfix_str(f"{p.impacts} impacts", refresh=False)
+            self.bar.reset(total=p.duration)
+        self.bar.set_postfix_str(f"{p.impacts} impacts", refresh=False)
+        self.bar.update(p.t - self.bar.n)
 
 
 def run_bench(args: argparse.Namespace) -> int:

@@ -29,7 +29,7 @@ from impulse_core.timedomain.compliant import (
     simulate_impact,
     simulate_to_tolerance,
 )
-from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
+from impulse_core.timedomain.landing import LandingResult, LandingSettings, Progress, landing
 from impulse_core.timedomain.sequential import SequentialResult, SequentialSettings, sequential_impacts
 
 SEQUENTIAL, COMPLIANT, LANDING = "sequential", "compliant", "landing"
@@ -138,11 +138,13 @@ def evaluate_landing(
     whole: LandingSettings | None = None,
     compliant_tolerance: float | None = None,
     space: Space = PLANAR,
+    progress: Progress | None = None,
 ) -> ImpactResult | TimeDomainResult:
     """The landing of ``tree`` as ``scene`` says, by ``model`` (one of :data:`MODEL_CHOICES`), the
     time-domain models with their settings (default: the modules' defaults). ``auto`` runs the
     whole landing when the scene has a ``duration`` (with the joint laws ``joints``). The compliant
     rung refines its steps to ``compliant_tolerance`` when given (else runs ``compliant`` as set).
+    ``progress`` is told where a whole landing's runs are (:class:`LandingProgress`).
 
     Raises:
         ModelError: a rigid rung on a terrain that is not flat, friction under a time-domain model
@@ -150,7 +152,7 @@ def evaluate_landing(
         NumericalError: the solve or the integration failed.
     """
     if model == LANDING or model == "auto" and scene.duration is not None:
-        return _whole_landing(tree, scene, joints, whole or LandingSettings(), model == LANDING, space)
+        return _whole_landing(tree, scene, joints, whole or LandingSettings(), model == LANDING, space, progress)
     if space is not PLANAR:
         return _spatial(tree, scene, model, compliant, sequential, compliant_tolerance, space)
     flat = scene.terrain.is_flat
@@ -251,13 +253,13 @@ def _scene_gravity(settings, scene: Scene):  # type: ignore[no-untyped-def]
 
 def _whole_landing(
     tree: Tree, scene: Scene, joints: tuple[JointLaw, ...], settings: LandingSettings, requested: bool,
-    space: Space = PLANAR,
+    space: Space = PLANAR, progress: Progress | None = None,
 ) -> TimeDomainResult:
     """The whole landing, with why it ran (in space on flat ground or a heightfield)."""
     if scene.duration is None:
         raise ModelError("scene.duration: --model landing needs the landing's duration (s) in the scene")
     why = "requested" if requested else "automatic: scene.duration is given, so the whole landing runs"
-    result = landing(tree, scene, joints, settings, space)
+    result = landing(tree, scene, joints, settings, space, progress)
     notes = [why, f"{len(result.events)} impacts over {scene.duration:g} s, Runge-Kutta step {result.step:.3g} s"]
     if scene.gravity:
         notes.append(f"gravity {scene.gravity:g} m/s^2")

@@ -481,6 +481,30 @@ def test_a_landing_whose_steps_split_without_end_is_abandoned(monkeypatch):
         _Landing(tree, scene, laws, LandingSettings()).run(4.6875e-5)
 
 
+def test_progress_follows_every_run_of_the_step_halving():
+    """The progress told to the caller: each run of the step halving numbered in turn, at half the
+    previous run's step, its time rising to the duration and its impacts to the run's own count;
+    the last run is the one returned, and telling the progress changes nothing."""
+    tree, laws, scene = _random_leg(1)
+    told: list[landing_module.LandingProgress] = []
+    result = landing(tree, scene, laws, progress=told.append)
+    runs = sorted({p.run for p in told})
+    assert runs == list(range(len(runs))) and len(runs) >= 2
+    for k in runs:
+        mine = [p for p in told if p.run == k]
+        t = [p.t for p in mine]
+        assert all(b >= a for a, b in zip(t, t[1:])) and t[-1] == pytest.approx(scene.duration, rel=1e-12)
+        assert all(p.duration == scene.duration for p in mine)
+        assert all(b.impacts >= a.impacts for a, b in zip(mine, mine[1:]))
+        if k:
+            assert mine[0].step == 0.5 * [p for p in told if p.run == k - 1][0].step
+    last = [p for p in told if p.run == runs[-1]]
+    assert last[0].step == result.step and last[-1].impacts == len(result.events)
+    quiet = landing(tree, scene, laws)
+    assert quiet.step == result.step and len(quiet.events) == len(result.events)
+    assert np.array_equal(quiet.q_final, result.q_final) and np.array_equal(quiet.total_external, result.total_external)
+
+
 STICK_OR_SLIDE = Path(__file__).resolve().parent / "data" / "stick_or_slide.yaml"
 
 

@@ -3,7 +3,9 @@ first-impact model of the same file, --tolerance, bad options and the landing pl
 
 from __future__ import annotations
 
+import io
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +55,29 @@ def test_landing_json_keeps_the_contract(tmp_path, capsys, friction, rung):
                             "settled_at", "final_angles", "final_base", "final_velocity", "energy_absorbed",
                             "duration", "step"}  # MODEL_FORMAT's keys, no more
     assert d["integrator"] == "rk4"  # an extra beside error_estimate: these joint laws are not stiff
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_landing_shows_its_progress_on_a_terminal_only(tmp_path, capsys, monkeypatch):
+    """On a terminal, stderr shows each run of the step halving (its step, t of the duration, the
+    impacts) and clears it; elsewhere stderr stays empty; stdout's JSON is the same either way."""
+    path = _landing_file(tmp_path, 0.5, duration=0.02)
+    plain = _json(capsys, str(path))
+    assert capsys.readouterr().err == ""
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    assert main(["evaluate", "--json", str(path)]) == 0
+    assert json.loads(capsys.readouterr().out) == plain
+    shown = terminal.getvalue()
+    lines = [line for line in shown.split("\r") if line.strip()]
+    assert lines and all(line.startswith("landing, run ") and " of 0.02 s, " in line and " impacts" in line
+                         for line in lines)
+    assert any(f"(step {plain['landing']['step']:.3g} s)" in line for line in lines)  # the last run's step
+    assert shown.rstrip("\r").split("\r")[-1].strip() == ""  # the bar is gone
 
 
 def test_tolerance_applies_to_the_landing_only(tmp_path, capsys):
