@@ -505,6 +505,29 @@ def test_progress_follows_every_run_of_the_step_halving():
     assert np.array_equal(quiet.q_final, result.q_final) and np.array_equal(quiet.total_external, result.total_external)
 
 
+@pytest.mark.parametrize(("reached", "factor"), [(0.0, 2), (0.6, 2), (0.5, 2), (0.3, 4), (0.25, 4), (0.233, 8), (1e-3, 1024)])
+def test_a_run_that_overran_its_budget_is_retried_where_the_budget_suffices(reached, factor):
+    """2^k >= 1 / reached: the budget doubles with each halving of the step; 0 (a blow-up): halve."""
+    assert landing_module.retry_factor(reached) == factor
+
+
+def test_landing_retries_a_diverged_run_at_the_step_its_budget_asks(monkeypatch):
+    """landing() shortens the step by retry_factor of where the diverged run stopped."""
+    tree, laws, scene = _random_leg(1)
+    steps: list[float] = []
+    run = _Landing.run
+
+    def overrun_once(self, h, progress=None, index=0):
+        steps.append(h)
+        if len(steps) == 1:
+            raise Diverged("the landing took more than 64 x 100 steps", reached=0.2)
+        return run(self, h, progress, index)
+
+    monkeypatch.setattr(_Landing, "run", overrun_once)
+    landing(tree, scene, laws)
+    assert steps[1] == steps[0] / 8 and all(b == a / 2 for a, b in zip(steps[1:], steps[2:]))
+
+
 STICK_OR_SLIDE = Path(__file__).resolve().parent / "data" / "stick_or_slide.yaml"
 
 
