@@ -3,7 +3,7 @@ time-domain models when the ground is uneven (or on request).
 
 ``auto`` (the default) keeps the rigid ladder's automatic choice (``impulse_core.evaluate``) on
 flat ground, and runs the sequential rigid model (``impulse_core.timedomain.sequential``: a rigid impact
-(LCP) along the local ground normal at each touchdown, free flight between)
+(LCP, or exact Coulomb friction) along the local ground normal at each touchdown, free flight between)
 when ``scene.terrain`` (in space ``scene.heightfield``) is not flat: the flat rungs assume level ground
 and simultaneous contacts. There ``lcp`` and ``friction`` on request give the first instant (the
 contacts touching at t = 0 along their local normals, :mod:`impulse_core.timedomain.first_instant`);
@@ -44,8 +44,8 @@ TIME_DOMAIN_MODELS = (SEQUENTIAL, COMPLIANT, LANDING)
 MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel), *TIME_DOMAIN_MODELS)
 
 _DESCRIPTIONS = {
-    SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact along the local normal at each touchdown, "
-    "free flight between)",
+    SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact, with scene.friction exact Coulomb friction, "
+    "along the local normal at each touchdown, free flight between)",
     COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal; fixed semi-implicit "
     "Euler steps, or adaptive Dormand-Prince 5(4) steps between located contact switches to a tolerance)",
     LANDING: "the whole landing: every touchdown and joint stop an impact by the first-impact law, resting contact "
@@ -151,7 +151,7 @@ def evaluate_landing(
 
     Raises:
         ModelError: newton, decoupled or friction-relaxed on a terrain that is not flat, friction under
-            a time-domain model (both frictionless), or an unknown model name.
+            the compliant model (frictionless), or an unknown model name.
         NumericalError: the solve or the integration failed.
     """
     if model == LANDING or model == "auto" and scene.duration is not None:

@@ -20,7 +20,7 @@ from impulse_core.errors import ModelError
 from impulse_core.evaluate import evaluate
 from impulse_core.impact.coulomb import ContactMode
 from impulse_core.impact.laws import ImpactModel
-from impulse_core.kinematics.spatial import PLANAR, SPATIAL
+from impulse_core.kinematics.spatial import SPATIAL
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.rods import rotation_rpy
 from impulse_core.model.terrain import Terrain

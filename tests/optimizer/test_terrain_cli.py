@@ -227,11 +227,19 @@ def test_a_written_file_keeps_its_terrain(tmp_path: Path, capsys) -> None:
     assert not math.isclose(record["touchdown_time"][0], sequential_impacts(model.tree, model.scene).touchdown_time[0])
 
 
-def test_friction_on_uneven_terrain_is_refused(write, capsys) -> None:
+def test_friction_on_uneven_terrain_runs_the_sequential_model_with_friction(write, capsys) -> None:
     text = UNEVEN_FILE.read_text().replace("friction: 0.0", "friction: 0.3")
     path = write(text)
-    assert main(["evaluate", str(path)]) == 2
-    _one_error_line(capsys.readouterr().err, path, "scene.friction: the sequential rigid model is frictionless")
+    assert main(["evaluate", str(path), "--json"]) == 0
+    record = _record(capsys)
+    model = load_model_file(path)
+    direct = sequential_impacts(model.tree, model.scene)
+    assert record["model"] == "sequential" and record["impact_reason"].startswith("automatic: scene.terrain")
+    assert record["external"] == direct.external.tolist() and record["tangential"] == direct.tangential.tolist()
+    assert record["modes"] == [m.value for m in direct.modes] and "Coulomb" in record["model_description"]
+    assert main(["evaluate", str(UNEVEN_FILE), "--json"]) == 0
+    plain = _record(capsys)
+    assert plain["tangential"] == [0.0, 0.0] and plain["modes"] is None
 
 
 def test_bad_friction_on_uneven_terrain_exits_2_naming_it(write, capsys) -> None:
