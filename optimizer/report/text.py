@@ -474,6 +474,8 @@ def _external_lines(model: ModelFile, result: Result) -> list[str]:
             row += _ref_cells(result.external[i], ref.external[i])
         rows.append(row)
     along = "along +x" if model.space is PLANAR else "[x, z]"
+    if not model.scene.ground_is_flat:  # the first instant on uneven ground: each contact's own tangents
+        along = "along the ground's tangent" if model.space is PLANAR else "[t_x, t_z] of the ground"
     kind = f"normal and tangential {along}" if friction else "normal" if rigid else "along the local ground normal"
     return ["", f"External impulses ({kind}, on the contacts)"] + _table(headers, rows)
 

@@ -227,6 +227,14 @@ def test_a_written_file_keeps_its_terrain(tmp_path: Path, capsys) -> None:
     assert not math.isclose(record["touchdown_time"][0], sequential_impacts(model.tree, model.scene).touchdown_time[0])
 
 
+def test_the_text_report_of_the_first_instant_names_the_ground_s_tangent(write, capsys) -> None:
+    path = write(UNEVEN_FILE.read_text().replace("friction: 0.0", "friction: 0.3"))
+    assert main(["evaluate", str(path), "--model", "friction"]) == 0
+    out = capsys.readouterr().out
+    assert "why:     requested; first instant on uneven ground" in out
+    assert "External impulses (normal and tangential along the ground's tangent, on the contacts)" in out
+
+
 def test_friction_on_uneven_terrain_runs_the_sequential_model_with_friction(write, capsys) -> None:
     text = UNEVEN_FILE.read_text().replace("friction: 0.0", "friction: 0.3")
     path = write(text)
