@@ -233,6 +233,25 @@ def test_flat_simultaneous_contacts_with_friction_equal_the_friction_rung(mu):
     assert seq.modes == rigid.modes
 
 
+@pytest.mark.parametrize("mu", [0.1, 2.0])
+def test_in_space_flat_simultaneous_contacts_with_friction_equal_the_friction_rung(mu):
+    """The yaw-splayed case 3 (heel and toes at one height) landing obliquely and rolling on flat
+    ground: one impact, the spatial friction rung's (the circular cone) impulses and modes."""
+    from impulse_core.impact.laws import ImpactModel
+    from impulse_core.kinematics.spatial import SPATIAL
+    from tests.impulse_core.test_compliant_spatial import OBLIQUE, yaw_splayed_case3
+
+    scene = dataclasses.replace(OBLIQUE, friction=mu, restitution=0.3)
+    rigid = evaluate(yaw_splayed_case3(), scene, ImpactModel.FRICTION, SPATIAL)
+    seq = sequential_impacts(yaw_splayed_case3(), scene, space=SPATIAL)
+    assert len(seq.events) == 1 and len(seq.events[0].contacts) == 4
+    scale = float(np.max(rigid.external))
+    np.testing.assert_allclose(seq.external, rigid.external, atol=1e-9 * scale)
+    np.testing.assert_allclose(seq.tangential, rigid.tangential, atol=1e-9 * scale)
+    np.testing.assert_allclose(seq.internal_magnitude, rigid.internal_magnitude, atol=1e-9 * scale)
+    assert seq.modes == rigid.modes
+
+
 def test_friction_names_its_model_and_frictionless_stays_as_it_was():
     plain = sequential_impacts(case2(), PAPER_SCENE, terrain=UNEVEN)
     assert plain.modes is None and not np.any(plain.tangential) and all(e.tangential is None for e in plain.events)
