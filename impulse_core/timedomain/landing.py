@@ -638,7 +638,6 @@ class RigidImpact:
     Attributes:
         solution: the law's row impulses and row velocities after (:func:`_solve_rows`; where the
             frictionless split is not unique, the least-norm normal split).
-        minv_gt: M^-1 G^T of the rows.
         v_plus: the generalized velocity after.
         normal, tangential: each contact's normal (n_c) and tangential (n_c x (d - 1)) impulse
             (0 where not in the rows; twin contacts share alike where the split is not unique).
@@ -647,7 +646,6 @@ class RigidImpact:
     """
 
     solution: UnilateralSolution
-    minv_gt: np.ndarray
     v_plus: np.ndarray
     normal: np.ndarray
     tangential: np.ndarray
@@ -672,7 +670,7 @@ def rigid_impact(pt: _Point, v: np.ndarray, rows: _Rows, restitution: np.ndarray
         c = rows.contact[rows.contact >= 0]
         groups = twin_groups(np.hstack([pt.Jn[c], pt.Jt[c].reshape(len(c), -1)]))
         fn[c], ft[c] = share_among_twins(groups, fn[c], ft[c])
-    return RigidImpact(sol, minv_gt, v + minv_gt @ lam, fn, ft, split_unique, exact)
+    return RigidImpact(sol, v + minv_gt @ lam, fn, ft, split_unique, exact)
 
 
 def contact_impulses(pt: _Point, normal: np.ndarray, tangential: np.ndarray) -> np.ndarray:
