@@ -8,11 +8,13 @@ The automatic choice is the cheapest rung that is exact for the scene
 LCP when Newton's law would make a contact pull (the contact separates with zero impulse).
 DECOUPLED (paper eq. 14) runs on request only. Frictionless scenes build no friction terms.
 
-Every rung assumes flat ground: the contacts that hit are found by height, and the impulses act
+Every rung here assumes flat ground: the contacts that hit are found by height, and the impulses act
 along +y. A scene whose ``terrain`` is not flat is refused (``ModelError`` naming
-``scene.terrain``) rather than answered as if the ground were level; its landing is the business
-of :func:`impulse_core.timedomain.sequential.sequential_impacts` (rigid impacts in sequence, one per
-touchdown) or :func:`impulse_core.timedomain.compliant.simulate_impact`. A flat terrain at any height, and
+``scene.terrain``) rather than answered as if the ground were level; its first instant by the lcp
+and friction laws (the contacts touching at t = 0 along their local normals) is
+:func:`impulse_core.timedomain.first_instant.first_instant`, built on the whole landing's impact, and
+its landing is the business of :func:`impulse_core.timedomain.sequential.sequential_impacts` (rigid
+impacts in sequence, one per touchdown) or :func:`impulse_core.timedomain.compliant.simulate_impact`. A flat terrain at any height, and
 any ``base_x``, change nothing here: heights are measured from the lowest contact. To measure the
 flat-ground answer on purpose, evaluate ``dataclasses.replace(scene, terrain=FLAT)``. The same holds for a
 spatial scene's ``heightfield`` (``scene.heightfield``): flat at any height is flat ground; otherwise refused.
@@ -57,6 +59,12 @@ from impulse_core.model.tree import ContactSelection, Scene, Topology, Tree, des
 
 #: A normal impulse below this fraction of the approach momentum counts as zero (separating).
 ZERO_IMPULSE = 1e-12
+#: The warning of a spatial friction impact whose exact circular-cone law was not met.
+POLYHEDRAL_NOTE = (
+    f"the exact circular-cone law was not met; the polyhedral answer ({POLYGON}-gon cone) is shown: its friction "
+    f"may fall short of the cone's by up to {100 * (1 - np.cos(np.pi / POLYGON)):.1f}% and its slip direction "
+    f"by up to {np.degrees(np.pi / POLYGON):.1f} degrees"
+)
 
 
 @dataclass(frozen=True)
@@ -256,14 +264,16 @@ def evaluate(tree: Tree, scene: Scene, model: ImpactModel | None = None, space: 
     if not scene.terrain.is_flat:
         raise ModelError(
             "scene.terrain: the rigid impact models (decoupled, newton, lcp, friction) assume flat ground and this "
-            "terrain is not flat; use the sequential rigid model (--model sequential, "
-            "impulse_core.timedomain.sequential.sequential_impacts) or the compliant one (--model compliant)"
+            "terrain is not flat; its first instant by the lcp or friction law is "
+            "impulse_core.timedomain.first_instant.first_instant, its landing the sequential rigid model (--model "
+            "sequential, impulse_core.timedomain.sequential.sequential_impacts) or the compliant one (--model compliant)"
         )
     if scene.heightfield is not None and not scene.heightfield.is_flat:
         raise ModelError(
             "scene.heightfield: the rigid impact models (decoupled, newton, lcp, friction) assume flat ground and "
-            "this heightfield is not flat; use the sequential rigid model (--model sequential) or the compliant one "
-            "(--model compliant)"
+            "this heightfield is not flat; its first instant by the lcp or friction law is "
+            "impulse_core.timedomain.first_instant.first_instant, its landing the sequential rigid model (--model "
+            "sequential) or the compliant one (--model compliant)"
         )
     _check_space(tree, scene, model, space)
     space = values_space(tree, space)  # a planar tree with centres of mass off its rods: their offsets too
@@ -398,11 +408,7 @@ def _spatial_friction(c: _Impact) -> _Solution:
     modes = [ContactMode.SEPARATING] * len(c.tree.contacts)
     for k, i in enumerate(c.topology.active):
         modes[i] = law.modes[k]
-    notes = () if law.exact else (
-        f"the exact circular-cone law was not met; the polyhedral answer ({POLYGON}-gon cone) is shown: its friction "
-        f"may fall short of the cone's by up to {100 * (1 - np.cos(np.pi / POLYGON)):.1f}% and its slip direction "
-        f"by up to {np.degrees(np.pi / POLYGON):.1f} degrees",
-    )
+    notes = () if law.exact else (POLYHEDRAL_NOTE,)
     return _Solution(ImpactModel.FRICTION, normal, tangential, split_unique, out, tuple(modes), notes)
 
 
@@ -542,6 +548,8 @@ def _redundant_split(J: np.ndarray, A: np.ndarray, rhs: np.ndarray) -> np.ndarra
 __all__ = [
     "CompiledModel",
     "Geometry",
+    "POLYHEDRAL_NOTE",
+    "ZERO_IMPULSE",
     "ImpactModel",
     "ImpactResult",
     "active_contacts",

@@ -286,14 +286,16 @@ class Scene:
         selection: which contacts hit (rigid rungs; the time-domain models let the geometry decide).
         contact_tolerance: with ``LOWEST``, contacts within this height (m) of the lowest hit.
         terrain: the ground profile (world frame; default flat at y = 0). The rigid rungs
-            (``impulse_core.evaluate``) need it flat (``Terrain.is_flat``); the sequential and
+            (``impulse_core.evaluate``) need it flat (``Terrain.is_flat``; the first instant on it:
+            ``impulse_core.timedomain.first_instant``); the sequential and
             compliant models (``impulse_core.timedomain.sequential``, ``impulse_core.timedomain.compliant``) follow it.
         base_x: x (m) of the base origin at touchdown: the tree keeps its touchdown angles, sits
             with its base origin at ``base_x`` and is lowered straight down until the contact with
             the smallest vertical clearance touches the terrain. Irrelevant on flat ground.
         base_z: spatial: z (m) of the base origin at touchdown (as ``base_x``).
         heightfield: spatial: the ground y = h(x, z) (``impulse_core.model.heightfield``), or None
-            (flat, as ``terrain`` says). The rigid rungs need it flat; the time-domain models follow it.
+            (flat, as ``terrain`` says). The flat rungs need it flat (the first instant on it:
+            ``impulse_core.timedomain.first_instant``); the time-domain models follow it.
         gravity: m/s^2 along -y (acts between impacts: the whole landing).
         duration: the whole landing's length (s) from the first touchdown, or None (first impact).
     """

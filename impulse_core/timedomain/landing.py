@@ -58,8 +58,8 @@ from scipy.spatial.transform import Rotation
 
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
-from impulse_core.impact.cone import cone_unilateral
-from impulse_core.impact.coulomb import UnilateralSolution, solve_unilateral
+from impulse_core.impact.cone import cone_unilateral, modes_of
+from impulse_core.impact.coulomb import ContactMode, UnilateralSolution, contact_modes, solve_unilateral
 from impulse_core.impact.laws import least_norm_split, redundant, share_among_twins, twin_groups
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
@@ -666,6 +666,68 @@ def _solve_rows(
     return UnilateralSolution(law.normal, law.tangential.T.ravel(), law.velocity, slip), after, law.exact
 
 
+@dataclass(frozen=True)
+class RigidImpact:
+    """One rigid impact over constraint rows (:func:`rigid_impact`).
+
+    Attributes:
+        solution: the law's row impulses and row velocities after (:func:`_solve_rows`; where the
+            frictionless split is not unique, the least-norm normal split).
+        v_plus: the generalized velocity after.
+        normal, tangential: each contact's normal (n_c) and tangential (n_c x (d - 1)) impulse
+            (0 where not in the rows; twin contacts share alike where the split is not unique).
+        split_unique: the rows are independent (the split of the impulse is unique).
+        exact: the exact law was met (False: the circular cone's polyhedral answer).
+    """
+
+    solution: UnilateralSolution
+    v_plus: np.ndarray
+    normal: np.ndarray
+    tangential: np.ndarray
+    split_unique: bool
+    exact: bool
+
+
+def rigid_impact(pt: _Point, v: np.ndarray, rows: _Rows, restitution: np.ndarray, mu: float) -> RigidImpact:
+    """Newton's restitution (``restitution`` per normal row) with exact Coulomb friction (``mu``;
+    0: the frictionless LCP) over ``rows`` at ``pt``, from the velocity ``v`` (:func:`_solve_rows`):
+    the law of every impact of the landing and of the first instant on uneven ground. Redundant
+    rows: without friction the lcp rung's smallest-norm split, with friction twins share alike."""
+    u = rows.G @ v
+    minv_gt = np.linalg.solve(pt.M, rows.G.T)
+    sol, _, exact = _solve_rows(rows.G @ minv_gt, u, rows, restitution)
+    split_unique = not redundant(rows.G)
+    if not split_unique and mu == 0:  # the lcp rung's split (G has no tangent rows without friction)
+        sol = replace(sol, normal=least_norm_split(rows.G, sol.normal))
+    lam = np.concatenate([sol.normal, sol.tangential])
+    fn, ft = _contact_forces(rows, lam, mu, len(pt.gap))
+    if not split_unique and mu > 0:  # twins share alike, as in the friction rung
+        c = rows.contact[rows.contact >= 0]
+        groups = twin_groups(np.hstack([pt.Jn[c], pt.Jt[c].reshape(len(c), -1)]))
+        fn[c], ft[c] = share_among_twins(groups, fn[c], ft[c])
+    return RigidImpact(sol, v + minv_gt @ lam, fn, ft, split_unique, exact)
+
+
+def contact_impulses(pt: _Point, normal: np.ndarray, tangential: np.ndarray) -> np.ndarray:
+    """The ground's impulse vector on each contact (d x n_c, world frame) from its normal (n_c) and
+    tangential (n_c x (d - 1)) impulse along the contact's normal and tangents at ``pt``."""
+    return pt.normal.T * normal + sum(pt.tangent[:, a].T * tangential[:, a] for a in range(pt.tangent.shape[1]))
+
+
+def impact_modes(pt: _Point, v: np.ndarray, v_plus: np.ndarray, contacts: np.ndarray, normal: np.ndarray
+                 ) -> tuple[ContactMode, ...]:
+    """Each of ``contacts``' mode in an impact at ``pt`` from v to ``v_plus`` with normal impulses
+    ``normal`` (per contact of ``contacts``), by the friction rung's thresholds (the scale: the
+    largest normal or tangential contact speed before; :func:`contact_modes`, :func:`modes_of`)."""
+    Jt = pt.Jt[contacts].transpose(1, 0, 2).reshape(-1, pt.Jt.shape[2])  # the first tangents, then the second
+    J = np.vstack([pt.Jn[contacts], Jt])
+    scale = max(float(np.max(np.abs(J @ v), initial=0.0)), np.finfo(float).tiny)
+    after = J @ v_plus
+    if pt.Jt.shape[1] == 1:
+        return contact_modes(normal, after, scale)
+    return modes_of(normal, None, after, scale)
+
+
 def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
     rows = _rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop, mu, pt.M.shape[0], mode.core)
     return replace(rows, redundant=True) if mode.redundant else rows
@@ -890,6 +952,8 @@ class _Landing:
             raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, auto")
         #: circular-cone solves of the current run that fell back to the polyhedral answer
         self.inexact = self.non_unique = 0
+        #: the law's answer at the last impact (:meth:`impact`)
+        self.last_impact: RigidImpact | None = None
         #: a rebound shorter than this (s) is plastic: MIN_BOUNCE of the duration at the first
         #: impact, and also ``settings.bounce_steps`` of the step after it (set by :meth:`run`)
         self.min_bounce = MIN_BOUNCE * float(scene.duration or 0.0)
@@ -1285,24 +1349,14 @@ class _Landing:
         e = np.where(rows.contact >= 0, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
         e = np.where(-u[: rows.n] > PLASTIC_SPEED, e, 0.0)
         e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < self.min_bounce, 0.0, e)
-        minv_gt = np.linalg.solve(pt.M, rows.G.T)
-        sol, _, exact = _solve_rows(rows.G @ minv_gt, u, rows, e)
-        self.inexact += not exact
-        split_unique = not redundant(rows.G)
-        if not split_unique:
-            self.non_unique += 1
-            if self.mu == 0:  # the lcp rung's split (G has no tangent rows without friction)
-                sol = replace(sol, normal=least_norm_split(rows.G, sol.normal))
+        law = rigid_impact(pt, v, rows, e, self.mu)
+        self.last_impact = law
+        self.inexact += not law.exact
+        self.non_unique += not law.split_unique
+        sol, v_plus, fn, ft = law.solution, law.v_plus, law.normal, law.tangential
         if self.tape is not None:
             self.tape.append(("impact", q.copy(), v.copy(), rows, e.copy(), sol))
-        lam = np.concatenate([sol.normal, sol.tangential])
-        v_plus = v + minv_gt @ lam
-        fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
-        if not split_unique and self.mu > 0:  # twins share alike, as in the friction rung
-            c = rows.contact[rows.contact >= 0]
-            groups = twin_groups(np.hstack([pt.Jn[c], pt.Jt[c].reshape(len(c), -1)]))
-            fn[c], ft[c] = share_among_twins(groups, fn[c], ft[c])
-        F = pt.normal.T * fn + sum(pt.tangent[:, a].T * ft[:, a] for a in range(self.dims - 1))
+        F = contact_impulses(pt, fn, ft)
         joint = self.point(q, v_plus).momentum - pt.momentum - F @ self.in_subtree.T
         internal, magnitude = joint_impulses(joint)
         stop = np.zeros(self.nv)
@@ -1623,14 +1677,28 @@ class _Landing:
         out[3:6] = self.turn = continued_rotation_vector(chart_rotation(q[3:6]) @ self.chart, self.turn)
         return out
 
-    def first_impact(self) -> tuple[np.ndarray, np.ndarray, _Mode, _Totals]:
-        """t = 0: the first-impact law over the contacts the scene selects."""
+    def contact_impact(self, q: np.ndarray, v: np.ndarray, contacts: np.ndarray, restitution: float
+                       ) -> tuple[_Point, RigidImpact]:
+        """The law (:func:`rigid_impact`) over ``contacts`` alone at (q, v), each with Newton's
+        ``restitution`` (no stops, no plastic rule): one touchdown of the sequential rigid model."""
+        pt = self.point(q, v)
+        rows = _rows(pt, contacts, self.no_slip(), np.zeros(self.nv, int), self.mu, self.nv)
+        return pt, rigid_impact(pt, v, rows, np.full(len(contacts), float(restitution)), self.mu)
+
+    def touchdown(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, LandingEvent, _Mode]:
+        """The first event (t = 0): the touchdown state (q, v), the velocity after, the event and
+        the rows resting after it; the law's answer is :attr:`last_impact`."""
         self.set_chart(self.design, None)
         q = self.q0.copy()
         v = pre_impact_velocity(self.topology, self.scene, self.space)
         none = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
         hit = self.first_contacts(self.point(q, v))
         v_plus, event, mode = self.impact(q, v, none, 0.0, hit, "touchdown")
+        return q, v, v_plus, event, mode
+
+    def first_impact(self) -> tuple[np.ndarray, np.ndarray, _Mode, _Totals]:
+        """t = 0: the first-impact law over the contacts the scene selects."""
+        q, v, v_plus, event, mode = self.touchdown()
         totals = _Totals(event.external.copy(), np.reshape(event.tangential, (self.nc, -1)).copy(), [event])
         totals.impulse = np.zeros(self.dims)
         totals.moving_until = 0.0 if np.max(np.abs(v_plus)) < SETTLE_SPEED else math.nan
@@ -1884,4 +1952,8 @@ __all__ = [
     "retry_factor",
     "joint_law_rate",
     "landing_function",
+    "RigidImpact",
+    "contact_impulses",
+    "impact_modes",
+    "rigid_impact",
 ]

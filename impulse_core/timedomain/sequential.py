@@ -9,16 +9,26 @@ by Newton's restitution law with complementarity (the frictionless LCP: impulses
 post-impact normal velocities u+ = u- + A lambda >= -e u-, complementary), A = Jn M^-1 Jn^T
 along the terrain normals. With simultaneous touchdowns on flat ground and all impulses positive
 this is the paper's eq. 11, and :func:`sequential_impacts` equals ``impulse_core.evaluate``.
+
+With friction (``scene.friction > 0``) each touchdown is the whole landing's impact law
+(:meth:`impulse_core.timedomain.landing._Landing.contact_impact`: Newton's restitution with exact
+Coulomb friction on the impulses, the plane's LCP by Lemke's method, in space the circular cone)
+over the same contacts, each along its local normal and tangents; tangential impulses are summed
+over the events as the normal ones, and each contact's mode is the one of its last impact
+(``separating`` if it never touched). With simultaneous touchdowns on flat ground this is the
+friction rung.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from impulse_core.errors import ModelError, NumericalError
+from impulse_core.errors import NumericalError
 from impulse_core.evaluate import pre_impact_velocity
+from impulse_core.impact.coulomb import ContactMode
 from impulse_core.impact.nnls import nnls
 from impulse_core.kinematics.spatial import PLANAR, Space, values_space
 from impulse_core.model.heightfield import Heightfield
@@ -29,13 +39,19 @@ from impulse_core.timedomain.compliant import (
     _Evaluator,
     _State,
     joint_impulses,
+    landing_ground,
     subtree_incidence,
     touchdown_evaluator,
     touchdown_order,
     world_velocity,
 )
 
+if TYPE_CHECKING:
+    from impulse_core.timedomain.landing import _Landing
+
 MODEL_NAME = "newton-sequential on terrain (LCP at each touchdown, RK4 flight)"
+#: With friction: the exact Newton-Coulomb law at each touchdown.
+FRICTION_MODEL_NAME = "newton-coulomb-sequential on terrain (exact Coulomb friction at each touchdown, RK4 flight)"
 
 
 @dataclass(frozen=True)
@@ -59,11 +75,15 @@ class SequentialSettings:
 
 @dataclass(frozen=True)
 class ImpactEvent:
-    """One rigid impact: when, which contacts (declared indices), their normal impulses (N s)."""
+    """One rigid impact: when, which contacts (declared indices), their normal impulses (N s) and,
+    with friction, their tangential impulses (the plane: along each contact's ground tangent; space:
+    [t_x, t_z]) and modes; None without friction."""
 
     time: float
     contacts: tuple[int, ...]
     impulses: np.ndarray
+    tangential: np.ndarray | None = None
+    modes: tuple[ContactMode, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -72,7 +92,9 @@ class SequentialResult:
     exist: external (normal impulse per declared contact, summed over events), external_vector
     (n_c x 2), internal (joint impulses summed over events, n_joints x 3), internal_magnitude,
     norms, touchdown_time and order, the state after the last impact, kinetic energy before the
-    first and after the last impact, and the events."""
+    first and after the last impact, and the events; ``tangential`` per declared contact (summed over
+    the events as ``external``: n_c in the plane, n_c x 2 in space; 0 without friction) and, with
+    friction, ``modes``: each contact's mode at its last impact (``separating`` if it never touched)."""
 
     external: np.ndarray
     external_vector: np.ndarray
@@ -89,6 +111,8 @@ class SequentialResult:
     energy_after: float
     energy_gain: bool
     model: str = MODEL_NAME
+    tangential: np.ndarray | None = None
+    modes: tuple[ContactMode, ...] | None = None
 
     @property
     def active(self) -> tuple[int, ...]:
@@ -204,25 +228,30 @@ def _impacts_over(s: _State, touchdown: np.ndarray) -> bool:
 @dataclass(frozen=True)
 class _Impacts:
     """The impacts so far, accumulated in place (:func:`_add_impact`): normal impulse per contact,
-    impulse vectors (2 x n_c), joint impulses (2 x bodies), touchdown times and the events."""
+    impulse vectors (d x n_c), joint impulses (d x bodies), touchdown times, the events, tangential
+    impulse per contact (n_c x (d - 1)) and each contact's mode at its last impact."""
 
     external: np.ndarray
     external_vector: np.ndarray
     joint: np.ndarray
     touchdown: np.ndarray
     events: list[ImpactEvent]
+    tangential: np.ndarray
+    modes: list[ContactMode]
 
 
 def _no_impacts(nc: int, n_bodies: int, d: int = 2) -> _Impacts:
     """No impact yet: zero impulses, no touchdown (NaN), no events (d: 2 in the plane, 3 in space)."""
-    return _Impacts(np.zeros(nc), np.zeros((d, nc)), np.zeros((d, n_bodies)), np.full(nc, np.nan), [])
+    return _Impacts(np.zeros(nc), np.zeros((d, nc)), np.zeros((d, n_bodies)), np.full(nc, np.nan), [],
+                    np.zeros((nc, d - 1)), [ContactMode.SEPARATING] * nc)
 
 
 def _add_impact(
-    impacts: _Impacts, t: float, idx: np.ndarray, lam: np.ndarray, F: np.ndarray, joint_impulse: np.ndarray
+    impacts: _Impacts, t: float, idx: np.ndarray, lam: np.ndarray, F: np.ndarray, joint_impulse: np.ndarray,
+    tangential: np.ndarray | None = None, modes: tuple[ContactMode, ...] | None = None,
 ) -> None:
-    """Add one rigid impact at ``t`` (:func:`_rigid_impact`'s output) to ``impacts``; the first
-    impact of a contact is its touchdown.
+    """Add one rigid impact at ``t`` (:func:`_rigid_impact`'s or :func:`_friction_impact`'s output)
+    to ``impacts``; the first impact of a contact is its touchdown.
 
     Raises:
         NumericalError: more than 1000 impacts (the contacts chatter).
@@ -231,14 +260,19 @@ def _add_impact(
     np.add(impacts.external_vector, F, out=impacts.external_vector)
     touchdown = impacts.touchdown
     touchdown[idx[np.isnan(touchdown[idx])]] = t
-    impacts.events.append(ImpactEvent(t, tuple(int(i) for i in idx), lam))
+    if tangential is not None and modes is not None:
+        impacts.tangential[idx] += tangential
+        for i, mode in zip(idx, modes, strict=True):
+            impacts.modes[i] = mode
+    public = None if tangential is None else tangential[:, 0].copy() if tangential.shape[1] == 1 else tangential
+    impacts.events.append(ImpactEvent(t, tuple(int(i) for i in idx), lam, public, modes))
     np.add(impacts.joint, joint_impulse, out=impacts.joint)
     if len(impacts.events) > 1000:
         raise NumericalError("more than 1000 rigid impacts: the contacts chatter (lower the restitution?)")
 
 
 def _sequential_result(
-    impacts: _Impacts, q: np.ndarray, v: np.ndarray, energy_before: float, energy_after: float
+    impacts: _Impacts, q: np.ndarray, v: np.ndarray, energy_before: float, energy_after: float, friction: bool
 ) -> SequentialResult:
     """The :class:`SequentialResult` of the accumulated impacts, ending at (q, v)."""
     internal, magnitude = joint_impulses(impacts.joint)
@@ -258,6 +292,9 @@ def _sequential_result(
         energy_before=energy_before,
         energy_after=energy_after,
         energy_gain=energy_after > energy_before * (1.0 + 1e-9),
+        model=FRICTION_MODEL_NAME if friction else MODEL_NAME,
+        tangential=impacts.tangential[:, 0].copy() if impacts.tangential.shape[1] == 1 else impacts.tangential.copy(),
+        modes=tuple(impacts.modes) if friction else None,
     )
 
 
@@ -279,14 +316,14 @@ def sequential_impacts(
     ``Heightfield``), impulse vectors and joint impulses have three components, and ``v_plus`` is
     the core's velocity (world angular velocity), as the compliant rung's.
 
+    With ``scene.friction > 0`` each touchdown has exact Coulomb friction (module docstring).
+
     Raises:
-        ModelError: friction (frictionless only).
-        NumericalError: a non-finite state.
+        NumericalError: a non-finite state, chattering contacts, or no solution of the impact law.
     """
-    if scene.friction > 0:
-        raise ModelError("scene.friction: the sequential rigid model is frictionless (friction: 0)")
     space = values_space(tree, space)  # a planar tree with centres of mass off its rods: their offsets too
     evaluate_step, q, v = _touchdown_state(tree, scene, settings, terrain, base_x, v_minus, space)
+    law = _friction_law(tree, scene, terrain, base_x, space) if scene.friction > 0 else None
     in_subtree = subtree_incidence(tree)
     s = evaluate_step(q, v)
     energy_before = float(s.kinetic[0])
@@ -298,8 +335,14 @@ def sequential_impacts(
         hitting = (s.gap <= settings.contact_tolerance) & (s.rate < approaching)
         if np.any(hitting):
             idx = np.flatnonzero(hitting)
-            v, lam, F, joint_impulse = _rigid_impact(evaluate_step, s, q, v, idx, scene.restitution, in_subtree)
-            _add_impact(impacts, t, idx, lam, F, joint_impulse)
+            if law is None:
+                v, lam, F, joint_impulse = _rigid_impact(evaluate_step, s, q, v, idx, scene.restitution, in_subtree)
+                _add_impact(impacts, t, idx, lam, F, joint_impulse)
+            else:
+                v, lam, F, joint_impulse, tangential, modes = _friction_impact(
+                    law, evaluate_step, q, v, idx, scene.restitution, in_subtree
+                )
+                _add_impact(impacts, t, idx, lam, F, joint_impulse, tangential, modes)
             continue
         if _impacts_over(s, impacts.touchdown) or t >= settings.max_time:
             break
@@ -309,7 +352,43 @@ def sequential_impacts(
             raise NumericalError(f"the free flight diverged at t = {t:.3g} s")
         _check_chart(q, space, t)
     energy_after = float(evaluate_step(q, v).kinetic[0])
-    return _sequential_result(impacts, q, world_velocity(q, v, space), energy_before, energy_after)
+    return _sequential_result(impacts, q, world_velocity(q, v, space), energy_before, energy_after, law is not None)
+
+
+def _friction_law(
+    tree: Tree, scene: Scene, terrain: Terrain | Heightfield | None, base_x: float | None, space: Space
+) -> _Landing:
+    """The whole landing's dynamics on the sequential model's ground, for its impact law
+    (:meth:`_Landing.contact_impact`); nothing of it acts over time here. Imported here: the
+    landing needs scipy, which the frictionless model does not (``test_imports``)."""
+    from impulse_core.timedomain.landing import NUMPY_CODE, LandingSettings, _Landing
+
+    ground, x, z = landing_ground(scene, terrain, base_x, space)
+    on = (replace(scene, terrain=ground, base_x=x) if space.joint_axis is not None
+          else replace(scene, heightfield=ground, base_x=x, base_z=z))
+    return _Landing(tree, replace(on, duration=None), (), LandingSettings(step_code=NUMPY_CODE), space)
+
+
+def _friction_impact(
+    law: _Landing,
+    evaluate_step: _Evaluator,
+    q: np.ndarray,
+    v: np.ndarray,
+    idx: np.ndarray,
+    e: float,
+    in_subtree: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[ContactMode, ...]]:
+    """One rigid impact of the contacts ``idx`` at (q, v) with exact Coulomb friction: the velocity
+    after, their normal impulses, the impulse vectors of every contact (d x n_c), the joint impulses
+    (d x bodies, as :func:`_rigid_impact`), their tangential impulses (len(idx) x (d - 1)) and modes."""
+    from impulse_core.timedomain.landing import contact_impulses, impact_modes
+
+    pt, impact = law.contact_impact(q, v, idx, e)
+    F = contact_impulses(pt, impact.normal, impact.tangential)
+    momentum = evaluate_step(q, v).momentum.copy()
+    joint = evaluate_step(q, impact.v_plus).momentum - momentum - F @ in_subtree.T
+    modes = impact_modes(pt, v, impact.v_plus, idx, impact.normal[idx])
+    return impact.v_plus, impact.normal[idx], F, joint, impact.tangential[idx], modes
 
 
 __all__ = ["ImpactEvent", "SequentialResult", "SequentialSettings", "sequential_impacts"]

@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from impulse_core.errors import FootoptError, NumericalError
+from impulse_core.errors import FootoptError, ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.model.joints import JointLaw
@@ -79,6 +79,10 @@ def run_drop(args: argparse.Namespace) -> int:
         if model.scene.duration is not None:
             warn(f"{args.model}: scene.duration is left out: the drop compares the first impact")
         scene = replace(model.scene, duration=None)  # the first impact
+        uneven = not scene.terrain.is_flat or scene.heightfield is not None and not scene.heightfield.is_flat
+        if uneven and scene.friction > 0:
+            raise ModelError("scene.friction: footopt drop on uneven ground is frictionless (MuJoCo's contacts there "
+                             "are the bridge's frictionless ones); set friction: 0")
         rigid = evaluate_landing(model.tree, scene, "auto", space=model.space)
         record = drop_record(model.tree, scene, args.stiffness, rigid, model.space, model.joints)
     except NumericalError as e:

@@ -74,8 +74,10 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         help="the impact model (rung of the fidelity ladder): 'auto' (default) picks the cheapest exact one per "
         "scene: with scene.duration, landing (the whole landing, see --tolerance); on a terrain that is not flat, sequential; else friction if scene.friction > 0, else newton (paper "
         "eq. 11) unless Newton's law would make a contact pull, then lcp (complementarity: the contact separates); "
-        "'decoupled' is the paper's eq. 14 approximation; the rigid rungs refuse uneven terrain. 'sequential': a "
-        "rigid (LCP) impact along the local ground normal at each touchdown, free flight between; 'compliant': "
+        "'decoupled' is the paper's eq. 14 approximation; on uneven ground lcp and friction give the first instant "
+        "(the contacts touching at t = 0, along their local normals) and newton and decoupled refuse. 'sequential': a "
+        "rigid impact (LCP; with scene.friction exact Coulomb friction) along the local ground normal at each "
+        "touchdown, free flight between; 'compliant': "
         "spring-damper contacts integrated through the landing (see --law, --stiffness, --steps-per-period); "
         "'landing': every impact until scene.duration, with resting contact, friction, joint springs and stops",
     )

@@ -14,8 +14,8 @@ Extensions to the contract (a file without them means what the contract says):
     - scene ``contact_tolerance`` (m, default 1e-6) and ``contacts: lowest`` (the default, named);
     - scene ``terrain``: the ground profile y(x), world frame, m, as ``[[x0, y0], [x1, y1], ...]``
       with x strictly increasing, linear between the points, flat beyond the ends; one point is
-      flat ground at y0 (default: flat at y = 0). The rigid rungs need it flat; the sequential and
-      compliant models follow it;
+      flat ground at y0 (default: flat at y = 0). newton and decoupled need it flat, lcp and friction
+      give the first instant on it; the sequential and compliant models follow it;
     - scene ``base_x``: x (m) of the base origin at touchdown (default 0): the model keeps its
       touchdown angles, sits with its base origin at ``base_x`` and is lowered straight down until
       the contact with the smallest vertical clearance touches the terrain;

@@ -16,8 +16,6 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Scene
 from optimizer.config.model_file import joint_law, load_yaml, read_text
@@ -271,11 +269,6 @@ def _check_landings(config: StudyConfig, landings: Landings) -> None:
                               "moves sideways)")
         if name in PLANAR_PARAMETERS and config.space.spatial:
             raise ConfigError(f"landings.{name}: a step is a planar terrain: a spatial design space lands on flat ground")
-    draws = dict(zip(landings.names, landings.draw().T, strict=True))
-    frictional = config.scene.friction > 0 or np.any(draws.get("friction", np.zeros(1)) > 0)
-    if "terrain_step" in draws and frictional and config.scene.duration is None:
-        raise ConfigError("landings.terrain_step: a step with friction needs scene.duration (the whole landing): "
-                          "the sequential model that lands on a step is frictionless")
 
 
 #: What the inner search's landings may vary: the approach and the restitution of one level

@@ -2,10 +2,12 @@
 time-domain models when the ground is uneven (or on request).
 
 ``auto`` (the default) keeps the rigid ladder's automatic choice (``impulse_core.evaluate``) on
-flat ground, and runs the sequential rigid model (``impulse_core.timedomain.sequential``: a Newton/LCP impact
-along the local ground normal at each touchdown, free flight between) when ``scene.terrain`` (in
-space ``scene.heightfield``) is not flat: the rigid rungs assume level ground and simultaneous
-contacts, and refuse such a scene.
+flat ground, and runs the sequential rigid model (``impulse_core.timedomain.sequential``: a rigid impact
+(LCP, or exact Coulomb friction) along the local ground normal at each touchdown, free flight between)
+when ``scene.terrain`` (in space ``scene.heightfield``) is not flat: the flat rungs assume level ground
+and simultaneous contacts. There ``lcp`` and ``friction`` on request give the first instant (the
+contacts touching at t = 0 along their local normals, :mod:`impulse_core.timedomain.first_instant`);
+``newton``, ``decoupled`` and ``friction-relaxed`` are refused naming the ground's key.
 The compliant rung (``impulse_core.timedomain.compliant``) runs on request only: it needs a contact
 stiffness, which is a modelling choice (studies/fidelity/README.md).
 """
@@ -22,6 +24,7 @@ from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.model.joints import JointLaw
+from impulse_core.timedomain.first_instant import first_instant
 from impulse_core.timedomain.compliant import (
     CompliantResult,
     CompliantSettings,
@@ -33,14 +36,16 @@ from impulse_core.timedomain.landing import LandingResult, LandingSettings, Prog
 from impulse_core.timedomain.sequential import SequentialResult, SequentialSettings, sequential_impacts
 
 SEQUENTIAL, COMPLIANT, LANDING = "sequential", "compliant", "landing"
+#: The rigid first-impact rungs (``--model`` values).
+_RIGID = frozenset(m.value for m in ImpactModel)
 #: The models that integrate through the landing instead of one instantaneous impact.
 TIME_DOMAIN_MODELS = (SEQUENTIAL, COMPLIANT, LANDING)
 #: Every model name ``footopt evaluate --model`` takes: 'auto', the rigid rungs, the time-domain models.
 MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel), *TIME_DOMAIN_MODELS)
 
 _DESCRIPTIONS = {
-    SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact along the local normal at each touchdown, "
-    "free flight between)",
+    SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact, with scene.friction exact Coulomb friction, "
+    "along the local normal at each touchdown, free flight between)",
     COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal; fixed semi-implicit "
     "Euler steps, or adaptive Dormand-Prince 5(4) steps between located contact switches to a tolerance)",
     LANDING: "the whole landing: every touchdown and joint stop an impact by the first-impact law, resting contact "
@@ -147,8 +152,8 @@ def evaluate_landing(
     ``progress`` is told where a whole landing's runs are (:class:`LandingProgress`).
 
     Raises:
-        ModelError: a rigid rung on a terrain that is not flat, friction under a time-domain model
-            (both frictionless), or an unknown model name.
+        ModelError: newton, decoupled or friction-relaxed on a terrain that is not flat, friction under
+            the compliant model (frictionless), or an unknown model name.
         NumericalError: the solve or the integration failed.
     """
     if model == LANDING or model == "auto" and scene.duration is not None:
@@ -156,8 +161,10 @@ def evaluate_landing(
     if space is not PLANAR:
         return _spatial(tree, scene, model, compliant, sequential, compliant_tolerance, space)
     flat = scene.terrain.is_flat
-    if model == "auto" and flat or model in {m.value for m in ImpactModel}:
+    if model == "auto" and flat or model in _RIGID and flat:
         return evaluate(tree, scene, None if model == "auto" else ImpactModel(model))
+    if model in _RIGID:
+        return _first_instant(tree, scene, ImpactModel(model), "scene.terrain", PLANAR)
     why = (
         "automatic: scene.terrain is not flat, so the contacts touch down at different times and on slopes, "
         "which the flat-ground rigid rungs cannot describe; the sequential rigid model is their stiff limit "
@@ -236,14 +243,28 @@ def _spatial(
             "(x and z grids and heights; constant along z for a profile)"
         )
     uneven = scene.heightfield is not None and not scene.heightfield.is_flat
-    if model == "auto" and not uneven or model in {m.value for m in ImpactModel}:
+    if model == "auto" and not uneven or model in _RIGID and not uneven:
         return evaluate(tree, scene, None if model == "auto" else ImpactModel(model), space)
+    if model in _RIGID:
+        return _first_instant(tree, scene, ImpactModel(model), "scene.heightfield", space)
     why = (
         "automatic: scene.heightfield is not flat, so the contacts touch down at different times and on slopes, "
         "which the flat-ground rigid rungs cannot describe; the sequential rigid model is their stiff limit "
         "(--model compliant for finite contact stiffness)"
     )
     return _time_domain(tree, scene, model, why, compliant, sequential, compliant_tolerance, space)
+
+
+def _first_instant(tree: Tree, scene: Scene, model: ImpactModel, ground: str, space: Space) -> ImpactResult:
+    """The lcp or friction rung on uneven ground (``ground`` names the scene's key): the first
+    instant (:func:`impulse_core.timedomain.first_instant.first_instant`); the other rigid rungs
+    are refused naming it."""
+    if model not in (ImpactModel.LCP, ImpactModel.FRICTION):
+        raise ModelError(
+            f"{ground}: --model {model.value} assumes flat ground and this ground is not flat; on uneven ground the "
+            "first instant is --model lcp or friction, the landing sequential, compliant or landing"
+        )
+    return first_instant(tree, scene, model, space)
 
 
 def _scene_gravity(settings, scene: Scene):  # type: ignore[no-untyped-def]

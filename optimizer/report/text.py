@@ -21,6 +21,7 @@ from impulse_core.model.terrain import FLAT
 from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import CompliantResult, CompliantStatus, ContactLaw
 from impulse_core.timedomain.landing import LandingResult
+from impulse_core.timedomain.sequential import SequentialResult
 from optimizer.config.model_file import ModelFile
 from optimizer.evaluation.model_choice import TimeDomainResult
 
@@ -210,7 +211,8 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
     ``internal_vector``, ``max_internal``, ``max_internal_joint``, ``velocities``, ``v_minus``,
     ``v_plus``, ``energy_before``, ``energy_after``, ``energy_gained``, ``reference``.
     Rigid rungs add ``tangential`` (friction impulse per contact, x), ``separating``,
-    ``internal_torque``, ``split_unique``, ``pulling``. Sequential and compliant add
+    ``internal_torque``, ``split_unique``, ``pulling``. Sequential adds ``tangential`` (summed over
+    its impacts) and ``modes`` (each contact's at its last impact; null without friction). Sequential and compliant add
     ``touchdown_time`` (s after the first touchdown, per contact; null if it never touches) and
     ``touchdown_order`` (contact names); compliant also ``status``, ``recontacting``, ``law``,
     ``stiffness`` (N/m for the penalty law, 1/s^2 for the constraint law) and ``timestep`` (s).
@@ -272,6 +274,11 @@ def result_record(model: ModelFile, result: Result, file: str) -> dict[str, Any]
         r = result.result
         if isinstance(r, LandingResult):
             record |= _landing_record(r)
+        if isinstance(r, SequentialResult) and r.tangential is not None:
+            record |= {
+                "tangential": _tangential(r.tangential),
+                "modes": None if r.modes is None else [m.value for m in r.modes],
+            }
         if isinstance(r, CompliantResult):
             record |= {
                 "status": r.status.value,
@@ -467,6 +474,8 @@ def _external_lines(model: ModelFile, result: Result) -> list[str]:
             row += _ref_cells(result.external[i], ref.external[i])
         rows.append(row)
     along = "along +x" if model.space is PLANAR else "[x, z]"
+    if not model.scene.ground_is_flat:  # the first instant on uneven ground: each contact's own tangents
+        along = "along the ground's tangent" if model.space is PLANAR else "[t_x, t_z] of the ground"
     kind = f"normal and tangential {along}" if friction else "normal" if rigid else "along the local ground normal"
     return ["", f"External impulses ({kind}, on the contacts)"] + _table(headers, rows)
 

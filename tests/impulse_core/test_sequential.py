@@ -3,6 +3,8 @@ impact per touchdown on uneven ground, complementarity when Newton's law would p
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from fidelity_scenes import PAPER_SCENE, UNEVEN, case2, case3
@@ -106,3 +108,153 @@ def test_a_scene_carrying_its_terrain_is_used():
     assert sequential_impacts(case2(), PAPER_SCENE, terrain=UNEVEN).touchdown_order == (1, 0)
     shifted = sequential_impacts(case2(), dataclasses.replace(scene, base_x=0.01))
     assert shifted.touchdown_time[0] != sequential_impacts(case2(), scene).touchdown_time[0]
+
+
+# --------------------------------------------------------------------------------------------
+# With friction: the landing's exact Newton-Coulomb law at each touchdown
+
+
+def _spied_events(monkeypatch) -> list:
+    """Record (point, v, impact) of every frictional touchdown (``_Landing.contact_impact``)."""
+    from impulse_core.timedomain.landing import _Landing
+
+    seen: list = []
+    original = _Landing.contact_impact
+
+    def spy(self, q, v, contacts, restitution):
+        pt, impact = original(self, q, v, contacts, restitution)
+        seen.append((self, q.copy(), v.copy(), np.array(contacts), pt, impact))
+        return pt, impact
+
+    monkeypatch.setattr(_Landing, "contact_impact", spy)
+    return seen
+
+
+def _check_laws(seen: list, e: float, mu: float) -> tuple[int, int]:
+    """Newton's restitution with complementarity and Coulomb's law at each touchdown's contacts
+    (1e-9), and each impact's momentum balance (the contact impulse vectors equal the change of
+    the tree's linear momentum, 1e-12); returns how many contacts stuck and slid."""
+    from impulse_core.timedomain.landing import contact_impulses
+
+    stuck = slid = 0
+    for run, q, v, idx, pt, impact in seen:
+        before, after = pt.Jn[idx] @ v, pt.Jn[idx] @ impact.v_plus
+        slip_before, slip = pt.Jt[idx] @ v, pt.Jt[idx] @ impact.v_plus  # n x (d - 1)
+        lam, t = impact.normal[idx], impact.tangential[idx]
+        scale = max(float(np.max(np.abs(np.concatenate([before, slip_before.ravel()])))), 1e-12)
+        big = max(float(np.max(lam)), float(np.linalg.norm(pt.momentum[:, 0])))  # N s: the impact's, or the tree's
+        assert np.all(lam >= -1e-9 * big) and np.all(after + e * before >= -1e-9 * scale)
+        assert abs(lam @ (after + e * before)) <= 1e-9 * scale * big
+        size = np.linalg.norm(t, axis=1)
+        assert np.all(size <= mu * lam + 1e-9 * big)
+        for k in range(len(idx)):
+            if lam[k] <= 1e-6 * big:  # a re-touch of rounding's size: the cone above is all it shows
+                continue
+            speed = float(np.linalg.norm(slip[k]))
+            if speed > 1e-9 * scale:  # sliding: on the cone's edge, against the slip
+                slid += 1
+                assert size[k] == pytest.approx(mu * lam[k], abs=1e-9 * big)
+                np.testing.assert_allclose(t[k] / size[k], -slip[k] / speed, atol=1e-7)
+            else:
+                stuck += 1
+        F = contact_impulses(pt, impact.normal, impact.tangential).sum(axis=1)
+        change = run.point(q, impact.v_plus).momentum[:, 0] - pt.momentum[:, 0]  # the base's subtree: the tree
+        np.testing.assert_allclose(change, F, atol=1e-12 * max(1.0, float(np.max(np.abs(pt.momentum)))))
+    return stuck, slid
+
+
+@pytest.mark.parametrize("space", ["planar", "spatial"])
+def test_friction_at_each_touchdown_meets_the_laws(monkeypatch, space):
+    """Seeded random trees on the uneven terrain (in space: a heightfield of it and a cross
+    slope) with friction: every touchdown meets Newton's restitution, complementarity, Coulomb's
+    cone (sliding: on its edge against the slip) and balances momentum; over the whole sequence
+    the impulse vectors equal the change of the tree's momentum (no gravity; the free flight keeps
+    it to RK4's accuracy), and the totals are the events' sums (a plastic toe that re-touches
+    sums its impacts)."""
+    from impulse_core.kinematics.spatial import SPATIAL
+    from impulse_core.model.heightfield import Heightfield
+    from impulse_core.model.tree import Scene
+
+    rng = np.random.default_rng(20261126)
+    seen = _spied_events(monkeypatch)
+    stuck = slid = events = repeated = 0
+    for k in range(6):
+        tree = random_tree(rng, int(rng.integers(2, 5)), p_fixed=0.0, p_contact=1.0, length_range=(0.1, 0.5))
+        mu, e = (0.2, 0.3) if k % 2 else (1.5, 0.0 if k == 2 else 0.5)  # k = 2: a plastic toe re-touches
+        scene = Scene(speed=2.0, velocity_x=float(rng.uniform(-0.5, 0.5)), angular_velocity=float(rng.uniform(-2, 2)),
+                      restitution=e, friction=mu, terrain=Terrain((-1.0, 0.0, 0.3), (0.05, 0.0, 0.06)))
+        kw = {}
+        if space == "spatial":
+            x, z = np.array([-1.0, 0.0, 0.3]), np.array([-1.0, 1.0])
+            field = Heightfield.from_arrays(x, z, np.array([[0.05], [0.0], [0.06]]) + 0.04 * z[None, :])
+            scene = dataclasses.replace(scene, terrain=Terrain(), heightfield=field, velocity_z=0.3,
+                                        angular_velocity_x=0.5)
+            kw = {"space": SPATIAL}
+        seen.clear()
+        seq = sequential_impacts(tree, scene, **kw)
+        assert len(seq.events) == len(seen) >= 1
+        s, d = _check_laws(seen, e, mu)
+        stuck, slid, events = stuck + s, slid + d, events + len(seen)
+        touches = np.bincount([c for ev in seq.events for c in ev.contacts], minlength=len(tree.contacts))
+        repeated += int(np.any(touches > 1))
+        first, last = seen[0], seen[-1]
+        p0 = first[4].momentum[:, 0]
+        p1 = last[0].point(last[1], last[5].v_plus).momentum[:, 0]
+        np.testing.assert_allclose(p1 - p0, seq.external_vector.sum(axis=0), atol=1e-6 * np.max(np.abs(p0)))
+        total_t = sum(np.zeros_like(seq.tangential) if ev.tangential is None else _scatter(ev, seq.tangential)
+                      for ev in seq.events)
+        np.testing.assert_allclose(seq.tangential, total_t, atol=1e-14)
+        assert seq.modes is not None and len(seq.modes) == len(tree.contacts)
+        assert not seq.energy_gain
+    assert stuck > 0 and slid > 0 and events > 6 and (repeated or space == "spatial"), (stuck, slid, events, repeated)
+
+
+def _scatter(event, like: np.ndarray) -> np.ndarray:
+    out = np.zeros_like(like)
+    out[list(event.contacts)] = event.tangential
+    return out
+
+
+@pytest.mark.parametrize("mu", [0.1, 2.0])
+def test_flat_simultaneous_contacts_with_friction_equal_the_friction_rung(mu):
+    """Case 2 landing obliquely on flat ground, every contact at once: one impact, the friction
+    rung's impulses, tangential impulses, modes and velocities."""
+    from impulse_core.impact.laws import ImpactModel
+
+    scene = dataclasses.replace(PAPER_SCENE, friction=mu, velocity_x=0.8, angular_velocity=1.0, restitution=0.3)
+    rigid = evaluate(case2(), scene, ImpactModel.FRICTION)
+    seq = sequential_impacts(case2(), scene)
+    assert len(seq.events) == 1
+    scale = float(np.max(rigid.external))
+    np.testing.assert_allclose(seq.external, rigid.external, atol=1e-10 * scale)
+    np.testing.assert_allclose(seq.tangential, rigid.tangential, atol=1e-10 * scale)
+    np.testing.assert_allclose(seq.internal_magnitude, rigid.internal_magnitude, atol=1e-9 * scale)
+    np.testing.assert_allclose(seq.v_plus, rigid.v_plus, atol=1e-9)
+    assert seq.modes == rigid.modes
+
+
+@pytest.mark.parametrize("mu", [0.1, 2.0])
+def test_in_space_flat_simultaneous_contacts_with_friction_equal_the_friction_rung(mu):
+    """The yaw-splayed case 3 (heel and toes at one height) landing obliquely and rolling on flat
+    ground: one impact, the spatial friction rung's (the circular cone) impulses and modes."""
+    from impulse_core.impact.laws import ImpactModel
+    from impulse_core.kinematics.spatial import SPATIAL
+    from tests.impulse_core.test_compliant_spatial import OBLIQUE, yaw_splayed_case3
+
+    scene = dataclasses.replace(OBLIQUE, friction=mu, restitution=0.3)
+    rigid = evaluate(yaw_splayed_case3(), scene, ImpactModel.FRICTION, SPATIAL)
+    seq = sequential_impacts(yaw_splayed_case3(), scene, space=SPATIAL)
+    assert len(seq.events) == 1 and len(seq.events[0].contacts) == 4
+    scale = float(np.max(rigid.external))
+    np.testing.assert_allclose(seq.external, rigid.external, atol=1e-9 * scale)
+    np.testing.assert_allclose(seq.tangential, rigid.tangential, atol=1e-9 * scale)
+    np.testing.assert_allclose(seq.internal_magnitude, rigid.internal_magnitude, atol=1e-9 * scale)
+    assert seq.modes == rigid.modes
+
+
+def test_friction_names_its_model_and_frictionless_stays_as_it_was():
+    plain = sequential_impacts(case2(), PAPER_SCENE, terrain=UNEVEN)
+    assert plain.modes is None and not np.any(plain.tangential) and all(e.tangential is None for e in plain.events)
+    rough = sequential_impacts(case2(), dataclasses.replace(PAPER_SCENE, friction=0.4), terrain=UNEVEN)
+    assert rough.model.startswith("newton-coulomb") and rough.touchdown_order == (1, 0)
+    assert np.all(np.abs(rough.tangential) > 0)

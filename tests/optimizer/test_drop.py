@@ -193,9 +193,11 @@ def test_a_heightfield_drop_lands_on_the_heightfield(capsys):
 
 def test_bad_spatial_drops_exit_2_naming_the_field(capsys, tmp_path):
     heightfield_friction = _spatial_file(tmp_path, "spatial_heightfield.yaml", "  friction: 0.0\n", "  friction: 0.4\n")
+    terrain_friction = _spatial_file(tmp_path, "uneven_terrain.yaml", "  friction: 0.0", "  friction: 0.4")
     bad_grid = _spatial_file(tmp_path, "spatial_case3.yaml", "  friction: 0.0\n",
                              "  friction: 0.0\n  heightfield: {x: [1, 0], z: [0], heights: [[0], [0]]}\n")
-    for path, where in ((heightfield_friction, "scene.friction"), (bad_grid, "scene.heightfield.x[1]")):
+    for path, where in ((heightfield_friction, "scene.friction"), (terrain_friction, "scene.friction"),
+                        (bad_grid, "scene.heightfield.x[1]")):
         assert main(["drop", str(path)]) == 2
         err = capsys.readouterr().err
         assert where in err and err.count("\n") == 1, err

@@ -130,10 +130,33 @@ def test_the_compliant_rung_on_request_meets_its_tolerance(capsys):
     assert np.max(np.abs(direct.external - rigid.external)) / np.max(rigid.external) < 0.05
 
 
-def test_the_rigid_rungs_refuse_a_heightfield_that_is_not_flat(capsys):
-    assert main(["evaluate", str(EXAMPLE), "--model", "newton"]) == 2
-    err = capsys.readouterr().err
-    assert "scene.heightfield: the rigid impact models" in err and err.count("\n") == 1
+def test_newton_and_decoupled_refuse_a_heightfield_that_is_not_flat(capsys):
+    for rung in ("newton", "decoupled"):
+        assert main(["evaluate", str(EXAMPLE), "--model", rung]) == 2
+        err = capsys.readouterr().err
+        assert f"scene.heightfield: --model {rung} assumes flat ground" in err and err.count("\n") == 1, err
+
+
+def test_lcp_and_friction_on_a_heightfield_are_the_landing_s_first_event(tmp_path, capsys):
+    """The first instant on the example's heightfield (with friction, so the heel slides on its
+    slope) through the JSON: the spatial landing's first event of the same file (1e-9)."""
+    from impulse_core.timedomain.landing import LandingSettings, landing
+
+    text = EXAMPLE.read_text(encoding="utf-8").replace("  friction: 0.0\n", "  friction: 0.3\n", 1)
+    path = tmp_path / "rough.yaml"
+    path.write_text(text, encoding="utf-8")
+    model = load_model_file(path)
+    for rung, mu in (("friction", 0.3), ("lcp", 0.0)):
+        assert main(["evaluate", str(path), "--json", "--model", rung]) == 0
+        record = json.loads(capsys.readouterr().out)
+        scene = dataclasses.replace(model.scene, friction=mu, duration=1e-3)
+        event = landing(model.tree, scene, (), LandingSettings(tolerance=1.0, max_refinements=1), SPATIAL).events[0]
+        scale = float(np.max(event.external))
+        np.testing.assert_allclose(record["external"], event.external, atol=1e-9 * scale)
+        np.testing.assert_allclose(record["tangential"], event.tangential, atol=1e-9 * scale)
+        np.testing.assert_allclose(record["internal"], event.internal_magnitude, atol=1e-9 * scale)
+        assert record["model"] == rung and sum(record["active"]) >= 1
+        assert bool(np.any(np.array(record["tangential"]) != 0)) is (rung == "friction")
 
 
 def test_a_flat_heightfield_keeps_the_rigid_rungs(tmp_path, capsys):

@@ -88,7 +88,6 @@ def test_bad_statistics_name_their_path(text, message):
         ("landings: {pitch: []}", "landings.pitch: an empty list"),
         ("landings: {count: 0}", "landings.count: must be an integer >= 1"),
         ("landings: {yaw: [0.1]}", "landings.yaw: unknown key"),
-        ("landings: {terrain_step: [0.01], friction: [0.5]}", "landings.terrain_step: a step with friction needs"),
         ("statistic: {speed: mean}", "statistic.speed: unknown key"),
     ],
 )
@@ -97,6 +96,26 @@ def test_bad_landings_name_their_path(extra, message):
     with pytest.raises(ConfigError) as info:
         parse_study(load_yaml(base + extra + "\n"))
     assert str(info.value).startswith(message), str(info.value)
+
+
+def test_a_step_with_friction_lands_by_the_sequential_model_with_friction():
+    """A terrain step with friction (no duration): each scenario is the sequential model with
+    exact Coulomb friction at each touchdown, as ``footopt evaluate`` picks it."""
+    from optimizer.evaluation.robust import evaluate_over_landings, scenario_objectives
+    from optimizer.evaluation.scenarios import Distribution, DistributionKind, model_data, scenario_model
+
+    base = ROBUST_YAML.split("landings:")[0]
+    parse_study(load_yaml(base + "landings: {terrain_step: [0.01], friction: [0.5]}\n"))  # accepted
+    model = load_model_file(Path(__file__).resolve().parents[2] / "configs" / "paper_case2.yaml")
+    V = DistributionKind.VALUES
+    landings = Landings(count=2, seed=1, distributions=(("terrain_step", Distribution(V, (0.005, 0.01))),
+                                                        ("friction", Distribution(V, (0.5,)))))
+    robust = evaluate_over_landings(model, landings, lambda o: Statistic())
+    for row in robust.rows:
+        assert row.objectives is not None
+        alone = scenario_model(model_data(model), row.overrides)
+        assert alone.scene.friction == 0.5 and not alone.scene.terrain.is_flat
+        assert scenario_objectives(alone) == row.objectives  # the same model, one by one
 
 
 def test_landings_the_inner_search_cannot_differentiate_need_the_outer_search():

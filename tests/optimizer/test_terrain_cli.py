@@ -113,13 +113,40 @@ def test_the_text_report_of_a_time_domain_model(capsys) -> None:
     assert "integration: separated after" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("rung", ["decoupled", "newton", "lcp", "friction"])
-def test_rigid_rungs_refuse_uneven_terrain(rung: str, capsys) -> None:
+@pytest.mark.parametrize("rung", ["decoupled", "newton", "friction-relaxed"])
+def test_flat_ground_rungs_refuse_uneven_terrain(rung: str, capsys) -> None:
     assert main(["evaluate", str(UNEVEN_FILE), "--model", rung]) == 2
     out, err = capsys.readouterr()
     assert out == ""
-    _one_error_line(err, UNEVEN_FILE, "scene.terrain: the rigid impact models")
-    assert "--model sequential" in err and "--model compliant" in err
+    _one_error_line(err, UNEVEN_FILE, f"scene.terrain: --model {rung} assumes flat ground")
+    assert "--model lcp or friction" in err and "sequential" in err
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.4])
+def test_lcp_and_friction_give_the_landing_s_first_event(write, friction: float, capsys) -> None:
+    """On the uneven terrain, ``--model lcp`` and ``--model friction`` are the first instant: the
+    whole landing's first event of the same file (``--model landing``), through the JSON (1e-9)."""
+    text = UNEVEN_FILE.read_text().replace("friction: 0.0", f"friction: {friction}\n  duration: 0.002\n  gravity: 9.81")
+    path = write(text)
+    assert main(["evaluate", str(path), "--json", "--model", "landing", "--tolerance", "1"]) == 0
+    first = _record(capsys)["events"][0]
+    assert first["t"] == 0.0
+    for rung in ("lcp", "friction"):
+        assert main(["evaluate", str(path), "--json", "--model", rung]) == 0
+        record = _record(capsys)
+        assert record["model"] == rung and "first instant on uneven ground" in record["impact_reason"]
+        assert CONTRACT_KEYS | {"tangential", "modes", "warnings"} <= set(record)
+        event = first if rung == "friction" or friction == 0 else None
+        if event is None:  # lcp on a rough file: the frictionless landing's first event
+            main(["evaluate", str(write(text.replace(f"friction: {friction}", "friction: 0.0"), "smooth.yaml")), "--json",
+                  "--model", "landing", "--tolerance", "1"])
+            event = _record(capsys)["events"][0]
+        scale = max(event["external"])
+        for key in ("external", "tangential", "internal"):
+            np.testing.assert_allclose(record[key], event[key], atol=1e-9 * scale, err_msg=key)
+        assert record["active"] == [False, True]  # the toe on the ramp
+        modes = record["modes"]
+        assert modes is None if rung == "lcp" else modes[0] == "separating" and modes[1] in ("sticking", "sliding")
 
 
 def test_evaluate_refuses_uneven_terrain_but_not_flat_terrain_at_any_height() -> None:
@@ -200,11 +227,34 @@ def test_a_written_file_keeps_its_terrain(tmp_path: Path, capsys) -> None:
     assert not math.isclose(record["touchdown_time"][0], sequential_impacts(model.tree, model.scene).touchdown_time[0])
 
 
-def test_friction_on_uneven_terrain_is_refused(write, capsys) -> None:
+def test_the_text_report_of_the_first_instant_names_the_ground_s_tangent(write, capsys) -> None:
+    path = write(UNEVEN_FILE.read_text().replace("friction: 0.0", "friction: 0.3"))
+    assert main(["evaluate", str(path), "--model", "friction"]) == 0
+    out = capsys.readouterr().out
+    assert "why:     requested; first instant on uneven ground" in out
+    assert "External impulses (normal and tangential along the ground's tangent, on the contacts)" in out
+
+
+def test_friction_on_uneven_terrain_runs_the_sequential_model_with_friction(write, capsys) -> None:
     text = UNEVEN_FILE.read_text().replace("friction: 0.0", "friction: 0.3")
     path = write(text)
-    assert main(["evaluate", str(path)]) == 2
-    _one_error_line(capsys.readouterr().err, path, "scene.friction: the sequential rigid model is frictionless")
+    assert main(["evaluate", str(path), "--json"]) == 0
+    record = _record(capsys)
+    model = load_model_file(path)
+    direct = sequential_impacts(model.tree, model.scene)
+    assert record["model"] == "sequential" and record["impact_reason"].startswith("automatic: scene.terrain")
+    assert record["external"] == direct.external.tolist() and record["tangential"] == direct.tangential.tolist()
+    assert record["modes"] == [m.value for m in direct.modes] and "Coulomb" in record["model_description"]
+    assert main(["evaluate", str(UNEVEN_FILE), "--json"]) == 0
+    plain = _record(capsys)
+    assert plain["tangential"] == [0.0, 0.0] and plain["modes"] is None
+
+
+def test_bad_friction_on_uneven_terrain_exits_2_naming_it(write, capsys) -> None:
+    path = write(UNEVEN_FILE.read_text().replace("friction: 0.0", "friction: -0.3"))
+    for rung in ("friction", "auto"):
+        assert main(["evaluate", str(path), "--model", rung]) == 2
+        _one_error_line(capsys.readouterr().err, path, "scene.friction")
 
 
 def test_contact_law_choices_match_the_library() -> None:
