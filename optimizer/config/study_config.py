@@ -281,11 +281,13 @@ INNER_SPATIAL_PARAMETERS = (*INNER_PARAMETERS, "velocity_z", "roll_rate")
 #: differentiated along its own event sequence); not a pitch (the tree) nor a step (placed by the
 #: design's contacts).
 INNER_LANDING_PARAMETERS = (*INNER_PARAMETERS, "friction")
+#: ... and over a spatial design space, the rest of the spatial approach too (not a roll: the tree).
+INNER_SPATIAL_LANDING_PARAMETERS = (*INNER_SPATIAL_PARAMETERS, "friction")
 
 
 def _check_inner_landings(config: StudyConfig, landings: Landings) -> None:
     """The inner search takes landings whose statistics its NLP can differentiate exactly: of
-    level first impacts, or of whole landings in the plane (:func:`check_inner_whole_landings`)."""
+    level first impacts, or of whole landings (:func:`check_inner_whole_landings`)."""
     if config.whole_landing:
         check_inner_whole_landings(config, landings)
         return
@@ -311,15 +313,14 @@ def _inner_statistic(config: StudyConfig, objective: Objective) -> Statistic:
 
 
 def check_inner_whole_landings(config: StudyConfig, landings: Landings) -> None:
-    """Whole landings over landings in the inner search: the plane's scene constants, and
-    statistics its NLP writes smoothly or by an epigraph (one of a minimised objective)."""
-    if config.space.spatial:
-        raise ConfigError("landings: the inner search (IPOPT) over whole landings takes landings in the plane only; "
-                          "search.method: outer scores spatial whole landings over landings")
+    """Whole landings over landings in the inner search: the scene's constants (in the plane, or
+    in space with its lateral velocity and roll rate), and statistics its NLP writes smoothly or
+    by an epigraph (one of a minimised objective)."""
+    allowed = INNER_SPATIAL_LANDING_PARAMETERS if config.space.spatial else INNER_LANDING_PARAMETERS
     for name in landings.names:
-        if name not in INNER_LANDING_PARAMETERS:
-            raise ConfigError(f"landings.{name}: the inner search over whole landings varies "
-                              f"{', '.join(INNER_LANDING_PARAMETERS)} only; search.method: outer takes every parameter")
+        if name not in allowed:
+            raise ConfigError(f"landings.{name}: the inner search over whole landings varies {', '.join(allowed)} "
+                              "only (the scene's constants); search.method: outer takes every parameter")
     for objective in config.objectives[:2]:
         stat = _inner_statistic(config, objective)
         if objective.sign < 0 and stat.kind in (StatisticKind.MAX, StatisticKind.CVAR):

@@ -57,8 +57,8 @@ angular_velocity] (world frame) with its restitution, what the outer search writ
 scenario's model file, and each objective is its statistic over the scenarios; the realised
 design is scored by the outer search's evaluation over the landings. A roll or a pitch (which
 contacts hit) and friction are refused when the study is read (naming ``landings.<name>`` or
-``scene.friction``): the outer search takes them. Whole landings over landings (in the plane):
-:mod:`optimizer.search.landing_inner`.
+``scene.friction``): the outer search takes them. Whole landings over landings (in the plane and
+in space): :mod:`optimizer.search.landing_inner`.
 """
 
 from __future__ import annotations

@@ -39,12 +39,15 @@ is one function of the design during a solve; every design found is then realise
 by the study's own landing (:func:`optimizer.design_space.evaluate_design_landing`, its step
 refined to the tolerance): that evaluation, not the NLP's, decides what is recorded.
 
-Over ``landings:`` (in the plane) the NLP scores what the outer search's evaluation computes
-(:func:`optimizer.search.outer.evaluate_design_over_landings`): each scenario's scene is built as
-it builds it (the design's model file with the scenario's overrides, :func:`scenario_scenes`;
-``speed``, ``velocity_x``, ``angular_velocity``, ``restitution`` and ``friction`` are the scene's
-constants, the same for every design) and landed at its own step (the one ``landing()`` reports
-at the start point with the evaluation's settings, :func:`landing_settings`). The callback returns
+Over ``landings:`` (in the plane or in space) the NLP scores what the outer search's evaluation
+computes (:func:`optimizer.search.outer.evaluate_design_over_landings`): each scenario's scene is
+built as it builds it (the design's model file with the scenario's overrides,
+:func:`scenario_scenes`; ``speed``, ``velocity_x``, ``angular_velocity``, ``restitution`` and
+``friction``, and in space ``velocity_z`` and ``roll_rate``, are the scene's constants, the same
+for every design: in space the approach [velocity_x, -speed, velocity_z] and [roll_rate, 0,
+angular_velocity], world frame) and landed at its own step (the one ``landing()`` reports at the
+start point with the evaluation's settings, :func:`landing_settings`), a spatial landing for a
+spatial design space, the support margin's rows as without landings. The callback returns
 every scenario's objectives and the Jacobian callback each one's exact gradient along its own
 event sequence (S landings and S gradients per iterate). Each objective is its statistic over the
 scenarios as the first-impact NLP writes it (:func:`optimizer.search.compiled._statistic`):
@@ -54,8 +57,8 @@ gradient enters through its row's multiplier), ``cvar:q`` in Rockafellar and Ury
 (a level and one excess per scenario). The extra variables start tight at each start point and
 are dropped from the solution. A maximised objective (``energy_absorbed``) takes ``mean`` or
 ``std`` only (the epigraph of a maximised ``max`` would not be tight), a quantile is refused, and
-so are a pitch or a step (the tree, or a ground placed by the design) and spatial design spaces
-over landings, when the study is read (naming the field). A scenario that fails numerically
+so are a pitch, a roll or a step (the tree, or a ground placed by the design), when the study is
+read (naming the field). A scenario that fails numerically
 makes the iterate's values NaN, as the nominal landing does.
 """
 
@@ -407,8 +410,8 @@ def scenario_scenes(config: StudyConfig, design: FootDesign) -> tuple[Scene, ...
     """The scene of each landing the NLP scores: the nominal one (:func:`landing_scene`), or over
     ``landings`` each scenario's, as the outer search builds it (the design's model file with the
     scenario's overrides, :func:`optimizer.evaluation.scenarios.scenario_model`). The parameters
-    the inner search varies (``INNER_LANDING_PARAMETERS``) are the scene's constants: the same
-    for every design."""
+    the inner search varies (``INNER_LANDING_PARAMETERS``, in space ``INNER_SPATIAL_LANDING_PARAMETERS``)
+    are the scene's constants: the same for every design."""
     if config.landings is None:
         return (landing_scene(config.scene, config.limits),)
     model = design_model(config.leg, design, config.scene, config.limits, config.space.joint_laws.stop_restitution)

@@ -6,6 +6,7 @@ built model's support margin (``impulse_core.model.support``) is below the bound
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +32,7 @@ from optimizer.design_space import (
     symmetric_yaws,
 )
 from optimizer.errors import ConfigError
+from optimizer.evaluation.scenarios import Distribution, DistributionKind
 from optimizer.search.inner import run_inner
 from optimizer.search.outer import design_from_record, design_record, open_study, read_trial, run_outer
 
@@ -194,7 +196,7 @@ def test_constraint_values_follow_the_bound():
 def test_inner_search_takes_a_spatial_design_space_over_level_landings():
     """The spatial inner search scores level first impacts whose approach varies
     (tests/optimizer/test_inner_splay_robust.py); what changes which contacts hit (a roll) is
-    refused naming the field, and so are spatial whole landings over landings, by the study file
+    refused naming the field, and over whole landings so is a roll (the tree), by the study file
     and by :func:`run_inner` alike."""
     level = {"count": 4, "speed": [3.0, 3.5], "velocity_z": [-0.2, 0.2], "roll_rate": [-0.5, 0.5]}
     config = parse_study({**study(), "search": {"method": "inner"}, "landings": level})
@@ -202,7 +204,13 @@ def test_inner_search_takes_a_spatial_design_space_over_level_landings():
     with pytest.raises(ConfigError, match=r"^landings\.roll: the inner search varies"):
         parse_study({**study(), "search": {"method": "inner"}, "landings": {**level, "roll": [0.0, 0.1]}})
     whole = {**study(), "objectives": ["peak_external_norm"], "scene": {"duration": 0.05}, "landings": level}
-    config = parse_study(whole)
-    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over whole landings takes landings in "
-                                          r"the plane only"):
+    inner = {**whole, "search": {"method": "inner"}}
+    assert parse_study(inner).landings.names == ("speed", "roll_rate", "velocity_z")  # taken
+    with pytest.raises(ConfigError, match=r"^landings\.roll: the inner search over whole landings varies"):
+        parse_study({**inner, "landings": {**level, "roll": [0.0, 0.1]}})
+    config = parse_study(whole)  # the outer search's study, handed to the inner search
+    rolled = replace(config.landings, distributions=(*config.landings.distributions,
+                                                     ("roll", Distribution(DistributionKind.UNIFORM, (0.0, 0.1)))))
+    config = replace(config, landings=rolled)
+    with pytest.raises(ConfigError, match=r"^landings\.roll: the inner search over whole landings varies"):
         run_inner(open_study(config, optuna.storages.InMemoryStorage()), config)

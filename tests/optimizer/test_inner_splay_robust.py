@@ -284,9 +284,10 @@ def test_what_changes_which_contacts_hit_is_refused(landings, message):
 
 
 @pytest.mark.parametrize("space", ["spatial", "planar"])
-def test_whole_landings_over_landings_are_taken_in_the_plane_only(space: str):
+def test_whole_landings_over_landings_are_taken_in_the_plane_and_in_space(space: str):
     """The inner search over whole landings scores them over landings in the plane
-    (tests/optimizer/test_landing_inner_robust.py); in space it refuses them naming ``landings``."""
+    (tests/optimizer/test_landing_inner_robust.py) and in space, with a lateral velocity and a
+    roll rate (tests/optimizer/test_landing_inner_spatial_robust.py); a roll is refused naming it."""
     text = {**STUDY, "objectives": ["peak_external_norm", "peak_internal_norm"], "scene": {"speed": 3.43,
             "restitution": 0.8, "duration": 0.05}, "statistic": {}}
     if space == "planar":
@@ -295,9 +296,9 @@ def test_whole_landings_over_landings_are_taken_in_the_plane_only(space: str):
         text["landings"] = {k: v for k, v in LANDINGS.items() if k not in ("roll_rate", "velocity_z")}
         assert parse_study(text).landings is not None
         return
-    with pytest.raises(ConfigError, match=r"^landings: the inner search \(IPOPT\) over whole landings takes landings "
-                                          r"in the plane only"):
-        parse_study(text)
+    assert {"roll_rate", "velocity_z"} <= set(parse_study(text).landings.names)
+    with pytest.raises(ConfigError, match=r"^landings\.roll: the inner search over whole landings varies"):
+        parse_study({**text, "landings": {**LANDINGS, "roll": {"uniform": [-0.1, 0.1]}}})
 
 
 def test_the_cli_refuses_a_roll_with_exit_status_2(tmp_path: Path, capsys):

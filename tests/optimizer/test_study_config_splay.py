@@ -77,8 +77,9 @@ def test_per_toe_round_trips_and_planar_text_has_no_spatial_keys(tmp_path: Path)
         ({"search__method": "inner", "landings": {"count": 4, "pitch": [0.0, 0.1]}},
          r"^landings\.pitch: the inner search varies"),
         ({"search__method": "inner", "objectives": ["peak_external_norm"], "scene": {"duration": 0.05},
-          "landings": {"count": 4, "speed": [3.0, 3.5]}},
-         r"^landings: the inner search \(IPOPT\) over whole landings takes landings in the plane only"),
+          "landings": {"count": 4, "speed": [3.0, 3.5], "roll": [0.0, 0.1]}},
+         r"^landings\.roll: the inner search over whole landings varies speed, velocity_x, angular_velocity, "
+         r"restitution, velocity_z, roll_rate, friction only"),
         ({"search__method": "inner", "scene": {"friction": 0.5}},
          r"^scene\.friction: the inner search optimises frictionless landings only"),
         ({"landings": {"count": 4, "terrain_step": [0.0, 0.01]}}, r"^landings\.terrain_step: a step is a planar terrain"),
