@@ -32,6 +32,9 @@ POLYGON = 16
 LAW_TOL = 1e-9
 #: Mode-correction rounds of stage 2.
 ROUNDS = 6
+#: Stage 1's answer meeting the circular cone's law to this (relative) is the answer: every
+#: contact sticking inside the polygon (so inside the circle) or needing no friction.
+EXACT_TOL = 1e-12
 
 
 @dataclass(frozen=True)
@@ -264,6 +267,9 @@ def cone_unilateral(W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution
     def velocity(nrm, tan):
         return u + W @ np.concatenate([nrm, tan[:, 0], tan[:, 1]])
 
+    if max(_residuals(W, u, owner, e, mu, normal, tangential).values()) <= EXACT_TOL:
+        v = velocity(normal, tangential)  # stage 1 already meets the exact law: keep its split
+        return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, scale_v, owner), True)
     pair = _pairs(n, owner)
     modes = list(modes_of(normal, tangential, velocity(normal, tangential), scale_v, owner))
     for _ in range(ROUNDS):

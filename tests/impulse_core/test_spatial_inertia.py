@@ -148,7 +148,9 @@ def _hexes(a) -> list[str]:
 def test_rods_give_the_answers_of_commit_871616f_bit_for_bit() -> None:
     """Seeded random trees (planar, planar read as spatial, spatial; Newton and the exact cone) with
     no offset and no tensor: today's external and joint impulses and velocities are those written
-    by commit 871616f's code (data/make_rod_answers.py), to the last bit."""
+    by commit 871616f's code (data/make_rod_answers.py), to the last bit; the exact cone's to
+    rounding (1e-14), since its first stage's answer is kept where it already meets the exact law
+    (all contacts sticking: up to 2e-15 from 871616f's Newton-polished one)."""
     golden = json.loads(GOLDEN.read_text())
     out = {}
     for k, t in enumerate(spatial_trees()):
@@ -165,7 +167,12 @@ def test_rods_give_the_answers_of_commit_871616f_bit_for_bit() -> None:
     assert set(out) == set(golden)
     for key, r in out.items():
         got = {"external": _hexes(r.external), "internal": _hexes(r.internal_magnitude), "v_plus": _hexes(r.v_plus)}
-        assert got == golden[key], key
+        if key.endswith(".friction"):
+            for name, values in got.items():
+                a, b = (np.array([float.fromhex(x) for x in v]) for v in (values, golden[key][name]))
+                assert a.shape == b.shape and np.all(np.abs(a - b) <= 1e-14 * np.max(np.abs(b), initial=0.0)), key
+        else:
+            assert got == golden[key], key
 
 
 @pytest.mark.parametrize(
