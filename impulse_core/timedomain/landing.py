@@ -918,6 +918,7 @@ class _Landing:
         #: in the plane (PLANAR or PLANAR_OFFSET), not in space
         self.planar = space.joint_axis is not None
         ground = scene.terrain if self.planar else spatial_ground(scene)
+        self.ground = ground  # the plane's profile, or space's heightfield
         fn = landing_function(self.topology, ground, space)
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
         #: in the call's copy (:meth:`rechart`), and the next run starts from this one again
@@ -962,7 +963,7 @@ class _Landing:
         #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol) and
         #: ("project", q, v, mode); q, v are the operation's inputs.
         self.tape: list | None = None
-        #: the plane's compiled RK4 step (None: numpy), and the last compiled step's end (ended())
+        #: the compiled RK4 step (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         self._end: tuple[bytes, bytes, object] | None = None
         self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
@@ -993,15 +994,15 @@ class _Landing:
 
     def compiled_step(self, code: str):
         """The compiled step of this landing (:mod:`impulse_core.timedomain.landing_step`), or
-        None where the numpy path integrates (``numpy``, space, the implicit integrator)."""
+        None where the numpy path integrates (``numpy``, the implicit integrator)."""
         if code not in (C_CODE, VM_CODE, NUMPY_CODE):
             raise ModelError(f"step_code: {code!r} is not one of c, vm, numpy")
-        if code == NUMPY_CODE or not self.planar or self.method != RK4:
+        if code == NUMPY_CODE or self.method != RK4:
             return None
         from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
 
-        return CompiledStep(self.topology, self.scene.terrain, design_vector(self.tree, self.space.body_values),
-                            self.scene.gravity, self.mu, self.joints, compiled=code == C_CODE, space=self.space)
+        return CompiledStep(self.topology, self.ground, self.design, self.scene.gravity, self.mu, self.joints,
+                            compiled=code == C_CODE, space=self.space, floor=self.speed_tol)
 
     def ended(self, q: np.ndarray, v: np.ndarray, mode: _Mode | None = None):
         """The last compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` if it
@@ -1644,6 +1645,8 @@ class _Landing:
     def set_chart(self, design: np.ndarray, chart: np.ndarray | None) -> None:
         """Evaluate the dynamics with ``design`` from now on (the kept points are dropped)."""
         self.call.args[2][:] = design
+        if self.fast is not None:
+            self.fast.set_design(design)
         self.chart = chart
         self._last, self._solutions, self._end = None, (None, {}), None
 
