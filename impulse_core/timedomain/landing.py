@@ -101,7 +101,7 @@ RK4, IMPLICIT, AUTO = "rk4", "implicit", "auto"
 #: at touchdown (:func:`joint_law_rate`) exceeds this: classical RK4 is stable on the negative
 #: real axis up to 2.785 (a damper's mode) and on the imaginary axis up to 2.828 (a spring's).
 RK4_STABLE = 2.0
-#: The code of the plane's RK4 step (:attr:`LandingSettings.step_code`): one CasADi function
+#: The code of the RK4 step (:attr:`LandingSettings.step_code`): one CasADi function
 #: compiled to C through the trusted cache (:mod:`impulse_core.timedomain.landing_step`), the same
 #: function on CasADi's virtual machine, or the numpy reference.
 C_CODE, VM_CODE, NUMPY_CODE = "c", "vm", "numpy"
@@ -171,12 +171,12 @@ class LandingSettings:
             the first step is beyond RK4's stability for the joint laws at touchdown
             (:data:`RK4_STABLE`), then implicit. One landing keeps one integrator at every step
             length, so that the step-halving estimate compares like with like.
-        step_code: the plane's RK4 steps by one CasADi function of the mode
+        step_code: the RK4 steps (plane and space) by one CasADi function of the mode
             (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
             and a missing compiler falls back to ``vm`` with a warning), ``vm`` on CasADi's
             virtual machine, ``numpy`` the reference (rows built and solved per stage in numpy;
-            always so in space and for the implicit integrator). All agree to rounding.
+            always so for the implicit integrator, and for a redundant mode). All agree to rounding.
         bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
             ``MODEL_FORMAT.md`` asks), or b > 0: after the first impact a rebound that the row's
             free acceleration would end within b steps is plastic (module docstring; case 3's

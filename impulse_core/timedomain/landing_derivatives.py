@@ -48,8 +48,9 @@ replay is the same, with what the plane's single tangent hides:
   those equations and is refused (NumericalError), as is a slip direction the replay does not
   reproduce (two contacts at one point made to slide alike, a contact put on the cone's edge);
 * both integrators are replayed (a spatial landing takes RK4 unless ``auto`` finds the joint laws
-  too stiff for it, as in the plane; the run always integrates by the numpy path there, whose
-  arithmetic the replay repeats), so the derivative is that of the run the tool reports.
+  too stiff for it, as in the plane; the run's compiled RK4 step equals its numpy path to
+  rounding, and the replay repeats that arithmetic), so the derivative is that of the run the
+  tool reports.
 
 Forward rather than adjoint sensitivities: every operation's Jacobian w.r.t. (x, theta) is one
 call, the sweep is a product of small dense matrices, and peaks at intermediate events need no

@@ -1,10 +1,10 @@
-"""The landing's Runge-Kutta step and projection as compiled CasADi functions (the plane).
+"""The landing's Runge-Kutta step and projection as compiled CasADi functions (plane and space).
 
 :meth:`impulse_core.timedomain.landing._Landing.rk4_step` builds each stage's rows and solves
 them in numpy, which costs ~10 x the dynamics call. Here one SX graph per topology, terrain and
 set of joints with stops holds the whole step for every mode: every possible row is present
-(each contact's normal row, each stop's row, each contact's tangent row, in that order) and the
-mode enters as numbers. A row is active (``active`` = 1) or not (0): an inactive row is
+(each contact's normal row, each stop's row, then each contact's row of each tangent in turn)
+and the mode enters as numbers. A row is active (``active`` = 1) or not (0): an inactive row is
 replaced by an identity row with a zero right-hand side, so its multiplier is 0 and the active
 rows' system is the mode's (:func:`impulse_core.timedomain.landing._accelerations`) exactly.
 Its Delassus matrix and the mass matrix are solved by Gaussian elimination without pivoting
@@ -18,6 +18,16 @@ kinetic energy (the divergence check), so that a plain step costs one call; and 
 that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
 velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
 corrections) and non-finite results (singular rows) are left to the numpy path.
+
+In space (a heightfield's normals) each contact has two tangent rows (t_x, t_z,
+:func:`landing.tangent_basis`), ``direction`` holds each sliding contact's mode direction d (two
+numbers), and its friction's direction u is :func:`landing.slip_direction` of the slip at each
+stage: s / |s| while s . d > 0 and |s| is above ``floor``, regularised below the step's ``core``
+(:meth:`landing._Landing.steer`, computed in numpy before the step), else d; the SX is
+:func:`landing_derivatives.slip_direction_expression`, the replay's. The slip and tangential
+forces of the end are n_c x 2, the normals n_c x 3; the base's rotation-vector coordinates are
+:func:`landing.landing_function`'s (q' = v), and a re-centred chart's design vector is set by
+:meth:`CompiledStep.set_design`.
 """
 
 from __future__ import annotations
