@@ -968,6 +968,7 @@ class _Landing:
         self._end: tuple[bytes, bytes, object] | None = None
         self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
         self._solutions: tuple[_Point | None, dict] = (None, {})  # see mode_solution()
+        self._steering: tuple = (None, b"")  # steer()'s last point, mode and figures
         gap_tol, nc, nv = settings.gap_tolerance, self.nc, self.nv
         #: the witnesses' tolerances (:meth:`witness_and_rate`): gaps, forces, cone margins, slip,
         #: stop margins (twice), stop forces; and the NaN rates of the force and slip witnesses
@@ -1105,12 +1106,16 @@ class _Landing:
             return
         mode.core[:] = 0.0
         pt = self.point(q, v)
-        rows, (_, lam) = self.mode_solution(pt, mode)
-        forces, _ = _contact_forces(rows, lam, self.mu, self.nc)
-        moving = np.flatnonzero(mode.closed & mode.sliding)
-        X = np.linalg.solve(pt.M, pt.Jt[moving].reshape(-1, self.nv).T)
-        w = np.einsum("ij,ji->i", pt.Jt[moving].reshape(-1, self.nv), X).reshape(len(moving), -1).sum(axis=1)
-        mode.core[moving] = h * self.mu * np.maximum(forces[moving], 0.0) * w
+        key = _mode_bytes(mode)
+        if self._steering[0] is not pt or self._steering[1] != key:  # a new point or mode (not a retrial)
+            rows, (_, lam) = self.mode_solution(pt, mode)
+            forces, _ = _contact_forces(rows, lam, self.mu, self.nc)
+            moving = np.flatnonzero(mode.closed & mode.sliding)
+            X = np.linalg.solve(pt.M, pt.Jt[moving].reshape(-1, self.nv).T)
+            w = np.einsum("ij,ji->i", pt.Jt[moving].reshape(-1, self.nv), X).reshape(len(moving), -1).sum(axis=1)
+            self._steering = (pt, key, moving, np.maximum(forces[moving], 0.0), w)
+        _, _, moving, pushing, w = self._steering
+        mode.core[moving] = h * self.mu * pushing * w
 
     def follow_slip(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:
         """In space, after a step: each sliding contact's mode direction d becomes its friction's

@@ -51,6 +51,10 @@ STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floo
                "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
                 "stop_force", "normal", "kinetic")
+#: CasADi options of the step and projection: common subexpression elimination (the stages'
+#: kinematics share terms; spatial case 3's step 216861 -> 192431 instructions, 15 % faster on
+#: the virtual machine).
+OPTIONS = {"cse": True}
 
 
 @dataclass(frozen=True)
@@ -122,8 +126,10 @@ def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.S
     return a0 + minv_ft @ lam, fn, ft, lam[nc:first]
 
 
-def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX]:
-    pt = _point(fn, q, v, x)
+def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[int, ...], pt: dict | None = None
+                ) -> tuple[ca.SX, ca.SX]:
+    """(a, [fn; ft per tangent]) at (q, v) (``pt``: its point, if already built)."""
+    pt = _point(fn, q, v, x) if pt is None else pt
     a, fn_, ft, _ = _masked_forces(pt, x, stop_dofs)
     return a, ca.vertcat(fn_, *ft)
 
@@ -144,7 +150,8 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
         ca.SX.sym("stiffness", nv), ca.SX.sym("damping", nv), ca.SX.sym("rest", nv),
         ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity"),
     )
-    a1, f1 = _derivative(fn, q, v, x, stop_dofs)
+    start = _point(fn, q, v, x)
+    a1, f1 = _derivative(fn, q, v, x, stop_dofs, start)
     v2 = v + 0.5 * h * a1
     a2, f2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
     v3 = v + 0.5 * h * a2
@@ -153,14 +160,14 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
     a4, f4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
     q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
     v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
-    start, end = _point(fn, q, v, x), _point(fn, q1, v1, x)
+    end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
     outs = [q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4), start["momentum"], end["momentum"], start["gap"],
             start["Jn"] @ v, end["gap"], end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1,
             end["normal"], end["kinetic"]]
     inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
               x.gravity]
-    return ca.Function("landing_step", inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS))
+    return ca.Function("landing_step", inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
 
 
 def _masked_correction(M: ca.SX, G: ca.SX, active: ca.SX, residual: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -203,7 +210,7 @@ def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_d
     return ca.Function("landing_projection", [q, v, place, place_stop, limit, active, stop, p, gravity],
                        [dq, v + dv, ca.vertcat(lam[:nc], lam[nc + ns :])],
                        ["q", "v", "place", "place_stop", "limit", "active", "stop", "p", "gravity"],
-                       ["dq", "v1", "impulse"])
+                       ["dq", "v1", "impulse"], OPTIONS)
 
 
 @functools.lru_cache(maxsize=16)
