@@ -51,10 +51,10 @@ STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floo
                "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
                 "stop_force", "normal", "kinetic")
-#: CasADi options of the step and projection: common subexpression elimination (the stages'
-#: kinematics share terms; spatial case 3's step 216861 -> 192431 instructions, 15 % faster on
-#: the virtual machine).
-OPTIONS = {"cse": True}
+#: CasADi options of the step and projection. Not common subexpression elimination: it makes
+#: spatial case 3's step 11 % shorter (216861 -> 192431 instructions, ~15 % faster on the virtual
+#: machine) but its graph's build 3.0 s instead of 0.2 s, more than a short landing takes.
+OPTIONS: dict = {}
 
 
 @dataclass(frozen=True)
