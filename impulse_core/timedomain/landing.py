@@ -101,7 +101,7 @@ RK4, IMPLICIT, AUTO = "rk4", "implicit", "auto"
 #: at touchdown (:func:`joint_law_rate`) exceeds this: classical RK4 is stable on the negative
 #: real axis up to 2.785 (a damper's mode) and on the imaginary axis up to 2.828 (a spring's).
 RK4_STABLE = 2.0
-#: The code of the plane's RK4 step (:attr:`LandingSettings.step_code`): one CasADi function
+#: The code of the RK4 step (:attr:`LandingSettings.step_code`): one CasADi function
 #: compiled to C through the trusted cache (:mod:`impulse_core.timedomain.landing_step`), the same
 #: function on CasADi's virtual machine, or the numpy reference.
 C_CODE, VM_CODE, NUMPY_CODE = "c", "vm", "numpy"
@@ -171,12 +171,12 @@ class LandingSettings:
             the first step is beyond RK4's stability for the joint laws at touchdown
             (:data:`RK4_STABLE`), then implicit. One landing keeps one integrator at every step
             length, so that the step-halving estimate compares like with like.
-        step_code: the plane's RK4 steps by one CasADi function of the mode
+        step_code: the RK4 steps (plane and space) by one CasADi function of the mode
             (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
             and a missing compiler falls back to ``vm`` with a warning), ``vm`` on CasADi's
             virtual machine, ``numpy`` the reference (rows built and solved per stage in numpy;
-            always so in space and for the implicit integrator). All agree to rounding.
+            always so for the implicit integrator, and for a redundant mode). All agree to rounding.
         bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
             ``MODEL_FORMAT.md`` asks), or b > 0: after the first impact a rebound that the row's
             free acceleration would end within b steps is plastic (module docstring; case 3's
@@ -918,6 +918,7 @@ class _Landing:
         #: in the plane (PLANAR or PLANAR_OFFSET), not in space
         self.planar = space.joint_axis is not None
         ground = scene.terrain if self.planar else spatial_ground(scene)
+        self.ground = ground  # the plane's profile, or space's heightfield
         fn = landing_function(self.topology, ground, space)
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
         #: in the call's copy (:meth:`rechart`), and the next run starts from this one again
@@ -962,11 +963,12 @@ class _Landing:
         #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol) and
         #: ("project", q, v, mode); q, v are the operation's inputs.
         self.tape: list | None = None
-        #: the plane's compiled RK4 step (None: numpy), and the last compiled step's end (ended())
+        #: the compiled RK4 step (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         self._end: tuple[bytes, bytes, object] | None = None
         self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
         self._solutions: tuple[_Point | None, dict] = (None, {})  # see mode_solution()
+        self._steering: tuple = (None, b"")  # steer()'s last point, mode and figures
         gap_tol, nc, nv = settings.gap_tolerance, self.nc, self.nv
         #: the witnesses' tolerances (:meth:`witness_and_rate`): gaps, forces, cone margins, slip,
         #: stop margins (twice), stop forces; and the NaN rates of the force and slip witnesses
@@ -993,15 +995,15 @@ class _Landing:
 
     def compiled_step(self, code: str):
         """The compiled step of this landing (:mod:`impulse_core.timedomain.landing_step`), or
-        None where the numpy path integrates (``numpy``, space, the implicit integrator)."""
+        None where the numpy path integrates (``numpy``, the implicit integrator)."""
         if code not in (C_CODE, VM_CODE, NUMPY_CODE):
             raise ModelError(f"step_code: {code!r} is not one of c, vm, numpy")
-        if code == NUMPY_CODE or not self.planar or self.method != RK4:
+        if code == NUMPY_CODE or self.method != RK4:
             return None
         from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
 
-        return CompiledStep(self.topology, self.scene.terrain, design_vector(self.tree, self.space.body_values),
-                            self.scene.gravity, self.mu, self.joints, compiled=code == C_CODE, space=self.space)
+        return CompiledStep(self.topology, self.ground, self.design, self.scene.gravity, self.mu, self.joints,
+                            compiled=code == C_CODE, space=self.space, floor=self.speed_tol)
 
     def ended(self, q: np.ndarray, v: np.ndarray, mode: _Mode | None = None):
         """The last compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` if it
@@ -1104,12 +1106,16 @@ class _Landing:
             return
         mode.core[:] = 0.0
         pt = self.point(q, v)
-        rows, (_, lam) = self.mode_solution(pt, mode)
-        forces, _ = _contact_forces(rows, lam, self.mu, self.nc)
-        moving = np.flatnonzero(mode.closed & mode.sliding)
-        X = np.linalg.solve(pt.M, pt.Jt[moving].reshape(-1, self.nv).T)
-        w = np.einsum("ij,ji->i", pt.Jt[moving].reshape(-1, self.nv), X).reshape(len(moving), -1).sum(axis=1)
-        mode.core[moving] = h * self.mu * np.maximum(forces[moving], 0.0) * w
+        key = _mode_bytes(mode)
+        if self._steering[0] is not pt or self._steering[1] != key:  # a new point or mode (not a retrial)
+            rows, (_, lam) = self.mode_solution(pt, mode)
+            forces, _ = _contact_forces(rows, lam, self.mu, self.nc)
+            moving = np.flatnonzero(mode.closed & mode.sliding)
+            X = np.linalg.solve(pt.M, pt.Jt[moving].reshape(-1, self.nv).T)
+            w = np.einsum("ij,ji->i", pt.Jt[moving].reshape(-1, self.nv), X).reshape(len(moving), -1).sum(axis=1)
+            self._steering = (pt, key, moving, np.maximum(forces[moving], 0.0), w)
+        _, _, moving, pushing, w = self._steering
+        mode.core[moving] = h * self.mu * pushing * w
 
     def follow_slip(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:
         """In space, after a step: each sliding contact's mode direction d becomes its friction's
@@ -1644,6 +1650,8 @@ class _Landing:
     def set_chart(self, design: np.ndarray, chart: np.ndarray | None) -> None:
         """Evaluate the dynamics with ``design`` from now on (the kept points are dropped)."""
         self.call.args[2][:] = design
+        if self.fast is not None:
+            self.fast.set_design(design)
         self.chart = chart
         self._last, self._solutions, self._end = None, (None, {}), None
 

@@ -48,8 +48,9 @@ replay is the same, with what the plane's single tangent hides:
   those equations and is refused (NumericalError), as is a slip direction the replay does not
   reproduce (two contacts at one point made to slide alike, a contact put on the cone's edge);
 * both integrators are replayed (a spatial landing takes RK4 unless ``auto`` finds the joint laws
-  too stiff for it, as in the plane; the run always integrates by the numpy path there, whose
-  arithmetic the replay repeats), so the derivative is that of the run the tool reports.
+  too stiff for it, as in the plane; the run's compiled RK4 step equals its numpy path to
+  rounding, and the replay repeats that arithmetic), so the derivative is that of the run the
+  tool reports.
 
 Forward rather than adjoint sensitivities: every operation's Jacobian w.r.t. (x, theta) is one
 call, the sweep is a product of small dense matrices, and peaks at intermediate events need no
@@ -306,19 +307,8 @@ class _Symbolic:
             tangents = [[ca.vertcat(ny[i], -nx[i])] for i in range(self.nc)]
             pt.update(gap=gap, Jn=Jn, Jt=[Jt], bn=nx * bx + ny * by, bt=[ny * bx - nx * by])
         else:
-            normals = [N[:, i] for i in range(self.nc)]
-            tangents = [_tangents(n) for n in normals]
-            J = [Jc[3 * i : 3 * i + 3, :] for i in range(self.nc)]
-            bb = [bias[3 * i : 3 * i + 3] for i in range(self.nc)]
-            def rows(vecs, mats):
-                return ca.vertcat(*[a.T @ m for a, m in zip(vecs, mats)]) if self.nc else ca.SX(0, self.nv)
-
-            def values(vecs, b):
-                return ca.vertcat(*[ca.dot(a, x) for a, x in zip(vecs, b)]) if self.nc else ca.SX(0, 1)
-
-            pt.update(gap=gap, Jn=rows(normals, J), bn=values(normals, bb),
-                      Jt=[rows([t[a] for t in tangents], J) for a in range(self.nt)],
-                      bt=[values([t[a] for t in tangents], bb) for a in range(self.nt)])
+            normals, tangents, rows = spatial_contact_rows(N, Jc, bias)
+            pt.update(gap=gap, **rows)
         pt.update(normal=normals, tangent=tangents,
                   slip=[ca.vertcat(*[pt["Jt"][a][i, :] @ v for a in range(self.nt)]) for i in range(self.nc)])
         return pt
@@ -333,12 +323,7 @@ class _Symbolic:
             if self.planar:
                 out[i] = [float(mode.side[i])]
                 continue
-            di = d[self.nt * i : self.nt * (i + 1)]
-            s = pt["slip"][i]
-            speed = _norm(s)
-            along = ca.logic_and(ca.dot(s, di) > 0, speed > self.floor)
-            lifted = s + ca.fmax(core[i] - speed, 0.0) * di
-            u = ca.if_else(along, lifted / _norm(lifted), di)
+            u = slip_direction_expression(pt["slip"][i], d[self.nt * i : self.nt * (i + 1)], core[i], self.floor)
             out[i] = [u[a] for a in range(self.nt)]
         return out
 
@@ -747,6 +732,36 @@ class _Symbolic:
 def _norm(x: ca.SX) -> ca.SX:
     """|x|, finite with finite derivatives at 0 (a branch not taken must not put NaN in if_else)."""
     return ca.sqrt(ca.fmax(ca.dot(x, x), 1e-300))
+
+
+def slip_direction_expression(s: ca.SX, d: ca.SX, core, floor) -> ca.SX:
+    """:func:`landing.slip_direction` of one contact: its slip ``s`` (2-vector), the mode's
+    direction ``d``, the step's ``core`` and the resting threshold ``floor``."""
+    speed = _norm(s)
+    along = ca.logic_and(ca.dot(s, d) > 0, speed > floor)
+    lifted = s + ca.fmax(core - speed, 0.0) * d
+    return ca.if_else(along, lifted / _norm(lifted), d)
+
+
+def spatial_contact_rows(N: ca.SX, Jc: ca.SX, bias: ca.SX) -> tuple[list, list, dict]:
+    """Contact coordinates in space of :func:`landing.landing_function`'s ``normal`` (3 x n_c),
+    ``contact_jacobian`` and ``contact_bias``: per contact its normal and tangents
+    (:func:`_tangents`), and the rows ``Jn`` (n_c x nv), ``bn``, ``Jt`` and ``bt`` (one per tangent)."""
+    nc, nv = N.shape[1], Jc.shape[1]
+    normals = [N[:, i] for i in range(nc)]
+    tangents = [_tangents(n) for n in normals]
+    J = [Jc[3 * i : 3 * i + 3, :] for i in range(nc)]
+    bb = [bias[3 * i : 3 * i + 3] for i in range(nc)]
+
+    def rows(vecs: list) -> ca.SX:
+        return ca.vertcat(*[a.T @ m for a, m in zip(vecs, J)]) if nc else ca.SX(0, nv)
+
+    def values(vecs: list) -> ca.SX:
+        return ca.vertcat(*[ca.dot(a, x) for a, x in zip(vecs, bb)]) if nc else ca.SX(0, 1)
+
+    along = [[t[a] for t in tangents] for a in range(2)]
+    return normals, tangents, dict(Jn=rows(normals), bn=values(normals), Jt=[rows(t) for t in along],
+                                   bt=[values(t) for t in along])
 
 
 def _tangents(n: ca.SX) -> list:

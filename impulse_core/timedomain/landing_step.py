@@ -1,10 +1,10 @@
-"""The landing's Runge-Kutta step and projection as compiled CasADi functions (the plane).
+"""The landing's Runge-Kutta step and projection as compiled CasADi functions (plane and space).
 
 :meth:`impulse_core.timedomain.landing._Landing.rk4_step` builds each stage's rows and solves
 them in numpy, which costs ~10 x the dynamics call. Here one SX graph per topology, terrain and
 set of joints with stops holds the whole step for every mode: every possible row is present
-(each contact's normal row, each stop's row, each contact's tangent row, in that order) and the
-mode enters as numbers. A row is active (``active`` = 1) or not (0): an inactive row is
+(each contact's normal row, each stop's row, then each contact's row of each tangent in turn)
+and the mode enters as numbers. A row is active (``active`` = 1) or not (0): an inactive row is
 replaced by an identity row with a zero right-hand side, so its multiplier is 0 and the active
 rows' system is the mode's (:func:`impulse_core.timedomain.landing._accelerations`) exactly.
 Its Delassus matrix and the mass matrix are solved by Gaussian elimination without pivoting
@@ -18,6 +18,16 @@ kinetic energy (the divergence check), so that a plain step costs one call; and 
 that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
 velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
 corrections) and non-finite results (singular rows) are left to the numpy path.
+
+In space (a heightfield's normals) each contact has two tangent rows (t_x, t_z,
+:func:`landing.tangent_basis`), ``direction`` holds each sliding contact's mode direction d (two
+numbers), and its friction's direction u is :func:`landing.slip_direction` of the slip at each
+stage: s / |s| while s . d > 0 and |s| is above ``floor``, regularised below the step's ``core``
+(:meth:`landing._Landing.steer`, computed in numpy before the step), else d; the SX is
+:func:`landing_derivatives.slip_direction_expression`, the replay's. The slip and tangential
+forces of the end are n_c x 2, the normals n_c x 3; the base's rotation-vector coordinates are
+:func:`landing.landing_function`'s (q' = v), and a re-centred chart's design vector is set by
+:meth:`CompiledStep.set_design`.
 """
 
 from __future__ import annotations
@@ -35,21 +45,28 @@ from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.timedomain.compliant import BufferedFunction
 from impulse_core.timedomain.landing import _Joints, _Mode, _mode_bytes, landing_function
-from impulse_core.timedomain.landing_derivatives import _solve
+from impulse_core.timedomain.landing_derivatives import _solve, slip_direction_expression, spatial_contact_rows
 
-STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "mu", "stiffness", "damping", "rest", "p", "gravity")
+STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floor", "stiffness", "damping", "rest",
+               "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
                 "stop_force", "normal", "kinetic")
+#: CasADi options of the step and projection. Not common subexpression elimination: it makes
+#: spatial case 3's step 11 % shorter (216861 -> 192431 instructions, ~15 % faster on the virtual
+#: machine) but its graph's build 3.0 s instead of 0.2 s, more than a short landing takes.
+OPTIONS: dict = {}
 
 
 @dataclass(frozen=True)
 class _Args:
     """The step's symbolic inputs other than (q, v, h)."""
 
-    active: ca.SX  # per row (normal rows, stop rows, tangent rows): 1 closed, 0 open
-    direction: ca.SX  # per contact: its sliding friction's direction (+-1), or 0
+    active: ca.SX  # per row (normal rows, stop rows, tangent rows: each tangent's in turn): 1 closed, 0 open
+    direction: ca.SX  # per contact: its sliding friction's mode direction d (the plane: +-1; space: 2), or 0
     stop: ca.SX  # per stop row: the stop's side (-1 lower, +1 upper)
+    core: ca.SX  # space, per contact: the step's regularisation (landing._Landing.steer)
     mu: ca.SX
+    floor: ca.SX  # space: the slip speed below which a sliding contact keeps d
     stiffness: ca.SX
     damping: ca.SX
     rest: ca.SX
@@ -57,40 +74,64 @@ class _Args:
     gravity: ca.SX
 
 
+def _tangents_of(fn: ca.Function) -> int:
+    """Tangents per contact of a landing function: 1 in the plane, 2 in space."""
+    return fn.size1_out(1) - 1
+
+
 def _point(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args) -> dict:
-    """The dynamics at (q, v) in contact coordinates: normal and tangent rows (the tangent is
-    the normal turned by -90 degrees, :func:`landing.tangent_basis`), the joint laws' torques."""
+    """The dynamics at (q, v) in contact coordinates: normal rows and each tangent's rows (the
+    plane: the normal turned by -90 degrees; space: t_x, t_z, :func:`landing.tangent_basis`),
+    the slip per tangent, the joint laws' torques."""
     gap, normal, J, bias, M, force, kinetic, momentum, _, _ = fn(q, v, x.p, x.gravity)
-    nx, ny = normal[0, :].T, normal[1, :].T
-    Jx, Jy, bx, by = J[0::2, :], J[1::2, :], bias[0::2], bias[1::2]
+    if _tangents_of(fn) == 1:
+        nx, ny = normal[0, :].T, normal[1, :].T
+        Jx, Jy, bx, by = J[0::2, :], J[1::2, :], bias[0::2], bias[1::2]
+        rows = dict(Jn=ca.diag(nx) @ Jx + ca.diag(ny) @ Jy, Jt=[ca.diag(ny) @ Jx - ca.diag(nx) @ Jy],
+                    bn=nx * bx + ny * by, bt=[ny * bx - nx * by])
+    else:
+        rows = spatial_contact_rows(normal, J, bias)[2]
     return dict(
-        gap=gap, normal=normal, Jn=ca.diag(nx) @ Jx + ca.diag(ny) @ Jy, Jt=ca.diag(ny) @ Jx - ca.diag(nx) @ Jy,
-        bn=nx * bx + ny * by, bt=ny * bx - nx * by, M=M,
-        f=force - x.stiffness * (q - x.rest) - x.damping * v, kinetic=kinetic, momentum=momentum[:, 0],
+        gap=gap, normal=normal, M=M, slip=[Jt @ v for Jt in rows["Jt"]],
+        f=force - x.stiffness * (q - x.rest) - x.damping * v, kinetic=kinetic, momentum=momentum[:, 0], **rows,
     )
 
 
-def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
-    """(a, fn, ft, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on the
-    active rows; F's normal row of a sliding contact is n - mu d t."""
+def _directions(pt: dict, x: _Args) -> list[ca.SX]:
+    """Per tangent, each contact's component of its sliding friction's direction u: the plane's
+    mode direction; in space :func:`landing.slip_direction` of the slip at the point (it turns
+    with the slip within the step), 0 where d is 0."""
+    if len(pt["Jt"]) == 1:
+        return [x.direction]
+    u = [slip_direction_expression(ca.vertcat(pt["slip"][0][i], pt["slip"][1][i]), x.direction[2 * i : 2 * i + 2],
+                                   x.core[i], x.floor) for i in range(pt["gap"].shape[0])]
+    return [ca.vertcat(*[ui[a] for ui in u]) for a in range(2)]
+
+
+def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, list[ca.SX], ca.SX]:
+    """(a, fn, ft per tangent, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on
+    the active rows; F's normal row of a sliding contact is n - mu u^T t (:func:`_directions`)."""
     nv, nc = pt["M"].shape[0], pt["Jn"].shape[0]
     E = _stop_rows(x.stop, stop_dofs, nv)
-    Jn, Jt = pt["Jn"], pt["Jt"]
-    G = ca.diag(x.active) @ ca.vertcat(Jn, E, Jt)
-    F = ca.diag(x.active) @ ca.vertcat(Jn - x.mu * ca.diag(x.direction) @ Jt, E, Jt)
-    b = x.active * ca.vertcat(pt["bn"], ca.SX.zeros(len(stop_dofs)), pt["bt"])
+    Jn, Jt, u = pt["Jn"], pt["Jt"], _directions(pt, x)
+    Fn = Jn - x.mu * sum(ca.diag(ua) @ Jta for ua, Jta in zip(u, Jt))
+    G = ca.diag(x.active) @ ca.vertcat(Jn, E, *Jt)
+    F = ca.diag(x.active) @ ca.vertcat(Fn, E, *Jt)
+    b = x.active * ca.vertcat(pt["bn"], ca.SX.zeros(len(stop_dofs)), *pt["bt"])
     X = _solve(pt["M"], ca.horzcat(pt["f"], F.T))
     a0, minv_ft = X[:, 0], X[:, 1:]
     lam = _solve(G @ minv_ft + ca.diag(1 - x.active), -(G @ a0 + b))
-    fn = lam[:nc]
-    ft = -x.mu * x.direction * fn + lam[nc + len(stop_dofs) :]
-    return a0 + minv_ft @ lam, fn, ft, lam[nc : nc + len(stop_dofs)]
+    fn, first = lam[:nc], nc + len(stop_dofs)
+    ft = [-x.mu * ua * fn + lam[first + k * nc : first + (k + 1) * nc] for k, ua in enumerate(u)]
+    return a0 + minv_ft @ lam, fn, ft, lam[nc:first]
 
 
-def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX]:
-    pt = _point(fn, q, v, x)
+def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[int, ...], pt: dict | None = None
+                ) -> tuple[ca.SX, ca.SX]:
+    """(a, [fn; ft per tangent]) at (q, v) (``pt``: its point, if already built)."""
+    pt = _point(fn, q, v, x) if pt is None else pt
     a, fn_, ft, _ = _masked_forces(pt, x, stop_dofs)
-    return a, ca.vertcat(fn_, ft)
+    return a, ca.vertcat(fn_, *ft)
 
 
 @functools.lru_cache(maxsize=16)
@@ -98,16 +139,19 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
                           space: Space = PLANAR) -> ca.Function:
     """One classical RK4 step of the landing in a mode given as numbers (module docstring), and
     its end point's figures (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops; ``space``:
-    the plane, or PLANAR_OFFSET (centres of mass off the rods: the design vector's layout)."""
+    the plane, PLANAR_OFFSET (centres of mass off the rods: the design vector's layout) or space
+    (``terrain`` a heightfield)."""
     fn = landing_function(topology, terrain, space)
-    nv, nc, ns = fn.size1_in(0), fn.size1_out(0), len(stop_dofs)
+    nv, nc, ns, nt = fn.size1_in(0), fn.size1_out(0), len(stop_dofs), _tangents_of(fn)
     q, v, h = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("h")
     x = _Args(
-        ca.SX.sym("active", 2 * nc + ns), ca.SX.sym("direction", nc), ca.SX.sym("stop", ns), ca.SX.sym("mu"),
+        ca.SX.sym("active", (1 + nt) * nc + ns), ca.SX.sym("direction", nt * nc), ca.SX.sym("stop", ns),
+        ca.SX.sym("core", nc), ca.SX.sym("mu"), ca.SX.sym("floor"),
         ca.SX.sym("stiffness", nv), ca.SX.sym("damping", nv), ca.SX.sym("rest", nv),
         ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity"),
     )
-    a1, f1 = _derivative(fn, q, v, x, stop_dofs)
+    start = _point(fn, q, v, x)
+    a1, f1 = _derivative(fn, q, v, x, stop_dofs, start)
     v2 = v + 0.5 * h * a1
     a2, f2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
     v3 = v + 0.5 * h * a2
@@ -116,12 +160,14 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
     a4, f4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
     q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
     v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
-    start, end = _point(fn, q, v, x), _point(fn, q1, v1, x)
+    end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
     outs = [q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4), start["momentum"], end["momentum"], start["gap"],
-            start["Jn"] @ v, end["gap"], end["Jn"] @ v1, end["Jt"] @ v1, fn1, ft1, stop1, end["normal"], end["kinetic"]]
-    inputs = [q, v, h, x.active, x.direction, x.stop, x.mu, x.stiffness, x.damping, x.rest, x.p, x.gravity]
-    return ca.Function("landing_step", inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS))
+            start["Jn"] @ v, end["gap"], end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1,
+            end["normal"], end["kinetic"]]
+    inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
+              x.gravity]
+    return ca.Function("landing_step", inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
 
 
 def _masked_correction(M: ca.SX, G: ca.SX, active: ca.SX, residual: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -149,21 +195,22 @@ def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_d
     the velocity projection onto the mode's rows (``active``, ``stop``: as the step's), both
     with the rows at (q, v) (q_new = q - dq); its impulses [normal, tangential] per contact."""
     fn = landing_function(topology, terrain, space)
-    nv, nc, ns = fn.size1_in(0), fn.size1_out(0), len(stop_dofs)
+    nv, nc, ns, nt = fn.size1_in(0), fn.size1_out(0), len(stop_dofs), _tangents_of(fn)
     q, v, p, gravity = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity")
     place, place_stop, limit = ca.SX.sym("place", nc + ns), ca.SX.sym("place_stop", ns), ca.SX.sym("limit", ns)
-    active, stop = ca.SX.sym("active", 2 * nc + ns), ca.SX.sym("stop", ns)
-    x = _Args(active, ca.SX.zeros(nc), stop, ca.SX(0), ca.SX.zeros(nv), ca.SX.zeros(nv), ca.SX.zeros(nv), p, gravity)
+    active, stop = ca.SX.sym("active", (1 + nt) * nc + ns), ca.SX.sym("stop", ns)
+    zeros = ca.SX.zeros(nv)
+    x = _Args(active, ca.SX.zeros(nt * nc), stop, ca.SX.zeros(nc), ca.SX(0), ca.SX(0), zeros, zeros, zeros, p, gravity)
     pt = _point(fn, q, v, x)
     margin = ca.vertcat(*[-place_stop[r] * (q[j] - limit[r]) for r, j in enumerate(stop_dofs)]) if ns else ca.SX(0, 1)
     dq, _ = _masked_correction(pt["M"], ca.vertcat(pt["Jn"], _stop_rows(place_stop, stop_dofs, nv)), place,
                                ca.vertcat(pt["gap"], margin))
-    G = ca.vertcat(pt["Jn"], _stop_rows(stop, stop_dofs, nv), pt["Jt"])
+    G = ca.vertcat(pt["Jn"], _stop_rows(stop, stop_dofs, nv), *pt["Jt"])
     dv, lam = _masked_correction(pt["M"], G, active, -(G @ v))
     return ca.Function("landing_projection", [q, v, place, place_stop, limit, active, stop, p, gravity],
                        [dq, v + dv, ca.vertcat(lam[:nc], lam[nc + ns :])],
                        ["q", "v", "place", "place_stop", "limit", "active", "stop", "p", "gravity"],
-                       ["dq", "v1", "impulse"])
+                       ["dq", "v1", "impulse"], OPTIONS)
 
 
 @functools.lru_cache(maxsize=16)
@@ -180,7 +227,8 @@ def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: 
 @dataclass(frozen=True)
 class StepEnd:
     """A compiled step's results (copies): the state after it, its contact impulses ([normal,
-    tangential] per contact), and its ends' figures in the step's mode (the plane)."""
+    tangential] per contact), and its ends' figures in the step's mode (d = 2 in the plane, 3 in
+    space; d - 1 tangents per contact)."""
 
     q: np.ndarray
     v: np.ndarray
@@ -191,11 +239,11 @@ class StepEnd:
     vn0: np.ndarray
     gap: np.ndarray  # at the end: gaps, normal and tangential velocities, the mode's forces
     vn: np.ndarray
-    slip: np.ndarray  # n_c x 1
+    slip: np.ndarray  # n_c x (d - 1)
     fn: np.ndarray
-    ft: np.ndarray  # n_c x 1
+    ft: np.ndarray  # n_c x (d - 1)
     stop_force: np.ndarray  # per DOF (0 where no stop row)
-    normal: np.ndarray  # n_c x 2
+    normal: np.ndarray  # n_c x d
     kinetic: float
 
 
@@ -203,10 +251,12 @@ class CompiledStep(BufferedFunction):
     """:func:`landing_step_function` with the design, gravity, friction and joint laws fixed:
     ``step(q, v, h, mode)`` -> :class:`StepEnd`, or None where the numpy path must answer (a
     redundant mode, or a non-finite result); ``compiled``: as C through the compile cache
-    (:func:`impulse_core.compile.codegen.compile_function`; no compiler: the virtual machine)."""
+    (:func:`impulse_core.compile.codegen.compile_function`; no compiler: the virtual machine);
+    ``terrain``: the plane's profile or space's heightfield; ``floor``: the slip speed below which
+    a sliding contact keeps its mode's direction (space, :func:`landing.slip_direction`)."""
 
-    def __init__(self, topology, terrain: Terrain, p: np.ndarray, gravity: float, mu: float, joints: _Joints,
-                 compiled: bool = False, space: Space = PLANAR) -> None:
+    def __init__(self, topology, terrain: Terrain | Heightfield, p: np.ndarray, gravity: float, mu: float,
+                 joints: _Joints, compiled: bool = False, space: Space = PLANAR, floor: float = 0.0) -> None:
         self.stop_dofs = tuple(int(j) for j in np.flatnonzero(np.isfinite(joints.lo) | np.isfinite(joints.hi)))
         if compiled:
             step, projection = compiled_step_function(topology, terrain, self.stop_dofs, space)
@@ -216,13 +266,15 @@ class CompiledStep(BufferedFunction):
         super().__init__(step)
         self.block, self.spans = self.contiguous()
         self.projection = BufferedFunction(projection)
-        self.projection.args[7][:], self.projection.args[8][:] = p, gravity
+        self.nc, self.nt = step.size1_out(10), step.size2_out(9)
+        self.set_design(p)
+        self.projection.args[8][:] = gravity
         self.dofs = list(self.stop_dofs)
         self.lo, self.hi = joints.lo[self.dofs], joints.hi[self.dofs]
         self.lo_all, self.hi_all = joints.lo, joints.hi
         self.stopless = np.isneginf(joints.lo) & np.isposinf(joints.hi)  # DOFs that no stop row covers
-        for name, value in (("mu", mu), ("stiffness", joints.stiffness), ("damping", joints.damping),
-                            ("rest", joints.rest), ("p", p), ("gravity", gravity)):
+        for name, value in (("mu", mu), ("floor", floor), ("stiffness", joints.stiffness),
+                            ("damping", joints.damping), ("rest", joints.rest), ("gravity", gravity)):
             self.args[STEP_INPUTS.index(name)][:] = value
         self.mu, self.nv = mu, len(joints.stiffness)
         self._numbers: dict[bytes, tuple | None] = {}  # see numbers()
@@ -234,6 +286,7 @@ class CompiledStep(BufferedFunction):
         a = self.args
         a[0][:], a[1][:], a[2][0] = q, v, h
         a[3][:], a[5][:], a[4][:] = numbers
+        a[6][:] = mode.core
         self.evaluate()
         block = self.block.copy()  # every output at once, as views of one copy
         o = [block[a:b] for a, b in self.spans]
@@ -241,9 +294,16 @@ class CompiledStep(BufferedFunction):
             return None
         stop_force = np.zeros(self.nv)
         stop_force[self.dofs] = o[12]
-        return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9][:, None], o[10], o[11][:, None],
-                       stop_force, o[13].reshape(self.out[13].shape, order="F").T, float(o[14][0]))
+        shape = (self.nc, self.nt)
+        return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9].reshape(shape, order="F"), o[10],
+                       o[11].reshape(shape, order="F"), stop_force, o[13].reshape(self.out[13].shape, order="F").T,
+                       float(o[14][0]))
 
+    def set_design(self, p: np.ndarray) -> None:
+        """Evaluate with the design vector ``p`` from now on (space: a re-centred base's rotation
+        coordinates change it, :meth:`landing._Landing.rechart`)."""
+        self.args[STEP_INPUTS.index("p")][:] = p
+        self.projection.args[7][:] = p
 
     def contiguous(self) -> tuple[np.ndarray, list[tuple[int, int]]]:
         """The step's outputs as consecutive slices of one array (one copy per step): the array,
@@ -265,18 +325,18 @@ class CompiledStep(BufferedFunction):
         numbers = self._numbers.get(key, False)
         if numbers is False:
             numpy = mode.redundant or np.any(mode.stop[self.stopless])
-            sliding = mode.slip[:, 0] if self.mu > 0 else np.zeros(len(mode.closed))
-            numbers = None if numpy else (*self.active(mode), sliding * mode.closed)
+            sliding = (mode.slip * mode.closed[:, None]).ravel() if self.mu > 0 else np.zeros(mode.slip.size)
+            numbers = None if numpy else (*self.active(mode), sliding)
             self._numbers = self._numbers if len(self._numbers) < 256 else {}
             self._numbers[key] = numbers
         return numbers
 
     def active(self, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
-        """The mode's rows as numbers: per row (normal, stop, tangent) whether it is closed, and
-        each stop row's side."""
+        """The mode's rows as numbers: per row (normal, stop, each tangent's) whether it is closed,
+        and each stop row's side."""
         stops = mode.stop[self.dofs]
         stick = mode.closed & ~mode.sliding & (self.mu > 0)
-        return np.concatenate([mode.closed, stops != 0, stick]), stops
+        return np.concatenate([mode.closed, stops != 0] + [stick] * self.nt), stops
 
     def project(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """:meth:`landing._Landing.project` of (q, v) onto ``mode``'s rows, the placement's

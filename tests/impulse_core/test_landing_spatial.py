@@ -87,8 +87,11 @@ def test_a_planar_leg_read_as_spatial_lands_as_in_the_plane(seed, offsets):
     centres of mass off the rods, which move the landing by more than 1e-3 rad) at one step:
     the same events; event times within 1e-8 s and impulses within 1e-6 of the peak (an event's
     time is located to a gap tolerance / approach speed, up to 1e-8 s on the slow re-contacts,
-    which moves their impulses); final angles, base and total impulses within 1e-10 relative;
-    nothing out of the plane (1e-12). Measured: 6e-9 s, 4.3e-7, 2.1e-12, 1e-21."""
+    which moves their impulses); final angles and base within 1e-10 relative, total impulses
+    within 1e-9 (leg 1 off the rods: a toe's cascade of 27 bounces in 0.5 ms amplifies rounding;
+    the spatial compiled step and projection, each equal to numpy's to 2e-16, land 3.9e-10 from
+    the plane, the spatial numpy path 1.5e-11); nothing out of the plane (1e-12). Measured: 6e-9
+    s, 4.3e-7, 2.1e-12, 1e-21."""
     tree, laws, scene = _random_leg(seed)
     if offsets:
         rods = _Landing(tree, scene, laws, LandingSettings()).run(STEP).final_angles
@@ -109,7 +112,7 @@ def test_a_planar_leg_read_as_spatial_lands_as_in_the_plane(seed, offsets):
     assert np.max(np.abs(out_of_plane)) <= 1e-12
     assert np.max(np.abs(spatial.final_base[:2] - planar.final_base)) <= 1e-10 * np.max(np.abs(planar.final_base))
     for ours, theirs in ((spatial.total_external, planar.total_external), (spatial.total_tangential[:, 0], planar.total_tangential)):
-        assert np.max(np.abs(ours - theirs)) <= 1e-10 * max(np.max(np.abs(theirs)), 1e-300)
+        assert np.max(np.abs(ours - theirs)) <= 1e-9 * max(np.max(np.abs(theirs)), 1e-300)
     assert spatial.settled_at == pytest.approx(planar.settled_at, abs=1e-8) if planar.settled_at else spatial.settled_at is None
     report("landing-spatial", f"planar leg {seed} read as spatial: {len(planar.events)} events, final angles within "
            f"{np.max(np.abs(angles - planar.final_angles)):.1e} rad")
