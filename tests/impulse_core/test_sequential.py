@@ -14,7 +14,7 @@ from impulse_core.evaluate import evaluate
 from impulse_core.timedomain.sequential import SequentialSettings, sequential_impacts
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import Scene
-from tests.conftest import random_tree
+from tests.conftest import random_tree, report
 
 
 @pytest.mark.parametrize("make", [case2, case3])
@@ -371,3 +371,29 @@ def test_chattering_heightfield_file_rests(monkeypatch):
     assert _check_rest(seen) > 0
     _check_sequence(seen, seq, len(model.tree.contacts))
     assert len(seq.events) == 1 and seq.external[4] > 2.0 * seq.events[0].impulses[-1]
+
+
+def test_compliant_rung_approaches_the_resting_contact_as_it_stiffens():
+    """A seeded tree spinning into the ground (seed 7, tree 1) lands plastically on one contact,
+    which then rests and pushes until max_time (0.1 s; 22 of its 51 N s are the resting phase's).
+    The compliant rung (penalty law, damping ratio 10: restitution 0.0024) at increasing
+    stiffness approaches its totals, external and internal (measured: 3.6e-2, 1.4e-2, 2.5e-3,
+    8.3e-4 of external at 1e5 ... 1e8 N/m; internal 4.6e-2 ... 1.2e-3)."""
+    from impulse_core.timedomain.compliant import CompliantSettings, CompliantStatus, relative_difference, simulate_impact
+
+    tree, scene = _chattering_trees()[1]
+    seq = sequential_impacts(tree, scene)
+    events = sum(ev.impulses.sum() for ev in seq.events)
+    assert seq.end == pytest.approx(0.1) and seq.external.sum() > events + 10.0  # a long resting phase
+    errors = []
+    for k in (1e5, 1e6, 1e7, 1e8):
+        c = simulate_impact(tree, scene, CompliantSettings(stiffness=k, damping_ratio=10.0, settle_fraction=0.0,
+                                                           record=False))
+        assert c.status is CompliantStatus.TIMEOUT  # still pressed at max_time, as the rigid contact
+        errors.append((relative_difference([(c.external, seq.external)]),
+                       relative_difference([(c.internal_magnitude, seq.internal_magnitude)])))
+    report("sequential", "resting contact, compliant (penalty, zeta 10) vs sequential at 1e5..1e8 N/m: external "
+           + " ".join(f"{e:.1e}" for e, _ in errors) + ", internal " + " ".join(f"{i:.1e}" for _, i in errors))
+    ext, internal = np.array(errors).T
+    assert np.all(np.diff(ext) < 0) and ext[-1] < 2e-3 and ext[-1] < ext[0] / 20
+    assert internal[-1] < 1e-2 and internal[-1] < internal[0] / 5
