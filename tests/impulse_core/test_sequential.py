@@ -13,7 +13,7 @@ from fidelity_scenes import PAPER_SCENE, UNEVEN, case2, case3
 from impulse_core.evaluate import evaluate
 from impulse_core.timedomain.sequential import SequentialSettings, sequential_impacts
 from impulse_core.model.terrain import Terrain
-from impulse_core.model.tree import Scene
+from impulse_core.model.tree import Body, Scene, Tree
 from tests.conftest import random_tree, report
 
 
@@ -399,3 +399,25 @@ def test_compliant_rung_approaches_the_resting_contact_as_it_stiffens():
     ext, internal = np.array(errors).T
     assert np.all(np.diff(ext) < 0) and ext[-1] < 2e-3 and ext[-1] < ext[0] / 20
     assert internal[-1] < 1e-2 and internal[-1] < internal[0] / 5
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_a_plastic_landing_at_rest_ends_at_once(mu):
+    """A rod lying on a slope, landing plastically along the slope's normal: the impact stops it
+    (the first instant's answer), its contacts rest unloaded, and the run ends at the impact (a
+    contact resting unloaded does not hold it to max_time, 0.1 s)."""
+    from impulse_core.timedomain.first_instant import first_instant
+    from impulse_core.impact.laws import ImpactModel
+
+    slope = Terrain((-1.0, 1.0), (-0.2, 0.2))  # 0.2 rad
+    tree = Tree((Body("rod", None, 1.0, 1.0, float(np.arctan(0.2)), contacts=(0.0, 1.0)),))
+    n = np.array([-0.2, 1.0]) / np.hypot(0.2, 1.0)
+    scene = Scene(speed=1.0, restitution=0.0, friction=mu, terrain=slope)
+    scene = dataclasses.replace(scene, velocity_x=float(-2.0 * n[0]), speed=float(2.0 * n[1]))
+    seq = sequential_impacts(tree, scene)
+    first = first_instant(tree, scene, ImpactModel.FRICTION if mu else ImpactModel.LCP)
+    # at the impact (frictionless), or within a few steps (two sticking contacts on one rod are
+    # redundant rows: their least-norm forces start at rounding's size, 0.3 ms measured)
+    assert len(seq.events) == 1 and seq.end <= (0.0 if mu == 0 else 1e-3)
+    np.testing.assert_allclose(seq.external, first.external, rtol=1e-9)
+    np.testing.assert_allclose(seq.v_plus, 0.0, atol=1e-9)
