@@ -738,6 +738,11 @@ def impact_modes(pt: _Point, v: np.ndarray, v_plus: np.ndarray, contacts: np.nda
     return modes_of(normal, None, after, scale)
 
 
+def _rests(mode: _Mode) -> bool:
+    """Some contact is closed or some joint rests on a stop (the mode has rows)."""
+    return bool(np.any(mode.closed) or np.any(mode.stop))
+
+
 def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
     rows = _rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop, mu, pt.M.shape[0], mode.core)
     return replace(rows, redundant=True) if mode.redundant else rows
@@ -1093,6 +1098,8 @@ class _Landing:
     def derivative(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
         """(acceleration, [normal forces, tangential forces]) in the fixed mode."""
         pt = self.point(q, v)
+        if not _rests(mode):  # free flight: no rows to build
+            return np.linalg.solve(pt.M, pt.f), np.zeros(self.dims * self.nc)
         rows = _mode_rows(pt, mode, self.mu)
         a, lam = _accelerations(pt, rows)
         return a, _stacked(*_contact_forces(rows, lam, self.mu, self.nc))
@@ -1245,10 +1252,11 @@ class _Landing:
         end = self.ended(q, v, mode)
         if end is None:
             pt = self.point(q, v)
-            rows, (_, lam) = self.mode_solution(pt, mode)
-            fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
-            stop_force = np.zeros(self.nv)
-            stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
+            fn, ft, stop_force = np.zeros(self.nc), np.zeros((self.nc, self.dims - 1)), np.zeros(self.nv)
+            if _rests(mode):
+                rows, (_, lam) = self.mode_solution(pt, mode)
+                fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
+                stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
             gap, vn, moving = pt.gap, pt.vn(v), pt.slip
         else:
             fn, ft, stop_force, gap, vn, moving = end.fn, end.ft, end.stop_force, end.gap, end.vn, end.slip
@@ -1610,8 +1618,8 @@ class _Landing:
                 return projected
         pt = self.point(q, v)
         q = q - self.placement(pt, q, mode)[1]
-        rows = self.mode_solution(pt, mode, solve=False)[0]
-        if not rows.G.shape[0]:
+        rows = self.mode_solution(pt, mode, solve=False)[0] if _rests(mode) else None
+        if rows is None or not rows.G.shape[0]:
             return q, v, np.zeros(self.dims * self.nc)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
         impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
