@@ -143,22 +143,15 @@ def sequential_impacts(
     run = _sequential_landing(tree, scene, settings, terrain, base_x, v_minus, space)
     log: list = []
     run.impact_log = log
-    seen = _Seen(np.zeros(run.nc, bool), [])
+    touched = np.zeros(run.nc, bool)
+    kept: list[_Totals] = []  # the run's totals, as the end test last saw them
 
     def over(q: np.ndarray, v: np.ndarray, mode: _Mode, totals: _Totals) -> bool:
-        seen.totals[:] = [totals]
-        return _impacts_over(run, q, v, mode, _touched(log, seen.touched))
+        kept[:] = [totals]
+        return _impacts_over(run, q, v, mode, _touched(log, touched))
 
-    out = run.run(settings.flight_step, until=over)  # asked at t = 0 first: seen.totals is set
-    return _sequential_result(run, out, log, seen.totals[0])
-
-
-@dataclass(frozen=True)
-class _Seen:
-    """What the run's end test has seen: the contacts that took part in an impact, and the run's totals."""
-
-    touched: np.ndarray
-    totals: list
+    out = run.run(settings.flight_step, until=over)  # asked first at t = 0: kept is set
+    return _sequential_result(run, out, log, kept[0])
 
 
 def _sequential_landing(
