@@ -1778,7 +1778,8 @@ class _Landing:
             return
         p0 = self.point(q0, v0).momentum.copy()
         pt = self.point(q1, v1)
-        F = contact_vectors(pt.normal, pt.tangent, impulses[: self.nc], impulses[self.nc :].reshape(self.dims - 1, self.nc).T)
+        ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
+        F = contact_vectors(pt.normal, pt.tangent, impulses[: self.nc], ft)
         weight = np.outer(self.weight(dt), self.subtree_mass / self.mass)
         totals.joint += pt.momentum - p0 - F @ self.in_subtree.T - weight
 
@@ -1864,12 +1865,13 @@ class _Landing:
             if progress is not None:
                 progress(LandingProgress(index, h, t, T, len(totals.events)))
         pt = self.point(q, v)
+        end = t if t < T * (1 - 1e-12) else T  # where ``until`` ended the run, or T
         gravity_work = self.mass * self.scene.gravity * (height0 - pt.com_height)
-        residual = pt.momentum[:, 0] - p0 - totals.impulse - self.weight(t if t < T * (1 - 1e-12) else T)
+        residual = pt.momentum[:, 0] - p0 - totals.impulse - self.weight(end)
         balance = float(np.max(np.abs(residual))) / reference
         out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
         self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
-        return replace(out, momentum_balance=balance, duration=t if t < T * (1 - 1e-12) else T)
+        return replace(out, momentum_balance=balance, duration=end)
 
     def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals) -> tuple[np.ndarray, np.ndarray, _Mode]:
         """Handle the event at (q, v): an impact where a contact touches or a joint reaches a

@@ -381,7 +381,8 @@ def test_compliant_rung_approaches_the_resting_contact_as_it_stiffens():
     The compliant rung (penalty law, damping ratio 10: restitution 0.0024) at increasing
     stiffness approaches its totals, external and internal (measured: 3.6e-2, 1.4e-2, 2.5e-3,
     8.3e-4 of external at 1e5 ... 1e8 N/m; internal 4.6e-2 ... 1.2e-3)."""
-    from impulse_core.timedomain.compliant import CompliantSettings, CompliantStatus, relative_difference, simulate_impact
+    from impulse_core.timedomain.compliant import (CompliantSettings, CompliantStatus, relative_difference,
+                                                   simulate_impact)
 
     tree, scene = _chattering_trees()[1]
     seq = sequential_impacts(tree, scene)
