@@ -422,3 +422,20 @@ def test_a_plastic_landing_at_rest_ends_at_once(mu):
     assert len(seq.events) == 1 and seq.end <= (0.0 if mu == 0 else 1e-3)
     np.testing.assert_allclose(seq.external, first.external, rtol=1e-9)
     np.testing.assert_allclose(seq.v_plus, 0.0, atol=1e-9)
+
+
+def test_a_resting_phase_converges_in_the_step():
+    """Tree 6 of the chattering ones with friction 0.6: resting contacts (4.7 of the 23 N s) that end by
+    lift-off at 61 ms; halving the step twice changes neither the totals nor the events (1e-6)."""
+    tree, scene = _chattering_trees()[2]
+    scene = dataclasses.replace(scene, friction=0.6)
+    coarse = sequential_impacts(tree, scene, SequentialSettings(flight_step=2e-4))
+    fine = sequential_impacts(tree, scene, SequentialSettings(flight_step=5e-5))
+    events = sum(ev.impulses.sum() for ev in fine.events)
+    assert fine.external.sum() > events + 1.0 and fine.end < 0.1  # a resting phase that ends
+    scale = float(np.max(fine.external))
+    np.testing.assert_allclose(coarse.external, fine.external, atol=1e-6 * scale)
+    np.testing.assert_allclose(coarse.tangential, fine.tangential, atol=1e-6 * scale)
+    np.testing.assert_allclose(coarse.internal_magnitude, fine.internal_magnitude, atol=1e-6 * scale)
+    assert [e.time for e in coarse.events] == pytest.approx([e.time for e in fine.events], abs=1e-9)
+    assert coarse.end == pytest.approx(fine.end, abs=1e-6)
