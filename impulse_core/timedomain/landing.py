@@ -80,6 +80,7 @@ from impulse_core.timedomain.compliant import (
     joint_impulses,
     spatial_ground,
     subtree_incidence,
+    subtree_masses,
     touchdown_configuration,
     world_velocity,
 )
@@ -208,6 +209,9 @@ class LandingProgress:
 
 #: Told of a run's progress after each accepted step and each event (:func:`landing`'s ``progress``).
 Progress = Callable[[LandingProgress], None]
+#: Asked at (q, v, mode, totals) after the first impact and each step and event whether a run
+#: ends there (:meth:`_Landing.run`'s ``until``; the sequential rigid model's end).
+Until = Callable[[np.ndarray, np.ndarray, "_Mode", "_Totals"], bool]
 
 
 @dataclass(frozen=True)
@@ -711,7 +715,13 @@ def rigid_impact(pt: _Point, v: np.ndarray, rows: _Rows, restitution: np.ndarray
 def contact_impulses(pt: _Point, normal: np.ndarray, tangential: np.ndarray) -> np.ndarray:
     """The ground's impulse vector on each contact (d x n_c, world frame) from its normal (n_c) and
     tangential (n_c x (d - 1)) impulse along the contact's normal and tangents at ``pt``."""
-    return pt.normal.T * normal + sum(pt.tangent[:, a].T * tangential[:, a] for a in range(pt.tangent.shape[1]))
+    return contact_vectors(pt.normal, pt.tangent, normal, tangential)
+
+
+def contact_vectors(normal: np.ndarray, tangent: np.ndarray, fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
+    """Each contact's impulse vector (d x n_c, world): ``fn`` (n_c) along its ``normal`` (n_c x d),
+    ``ft`` (n_c x (d - 1)) along its tangents (``tangent``: n_c x (d - 1) x d, :func:`tangent_basis`)."""
+    return normal.T * fn + sum(tangent[:, a].T * ft[:, a] for a in range(tangent.shape[1]))
 
 
 def impact_modes(pt: _Point, v: np.ndarray, v_plus: np.ndarray, contacts: np.ndarray, normal: np.ndarray
@@ -726,6 +736,11 @@ def impact_modes(pt: _Point, v: np.ndarray, v_plus: np.ndarray, contacts: np.nda
     if pt.Jt.shape[1] == 1:
         return contact_modes(normal, after, scale)
     return modes_of(normal, None, after, scale)
+
+
+def _rests(mode: _Mode) -> bool:
+    """Some contact is closed or some joint rests on a stop (the mode has rows)."""
+    return bool(np.any(mode.closed) or np.any(mode.stop))
 
 
 def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
@@ -823,14 +838,10 @@ def _stacked(fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
 
 def impulse_vector(normal: np.ndarray, fn: np.ndarray, ft: np.ndarray, tangent: np.ndarray | None = None
                    ) -> np.ndarray:
-    """The sum over contacts of the ground's impulse vectors: ``fn`` along each contact's
-    ``normal`` (n_c x d) and ``ft`` along its tangents (``tangent``, default
-    :func:`tangent_basis`; n_c x (d - 1), or n_c in the plane: the normal turned by -90 degrees)."""
+    """The sum over contacts of the ground's impulse vectors (:func:`contact_vectors`; ``tangent``
+    default :func:`tangent_basis`, ``ft`` n_c x (d - 1), or n_c in the plane)."""
     tangent = tangent_basis(normal) if tangent is None else tangent
-    ft = np.reshape(ft, (len(fn), -1))
-    if tangent.shape[1] == 1:  # the plane
-        return normal.T @ fn + tangent[:, 0].T @ ft[:, 0]
-    return normal.T @ fn + sum(tangent[:, a].T @ ft[:, a] for a in range(tangent.shape[1]))
+    return contact_vectors(normal, tangent, fn, np.reshape(ft, (len(fn), -1))).sum(axis=1)
 
 
 #: Where :func:`_hermite_root` samples the cubic for its first sign change.
@@ -890,6 +901,10 @@ class _Totals:
     steps: int = 0
     impulse: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the contact impulses' sum (world)
     chart_q: np.ndarray | None = None  # the last recorded q, in the rotation coordinates of its time
+    vectors: np.ndarray | None = None  # each contact's impulse vector (d x n_c, world)
+    #: joint impulses (d x bodies) of the impacts and of the steps in which a contact rests
+    #: (:meth:`_Landing.tally_joints`; None: not kept)
+    joint: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -938,6 +953,7 @@ class _Landing:
         self.mu, self.e = scene.friction, scene.restitution
         self.in_subtree = subtree_incidence(tree)
         self.mass = sum(b.mass for b in tree.bodies)
+        self.subtree_mass = subtree_masses(tree)
         self.sloped = not ground.is_flat
         weight = self.mass * max(scene.gravity, 1.0)
         self.force_tol = 1e-9 * weight
@@ -955,6 +971,12 @@ class _Landing:
         self.inexact = self.non_unique = 0
         #: the law's answer at the last impact (:meth:`impact`)
         self.last_impact: RigidImpact | None = None
+        #: None, or a list that each impact appends (q, v, its contacts, its point, the law's answer) to
+        self.impact_log: list | None = None
+        #: keep the joint impulses of impacts and resting phases (:attr:`_Totals.joint`)
+        self.tally_joint = False
+        #: the generalized velocity before the first touchdown (None: the scene's approach)
+        self.v_minus: np.ndarray | None = None
         #: a rebound shorter than this (s) is plastic: MIN_BOUNCE of the duration at the first
         #: impact, and also ``settings.bounce_steps`` of the step after it (set by :meth:`run`)
         self.min_bounce = MIN_BOUNCE * float(scene.duration or 0.0)
@@ -1078,6 +1100,8 @@ class _Landing:
     def derivative(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
         """(acceleration, [normal forces, tangential forces]) in the fixed mode."""
         pt = self.point(q, v)
+        if not _rests(mode):  # free flight: no rows to build
+            return np.linalg.solve(pt.M, pt.f), np.zeros(self.dims * self.nc)
         rows = _mode_rows(pt, mode, self.mu)
         a, lam = _accelerations(pt, rows)
         return a, _stacked(*_contact_forces(rows, lam, self.mu, self.nc))
@@ -1234,10 +1258,11 @@ class _Landing:
         end = self.ended(q, v, mode)
         if end is None:
             pt = self.point(q, v)
-            rows, (_, lam) = self.mode_solution(pt, mode)
-            fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
-            stop_force = np.zeros(self.nv)
-            stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
+            fn, ft, stop_force = np.zeros(self.nc), np.zeros((self.nc, self.dims - 1)), np.zeros(self.nv)
+            if _rests(mode):
+                rows, (_, lam) = self.mode_solution(pt, mode)
+                fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
+                stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
             gap, vn, moving = pt.gap, pt.vn(v), pt.slip
         else:
             fn, ft, stop_force, gap, vn, moving = end.fn, end.ft, end.stop_force, end.gap, end.vn, end.slip
@@ -1357,6 +1382,8 @@ class _Landing:
         e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < self.min_bounce, 0.0, e)
         law = rigid_impact(pt, v, rows, e, self.mu)
         self.last_impact = law
+        if self.impact_log is not None:
+            self.impact_log.append((q.copy(), v.copy(), np.array(contacts), pt, law))
         self.inexact += not law.exact
         self.non_unique += not law.split_unique
         sol, v_plus, fn, ft = law.solution, law.v_plus, law.normal, law.tangential
@@ -1385,6 +1412,15 @@ class _Landing:
             energy_before=float(v @ pt.M @ v) / 2, energy_after=float(v_plus @ pt.M @ v_plus) / 2,
         )
         return v_plus, event, new
+
+    def pressing(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
+        """Per contact: closed in ``mode`` and pushed by its force at (q, v) beyond the force
+        tolerance (a contact resting unloaded is not)."""
+        pt = self.point(q, v)
+        if not np.any(mode.closed):
+            return np.zeros(self.nc, bool)
+        rows, (_, lam) = self.mode_solution(pt, mode)
+        return mode.closed & (_contact_forces(rows, lam, self.mu, self.nc)[0] > self.force_tol)
 
     def no_slip(self) -> np.ndarray:
         """A mode's ``slip`` with every contact sticking (n_c x (d - 1))."""
@@ -1588,8 +1624,8 @@ class _Landing:
                 return projected
         pt = self.point(q, v)
         q = q - self.placement(pt, q, mode)[1]
-        rows = self.mode_solution(pt, mode, solve=False)[0]
-        if not rows.G.shape[0]:
+        rows = self.mode_solution(pt, mode, solve=False)[0] if _rests(mode) else None
+        if rows is None or not rows.G.shape[0]:
             return q, v, np.zeros(self.dims * self.nc)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
         impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
@@ -1685,20 +1721,12 @@ class _Landing:
         out[3:6] = self.turn = continued_rotation_vector(chart_rotation(q[3:6]) @ self.chart, self.turn)
         return out
 
-    def contact_impact(self, q: np.ndarray, v: np.ndarray, contacts: np.ndarray, restitution: float
-                       ) -> tuple[_Point, RigidImpact]:
-        """The law (:func:`rigid_impact`) over ``contacts`` alone at (q, v), each with Newton's
-        ``restitution`` (no stops, no plastic rule): one touchdown of the sequential rigid model."""
-        pt = self.point(q, v)
-        rows = _rows(pt, contacts, self.no_slip(), np.zeros(self.nv, int), self.mu, self.nv)
-        return pt, rigid_impact(pt, v, rows, np.full(len(contacts), float(restitution)), self.mu)
-
     def touchdown(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, LandingEvent, _Mode]:
         """The first event (t = 0): the touchdown state (q, v), the velocity after, the event and
         the rows resting after it; the law's answer is :attr:`last_impact`."""
         self.set_chart(self.design, None)
         q = self.q0.copy()
-        v = pre_impact_velocity(self.topology, self.scene, self.space)
+        v = pre_impact_velocity(self.topology, self.scene, self.space) if self.v_minus is None else self.v_minus.copy()
         none = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
         hit = self.first_contacts(self.point(q, v))
         v_plus, event, mode = self.impact(q, v, none, 0.0, hit, "touchdown")
@@ -1707,14 +1735,16 @@ class _Landing:
     def first_impact(self) -> tuple[np.ndarray, np.ndarray, _Mode, _Totals]:
         """t = 0: the first-impact law over the contacts the scene selects."""
         q, v, v_plus, event, mode = self.touchdown()
-        totals = _Totals(event.external.copy(), np.reshape(event.tangential, (self.nc, -1)).copy(), [event])
-        totals.impulse = np.zeros(self.dims)
+        totals = _Totals(np.zeros(self.nc), np.zeros((self.nc, self.dims - 1)), [event])
+        totals.impulse, totals.vectors = np.zeros(self.dims), np.zeros((self.dims, self.nc))
+        totals.joint = np.zeros((self.dims, self.tree.n_bodies)) if self.tally_joint else None
         totals.moving_until = 0.0 if np.max(np.abs(v_plus)) < SETTLE_SPEED else math.nan
+        self.add_impact(totals, event, q, v, v_plus)
         mode = self.resolve(q, v_plus, mode)
-        totals.impulse += impulse_vector(self.point(q, v).normal, event.external, event.tangential)
-        q, v_plus, impulse = self.project(q, v_plus, mode)
-        self.add(totals, impulse, q, v_plus)
-        return q, v_plus, mode, totals
+        q1, v1, impulse = self.project(q, v_plus, mode)
+        self.add(totals, impulse, q1, v1)
+        self.tally_joints(totals, q, v_plus, q1, v1, impulse, 0.0, mode.closed.any())
+        return q1, v1, mode, totals
 
     def first_contacts(self, pt: _Point) -> np.ndarray:
         """The contacts of the first impact: every one (``contacts: all``), or those whose gap is
@@ -1730,12 +1760,42 @@ class _Landing:
         ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
         totals.normal += impulses[: self.nc]
         totals.tangential += ft
-        normal, tangent = (self.point(q, v).normal, None) if self.sloped else self.flat_ground
-        totals.impulse += impulse_vector(normal, impulses[: self.nc], ft, tangent)
+        if self.sloped:
+            pt = self.point(q, v)
+            normal, tangent = pt.normal, pt.tangent
+        else:
+            normal, tangent = self.flat_ground
+        F = contact_vectors(normal, tangent, impulses[: self.nc], ft)
+        totals.impulse += F.sum(axis=1)
+        totals.vectors += F
 
-    def run(self, h: float, progress: Progress | None = None, index: int = 0) -> LandingResult:
+    def add_impact(self, totals: _Totals, event: LandingEvent, q: np.ndarray, v: np.ndarray, v_plus: np.ndarray
+                   ) -> None:
+        """Add an impact at q from v to ``v_plus`` (``event``) to the totals."""
+        impulses = np.concatenate([event.external, np.reshape(event.tangential, (self.nc, -1)).T.ravel()])
+        self.add(totals, impulses, q, v)
+        self.tally_joints(totals, q, v, q, v_plus, impulses, 0.0, True)
+
+    def tally_joints(self, totals: _Totals, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray,
+                     impulses: np.ndarray, dt: float, loaded: bool) -> None:
+        """Where kept (:attr:`_Totals.joint`) and a contact pushes (``loaded``: an impact, or a
+        step with resting contacts), add the joint impulses from (q0, v0) to (q1, v1): each
+        subtree's momentum change minus the contact impulses (stacked, at (q1, v1)) on it and its
+        weight's over ``dt``, as the compliant rung counts them."""
+        if totals.joint is None or not loaded:
+            return
+        p0 = self.point(q0, v0).momentum.copy()
+        pt = self.point(q1, v1)
+        ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
+        F = contact_vectors(pt.normal, pt.tangent, impulses[: self.nc], ft)
+        weight = np.outer(self.weight(dt), self.subtree_mass / self.mass)
+        totals.joint += pt.momentum - p0 - F @ self.in_subtree.T - weight
+
+    def run(self, h: float, progress: Progress | None = None, index: int = 0, until: Until | None = None
+            ) -> LandingResult:
         """The landing at Runge-Kutta step ``h`` (``progress``: told after each step and event,
-        as run ``index`` of the step halving)."""
+        as run ``index`` of the step halving); ``until``, asked after the first impact and after
+        each step and event, ends it early (its ``duration`` is then the time reached)."""
         T = float(self.scene.duration)
         self.inexact = self.non_unique = 0
         self.min_bounce = MIN_BOUNCE * T
@@ -1754,7 +1814,7 @@ class _Landing:
         reference = max(float(np.max(np.abs(p0))), self.mass * self.scene.gravity * T)
         rate = MOMENTUM_BALANCE * reference / T  # the steps' momentum residual per second
         trial = h  # the next step's length: h, or h / 2^k after the momentum balance split a step
-        while t < T * (1 - 1e-12):
+        while t < T * (1 - 1e-12) and not (until is not None and until(q, v, mode, totals)):
             if not self.planar and float(np.linalg.norm(q[3:6])) > RECHART:
                 q, v = self.rechart(q, v, totals)
             q1, v1, impulse, dt, grown = self.balanced_step(q, v, mode, min(trial, T - t), rate, h / 2.0**MAX_SPLITS)
@@ -1777,10 +1837,11 @@ class _Landing:
             if graze is None:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
-                v0 = v
+                q0, v0 = q, v
                 q, v, p = self.project(q1, v1, mode)
                 self.follow_slip(q, v, mode)
                 self.add(totals, impulse + p, q, v)
+                self.tally_joints(totals, q0, v0, q, v, impulse + p, dt, mode.closed.any())
                 self.record(totals, t, v0, t + dt, q, v)
                 t += dt
                 totals.steps += 1
@@ -1800,6 +1861,7 @@ class _Landing:
                 self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, watch))
             q_e, v_e, impulse = self.take(q, v, mode, located)
             self.add(totals, impulse, q_e, v_e)
+            self.tally_joints(totals, q, v, q_e, v_e, impulse, tau, mode.closed.any())
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
@@ -1811,12 +1873,13 @@ class _Landing:
             if progress is not None:
                 progress(LandingProgress(index, h, t, T, len(totals.events)))
         pt = self.point(q, v)
+        end = t if t < T * (1 - 1e-12) else T  # where ``until`` ended the run, or T
         gravity_work = self.mass * self.scene.gravity * (height0 - pt.com_height)
-        residual = pt.momentum[:, 0] - p0 - totals.impulse - self.weight(T)
+        residual = pt.momentum[:, 0] - p0 - totals.impulse - self.weight(end)
         balance = float(np.max(np.abs(residual))) / reference
         out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
         self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
-        return replace(out, momentum_balance=balance)
+        return replace(out, momentum_balance=balance, duration=end)
 
     def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals) -> tuple[np.ndarray, np.ndarray, _Mode]:
         """Handle the event at (q, v): an impact where a contact touches or a joint reaches a
@@ -1829,14 +1892,16 @@ class _Landing:
         if np.any(touching) or np.any(reaching):
             # every contact at the ground takes part (one just released may be pushed back down)
             contacts = np.flatnonzero(mode.closed | (pt.gap <= self.settings.gap_tolerance))
+            v_minus = v
             v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if np.any(touching) else "stop")
             totals.events.append(event)
-            self.add(totals, np.concatenate([event.external, event.tangential.T.ravel()]), q, v)
+            self.add_impact(totals, event, q, v_minus, v)
         mode = self.resolve(q, v, mode)
-        q, v, p = self.project(q, v, mode)
-        self.add(totals, p, q, v)
-        self.record(totals, t, v_before, t, q, v)
-        return q, v, mode
+        q1, v1, p = self.project(q, v, mode)
+        self.add(totals, p, q1, v1)
+        self.tally_joints(totals, q, v, q1, v1, p, 0.0, mode.closed.any())
+        self.record(totals, t, v_before, t, q1, v1)
+        return q1, v1, mode
 
     def record(self, totals: _Totals, t0: float, v0: np.ndarray, t1: float, q1: np.ndarray, v1: np.ndarray) -> None:
         """Keep the trajectory and when the model last moved (some |v| >= SETTLE_SPEED): a step

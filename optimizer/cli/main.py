@@ -77,7 +77,7 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         "'decoupled' is the paper's eq. 14 approximation; on uneven ground lcp and friction give the first instant "
         "(the contacts touching at t = 0, along their local normals) and newton and decoupled refuse. 'sequential': a "
         "rigid impact (LCP; with scene.friction exact Coulomb friction) along the local ground normal at each "
-        "touchdown, free flight between; 'compliant': "
+        "touchdown, free flight between, a plastic contact resting with a contact force; 'compliant': "
         "spring-damper contacts integrated through the landing (see --law, --stiffness, --steps-per-period); "
         "'landing': every impact until scene.duration, with resting contact, friction, joint springs and stops",
     )

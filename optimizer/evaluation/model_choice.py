@@ -3,7 +3,8 @@ time-domain models when the ground is uneven (or on request).
 
 ``auto`` (the default) keeps the rigid ladder's automatic choice (``impulse_core.evaluate``) on
 flat ground, and runs the sequential rigid model (``impulse_core.timedomain.sequential``: a rigid impact
-(LCP, or exact Coulomb friction) along the local ground normal at each touchdown, free flight between)
+(LCP, or exact Coulomb friction) along the local ground normal at each touchdown, free flight or resting
+contacts between)
 when ``scene.terrain`` (in space ``scene.heightfield``) is not flat: the flat rungs assume level ground
 and simultaneous contacts. There ``lcp`` and ``friction`` on request give the first instant (the
 contacts touching at t = 0 along their local normals, :mod:`impulse_core.timedomain.first_instant`);
@@ -45,7 +46,7 @@ MODEL_CHOICES = ("auto", *(m.value for m in ImpactModel), *TIME_DOMAIN_MODELS)
 
 _DESCRIPTIONS = {
     SEQUENTIAL: "sequential rigid impacts on the terrain (an LCP impact, with scene.friction exact Coulomb friction, "
-    "along the local normal at each touchdown, free flight between)",
+    "along the local normal at each touchdown; free flight between, a plastic contact resting with a contact force)",
     COMPLIANT: "compliant contacts in the time domain (spring-dampers along the local normal; fixed semi-implicit "
     "Euler steps, or adaptive Dormand-Prince 5(4) steps between located contact switches to a tolerance)",
     LANDING: "the whole landing: every touchdown and joint stop an impact by the first-impact law, resting contact "

@@ -181,6 +181,9 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
             )
         if r.status is CompliantStatus.TIMEOUT:
             out.append(f"the integration stopped at its time limit ({r.duration:.3g} s) with a contact still loaded")
+    if isinstance(r, SequentialResult) and r.end >= result.settings.max_time * (1 - 1e-12):
+        out.append(f"the sequential run stopped at its time limit ({r.end:.3g} s) with a contact still resting or "
+                   "approaching the ground: its impulses are counted up to then")
     return out
 
 

@@ -4,15 +4,17 @@ impact per touchdown on uneven ground, complementarity when Newton's law would p
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
 from fidelity_scenes import PAPER_SCENE, UNEVEN, case2, case3
 
 from impulse_core.evaluate import evaluate
-from impulse_core.timedomain.sequential import SequentialSettings, _lcp_impulse, sequential_impacts
+from impulse_core.timedomain.sequential import SequentialSettings, sequential_impacts
 from impulse_core.model.terrain import Terrain
-from tests.conftest import random_tree
+from impulse_core.model.tree import Body, Scene, Tree
+from tests.conftest import random_tree, report
 
 
 @pytest.mark.parametrize("make", [case2, case3])
@@ -50,7 +52,11 @@ def test_flight_step_converges():
 def test_complementarity_when_newton_would_pull(rng):
     """The impact law at a touchdown, on the Delassus matrices of seeded random trees (several
     contacts, straight-down approach): impulses >= 0, post-impact normal velocities >= -e times the
-    approach, complementary (1e-9); where eq. 11 asks a contact to pull, it separates instead."""
+    approach, complementary (1e-9); where eq. 11 asks a contact to pull, it separates instead.
+    The law is the landing's without friction (:func:`impulse_core.timedomain.landing.rigid_impact`:
+    Lemke's method on the LCP, redundant rows the smallest-norm split), which the model uses."""
+    from impulse_core.impact.coulomb import solve_unilateral
+    from impulse_core.impact.laws import least_norm_split, redundant
     from impulse_core.timedomain.compliant import _Evaluator, compiled_step, touchdown_configuration
     from impulse_core.model.tree import design_vector
 
@@ -65,7 +71,8 @@ def test_complementarity_when_newton_would_pull(rng):
         s = ev(q, v)
         A = s.Jn @ s.minv_jnt
         u = s.rate.copy()
-        lam = _lcp_impulse(A, u, e)
+        lam = solve_unilateral(A, u, np.zeros(0, int), np.full(len(u), e), np.zeros(0)).normal
+        lam = least_norm_split(s.Jn, lam) if redundant(s.Jn) else lam
         w = u + A @ lam + e * u
         scale = np.abs(u).max()
         assert np.all(lam >= 0.0)
@@ -114,41 +121,66 @@ def test_a_scene_carrying_its_terrain_is_used():
 # With friction: the landing's exact Newton-Coulomb law at each touchdown
 
 
-def _spied_events(monkeypatch) -> list:
-    """Record (point, v, impact) of every frictional touchdown (``_Landing.contact_impact``)."""
+def _spied_events(monkeypatch) -> dict:
+    """Record every impact of the sequential model's landing (``_Landing.impact``: the run, q, v;
+    ``rigid_impact``: the point, its rows, their restitutions, the law's answer), every resting
+    step's contact impulses (``_Landing.tally_joints`` of a step with closed contacts: mu, normal
+    and tangential impulses per contact) and the state the run ends in (``_Landing.result``)."""
+    from impulse_core.timedomain import landing as module
     from impulse_core.timedomain.landing import _Landing
 
-    seen: list = []
-    original = _Landing.contact_impact
+    seen: dict = {"impacts": [], "laws": [], "rest": [], "end": []}
+    impact, law, tally, result = _Landing.impact, module.rigid_impact, _Landing.tally_joints, _Landing.result
 
-    def spy(self, q, v, contacts, restitution):
-        pt, impact = original(self, q, v, contacts, restitution)
-        seen.append((self, q.copy(), v.copy(), np.array(contacts), pt, impact))
-        return pt, impact
+    def spy_impact(self, q, v, mode, t, contacts, kind):
+        seen["impacts"].append((self, q.copy(), v.copy()))
+        return impact(self, q, v, mode, t, contacts, kind)
 
-    monkeypatch.setattr(_Landing, "contact_impact", spy)
+    def spy_law(pt, v, rows, e, mu):
+        out = law(pt, v, rows, e, mu)
+        seen["laws"].append((pt, rows, np.array(e), out))
+        return out
+
+    def spy_tally(self, totals, q0, v0, q1, v1, impulses, dt, loaded):
+        if loaded and dt > 0:  # a step (or the part of one up to an event) with resting contacts
+            fn, ft = impulses[: self.nc], impulses[self.nc :].reshape(self.dims - 1, self.nc).T
+            seen["rest"].append((self.mu, fn.copy(), ft.copy()))
+        return tally(self, totals, q0, v0, q1, v1, impulses, dt, loaded)
+
+    def spy_result(self, totals, q, v, *args):
+        pt = self.point(q, v)
+        seen["end"][:] = [(pt.momentum[:, 0].copy(), pt.gap.copy(), pt.vn(v).copy())]
+        return result(self, totals, q, v, *args)
+
+    monkeypatch.setattr(_Landing, "impact", spy_impact)
+    monkeypatch.setattr(module, "rigid_impact", spy_law)
+    monkeypatch.setattr(_Landing, "tally_joints", spy_tally)
+    monkeypatch.setattr(_Landing, "result", spy_result)
     return seen
 
 
-def _check_laws(seen: list, e: float, mu: float) -> tuple[int, int]:
-    """Newton's restitution with complementarity and Coulomb's law at each touchdown's contacts
-    (1e-9), and each impact's momentum balance (the contact impulse vectors equal the change of
-    the tree's linear momentum, 1e-12); returns how many contacts stuck and slid."""
+def _check_laws(seen: dict, mu: float) -> tuple[int, int]:
+    """Newton's restitution (each row's restitution: the scene's, or 0 where the approach was
+    plastic) with complementarity and Coulomb's law at each impact's contacts (1e-9), and each
+    impact's momentum balance (the contact impulse vectors equal the change of the tree's linear
+    momentum, 1e-12); returns how many contacts stuck and slid."""
     from impulse_core.timedomain.landing import contact_impulses
 
     stuck = slid = 0
-    for run, q, v, idx, pt, impact in seen:
+    for (run, q, v), (pt, rows, e, impact) in zip(seen["impacts"], seen["laws"], strict=True):
+        idx = rows.contact[rows.contact >= 0]
         before, after = pt.Jn[idx] @ v, pt.Jn[idx] @ impact.v_plus
         slip_before, slip = pt.Jt[idx] @ v, pt.Jt[idx] @ impact.v_plus  # n x (d - 1)
         lam, t = impact.normal[idx], impact.tangential[idx]
         scale = max(float(np.max(np.abs(np.concatenate([before, slip_before.ravel()])))), 1e-12)
         big = max(float(np.max(lam)), float(np.linalg.norm(pt.momentum[:, 0])))  # N s: the impact's, or the tree's
+        assert np.all((e == 0) | (e == run.e)) and np.all((e == run.e) | (-before <= 1e-4) | (run.min_bounce > 0))
         assert np.all(lam >= -1e-9 * big) and np.all(after + e * before >= -1e-9 * scale)
         assert abs(lam @ (after + e * before)) <= 1e-9 * scale * big
         size = np.linalg.norm(t, axis=1)
         assert np.all(size <= mu * lam + 1e-9 * big)
         for k in range(len(idx)):
-            if lam[k] <= 1e-6 * big:  # a re-touch of rounding's size: the cone above is all it shows
+            if lam[k] <= 1e-6 * big or mu == 0:  # a re-touch of rounding's size: the cone above is all it shows
                 continue
             speed = float(np.linalg.norm(slip[k]))
             if speed > 1e-9 * scale:  # sliding: on the cone's edge, against the slip
@@ -163,56 +195,79 @@ def _check_laws(seen: list, e: float, mu: float) -> tuple[int, int]:
     return stuck, slid
 
 
-@pytest.mark.parametrize("space", ["planar", "spatial"])
-def test_friction_at_each_touchdown_meets_the_laws(monkeypatch, space):
-    """Seeded random trees on the uneven terrain (in space: a heightfield of it and a cross
-    slope) with friction: every touchdown meets Newton's restitution, complementarity, Coulomb's
-    cone (sliding: on its edge against the slip) and balances momentum; over the whole sequence
-    the impulse vectors equal the change of the tree's momentum (no gravity; the free flight keeps
-    it to RK4's accuracy), and the totals are the events' sums (a plastic toe that re-touches
-    sums its impacts)."""
+def _check_rest(seen: dict) -> int:
+    """Resting contacts: over every step with a closed contact, each contact's normal impulse is
+    >= 0 and its tangential impulse inside Coulomb's cone (1e-9 of the step's largest); returns
+    how many such steps there were."""
+    for mu, fn, ft in seen["rest"]:
+        tol = 1e-9 * max(float(np.max(np.abs(fn))), 1e-300)
+        assert np.all(fn >= -tol)
+        assert np.all(np.linalg.norm(ft, axis=1) <= mu * fn + tol)
+    return len(seen["rest"])
+
+
+def _random_scene(rng, k: int, space: str):
+    """The k-th seeded random tree and scene on the uneven terrain (in space: a heightfield of it
+    and a cross slope); k = 2 and 5 plastic, odd k low friction."""
     from impulse_core.kinematics.spatial import SPATIAL
     from impulse_core.model.heightfield import Heightfield
     from impulse_core.model.tree import Scene
 
+    tree = random_tree(rng, int(rng.integers(2, 5)), p_fixed=0.0, p_contact=1.0, length_range=(0.1, 0.5))
+    mu, e = (0.2, 0.0 if k == 5 else 0.3) if k % 2 else (1.5, 0.0 if k == 2 else 0.5)
+    scene = Scene(speed=2.0, velocity_x=float(rng.uniform(-0.5, 0.5)), angular_velocity=float(rng.uniform(-2, 2)),
+                  restitution=e, friction=mu, terrain=Terrain((-1.0, 0.0, 0.3), (0.05, 0.0, 0.06)))
+    kw = {}
+    if space == "spatial":
+        x, z = np.array([-1.0, 0.0, 0.3]), np.array([-1.0, 1.0])
+        field = Heightfield.from_arrays(x, z, np.array([[0.05], [0.0], [0.06]]) + 0.04 * z[None, :])
+        scene = dataclasses.replace(scene, terrain=Terrain(), heightfield=field, velocity_z=0.3,
+                                    angular_velocity_x=0.5)
+        kw = {"space": SPATIAL}
+    return tree, scene, kw
+
+
+def _check_sequence(seen: dict, seq, n_contacts: int) -> None:
+    """Over the whole sequence the contact impulse vectors equal the change of the tree's momentum
+    (no gravity; RK4 keeps it to the landing's momentum balance); the totals include the events'
+    sums; at the end no contact approaches the ground below it or untouched."""
+    p0 = seen["laws"][0][0].momentum[:, 0]
+    p1, gap, vn = seen["end"][0]
+    np.testing.assert_allclose(p1 - p0, seq.external_vector.sum(axis=0), atol=1e-4 * np.max(np.abs(p0)))
+    events = np.zeros(n_contacts)
+    for ev in seq.events:
+        events[list(ev.contacts)] += ev.impulses
+    assert np.all(seq.external >= events - 1e-12 * np.max(seq.external))
+    touched = np.isfinite(seq.touchdown_time)
+    assert not np.any((vn < 0) & ((gap < 0) | ~touched)) or seq.end >= 0.1 * (1 - 1e-12)
+
+
+@pytest.mark.parametrize("space", ["planar", "spatial"])
+def test_friction_at_each_touchdown_meets_the_laws(monkeypatch, space):
+    """Seeded random trees on the uneven terrain (in space: a heightfield of it and a cross
+    slope) with friction: every impact meets Newton's restitution (plastic below 1e-4 m/s),
+    complementarity, Coulomb's cone (sliding: on its edge against the slip) and balances
+    momentum; resting contacts push inside the cone; over the whole sequence the impulse vectors
+    equal the change of the tree's momentum (no gravity), the totals include the events' sums
+    (resting phases add to them), and no contact is left approaching."""
     rng = np.random.default_rng(20261126)
     seen = _spied_events(monkeypatch)
-    stuck = slid = events = repeated = 0
+    stuck = slid = events = repeated = rested = 0
     for k in range(6):
-        tree = random_tree(rng, int(rng.integers(2, 5)), p_fixed=0.0, p_contact=1.0, length_range=(0.1, 0.5))
-        mu, e = (0.2, 0.3) if k % 2 else (1.5, 0.0 if k == 2 else 0.5)  # k = 2: a plastic toe re-touches
-        scene = Scene(speed=2.0, velocity_x=float(rng.uniform(-0.5, 0.5)), angular_velocity=float(rng.uniform(-2, 2)),
-                      restitution=e, friction=mu, terrain=Terrain((-1.0, 0.0, 0.3), (0.05, 0.0, 0.06)))
-        kw = {}
-        if space == "spatial":
-            x, z = np.array([-1.0, 0.0, 0.3]), np.array([-1.0, 1.0])
-            field = Heightfield.from_arrays(x, z, np.array([[0.05], [0.0], [0.06]]) + 0.04 * z[None, :])
-            scene = dataclasses.replace(scene, terrain=Terrain(), heightfield=field, velocity_z=0.3,
-                                        angular_velocity_x=0.5)
-            kw = {"space": SPATIAL}
-        seen.clear()
+        tree, scene, kw = _random_scene(rng, k, space)
+        for v in seen.values():
+            v.clear()
         seq = sequential_impacts(tree, scene, **kw)
-        assert len(seq.events) == len(seen) >= 1
-        s, d = _check_laws(seen, e, mu)
-        stuck, slid, events = stuck + s, slid + d, events + len(seen)
+        assert len(seq.events) == len(seen["laws"]) >= 1
+        s, d = _check_laws(seen, scene.friction)
+        stuck, slid, events = stuck + s, slid + d, events + len(seen["laws"])
+        rested += _check_rest(seen)
         touches = np.bincount([c for ev in seq.events for c in ev.contacts], minlength=len(tree.contacts))
         repeated += int(np.any(touches > 1))
-        first, last = seen[0], seen[-1]
-        p0 = first[4].momentum[:, 0]
-        p1 = last[0].point(last[1], last[5].v_plus).momentum[:, 0]
-        np.testing.assert_allclose(p1 - p0, seq.external_vector.sum(axis=0), atol=1e-6 * np.max(np.abs(p0)))
-        total_t = sum(np.zeros_like(seq.tangential) if ev.tangential is None else _scatter(ev, seq.tangential)
-                      for ev in seq.events)
-        np.testing.assert_allclose(seq.tangential, total_t, atol=1e-14)
+        _check_sequence(seen, seq, len(tree.contacts))
         assert seq.modes is not None and len(seq.modes) == len(tree.contacts)
         assert not seq.energy_gain
-    assert stuck > 0 and slid > 0 and events > 6 and (repeated or space == "spatial"), (stuck, slid, events, repeated)
-
-
-def _scatter(event, like: np.ndarray) -> np.ndarray:
-    out = np.zeros_like(like)
-    out[list(event.contacts)] = event.tangential
-    return out
+    assert stuck > 0 and slid > 0 and events > 6 and (rested > 0 or space == "planar"), (stuck, slid, events, rested)
 
 
 @pytest.mark.parametrize("mu", [0.1, 2.0])
@@ -258,3 +313,129 @@ def test_friction_names_its_model_and_frictionless_stays_as_it_was():
     rough = sequential_impacts(case2(), dataclasses.replace(PAPER_SCENE, friction=0.4), terrain=UNEVEN)
     assert rough.model.startswith("newton-coulomb") and rough.touchdown_order == (1, 0)
     assert np.all(np.abs(rough.tangential) > 0)
+
+
+# --------------------------------------------------------------------------------------------
+# Resting contacts: a plastic contact that the tree turns into the ground rests and pushes
+
+CHATTER_HEIGHTFIELD = Path(__file__).resolve().parent / "data" / "chatter_heightfield.yaml"
+
+
+def _chattering_trees():
+    """Seeded random planar trees spinning onto the uneven terrain with restitution 0 (seed 7,
+    trees 0, 1 and 6): each chattered past 1000 impacts without resting contacts."""
+    rng = np.random.default_rng(7)
+    out = []
+    for k in range(7):
+        tree = random_tree(rng, int(rng.integers(2, 5)), p_fixed=0.0, p_contact=1.0, length_range=(0.1, 0.5))
+        scene = Scene(speed=2.0, velocity_x=float(rng.uniform(-0.5, 0.5)), angular_velocity=float(rng.uniform(-8, 8)),
+                      restitution=0.0, terrain=Terrain((-1.0, 0.0, 0.3), (0.05, 0.0, 0.06)))
+        if k in (0, 1, 6):
+            out.append((tree, scene))
+    return out
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.6])
+def test_chattering_contacts_rest_and_meet_the_laws(monkeypatch, mu):
+    """Trees whose plastic contact the tree keeps turning into the ground (they chattered before)
+    now run: every impact meets Newton's law (plastic) with complementarity and the cone, resting
+    contacts push inside it, the momentum balance holds over the sequence, nothing is left
+    approaching, and the resting phases add to ``external`` beyond the events' sums. Two of the
+    rests end by lift-off before max_time (mu 0: at 95.6 and 77.8 ms; 0.6: 97 and 61 ms)."""
+    seen = _spied_events(monkeypatch)
+    rested = ended = 0
+    for tree, scene in _chattering_trees():
+        for v in seen.values():
+            v.clear()
+        seq = sequential_impacts(tree, dataclasses.replace(scene, friction=mu))
+        assert 1 <= len(seq.events) < 20
+        _check_laws(seen, mu)
+        assert _check_rest(seen) > 0
+        _check_sequence(seen, seq, len(tree.contacts))
+        events = np.zeros(len(tree.contacts))
+        for ev in seq.events:
+            events[list(ev.contacts)] += ev.impulses
+        rested += int(np.any(seq.external > events + 1e-3 * np.max(seq.external)))
+        ended += int(seq.end < 0.1 * (1 - 1e-9))
+        assert not seq.energy_gain
+    assert rested == 3 and ended == 2  # two rests end (lift-off) before max_time, one is pressed to it
+
+
+def test_chattering_heightfield_file_rests(monkeypatch):
+    """The spatial fuzz file (data/chatter_heightfield.yaml) runs: one plastic touchdown, then its
+    rod's tip rests and pushes, and the laws hold as above."""
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(CHATTER_HEIGHTFIELD)
+    seen = _spied_events(monkeypatch)
+    seq = sequential_impacts(model.tree, model.scene, space=model.space)
+    _check_laws(seen, 0.0)
+    assert _check_rest(seen) > 0
+    _check_sequence(seen, seq, len(model.tree.contacts))
+    assert len(seq.events) == 1 and seq.external[4] > 2.0 * seq.events[0].impulses[-1]
+
+
+def test_compliant_rung_approaches_the_resting_contact_as_it_stiffens():
+    """A seeded tree spinning into the ground (seed 7, tree 1) lands plastically on one contact,
+    which then rests and pushes until max_time (0.1 s; 22 of its 51 N s are the resting phase's).
+    The compliant rung (penalty law, damping ratio 10: restitution 0.0024) at increasing
+    stiffness approaches its totals, external and internal (measured: 3.6e-2, 1.4e-2, 2.5e-3,
+    8.3e-4 of external at 1e5 ... 1e8 N/m; internal 4.6e-2 ... 1.2e-3)."""
+    from impulse_core.timedomain.compliant import (CompliantSettings, CompliantStatus, relative_difference,
+                                                   simulate_impact)
+
+    tree, scene = _chattering_trees()[1]
+    seq = sequential_impacts(tree, scene)
+    events = sum(ev.impulses.sum() for ev in seq.events)
+    assert seq.end == pytest.approx(0.1) and seq.external.sum() > events + 10.0  # a long resting phase
+    errors = []
+    for k in (1e5, 1e6, 1e7, 1e8):
+        c = simulate_impact(tree, scene, CompliantSettings(stiffness=k, damping_ratio=10.0, settle_fraction=0.0,
+                                                           record=False))
+        assert c.status is CompliantStatus.TIMEOUT  # still pressed at max_time, as the rigid contact
+        errors.append((relative_difference([(c.external, seq.external)]),
+                       relative_difference([(c.internal_magnitude, seq.internal_magnitude)])))
+    report("sequential", "resting contact, compliant (penalty, zeta 10) vs sequential at 1e5..1e8 N/m: external "
+           + " ".join(f"{e:.1e}" for e, _ in errors) + ", internal " + " ".join(f"{i:.1e}" for _, i in errors))
+    ext, internal = np.array(errors).T
+    assert np.all(np.diff(ext) < 0) and ext[-1] < 2e-3 and ext[-1] < ext[0] / 20
+    assert internal[-1] < 1e-2 and internal[-1] < internal[0] / 5
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_a_plastic_landing_at_rest_ends_at_once(mu):
+    """A rod lying on a slope, landing plastically along the slope's normal: the impact stops it
+    (the first instant's answer), its contacts rest unloaded, and the run ends at the impact (a
+    contact resting unloaded does not hold it to max_time, 0.1 s)."""
+    from impulse_core.timedomain.first_instant import first_instant
+    from impulse_core.impact.laws import ImpactModel
+
+    slope = Terrain((-1.0, 1.0), (-0.2, 0.2))  # 0.2 rad
+    tree = Tree((Body("rod", None, 1.0, 1.0, float(np.arctan(0.2)), contacts=(0.0, 1.0)),))
+    n = np.array([-0.2, 1.0]) / np.hypot(0.2, 1.0)
+    scene = Scene(speed=1.0, restitution=0.0, friction=mu, terrain=slope)
+    scene = dataclasses.replace(scene, velocity_x=float(-2.0 * n[0]), speed=float(2.0 * n[1]))
+    seq = sequential_impacts(tree, scene)
+    first = first_instant(tree, scene, ImpactModel.FRICTION if mu else ImpactModel.LCP)
+    # at the impact (frictionless), or within a few steps (two sticking contacts on one rod are
+    # redundant rows: their least-norm forces start at rounding's size, 0.3 ms measured)
+    assert len(seq.events) == 1 and seq.end <= (0.0 if mu == 0 else 1e-3)
+    np.testing.assert_allclose(seq.external, first.external, rtol=1e-9)
+    np.testing.assert_allclose(seq.v_plus, 0.0, atol=1e-9)
+
+
+def test_a_resting_phase_converges_in_the_step():
+    """Tree 6 of the chattering ones with friction 0.6: resting contacts (4.7 of the 23 N s) that end by
+    lift-off at 61 ms; halving the step twice changes neither the totals nor the events (1e-6)."""
+    tree, scene = _chattering_trees()[2]
+    scene = dataclasses.replace(scene, friction=0.6)
+    coarse = sequential_impacts(tree, scene, SequentialSettings(flight_step=2e-4))
+    fine = sequential_impacts(tree, scene, SequentialSettings(flight_step=5e-5))
+    events = sum(ev.impulses.sum() for ev in fine.events)
+    assert fine.external.sum() > events + 1.0 and fine.end < 0.1  # a resting phase that ends
+    scale = float(np.max(fine.external))
+    np.testing.assert_allclose(coarse.external, fine.external, atol=1e-6 * scale)
+    np.testing.assert_allclose(coarse.tangential, fine.tangential, atol=1e-6 * scale)
+    np.testing.assert_allclose(coarse.internal_magnitude, fine.internal_magnitude, atol=1e-6 * scale)
+    assert [e.time for e in coarse.events] == pytest.approx([e.time for e in fine.events], abs=1e-9)
+    assert coarse.end == pytest.approx(fine.end, abs=1e-6)

@@ -221,3 +221,17 @@ def test_the_plot_stands_the_foot_on_the_heightfield(tmp_path, capsys):
     assert np.max(np.abs(normals[:, [0, 2]])) > 1e-3  # tilted somewhere: the arrows are not all vertical
     assert main(["evaluate", str(EXAMPLE), "--plot", str(tmp_path / "hf.png")]) == 0
     assert (tmp_path / "hf.png").stat().st_size > 10_000
+
+
+def test_a_contact_turned_into_the_heightfield_rests_instead_of_chattering(capsys):
+    """tests/impulse_core/data/chatter_heightfield.yaml (restitution 0, a rod's tip that the tree
+    keeps turning into the ground) failed with exit 1 after 1000 impacts ("the contacts chatter");
+    the sequential rung now rests the tip: exit 0, one touchdown, the tip's impulse over its rest
+    (more than twice its touchdown's), and a warning that the run reached its time limit with
+    the tip still resting."""
+    data = Path(__file__).resolve().parents[1] / "impulse_core" / "data" / "chatter_heightfield.yaml"
+    assert main(["evaluate", str(data), "--json"]) == 0
+    r = _record(capsys)
+    assert r["model"] == "sequential" and r["touchdown_order"] == ["b2[0]"]
+    assert r["external"][4] > 4.0 and sum(r["external"][:4]) == 0.0
+    assert any("time limit (0.1 s)" in w and "resting" in w for w in r["warnings"])
