@@ -30,8 +30,8 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.errors import ModelError, NumericalError
-from impulse_core.impact.coulomb import ContactMode, coulomb_impact
-from impulse_core.impact.cone import POLYGON, cone_impact
+from impulse_core.impact.coulomb import ContactMode, contact_modes, coulomb_impact
+from impulse_core.impact.cone import POLYGON, cone_impact, modes_of
 from impulse_core.impact.delassus import (
     friction_response_function,
     geometry_function,
@@ -46,6 +46,7 @@ from impulse_core.impact.laws import (
     coulomb_cone,
     coulomb_impulse,
     decoupled_impulse,
+    least_norm_law_split,
     least_norm_split,
     redundant,
     row_space_split,
@@ -401,13 +402,17 @@ def _spatial_friction(c: _Impact) -> _Solution:
     law = cone_impact(A, J @ c.v_minus, c.scene.restitution, c.scene.friction)
     split_unique = not redundant(J, A)
     tangential = law.tangential if c.scene.friction > 0 else np.zeros((n, 2))
-    normal, tangential = _shared(J, n, split_unique, law.normal, tangential)
+    u = J @ c.v_minus
+    normal, tangential = _shared(J, A, u, c, split_unique, law.normal, tangential)
     out = compiled_friction(c.topology, c.space)(
         p=c.p, v_minus=c.v_minus, external=normal, tangential=tangential.T.ravel()
     )
+    after = u + A @ np.concatenate([normal, tangential.T.ravel()])
+    scale = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    law_modes = law.modes if split_unique else modes_of(normal, None, after, scale)  # the split's
     modes = [ContactMode.SEPARATING] * len(c.tree.contacts)
     for k, i in enumerate(c.topology.active):
-        modes[i] = law.modes[k]
+        modes[i] = law_modes[k]
     notes = () if law.exact else (POLYHEDRAL_NOTE,)
     return _Solution(ImpactModel.FRICTION, normal, tangential, split_unique, out, tuple(modes), notes)
 
@@ -420,23 +425,41 @@ def _friction(c: _Impact) -> _Solution:
     J, A, _, _ = _metric(c, tangent=True)
     law = coulomb_impact(A, J @ c.v_minus, c.scene.restitution, c.scene.friction)
     split_unique = not redundant(J, A) if c.scene.friction > 0 else not redundant(J[:n], A[:n, :n])
-    normal, tangential = _shared(J, n, split_unique, law.normal, law.tangential)
+    u = J @ c.v_minus
+    normal, tangential = _shared(J, A, u, c, split_unique, law.normal, law.tangential)
     out = compiled_friction(c.topology, c.space)(
         p=c.p, v_minus=c.v_minus, external=normal, tangential=tangential
     )
+    after = u + A @ np.concatenate([normal, tangential])
+    scale = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    law_modes = law.modes if split_unique else contact_modes(normal, after, scale)  # the split's
     modes = [ContactMode.SEPARATING] * len(c.tree.contacts)
     for k, i in enumerate(c.topology.active):
-        modes[i] = law.modes[k]
+        modes[i] = law_modes[k]
     return _Solution(ImpactModel.FRICTION, normal, tangential, split_unique, out, tuple(modes))
 
 
-def _shared(J: np.ndarray, n: int, split_unique: bool, normal: np.ndarray, tangential: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """Where the split is not unique, twin contacts' impulses (identical normal and tangent rows
-    of J: n normal rows, then each tangent's n rows) shared equally, as the landing shares them
-    (:func:`impulse_core.impact.laws.share_among_twins`)."""
+def _shared(J: np.ndarray, A: np.ndarray, u: np.ndarray, c: _Impact, split_unique: bool, normal: np.ndarray,
+            tangential: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the split is not unique (rows of J: n normal rows, then each tangent's n rows; A =
+    J M^-1 J^T, u = J v_minus), the smallest-norm split the law allows at the velocities after
+    (:func:`impulse_core.impact.laws.least_norm_law_split`, as the landing's impacts); where the
+    law's answer lies outside the polygon that split uses, twin contacts' impulses shared
+    equally (:func:`impulse_core.impact.laws.share_among_twins`)."""
     if split_unique:
         return normal, tangential
+    n = len(normal)
+    t = tangential.reshape(n, -1)
+    tangents = t.shape[1]
+    after = u + A @ np.concatenate([normal, t.T.ravel()])
+    scale = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    split = least_norm_law_split(
+        J[:n], J[n:].reshape(tangents, n, -1).transpose(1, 0, 2), np.arange(n), normal, t,
+        (after[:n] + c.scene.restitution * u[:n]) / scale, after[n:].reshape(tangents, n).T / scale,
+        c.scene.friction, POLYGON,
+    )
+    if split is not None:
+        return split[0], split[1].reshape(tangential.shape)
     rows = J.reshape(-1, n, J.shape[1]).transpose(1, 0, 2).reshape(n, -1)
     return share_among_twins(twin_groups(rows), normal, tangential)
 

@@ -177,18 +177,17 @@ def _equations(W, u, owner, e, mu, modes, lam):
 
 
 def _newton(W, u, owner, e, mu, modes, start_n, start_t):
-    """Stage 2 for fixed modes: damped Newton (backtracking on |F|) from the polyhedral answer;
-    (normal, tangential), or None if a sliding contact loses its slip."""
+    """Stage 2 for fixed modes: damped Newton (least-norm steps, backtracking on |F|) from the
+    polyhedral answer; (normal, tangential), or None if a sliding contact loses its slip."""
     lam = np.concatenate([start_n, start_t[:, 0], start_t[:, 1]])
     current = _equations(W, u, owner, e, mu, modes, lam)
     for _ in range(100):
         if current is None:
             return None
         F, J = current
-        try:
-            step = np.linalg.solve(J, -F)
-        except np.linalg.LinAlgError:
-            step = np.linalg.lstsq(J, -F, rcond=None)[0]
+        # the least-norm step: redundant rows (more than the tree's directions) make J singular,
+        # where a plain solve steps along rounding's null direction and the backtracking stalls
+        step = np.linalg.lstsq(J, -F, rcond=1e-13)[0]
         size = 1.0
         while size > 1e-6:  # backtrack until |F| decreases
             trial = _equations(W, u, owner, e, mu, modes, lam + size * step)
@@ -201,6 +200,13 @@ def _newton(W, u, owner, e, mu, modes, start_n, start_t):
         if np.max(np.abs(size * step)) <= 1e-15 * max(np.max(np.abs(lam)), np.finfo(float).tiny):
             break
     n, m = start_n.size, len(owner)
+    N, X, Z = _rows(n, m)
+    pair = _pairs(n, owner)
+    for i, mode in enumerate(modes):  # exactly 0, not a least-norm step's rounding
+        if mode is ContactMode.SEPARATING:
+            lam[N[i]] = 0.0
+            if pair[i] >= 0:
+                lam[[X[pair[i]], Z[pair[i]]]] = 0.0
     return lam[:n], np.column_stack([lam[n : n + m], lam[n + m :]])
 
 

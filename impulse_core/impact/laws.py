@@ -216,6 +216,80 @@ def least_norm_split(J: np.ndarray, lam: np.ndarray, P: np.ndarray | None = None
     return lam if z is None else lam0 + N @ z
 
 
+#: Entries of a split this small against its largest normal impulse are rounding: 0.
+ROUNDING = 1e-13
+
+
+def least_norm_law_split(
+    Jn: np.ndarray, Jt: np.ndarray, owner: np.ndarray, normal: np.ndarray, tangential: np.ndarray,
+    gap_rate: np.ndarray, slip: np.ndarray, mu: float, sides: int, tol: float = 1e-9,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The smallest-norm split of an impact's impulses with the same effect (the same velocities
+    after) that still obeys the law at those velocities: no impulse on a normal row that separates
+    (``gap_rate``, its velocity after plus e times before, above ``tol``), a sliding pair's impulse
+    mu lambda_n against its ``slip``, a sticking pair's inside the cone's inscribed polygon of
+    ``sides`` sides (one tangent, the plane: the cone itself). That split is unique (a strictly
+    convex norm over a convex set), so two solvers of one impact, or one solver on rows that
+    differ by rounding, report the same split.
+
+    Args:
+        Jn: n normal rows (contacts, joint stops) x nv; Jt: m pairs x tangents x nv.
+        owner: (m,) each pair's normal row; normal (n,), tangential (m, tangents): the law's answer.
+        gap_rate, slip: (n,), (m, tangents), in units whose scale is 1 (``tol`` is relative).
+
+    Returns:
+        (normal, tangential), or None where the answer is not in the polygon (a circular-cone answer
+        polished past it: its own split stands).
+    """
+    m, tangents = slip.shape
+    speed = np.linalg.norm(slip, axis=1)
+    free = gap_rate <= tol
+    sliding = (speed > tol) & free[owner]
+    sticking = ~sliding & free[owner]
+    size = max(float(np.max(np.abs(normal), initial=0.0)), np.finfo(float).tiny)
+    if np.any(np.abs(normal[~free]) > tol * size) or np.any(np.abs(tangential[~free[owner]]) > tol * size):
+        return None  # a separating row with an impulse beyond rounding: not the law's answer
+    direction = np.where(sliding[:, None], slip / np.maximum(speed, 1e-300)[:, None], 0.0)
+    rows_n = np.array(Jn, dtype=float, copy=True)
+    for k in np.flatnonzero(sliding):  # a sliding pair's impulse rides on its normal's
+        rows_n[owner[k]] -= mu * direction[k] @ Jt[k]
+    rows_n = rows_n[free]
+    stick = np.flatnonzero(sticking)
+    J = np.vstack([rows_n, Jt[stick].transpose(1, 0, 2).reshape(-1, Jn.shape[1])])
+    lam = np.concatenate([normal[free], tangential[stick].T.ravel()])
+    P = _law_polygon(np.searchsorted(np.flatnonzero(free), owner[stick]), int(free.sum()), mu, tangents, sides)
+    if np.any(P @ lam < -tol * size):
+        return None
+    split = least_norm_split(J, lam, P)
+    out_n, out_t = np.zeros_like(normal, dtype=float), np.zeros_like(tangential, dtype=float)
+    out_n[free] = split[: int(free.sum())]
+    out_t[stick] = split[int(free.sum()) :].reshape(tangents, len(stick)).T
+    out_t[sliding] = -mu * out_n[owner[sliding], None] * direction[sliding]
+    out_n[np.abs(out_n) <= ROUNDING * size] = 0.0  # what rounding left where the split is 0
+    out_t[np.abs(out_t) <= ROUNDING * size] = 0.0
+    return out_n, out_t
+
+
+def _law_polygon(owner: np.ndarray, n: int, mu: float, tangents: int, sides: int) -> np.ndarray:
+    """Rows P >= 0 over [lambda_n (n), lambda_t (tangent-major, len(owner) pairs)]: lambda_n >= 0 and each
+    pair inside mu lambda_n's inscribed polygon (edge normals at (2j + 1) pi / sides; one tangent:
+    mu lambda_n +- lambda_t >= 0)."""
+    m = len(owner)
+    if tangents == 1:
+        edges, reach = np.array([[1.0], [-1.0]]), 1.0
+    else:
+        angles = (2 * np.arange(sides) + 1) * np.pi / sides
+        edges, reach = np.column_stack([np.cos(angles), np.sin(angles)]), float(np.cos(np.pi / sides))
+    P = np.zeros((n + m * len(edges), n + m * tangents))
+    P[:n, :n] = np.eye(n)
+    for k in range(m):
+        r = n + k * len(edges)
+        P[r : r + len(edges), owner[k]] = mu * reach * (1 + 1e-12)
+        for a in range(tangents):
+            P[r : r + len(edges), n + a * m + k] = -edges[:, a]
+    return P
+
+
 def row_space_split(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal bases (Ur, N) of the range of J's rows and of its left null space, the rank
     from the SVD of J with unit columns (so it does not depend on the units of the DOFs)."""
@@ -279,6 +353,7 @@ __all__ = [
     "coulomb_cone",
     "coulomb_impulse",
     "decoupled_impulse",
+    "least_norm_law_split",
     "least_norm_split",
     "redundant",
     "row_space_split",

@@ -58,9 +58,9 @@ from scipy.spatial.transform import Rotation
 
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
-from impulse_core.impact.cone import cone_unilateral, modes_of
+from impulse_core.impact.cone import POLYGON, cone_unilateral, modes_of
 from impulse_core.impact.coulomb import ContactMode, UnilateralSolution, contact_modes, solve_unilateral
-from impulse_core.impact.laws import least_norm_split, redundant, share_among_twins, twin_groups
+from impulse_core.impact.laws import least_norm_law_split, least_norm_split, redundant, share_among_twins, twin_groups
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
@@ -699,17 +699,36 @@ def rigid_impact(pt: _Point, v: np.ndarray, rows: _Rows, restitution: np.ndarray
     rows: without friction the lcp rung's smallest-norm split, with friction twins share alike."""
     u = rows.G @ v
     minv_gt = np.linalg.solve(pt.M, rows.G.T)
-    sol, _, exact = _solve_rows(rows.G @ minv_gt, u, rows, restitution)
+    W = rows.G @ minv_gt
+    sol, _, exact = _solve_rows(W, u, rows, restitution)
     split_unique = not redundant(rows.G)
     if not split_unique and mu == 0:  # the lcp rung's split (G has no tangent rows without friction)
         sol = replace(sol, normal=least_norm_split(rows.G, sol.normal))
+    law_split = None if split_unique or mu == 0 else _law_split(rows, W, u, sol, restitution, mu)
+    sol = sol if law_split is None else law_split
     lam = np.concatenate([sol.normal, sol.tangential])
     fn, ft = _contact_forces(rows, lam, mu, len(pt.gap))
-    if not split_unique and mu > 0:  # twins share alike, as in the friction rung
+    if not split_unique and mu > 0 and law_split is None:  # twins share alike, as in the friction rung
         c = rows.contact[rows.contact >= 0]
         groups = twin_groups(np.hstack([pt.Jn[c], pt.Jt[c].reshape(len(c), -1)]))
         fn[c], ft[c] = share_among_twins(groups, fn[c], ft[c])
     return RigidImpact(sol, v + minv_gt @ lam, fn, ft, split_unique, exact)
+
+
+def _law_split(rows: _Rows, W: np.ndarray, u: np.ndarray, sol: UnilateralSolution, restitution: np.ndarray,
+               mu: float) -> UnilateralSolution | None:
+    """The friction rung's split of a redundant impact (:func:`least_norm_law_split` at the
+    velocities after), or None where the law's answer lies outside its polygon."""
+    n, m = rows.n, len(rows.owner)
+    tangents = rows.direction.shape[1]
+    t = sol.tangential.reshape(tangents, m).T
+    after = u + W @ np.concatenate([sol.normal, sol.tangential])
+    scale = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    split = least_norm_law_split(
+        rows.G[:n], rows.G[n:].reshape(tangents, m, -1).transpose(1, 0, 2), rows.owner, sol.normal, t,
+        (after[:n] + restitution * u[:n]) / scale, after[n:].reshape(tangents, m).T / scale, mu, POLYGON,
+    )
+    return None if split is None else replace(sol, normal=split[0], tangential=split[1].T.ravel())
 
 
 def contact_impulses(pt: _Point, normal: np.ndarray, tangential: np.ndarray) -> np.ndarray:
