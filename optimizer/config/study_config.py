@@ -291,16 +291,21 @@ def _check_inner_landings(config: StudyConfig, landings: Landings) -> None:
     if config.whole_landing:
         check_inner_whole_landings(config, landings)
         return
-    allowed = INNER_SPATIAL_PARAMETERS if config.space.spatial else INNER_PARAMETERS
-    for name in landings.names:
-        if name not in allowed:
-            raise ConfigError(f"landings.{name}: the inner search varies {', '.join(allowed)} only "
-                              "(a level first impact); search.method: outer takes every parameter")
+    _varied_only(landings, INNER_SPATIAL_PARAMETERS if config.space.spatial else INNER_PARAMETERS,
+                 "the inner search", "a level first impact")
     for objective in config.objectives[:2]:
         stat = _inner_statistic(config, objective)
         if stat.kind is StatisticKind.STD and objective in (Objective.MAX_INTERNAL, Objective.BASE_ANGULAR_VELOCITY):
             raise ConfigError(f"statistic.{objective.value}: the inner search cannot take the std of a maximum "
                               "(its epigraph would not be tight); use mean, max or cvar:q, or search.method: outer")
+
+
+def _varied_only(landings: Landings, allowed: tuple[str, ...], search: str, why: str) -> None:
+    """Refuse, naming the field, a landing parameter ``search`` does not vary (``why``: what it varies)."""
+    for name in landings.names:
+        if name not in allowed:
+            raise ConfigError(f"landings.{name}: {search} varies {', '.join(allowed)} only ({why}); "
+                              "search.method: outer takes every parameter")
 
 
 def _inner_statistic(config: StudyConfig, objective: Objective) -> Statistic:
@@ -316,11 +321,8 @@ def check_inner_whole_landings(config: StudyConfig, landings: Landings) -> None:
     """Whole landings over landings in the inner search: the scene's constants (in the plane, or
     in space with its lateral velocity and roll rate), and statistics its NLP writes smoothly or
     by an epigraph (one of a minimised objective)."""
-    allowed = INNER_SPATIAL_LANDING_PARAMETERS if config.space.spatial else INNER_LANDING_PARAMETERS
-    for name in landings.names:
-        if name not in allowed:
-            raise ConfigError(f"landings.{name}: the inner search over whole landings varies {', '.join(allowed)} "
-                              "only (the scene's constants); search.method: outer takes every parameter")
+    _varied_only(landings, INNER_SPATIAL_LANDING_PARAMETERS if config.space.spatial else INNER_LANDING_PARAMETERS,
+                 "the inner search over whole landings", "the scene's constants")
     for objective in config.objectives[:2]:
         stat = _inner_statistic(config, objective)
         if objective.sign < 0 and stat.kind in (StatisticKind.MAX, StatisticKind.CVAR):

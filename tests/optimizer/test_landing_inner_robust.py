@@ -62,6 +62,16 @@ def _statistics(nlp, x: np.ndarray) -> np.ndarray:
     return np.array([float(v) for v in fun(*args)])
 
 
+def statistic_functions(nlp, landed) -> tuple[ca.Function, ca.Function, _Objectives]:
+    """The NLP's statistics as written without extra variables (mean, std) and their Jacobian,
+    through the NLP's own graph: (f(x), J(x)), and the landing callback they call (keep it)."""
+    F = _Objectives(landed, nlp.n_x, landed.n_f)
+    xs = ca.MX.sym("x", nlp.n_x)
+    f, extra, _ = statistic_objectives(nlp, landed, F(xs))
+    assert not extra  # std and mean: no epigraph
+    return ca.Function("f", [xs], [ca.vertcat(*f)]), ca.Function("J", [xs], [ca.jacobian(ca.vertcat(*f), xs)]), F
+
+
 @pytest.mark.parametrize("statistic", ["{peak_external_norm: max, energy_absorbed: mean}",
                                        "{peak_external_norm: 'cvar:0.5', energy_absorbed: std}"])
 def test_the_nlp_statistics_are_the_outer_search_evaluation_over_the_landings(tmp_path, statistic):
@@ -95,12 +105,7 @@ def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(
         t, l, scenes = landed.models(x)
         return [sequence_signature(*taped_run(t, s, l, h, settings)[1:]) for s, h in zip(scenes, nlp.steps, strict=True)]
 
-    F = _Objectives(landed, nlp.n_x, landed.n_f)
-    xs = ca.MX.sym("x", nlp.n_x)
-    f, extra, _ = statistic_objectives(nlp, landed, F(xs))
-    assert not extra  # std and mean: no epigraph
-    J = ca.Function("J", [xs], [ca.jacobian(ca.vertcat(*f), xs)])
-    stats = ca.Function("f", [xs], [ca.vertcat(*f)])
+    stats, J, _callback = statistic_functions(nlp, landed)  # the callback lives as long as they are called
     dJ = np.asarray(J(x0))
     rng = np.random.default_rng(3)
     for _ in range(2):

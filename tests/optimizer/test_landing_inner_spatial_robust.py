@@ -11,7 +11,6 @@ from __future__ import annotations
 import csv
 from dataclasses import replace
 
-import casadi as ca
 import numpy as np
 import pytest
 
@@ -22,16 +21,14 @@ from optimizer.config.study_config import ConfigError, load_study
 from optimizer.design_space import FootShape, Objective, design_model
 from optimizer.search.landing_inner import (
     _Landed,
-    _Objectives,
     build_landing_nlp,
     landing_settings,
     set_steps,
     start_landing,
-    statistic_objectives,
 )
 from optimizer.search.outer import evaluate_design_over_landings
 from tests.optimizer.test_landing_inner import _tangent, assert_gradient_along
-from tests.optimizer.test_landing_inner_robust import _statistics
+from tests.optimizer.test_landing_inner_robust import _statistics, statistic_functions
 from tests.optimizer.test_landing_inner_spatial import SPATIAL_LANDING_YAML
 
 #: Every parameter the spatial whole-landing inner search varies, each scenario different.
@@ -106,12 +103,7 @@ def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_st
         return [sequence_signature(*taped_run(t, s, l, h, settings, SPATIAL)[1:])
                 for s, h in zip(scenes, nlp.steps, strict=True)]
 
-    F = _Objectives(landed, nlp.n_x, landed.n_f)
-    xs = ca.MX.sym("x", nlp.n_x)
-    f, extra, _ = statistic_objectives(nlp, landed, F(xs))
-    assert not extra  # std and mean: no epigraph
-    J = ca.Function("J", [xs], [ca.jacobian(ca.vertcat(*f), xs)])
-    stats = ca.Function("f", [xs], [ca.vertcat(*f)])
+    stats, J, _callback = statistic_functions(nlp, landed)  # the callback lives as long as they are called
     dJ = np.asarray(J(x0))
     yaw = np.zeros(nlp.n_x)
     yaw[-1] = 1.0
