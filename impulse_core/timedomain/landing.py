@@ -308,7 +308,7 @@ class LandingResult:
     momentum_balance: float = 0.0
     #: impacts whose rows were redundant: the velocities after are unique, the split is not
     #: (frictionless: the smallest-norm non-negative split, as the lcp rung; with friction: the
-    #: one the law's solver reaches, as the friction rung)
+    #: smallest-norm split the law allows, as the friction rung: :func:`least_norm_law_split`)
     non_unique: int = 0
 
     @property

@@ -105,7 +105,8 @@ def _rigid_warnings(model: ModelFile, result: ImpactResult) -> list[str]:
             if result.pulling
             else "the smallest-norm split inside the friction cones is shown"
             if result.model is ImpactModel.FRICTION_RELAXED
-            else "the solution Lemke's method reaches from zero impulse is shown (one of several)"
+            else "the smallest-norm split the friction law allows is shown (the solver's own where the law's "
+            "answer lies outside the cone's inscribed 16-gon)"
             if result.model is ImpactModel.FRICTION
             else "the smallest-norm non-negative split is shown"
         )
@@ -151,7 +152,7 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
             "the finest run)"
         )
     if isinstance(r, LandingResult) and r.non_unique:
-        shown = "the smallest-norm non-negative split" if model.scene.friction == 0 else "the split the friction law's solver reaches"
+        shown = "the smallest-norm non-negative split" if model.scene.friction == 0 else "the smallest-norm split the friction law allows"
         out.append(
             f"{r.non_unique} impact{'s' if r.non_unique != 1 else ''} of the landing had redundant rows: the velocities "
             f"after are unique, the split of the impulse is not; {shown} is shown"
