@@ -449,15 +449,8 @@ def _shared(J: np.ndarray, A: np.ndarray, u: np.ndarray, c: _Impact, split_uniqu
     if split_unique:
         return normal, tangential
     n = len(normal)
-    t = tangential.reshape(n, -1)
-    tangents = t.shape[1]
-    after = u + A @ np.concatenate([normal, t.T.ravel()])
-    scale = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
-    split = least_norm_law_split(
-        J[:n], J[n:].reshape(tangents, n, -1).transpose(1, 0, 2), np.arange(n), normal, t,
-        (after[:n] + c.scene.restitution * u[:n]) / scale, after[n:].reshape(tangents, n).T / scale,
-        c.scene.friction, POLYGON,
-    )
+    split = least_norm_law_split(J, A, u, np.arange(n), normal, tangential.reshape(n, -1), c.scene.restitution,
+                                 c.scene.friction, POLYGON)
     if split is not None:
         return split[0], split[1].reshape(tangential.shape)
     rows = J.reshape(-1, n, J.shape[1]).transpose(1, 0, 2).reshape(n, -1)

@@ -221,27 +221,32 @@ ROUNDING = 1e-13
 
 
 def least_norm_law_split(
-    Jn: np.ndarray, Jt: np.ndarray, owner: np.ndarray, normal: np.ndarray, tangential: np.ndarray,
-    gap_rate: np.ndarray, slip: np.ndarray, mu: float, sides: int, tol: float = 1e-9,
+    J: np.ndarray, W: np.ndarray, u: np.ndarray, owner: np.ndarray, normal: np.ndarray, tangential: np.ndarray,
+    restitution: float | np.ndarray, mu: float, sides: int, tol: float = 1e-9,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The smallest-norm split of an impact's impulses with the same effect (the same velocities
     after) that still obeys the law at those velocities: no impulse on a normal row that separates
-    (``gap_rate``, its velocity after plus e times before, above ``tol``), a sliding pair's impulse
-    mu lambda_n against its ``slip``, a sticking pair's inside the cone's inscribed polygon of
-    ``sides`` sides (one tangent, the plane: the cone itself). That split is unique (a strictly
-    convex norm over a convex set), so two solvers of one impact, or one solver on rows that
-    differ by rounding, report the same split.
+    (its velocity after plus e times before above ``tol`` of the largest speed before), a sliding
+    pair's impulse mu lambda_n against its slip, a sticking pair's inside the cone's inscribed
+    polygon of ``sides`` sides (one tangent, the plane: the cone itself). That split is unique (a
+    strictly convex norm over a convex set), so two solvers of one impact, or one solver on rows
+    that differ by rounding, report the same split.
 
     Args:
-        Jn: n normal rows (contacts, joint stops) x nv; Jt: m pairs x tangents x nv.
+        J: the rows: n normal rows (contacts, joint stops), then each tangent's m pair rows; W =
+            J M^-1 J^T; u = J v before the impact.
         owner: (m,) each pair's normal row; normal (n,), tangential (m, tangents): the law's answer.
-        gap_rate, slip: (n,), (m, tangents), in units whose scale is 1 (``tol`` is relative).
+        restitution: Newton's e, per normal row or one for all.
 
     Returns:
         (normal, tangential), or None where the answer is not in the polygon (a circular-cone answer
         polished past it: its own split stands).
     """
-    m, tangents = slip.shape
+    n, (m, tangents) = len(normal), tangential.shape
+    after = u + W @ np.concatenate([normal, tangential.T.ravel()])
+    scale = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    gap_rate, slip = (after[:n] + restitution * u[:n]) / scale, after[n:].reshape(tangents, m).T / scale
+    Jn, Jt = J[:n], J[n:].reshape(tangents, m, -1).transpose(1, 0, 2)
     speed = np.linalg.norm(slip, axis=1)
     free = gap_rate <= tol
     sliding = (speed > tol) & free[owner]

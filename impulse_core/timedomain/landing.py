@@ -717,17 +717,10 @@ def rigid_impact(pt: _Point, v: np.ndarray, rows: _Rows, restitution: np.ndarray
 
 def _law_split(rows: _Rows, W: np.ndarray, u: np.ndarray, sol: UnilateralSolution, restitution: np.ndarray,
                mu: float) -> UnilateralSolution | None:
-    """The friction rung's split of a redundant impact (:func:`least_norm_law_split` at the
-    velocities after), or None where the law's answer lies outside its polygon."""
-    n, m = rows.n, len(rows.owner)
-    tangents = rows.direction.shape[1]
-    t = sol.tangential.reshape(tangents, m).T
-    after = u + W @ np.concatenate([sol.normal, sol.tangential])
-    scale = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
-    split = least_norm_law_split(
-        rows.G[:n], rows.G[n:].reshape(tangents, m, -1).transpose(1, 0, 2), rows.owner, sol.normal, t,
-        (after[:n] + restitution * u[:n]) / scale, after[n:].reshape(tangents, m).T / scale, mu, POLYGON,
-    )
+    """The friction rung's split of a redundant impact (:func:`least_norm_law_split`), or None
+    where the law's answer lies outside its polygon."""
+    t = sol.tangential.reshape(rows.direction.shape[1], len(rows.owner)).T
+    split = least_norm_law_split(rows.G, W, u, rows.owner, sol.normal, t, restitution, mu, POLYGON)
     return None if split is None else replace(sol, normal=split[0], tangential=split[1].T.ravel())
 
 

@@ -62,6 +62,17 @@ def _statistics(nlp, x: np.ndarray) -> np.ndarray:
     return np.array([float(v) for v in fun(*args)])
 
 
+def landed_gradient(nlp) -> tuple[np.ndarray, _Landed, np.ndarray]:
+    """A start x0 (its scenarios' steps set there), the NLP's landings and their gradient at x0
+    (2 objectives x 3 scenarios, finite)."""
+    x0 = start_landing(nlp, np.random.default_rng(0))
+    assert set_steps(nlp, x0)
+    landed = _Landed(nlp)
+    G = landed.gradient(x0)
+    assert G.shape == (2 * 3, nlp.n_x) and np.all(np.isfinite(G))
+    return x0, landed, G
+
+
 def statistic_functions(nlp, landed) -> tuple[ca.Function, ca.Function, _Objectives]:
     """The NLP's statistics as written without extra variables (mean, std) and their Jacobian,
     through the NLP's own graph: (f(x), J(x)), and the landing callback they call (keep it)."""
@@ -94,11 +105,7 @@ def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(
     """Per scenario (each along its own event sequence, unchanged at +-eps), and the statistics
     mean and std (smooth) through the NLP's graph; the nominal-scene statistic would differ."""
     nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}")
-    x0 = start_landing(nlp, np.random.default_rng(0))
-    assert set_steps(nlp, x0)
-    landed = _Landed(nlp)
-    G = landed.gradient(x0)
-    assert G.shape == (2 * 3, nlp.n_x) and np.all(np.isfinite(G))
+    x0, landed, G = landed_gradient(nlp)
     settings = landing_settings(nlp.config)
 
     def sequences(x):

@@ -28,7 +28,7 @@ from optimizer.search.landing_inner import (
 )
 from optimizer.search.outer import evaluate_design_over_landings
 from tests.optimizer.test_landing_inner import _tangent, assert_gradient_along
-from tests.optimizer.test_landing_inner_robust import _statistics, statistic_functions
+from tests.optimizer.test_landing_inner_robust import _statistics, landed_gradient, statistic_functions
 from tests.optimizer.test_landing_inner_spatial import SPATIAL_LANDING_YAML
 
 #: Every parameter the spatial whole-landing inner search varies, each scenario different.
@@ -90,11 +90,7 @@ def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_st
     """Per scenario (each along its own spatial event sequence, unchanged at +-eps; a level
     direction and the toe's yaw alone), and the statistics mean and std through the NLP's graph."""
     nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}")
-    x0 = start_landing(nlp, np.random.default_rng(0))
-    assert set_steps(nlp, x0)
-    landed = _Landed(nlp)
-    G = landed.gradient(x0)
-    assert G.shape == (2 * 3, nlp.n_x) and np.all(np.isfinite(G))
+    x0, landed, G = landed_gradient(nlp)
     assert np.max(np.abs(G[:, -1])) > 1e-3 * np.max(np.abs(G))  # the yaw matters
     settings = landing_settings(nlp.config)
 
