@@ -442,10 +442,10 @@ def _friction(c: _Impact) -> _Solution:
 def _shared(J: np.ndarray, A: np.ndarray, u: np.ndarray, c: _Impact, split_unique: bool, normal: np.ndarray,
             tangential: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Where the split is not unique (rows of J: n normal rows, then each tangent's n rows; A =
-    J M^-1 J^T, u = J v_minus), the smallest-norm split the law allows at the velocities after
+    J M^-1 J^T, u = J v_minus), the smallest-norm split the law allows in the answer's modes
     (:func:`impulse_core.impact.laws.least_norm_law_split`, as the landing's impacts); where the
-    law's answer lies outside the polygon that split uses, twin contacts' impulses shared
-    equally (:func:`impulse_core.impact.laws.share_among_twins`)."""
+    law's answer does not meet its own modes to the law's tolerance, twin contacts' impulses
+    shared equally (:func:`impulse_core.impact.laws.share_among_twins`)."""
     if split_unique:
         return normal, tangential
     n = len(normal)

@@ -68,6 +68,7 @@ smallest-norm admissible split is returned (:func:`least_norm_split`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
@@ -224,29 +225,30 @@ def least_norm_law_split(
     J: np.ndarray, W: np.ndarray, u: np.ndarray, owner: np.ndarray, normal: np.ndarray, tangential: np.ndarray,
     restitution: float | np.ndarray, mu: float, sides: int, tol: float = 1e-9,
 ) -> tuple[np.ndarray, np.ndarray] | None:
-    """The smallest-norm split of an impact's impulses with the same effect (the same velocities
-    after) that still obeys the law at those velocities: no impulse on a normal row that separates
-    (its velocity after plus e times before above ``tol`` of the largest speed before), a sliding
-    pair's impulse mu lambda_n against its slip, a sticking pair's inside the cone's inscribed
-    polygon of ``sides`` sides (one tangent, the plane: the cone itself). That split is unique (a
-    strictly convex norm over a convex set), so two solvers of one impact, or one solver on rows
-    that differ by rounding, report the same split.
+    """The smallest-norm split of an impact's impulses that obeys the law in the answer's modes:
+    no impulse on a normal row that separates (its velocity after plus e times before above
+    ``tol`` of the largest speed before), a sliding pair's impulse mu lambda_n against its slip,
+    a sticking pair's inside the cone (two tangents: the circle; one, the plane: the interval).
+    Its velocities after are the modes' own (restitution and sticking rows met exactly, not to the
+    answer's tolerance), and the split is unique (a strictly convex norm over a convex set), so two
+    solvers of one impact, or one solver on rows that differ by rounding, report the same split.
 
     Args:
         J: the rows: n normal rows (contacts, joint stops), then each tangent's m pair rows; W =
             J M^-1 J^T; u = J v before the impact.
         owner: (m,) each pair's normal row; normal (n,), tangential (m, tangents): the law's answer.
         restitution: Newton's e, per normal row or one for all.
+        sides: the inscribed polygon whose split starts the circle's (:func:`_in_cones`).
 
     Returns:
-        (normal, tangential), or None where the answer is not in the polygon (a circular-cone answer
-        polished past it: its own split stands).
+        (normal, tangential), or None where the answer does not obey the law in its own modes to
+        ``tol`` (its own split then stands).
     """
     n, (m, tangents) = len(normal), tangential.shape
     after = u + W @ np.concatenate([normal, tangential.T.ravel()])
     scale = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
-    gap_rate, slip = (after[:n] + restitution * u[:n]) / scale, after[n:].reshape(tangents, m).T / scale
-    Jn, Jt = J[:n], J[n:].reshape(tangents, m, -1).transpose(1, 0, 2)
+    target = np.concatenate([-restitution * u[:n], np.zeros(m * tangents)])
+    gap_rate, slip = (after[:n] - target[:n]) / scale, after[n:].reshape(tangents, m).T / scale
     speed = np.linalg.norm(slip, axis=1)
     free = gap_rate <= tol
     sliding = (speed > tol) & free[owner]
@@ -255,44 +257,176 @@ def least_norm_law_split(
     if np.any(np.abs(normal[~free]) > tol * size) or np.any(np.abs(tangential[~free[owner]]) > tol * size):
         return None  # a separating row with an impulse beyond rounding: not the law's answer
     direction = np.where(sliding[:, None], slip / np.maximum(speed, 1e-300)[:, None], 0.0)
-    rows_n = np.array(Jn, dtype=float, copy=True)
-    for k in np.flatnonzero(sliding):  # a sliding pair's impulse rides on its normal's
-        rows_n[owner[k]] -= mu * direction[k] @ Jt[k]
-    rows_n = rows_n[free]
+    B = _mode_basis(owner, free, sticking, mu * direction)
     stick = np.flatnonzero(sticking)
-    J = np.vstack([rows_n, Jt[stick].transpose(1, 0, 2).reshape(-1, Jn.shape[1])])
-    lam = np.concatenate([normal[free], tangential[stick].T.ravel()])
-    P = _law_polygon(np.searchsorted(np.flatnonzero(free), owner[stick]), int(free.sum()), mu, tangents, sides)
-    if np.any(P @ lam < -tol * size):
+    equations = np.concatenate([np.flatnonzero(free), n + (np.arange(tangents)[:, None] * m + stick).ravel()])
+    lam0 = np.linalg.lstsq(W[equations] @ B, target[equations] - u[equations], rcond=None)[0]
+    _, N = row_space_split(B.T @ J)
+    lam0 -= N @ (N.T @ lam0)
+    answer = np.concatenate([normal[free], tangential[stick].T.ravel()])
+    if np.max(np.abs(W @ (B @ lam0) + u - after), initial=0.0) > tol * scale:
+        return None  # the answer's velocities are not its modes' (not the law's answer)
+    cones = _Cones(int(free.sum()), np.searchsorted(np.flatnonzero(free), owner[stick]), mu, tangents)
+    if min(cones.margins(answer), default=0.0) < -tol * size:
         return None
-    split = least_norm_split(J, lam, P)
+    split = _in_cones(lam0, N, cones, answer, sides, size)
+    if split is None:
+        return None
     out_n, out_t = np.zeros_like(normal, dtype=float), np.zeros_like(tangential, dtype=float)
-    out_n[free] = split[: int(free.sum())]
-    out_t[stick] = split[int(free.sum()) :].reshape(tangents, len(stick)).T
+    out_n[free] = np.maximum(split[: cones.n], 0.0)  # a normal's rounding below 0
+    out_t[stick] = split[cones.n :].reshape(tangents, len(stick)).T
     out_t[sliding] = -mu * out_n[owner[sliding], None] * direction[sliding]
     out_n[np.abs(out_n) <= ROUNDING * size] = 0.0  # what rounding left where the split is 0
     out_t[np.abs(out_t) <= ROUNDING * size] = 0.0
     return out_n, out_t
 
 
-def _law_polygon(owner: np.ndarray, n: int, mu: float, tangents: int, sides: int) -> np.ndarray:
-    """Rows P >= 0 over [lambda_n (n), lambda_t (tangent-major, len(owner) pairs)]: lambda_n >= 0 and each
-    pair inside mu lambda_n's inscribed polygon (edge normals at (2j + 1) pi / sides; one tangent:
-    mu lambda_n +- lambda_t >= 0)."""
-    m = len(owner)
-    if tangents == 1:
-        edges, reach = np.array([[1.0], [-1.0]]), 1.0
+def _mode_basis(owner: np.ndarray, free: np.ndarray, sticking: np.ndarray, slide: np.ndarray) -> np.ndarray:
+    """B with lambda = B lambda_mode: the impulses on every row (n normal, then tangent-major
+    pair rows) from the mode's unknowns (the free normal rows' impulses, then the sticking pairs'
+    tangential ones, tangent-major); a sliding pair's impulse is -``slide`` (mu times its slip
+    direction, per pair) times its normal's."""
+    n, (m, tangents) = len(free), slide.shape
+    stick = np.flatnonzero(sticking)
+    B = np.zeros((n + m * tangents, int(free.sum()) + len(stick) * tangents))
+    column = np.cumsum(free) - 1
+    B[np.flatnonzero(free), column[free]] = 1.0
+    slid = np.flatnonzero(np.any(slide != 0, axis=1) & free[owner])
+    for a in range(tangents):
+        rows = n + a * m
+        B[rows + slid, column[owner[slid]]] = -slide[slid, a]
+        B[rows + stick, int(free.sum()) + a * len(stick) + np.arange(len(stick))] = 1.0
+    return B
+
+
+@dataclass(frozen=True)
+class _Cones:
+    """The law's convex set over a mode's unknowns [lambda_n (n), lambda_t (tangent-major, one
+    pair per ``owner`` entry)]: lambda_n >= 0 and |lambda_t| <= mu lambda_n of each pair's normal."""
+
+    n: int
+    owner: np.ndarray
+    mu: float
+    tangents: int
+
+    def pair(self, k: int) -> tuple[int, np.ndarray]:
+        """Pair k's normal index and tangent indices in the unknowns."""
+        return int(self.owner[k]), self.n + np.arange(self.tangents) * len(self.owner) + k
+
+    def margins(self, lam: np.ndarray) -> np.ndarray:
+        """Every constraint's slack: the normals, then mu lambda_n - |lambda_t| per pair."""
+        cone = [self.mu * lam[i] - np.linalg.norm(lam[t]) for i, t in map(self.pair, range(len(self.owner)))]
+        return np.concatenate([lam[: self.n], cone])
+
+    def polygon(self, sides: int) -> np.ndarray:
+        """Rows P >= 0 of the pairs' inscribed ``sides``-gon (one tangent: the interval itself)."""
+        if self.tangents == 1:
+            edges, reach = np.array([[1.0], [-1.0]]), 1.0
+        else:
+            angles = (2 * np.arange(sides) + 1) * np.pi / sides
+            edges, reach = np.column_stack([np.cos(angles), np.sin(angles)]), float(np.cos(np.pi / sides))
+        P = np.zeros((self.n + len(self.owner) * len(edges), self.n + len(self.owner) * self.tangents))
+        P[: self.n, : self.n] = np.eye(self.n)
+        for k in range(len(self.owner)):
+            i, t = self.pair(k)
+            r = self.n + k * len(edges)
+            P[r : r + len(edges), i] = self.mu * reach * (1 + 1e-12)
+            P[r : r + len(edges), t] = -edges
+        return P
+
+
+
+def _in_cones(lam0: np.ndarray, N: np.ndarray, cones: _Cones, answer: np.ndarray, sides: int,
+              size: float) -> np.ndarray | None:
+    """argmin |lambda| over lambda = lam0 + N z in ``cones`` (lam0 orthogonal to N's columns, so
+    this is min |z|): the least-distance program on the inscribed polygon (exact with one
+    tangent), then with two tangents the circle's by :func:`_on_circles` from the polygon's answer
+    (from the ``answer``'s where the polygon holds none of the family)."""
+    if N.shape[1] == 0:
+        return lam0
+    P = cones.polygon(sides)
+    z = least_distance(P @ N, -(P @ lam0))
+    if z is None:  # the family meets the law's set only between the polygon and the circle
+        z = N.T @ answer
+        active = np.flatnonzero(cones.margins(lam0 + N @ z) <= 1e-9 * size)
     else:
-        angles = (2 * np.arange(sides) + 1) * np.pi / sides
-        edges, reach = np.column_stack([np.cos(angles), np.sin(angles)]), float(np.cos(np.pi / sides))
-    P = np.zeros((n + m * len(edges), n + m * tangents))
-    P[:n, :n] = np.eye(n)
-    for k in range(m):
-        r = n + k * len(edges)
-        P[r : r + len(edges), owner[k]] = mu * reach * (1 + 1e-12)
-        for a in range(tangents):
-            P[r : r + len(edges), n + a * m + k] = -edges[:, a]
-    return P
+        tight = np.flatnonzero(P @ (lam0 + N @ z) <= 1e-9 * size)
+        per = (len(P) - cones.n) // max(len(cones.owner), 1)
+        active = np.unique(np.where(tight < cones.n, tight, cones.n + (tight - cones.n) // max(per, 1)))
+    if cones.tangents == 1:
+        return lam0 + N @ z
+    return _on_circles(lam0, N, cones, z, set(active.tolist()), size)
+
+
+def _on_circles(lam0: np.ndarray, N: np.ndarray, cones: _Cones, z: np.ndarray, active: set[int],
+                size: float) -> np.ndarray | None:
+    """min |z| s.t. ``cones.margins``(lam0 + N z) >= 0 on the circular cones (a convex program in
+    the few directions of N): Newton's method on the KKT equations of the ``active`` constraints
+    (:func:`_kkt_newton`), the active set changed one constraint at a time (a negative multiplier
+    leaves, the most violated constraint joins) until both hold. None where it does not settle
+    or an active cone is at its apex (no circle to be on)."""
+    for _ in range(2 * len(cones.margins(lam0)) + 2):
+        solved = _kkt_newton(lam0, N, cones, z, sorted(active), size)
+        if solved is None:
+            return None
+        z, multipliers = solved
+        margins = cones.margins(lam0 + N @ z)
+        if multipliers.size and multipliers.min() < -1e-12 * max(1.0, float(np.max(np.abs(multipliers)))):
+            active.discard(sorted(active)[int(np.argmin(multipliers))])
+        elif margins.min() < -1e-13 * size:
+            active.add(int(np.argmin(margins)))
+        else:
+            return lam0 + N @ z
+    return None
+
+
+def _kkt_newton(lam0: np.ndarray, N: np.ndarray, cones: _Cones, z: np.ndarray, active: list[int],
+                size: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """z and multipliers with z = sum mu_a grad g_a(z) and g_a(z) = 0 for the active constraints
+    (a normal: linear; a pair's mu lambda_n - |lambda_t|: concave), by Newton's method on those
+    equations (least-squares steps: the active gradients may be dependent). None if it fails."""
+    def parts(z):
+        lam = lam0 + N @ z
+        grads, values, curvature = [], [], [np.eye(N.shape[1])]
+        for c in active:
+            if c < cones.n:
+                grads.append(N[c])
+                values.append(lam[c])
+                curvature.append(np.zeros_like(curvature[0]))
+                continue
+            i, t = cones.pair(c - cones.n)
+            norm = float(np.linalg.norm(lam[t]))
+            if norm <= 1e-12 * size:
+                return None  # the cone's apex: no circle
+            d, T = lam[t] / norm, N[t]
+            grads.append(cones.mu * N[i] - d @ T)
+            values.append(cones.mu * lam[i] - norm)
+            curvature.append((T.T @ (np.eye(len(t)) - np.outer(d, d)) @ T) / norm)
+        return np.array(grads).reshape(len(active), N.shape[1]), np.array(values), curvature
+
+    first = parts(z)
+    if first is None:
+        return None
+    mult = np.linalg.lstsq(first[0].T, z, rcond=None)[0] if active else np.zeros(0)
+    k = N.shape[1]
+    for _ in range(50):
+        got = parts(z)
+        if got is None:
+            return None
+        G, g, curvature = got
+        H = curvature[0] + sum(m * C for m, C in zip(mult, curvature[1:]))
+        F = np.concatenate([z - G.T @ mult, g])
+        if np.max(np.abs(F), initial=0.0) <= 1e-15 * size:
+            break
+        K = np.block([[H, -G.T], [G, np.zeros((len(active), len(active)))]])
+        step = np.linalg.lstsq(K, -F, rcond=None)[0]
+        z, mult = z + step[:k], mult + step[k:]
+        if np.max(np.abs(step[:k]), initial=0.0) <= 1e-16 * size:
+            break
+    got = parts(z)
+    if got is None or np.max(np.abs(np.concatenate([z - got[0].T @ mult, got[1]])), initial=0.0) > 1e-12 * size:
+        return None
+    return z, mult
 
 
 def row_space_split(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -718,7 +718,7 @@ def rigid_impact(pt: _Point, v: np.ndarray, rows: _Rows, restitution: np.ndarray
 def _law_split(rows: _Rows, W: np.ndarray, u: np.ndarray, sol: UnilateralSolution, restitution: np.ndarray,
                mu: float) -> UnilateralSolution | None:
     """The friction rung's split of a redundant impact (:func:`least_norm_law_split`), or None
-    where the law's answer lies outside its polygon."""
+    where the law's answer does not meet its own modes to the law's tolerance."""
     t = sol.tangential.reshape(rows.direction.shape[1], len(rows.owner)).T
     split = least_norm_law_split(rows.G, W, u, rows.owner, sol.normal, t, restitution, mu, POLYGON)
     return None if split is None else replace(sol, normal=split[0], tangential=split[1].T.ravel())

@@ -349,12 +349,65 @@ def test_the_law_split_is_one_whatever_split_it_starts_from(seed):
     assert np.max(np.abs(moved[1] - first[1])) <= 1e-12 * np.max(first[0])
 
 
-@pytest.mark.parametrize("case", ["welded0", "welded1", "welded2", "welded3", "9005", "9106", "9110", "9360", "9387"])
+LAW_SPLIT_CASES = ["welded0", "welded1", "welded2", "welded3", "9005", "9106", "9110", "9360", "9387", "9008", "9557"]
+
+
+def _law_split_case(case: str):
+    """A redundant spatial impact with friction: a welded body or a random file's (tests/impulse_core/data)."""
+    from pathlib import Path
+
+    from optimizer.config.model_file import load_model_file
+
+    if case.startswith("welded"):
+        return _welded_spatial(int(case[-1]))
+    model = load_model_file(Path(__file__).parent / "data" / f"redundant_friction_{case}.yaml")
+    return model.tree, model.scene
+
+
+@pytest.mark.parametrize("case", LAW_SPLIT_CASES)
+def test_the_law_split_is_the_smallest_the_circular_law_allows(case):
+    """The split against an independent convex program (cvxpy, Clarabel): the smallest norm with
+    the split's effect, zero on its separating rows, a sliding pair's impulse mu lambda_n against its
+    slip, a sticking pair's in the circular cone (not the polygon). And the split meets its modes'
+    equations exactly (restitution and sticking rows to 1e-12, not to the cone solver's 1e-9)."""
+    import cvxpy as cp
+
+    from impulse_core.impact.cone import POLYGON
+    from impulse_core.impact.laws import least_norm_law_split
+
+    tree, scene = _law_split_case(case)
+    J, A, u, law = _law_rows(tree, scene)
+    n, e, mu = len(law.normal), scene.restitution, scene.friction
+    normal, tangential = least_norm_law_split(J, A, u, np.arange(n), law.normal, law.tangential, e, mu, POLYGON)
+    split = np.concatenate([normal, tangential.T.ravel()])
+    after, scale = u + A @ split, np.max(np.abs(u))
+    gap, slip = after[:n] + e * u[:n], np.column_stack([after[n : 2 * n], after[2 * n :]])
+    lam = cp.Variable(3 * n)
+    ln, lt = lam[:n], cp.vstack([lam[n : 2 * n], lam[2 * n :]])
+    rules = [J.T @ lam == J.T @ split, ln >= 0]
+    for i in range(n):
+        if gap[i] > 1e-9 * scale:
+            rules += [ln[i] == 0, lt[:, i] == 0]
+        elif np.linalg.norm(slip[i]) > 1e-9 * scale:
+            rules += [lt[:, i] == -mu * ln[i] * slip[i] / np.linalg.norm(slip[i])]
+        else:
+            rules += [cp.norm(lt[:, i]) <= mu * ln[i]]
+            assert np.linalg.norm(slip[i]) <= 1e-12 * scale  # exactly sticking
+    assert np.all(np.abs(gap[normal > 0]) <= 1e-12 * scale)  # exactly the restitution law
+    cp.Problem(cp.Minimize(cp.sum_squares(lam)), rules).solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12,
+                                                               tol_feas=1e-12)
+    assert np.linalg.norm(split) <= np.linalg.norm(lam.value) * (1 + 1e-9)
+    assert np.max(np.abs(split - lam.value)) <= 1e-5 * np.max(normal) + 1e-15  # 9557: every row separates
+    assert np.all(np.linalg.norm(tangential, axis=1) <= mu * normal * (1 + 1e-12))
+
+
+@pytest.mark.parametrize("case", LAW_SPLIT_CASES)
 def test_the_friction_rung_and_the_landing_report_one_split(case):
     """The landing's first event and the friction rung on the same redundant impact: the same
     impulses and modes, both exact (random files 9005, 9106, 9110 differed by 0.076, 0.48 and 0.29
     before: each solver's own split; 9360 by rounding noise on zero tangential impulses, 9387 by
-    2.8e-3: the cone's Newton stage stalled on the singular rows in the landing's call)."""
+    2.8e-3: the cone's Newton stage stalled on the singular rows in the landing's call; 9008 by
+    1.3e-9: a sticking contact on the cone's rim, each solver 1e-9 from the law at its own point)."""
     from pathlib import Path
 
     from impulse_core.kinematics.spatial import SPATIAL

@@ -149,8 +149,9 @@ def test_rods_give_the_answers_of_commit_871616f_bit_for_bit() -> None:
     """Seeded random trees (planar, planar read as spatial, spatial; Newton and the exact cone) with
     no offset and no tensor: today's external and joint impulses and velocities are those written
     by commit 871616f's code (data/make_rod_answers.py), to the last bit; the exact cone's to
-    rounding (1e-14), since its first stage's answer is kept where it already meets the exact law
-    (all contacts sticking: up to 2e-15 from 871616f's Newton-polished one)."""
+    rounding (1e-13), since its first stage's answer is kept where it already meets the exact law
+    (all contacts sticking: up to 2e-15 from 871616f's Newton-polished one), and a redundant
+    impact's split solves its modes' equations afresh (up to 1.3e-14)."""
     golden = json.loads(GOLDEN.read_text())
     out = {}
     for k, t in enumerate(spatial_trees()):
@@ -170,7 +171,7 @@ def test_rods_give_the_answers_of_commit_871616f_bit_for_bit() -> None:
         if key.endswith(".friction"):
             for name, values in got.items():
                 a, b = (np.array([float.fromhex(x) for x in v]) for v in (values, golden[key][name]))
-                assert a.shape == b.shape and np.all(np.abs(a - b) <= 1e-14 * np.max(np.abs(b), initial=0.0)), key
+                assert a.shape == b.shape and np.all(np.abs(a - b) <= 1e-13 * np.max(np.abs(b), initial=0.0)), key
         else:
             assert got == golden[key], key
 
