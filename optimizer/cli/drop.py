@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from impulse_core.errors import FootoptError, ModelError, NumericalError
+from impulse_core.errors import FootoptError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.model.joints import JointLaw
@@ -79,10 +79,6 @@ def run_drop(args: argparse.Namespace) -> int:
         if model.scene.duration is not None:
             warn(f"{args.model}: scene.duration is left out: the drop compares the first impact")
         scene = replace(model.scene, duration=None)  # the first impact
-        uneven = not scene.terrain.is_flat or scene.heightfield is not None and not scene.heightfield.is_flat
-        if uneven and scene.friction > 0:
-            raise ModelError("scene.friction: footopt drop on uneven ground is frictionless (MuJoCo's contacts there "
-                             "are the bridge's frictionless ones); set friction: 0")
         rigid = evaluate_landing(model.tree, scene, "auto", space=model.space)
         record = drop_record(model.tree, scene, args.stiffness, rigid, model.space, model.joints)
     except NumericalError as e:
@@ -143,10 +139,26 @@ def drop_record(tree, scene, stiffness: float, rigid, space: Space = PLANAR,  # 
         record["settings"]["ground"] = ("the heightfield's tangent plane at each contact's touchdown point"
                                         if uneven else "flat")
         record["touchdown"] = {"point": _rows(mj.touchdown_point), "normal": _rows(mj.touchdown_normal)}
-    if frictional:  # the ground's impulse on each contact along x (space: [x, z])
-        mj_t = mj.external_vector[:, 0] if space is PLANAR else mj.external_vector[:, [0, 2]]
-        record["tangential"] = {"footopt": _rows(rigid.tangential), "mujoco": _rows(mj_t)}
+    if frictional:  # the ground's impulse on each contact along its ground tangents (flat: x, and z in space)
+        ours = rigid.tangential if hasattr(rigid, "tangential") else rigid.result.tangential  # the sequential model's
+        record["tangential"] = {"footopt": _rows(ours), "mujoco": _rows(mujoco_tangential(mj, space))}
     return record
+
+
+def mujoco_tangential(mj, space: Space) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """MuJoCo's impulse on each contact along footopt's ground tangents (:func:`tangent_basis`) at
+    the ground normal where it first touched (up where it never did): n_c in the plane, n_c x 2 in
+    space."""
+    from impulse_core.timedomain.landing import tangent_basis
+
+    d = mj.external_vector.shape[1]
+    normal = np.zeros((len(mj.external), d))
+    normal[:, 1] = 1.0
+    if mj.touchdown_normal is not None:
+        touched = ~np.isnan(mj.touchdown_normal[:, 0])
+        normal[touched] = mj.touchdown_normal[touched, :d]
+    along = np.einsum("kad,kd->ka", tangent_basis(normal), mj.external_vector)
+    return along[:, 0] if space is PLANAR else along
 
 
 def _model_name(result) -> str:  # type: ignore[no-untyped-def]

@@ -305,7 +305,7 @@ def drop(
     geom_contact = {m.geom(f"contact{j}").id: j for j in range(len(tree.contacts))}
     body_ids = [m.body(b.name).id for b in tree.bodies]
 
-    impulse, impulse_vec, joint_impulse, touchdown, loaded, _, _ = _integrate_drop(
+    impulse, impulse_vec, joint_impulse, touchdown, loaded, point, normal = _integrate_drop(
         m, d, geom_contact, body_ids, n_steps, timestep, dims=2)
     joint = joint_impulse[1:]
     internal = np.column_stack([joint, np.zeros(len(joint))]) if len(joint) else np.zeros((0, 3))
@@ -320,6 +320,8 @@ def drop(
         timestep=timestep,
         n_steps=n_steps,
         mjcf=text,
+        touchdown_point=point,
+        touchdown_normal=normal,
     )
 
 
