@@ -873,12 +873,12 @@ def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
     if not (math.isfinite(d0) and math.isfinite(d1) and math.isfinite(g0) and math.isfinite(g1)):
         return math.nan
     s = _ROOT_SAMPLES
-    coeffs = np.array([2 * g0 + d0 - 2 * g1 + d1, -3 * g0 - 2 * d0 + 3 * g1 - d1, d0, g0])
-    below = np.flatnonzero(np.polyval(coeffs, s) < 0)
-    if not below.size or below[0] == 0:
+    c3, c2, c1, c0 = (float(c) for c in (2 * g0 + d0 - 2 * g1 + d1, -3 * g0 - 2 * d0 + 3 * g1 - d1, d0, g0))
+    below = ((c3 * s + c2) * s + c1) * s + c0 < 0  # Horner's rule, as np.polyval
+    first = int(below.argmax())
+    if first == 0:  # none below, or below at s = 0
         return math.nan
-    a, b = s[below[0] - 1], s[below[0]]
-    c3, c2, c1, c0 = (float(c) for c in coeffs)
+    a, b = s[first - 1], s[first]
     for _ in range(40):  # bisection on the polynomial: cheap (Horner's rule in floats)
         m = 0.5 * (a + b)
         a, b = (m, b) if ((c3 * m + c2) * m + c1) * m + c0 >= 0 else (a, m)
