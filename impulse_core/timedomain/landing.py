@@ -959,6 +959,7 @@ class _Landing:
         base_z = 0.0 if self.planar else float(scene.base_z)
         self.q0 = touchdown_configuration(tree, ground, scene.base_x, space=space, base_z=base_z)
         self.joints = joint_arrays(tree, laws, self.q0, space)
+        self.layout = dof_layout(self.topology, space)
         self.nc, self.nv = len(tree.contacts), len(self.q0)
         #: the rows of a point's position: 2 in the plane, 3 in space
         self.dims = 2 if self.planar else 3
@@ -1434,6 +1435,16 @@ class _Landing:
         rows, (_, lam) = self.mode_solution(pt, mode)
         return mode.closed & (_contact_forces(rows, lam, self.mu, self.nc)[0] > self.force_tol)
 
+    @staticmethod
+    def rests_nowhere(contacts: np.ndarray, stops: np.ndarray) -> bool:
+        """No contact near the ground at rest and no joint on a stop: :meth:`resolve`'s LCP would
+        have no rows and leave every contact open and every joint free (:meth:`flight`)."""
+        return not contacts.size and not stops.any()
+
+    def flight(self) -> _Mode:
+        """The mode without rows: every contact open, every joint free."""
+        return _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
+
     def no_slip(self) -> np.ndarray:
         """A mode's ``slip`` with every contact sticking (n_c x (d - 1))."""
         return np.zeros((self.nc, self.dims - 1))
@@ -1447,8 +1458,9 @@ class _Landing:
         """Per normal row: how long a rebound at speed ``rebound`` would last before the row's
         free acceleration (springs, gravity, spin) brings it back (inf where it pulls away)."""
         free = rows.G[: rows.n] @ np.linalg.solve(pt.M, pt.f) + rows.b[: rows.n]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(free < 0, 2.0 * rebound / -free, np.inf)
+        time, back = np.full(rows.n, np.inf), free < 0
+        time[back] = 2.0 * rebound[back] / -free[back]
+        return time
 
     def stops_touching(self, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """Per DOF: the stop it rests on or has reached (-1 lower, +1 upper), else 0."""
@@ -1458,8 +1470,7 @@ class _Landing:
 
     def per_joint(self, per_dof: np.ndarray) -> np.ndarray:
         """A per-DOF quantity as one entry per non-base body (0 for fixed joints)."""
-        layout = dof_layout(self.topology, self.space)
-        return np.array([0.0 if k is None else per_dof[k] for k in layout.body_dof[1:]])
+        return np.array([0.0 if k is None else per_dof[k] for k in self.layout.body_dof[1:]])
 
     def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
         """Which resting rows stay closed, stick or slide: ``mode`` itself where it holds with a
@@ -1474,6 +1485,8 @@ class _Landing:
         slip = _unit(pt.slip, self.speed_tol) if self.mu > 0 else self.no_slip()
         stops = self.stops_touching(q, mode)
         stops = np.where((mode.stop != 0) | (np.abs(v) <= self.speed_tol), stops, 0)
+        if self.rests_nowhere(contacts, stops):  # the LCP would have no rows
+            return self.flight()
         for attempt in range(2):
             rows = _rows(pt, contacts, slip, stops, self.mu, self.nv)
             minv = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
@@ -1492,7 +1505,7 @@ class _Landing:
         acc_tol = 1e-9 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
         rest = sol.normal > self.force_tol  # an unloaded row opens (if it sinks, it touches again)
         rest |= self.held(pt, mode, rows, sol, acc_tol)
-        new = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
+        new = self.flight()
         c = rows.contact >= 0
         new.closed[rows.contact[c & rest]] = True
         new.slip[:] = np.where(new.closed[:, None], slip, 0)
@@ -1635,6 +1648,8 @@ class _Landing:
             if projected is not None:
                 return projected
         pt = self.point(q, v)
+        if self.in_place(pt, q, mode):  # what placement() and the velocity rows would find: nothing to do
+            return q.copy(), v, np.zeros(self.dims * self.nc)
         q = q - self.placement(pt, q, mode)[1]
         rows = self.mode_solution(pt, mode, solve=False)[0] if _rests(mode) else None
         if rows is None or not rows.G.shape[0]:
@@ -1643,6 +1658,11 @@ class _Landing:
         impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
         v = v + minv_gt @ impulse
         return q, v, _stacked(*_contact_forces(rows, impulse, 0.0, self.nc))
+
+    def in_place(self, pt: _Point, q: np.ndarray, mode: _Mode) -> bool:
+        """Whether :meth:`project` has nothing to do at (q, ``pt``): no rows in the mode, no open
+        contact below the ground, no joint past a stop (a flight after a bounce)."""
+        return not _rests(mode) and not (pt.gap < 0).any() and not self.beyond(q).any()
 
     def placement(self, pt: _Point, q: np.ndarray, mode: _Mode) -> tuple[_Mode, np.ndarray]:
         """The rows a projection at (q, ``pt``) zeroes: the mode's, an open contact left below the
@@ -1739,7 +1759,7 @@ class _Landing:
         self.set_chart(self.design, None)
         q = self.q0.copy()
         v = pre_impact_velocity(self.topology, self.scene, self.space) if self.v_minus is None else self.v_minus.copy()
-        none = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
+        none = self.flight()
         hit = self.first_contacts(self.point(q, v))
         v_plus, event, mode = self.impact(q, v, none, 0.0, hit, "touchdown")
         return q, v, v_plus, event, mode
@@ -1935,7 +1955,7 @@ class _Landing:
 
     def result(self, totals: _Totals, q: np.ndarray, v: np.ndarray, h: float, energy_before: float,
                energy_final: float, gravity_work: float) -> LandingResult:
-        layout = dof_layout(self.topology, self.space)
+        layout = self.layout
         v_world, q = world_velocity(q, v, self.space), self.reported(q)
         base = [q[2]] if self.planar else list(q[3:6])
         angles = base + [b.angle if k is None else q[k] for b, k in zip(self.tree.bodies[1:], layout.body_dof[1:])]
