@@ -490,9 +490,11 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
 def _along(directions: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """sum_k directions[:, k] rows[:, k]: per contact, the component of ``rows`` (n_c x d x ...)
     along its direction (n_c x d)."""
-    if directions.shape[1] == 1:  # one direction: no sum
-        return directions[:, 0].reshape((-1,) + (1,) * (rows.ndim - 2)) * rows[:, 0]
-    return (directions.reshape(directions.shape + (1,) * (rows.ndim - 2)) * rows).sum(axis=1)
+    shape = (-1,) + (1,) * (rows.ndim - 2)
+    out = directions[:, 0].reshape(shape) * rows[:, 0]
+    for k in range(1, directions.shape[1]):  # in order, as numpy's sum over the axis adds
+        out += directions[:, k].reshape(shape) * rows[:, k]
+    return out
 
 
 @dataclass(frozen=True)
@@ -570,7 +572,7 @@ class _Mode:
     @property
     def sliding(self) -> np.ndarray:
         """Per contact: whether it slides."""
-        return np.any(self.slip != 0, axis=1)
+        return (self.slip != 0).any(axis=1)
 
     @property
     def side(self) -> np.ndarray:
@@ -630,7 +632,7 @@ def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray,
     direction = slip_direction(pt, slip, core) if mu > 0 else np.zeros_like(slip)
     sliding = direction[contacts]
     Fn = pt.Jn[contacts] - _along(mu * sliding, pt.Jt[contacts])
-    sticking = contacts[~np.any(sliding != 0, axis=1)] if mu > 0 else contacts[:0]
+    sticking = contacts[~(sliding != 0).any(axis=1)] if mu > 0 else contacts[:0]
     tangent_rows = pt.Jt[sticking].transpose(1, 0, 2).reshape(-1, nv)
     G = np.vstack([pt.Jn[contacts], G_stop, tangent_rows])
     F = np.vstack([Fn, G_stop, tangent_rows])
@@ -752,7 +754,7 @@ def impact_modes(pt: _Point, v: np.ndarray, v_plus: np.ndarray, contacts: np.nda
 
 def _rests(mode: _Mode) -> bool:
     """Some contact is closed or some joint rests on a stop (the mode has rows)."""
-    return bool(np.any(mode.closed) or np.any(mode.stop))
+    return bool(mode.closed.any() or mode.stop.any())
 
 
 def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
@@ -817,7 +819,7 @@ def joint_law_rate(M: np.ndarray, damping: np.ndarray, stiffness: np.ndarray) ->
     L = np.linalg.cholesky(M)
     rates = [0.0]
     for d, root in ((damping, False), (stiffness, True)):
-        if np.any(d > 0):
+        if (d > 0).any():
             Li = np.linalg.solve(L, np.diag(d))
             top = float(np.max(np.linalg.eigvalsh(np.linalg.solve(L, Li.T).T)))
             rates.append(math.sqrt(max(top, 0.0)) if root else top)
@@ -1139,7 +1141,7 @@ class _Landing:
         2.8 / h): the direction is exact s / |s| above |s| = core and regularised below it; core
         shrinks with the step, so the landing's step halving converges to the exact law. The
         plane (one tangent) is untouched."""
-        if self.dims == 2 or self.mu <= 0 or not np.any(mode.closed & mode.sliding):
+        if self.dims == 2 or self.mu <= 0 or not (mode.closed & mode.sliding).any():
             return
         mode.core[:] = 0.0
         pt = self.point(q, v)
@@ -1159,7 +1161,7 @@ class _Landing:
         slip direction u at the step's end (:func:`slip_direction` with the step's core), so that
         the slip-stop witness (s . d) watches the slip as it turns and the regularised direction
         relaxes towards s / |s|."""
-        if self.dims == 2 or self.mu <= 0 or not np.any(mode.closed & mode.sliding):
+        if self.dims == 2 or self.mu <= 0 or not (mode.closed & mode.sliding).any():
             return
         pt = self.point(q, v)
         moving = mode.closed & mode.sliding
@@ -1323,9 +1325,9 @@ class _Landing:
             x = h00 * q0 + h10 * v0 * h + h01 * q1 + h11 * v1 * h
             past = ((x > self.joints.hi + tol) | (x < self.joints.lo - tol)) & (mode.stop == 0)
             dips = np.hstack([dips, past])
-        if not np.any(dips):
+        if not dips.any():
             return None
-        return float(s[np.argmax(np.any(dips, axis=1)), 0])
+        return float(s[np.argmax(dips.any(axis=1)), 0])
 
     def trial(self, q: np.ndarray, v: np.ndarray, mode: _Mode, tau: float) -> _Trial:
         """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates."""
@@ -1430,7 +1432,7 @@ class _Landing:
         """Per contact: closed in ``mode`` and pushed by its force at (q, v) beyond the force
         tolerance (a contact resting unloaded is not)."""
         pt = self.point(q, v)
-        if not np.any(mode.closed):
+        if not mode.closed.any():
             return np.zeros(self.nc, bool)
         rows, (_, lam) = self.mode_solution(pt, mode)
         return mode.closed & (_contact_forces(rows, lam, self.mu, self.nc)[0] > self.force_tol)
@@ -1496,7 +1498,7 @@ class _Landing:
                 self.inexact += not exact
                 break
             except NumericalError:
-                if attempt or not np.any(slip[contacts]):
+                if attempt or not slip[contacts].any():
                     raise NumericalError(
                         f"no consistent contact forces at t with sliding contacts {list(contacts)} "
                         "(Painleve's paradox: lower the friction)"
@@ -1533,7 +1535,7 @@ class _Landing:
         c = rows.contact >= 0
         candidates = c & (sol.normal[: rows.n] <= self.force_tol) & (sol.velocity[: rows.n] <= acc_tol)
         candidates &= mode.closed[np.maximum(rows.contact, 0)]
-        if not np.any(candidates):
+        if not candidates.any():
             return np.zeros(rows.n, bool)
         probe = mode.copy()
         probe.redundant = self.redundant(pt, probe)
@@ -1553,16 +1555,16 @@ class _Landing:
         pt = self.point(q, v)
         closed_stop = mode.stop != 0
         sticking = mode.closed & ~mode.sliding
-        at_rest = (np.all(np.abs(pt.vn(v)[mode.closed]) < PLASTIC_SPEED)  # as an impact leaves them: the
-                   and np.all(np.abs(pt.vt(v)[sticking]) < PLASTIC_SPEED)  # projection takes the rest
-                   and np.all(np.abs(v[closed_stop]) < PLASTIC_SPEED))
-        if not at_rest or not (np.any(mode.closed) or np.any(closed_stop)) or self.redundant(pt, mode):
+        at_rest = ((np.abs(pt.vn(v)[mode.closed]) < PLASTIC_SPEED).all()  # as an impact leaves them: the
+                   and (np.abs(pt.vt(v)[sticking]) < PLASTIC_SPEED).all()  # projection takes the rest
+                   and (np.abs(v[closed_stop]) < PLASTIC_SPEED).all())
+        if not at_rest or not (mode.closed.any() or closed_stop.any()) or self.redundant(pt, mode):
             return False
         w, _ = self.witness_and_rate(q, v, mode)
         nc, nv = self.nc, self.nv
         geometric = np.concatenate([w[:nc], w[4 * nc : 4 * nc + 2 * nv]])
         forces = np.concatenate([w[nc : 4 * nc], w[4 * nc + 2 * nv :]])
-        return bool(np.all(geometric >= 1.0) and np.all(forces >= 2.0))
+        return bool((geometric >= 1.0).all() and (forces >= 2.0).all())
 
     def unify(self, pt: _Point, v: np.ndarray, mode: _Mode) -> _Mode:
         """Resting contacts at one point moving alike (identical toes: their tips coincide to
@@ -1609,7 +1611,7 @@ class _Landing:
             at = pt.Jt @ a + pt.bt
             starting = mode.closed & mode.sliding & (np.linalg.norm(pt.vt(v), axis=1) <= self.speed_tol)
             wrong = starting & (np.sum(mode.slip * at, axis=1) < -acc_tol)
-            if not np.any(wrong):
+            if not wrong.any():
                 break
             mode = mode.copy()
             mode.redundant = False
@@ -1621,14 +1623,14 @@ class _Landing:
         of the cone's edge (or beyond, by rounding) slides against its friction force: the LCP's
         answer at the edge (no slip acceleration) is the same in either mode, but sticking would
         leave the cone at once and stall the run."""
-        if self.mu <= 0 or not np.any(mode.closed & ~mode.sliding):
+        if self.mu <= 0 or not (mode.closed & ~mode.sliding).any():
             return mode
         pt = self.point(q, v)
         rows, (_, lam) = self.mode_solution(pt, mode)
         fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
         magnitude = np.linalg.norm(ft, axis=1)
         edge = mode.closed & ~mode.sliding & (self.mu * fn - magnitude <= self.force_tol) & (magnitude != 0)
-        if not np.any(edge):
+        if not edge.any():
             return mode
         new = mode.copy()
         new.slip[edge] = -_unit(ft[edge], 0.0)
@@ -1641,8 +1643,8 @@ class _Landing:
         if self.tape is not None:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         end = self.ended(q, v, mode)
-        own = (end is not None and not np.any(~mode.closed & (end.gap < 0))
-               and not np.any((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))))
+        own = (end is not None and not (~mode.closed & (end.gap < 0)).any()
+               and not ((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))).any())
         if own:  # a compiled step's end whose placement is the mode's own: the compiled projection
             projected = self.fast.project(q, v, mode)
             if projected is not None:
@@ -1673,7 +1675,7 @@ class _Landing:
         place.stop = np.where(place.stop == 0, self.beyond(q), place.stop)
         dq = self.position_correction(pt, q, place)
         carried = np.where(place.stop == 0, self.beyond(q - dq), 0)
-        if np.any(carried):
+        if carried.any():
             place.stop = np.where(place.stop == 0, carried, place.stop)
             dq = self.position_correction(pt, q, place)
         return place, dq
@@ -1865,7 +1867,7 @@ class _Landing:
             if graze is None:
                 fraction = self.grazing(q, v, q1, v1, mode, dt)
                 graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
-                graze = graze if graze is not None and np.any(graze.w < 0) else None
+                graze = graze if graze is not None and (graze.w < 0).any() else None
             if graze is None:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
@@ -1884,7 +1886,7 @@ class _Landing:
             located = self.locate(q, v, mode, graze, watch)
             for _ in range(8):  # a witness that crossed earlier and came back by the step's end
                 missed = (located.w < 0) & ~watch
-                if not np.any(missed):
+                if not missed.any():
                     break
                 watch = located.w < 0
                 located = self.locate(q, v, mode, located, watch)
@@ -1921,11 +1923,11 @@ class _Landing:
         reaching = (mode.stop == 0) & (((q <= self.joints.lo + self.settings.gap_tolerance) & (v < 0))
                                         | ((q >= self.joints.hi - self.settings.gap_tolerance) & (v > 0)))
         v_before = v
-        if np.any(touching) or np.any(reaching):
+        if touching.any() or reaching.any():
             # every contact at the ground takes part (one just released may be pushed back down)
             contacts = np.flatnonzero(mode.closed | (pt.gap <= self.settings.gap_tolerance))
             v_minus = v
-            v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if np.any(touching) else "stop")
+            v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if touching.any() else "stop")
             totals.events.append(event)
             self.add_impact(totals, event, q, v_minus, v)
         mode = self.resolve(q, v, mode)

@@ -133,3 +133,17 @@ def test_redundancy_from_the_singular_values_alone_is_the_null_spaces():
         assert answer == (row_space_split(J)[1].shape[1] > 0)
         seen.add(answer)
     assert seen == {True, False}
+
+
+def test_components_along_directions_add_as_numpys_sum():
+    """:func:`_along` (every point of the landing projects its Jacobians on the normals and
+    tangents) adds the components in numpy's order: equal bit for bit to the broadcast sum."""
+    from impulse_core.timedomain.landing import _along
+
+    rng = np.random.default_rng(5)
+    for k in range(200):
+        nc, d = int(rng.integers(1, 6)), int(rng.integers(1, 4))
+        directions = rng.standard_normal((nc, d))
+        rows = rng.standard_normal((nc, d) + ((int(rng.integers(1, 15)),) if k % 2 else ()))
+        expected = (directions.reshape(directions.shape + (1,) * (rows.ndim - 2)) * rows).sum(axis=1)
+        assert np.array_equal(_along(directions, rows), expected)
