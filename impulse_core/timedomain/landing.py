@@ -948,7 +948,12 @@ class _Landing:
         self.planar = space.joint_axis is not None
         ground = scene.terrain if self.planar else spatial_ground(scene)
         self.ground = ground  # the plane's profile, or space's heightfield
-        fn = landing_function(self.topology, ground, space)
+        if settings.step_code == C_CODE:  # the point's dynamics compiled too
+            from impulse_core.timedomain.landing_step import compiled_landing_function  # it builds on this module
+
+            fn = compiled_landing_function(self.topology, ground, space)
+        else:
+            fn = landing_function(self.topology, ground, space)
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
         #: in the call's copy (:meth:`rechart`), and the next run starts from this one again
         self.design = design_vector(tree, space.body_values)

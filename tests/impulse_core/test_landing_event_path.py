@@ -147,3 +147,27 @@ def test_components_along_directions_add_as_numpys_sum():
         rows = rng.standard_normal((nc, d) + ((int(rng.integers(1, 15)),) if k % 2 else ()))
         expected = (directions.reshape(directions.shape + (1,) * (rows.ndim - 2)) * rows).sum(axis=1)
         assert np.array_equal(_along(directions, rows), expected)
+
+
+def test_the_compiled_point_is_the_virtual_machines_bit_for_bit():
+    """With ``step_code`` c the numpy path's dynamics at a point (:func:`landing_function`: gaps,
+    normals, Jacobians, mass matrix, forces, momenta; two or three calls per event) run as C
+    through the compile cache: the same numbers bit for bit as CasADi's virtual machine, in the
+    plane (case 3) and in space (a splayed leg), at random states."""
+    from impulse_core.kinematics.spatial import PLANAR, SPATIAL
+    from impulse_core.timedomain.landing import C_CODE, NUMPY_CODE, LandingSettings, _Landing
+    from optimizer.config.model_file import load_model_file
+    from tests.impulse_core.test_landing_spatial import _splayed_leg
+
+    m = load_model_file("configs/landing_case3.yaml")
+    rng = np.random.default_rng(2)
+    for (tree, laws, scene), space in (((m.tree, m.joints, m.scene), PLANAR), (_splayed_leg(0, 0.4), SPATIAL)):
+        c, vm = (_Landing(tree, scene, laws, LandingSettings(step_code=code, integrator="rk4"), space)
+                 for code in (C_CODE, NUMPY_CODE))
+        assert c.call._buf is not vm.call._buf
+        for _ in range(20):
+            q, v = c.q0 + rng.uniform(-0.3, 0.3, c.nv), rng.uniform(-3.0, 3.0, c.nv)
+            c.call.call(q, v)
+            vm.call.call(q, v)
+            for a, b in zip(c.call.flat, vm.call.flat):
+                assert np.array_equal(a, b)
