@@ -175,7 +175,8 @@ class LandingSettings:
         step_code: the RK4 steps (plane and space) by one CasADi function of the mode
             (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
-            and a missing compiler falls back to ``vm`` with a warning), ``vm`` on CasADi's
+            and a missing compiler falls back to ``vm`` with a warning; the events' dynamics at a
+            point, :func:`landing_function`, then run as C too), ``vm`` on CasADi's
             virtual machine, ``numpy`` the reference (rows built and solved per stage in numpy;
             always so for the implicit integrator, and for a redundant mode). All agree to rounding.
         bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
