@@ -881,11 +881,14 @@ def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
     first = int(below.argmax())
     if first == 0:  # none below, or below at s = 0
         return math.nan
-    a, b = s[first - 1], s[first]
-    for _ in range(40):  # bisection on the polynomial: cheap (Horner's rule in floats)
+    a, b = float(s[first - 1]), float(s[first])
+    for _ in range(40):  # bisection on the polynomial: cheap (Horner's rule in Python floats)
         m = 0.5 * (a + b)
-        a, b = (m, b) if ((c3 * m + c2) * m + c1) * m + c0 >= 0 else (a, m)
-    return float(b)
+        if ((c3 * m + c2) * m + c1) * m + c0 >= 0:
+            a = m
+        else:
+            b = m
+    return b
 
 
 def balanced_length(dt: float, ratio: float, order: int) -> float:
@@ -1077,7 +1080,11 @@ class _Landing:
         tangent = tangent_basis(normal)
         J = o[2].reshape(self.nc, d, self.nv)  # per contact, its x, y (, z) rows
         bias = f[3].reshape(self.nc, d)
-        Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
+        if d == 2:  # the plane's one tangent: no stacking
+            Jt, bt = _along(tangent[:, 0], J)[:, None], _along(tangent[:, 0], bias)[:, None]
+        else:
+            Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
+            bt = np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)])
         return _Point(
             gap=f[0].copy(),
             normal=normal,
@@ -1085,7 +1092,7 @@ class _Landing:
             Jn=_along(normal, J),
             Jt=Jt,
             bn=_along(normal, bias),
-            bt=np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)]),
+            bt=bt,
             M=o[4].copy(),
             f=f[5] + self.joints.torque(q, v),
             kinetic=float(f[6][0]),
@@ -1490,11 +1497,11 @@ class _Landing:
         vn = pt.vn(v)
         near = mode.closed | ((pt.gap <= self.settings.gap_tolerance) & (np.abs(vn) <= self.speed_tol))
         contacts = np.flatnonzero(near)
-        slip = _unit(pt.slip, self.speed_tol) if self.mu > 0 else self.no_slip()
         stops = self.stops_touching(q, mode)
         stops = np.where((mode.stop != 0) | (np.abs(v) <= self.speed_tol), stops, 0)
         if self.rests_nowhere(contacts, stops):  # the LCP would have no rows
             return self.flight()
+        slip = _unit(pt.slip, self.speed_tol) if self.mu > 0 else self.no_slip()
         for attempt in range(2):
             rows = _rows(pt, contacts, slip, stops, self.mu, self.nv)
             minv = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
@@ -1558,13 +1565,15 @@ class _Landing:
         joint held on its stop, or slide with the stop opening), the run keeps the one it is in;
         Lemke's method may pick the other at each event, and the run would switch between them
         every fraction of a microsecond (a study's design did, 2e5 times)."""
+        if not _rests(mode):  # no rows to hold
+            return False
         pt = self.point(q, v)
         closed_stop = mode.stop != 0
         sticking = mode.closed & ~mode.sliding
         at_rest = ((np.abs(pt.vn(v)[mode.closed]) < PLASTIC_SPEED).all()  # as an impact leaves them: the
                    and (np.abs(pt.vt(v)[sticking]) < PLASTIC_SPEED).all()  # projection takes the rest
                    and (np.abs(v[closed_stop]) < PLASTIC_SPEED).all())
-        if not at_rest or not (mode.closed.any() or closed_stop.any()) or self.redundant(pt, mode):
+        if not at_rest or self.redundant(pt, mode):
             return False
         w, _ = self.witness_and_rate(q, v, mode)
         nc, nv = self.nc, self.nv
@@ -1796,7 +1805,10 @@ class _Landing:
         return np.flatnonzero(pt.gap <= np.min(pt.gap) + self.scene.contact_tolerance)
 
     def add(self, totals: _Totals, impulses: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:
-        """Add stacked contact impulses (:func:`_stacked`, taken at (q, v)) to the totals."""
+        """Add stacked contact impulses (:func:`_stacked`, taken at (q, v)) to the totals (none
+        changes where every impulse is 0: a flight's step, a projection without rows)."""
+        if not impulses.any():  # adding zeros leaves every total as it is, to the bit
+            return
         ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
         totals.normal += impulses[: self.nc]
         totals.tangential += ft

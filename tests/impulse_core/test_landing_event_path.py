@@ -171,3 +171,27 @@ def test_the_compiled_point_is_the_virtual_machines_bit_for_bit():
             vm.call.call(q, v)
             for a, b in zip(c.call.flat, vm.call.flat):
                 assert np.array_equal(a, b)
+
+
+def test_adding_zero_impulses_leaves_the_totals_as_they_are():
+    """:meth:`_Landing.add` skips an impulse that is 0 everywhere (a flight's step, a projection
+    without rows): the totals stay as adding it would leave them, to the bit (sums of +0 never
+    make -0); a tangential impulse alone is added."""
+    from impulse_core.timedomain.landing import NUMPY_CODE, LandingSettings, _Landing
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file("configs/landing_case3.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(step_code=NUMPY_CODE))
+    q, v, _, totals = run.first_impact()
+    names = ("normal", "tangential", "impulse", "vectors")
+    before = [getattr(totals, k).copy() for k in names]
+    zero = np.zeros(2 * run.nc)
+    zero[1::2] = -0.0
+    run.add(totals, zero, q, v)
+    for k, b in zip(names, before):
+        a = getattr(totals, k)
+        assert np.array_equal(a, b) and np.array_equal(np.signbit(a), np.signbit(b))
+    sliding = np.zeros(2 * run.nc)
+    sliding[run.nc] = 1e-3
+    run.add(totals, sliding, q, v)
+    assert totals.tangential[0] == before[1][0] + 1e-3 and totals.impulse[0] == before[2][0] + 1e-3
