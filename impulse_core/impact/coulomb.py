@@ -88,13 +88,14 @@ def lemke(
     _pivot(tableau, basis, first, 2 * n)
     entering = n + first  # the complement of the w that left
     for _ in range(max_pivots or 50 * n + 50):
-        column, rhs = tableau[:, entering], tableau[:, -1]
-        rows = np.flatnonzero(column > tol)
-        if rows.size == 0:
+        # the ratio test on a few rows: Python floats cost less than numpy's calls here
+        column, rhs = tableau[:, entering].tolist(), tableau[:, -1].tolist()
+        ratios = [(rhs[r] / column[r], r) for r in range(n) if column[r] > tol]
+        if not ratios:
             return None  # a secondary ray
-        ratios = rhs[rows] / column[rows]
-        ties = rows[ratios <= ratios.min() + tol * (1.0 + abs(ratios.min()))]
-        row = next((int(r) for r in ties if basis[r] == 2 * n), int(ties[0]))
+        least = min(ratio for ratio, _ in ratios)
+        ties = [r for ratio, r in ratios if ratio <= least + tol * (1.0 + abs(least))]
+        row = next((r for r in ties if basis[r] == 2 * n), ties[0])
         leaving = basis[row]
         _pivot(tableau, basis, row, entering)
         if leaving == 2 * n:
@@ -108,10 +109,14 @@ def lemke(
 
 
 def _pivot(tableau: np.ndarray, basis: list[int], row: int, column: int) -> None:
-    """Gauss-Jordan pivot of ``tableau`` on (row, column); ``column`` enters the basis."""
-    tableau[row] /= tableau[row, column]
-    others = np.arange(tableau.shape[0]) != row
-    tableau[others] -= np.outer(tableau[others, column], tableau[row])
+    """Gauss-Jordan pivot of ``tableau`` on (row, column); ``column`` enters the basis. The
+    other rows are updated in one operation on the whole tableau (the pivot row's factor 0, so it
+    is unchanged there and then replaced): the same arithmetic as row by row."""
+    pivot_row = tableau[row] / tableau[row, column]
+    factors = tableau[:, column].copy()
+    factors[row] = 0.0
+    tableau -= np.multiply.outer(factors, pivot_row)
+    tableau[row] = pivot_row
     basis[row] = column
 
 

@@ -165,7 +165,7 @@ def redundant(J: np.ndarray, A: np.ndarray | None = None) -> bool:
             else:
                 if np.min(np.diag(L)) ** 2 >= PIVOT_TOL:
                     return False
-    return _left_null_space(J).shape[1] > 0
+    return _rank(J) < J.shape[0]
 
 
 def twin_groups(rows: np.ndarray, tol: float = 1e-12) -> list[np.ndarray]:
@@ -432,11 +432,25 @@ def _kkt_newton(lam0: np.ndarray, N: np.ndarray, cones: _Cones, z: np.ndarray, a
 def row_space_split(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal bases (Ur, N) of the range of J's rows and of its left null space, the rank
     from the SVD of J with unit columns (so it does not depend on the units of the DOFs)."""
+    U, s, _ = np.linalg.svd(_unit_columns(J), full_matrices=True)
+    rank = _rank_of(s)
+    return U[:, :rank], U[:, rank:]
+
+
+def _unit_columns(J: np.ndarray) -> np.ndarray:
     scale = np.linalg.norm(J, axis=0)
     scale[scale == 0] = 1.0
-    U, s, _ = np.linalg.svd(J / scale, full_matrices=True)
-    rank = int(np.sum(s > RANK_TOL * s.max())) if s.size else 0
-    return U[:, :rank], U[:, rank:]
+    return J / scale
+
+
+def _rank_of(s: np.ndarray) -> int:
+    """The rank from singular values ``s``: those above RANK_TOL of the largest."""
+    return int(np.sum(s > RANK_TOL * s.max())) if s.size else 0
+
+
+def _rank(J: np.ndarray) -> int:
+    """:func:`row_space_split`'s rank without the bases (the singular values alone: cheaper)."""
+    return _rank_of(np.linalg.svd(_unit_columns(J), compute_uv=False))
 
 
 def _left_null_space(J: np.ndarray) -> np.ndarray:

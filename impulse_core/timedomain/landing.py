@@ -175,7 +175,8 @@ class LandingSettings:
         step_code: the RK4 steps (plane and space) by one CasADi function of the mode
             (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
-            and a missing compiler falls back to ``vm`` with a warning), ``vm`` on CasADi's
+            and a missing compiler falls back to ``vm`` with a warning; the events' dynamics at a
+            point, :func:`landing_function`, then run as C too), ``vm`` on CasADi's
             virtual machine, ``numpy`` the reference (rows built and solved per stage in numpy;
             always so for the implicit integrator, and for a redundant mode). All agree to rounding.
         bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
@@ -490,9 +491,11 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
 def _along(directions: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """sum_k directions[:, k] rows[:, k]: per contact, the component of ``rows`` (n_c x d x ...)
     along its direction (n_c x d)."""
-    if directions.shape[1] == 1:  # one direction: no sum
-        return directions[:, 0].reshape((-1,) + (1,) * (rows.ndim - 2)) * rows[:, 0]
-    return (directions.reshape(directions.shape + (1,) * (rows.ndim - 2)) * rows).sum(axis=1)
+    shape = (-1,) + (1,) * (rows.ndim - 2)
+    out = directions[:, 0].reshape(shape) * rows[:, 0]
+    for k in range(1, directions.shape[1]):  # in order, as numpy's sum over the axis adds
+        out += directions[:, k].reshape(shape) * rows[:, k]
+    return out
 
 
 @dataclass(frozen=True)
@@ -570,7 +573,7 @@ class _Mode:
     @property
     def sliding(self) -> np.ndarray:
         """Per contact: whether it slides."""
-        return np.any(self.slip != 0, axis=1)
+        return (self.slip != 0).any(axis=1)
 
     @property
     def side(self) -> np.ndarray:
@@ -630,7 +633,7 @@ def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray,
     direction = slip_direction(pt, slip, core) if mu > 0 else np.zeros_like(slip)
     sliding = direction[contacts]
     Fn = pt.Jn[contacts] - _along(mu * sliding, pt.Jt[contacts])
-    sticking = contacts[~np.any(sliding != 0, axis=1)] if mu > 0 else contacts[:0]
+    sticking = contacts[~(sliding != 0).any(axis=1)] if mu > 0 else contacts[:0]
     tangent_rows = pt.Jt[sticking].transpose(1, 0, 2).reshape(-1, nv)
     G = np.vstack([pt.Jn[contacts], G_stop, tangent_rows])
     F = np.vstack([Fn, G_stop, tangent_rows])
@@ -752,7 +755,7 @@ def impact_modes(pt: _Point, v: np.ndarray, v_plus: np.ndarray, contacts: np.nda
 
 def _rests(mode: _Mode) -> bool:
     """Some contact is closed or some joint rests on a stop (the mode has rows)."""
-    return bool(np.any(mode.closed) or np.any(mode.stop))
+    return bool(mode.closed.any() or mode.stop.any())
 
 
 def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
@@ -817,7 +820,7 @@ def joint_law_rate(M: np.ndarray, damping: np.ndarray, stiffness: np.ndarray) ->
     L = np.linalg.cholesky(M)
     rates = [0.0]
     for d, root in ((damping, False), (stiffness, True)):
-        if np.any(d > 0):
+        if (d > 0).any():
             Li = np.linalg.solve(L, np.diag(d))
             top = float(np.max(np.linalg.eigvalsh(np.linalg.solve(L, Li.T).T)))
             rates.append(math.sqrt(max(top, 0.0)) if root else top)
@@ -873,16 +876,19 @@ def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
     if not (math.isfinite(d0) and math.isfinite(d1) and math.isfinite(g0) and math.isfinite(g1)):
         return math.nan
     s = _ROOT_SAMPLES
-    coeffs = np.array([2 * g0 + d0 - 2 * g1 + d1, -3 * g0 - 2 * d0 + 3 * g1 - d1, d0, g0])
-    below = np.flatnonzero(np.polyval(coeffs, s) < 0)
-    if not below.size or below[0] == 0:
+    c3, c2, c1, c0 = (float(c) for c in (2 * g0 + d0 - 2 * g1 + d1, -3 * g0 - 2 * d0 + 3 * g1 - d1, d0, g0))
+    below = ((c3 * s + c2) * s + c1) * s + c0 < 0  # Horner's rule, as np.polyval
+    first = int(below.argmax())
+    if first == 0:  # none below, or below at s = 0
         return math.nan
-    a, b = s[below[0] - 1], s[below[0]]
-    c3, c2, c1, c0 = (float(c) for c in coeffs)
-    for _ in range(40):  # bisection on the polynomial: cheap (Horner's rule in floats)
+    a, b = float(s[first - 1]), float(s[first])
+    for _ in range(40):  # bisection on the polynomial: cheap (Horner's rule in Python floats)
         m = 0.5 * (a + b)
-        a, b = (m, b) if ((c3 * m + c2) * m + c1) * m + c0 >= 0 else (a, m)
-    return float(b)
+        if ((c3 * m + c2) * m + c1) * m + c0 >= 0:
+            a = m
+        else:
+            b = m
+    return b
 
 
 def balanced_length(dt: float, ratio: float, order: int) -> float:
@@ -946,7 +952,12 @@ class _Landing:
         self.planar = space.joint_axis is not None
         ground = scene.terrain if self.planar else spatial_ground(scene)
         self.ground = ground  # the plane's profile, or space's heightfield
-        fn = landing_function(self.topology, ground, space)
+        if settings.step_code == C_CODE:  # the point's dynamics compiled too
+            from impulse_core.timedomain.landing_step import compiled_landing_function  # it builds on this module
+
+            fn = compiled_landing_function(self.topology, ground, space)
+        else:
+            fn = landing_function(self.topology, ground, space)
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
         #: in the call's copy (:meth:`rechart`), and the next run starts from this one again
         self.design = design_vector(tree, space.body_values)
@@ -959,6 +970,7 @@ class _Landing:
         base_z = 0.0 if self.planar else float(scene.base_z)
         self.q0 = touchdown_configuration(tree, ground, scene.base_x, space=space, base_z=base_z)
         self.joints = joint_arrays(tree, laws, self.q0, space)
+        self.layout = dof_layout(self.topology, space)
         self.nc, self.nv = len(tree.contacts), len(self.q0)
         #: the rows of a point's position: 2 in the plane, 3 in space
         self.dims = 2 if self.planar else 3
@@ -1068,7 +1080,11 @@ class _Landing:
         tangent = tangent_basis(normal)
         J = o[2].reshape(self.nc, d, self.nv)  # per contact, its x, y (, z) rows
         bias = f[3].reshape(self.nc, d)
-        Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
+        if d == 2:  # the plane's one tangent: no stacking
+            Jt, bt = _along(tangent[:, 0], J)[:, None], _along(tangent[:, 0], bias)[:, None]
+        else:
+            Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
+            bt = np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)])
         return _Point(
             gap=f[0].copy(),
             normal=normal,
@@ -1076,7 +1092,7 @@ class _Landing:
             Jn=_along(normal, J),
             Jt=Jt,
             bn=_along(normal, bias),
-            bt=np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)]),
+            bt=bt,
             M=o[4].copy(),
             f=f[5] + self.joints.torque(q, v),
             kinetic=float(f[6][0]),
@@ -1138,7 +1154,7 @@ class _Landing:
         2.8 / h): the direction is exact s / |s| above |s| = core and regularised below it; core
         shrinks with the step, so the landing's step halving converges to the exact law. The
         plane (one tangent) is untouched."""
-        if self.dims == 2 or self.mu <= 0 or not np.any(mode.closed & mode.sliding):
+        if self.dims == 2 or self.mu <= 0 or not (mode.closed & mode.sliding).any():
             return
         mode.core[:] = 0.0
         pt = self.point(q, v)
@@ -1158,7 +1174,7 @@ class _Landing:
         slip direction u at the step's end (:func:`slip_direction` with the step's core), so that
         the slip-stop witness (s . d) watches the slip as it turns and the regularised direction
         relaxes towards s / |s|."""
-        if self.dims == 2 or self.mu <= 0 or not np.any(mode.closed & mode.sliding):
+        if self.dims == 2 or self.mu <= 0 or not (mode.closed & mode.sliding).any():
             return
         pt = self.point(q, v)
         moving = mode.closed & mode.sliding
@@ -1322,9 +1338,9 @@ class _Landing:
             x = h00 * q0 + h10 * v0 * h + h01 * q1 + h11 * v1 * h
             past = ((x > self.joints.hi + tol) | (x < self.joints.lo - tol)) & (mode.stop == 0)
             dips = np.hstack([dips, past])
-        if not np.any(dips):
+        if not dips.any():
             return None
-        return float(s[np.argmax(np.any(dips, axis=1)), 0])
+        return float(s[np.argmax(dips.any(axis=1)), 0])
 
     def trial(self, q: np.ndarray, v: np.ndarray, mode: _Mode, tau: float) -> _Trial:
         """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates."""
@@ -1429,10 +1445,20 @@ class _Landing:
         """Per contact: closed in ``mode`` and pushed by its force at (q, v) beyond the force
         tolerance (a contact resting unloaded is not)."""
         pt = self.point(q, v)
-        if not np.any(mode.closed):
+        if not mode.closed.any():
             return np.zeros(self.nc, bool)
         rows, (_, lam) = self.mode_solution(pt, mode)
         return mode.closed & (_contact_forces(rows, lam, self.mu, self.nc)[0] > self.force_tol)
+
+    @staticmethod
+    def rests_nowhere(contacts: np.ndarray, stops: np.ndarray) -> bool:
+        """No contact near the ground at rest and no joint on a stop: :meth:`resolve`'s LCP would
+        have no rows and leave every contact open and every joint free (:meth:`flight`)."""
+        return not contacts.size and not stops.any()
+
+    def flight(self) -> _Mode:
+        """The mode without rows: every contact open, every joint free."""
+        return _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
 
     def no_slip(self) -> np.ndarray:
         """A mode's ``slip`` with every contact sticking (n_c x (d - 1))."""
@@ -1447,8 +1473,9 @@ class _Landing:
         """Per normal row: how long a rebound at speed ``rebound`` would last before the row's
         free acceleration (springs, gravity, spin) brings it back (inf where it pulls away)."""
         free = rows.G[: rows.n] @ np.linalg.solve(pt.M, pt.f) + rows.b[: rows.n]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(free < 0, 2.0 * rebound / -free, np.inf)
+        time, back = np.full(rows.n, np.inf), free < 0
+        time[back] = 2.0 * rebound[back] / -free[back]
+        return time
 
     def stops_touching(self, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """Per DOF: the stop it rests on or has reached (-1 lower, +1 upper), else 0."""
@@ -1458,8 +1485,7 @@ class _Landing:
 
     def per_joint(self, per_dof: np.ndarray) -> np.ndarray:
         """A per-DOF quantity as one entry per non-base body (0 for fixed joints)."""
-        layout = dof_layout(self.topology, self.space)
-        return np.array([0.0 if k is None else per_dof[k] for k in layout.body_dof[1:]])
+        return np.array([0.0 if k is None else per_dof[k] for k in self.layout.body_dof[1:]])
 
     def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
         """Which resting rows stay closed, stick or slide: ``mode`` itself where it holds with a
@@ -1471,9 +1497,11 @@ class _Landing:
         vn = pt.vn(v)
         near = mode.closed | ((pt.gap <= self.settings.gap_tolerance) & (np.abs(vn) <= self.speed_tol))
         contacts = np.flatnonzero(near)
-        slip = _unit(pt.slip, self.speed_tol) if self.mu > 0 else self.no_slip()
         stops = self.stops_touching(q, mode)
         stops = np.where((mode.stop != 0) | (np.abs(v) <= self.speed_tol), stops, 0)
+        if self.rests_nowhere(contacts, stops):  # the LCP would have no rows
+            return self.flight()
+        slip = _unit(pt.slip, self.speed_tol) if self.mu > 0 else self.no_slip()
         for attempt in range(2):
             rows = _rows(pt, contacts, slip, stops, self.mu, self.nv)
             minv = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
@@ -1483,7 +1511,7 @@ class _Landing:
                 self.inexact += not exact
                 break
             except NumericalError:
-                if attempt or not np.any(slip[contacts]):
+                if attempt or not slip[contacts].any():
                     raise NumericalError(
                         f"no consistent contact forces at t with sliding contacts {list(contacts)} "
                         "(Painleve's paradox: lower the friction)"
@@ -1492,7 +1520,7 @@ class _Landing:
         acc_tol = 1e-9 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
         rest = sol.normal > self.force_tol  # an unloaded row opens (if it sinks, it touches again)
         rest |= self.held(pt, mode, rows, sol, acc_tol)
-        new = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
+        new = self.flight()
         c = rows.contact >= 0
         new.closed[rows.contact[c & rest]] = True
         new.slip[:] = np.where(new.closed[:, None], slip, 0)
@@ -1520,7 +1548,7 @@ class _Landing:
         c = rows.contact >= 0
         candidates = c & (sol.normal[: rows.n] <= self.force_tol) & (sol.velocity[: rows.n] <= acc_tol)
         candidates &= mode.closed[np.maximum(rows.contact, 0)]
-        if not np.any(candidates):
+        if not candidates.any():
             return np.zeros(rows.n, bool)
         probe = mode.copy()
         probe.redundant = self.redundant(pt, probe)
@@ -1537,19 +1565,21 @@ class _Landing:
         joint held on its stop, or slide with the stop opening), the run keeps the one it is in;
         Lemke's method may pick the other at each event, and the run would switch between them
         every fraction of a microsecond (a study's design did, 2e5 times)."""
+        if not _rests(mode):  # no rows to hold
+            return False
         pt = self.point(q, v)
         closed_stop = mode.stop != 0
         sticking = mode.closed & ~mode.sliding
-        at_rest = (np.all(np.abs(pt.vn(v)[mode.closed]) < PLASTIC_SPEED)  # as an impact leaves them: the
-                   and np.all(np.abs(pt.vt(v)[sticking]) < PLASTIC_SPEED)  # projection takes the rest
-                   and np.all(np.abs(v[closed_stop]) < PLASTIC_SPEED))
-        if not at_rest or not (np.any(mode.closed) or np.any(closed_stop)) or self.redundant(pt, mode):
+        at_rest = ((np.abs(pt.vn(v)[mode.closed]) < PLASTIC_SPEED).all()  # as an impact leaves them: the
+                   and (np.abs(pt.vt(v)[sticking]) < PLASTIC_SPEED).all()  # projection takes the rest
+                   and (np.abs(v[closed_stop]) < PLASTIC_SPEED).all())
+        if not at_rest or self.redundant(pt, mode):
             return False
         w, _ = self.witness_and_rate(q, v, mode)
         nc, nv = self.nc, self.nv
         geometric = np.concatenate([w[:nc], w[4 * nc : 4 * nc + 2 * nv]])
         forces = np.concatenate([w[nc : 4 * nc], w[4 * nc + 2 * nv :]])
-        return bool(np.all(geometric >= 1.0) and np.all(forces >= 2.0))
+        return bool((geometric >= 1.0).all() and (forces >= 2.0).all())
 
     def unify(self, pt: _Point, v: np.ndarray, mode: _Mode) -> _Mode:
         """Resting contacts at one point moving alike (identical toes: their tips coincide to
@@ -1596,7 +1626,7 @@ class _Landing:
             at = pt.Jt @ a + pt.bt
             starting = mode.closed & mode.sliding & (np.linalg.norm(pt.vt(v), axis=1) <= self.speed_tol)
             wrong = starting & (np.sum(mode.slip * at, axis=1) < -acc_tol)
-            if not np.any(wrong):
+            if not wrong.any():
                 break
             mode = mode.copy()
             mode.redundant = False
@@ -1608,14 +1638,14 @@ class _Landing:
         of the cone's edge (or beyond, by rounding) slides against its friction force: the LCP's
         answer at the edge (no slip acceleration) is the same in either mode, but sticking would
         leave the cone at once and stall the run."""
-        if self.mu <= 0 or not np.any(mode.closed & ~mode.sliding):
+        if self.mu <= 0 or not (mode.closed & ~mode.sliding).any():
             return mode
         pt = self.point(q, v)
         rows, (_, lam) = self.mode_solution(pt, mode)
         fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
         magnitude = np.linalg.norm(ft, axis=1)
         edge = mode.closed & ~mode.sliding & (self.mu * fn - magnitude <= self.force_tol) & (magnitude != 0)
-        if not np.any(edge):
+        if not edge.any():
             return mode
         new = mode.copy()
         new.slip[edge] = -_unit(ft[edge], 0.0)
@@ -1628,13 +1658,15 @@ class _Landing:
         if self.tape is not None:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         end = self.ended(q, v, mode)
-        own = (end is not None and not np.any(~mode.closed & (end.gap < 0))
-               and not np.any((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))))
+        own = (end is not None and not (~mode.closed & (end.gap < 0)).any()
+               and not ((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))).any())
         if own:  # a compiled step's end whose placement is the mode's own: the compiled projection
             projected = self.fast.project(q, v, mode)
             if projected is not None:
                 return projected
         pt = self.point(q, v)
+        if self.in_place(pt, q, mode):  # what placement() and the velocity rows would find: nothing to do
+            return q.copy(), v, np.zeros(self.dims * self.nc)
         q = q - self.placement(pt, q, mode)[1]
         rows = self.mode_solution(pt, mode, solve=False)[0] if _rests(mode) else None
         if rows is None or not rows.G.shape[0]:
@@ -1643,6 +1675,11 @@ class _Landing:
         impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
         v = v + minv_gt @ impulse
         return q, v, _stacked(*_contact_forces(rows, impulse, 0.0, self.nc))
+
+    def in_place(self, pt: _Point, q: np.ndarray, mode: _Mode) -> bool:
+        """Whether :meth:`project` has nothing to do at (q, ``pt``): no rows in the mode, no open
+        contact below the ground, no joint past a stop (a flight after a bounce)."""
+        return not _rests(mode) and not (pt.gap < 0).any() and not self.beyond(q).any()
 
     def placement(self, pt: _Point, q: np.ndarray, mode: _Mode) -> tuple[_Mode, np.ndarray]:
         """The rows a projection at (q, ``pt``) zeroes: the mode's, an open contact left below the
@@ -1653,7 +1690,7 @@ class _Landing:
         place.stop = np.where(place.stop == 0, self.beyond(q), place.stop)
         dq = self.position_correction(pt, q, place)
         carried = np.where(place.stop == 0, self.beyond(q - dq), 0)
-        if np.any(carried):
+        if carried.any():
             place.stop = np.where(place.stop == 0, carried, place.stop)
             dq = self.position_correction(pt, q, place)
         return place, dq
@@ -1739,7 +1776,7 @@ class _Landing:
         self.set_chart(self.design, None)
         q = self.q0.copy()
         v = pre_impact_velocity(self.topology, self.scene, self.space) if self.v_minus is None else self.v_minus.copy()
-        none = _Mode(np.zeros(self.nc, bool), self.no_slip(), np.zeros(self.nv, int))
+        none = self.flight()
         hit = self.first_contacts(self.point(q, v))
         v_plus, event, mode = self.impact(q, v, none, 0.0, hit, "touchdown")
         return q, v, v_plus, event, mode
@@ -1768,7 +1805,10 @@ class _Landing:
         return np.flatnonzero(pt.gap <= np.min(pt.gap) + self.scene.contact_tolerance)
 
     def add(self, totals: _Totals, impulses: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:
-        """Add stacked contact impulses (:func:`_stacked`, taken at (q, v)) to the totals."""
+        """Add stacked contact impulses (:func:`_stacked`, taken at (q, v)) to the totals (none
+        changes where every impulse is 0: a flight's step, a projection without rows)."""
+        if not impulses.any():  # adding zeros leaves every total as it is, to the bit
+            return
         ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
         totals.normal += impulses[: self.nc]
         totals.tangential += ft
@@ -1845,7 +1885,7 @@ class _Landing:
             if graze is None:
                 fraction = self.grazing(q, v, q1, v1, mode, dt)
                 graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
-                graze = graze if graze is not None and np.any(graze.w < 0) else None
+                graze = graze if graze is not None and (graze.w < 0).any() else None
             if graze is None:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
@@ -1864,7 +1904,7 @@ class _Landing:
             located = self.locate(q, v, mode, graze, watch)
             for _ in range(8):  # a witness that crossed earlier and came back by the step's end
                 missed = (located.w < 0) & ~watch
-                if not np.any(missed):
+                if not missed.any():
                     break
                 watch = located.w < 0
                 located = self.locate(q, v, mode, located, watch)
@@ -1901,11 +1941,11 @@ class _Landing:
         reaching = (mode.stop == 0) & (((q <= self.joints.lo + self.settings.gap_tolerance) & (v < 0))
                                         | ((q >= self.joints.hi - self.settings.gap_tolerance) & (v > 0)))
         v_before = v
-        if np.any(touching) or np.any(reaching):
+        if touching.any() or reaching.any():
             # every contact at the ground takes part (one just released may be pushed back down)
             contacts = np.flatnonzero(mode.closed | (pt.gap <= self.settings.gap_tolerance))
             v_minus = v
-            v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if np.any(touching) else "stop")
+            v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if touching.any() else "stop")
             totals.events.append(event)
             self.add_impact(totals, event, q, v_minus, v)
         mode = self.resolve(q, v, mode)
@@ -1935,7 +1975,7 @@ class _Landing:
 
     def result(self, totals: _Totals, q: np.ndarray, v: np.ndarray, h: float, energy_before: float,
                energy_final: float, gravity_work: float) -> LandingResult:
-        layout = dof_layout(self.topology, self.space)
+        layout = self.layout
         v_world, q = world_velocity(q, v, self.space), self.reported(q)
         base = [q[2]] if self.planar else list(q[3:6])
         angles = base + [b.angle if k is None else q[k] for b, k in zip(self.tree.bodies[1:], layout.body_dof[1:])]

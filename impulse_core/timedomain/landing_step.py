@@ -224,6 +224,14 @@ def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: 
     return tuple(compile_function(f, default_root(), fallback=True).function for f in (step, projection))
 
 
+@functools.lru_cache(maxsize=16)
+def compiled_landing_function(topology, terrain: Terrain | Heightfield, space: Space = PLANAR) -> ca.Function:
+    """:func:`landing.landing_function` (the numpy path's dynamics at a point: every event asks it
+    two or three times) as C through the compile cache, as the step is; the same arithmetic as
+    the virtual machine's (no contraction into fused multiply-adds), so the same numbers."""
+    return compile_function(landing_function(topology, terrain, space), default_root(), fallback=True).function
+
+
 @dataclass(frozen=True)
 class StepEnd:
     """A compiled step's results (copies): the state after it, its contact impulses ([normal,
@@ -361,4 +369,4 @@ class CompiledStep(BufferedFunction):
         return q1, v1, impulse
 
 
-__all__ = ["CompiledStep", "StepEnd", "compiled_step_function", "landing_projection_function", "landing_step_function"]
+__all__ = ["CompiledStep", "StepEnd", "compiled_landing_function", "compiled_step_function", "landing_projection_function", "landing_step_function"]

@@ -64,6 +64,73 @@ def test_lemke_equals_the_enumeration_on_p_matrices(seed: int) -> None:
     np.testing.assert_allclose(z, expected, atol=1e-10 * max(1.0, np.abs(expected).max()))
 
 
+def _reference_lemke(M: np.ndarray, q: np.ndarray, cover: np.ndarray) -> np.ndarray | None:
+    """Lemke's method as the textbook writes it (numpy arrays, pivots row by row): the reference
+    that :func:`lemke`'s whole-tableau pivots and Python ratio test must follow pivot for pivot."""
+    n = q.size
+    if np.all(q >= 0):
+        return np.zeros(n)
+    T = np.hstack([np.eye(n), -M, -cover[:, None], q[:, None]])
+    basis = list(range(n))
+    tol = 1e-12 * max(1.0, float(np.max(np.abs(T[:, :-1]))))
+
+    def pivot(row: int, column: int) -> None:
+        T[row] /= T[row, column]
+        for r in range(n):
+            if r != row:
+                T[r] -= T[r, column] * T[row]
+        basis[row] = column
+
+    first = int(np.argmin(q / cover))
+    pivot(first, 2 * n)
+    entering = n + first
+    for _ in range(50 * n + 50):
+        rows = np.flatnonzero(T[:, entering] > tol)
+        if rows.size == 0:
+            return None
+        ratios = T[rows, -1] / T[rows, entering]
+        ties = rows[ratios <= ratios.min() + tol * (1.0 + abs(ratios.min()))]
+        row = next((int(r) for r in ties if basis[r] == 2 * n), int(ties[0]))
+        leaving = basis[row]
+        pivot(row, entering)
+        if leaving == 2 * n:
+            z = np.zeros(n)
+            for r, var in enumerate(basis):
+                if n <= var < 2 * n:
+                    z[var - n] = T[r, -1]
+            return np.maximum(z, 0.0)
+        entering = leaving + n if leaving < n else leaving - n
+    return None
+
+
+def test_lemke_pivots_as_the_textbook_does() -> None:
+    """:func:`lemke` (whole-tableau pivots, the ratio test in Python floats: the landing's events
+    solve thousands of these) gives the textbook pivoting's answer bit for bit, on LCPs of 1 to 5
+    contacts with friction (:func:`unilateral_lcp`; twin contacts and contacts at rest make ties,
+    whose order changes the answer), with the default and random covering vectors."""
+    from impulse_core.impact.coulomb import unilateral_lcp
+
+    rng = np.random.default_rng(7)
+    solved = rays = 0
+    for trial in range(300):
+        n = int(rng.integers(1, 6))
+        A = rng.standard_normal((2 * n, n + 2))
+        if trial % 2 and n > 1:  # twin contacts: identical rows, ties in the ratio test
+            A[1], A[n + 1] = A[0], A[n]
+        u = A @ rng.standard_normal(n + 2)
+        u[n:] *= rng.random(n) < 0.5  # some at rest tangentially: zeros in q, more ties
+        e = rng.uniform(0.0, 1.0, n) * (trial % 3 > 0)  # some at the acceleration level (e = 0)
+        M, q = unilateral_lcp(A @ A.T, u, np.arange(n), e, rng.uniform(0.2, 1.0, n))
+        cover = np.ones(q.size) if trial % 4 else rng.uniform(0.5, 2.0, q.size)
+        z, ref = lemke(M, q, cover), _reference_lemke(M, q, cover)
+        assert (z is None) == (ref is None)
+        if z is not None:
+            assert np.array_equal(z, ref)
+            solved += 1
+        rays += z is None
+    assert solved > 250 and rays < 30
+
+
 def test_lemke_reports_a_problem_without_solution() -> None:
     """z >= 0 with -z - 1 >= 0 has no solution: a ray, None."""
     assert lemke(np.array([[-1.0]]), np.array([-1.0])) is None
