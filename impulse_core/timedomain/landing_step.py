@@ -1,12 +1,14 @@
-"""The landing's Runge-Kutta step and projection as compiled CasADi functions (plane and space).
+"""The landing's integrator steps (Runge-Kutta 4 and ROS2) and projection as compiled CasADi
+functions (plane and space).
 
-:meth:`impulse_core.timedomain.landing._Landing.rk4_step` builds each stage's rows and solves
-them in numpy, which costs ~10 x the dynamics call. Here one SX graph per topology, terrain and
-set of joints with stops holds the whole step for every mode: every possible row is present
+:meth:`impulse_core.timedomain.landing._Landing.rk4_step` (and ``implicit_step``, ROS2) builds each
+stage's rows and solves them in numpy, which costs ~10 x the dynamics call. Here one SX graph per
+integrator, topology, terrain and set of joints with stops holds the whole step for every mode: every possible row is present
 (each contact's normal row, each stop's row, then each contact's row of each tangent in turn)
 and the mode enters as numbers. A row is active (``active`` = 1) or not (0): an inactive row is
 replaced by an identity row with a zero right-hand side, so its multiplier is 0 and the active
-rows' system is the mode's (:func:`impulse_core.timedomain.landing._accelerations`) exactly.
+rows' system is the mode's (:func:`impulse_core.timedomain.landing._accelerations`, and ROS2's
+``_constrained_solve`` with W = M + g h D + g^2 h^2 K for M) exactly.
 Its Delassus matrix and the mass matrix are solved by Gaussian elimination without pivoting
 (``landing_derivatives._solve``): the mass matrix is positive definite, the masked Delassus
 matrix block diagonal in the active and inactive rows, the active block that of the numpy path.
@@ -44,7 +46,15 @@ from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.timedomain.compliant import BufferedFunction
-from impulse_core.timedomain.landing import _Joints, _Mode, _mode_bytes, landing_function
+from impulse_core.timedomain.landing import (
+    IMPLICIT,
+    RK4,
+    ROS2_GAMMA,
+    _Joints,
+    _Mode,
+    _mode_bytes,
+    landing_function,
+)
 from impulse_core.timedomain.landing_derivatives import _solve, slip_direction_expression, spatial_contact_rows
 
 STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floor", "stiffness", "damping", "rest",
@@ -108,22 +118,41 @@ def _directions(pt: dict, x: _Args) -> list[ca.SX]:
     return [ca.vertcat(*[ui[a] for ui in u]) for a in range(2)]
 
 
-def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, list[ca.SX], ca.SX]:
-    """(a, fn, ft per tangent, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on
-    the active rows; F's normal row of a sliding contact is n - mu u^T t (:func:`_directions`)."""
-    nv, nc = pt["M"].shape[0], pt["Jn"].shape[0]
-    E = _stop_rows(x.stop, stop_dofs, nv)
+def _masked_rows(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, ca.SX, list[ca.SX]]:
+    """The mode's rows at a point, inactive ones zeroed: (G, F, b, u per tangent); F's normal row
+    of a sliding contact is n - mu u^T t (:func:`_directions`)."""
+    E = _stop_rows(x.stop, stop_dofs, pt["M"].shape[0])
     Jn, Jt, u = pt["Jn"], pt["Jt"], _directions(pt, x)
     Fn = Jn - x.mu * sum(ca.diag(ua) @ Jta for ua, Jta in zip(u, Jt))
     G = ca.diag(x.active) @ ca.vertcat(Jn, E, *Jt)
     F = ca.diag(x.active) @ ca.vertcat(Fn, E, *Jt)
     b = x.active * ca.vertcat(pt["bn"], ca.SX.zeros(len(stop_dofs)), *pt["bt"])
-    X = _solve(pt["M"], ca.horzcat(pt["f"], F.T))
-    a0, minv_ft = X[:, 0], X[:, 1:]
-    lam = _solve(G @ minv_ft + ca.diag(1 - x.active), -(G @ a0 + b))
-    fn, first = lam[:nc], nc + len(stop_dofs)
+    return G, F, b, u
+
+
+def _masked_solve(W: ca.SX, G: ca.SX, F: ca.SX, active: ca.SX, rhs: ca.SX, row_rhs: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(x, lambda) with W x = rhs + F^T lambda and G x = row_rhs on the active rows (masked rows
+    G, F: the others' lambda = 0; :func:`landing._constrained_solve`)."""
+    X = _solve(W, ca.horzcat(rhs, F.T))
+    x0, winv_ft = X[:, 0], X[:, 1:]
+    lam = _solve(G @ winv_ft + ca.diag(1 - active), row_rhs - G @ x0)
+    return x0 + winv_ft @ lam, lam
+
+
+def _row_forces(lam: ca.SX, u: list[ca.SX], x: _Args, nc: int, ns: int) -> tuple[ca.SX, list[ca.SX], ca.SX]:
+    """(fn, ft per tangent, stop multipliers) of the rows' multipliers: a sliding contact's
+    tangential force is -mu u fn (its tangent rows are inactive)."""
+    fn, first = lam[:nc], nc + ns
     ft = [-x.mu * ua * fn + lam[first + k * nc : first + (k + 1) * nc] for k, ua in enumerate(u)]
-    return a0 + minv_ft @ lam, fn, ft, lam[nc:first]
+    return fn, ft, lam[nc:first]
+
+
+def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, list[ca.SX], ca.SX]:
+    """(a, fn, ft per tangent, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on
+    the active rows."""
+    G, F, b, u = _masked_rows(pt, x, stop_dofs)
+    a, lam = _masked_solve(pt["M"], G, F, x.active, pt["f"], -b)
+    return (a, *_row_forces(lam, u, x, pt["Jn"].shape[0], len(stop_dofs)))
 
 
 def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[int, ...], pt: dict | None = None
@@ -131,15 +160,60 @@ def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[
     """(a, [fn; ft per tangent]) at (q, v) (``pt``: its point, if already built)."""
     pt = _point(fn, q, v, x) if pt is None else pt
     a, fn_, ft, _ = _masked_forces(pt, x, stop_dofs)
-    return a, ca.vertcat(fn_, *ft)
+    return a, _stacked(fn_, ft)
+
+
+def _stacked(fn: ca.SX, ft: list[ca.SX]) -> ca.SX:
+    """[normal per contact; each tangent's per contact] (:func:`landing._stacked`)."""
+    return ca.vertcat(fn, *ft)
+
+
+def _rk4(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict
+         ) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """One classical RK4 step: (q1, v1, contact impulses [normal; each tangent's])
+    (:meth:`landing._Landing.rk4_step`; ``start``: the point at (q, v))."""
+    a1, f1 = _derivative(fn, q, v, x, stop_dofs, start)
+    v2 = v + 0.5 * h * a1
+    a2, f2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
+    v3 = v + 0.5 * h * a2
+    a3, f3 = _derivative(fn, q + 0.5 * h * v2, v3, x, stop_dofs)
+    v4 = v + h * a3
+    a4, f4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
+    q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
+    v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+    return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
+
+
+def _ros2(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict
+          ) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """One ROS2 step with the joint laws in its matrix W = M + g h D + g^2 h^2 K, the mode's rows
+    those of the start (:meth:`landing._Landing.implicit_step`, whose docstring derives it)."""
+    g = ROS2_GAMMA * h
+    nc, ns = start["Jn"].shape[0], len(stop_dofs)
+    G, F, b, u = _masked_rows(start, x, stop_dofs)
+    W = start["M"] + ca.diag(g * x.damping + g * g * x.stiffness)
+    k1v, nu1 = _masked_solve(W, G, F, x.active, start["f"] - g * x.stiffness * v, -b)
+    k1q = v + g * k1v
+    q2, v2 = q + h * k1q, v + h * k1v
+    a2, f2 = _derivative(fn, q2, v2, x, stop_dofs)
+    rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
+    k2v, nu2 = _masked_solve(W, G, F, x.active, start["M"] @ rv - g * x.stiffness * rq, G @ rv)
+    k2q = rq + g * k2v
+    f1, f3 = (_stacked(*_row_forces(nu, u, x, nc, ns)[:2]) for nu in (nu1, nu2))
+    return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
+
+
+#: Each integrator's step (:data:`landing.RK4`, :data:`landing.IMPLICIT`) and its function's name.
+_INTEGRATORS = {RK4: (_rk4, "landing_step"), IMPLICIT: (_ros2, "landing_implicit_step")}
 
 
 @functools.lru_cache(maxsize=16)
 def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
-                          space: Space = PLANAR) -> ca.Function:
-    """One classical RK4 step of the landing in a mode given as numbers (module docstring), and
-    its end point's figures (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops; ``space``:
-    the plane, PLANAR_OFFSET (centres of mass off the rods: the design vector's layout) or space
+                          space: Space = PLANAR, method: str = RK4) -> ca.Function:
+    """One step of the landing's integrator ``method`` (classical RK4, or ROS2: ``implicit``) in
+    a mode given as numbers (module docstring), and its end point's figures
+    (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops; ``space``: the plane,
+    PLANAR_OFFSET (centres of mass off the rods: the design vector's layout) or space
     (``terrain`` a heightfield)."""
     fn = landing_function(topology, terrain, space)
     nv, nc, ns, nt = fn.size1_in(0), fn.size1_out(0), len(stop_dofs), _tangents_of(fn)
@@ -150,24 +224,16 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
         ca.SX.sym("stiffness", nv), ca.SX.sym("damping", nv), ca.SX.sym("rest", nv),
         ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity"),
     )
+    integrate, name = _INTEGRATORS[method]
     start = _point(fn, q, v, x)
-    a1, f1 = _derivative(fn, q, v, x, stop_dofs, start)
-    v2 = v + 0.5 * h * a1
-    a2, f2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
-    v3 = v + 0.5 * h * a2
-    a3, f3 = _derivative(fn, q + 0.5 * h * v2, v3, x, stop_dofs)
-    v4 = v + h * a3
-    a4, f4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
-    q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
-    v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+    q1, v1, impulse = integrate(fn, q, v, h, x, stop_dofs, start)
     end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
-    outs = [q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4), start["momentum"], end["momentum"], start["gap"],
-            start["Jn"] @ v, end["gap"], end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1,
-            end["normal"], end["kinetic"]]
+    outs = [q1, v1, impulse, start["momentum"], end["momentum"], start["gap"], start["Jn"] @ v, end["gap"],
+            end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1, end["normal"], end["kinetic"]]
     inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
               x.gravity]
-    return ca.Function("landing_step", inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
+    return ca.Function(name, inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
 
 
 def _masked_correction(M: ca.SX, G: ca.SX, active: ca.SX, residual: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -215,11 +281,11 @@ def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_d
 
 @functools.lru_cache(maxsize=16)
 def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
-                           space: Space = PLANAR) -> tuple[ca.Function, ca.Function]:
+                           space: Space = PLANAR, method: str = RK4) -> tuple[ca.Function, ca.Function]:
     """:func:`landing_step_function` and :func:`landing_projection_function` as C, built once
     into (or loaded from) the compile cache (:func:`impulse_core.compile.codegen.compile_function`);
     without a C compiler, a warning and the virtual machine's functions."""
-    step = landing_step_function(topology, terrain, stop_dofs, space)
+    step = landing_step_function(topology, terrain, stop_dofs, space, method)
     projection = landing_projection_function(topology, terrain, stop_dofs, space)
     return tuple(compile_function(f, default_root(), fallback=True).function for f in (step, projection))
 
@@ -253,15 +319,17 @@ class CompiledStep(BufferedFunction):
     redundant mode, or a non-finite result); ``compiled``: as C through the compile cache
     (:func:`impulse_core.compile.codegen.compile_function`; no compiler: the virtual machine);
     ``terrain``: the plane's profile or space's heightfield; ``floor``: the slip speed below which
-    a sliding contact keeps its mode's direction (space, :func:`landing.slip_direction`)."""
+    a sliding contact keeps its mode's direction (space, :func:`landing.slip_direction`);
+    ``method``: the integrator (RK4, or IMPLICIT: ROS2)."""
 
     def __init__(self, topology, terrain: Terrain | Heightfield, p: np.ndarray, gravity: float, mu: float,
-                 joints: _Joints, compiled: bool = False, space: Space = PLANAR, floor: float = 0.0) -> None:
+                 joints: _Joints, compiled: bool = False, space: Space = PLANAR, floor: float = 0.0,
+                 method: str = RK4) -> None:
         self.stop_dofs = tuple(int(j) for j in np.flatnonzero(np.isfinite(joints.lo) | np.isfinite(joints.hi)))
         if compiled:
-            step, projection = compiled_step_function(topology, terrain, self.stop_dofs, space)
+            step, projection = compiled_step_function(topology, terrain, self.stop_dofs, space, method)
         else:
-            step = landing_step_function(topology, terrain, self.stop_dofs, space)
+            step = landing_step_function(topology, terrain, self.stop_dofs, space, method)
             projection = landing_projection_function(topology, terrain, self.stop_dofs, space)
         super().__init__(step)
         self.block, self.spans = self.contiguous()
