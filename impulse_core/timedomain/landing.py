@@ -1213,25 +1213,23 @@ class _Landing:
             q1, v1, impulse = self.step(q, v, mode, dt)
             if dt <= floor or not (np.isfinite(q1).all() and np.isfinite(v1).all()):
                 return q1, v1, impulse, dt, 2.0 * dt
-            if p0 is None:
-                end = self.ended(q1, v1, mode)
-                p0 = end.momentum0 if end is not None else self.point(q, v).momentum[:, 0].copy()
-            residual, share = float(np.max(np.abs(self.momentum_residual(p0, q1, v1, impulse, dt)))), rate * dt
+            end = self.ended(q1, v1, mode)
+            if end is None and p0 is None:
+                p0 = self.point(q, v).momentum[:, 0].copy()
+            balance = end.balance if end is not None else self.momentum_change(p0, q1, v1, impulse)
+            residual, share = float(np.max(np.abs(balance - self.weight(dt)))), rate * dt
             ratio = residual / share if share > 0 else (0.0 if residual <= 0 else math.inf)
             if ratio <= 1.0:
                 return q1, v1, impulse, dt, balanced_length(dt, ratio, order)
             dt /= 2.0
 
-    def momentum_residual(self, p0: np.ndarray, q1: np.ndarray, v1: np.ndarray, impulse: np.ndarray, dt: float
-                          ) -> np.ndarray:
-        """The linear momentum at (q1, v1) minus ``p0``, the contact ``impulse`` ([normal,
-        tangential] per contact, along the normals and tangents at (q1, v1)) and the weight's
-        impulse over ``dt``."""
-        end = self.ended(q1, v1)
-        momentum, normal = (end.momentum1, end.normal) if end is not None else (self.point(q1, v1).momentum[:, 0],
-                                                                                 self.point(q1, v1).normal)
+    def momentum_change(self, p0: np.ndarray, q1: np.ndarray, v1: np.ndarray, impulse: np.ndarray) -> np.ndarray:
+        """The linear momentum at (q1, v1) minus ``p0`` and the contact ``impulse`` ([normal,
+        tangential] per contact, along the normals and tangents at (q1, v1)): a step's momentum
+        balance but for the weight's impulse (numpy; a compiled step's is its ``balance``)."""
+        pt = self.point(q1, v1)
         ft = impulse[self.nc :].reshape(self.dims - 1, self.nc).T
-        return momentum - p0 - impulse_vector(normal, impulse[: self.nc], ft) - self.weight(dt)
+        return pt.momentum[:, 0] - p0 - impulse_vector(pt.normal, impulse[: self.nc], ft)
 
     def kinetic(self, q: np.ndarray, v: np.ndarray) -> float:
         """The kinetic energy at (q, v)."""

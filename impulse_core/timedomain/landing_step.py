@@ -15,7 +15,8 @@ matrix block diagonal in the active and inactive rows, the active block that of 
 
 The function also returns what the landing loop asks of the step's end point: the witnesses'
 ingredients (gaps, normal velocities, slip, contact forces, stop forces in the mode), the linear
-momentum at both ends (the momentum balance), the normals (the step's impulse vector) and the
+momentum at both ends and the step's momentum balance but for the weight (``balance``: the change
+of momentum minus the step's impulses along the end's normals and tangents), the normals and the
 kinetic energy (the divergence check), so that a plain step costs one call; and the projection
 that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
 velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
@@ -35,6 +36,7 @@ forces of the end are n_c x 2, the normals n_c x 3; the base's rotation-vector c
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
@@ -55,12 +57,18 @@ from impulse_core.timedomain.landing import (
     _mode_bytes,
     landing_function,
 )
-from impulse_core.timedomain.landing_derivatives import _solve, slip_direction_expression, spatial_contact_rows
+from impulse_core.timedomain.landing_derivatives import (
+    _factor,
+    _solve,
+    _substitute,
+    slip_direction_expression,
+    spatial_contact_rows,
+)
 
 STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floor", "stiffness", "damping", "rest",
                "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
-                "stop_force", "normal", "kinetic")
+                "stop_force", "normal", "kinetic", "balance")
 #: CasADi options of the step and projection. Not common subexpression elimination: it makes
 #: spatial case 3's step 11 % shorter (216861 -> 192431 instructions, ~15 % faster on the virtual
 #: machine) but its graph's build 3.0 s instead of 0.2 s, more than a short landing takes.
@@ -91,18 +99,20 @@ def _tangents_of(fn: ca.Function) -> int:
 
 def _point(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args) -> dict:
     """The dynamics at (q, v) in contact coordinates: normal rows and each tangent's rows (the
-    plane: the normal turned by -90 degrees; space: t_x, t_z, :func:`landing.tangent_basis`),
-    the slip per tangent, the joint laws' torques."""
+    plane: the normal turned by -90 degrees; space: t_x, t_z, :func:`landing.tangent_basis`;
+    ``tangent``: each tangent's d x n_c directions), the slip per tangent, the joint laws' torques."""
     gap, normal, J, bias, M, force, kinetic, momentum, _, _ = fn(q, v, x.p, x.gravity)
     if _tangents_of(fn) == 1:
         nx, ny = normal[0, :].T, normal[1, :].T
         Jx, Jy, bx, by = J[0::2, :], J[1::2, :], bias[0::2], bias[1::2]
         rows = dict(Jn=ca.diag(nx) @ Jx + ca.diag(ny) @ Jy, Jt=[ca.diag(ny) @ Jx - ca.diag(nx) @ Jy],
                     bn=nx * bx + ny * by, bt=[ny * bx - nx * by])
+        tangent = [ca.vertcat(ny.T, -nx.T)]
     else:
-        rows = spatial_contact_rows(normal, J, bias)[2]
+        _, tangents, rows = spatial_contact_rows(normal, J, bias)
+        tangent = [ca.horzcat(*[t[a] for t in tangents]) for a in range(2)]
     return dict(
-        gap=gap, normal=normal, M=M, slip=[Jt @ v for Jt in rows["Jt"]],
+        gap=gap, normal=normal, tangent=tangent, M=M, slip=[Jt @ v for Jt in rows["Jt"]],
         f=force - x.stiffness * (q - x.rest) - x.damping * v, kinetic=kinetic, momentum=momentum[:, 0], **rows,
     )
 
@@ -130,13 +140,20 @@ def _masked_rows(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX,
     return G, F, b, u
 
 
-def _masked_solve(W: ca.SX, G: ca.SX, F: ca.SX, active: ca.SX, rhs: ca.SX, row_rhs: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """(x, lambda) with W x = rhs + F^T lambda and G x = row_rhs on the active rows (masked rows
-    G, F: the others' lambda = 0; :func:`landing._constrained_solve`)."""
-    X = _solve(W, ca.horzcat(rhs, F.T))
-    x0, winv_ft = X[:, 0], X[:, 1:]
-    lam = _solve(G @ winv_ft + ca.diag(1 - active), row_rhs - G @ x0)
-    return x0 + winv_ft @ lam, lam
+def _masked_solver(W: ca.SX, G: ca.SX, F: ca.SX, active: ca.SX) -> Callable[[ca.SX, ca.SX], tuple[ca.SX, ca.SX]]:
+    """(rhs, row_rhs) -> (x, lambda) with W x = rhs + F^T lambda and G x = row_rhs on the active
+    rows (masked rows G, F: the others' lambda = 0; :func:`landing._constrained_solve`); W and
+    the rows' matrix G W^-1 F^T are factored once for any number of right-hand sides."""
+    w = _factor(W)
+    winv_ft = _substitute(w, F.T)
+    s = _factor(G @ winv_ft + ca.diag(1 - active))
+
+    def solve(rhs: ca.SX, row_rhs: ca.SX) -> tuple[ca.SX, ca.SX]:
+        x0 = _substitute(w, rhs)
+        lam = _substitute(s, row_rhs - G @ x0)
+        return x0 + winv_ft @ lam, lam
+
+    return solve
 
 
 def _row_forces(lam: ca.SX, u: list[ca.SX], x: _Args, nc: int, ns: int) -> tuple[ca.SX, list[ca.SX], ca.SX]:
@@ -151,7 +168,7 @@ def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.S
     """(a, fn, ft per tangent, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on
     the active rows."""
     G, F, b, u = _masked_rows(pt, x, stop_dofs)
-    a, lam = _masked_solve(pt["M"], G, F, x.active, pt["f"], -b)
+    a, lam = _masked_solver(pt["M"], G, F, x.active)(pt["f"], -b)
     return (a, *_row_forces(lam, u, x, pt["Jn"].shape[0], len(stop_dofs)))
 
 
@@ -191,16 +208,24 @@ def _ros2(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tu
     g = ROS2_GAMMA * h
     nc, ns = start["Jn"].shape[0], len(stop_dofs)
     G, F, b, u = _masked_rows(start, x, stop_dofs)
-    W = start["M"] + ca.diag(g * x.damping + g * g * x.stiffness)
-    k1v, nu1 = _masked_solve(W, G, F, x.active, start["f"] - g * x.stiffness * v, -b)
+    solve = _masked_solver(start["M"] + ca.diag(g * x.damping + g * g * x.stiffness), G, F, x.active)
+    k1v, nu1 = solve(start["f"] - g * x.stiffness * v, -b)
     k1q = v + g * k1v
     q2, v2 = q + h * k1q, v + h * k1v
     a2, f2 = _derivative(fn, q2, v2, x, stop_dofs)
     rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
-    k2v, nu2 = _masked_solve(W, G, F, x.active, start["M"] @ rv - g * x.stiffness * rq, G @ rv)
+    k2v, nu2 = solve(start["M"] @ rv - g * x.stiffness * rq, G @ rv)
     k2q = rq + g * k2v
     f1, f3 = (_stacked(*_row_forces(nu, u, x, nc, ns)[:2]) for nu in (nu1, nu2))
     return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
+
+
+def _impulse_vector(pt: dict, impulse: ca.SX) -> ca.SX:
+    """The contact impulses' sum (world frame) of ``impulse`` ([normal; each tangent's] per
+    contact) along the normals and tangents at the point (:func:`landing.impulse_vector`)."""
+    nc = pt["gap"].shape[0]
+    directions = [pt["normal"], *pt["tangent"]]
+    return sum(d @ impulse[k * nc : (k + 1) * nc] for k, d in enumerate(directions))
 
 
 #: Each integrator's step (:data:`landing.RK4`, :data:`landing.IMPLICIT`) and its function's name.
@@ -230,7 +255,8 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
     end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
     outs = [q1, v1, impulse, start["momentum"], end["momentum"], start["gap"], start["Jn"] @ v, end["gap"],
-            end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1, end["normal"], end["kinetic"]]
+            end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1, end["normal"], end["kinetic"],
+            end["momentum"] - start["momentum"] - _impulse_vector(end, impulse)]
     inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
               x.gravity]
     return ca.Function(name, inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
@@ -311,6 +337,9 @@ class StepEnd:
     stop_force: np.ndarray  # per DOF (0 where no stop row)
     normal: np.ndarray  # n_c x d
     kinetic: float
+    #: the momentum balance but for the weight: momentum1 - momentum0 - the step's impulses'
+    #: sum along the end's normals and tangents (:meth:`landing._Landing.balanced_step`)
+    balance: np.ndarray
 
 
 class CompiledStep(BufferedFunction):
@@ -365,7 +394,7 @@ class CompiledStep(BufferedFunction):
         shape = (self.nc, self.nt)
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9].reshape(shape, order="F"), o[10],
                        o[11].reshape(shape, order="F"), stop_force, o[13].reshape(self.out[13].shape, order="F").T,
-                       float(o[14][0]))
+                       float(o[14][0]), o[15])
 
     def set_design(self, p: np.ndarray) -> None:
         """Evaluate with the design vector ``p`` from now on (space: a re-centred base's rotation
