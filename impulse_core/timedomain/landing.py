@@ -176,8 +176,10 @@ class LandingSettings:
             the mode (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
             and a missing compiler falls back to ``vm`` with a warning), ``vm`` on CasADi's
-            virtual machine, ``numpy`` the reference (rows built and solved per stage in numpy;
-            always so for a redundant mode). All agree to rounding.
+            virtual machine (a mode stepped 32 times by its own copy, the mode's rows as
+            constants: :class:`~impulse_core.timedomain.landing_step.ModeFunctions`), ``numpy``
+            the reference (rows built and solved per stage in numpy; always so for a redundant
+            mode). All agree to rounding.
         bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
             ``MODEL_FORMAT.md`` asks), or b > 0: after the first impact a rebound that the row's
             free acceleration would end within b steps is plastic (module docstring; case 3's

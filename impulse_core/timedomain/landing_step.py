@@ -325,18 +325,21 @@ SPECIALISED_MODES = 64
 
 class ModeFunctions:
     """The evaluations of a :class:`BufferedFunction` per mode: its own, or on the virtual machine
-    for a mode asked for :data:`SPECIALISE_AFTER` times, a copy with the mode's inputs (``fixed``:
-    their indices) as the constants they hold then. CasADi folds them as it builds the copy, so
-    the inactive rows' products by 0 and 1 and the sums of their zeros drop out (f3037's ROS2
-    step: 22121 instructions, 8039 with two sliding contacts); the rest are the same operations
-    in the same order. The copies read and write the function's own arrays."""
+    for a mode asked for :data:`SPECIALISE_AFTER` times, a copy with the mode's rows (``fixed``:
+    the indices of the inputs that say which rows are active and each stop's side) as the
+    constants they hold then. CasADi folds them as it builds the copy, so the inactive rows'
+    products by 0 and 1 and the sums of their zeros drop out (f3037's ROS2 step: 22121
+    instructions, 8073 with two sliding contacts); the rest are the same operations in the same
+    order. The sliding directions stay inputs (in space they turn with the slip at every step).
+    The copies read and write the function's own arrays."""
 
     def __init__(self, fn: BufferedFunction, f: ca.Function, fixed: tuple[int, ...], specialise: bool) -> None:
         self.fn, self.f, self.fixed, self.specialise = fn, f, fixed, specialise
         self._modes: dict[bytes, list] = {}  # per mode: [times asked, its evaluation or None]
 
     def evaluator(self, key: bytes) -> Callable[[], None]:
-        """The evaluation for the mode ``key`` (its inputs already set in ``fn.args``)."""
+        """The evaluation for the mode whose rows are ``key`` (:func:`_rows_key`; its inputs
+        already set in ``fn.args``)."""
         if not self.specialise:
             return self.fn.evaluate
         entry = self._modes.get(key)
@@ -363,6 +366,12 @@ class ModeFunctions:
         for i, r in enumerate(self.fn.flat):
             buffer.set_res(i, memoryview(r))
         return buffer, evaluate
+
+
+def _rows_key(numbers: tuple[np.ndarray, ...]) -> bytes:
+    """A mode's rows (:meth:`CompiledStep.numbers`' active rows and stop sides) as bytes: what a
+    mode's own functions fix (:class:`ModeFunctions`)."""
+    return numbers[0].tobytes() + numbers[1].tobytes()
 
 
 @dataclass(frozen=True)
@@ -412,9 +421,9 @@ class CompiledStep(BufferedFunction):
         super().__init__(step)
         self.block, self.spans = self.contiguous()
         self.projection = BufferedFunction(projection)
-        #: per mode, the step's and the projection's evaluations (the mode's inputs: active,
-        #: direction, stop; place, place_stop, limit, active, stop)
-        self.modes = ModeFunctions(self, step, (3, 4, 5), not compiled)
+        #: per mode, the step's and the projection's evaluations (the inputs the mode's rows
+        #: set: active, stop; place, place_stop, limit, active, stop)
+        self.modes = ModeFunctions(self, step, (3, 5), not compiled)
         self.projection_modes = ModeFunctions(self.projection, projection, (2, 3, 4, 5, 6), not compiled)
         self.nc, self.nt = step.size1_out(10), step.size2_out(9)
         self.set_design(p)
@@ -430,15 +439,14 @@ class CompiledStep(BufferedFunction):
         self._numbers: dict[bytes, tuple | None] = {}  # see numbers()
 
     def step(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode) -> StepEnd | None:
-        key = _mode_bytes(mode)
-        numbers = self.numbers(mode, key)
+        numbers = self.numbers(mode)
         if numbers is None:
             return None
         a = self.args
         a[0][:], a[1][:], a[2][0] = q, v, h
         a[3][:], a[5][:], a[4][:] = numbers
         a[6][:] = mode.core
-        self.modes.evaluator(key)()
+        self.modes.evaluator(_rows_key(numbers))()
         block = self.block.copy()  # every output at once, as views of one copy
         o = [block[a:b] for a, b in self.spans]
         if not np.isfinite(o[1].sum() + o[10].sum() + o[11].sum()):  # singular rows: NaN or inf, which propagate
@@ -468,12 +476,11 @@ class CompiledStep(BufferedFunction):
             self.out[i] = self.flat[i].reshape(self.out[i].shape, order="F")
         return block, spans
 
-    def numbers(self, mode: _Mode, key: bytes | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    def numbers(self, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The mode as the functions' numbers (:meth:`active`, and each contact's sliding
-        direction, 0 where open or sticking), kept per mode (``key``: its :func:`_mode_bytes`, if
-        known); None where the numpy path answers (a redundant mode, a stop on a DOF without stop
-        rows)."""
-        key = _mode_bytes(mode) if key is None else key
+        direction, 0 where open or sticking), kept per mode; None where the numpy path answers (a
+        redundant mode, a stop on a DOF without stop rows)."""
+        key = _mode_bytes(mode)
         numbers = self._numbers.get(key, False)
         if numbers is False:
             numpy = mode.redundant or np.any(mode.stop[self.stopless])
@@ -495,8 +502,7 @@ class CompiledStep(BufferedFunction):
         being the mode's own (no open contact below the ground, no free joint past a stop before
         or after the correction: the caller checks the first two); None where the numpy path
         must answer (a redundant mode, a joint carried past its stop, a non-finite result)."""
-        key = _mode_bytes(mode)
-        numbers = self.numbers(mode, key)
+        numbers = self.numbers(mode)
         if numbers is None:
             return None
         a = self.projection.args
@@ -504,7 +510,7 @@ class CompiledStep(BufferedFunction):
         a[5][:], a[6][:] = numbers[:2]
         a[2][:], a[3][:] = a[5][: len(a[2])], a[6]
         a[4][:] = np.where(a[6] > 0, self.hi, self.lo)
-        self.projection_modes.evaluator(key)()
+        self.projection_modes.evaluator(_rows_key(numbers))()
         dq, v1, impulse = (r.copy() for r in self.projection.flat)
         q1 = q - dq
         free = mode.stop == 0
