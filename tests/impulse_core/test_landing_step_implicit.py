@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from impulse_core.kinematics.spatial import SPATIAL
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.timedomain import landing_step
 from impulse_core.timedomain.landing import IMPLICIT, NUMPY_CODE, RK4, VM_CODE, LandingSettings, _Landing, \
     landing_difference
@@ -23,7 +23,7 @@ from tests.impulse_core.test_landing_step_spatial import _random_mode as _random
 
 def _pair(tree, laws, scene, space=None) -> tuple[_Landing, _Landing]:
     """The landing on the virtual machine's compiled ROS2 step, and on numpy's."""
-    runs = [_Landing(tree, scene, laws, LandingSettings(step_code=code, integrator=IMPLICIT), *([space] if space else []))
+    runs = [_Landing(tree, scene, laws, LandingSettings(step_code=code, integrator=IMPLICIT), space or PLANAR)
             for code in (VM_CODE, NUMPY_CODE)]
     assert runs[0].fast is not None and runs[1].fast is None
     return runs[0], runs[1]
