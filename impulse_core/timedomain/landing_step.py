@@ -9,9 +9,10 @@ contact's row of each tangent in turn) and the mode enters as numbers. A row is 
 (``active`` = 1) or not (0): an inactive row is replaced by an identity row with a zero
 right-hand side, so its multiplier is 0 and the active rows' system is the mode's
 (:func:`impulse_core.timedomain.landing._accelerations`, and ROS2's ``_constrained_solve`` with
-W = M + g h D + g^2 h^2 K for M) exactly. Its Delassus matrix and the mass matrix are solved by Gaussian elimination without pivoting
-(``landing_derivatives._solve``): the mass matrix is positive definite, the masked Delassus
-matrix block diagonal in the active and inactive rows, the active block that of the numpy path.
+W = M + g h D + g^2 h^2 K for M) exactly. Its Delassus matrix and the mass matrix are solved by
+Gaussian elimination without pivoting (``landing_derivatives._solve``): the mass matrix is
+positive definite, the masked Delassus matrix block diagonal in the active and inactive rows, the
+active block that of the numpy path.
 
 The function also returns what the landing loop asks of the step's end point: the witnesses'
 ingredients (gaps, normal velocities, slip, contact forces, stop forces in the mode), the linear
