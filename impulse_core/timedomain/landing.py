@@ -102,7 +102,7 @@ RK4, IMPLICIT, AUTO = "rk4", "implicit", "auto"
 #: at touchdown (:func:`joint_law_rate`) exceeds this: classical RK4 is stable on the negative
 #: real axis up to 2.785 (a damper's mode) and on the imaginary axis up to 2.828 (a spring's).
 RK4_STABLE = 2.0
-#: The code of the RK4 step (:attr:`LandingSettings.step_code`): one CasADi function
+#: The code of the integrator's step (:attr:`LandingSettings.step_code`): one CasADi function
 #: compiled to C through the trusted cache (:mod:`impulse_core.timedomain.landing_step`), the same
 #: function on CasADi's virtual machine, or the numpy reference.
 C_CODE, VM_CODE, NUMPY_CODE = "c", "vm", "numpy"
@@ -172,13 +172,15 @@ class LandingSettings:
             the first step is beyond RK4's stability for the joint laws at touchdown
             (:data:`RK4_STABLE`), then implicit. One landing keeps one integrator at every step
             length, so that the step-halving estimate compares like with like.
-        step_code: the RK4 steps (plane and space) by one CasADi function of the mode
-            (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
+        step_code: the steps of either integrator (plane and space) by one CasADi function of
+            the mode (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
             and a missing compiler falls back to ``vm`` with a warning; the events' dynamics at a
             point, :func:`landing_function`, then run as C too), ``vm`` on CasADi's
-            virtual machine, ``numpy`` the reference (rows built and solved per stage in numpy;
-            always so for the implicit integrator, and for a redundant mode). All agree to rounding.
+            virtual machine (a mode stepped 32 times by its own copy, the mode's rows as
+            constants: :class:`~impulse_core.timedomain.landing_step.ModeFunctions`), ``numpy``
+            the reference (rows built and solved per stage in numpy; always so for a redundant
+            mode). All agree to rounding.
         bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
             ``MODEL_FORMAT.md`` asks), or b > 0: after the first impact a rebound that the row's
             free acceleration would end within b steps is plastic (module docstring; case 3's
@@ -1009,7 +1011,7 @@ class _Landing:
         #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol) and
         #: ("project", q, v, mode); q, v are the operation's inputs.
         self.tape: list | None = None
-        #: the compiled RK4 step (None: numpy), and the last compiled step's end (ended())
+        #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         self._end: tuple[bytes, bytes, object] | None = None
         self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
@@ -1040,16 +1042,16 @@ class _Landing:
         return min(longest, max(shortest, RK4_STABLE / self.rate if self.rate > 0 else math.inf))
 
     def compiled_step(self, code: str):
-        """The compiled step of this landing (:mod:`impulse_core.timedomain.landing_step`), or
-        None where the numpy path integrates (``numpy``, the implicit integrator)."""
+        """The compiled step of this landing's integrator (:mod:`impulse_core.timedomain.landing_step`),
+        or None where the numpy path integrates (``numpy``)."""
         if code not in (C_CODE, VM_CODE, NUMPY_CODE):
             raise ModelError(f"step_code: {code!r} is not one of c, vm, numpy")
-        if code == NUMPY_CODE or self.method != RK4:
+        if code == NUMPY_CODE:
             return None
         from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
 
         return CompiledStep(self.topology, self.ground, self.design, self.scene.gravity, self.mu, self.joints,
-                            compiled=code == C_CODE, space=self.space, floor=self.speed_tol)
+                            compiled=code == C_CODE, space=self.space, floor=self.speed_tol, method=self.method)
 
     def ended(self, q: np.ndarray, v: np.ndarray, mode: _Mode | None = None):
         """The last compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` if it
@@ -1137,13 +1139,11 @@ class _Landing:
     def step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the landing's integrator: (q, v, contact impulses [normal, tangential])."""
         self.steer(q, v, mode, h)
-        if self.method == IMPLICIT:
-            return self.implicit_step(q, v, mode, h)
         end = None if self.fast is None else self.fast.step(q, v, h, mode)
         if end is not None:
             self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
             return end.q.copy(), end.v.copy(), end.impulse.copy()
-        return self.rk4_step(q, v, mode, h)
+        return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
 
     def steer(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> None:
         """Set ``mode.core`` for a step of length h from (q, v) (space, sliding contacts). A
@@ -1231,25 +1231,23 @@ class _Landing:
             q1, v1, impulse = self.step(q, v, mode, dt)
             if dt <= floor or not (np.isfinite(q1).all() and np.isfinite(v1).all()):
                 return q1, v1, impulse, dt, 2.0 * dt
-            if p0 is None:
-                end = self.ended(q1, v1, mode)
-                p0 = end.momentum0 if end is not None else self.point(q, v).momentum[:, 0].copy()
-            residual, share = float(np.max(np.abs(self.momentum_residual(p0, q1, v1, impulse, dt)))), rate * dt
+            end = self.ended(q1, v1, mode)
+            if end is None and p0 is None:
+                p0 = self.point(q, v).momentum[:, 0].copy()
+            balance = end.balance if end is not None else self.momentum_change(p0, q1, v1, impulse)
+            residual, share = float(np.max(np.abs(balance - self.weight(dt)))), rate * dt
             ratio = residual / share if share > 0 else (0.0 if residual <= 0 else math.inf)
             if ratio <= 1.0:
                 return q1, v1, impulse, dt, balanced_length(dt, ratio, order)
             dt /= 2.0
 
-    def momentum_residual(self, p0: np.ndarray, q1: np.ndarray, v1: np.ndarray, impulse: np.ndarray, dt: float
-                          ) -> np.ndarray:
-        """The linear momentum at (q1, v1) minus ``p0``, the contact ``impulse`` ([normal,
-        tangential] per contact, along the normals and tangents at (q1, v1)) and the weight's
-        impulse over ``dt``."""
-        end = self.ended(q1, v1)
-        momentum, normal = (end.momentum1, end.normal) if end is not None else (self.point(q1, v1).momentum[:, 0],
-                                                                                 self.point(q1, v1).normal)
+    def momentum_change(self, p0: np.ndarray, q1: np.ndarray, v1: np.ndarray, impulse: np.ndarray) -> np.ndarray:
+        """The linear momentum at (q1, v1) minus ``p0`` and the contact ``impulse`` ([normal,
+        tangential] per contact, along the normals and tangents at (q1, v1)): a step's momentum
+        balance but for the weight's impulse (numpy; a compiled step's is its ``balance``)."""
+        pt = self.point(q1, v1)
         ft = impulse[self.nc :].reshape(self.dims - 1, self.nc).T
-        return momentum - p0 - impulse_vector(normal, impulse[: self.nc], ft) - self.weight(dt)
+        return pt.momentum[:, 0] - p0 - impulse_vector(pt.normal, impulse[: self.nc], ft)
 
     def kinetic(self, q: np.ndarray, v: np.ndarray) -> float:
         """The kinetic energy at (q, v)."""

@@ -825,18 +825,33 @@ def _solve(A: ca.SX, B: ca.SX) -> ca.SX:
     QR whose square roots put 0 * inf = NaN in the derivatives where an entry is numerically zero;
     the matrices here (the mass matrix, the rows' Delassus matrices, the impact's mode matrix)
     have nonzero pivots in their natural order."""
-    n = A.shape[0]
-    if n == 0:
-        return ca.SX(0, B.shape[1])
-    A, B = ca.SX(A), ca.SX(B)
-    for k in range(n - 1):
+    return _substitute(_factor(A), B)
+
+
+def _factor(A: ca.SX) -> tuple[ca.SX, list[ca.SX]]:
+    """:func:`_solve`'s elimination of A alone: (U, each column's multipliers), for
+    :func:`_substitute` with any number of right-hand sides (the same operations as one solve)."""
+    A, multipliers = ca.SX(A), []
+    for k in range(A.shape[0] - 1):
         L = A[k + 1 :, k] / A[k, k]
         A[k + 1 :, k:] = A[k + 1 :, k:] - L @ A[k, k:]
+        multipliers.append(L)
+    return A, multipliers
+
+
+def _substitute(factors: tuple[ca.SX, list[ca.SX]], B: ca.SX) -> ca.SX:
+    """A^-1 B from A's :func:`_factor`: the elimination applied to B, then back substitution."""
+    U, multipliers = factors
+    n = U.shape[0]
+    if n == 0:
+        return ca.SX(0, B.shape[1])
+    B = ca.SX(B)
+    for k, L in enumerate(multipliers):
         B[k + 1 :, :] = B[k + 1 :, :] - L @ B[k, :]
     X = ca.SX.zeros(n, B.shape[1])
     for k in reversed(range(n)):
-        rest = A[k, k + 1 :] @ X[k + 1 :, :] if k + 1 < n else 0
-        X[k, :] = (B[k, :] - rest) / A[k, k]
+        rest = U[k, k + 1 :] @ X[k + 1 :, :] if k + 1 < n else 0
+        X[k, :] = (B[k, :] - rest) / U[k, k]
     return X
 
 

@@ -1,19 +1,23 @@
-"""The landing's Runge-Kutta step and projection as compiled CasADi functions (plane and space).
+"""The landing's integrator steps (Runge-Kutta 4 and ROS2) and projection as compiled CasADi
+functions (plane and space).
 
-:meth:`impulse_core.timedomain.landing._Landing.rk4_step` builds each stage's rows and solves
-them in numpy, which costs ~10 x the dynamics call. Here one SX graph per topology, terrain and
-set of joints with stops holds the whole step for every mode: every possible row is present
-(each contact's normal row, each stop's row, then each contact's row of each tangent in turn)
-and the mode enters as numbers. A row is active (``active`` = 1) or not (0): an inactive row is
-replaced by an identity row with a zero right-hand side, so its multiplier is 0 and the active
-rows' system is the mode's (:func:`impulse_core.timedomain.landing._accelerations`) exactly.
-Its Delassus matrix and the mass matrix are solved by Gaussian elimination without pivoting
-(``landing_derivatives._solve``): the mass matrix is positive definite, the masked Delassus
-matrix block diagonal in the active and inactive rows, the active block that of the numpy path.
+:meth:`impulse_core.timedomain.landing._Landing.rk4_step` (and ``implicit_step``, ROS2) builds
+each stage's rows and solves them in numpy, which costs ~10 x the dynamics call. Here one SX graph
+per integrator, topology, terrain and set of joints with stops holds the whole step for every
+mode: every possible row is present (each contact's normal row, each stop's row, then each
+contact's row of each tangent in turn) and the mode enters as numbers. A row is active
+(``active`` = 1) or not (0): an inactive row is replaced by an identity row with a zero
+right-hand side, so its multiplier is 0 and the active rows' system is the mode's
+(:func:`impulse_core.timedomain.landing._accelerations`, and ROS2's ``_constrained_solve`` with
+W = M + g h D + g^2 h^2 K for M) exactly. Its Delassus matrix and the mass matrix are solved by
+Gaussian elimination without pivoting (``landing_derivatives._solve``): the mass matrix is
+positive definite, the masked Delassus matrix block diagonal in the active and inactive rows, the
+active block that of the numpy path.
 
 The function also returns what the landing loop asks of the step's end point: the witnesses'
 ingredients (gaps, normal velocities, slip, contact forces, stop forces in the mode), the linear
-momentum at both ends (the momentum balance), the normals (the step's impulse vector) and the
+momentum at both ends and the step's momentum balance but for the weight (``balance``: the change
+of momentum minus the step's impulses along the end's normals and tangents), the normals and the
 kinetic energy (the divergence check), so that a plain step costs one call; and the projection
 that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
 velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
@@ -33,6 +37,7 @@ forces of the end are n_c x 2, the normals n_c x 3; the base's rotation-vector c
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
@@ -44,13 +49,27 @@ from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.timedomain.compliant import BufferedFunction
-from impulse_core.timedomain.landing import _Joints, _Mode, _mode_bytes, landing_function
-from impulse_core.timedomain.landing_derivatives import _solve, slip_direction_expression, spatial_contact_rows
+from impulse_core.timedomain.landing import (
+    IMPLICIT,
+    RK4,
+    ROS2_GAMMA,
+    _Joints,
+    _Mode,
+    _mode_bytes,
+    landing_function,
+)
+from impulse_core.timedomain.landing_derivatives import (
+    _factor,
+    _solve,
+    _substitute,
+    slip_direction_expression,
+    spatial_contact_rows,
+)
 
 STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floor", "stiffness", "damping", "rest",
                "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
-                "stop_force", "normal", "kinetic")
+                "stop_force", "normal", "kinetic", "balance")
 #: CasADi options of the step and projection. Not common subexpression elimination: it makes
 #: spatial case 3's step 11 % shorter (216861 -> 192431 instructions, ~15 % faster on the virtual
 #: machine) but its graph's build 3.0 s instead of 0.2 s, more than a short landing takes.
@@ -81,18 +100,20 @@ def _tangents_of(fn: ca.Function) -> int:
 
 def _point(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args) -> dict:
     """The dynamics at (q, v) in contact coordinates: normal rows and each tangent's rows (the
-    plane: the normal turned by -90 degrees; space: t_x, t_z, :func:`landing.tangent_basis`),
-    the slip per tangent, the joint laws' torques."""
+    plane: the normal turned by -90 degrees; space: t_x, t_z, :func:`landing.tangent_basis`;
+    ``tangent``: each tangent's d x n_c directions), the slip per tangent, the joint laws' torques."""
     gap, normal, J, bias, M, force, kinetic, momentum, _, _ = fn(q, v, x.p, x.gravity)
     if _tangents_of(fn) == 1:
         nx, ny = normal[0, :].T, normal[1, :].T
         Jx, Jy, bx, by = J[0::2, :], J[1::2, :], bias[0::2], bias[1::2]
         rows = dict(Jn=ca.diag(nx) @ Jx + ca.diag(ny) @ Jy, Jt=[ca.diag(ny) @ Jx - ca.diag(nx) @ Jy],
                     bn=nx * bx + ny * by, bt=[ny * bx - nx * by])
+        tangent = [ca.vertcat(ny.T, -nx.T)]
     else:
-        rows = spatial_contact_rows(normal, J, bias)[2]
+        _, tangents, rows = spatial_contact_rows(normal, J, bias)
+        tangent = [ca.horzcat(*[t[a] for t in tangents]) for a in range(2)]
     return dict(
-        gap=gap, normal=normal, M=M, slip=[Jt @ v for Jt in rows["Jt"]],
+        gap=gap, normal=normal, tangent=tangent, M=M, slip=[Jt @ v for Jt in rows["Jt"]],
         f=force - x.stiffness * (q - x.rest) - x.damping * v, kinetic=kinetic, momentum=momentum[:, 0], **rows,
     )
 
@@ -108,22 +129,48 @@ def _directions(pt: dict, x: _Args) -> list[ca.SX]:
     return [ca.vertcat(*[ui[a] for ui in u]) for a in range(2)]
 
 
-def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, list[ca.SX], ca.SX]:
-    """(a, fn, ft per tangent, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on
-    the active rows; F's normal row of a sliding contact is n - mu u^T t (:func:`_directions`)."""
-    nv, nc = pt["M"].shape[0], pt["Jn"].shape[0]
-    E = _stop_rows(x.stop, stop_dofs, nv)
+def _masked_rows(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, ca.SX, list[ca.SX]]:
+    """The mode's rows at a point, inactive ones zeroed: (G, F, b, u per tangent); F's normal row
+    of a sliding contact is n - mu u^T t (:func:`_directions`)."""
+    E = _stop_rows(x.stop, stop_dofs, pt["M"].shape[0])
     Jn, Jt, u = pt["Jn"], pt["Jt"], _directions(pt, x)
     Fn = Jn - x.mu * sum(ca.diag(ua) @ Jta for ua, Jta in zip(u, Jt))
     G = ca.diag(x.active) @ ca.vertcat(Jn, E, *Jt)
     F = ca.diag(x.active) @ ca.vertcat(Fn, E, *Jt)
     b = x.active * ca.vertcat(pt["bn"], ca.SX.zeros(len(stop_dofs)), *pt["bt"])
-    X = _solve(pt["M"], ca.horzcat(pt["f"], F.T))
-    a0, minv_ft = X[:, 0], X[:, 1:]
-    lam = _solve(G @ minv_ft + ca.diag(1 - x.active), -(G @ a0 + b))
-    fn, first = lam[:nc], nc + len(stop_dofs)
+    return G, F, b, u
+
+
+def _masked_solver(W: ca.SX, G: ca.SX, F: ca.SX, active: ca.SX) -> Callable[[ca.SX, ca.SX], tuple[ca.SX, ca.SX]]:
+    """(rhs, row_rhs) -> (x, lambda) with W x = rhs + F^T lambda and G x = row_rhs on the active
+    rows (masked rows G, F: the others' lambda = 0; :func:`landing._constrained_solve`); W and
+    the rows' matrix G W^-1 F^T are factored once for any number of right-hand sides."""
+    w = _factor(W)
+    winv_ft = _substitute(w, F.T)
+    s = _factor(G @ winv_ft + ca.diag(1 - active))
+
+    def solve(rhs: ca.SX, row_rhs: ca.SX) -> tuple[ca.SX, ca.SX]:
+        x0 = _substitute(w, rhs)
+        lam = _substitute(s, row_rhs - G @ x0)
+        return x0 + winv_ft @ lam, lam
+
+    return solve
+
+
+def _row_forces(lam: ca.SX, u: list[ca.SX], x: _Args, nc: int, ns: int) -> tuple[ca.SX, list[ca.SX], ca.SX]:
+    """(fn, ft per tangent, stop multipliers) of the rows' multipliers: a sliding contact's
+    tangential force is -mu u fn (its tangent rows are inactive)."""
+    fn, first = lam[:nc], nc + ns
     ft = [-x.mu * ua * fn + lam[first + k * nc : first + (k + 1) * nc] for k, ua in enumerate(u)]
-    return a0 + minv_ft @ lam, fn, ft, lam[nc:first]
+    return fn, ft, lam[nc:first]
+
+
+def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.SX, ca.SX, list[ca.SX], ca.SX]:
+    """(a, fn, ft per tangent, stop multipliers) of the mode: M a = f + F^T lambda, G a + b = 0 on
+    the active rows."""
+    G, F, b, u = _masked_rows(pt, x, stop_dofs)
+    a, lam = _masked_solver(pt["M"], G, F, x.active)(pt["f"], -b)
+    return (a, *_row_forces(lam, u, x, pt["Jn"].shape[0], len(stop_dofs)))
 
 
 def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[int, ...], pt: dict | None = None
@@ -131,15 +178,68 @@ def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[
     """(a, [fn; ft per tangent]) at (q, v) (``pt``: its point, if already built)."""
     pt = _point(fn, q, v, x) if pt is None else pt
     a, fn_, ft, _ = _masked_forces(pt, x, stop_dofs)
-    return a, ca.vertcat(fn_, *ft)
+    return a, _stacked(fn_, ft)
+
+
+def _stacked(fn: ca.SX, ft: list[ca.SX]) -> ca.SX:
+    """[normal per contact; each tangent's per contact] (:func:`landing._stacked`)."""
+    return ca.vertcat(fn, *ft)
+
+
+def _rk4(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict
+         ) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """One classical RK4 step: (q1, v1, contact impulses [normal; each tangent's])
+    (:meth:`landing._Landing.rk4_step`; ``start``: the point at (q, v))."""
+    a1, f1 = _derivative(fn, q, v, x, stop_dofs, start)
+    v2 = v + 0.5 * h * a1
+    a2, f2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
+    v3 = v + 0.5 * h * a2
+    a3, f3 = _derivative(fn, q + 0.5 * h * v2, v3, x, stop_dofs)
+    v4 = v + h * a3
+    a4, f4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
+    q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
+    v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+    return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
+
+
+def _ros2(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict
+          ) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """One ROS2 step with the joint laws in its matrix W = M + g h D + g^2 h^2 K, the mode's rows
+    those of the start (:meth:`landing._Landing.implicit_step`, whose docstring derives it)."""
+    g = ROS2_GAMMA * h
+    nc, ns = start["Jn"].shape[0], len(stop_dofs)
+    G, F, b, u = _masked_rows(start, x, stop_dofs)
+    solve = _masked_solver(start["M"] + ca.diag(g * x.damping + g * g * x.stiffness), G, F, x.active)
+    k1v, nu1 = solve(start["f"] - g * x.stiffness * v, -b)
+    k1q = v + g * k1v
+    q2, v2 = q + h * k1q, v + h * k1v
+    a2, f2 = _derivative(fn, q2, v2, x, stop_dofs)
+    rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
+    k2v, nu2 = solve(start["M"] @ rv - g * x.stiffness * rq, G @ rv)
+    k2q = rq + g * k2v
+    f1, f3 = (_stacked(*_row_forces(nu, u, x, nc, ns)[:2]) for nu in (nu1, nu2))
+    return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
+
+
+def _impulse_vector(pt: dict, impulse: ca.SX) -> ca.SX:
+    """The contact impulses' sum (world frame) of ``impulse`` ([normal; each tangent's] per
+    contact) along the normals and tangents at the point (:func:`landing.impulse_vector`)."""
+    nc = pt["gap"].shape[0]
+    directions = [pt["normal"], *pt["tangent"]]
+    return sum(d @ impulse[k * nc : (k + 1) * nc] for k, d in enumerate(directions))
+
+
+#: Each integrator's step (:data:`landing.RK4`, :data:`landing.IMPLICIT`) and its function's name.
+_INTEGRATORS = {RK4: (_rk4, "landing_step"), IMPLICIT: (_ros2, "landing_implicit_step")}
 
 
 @functools.lru_cache(maxsize=16)
 def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
-                          space: Space = PLANAR) -> ca.Function:
-    """One classical RK4 step of the landing in a mode given as numbers (module docstring), and
-    its end point's figures (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops; ``space``:
-    the plane, PLANAR_OFFSET (centres of mass off the rods: the design vector's layout) or space
+                          space: Space = PLANAR, method: str = RK4) -> ca.Function:
+    """One step of the landing's integrator ``method`` (classical RK4, or ROS2: ``implicit``) in
+    a mode given as numbers (module docstring), and its end point's figures
+    (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops; ``space``: the plane,
+    PLANAR_OFFSET (centres of mass off the rods: the design vector's layout) or space
     (``terrain`` a heightfield)."""
     fn = landing_function(topology, terrain, space)
     nv, nc, ns, nt = fn.size1_in(0), fn.size1_out(0), len(stop_dofs), _tangents_of(fn)
@@ -150,24 +250,17 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
         ca.SX.sym("stiffness", nv), ca.SX.sym("damping", nv), ca.SX.sym("rest", nv),
         ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity"),
     )
+    integrate, name = _INTEGRATORS[method]
     start = _point(fn, q, v, x)
-    a1, f1 = _derivative(fn, q, v, x, stop_dofs, start)
-    v2 = v + 0.5 * h * a1
-    a2, f2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
-    v3 = v + 0.5 * h * a2
-    a3, f3 = _derivative(fn, q + 0.5 * h * v2, v3, x, stop_dofs)
-    v4 = v + h * a3
-    a4, f4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
-    q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
-    v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+    q1, v1, impulse = integrate(fn, q, v, h, x, stop_dofs, start)
     end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
-    outs = [q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4), start["momentum"], end["momentum"], start["gap"],
-            start["Jn"] @ v, end["gap"], end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1,
-            end["normal"], end["kinetic"]]
+    outs = [q1, v1, impulse, start["momentum"], end["momentum"], start["gap"], start["Jn"] @ v, end["gap"],
+            end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1, end["normal"], end["kinetic"],
+            end["momentum"] - start["momentum"] - _impulse_vector(end, impulse)]
     inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
               x.gravity]
-    return ca.Function("landing_step", inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
+    return ca.Function(name, inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
 
 
 def _masked_correction(M: ca.SX, G: ca.SX, active: ca.SX, residual: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -215,11 +308,11 @@ def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_d
 
 @functools.lru_cache(maxsize=16)
 def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
-                           space: Space = PLANAR) -> tuple[ca.Function, ca.Function]:
+                           space: Space = PLANAR, method: str = RK4) -> tuple[ca.Function, ca.Function]:
     """:func:`landing_step_function` and :func:`landing_projection_function` as C, built once
     into (or loaded from) the compile cache (:func:`impulse_core.compile.codegen.compile_function`);
     without a C compiler, a warning and the virtual machine's functions."""
-    step = landing_step_function(topology, terrain, stop_dofs, space)
+    step = landing_step_function(topology, terrain, stop_dofs, space, method)
     projection = landing_projection_function(topology, terrain, stop_dofs, space)
     return tuple(compile_function(f, default_root(), fallback=True).function for f in (step, projection))
 
@@ -230,6 +323,64 @@ def compiled_landing_function(topology, terrain: Terrain | Heightfield, space: S
     two or three times) as C through the compile cache, as the step is; the same arithmetic as
     the virtual machine's (no contraction into fused multiply-adds), so the same numbers."""
     return compile_function(landing_function(topology, terrain, space), default_root(), fallback=True).function
+
+
+#: A mode stepped this many times on the virtual machine gets its own function (:class:`ModeFunctions`):
+#: building it costs ~50 general steps (f3037's ROS2 step: 12 ms; a step 254 us, 81 us in the mode).
+SPECIALISE_AFTER = 32
+#: At most this many modes' functions are kept (then they are built anew as asked).
+SPECIALISED_MODES = 64
+
+
+class ModeFunctions:
+    """The evaluations of a :class:`BufferedFunction` per mode: its own, or on the virtual machine
+    for a mode asked for :data:`SPECIALISE_AFTER` times, a copy with the mode's rows (``fixed``:
+    the indices of the inputs that say which rows are active and each stop's side) as the
+    constants they hold then. CasADi folds them as it builds the copy, so the inactive rows'
+    products by 0 and 1 and the sums of their zeros drop out (f3037's ROS2 step: 22121
+    instructions, 8073 with two sliding contacts); the rest are the same operations in the same
+    order. The sliding directions stay inputs (in space they turn with the slip at every step).
+    The copies read and write the function's own arrays."""
+
+    def __init__(self, fn: BufferedFunction, f: ca.Function, fixed: tuple[int, ...], specialise: bool) -> None:
+        self.fn, self.f, self.fixed, self.specialise = fn, f, fixed, specialise
+        self._modes: dict[bytes, list] = {}  # per mode: [times asked, its evaluation or None]
+
+    def evaluator(self, key: bytes) -> Callable[[], None]:
+        """The evaluation for the mode whose rows are ``key`` (:func:`_rows_key`; its inputs
+        already set in ``fn.args``)."""
+        if not self.specialise:
+            return self.fn.evaluate
+        entry = self._modes.get(key)
+        if entry is None:
+            self._modes = self._modes if len(self._modes) < SPECIALISED_MODES else {}
+            entry = self._modes[key] = [0, None]
+        entry[0] += 1
+        if entry[1] is None and entry[0] >= SPECIALISE_AFTER:
+            entry[1] = self.bound(self.specialised())
+        return self.fn.evaluate if entry[1] is None else entry[1][1]
+
+    def specialised(self) -> ca.Function:
+        """``f`` with the ``fixed`` inputs as the constants ``fn.args`` holds (they stay inputs, unused)."""
+        f = self.f
+        inputs = [ca.SX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
+        values = [ca.DM(self.fn.args[i]) if i in self.fixed else x for i, x in enumerate(inputs)]
+        return ca.Function(f"{f.name()}_mode", inputs, f.call(values), f.name_in(), f.name_out(), OPTIONS)
+
+    def bound(self, f: ca.Function) -> tuple:
+        """(buffer, evaluate) of ``f`` on ``fn``'s input and output arrays (the buffer kept alive)."""
+        buffer, evaluate = f.buffer()
+        for i, a in enumerate(self.fn.args):
+            buffer.set_arg(i, memoryview(a))
+        for i, r in enumerate(self.fn.flat):
+            buffer.set_res(i, memoryview(r))
+        return buffer, evaluate
+
+
+def _rows_key(numbers: tuple[np.ndarray, ...]) -> bytes:
+    """A mode's rows (:meth:`CompiledStep.numbers`' active rows and stop sides) as bytes: what a
+    mode's own functions fix (:class:`ModeFunctions`)."""
+    return numbers[0].tobytes() + numbers[1].tobytes()
 
 
 @dataclass(frozen=True)
@@ -253,6 +404,9 @@ class StepEnd:
     stop_force: np.ndarray  # per DOF (0 where no stop row)
     normal: np.ndarray  # n_c x d
     kinetic: float
+    #: the momentum balance but for the weight: momentum1 - momentum0 - the step's impulses'
+    #: sum along the end's normals and tangents (:meth:`landing._Landing.balanced_step`)
+    balance: np.ndarray
 
 
 class CompiledStep(BufferedFunction):
@@ -261,19 +415,25 @@ class CompiledStep(BufferedFunction):
     redundant mode, or a non-finite result); ``compiled``: as C through the compile cache
     (:func:`impulse_core.compile.codegen.compile_function`; no compiler: the virtual machine);
     ``terrain``: the plane's profile or space's heightfield; ``floor``: the slip speed below which
-    a sliding contact keeps its mode's direction (space, :func:`landing.slip_direction`)."""
+    a sliding contact keeps its mode's direction (space, :func:`landing.slip_direction`);
+    ``method``: the integrator (RK4, or IMPLICIT: ROS2)."""
 
     def __init__(self, topology, terrain: Terrain | Heightfield, p: np.ndarray, gravity: float, mu: float,
-                 joints: _Joints, compiled: bool = False, space: Space = PLANAR, floor: float = 0.0) -> None:
+                 joints: _Joints, compiled: bool = False, space: Space = PLANAR, floor: float = 0.0,
+                 method: str = RK4) -> None:
         self.stop_dofs = tuple(int(j) for j in np.flatnonzero(np.isfinite(joints.lo) | np.isfinite(joints.hi)))
         if compiled:
-            step, projection = compiled_step_function(topology, terrain, self.stop_dofs, space)
+            step, projection = compiled_step_function(topology, terrain, self.stop_dofs, space, method)
         else:
-            step = landing_step_function(topology, terrain, self.stop_dofs, space)
+            step = landing_step_function(topology, terrain, self.stop_dofs, space, method)
             projection = landing_projection_function(topology, terrain, self.stop_dofs, space)
         super().__init__(step)
         self.block, self.spans = self.contiguous()
         self.projection = BufferedFunction(projection)
+        #: per mode, the step's and the projection's evaluations (the inputs the mode's rows
+        #: set: active, stop; place, place_stop, limit, active, stop)
+        self.modes = ModeFunctions(self, step, (3, 5), not compiled)
+        self.projection_modes = ModeFunctions(self.projection, projection, (2, 3, 4, 5, 6), not compiled)
         self.nc, self.nt = step.size1_out(10), step.size2_out(9)
         self.set_design(p)
         self.projection.args[8][:] = gravity
@@ -295,7 +455,7 @@ class CompiledStep(BufferedFunction):
         a[0][:], a[1][:], a[2][0] = q, v, h
         a[3][:], a[5][:], a[4][:] = numbers
         a[6][:] = mode.core
-        self.evaluate()
+        self.modes.evaluator(_rows_key(numbers))()
         block = self.block.copy()  # every output at once, as views of one copy
         o = [block[a:b] for a, b in self.spans]
         if not np.isfinite(o[1].sum() + o[10].sum() + o[11].sum()):  # singular rows: NaN or inf, which propagate
@@ -305,7 +465,7 @@ class CompiledStep(BufferedFunction):
         shape = (self.nc, self.nt)
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9].reshape(shape, order="F"), o[10],
                        o[11].reshape(shape, order="F"), stop_force, o[13].reshape(self.out[13].shape, order="F").T,
-                       float(o[14][0]))
+                       float(o[14][0]), o[15])
 
     def set_design(self, p: np.ndarray) -> None:
         """Evaluate with the design vector ``p`` from now on (space: a re-centred base's rotation
@@ -359,7 +519,7 @@ class CompiledStep(BufferedFunction):
         a[5][:], a[6][:] = numbers[:2]
         a[2][:], a[3][:] = a[5][: len(a[2])], a[6]
         a[4][:] = np.where(a[6] > 0, self.hi, self.lo)
-        self.projection.evaluate()
+        self.projection_modes.evaluator(_rows_key(numbers))()
         dq, v1, impulse = (r.copy() for r in self.projection.flat)
         q1 = q - dq
         free = mode.stop == 0
@@ -369,4 +529,5 @@ class CompiledStep(BufferedFunction):
         return q1, v1, impulse
 
 
-__all__ = ["CompiledStep", "StepEnd", "compiled_landing_function", "compiled_step_function", "landing_projection_function", "landing_step_function"]
+__all__ = ["CompiledStep", "ModeFunctions", "StepEnd", "compiled_landing_function", "compiled_step_function",
+           "landing_projection_function", "landing_step_function"]
