@@ -167,17 +167,20 @@ def test_the_nlps_gradients_are_central_differences(leg_folder):
     np.testing.assert_allclose(exact_g, fd_g, rtol=1e-6, atol=1e-7 * np.abs(fd_g).max())
 
 
-def test_a_tiny_study_runs_and_its_front_reevaluates(leg_folder, capsys):
-    """``footopt optimize`` with the spatial leg and the inner search: every front design's model
-    file hangs the foot from the leg's four rods and re-evaluates to its recorded objectives."""
+def test_a_tiny_study_runs_and_its_front_reevaluates(leg_folder, capsys, monkeypatch):
+    """``footopt optimize`` with the spatial leg and the inner search, its two shapes swept by two
+    forked workers (each unpickles the study: its leg must stay spatial there): every front
+    design's model file hangs the foot from the leg's four rods and re-evaluates to its recorded
+    objectives."""
+    monkeypatch.setenv("FOOTOPT_WORKERS", "2")
     text = INNER.replace("method: inner", "method: inner, inner: {front_points: 1, starts: 4}")
-    text = text.replace("toes: [1, 2]", "toes: [2, 2]").replace("toe_segments: [1, 2]", "toe_segments: [1, 1]")
+    text = text.replace("toe_segments: [1, 2]", "toe_segments: [1, 1]")
     found = optimized(leg_folder, text, capsys)
     assert found
     for row, rec, path in found:
         for key in ("external_norm", "internal_norm", "max_internal"):
             assert rec[key] == pytest.approx(float(row[key]), rel=1e-9, abs=1e-15), key
-        assert len(rec["joints"]) == 3 + 3
+        assert len(rec["joints"]) == 3 + 1 + int(row["toes"])
 
 
 def test_the_whole_landing_nlp_differentiates_the_spatial_leg(leg_folder):
