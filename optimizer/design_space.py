@@ -403,12 +403,16 @@ def yaw_rpy(leg: LegChain, yaw: float | ca.SX) -> tuple:
     plane Rz(-phi_s) Ry(yaw) Rz(phi_s)), read off in closed form. ``yaw`` a float gives floats; a
     CasADi symbol gives expressions (the inner search's spatial NLP)."""
     c, s = ca.cos(yaw), ca.sin(yaw)
-    # Ry(yaw) = c (e_x e_x^T + e_z e_z^T) + s (e_x e_z^T - e_z e_x^T) + e_y e_y^T: R = c P + s Q + U
-    A, Z = leg.ankle_rotation, rotation_z(leg.foot_angle)
-    P, Q, U = (A.T @ M @ Z for M in (np.diag([1.0, 0.0, 1.0]), np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0],
-                                                                          [-1.0, 0.0, 0.0]]), np.diag([0.0, 1.0, 0.0])))
-    r00, r10, r20, r21, r22 = (c * P[i, j] + s * Q[i, j] + U[i, j] for i, j in ((0, 0), (1, 0), (2, 0), (2, 1), (2, 2)))
+    # Ry(yaw) = c (e_x e_x^T + e_z e_z^T) + s (e_x e_z^T - e_z e_x^T) + e_y e_y^T, so R = c P + s Q + U
+    # with P, Q, U numeric: one expression for a float and for a symbol.
+    P, Q, U = (leg.ankle_rotation.T @ M @ rotation_z(leg.foot_angle) for M in _RY_PARTS)
+    r00, r10, r20, r21, r22 = (c * P[ij] + s * Q[ij] + U[ij] for ij in ((0, 0), (1, 0), (2, 0), (2, 1), (2, 2)))
     return (ca.atan2(r21, r22), ca.atan2(-r20, ca.sqrt(r00 * r00 + r10 * r10)), ca.atan2(r10, r00))
+
+
+#: Ry(yaw)'s parts: its cos(yaw) part, its sin(yaw) part and its constant part.
+_RY_PARTS = (np.diag([1.0, 0.0, 1.0]), np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]),
+             np.diag([0.0, 1.0, 0.0]))
 
 
 def foot_joint_laws(leg: Leg | LegChain, design: FootDesign, stop_restitution: float = 0.0) -> tuple[JointLaw, ...]:

@@ -243,8 +243,8 @@ def _check_leg(config: StudyConfig) -> None:
     search takes it."""
     leg = config.leg
     if isinstance(leg, LegChain) and leg.spatial and not config.space.spatial:
-        raise ConfigError(f"leg.file: {leg.file} is a spatial leg: it needs design_space.space: spatial "
-                          "(either search); a planar design space takes a planar leg (footopt import --space planar, when the "
+        raise ConfigError(f"leg.file: {leg.file} is a spatial leg: it needs design_space.space: spatial (either "
+                          "search); a planar design space takes a planar leg (footopt import --space planar, when the "
                           "leg's joint axes are parallel)")
 
 

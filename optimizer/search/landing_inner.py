@@ -80,10 +80,10 @@ from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
     JOINT_FAMILIES,
     LENGTH_FLOOR,
-    LegChain,
     DesignEvaluation,
     FootDesign,
     FootShape,
+    LegChain,
     MassMode,
     Objective,
     Segment,
