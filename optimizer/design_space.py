@@ -57,7 +57,7 @@ from impulse_core.errors import NumericalError
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space, values_space
 from impulse_core.model.support import support_margin as hull_margin
 from impulse_core.model.joints import FREE, JointLaw
-from impulse_core.model.rods import body_rotation, rotation_rpy, rotation_z, rpy_of
+from impulse_core.model.rods import body_rotation, rotation_z
 from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
 from optimizer.config.model_file import ModelFile
 from impulse_core.model.tree import (
@@ -196,12 +196,17 @@ class LegChain:
             p.append(p[-1] - (self.rods[k + 1].at * self.rods[k].length) * u[k])
         return np.array(p[::-1])
 
+    @property
+    def ankle_rotation(self) -> np.ndarray:
+        """W_R_L: the last rod's frame in the world at touchdown (3 x 3); in the plane Rz(phi_s)."""
+        return self.rotations()[-1] if self.spatial else rotation_z(self.foot_angle)
+
     def root_rpy(self, yaw: float) -> tuple[float, float, float]:
         """The ``rpy`` of a foot chain's root (on the last rod) that turns the chain by ``yaw``
-        about the vertical (module docstring); the plane's foot at yaw 0 needs none."""
-        if not self.spatial:
-            return (0.0, 0.0, 0.0) if yaw == 0.0 else yaw_rpy(self.foot_angle, yaw)
-        return rpy_of(self.rotations()[-1].T @ rotation_rpy((0.0, yaw, 0.0)) @ rotation_z(self.foot_angle))
+        about the vertical (module docstring, :func:`yaw_rpy`); the plane's foot at yaw 0 needs none."""
+        if not self.spatial and yaw == 0.0:
+            return (0.0, 0.0, 0.0)
+        return tuple(float(v) for v in yaw_rpy(self, yaw))
 
 
 def leg_chain(leg: Leg | LegChain) -> LegChain:
@@ -391,16 +396,23 @@ def leg_rod_count(tree: Tree) -> int | None:
     return first if first > 0 and all(foot[first:]) else None
 
 
-def yaw_rpy(shank_angle: float, yaw: float | ca.SX) -> tuple:
-    """The ``rpy`` (URDF: Rz(c) Ry(b) Rx(a)) of a toe root hanging from a shank at absolute angle
-    ``shank_angle`` (about z, the base without ``rpy``) that turns the toe's chain by ``yaw`` about
-    the world's vertical: R = Rz(-phi) Ry(yaw) Rz(phi), read off in closed form. ``yaw`` a float
-    gives floats; a CasADi symbol gives expressions (the inner search's spatial NLP)."""
+def yaw_rpy(leg: LegChain, yaw: float | ca.SX) -> tuple:
+    """The ``rpy`` (URDF: Rz(c) Ry(b) Rx(a)) of a foot chain's root on the leg's last rod that
+    turns the chain by ``yaw`` about the world's vertical, its joint angles counted from the foot
+    angle phi_s: R = W_R_L^T Ry(yaw) Rz(phi_s) (W_R_L: :attr:`LegChain.ankle_rotation`; in the
+    plane Rz(-phi_s) Ry(yaw) Rz(phi_s)), read off in closed form. ``yaw`` a float gives floats; a
+    CasADi symbol gives expressions (the inner search's spatial NLP)."""
     c, s = ca.cos(yaw), ca.sin(yaw)
-    cp, sp = math.cos(shank_angle), math.sin(shank_angle)
-    r00, r10, r20 = c * cp * cp + sp * sp, (1 - c) * sp * cp, -s * cp
-    r21, r22 = s * sp, c
+    # Ry(yaw) = c (e_x e_x^T + e_z e_z^T) + s (e_x e_z^T - e_z e_x^T) + e_y e_y^T, so R = c P + s Q + U
+    # with P, Q, U numeric: one expression for a float and for a symbol.
+    P, Q, U = (leg.ankle_rotation.T @ M @ rotation_z(leg.foot_angle) for M in _RY_PARTS)
+    r00, r10, r20, r21, r22 = (c * P[ij] + s * Q[ij] + U[ij] for ij in ((0, 0), (1, 0), (2, 0), (2, 1), (2, 2)))
     return (ca.atan2(r21, r22), ca.atan2(-r20, ca.sqrt(r00 * r00 + r10 * r10)), ca.atan2(r10, r00))
+
+
+#: Ry(yaw)'s parts: its cos(yaw) part, its sin(yaw) part and its constant part.
+_RY_PARTS = (np.diag([1.0, 0.0, 1.0]), np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]),
+             np.diag([0.0, 1.0, 0.0]))
 
 
 def foot_joint_laws(leg: Leg | LegChain, design: FootDesign, stop_restitution: float = 0.0) -> tuple[JointLaw, ...]:

@@ -48,6 +48,14 @@ class Space:
     joint_axis: tuple[float, float, float] | None
     body_values: tuple[str, ...] = BODY_VALUES
 
+    def __reduce_ex__(self, protocol):
+        """The module's spaces pickle by name, so that ``space is SPATIAL`` (how the code asks)
+        still holds in a forked worker that unpickles its study (:mod:`optimizer.workers`)."""
+        for name in NAMED_SPACES:
+            if globals().get(name) is self:
+                return name
+        return super().__reduce_ex__(protocol)
+
 
 #: The planar restriction: x forward, y up, rotations about z.
 PLANAR = Space(
@@ -85,6 +93,9 @@ SPATIAL = Space(
     joint_axis=None,
     body_values=SPATIAL_BODY_VALUES,
 )
+
+#: The module's spaces, which pickle by name (:meth:`Space.__reduce_ex__`).
+NAMED_SPACES = ("PLANAR", "PLANAR_OFFSET", "SPATIAL")
 
 #: A spatial rod's inertia about its own axis is at least mass * (AXIAL_GYRATION_FLOOR *
 #: length)^2 (MODEL_FORMAT: at radius 0 a straight chain has none, and the mass matrix would be

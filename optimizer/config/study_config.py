@@ -239,15 +239,13 @@ def parse_study(data: Any, path: str | Path | None = None) -> StudyConfig:
 
 
 def _check_leg(config: StudyConfig) -> None:
-    """A spatial leg needs a spatial design space (the plane's foot cannot hang from it)."""
+    """A spatial leg needs a spatial design space (the plane's foot cannot hang from it); either
+    search takes it."""
     leg = config.leg
     if isinstance(leg, LegChain) and leg.spatial and not config.space.spatial:
-        raise ConfigError(f"leg.file: {leg.file} is a spatial leg: it needs design_space.space: spatial (search.method: "
-                          "outer); a planar design space takes a planar leg (footopt import --space planar, when the "
+        raise ConfigError(f"leg.file: {leg.file} is a spatial leg: it needs design_space.space: spatial (either "
+                          "search); a planar design space takes a planar leg (footopt import --space planar, when the "
                           "leg's joint axes are parallel)")
-    if isinstance(leg, LegChain) and leg.spatial and config.search.method is SearchMethod.INNER:
-        raise ConfigError(f"leg.file: {leg.file} is a spatial leg: the inner search (IPOPT) hangs splayed toes on a "
-                          "planar leg; search.method: outer takes a spatial one")
 
 
 def _check_spatial(config: StudyConfig) -> None:

@@ -682,8 +682,9 @@ def _splayed_values(
 ) -> tuple[ca.SX, list, Topology]:
     """The splayed foot's tree as the core's design vector (SPATIAL layout), symbolic in the
     NLP's angles, masses and lengths (every chain its own lengths) and the toes' yaws (each toe
-    root's ``rpy``, :func:`optimizer.design_space.yaw_rpy`); with every body's mass and the
-    topology."""
+    root's ``rpy`` on the leg's last rod, :func:`optimizer.design_space.yaw_rpy`: a planar or a
+    spatial leg, whose rods keep their own values: axes, ``rpy``, mass properties); with every
+    body's mass and the topology."""
     n_toes = kind.splayed_toes
     rod = Segment(0.1, 0.1, 0.0)
     template = FootDesign(heel=(rod,) * kind.heel_segments, toes=((rod,) * kind.toe_segments,) * n_toes,
@@ -694,7 +695,7 @@ def _splayed_values(
     p = ca.SX(ca.DM(design_vector(tree, names)))
     masses = [ca.SX(b.mass) for b in tree.bodies]
     starts = np.cumsum((0, *kind.sizes[:-1]))
-    chain = leg_chain(config.leg)  # a planar leg (the study file refuses a spatial one here)
+    chain = leg_chain(config.leg)
     body, k = len(chain.rods), 0
     for c, d in enumerate(kind.chain_of):
         for j in range(kind.length_sizes[c]):
@@ -703,7 +704,7 @@ def _splayed_values(
             p[width * body + col["angle"]] = a[i]
             masses[body] = m[i]
             if c > 0 and j == 0:  # a toe root: its yaw about the vertical
-                rpy = yaw_rpy(chain.foot_angle, yaws[c - 1])
+                rpy = yaw_rpy(chain, yaws[c - 1])
                 for key, value in zip(("roll", "pitch", "yaw"), rpy, strict=True):
                     p[width * body + col[key]] = value
             body, k = body + 1, k + 1

@@ -46,7 +46,11 @@ foot is one such after relabelling its toes); a fixed range [x, x] is a constant
 edge of the contacts in a fixed order, heel then toes by decreasing yaw; sound in any order,
 exact when that order is the hull's). ``base_angular_velocity`` is the norm of the base's angular
 velocity, by an epigraph u^2 >= |omega|^2. A one-toe shape with a positive support margin is
-infeasible before any solve (one toe and the heel span no area). The realised design is
+infeasible before any solve (one toe and the heel span no area). The leg may be spatial (a
+``leg: {file}`` whose joint axes are not all parallel): each toe root's ``rpy`` is then
+:func:`optimizer.design_space.yaw_rpy` on the leg's last rod's frame at touchdown, symbolic in the
+yaws, and the leg's rods keep their own axes, frames and mass properties, as in the outer search's
+model files (:func:`optimizer.design_space.foot_tree`). The realised design is
 evaluated as the outer search evaluates splayed feet (:func:`evaluate_design`: the core's
 ``evaluate`` in space, the support margin of its model file).
 

@@ -83,6 +83,7 @@ from optimizer.design_space import (
     DesignEvaluation,
     FootDesign,
     FootShape,
+    LegChain,
     MassMode,
     Objective,
     Segment,
@@ -281,18 +282,19 @@ class LandingNlp:
             rpy = [values.index(k) for k in ("roll", "pitch", "yaw")]
             first = 3 * n + 1 + len(self.laws)
             for i, body in enumerate(roots):
-                d_rpy = d_theta[:, [width * body + j for j in rpy]] @ rpy_rates(leg_chain(self.config.leg).foot_angle, yaws[i])
+                d_rpy = d_theta[:, [width * body + j for j in rpy]] @ rpy_rates(leg_chain(self.config.leg), yaws[i])
                 out[:, first : first + len(self.yaws)] += np.outer(d_rpy, d_yaws[i])
         return out
 
 
-def rpy_rates(shank_angle: float, yaw: float) -> np.ndarray:
+def rpy_rates(leg: LegChain, yaw: float) -> np.ndarray:
     """d(roll, pitch, yaw)/d psi of :func:`optimizer.design_space.yaw_rpy` (a toe root turned by
-    psi about the world's vertical): R(psi) = Rz(-phi) Ry(psi) Rz(phi) turns about
-    a = Rz(-phi) e_y = (sin phi, cos phi, 0) at unit rate, and the rpy rates of a world angular
-    velocity w solve w = c' e_z + b' Rz(c) e_y + a' Rz(c) Ry(b) e_x (R = Rz(c) Ry(b) Rx(a))."""
-    _, b, c = yaw_rpy(shank_angle, yaw)
-    axis = np.array([math.sin(shank_angle), math.cos(shank_angle), 0.0])
+    psi about the world's vertical): R(psi) = W_R_L^T Ry(psi) Rz(phi) turns about
+    a = W_R_L^T e_y (in the plane Rz(-phi) e_y = (sin phi, cos phi, 0)) at unit rate, and the rpy
+    rates of an angular velocity w in the parent's frame solve w = c' e_z + b' Rz(c) e_y +
+    a' Rz(c) Ry(b) e_x (R = Rz(c) Ry(b) Rx(a))."""
+    _, b, c = yaw_rpy(leg, yaw)
+    axis = leg.ankle_rotation.T @ np.array([0.0, 1.0, 0.0])
     cb, sb, cc, sc = math.cos(b), math.sin(b), math.cos(c), math.sin(c)
     E = np.array([[cc * cb, -sc, 0.0], [sc * cb, cc, 0.0], [-sb, 0.0, 1.0]])  # columns: the roll, pitch, yaw axes
     return np.linalg.solve(E, axis)

@@ -414,3 +414,16 @@ def test_extreme_spatial_trees_stay_finite_and_match_pinocchio(kind: str) -> Non
         assert lcp.external.min() >= 0.0 and gap.min() >= -1e-6 * speed
         assert np.abs(lcp.external * gap).max() <= 1e-6 * speed * lcp.external.max()
     report("spatial", f"extreme {kind}: 15 spatial trees, impulse error vs Pinocchio at most {worst:.1e} of eps kappa_M kappa_A")
+
+
+def test_the_named_spaces_survive_pickling():
+    """A forked worker unpickles its study: the module's spaces come back as themselves (the code
+    asks ``space is SPATIAL``), any other space as an equal copy."""
+    import pickle
+
+    from impulse_core.kinematics.spatial import PLANAR_OFFSET
+
+    for space in (PLANAR, PLANAR_OFFSET, SPATIAL):
+        assert pickle.loads(pickle.dumps(space)) is space
+    other = dataclasses.replace(SPATIAL, name="other")
+    assert pickle.loads(pickle.dumps(other)) == other

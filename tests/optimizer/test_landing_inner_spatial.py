@@ -13,11 +13,13 @@ import numpy as np
 import pytest
 
 from impulse_core.kinematics.spatial import SPATIAL
+from impulse_core.model.joints import FREE
+from impulse_core.model.tree import Body
 from impulse_core.timedomain.landing import landing
 from impulse_core.timedomain.landing_derivatives import sequence_signature, taped_run
 from optimizer.config.model_file import load_model_file
 from optimizer.config.study_config import load_study
-from optimizer.design_space import STUDY_LANDING, FootShape, yaw_rpy
+from optimizer.design_space import STUDY_LANDING, FootShape, Leg, LegChain, leg_chain, yaw_rpy
 from optimizer.search.landing_inner import _Landed, build_landing_nlp, rpy_rates, start_landing
 from tests.optimizer.test_landing_inner import _tangent
 from tests.optimizer.test_landing_study import TINY_LANDING_YAML
@@ -31,10 +33,19 @@ SPATIAL_LANDING_YAML = (
 )
 
 
-@pytest.mark.parametrize("shank, yaw", [(-1.8, 0.3), (-1.2, -0.5), (-0.6, 0.0)])
-def test_rpy_rates_are_the_derivative_of_yaw_rpy(shank, yaw):
-    fd = (np.array(yaw_rpy(shank, yaw + 1e-6)) - np.array(yaw_rpy(shank, yaw - 1e-6))) / 2e-6
-    assert np.max(np.abs(rpy_rates(shank, yaw) - fd)) <= 1e-8
+#: A spatial leg: its base rolled, pitched and yawed, its second rod about a tilted axis.
+SPATIAL_LEG = LegChain((Body("a", None, 0.3, 1.0, -1.2, rpy=(0.2, -0.1, 0.3)),
+                        Body("b", 0, 0.3, 1.0, 0.4, axis=(1.0, 0.0, 0.3))), (FREE, FREE), SPATIAL)
+
+
+@pytest.mark.parametrize("leg, yaw", [(Leg(thigh_angle=-1.8, knee_angle=0.0), 0.3),
+                                      (Leg(thigh_angle=-1.0, knee_angle=-0.2), -0.5),
+                                      (Leg(thigh_angle=-0.6, knee_angle=0.0), 0.0), (SPATIAL_LEG, 0.3),
+                                      (SPATIAL_LEG, -0.4)])
+def test_rpy_rates_are_the_derivative_of_yaw_rpy(leg, yaw):
+    leg = leg_chain(leg)
+    fd = (np.array(yaw_rpy(leg, yaw + 1e-6)) - np.array(yaw_rpy(leg, yaw - 1e-6))) / 2e-6
+    assert np.max(np.abs(rpy_rates(leg, yaw) - fd)) <= 1e-8
 
 
 @pytest.fixture(scope="module")

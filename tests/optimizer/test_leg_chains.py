@@ -262,12 +262,15 @@ def test_search_columns_skip_a_chains_rods():
         assert search_columns(topology, space, leg_rods=4) is None
 
 
-def test_a_spatial_leg_is_refused_by_the_inner_search(tmp_path, capsys):
-    """The inner search's spatial NLP turns each toe root by yaw_rpy about a planar leg's foot
-    angle: a spatial leg is refused in one line naming leg.file and the search that takes it."""
+def test_the_inner_search_takes_a_spatial_leg_under_a_spatial_design_space_only(tmp_path, capsys):
+    """The inner search takes a spatial leg (its NLP: tests/optimizer/test_inner_spatial_leg.py)
+    when the design space is spatial; a planar one still refuses it in one line naming leg.file."""
     solo_leg(tmp_path, root="base_link")
-    study = _study(tmp_path, SPATIAL.replace("method: outer, trials: 16, startup_trials: 8", "method: inner"))
-    with pytest.raises(ConfigError, match=r"leg.file: .*leg.yaml is a spatial leg: the inner search .* outer"):
+    inner = SPATIAL.replace("method: outer, trials: 16, startup_trials: 8", "method: inner")
+    assert load_study(_study(tmp_path, inner)).leg.spatial
+    study = _study(tmp_path, inner.replace(", space: spatial, splay: [0.0, 0.6]", ""))
+    with pytest.raises(ConfigError, match=r"leg.file: .*leg.yaml is a spatial leg: it needs design_space.space: "
+                                          r"spatial \(either search\)"):
         load_study(study)
     assert main(["optimize", str(study), "--out", str(tmp_path / "run"), "--quiet"]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
