@@ -60,6 +60,26 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(np.asarray(a) - b), initial=0.0) / max(float(np.max(np.abs(b), initial=0.0)), 1e-300))
 
 
+def compare_step(fast: _Landing, ref: _Landing, reference_step, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float):
+    """One step of ``fast`` (a compiled code) against ``reference_step`` of the numpy run ``ref``
+    (rk4_step, implicit_step) from (q, v) in ``mode`` (its redundancy marked as resolve() marks
+    it): the step, its impulses and its end's witnesses and rates to 1e-12; returns (q1, v1,
+    impulse, the compiled end or None where the mode is left to numpy)."""
+    mode.redundant = ref.redundant(ref.point(q, v), mode)
+    q1, v1, impulse = fast.step(q, v, mode, h)
+    end = fast.ended(q1, v1, mode)
+    assert (end is None) == mode.redundant  # the compiled path answered, but for least-norm forces
+    rq, rv, rimpulse = reference_step(q, v, mode, h)
+    assert _rel(q1, rq) <= 1e-12 and _rel(v1, rv) <= 1e-12
+    assert _rel(impulse, rimpulse) <= 1e-12 or np.max(np.abs(rimpulse)) == 0.0 == np.max(np.abs(impulse))
+    w, r = fast.witness_and_rate(q1, v1, mode)
+    rw, rr = ref.witness_and_rate(q1, v1, mode)
+    finite = np.isfinite(rw)
+    assert np.array_equal(finite, np.isfinite(w)) and np.array_equal(np.isnan(r), np.isnan(rr))
+    assert _rel(w[finite], rw[finite]) <= 1e-12 and _rel(r[~np.isnan(r)], rr[~np.isnan(rr)]) <= 1e-12
+    return q1, v1, impulse, end
+
+
 @pytest.mark.parametrize("leg", range(7))
 def test_the_compiled_step_equals_the_numpy_step(leg):
     """Random (q, v) near touchdown in random modes (closed, sliding either way, on either stop;
@@ -77,18 +97,7 @@ def test_the_compiled_step_equals_the_numpy_step(leg):
         q = fast.q0 + 0.02 * rng.standard_normal(fast.nv)
         v = rng.standard_normal(fast.nv)
         mode, h = _random_mode(rng, fast), float(rng.uniform(1e-4, 2e-3))
-        mode.redundant = ref.redundant(ref.point(q, v), mode)  # as resolve() marks it
-        q1, v1, impulse = fast.step(q, v, mode, h)
-        end = fast.ended(q1, v1, mode)
-        assert (end is None) == mode.redundant  # the compiled path answered, but for least-norm forces
-        rq, rv, rimpulse = ref.rk4_step(q, v, mode, h)
-        assert _rel(q1, rq) <= 1e-12 and _rel(v1, rv) <= 1e-12
-        assert _rel(impulse, rimpulse) <= 1e-12 or np.max(np.abs(rimpulse)) == 0.0 == np.max(np.abs(impulse))
-        w, r = fast.witness_and_rate(q1, v1, mode)
-        rw, rr = ref.witness_and_rate(q1, v1, mode)
-        finite = np.isfinite(rw)
-        assert np.array_equal(finite, np.isfinite(w)) and np.array_equal(np.isnan(r), np.isnan(rr))
-        assert _rel(w[finite], rw[finite]) <= 1e-12 and _rel(r[~np.isnan(r)], rr[~np.isnan(rr)]) <= 1e-12
+        q1, v1, impulse, end = compare_step(fast, ref, ref.rk4_step, q, v, mode, h)
         if end is None:
             continue
         p0, p1 = ref.point(q, v), ref.point(q1, v1)

@@ -16,7 +16,7 @@ from impulse_core.timedomain.landing import IMPLICIT, NUMPY_CODE, RK4, VM_CODE, 
     landing_difference
 from tests.impulse_core.test_landing import _light_tip_leg
 from tests.impulse_core.test_landing_spatial import _splayed_leg
-from tests.impulse_core.test_landing_step import _case3, _legs, _random_mode, _rel
+from tests.impulse_core.test_landing_step import _case3, _legs, _random_mode, _rel, compare_step
 from tests.impulse_core.test_landing_step_spatial import _compare_ends, _tolerance
 from tests.impulse_core.test_landing_step_spatial import _random_mode as _random_spatial_mode
 
@@ -58,18 +58,7 @@ def test_the_compiled_implicit_step_equals_the_numpy_step(leg):
         mode, h = _random_mode(rng, fast), float(rng.uniform(1e-4, 2e-3))
         if k == 0:
             mode.closed[:], mode.slip[:], mode.stop[:] = False, 0.0, 0
-        mode.redundant = ref.redundant(ref.point(q, v), mode)
-        q1, v1, impulse = fast.step(q, v, mode, h)
-        end = fast.ended(q1, v1, mode)
-        assert (end is None) == mode.redundant
-        rq, rv, rimpulse = ref.implicit_step(q, v, mode, h)
-        assert _rel(q1, rq) <= 1e-12 and _rel(v1, rv) <= 1e-12
-        assert _rel(impulse, rimpulse) <= 1e-12 or np.max(np.abs(rimpulse)) == 0.0 == np.max(np.abs(impulse))
-        w, r = fast.witness_and_rate(q1, v1, mode)
-        rw, rr = ref.witness_and_rate(q1, v1, mode)
-        finite = np.isfinite(rw)
-        assert np.array_equal(finite, np.isfinite(w)) and np.array_equal(np.isnan(r), np.isnan(rr))
-        assert _rel(w[finite], rw[finite]) <= 1e-12 and _rel(r[~np.isnan(r)], rr[~np.isnan(rr)]) <= 1e-12
+        q1, v1, impulse, end = compare_step(fast, ref, ref.implicit_step, q, v, mode, h)
         if end is None:
             continue
         kinds |= _kinds(fast, mode)

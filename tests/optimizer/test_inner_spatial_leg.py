@@ -187,22 +187,10 @@ def test_the_whole_landing_nlp_differentiates_the_spatial_leg(leg_folder):
     """The whole-landing inner search with the spatial leg: the toe's yaw derivative (chained
     through its root's rpy on the leg's last rod) is the central difference of the landed
     objectives."""
-    from impulse_core.timedomain.landing import landing
-    from optimizer.design_space import STUDY_LANDING
-    from optimizer.search.landing_inner import _Landed, build_landing_nlp, start_landing
     from tests.optimizer.test_landing_inner_spatial import SPATIAL_LANDING_YAML
+    from tests.optimizer.test_leg_chains import assert_the_yaw_derivative
 
     text = re.sub(r"leg:.*?\n(?=\S)", "leg: {file: leg.yaml}\n", SPATIAL_LANDING_YAML, flags=re.S)
     (leg_folder / "landing.yaml").write_text(text)
-    nlp = build_landing_nlp(load_study(leg_folder / "landing.yaml"), FootShape(1, 1))
-    x0 = start_landing(nlp, np.random.default_rng(0))
-    landed = _Landed(nlp)
-    tree, laws, scene = landed.model(x0)
+    tree = assert_the_yaw_derivative(load_study(leg_folder / "landing.yaml"))
     assert len(tree.bodies) == 6 and tree.bodies[5].parent == 3
-    nlp.step = landing(tree, scene, laws, dataclasses.replace(STUDY_LANDING, tolerance=1e-2), SPATIAL).step
-    yaw = np.zeros(nlp.n_x)
-    yaw[-1] = 1.0
-    exact = landed.gradient(x0) @ yaw
-    fd = (_Landed(nlp).values(x0 + 1e-6 * yaw) - _Landed(nlp).values(x0 - 1e-6 * yaw)) / 2e-6
-    assert np.abs(exact).max() > 1e-4
-    np.testing.assert_allclose(exact, fd, rtol=1e-5, atol=1e-9)

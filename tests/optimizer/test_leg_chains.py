@@ -19,7 +19,7 @@ from impulse_core.model.joints import FREE
 from impulse_core.model.tree import ContactSelection, JointKind, Scene, Tree
 from optimizer.cli.main import main
 from optimizer.config.model_file import ModelFile, format_model_file, load_model_file
-from optimizer.config.study_config import format_study, load_study
+from optimizer.config.study_config import StudyConfig, format_study, load_study
 from optimizer.design_space import (
     FootLimits,
     Leg,
@@ -314,22 +314,31 @@ def test_the_spatial_landing_nlp_turns_toes_about_a_three_rod_legs_foot_angle(tm
     derivative (chained through its root's rpy about the chain's foot angle) is the central
     difference of the landed objectives."""
     import re
+
+    from tests.optimizer.test_landing_inner_spatial import SPATIAL_LANDING_YAML
+
+    solo_leg(tmp_path)
+    config = load_study(_study(tmp_path, re.sub(r"leg:.*?\n(?=\S)", "leg: {file: leg.yaml}\n", SPATIAL_LANDING_YAML,
+                                                flags=re.S)))
+    tree = assert_the_yaw_derivative(config)
+    assert len(tree.bodies) == 5 and tree.bodies[4].rpy != (0.0, 0.0, 0.0)
+
+
+def assert_the_yaw_derivative(config: StudyConfig) -> Tree:
+    """The whole-landing NLP of ``config``'s one-toe foot: the last design value's (the toe's
+    yaw) exact derivative of the landed objectives against their central difference; returns
+    the tree at the start."""
     from dataclasses import replace
 
     from impulse_core.kinematics.spatial import SPATIAL
     from impulse_core.timedomain.landing import landing
     from optimizer.design_space import STUDY_LANDING, FootShape
     from optimizer.search.landing_inner import _Landed, build_landing_nlp, start_landing
-    from tests.optimizer.test_landing_inner_spatial import SPATIAL_LANDING_YAML
 
-    solo_leg(tmp_path)
-    config = load_study(_study(tmp_path, re.sub(r"leg:.*?\n(?=\S)", "leg: {file: leg.yaml}\n", SPATIAL_LANDING_YAML,
-                                                flags=re.S)))
     nlp = build_landing_nlp(config, FootShape(1, 1))
     x0 = start_landing(nlp, np.random.default_rng(0))
     landed = _Landed(nlp)
     tree, laws, scene = landed.model(x0)
-    assert len(tree.bodies) == 5 and tree.bodies[4].rpy != (0.0, 0.0, 0.0)
     nlp.step = landing(tree, scene, laws, replace(STUDY_LANDING, tolerance=1e-2), SPATIAL).step
     yaw = np.zeros(nlp.n_x)
     yaw[-1] = 1.0
@@ -337,3 +346,4 @@ def test_the_spatial_landing_nlp_turns_toes_about_a_three_rod_legs_foot_angle(tm
     fd = (_Landed(nlp).values(x0 + 1e-6 * yaw) - _Landed(nlp).values(x0 - 1e-6 * yaw)) / 2e-6
     assert np.abs(exact).max() > 1e-4
     np.testing.assert_allclose(exact, fd, rtol=1e-5, atol=1e-9)
+    return tree
