@@ -338,8 +338,9 @@ def _evaluate_over_landings(args: argparse.Namespace) -> int:
     status = EXIT_OK
     for file in args.files:
         try:
-            robust = evaluate_over_landings(load_model_file(file), config.landings, config.statistic_of,
-                                            study_landing(config.search.landing_tolerance))
+            with _ScenarioBar(file) as bar:
+                robust = evaluate_over_landings(load_model_file(file), config.landings, config.statistic_of,
+                                                study_landing(config.search.landing_tolerance), bar.show)
         except FootoptError as e:
             _error(file, str(e))
             status = EXIT_USAGE
@@ -479,6 +480,29 @@ class _LandingBar:
             self.bar.reset(total=p.duration)
         self.bar.set_postfix_str(f"{p.impacts} impacts", refresh=False)
         self.bar.update(p.t - self.bar.n)
+
+
+class _ScenarioBar:
+    """The landings evaluated one by one (whole landings) on stderr, on a terminal only (tqdm's
+    ``disable=None``): one bar per file; gone once its statistics are in."""
+
+    def __init__(self, file: str) -> None:
+        self.file, self.bar = file, None
+
+    def __enter__(self) -> _ScenarioBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+    def show(self, done: int, of: int) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=of, unit="landing", disable=None, leave=False, dynamic_ncols=True, mininterval=0,
+                            desc=f"{self.file}: landings")
+        self.bar.update(done - self.bar.n)
 
 
 def run_bench(args: argparse.Namespace) -> int:

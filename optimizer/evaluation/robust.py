@@ -60,17 +60,22 @@ def scenario_objectives(model: ModelFile, whole: LandingSettings | None = None) 
 
 def scenario_table(
     model: ModelFile, names: tuple[str, ...], draws: np.ndarray, batched: np.ndarray | None = None,
-    whole: LandingSettings | None = None,
+    whole: LandingSettings | None = None, progress: Callable[[int, int], None] | None = None,
 ) -> tuple[tuple[str, ...], np.ndarray]:
     """Every scenario's objectives: their names and one row per scenario (NaN: the evaluation
     failed). Batchable first impacts together (:func:`first_impact_values`, or ``batched`` when
-    the caller evaluated them already), the rest one by one (whole landings with ``whole``)."""
+    the caller evaluated them already), the rest one by one (whole landings with ``whole``),
+    ``progress`` told (done, of) after each of those."""
     table = first_impact_values(model, names, draws) if batched is None else batched.copy()
     todo = np.flatnonzero(np.isnan(table).any(axis=1))
     if todo.size == 0:
         return FIRST_IMPACT, table
     data = model_data(model)
-    found = {int(k): scenario_objectives(scenario_model(data, overrides(model, names, draws[k])), whole) for k in todo}
+    found = {}
+    for done, k in enumerate(todo, start=1):
+        found[int(k)] = scenario_objectives(scenario_model(data, overrides(model, names, draws[k])), whole)
+        if progress is not None:
+            progress(done, len(todo))
     done = [o for o in found.values() if o is not None]
     keys = tuple(f.name for f in fields(Objectives) if done and getattr(done[0], f.name) is not None) or FIRST_IMPACT
     if keys != FIRST_IMPACT:
@@ -110,12 +115,13 @@ def statistics_over_landings_many(
 
 def evaluate_over_landings(
     model: ModelFile, landings: Landings, statistic: Callable[[Objective], Statistic],
-    whole: LandingSettings | None = None,
+    whole: LandingSettings | None = None, progress: Callable[[int, int], None] | None = None,
 ) -> RobustEvaluation:
-    """``model`` on every scenario of ``landings`` (:func:`scenario_table`), each row with its
-    overrides, and the statistics; whole landings with ``whole`` (a study's: :func:`study_landing`)."""
+    """``model`` on every scenario of ``landings`` (:func:`scenario_table`, which tells
+    ``progress``), each row with its overrides, and the statistics; whole landings with ``whole``
+    (a study's: :func:`study_landing`)."""
     draws = landings.draw()
-    keys, table = scenario_table(model, landings.names, draws, whole=whole)
+    keys, table = scenario_table(model, landings.names, draws, whole=whole, progress=progress)
     rows = tuple(
         ScenarioRow(k, overrides(model, landings.names, values),
                     None if np.isnan(row).any() else Objectives(**dict(zip(keys, map(float, row), strict=True))))

@@ -80,6 +80,31 @@ def test_a_landing_shows_its_progress_on_a_terminal_only(tmp_path, capsys, monke
     assert shown.rstrip("\r").split("\r")[-1].strip() == ""  # the bar is gone
 
 
+def test_whole_landings_over_landings_show_their_count_on_a_terminal_only(tmp_path, capsys, monkeypatch):
+    """``evaluate --landings`` with whole landings (landed one by one): on a terminal stderr counts
+    them (1/3 .. 3/3, the file named) and clears; elsewhere it stays empty; the JSON is the same
+    either way, and every scenario was landed once."""
+    from optimizer.evaluation import robust
+    from tests.optimizer.test_landing_inner_robust import robust_yaml
+
+    study = tmp_path / "robust.yaml"
+    study.write_text(robust_yaml("{peak_external_norm: max, energy_absorbed: mean}", "outer"), encoding="utf-8")
+    path = _landing_file(tmp_path, 0.3, duration=0.005)
+    calls = []
+    real = robust.scenario_objectives
+    monkeypatch.setattr(robust, "scenario_objectives", lambda *a: calls.append(1) or real(*a))
+    plain = _json(capsys, "--landings", str(study), str(path))
+    assert capsys.readouterr().err == "" and len(calls) == 3 and plain["scenarios"] == 3
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    assert main(["evaluate", "--json", "--landings", str(study), str(path)]) == 0
+    assert json.loads(capsys.readouterr().out) == plain
+    lines = [line for line in terminal.getvalue().split("\r") if line.strip()]
+    assert lines and all(line.startswith(f"{path}: landings") for line in lines)
+    assert any("3/3" in line for line in lines) and any("1/3" in line for line in lines)
+    assert terminal.getvalue().rstrip("\r").split("\r")[-1].strip() == ""  # the bar is gone
+
+
 def test_tolerance_applies_to_the_landing_only(tmp_path, capsys):
     path = _landing_file(tmp_path, 0.0)
     assert main(["evaluate", "--model", "lcp", "--tolerance", "1e-4", str(path)]) == 2
