@@ -365,7 +365,7 @@ def _on_circles(lam0: np.ndarray, N: np.ndarray, cones: _Cones, z: np.ndarray, a
     (:func:`_kkt_newton`), the active set changed one constraint at a time (a negative multiplier
     leaves, the most violated constraint joins) until both hold. None where it does not settle
     or an active cone is at its apex (no circle to be on)."""
-    for _ in range(2 * len(cones.margins(lam0)) + 2):
+    for _ in range(2 * (cones.n + len(cones.owner)) + 2):
         solved = _kkt_newton(lam0, N, cones, z, sorted(active), size)
         if solved is None:
             return None
@@ -385,14 +385,16 @@ def _kkt_newton(lam0: np.ndarray, N: np.ndarray, cones: _Cones, z: np.ndarray, a
     """z and multipliers with z = sum mu_a grad g_a(z) and g_a(z) = 0 for the active constraints
     (a normal: linear; a pair's mu lambda_n - |lambda_t|: concave), by Newton's method on those
     equations (least-squares steps: the active gradients may be dependent). None if it fails."""
-    def parts(z):
+    k = N.shape[1]
+
+    def parts(z):  # the active constraints' gradients, values and curvatures (-Hessians) at z
         lam = lam0 + N @ z
-        grads, values, curvature = [], [], [np.eye(N.shape[1])]
+        grads, values, curvature = [], [], []
         for c in active:
             if c < cones.n:
                 grads.append(N[c])
                 values.append(lam[c])
-                curvature.append(np.zeros_like(curvature[0]))
+                curvature.append(np.zeros((k, k)))
                 continue
             i, t = cones.pair(c - cones.n)
             norm = float(np.linalg.norm(lam[t]))
@@ -402,29 +404,27 @@ def _kkt_newton(lam0: np.ndarray, N: np.ndarray, cones: _Cones, z: np.ndarray, a
             grads.append(cones.mu * N[i] - d @ T)
             values.append(cones.mu * lam[i] - norm)
             curvature.append((T.T @ (np.eye(len(t)) - np.outer(d, d)) @ T) / norm)
-        return np.array(grads).reshape(len(active), N.shape[1]), np.array(values), curvature
+        return np.array(grads).reshape(len(active), k), np.array(values), curvature
 
-    first = parts(z)
-    if first is None:
+    got = parts(z)
+    if got is None:
         return None
-    mult = np.linalg.lstsq(first[0].T, z, rcond=None)[0] if active else np.zeros(0)
-    k = N.shape[1]
+    mult = np.linalg.lstsq(got[0].T, z, rcond=None)[0] if active else np.zeros(0)
     for _ in range(50):
-        got = parts(z)
-        if got is None:
-            return None
         G, g, curvature = got
-        H = curvature[0] + sum(m * C for m, C in zip(mult, curvature[1:]))
         F = np.concatenate([z - G.T @ mult, g])
         if np.max(np.abs(F), initial=0.0) <= 1e-15 * size:
             break
+        H = np.eye(k) + sum(m * C for m, C in zip(mult, curvature))
         K = np.block([[H, -G.T], [G, np.zeros((len(active), len(active)))]])
         step = np.linalg.lstsq(K, -F, rcond=None)[0]
         z, mult = z + step[:k], mult + step[k:]
+        got = parts(z)
+        if got is None:
+            return None
         if np.max(np.abs(step[:k]), initial=0.0) <= 1e-16 * size:
             break
-    got = parts(z)
-    if got is None or np.max(np.abs(np.concatenate([z - got[0].T @ mult, got[1]])), initial=0.0) > 1e-12 * size:
+    if np.max(np.abs(np.concatenate([z - got[0].T @ mult, got[1]])), initial=0.0) > 1e-12 * size:
         return None
     return z, mult
 
