@@ -872,6 +872,20 @@ _GRAZE_BASIS = tuple(
 )
 
 
+#: Where :meth:`_Landing.locate` puts an event, in witness tolerances below zero: gaps and stop
+#: margins (LOCATE_DEPTH), forces, cone margins and slips (FORCE_DEPTH); see its docstring.
+LOCATE_DEPTH = 0.01
+FORCE_DEPTH = 0.1
+
+
+def location_offsets(start: np.ndarray, geometric: np.ndarray) -> np.ndarray:
+    """Per watched witness (scaled, minus 1, at the step's start), d of its location window
+    [-2 d, -d] (:meth:`_Landing.locate`): LOCATE_DEPTH for gaps and stop margins (``geometric``),
+    FORCE_DEPTH for the others, or as far below the start's own value; at most 1."""
+    depth = np.where(geometric, LOCATE_DEPTH, FORCE_DEPTH)
+    return np.minimum(1.0, np.maximum(depth, depth - start))
+
+
 def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
     """The first s in (0, 1) where the cubic Hermite fit of g(s) (values g0, g1 and slopes d0,
     d1 at s = 0, 1) falls below 0; NaN when the slopes are unknown or it does not."""
@@ -1357,27 +1371,37 @@ class _Landing:
     def locate(self, q: np.ndarray, v: np.ndarray, mode: _Mode, first: _Trial, watch: np.ndarray) -> _Trial:
         """The first step length in (0, ``first.tau``] at which a watched witness crosses its
         threshold, and that step (``first``: the step at the bracket's end, already taken).
-        Witnesses are triggered at -1 (one tolerance below zero) but located at -0.1 tolerances
-        (or just below the start's value), so that an impact happens within a fraction of a
-        tolerance of the true contact instant. The next guess is the first root of the cubic
-        Hermite fit of the crossing witness over the bracket where its rate is known (gaps and
-        stop margins: the contact's or joint's speed), else the Illinois method."""
+
+        Witnesses are triggered at -1 (one tolerance below zero) but located within a window
+        ``[-2 d, -d]`` tolerances (or as far below their start's value): d = ``LOCATE_DEPTH`` for
+        gaps and stop margins, ``FORCE_DEPTH`` for forces, cone margins and slips. A contact is
+        thus met within 0.02 gap tolerances of the ground: each bounce is located that close to
+        where the last one left (the projection lifts a bounced contact to zero gap), so the
+        drive a pushing it down gains at most a 2 d tol per bounce, far below restitution's loss
+        unless the bounce is slower than sqrt(4 a d tol / (1 - e^2)) (0.1 of the plastic speed
+        at a = 9e4 m/s^2, e = 0.8). The next guess is the first root, aimed at the window's
+        middle, of the cubic Hermite fit of the crossing witness over the bracket where its rate
+        is known (gaps and stop margins: the contact's or joint's speed), else the Illinois
+        method; a bisection where the bracket stopped halving (rounding's plateau)."""
         w0, r0 = self.witness_and_rate(q, v, mode)
-        raw0 = float(np.min(w0[watch])) - 1.0
-        offset = min(1.0, max(0.1, 0.1 - raw0))
+        start = w0[watch] - 1.0
+        offset = location_offsets(start, np.isfinite(r0[watch]))
+        aim = 0.5 * offset  # the window's middle: rounding either way stays inside
 
         def phi(trial: _Trial) -> tuple[np.ndarray, np.ndarray]:
             return trial.w[watch] - 1.0 + offset, trial.r[watch]
 
-        lo, hi, (w_lo, r_lo), found = 0.0, first.tau, (w0[watch] - 1.0 + offset, r0[watch]), first
+        lo, hi, (w_lo, r_lo), found = 0.0, first.tau, (start + offset, r0[watch]), first
         w_hi, r_hi = phi(first)
-        f_lo, f_hi, side = float(np.min(w_lo)), float(np.min(w_hi)), 0
+        f_lo, f_hi, side, slow = float(np.min(w_lo)), float(np.min(w_hi)), 0, 0
         for _ in range(100):
-            if hi - lo <= 1e-14 * max(1.0, hi) or f_hi >= -offset:  # within one location tolerance
+            if hi - lo <= 1e-14 * max(1.0, hi) or (w_hi >= -offset).all():  # inside the window
                 break
-            i = int(np.argmin(w_hi))
-            mid = lo + (hi - lo) * _hermite_root(w_lo[i], r_lo[i] * (hi - lo), w_hi[i], r_hi[i] * (hi - lo))
-            if not lo < mid < hi:  # Illinois
+            i, width = int(np.argmin(w_hi)), hi - lo
+            mid = lo + width * _hermite_root(w_lo[i] + aim[i], r_lo[i] * width, w_hi[i] + aim[i], r_hi[i] * width)
+            if slow >= 2:  # two steps without halving the bracket
+                mid, slow = 0.5 * (lo + hi), 0
+            elif not lo < mid < hi:  # Illinois
                 mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_lo != f_hi else 0.5 * (lo + hi)
                 if not lo < mid < hi:
                     mid = 0.5 * (lo + hi)
@@ -1392,6 +1416,7 @@ class _Landing:
                 lo, w_lo, r_lo, f_lo = mid, w_mid, r_mid, f_mid
                 f_hi = f_hi / 2 if side == 1 else f_hi
                 side = 1
+            slow = slow + 1 if hi - lo > 0.5 * width else 0
         return found
 
     def impact(

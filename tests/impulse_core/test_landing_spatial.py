@@ -464,3 +464,21 @@ def test_the_balanced_length_doubles_where_the_order_allows():
     assert balanced_length(1e-3, 0.25, 2) == 2e-3 and balanced_length(1e-3, 0.26, 2) == 1e-3
     assert balanced_length(1e-3, 1 / 16, 4) == 2e-3 and balanced_length(1e-3, 0.07, 4) == 1e-3
     assert balanced_length(1e-3, 0.0, 2) == 2e-3
+
+
+def test_bounces_of_a_driven_contact_shrink_by_restitution_to_rest():
+    """Random file 12372 (data/bounce_plateau_12372.yaml: a light rod on a stiff spring, e =
+    0.8) drives its contact into the ground at about 1.8e4 m/s^2 between bounces. Each bounce is
+    located within 2 LOCATE_DEPTH gap tolerances of zero, where the last one left from, so the
+    bounces shrink by about e and end plastic. Located 0.1..0.2 tolerances deep (the old
+    window), the drive's work over that depth held them at ~1e-4 m/s: 20000 impacts by 0.5 ms."""
+    from optimizer.config.model_file import load_model_file
+    from pathlib import Path
+
+    model = load_model_file(Path(__file__).parent / "data" / "bounce_plateau_12372.yaml")
+    r = _Landing(model.tree, model.scene, model.joints, LandingSettings(max_events=300), model.space).run(5e-5)
+    impulses = np.array([e.external[1] for e in r.events])
+    assert len(r.events) < 60 and np.all(impulses > 0)
+    ratios = impulses[10:-1] / impulses[9:-2]  # the bounces after the spin's first ones, but the plastic last
+    assert np.all((ratios > 0.7) & (ratios < 0.9)), ratios
+    assert abs(r.momentum_balance) < 1e-6
