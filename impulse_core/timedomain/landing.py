@@ -1378,7 +1378,7 @@ class _Landing:
         thus met within 0.02 gap tolerances of the ground: each bounce is located that close to
         where the last one left (the projection lifts a bounced contact to zero gap), so the
         drive a pushing it down gains at most a 2 d tol per bounce, far below restitution's loss
-        unless the bounce is slower than sqrt(4 a d tol / (1 - e^2)) (0.1 of the plastic speed
+        unless the bounce is slower than sqrt(4 a d tol / (1 - e^2)) (the plastic speed, 1e-4 m/s,
         at a = 9e4 m/s^2, e = 0.8). The next guess is the first root, aimed at the window's
         middle, of the cubic Hermite fit of the crossing witness over the bracket where its rate
         is known (gaps and stop margins: the contact's or joint's speed), else the Illinois
