@@ -221,6 +221,12 @@ def least_norm_split(J: np.ndarray, lam: np.ndarray, P: np.ndarray | None = None
 ROUNDING = 1e-13
 
 
+#: How far (relative to the largest speed before) an answer's velocities after may be from its
+#: modes' own for :func:`least_norm_law_split` to take the modes: a wrong mode is off by O(1), a
+#: solver's answer by its tolerance times W's spread (fe12600: law residual 3e-10, velocities 2e-9).
+MODES_TOL = 1e-6
+
+
 def least_norm_law_split(
     J: np.ndarray, W: np.ndarray, u: np.ndarray, owner: np.ndarray, normal: np.ndarray, tangential: np.ndarray,
     restitution: float | np.ndarray, mu: float, sides: int, tol: float = 1e-9,
@@ -264,7 +270,7 @@ def least_norm_law_split(
     _, N = row_space_split(B.T @ J)
     lam0 -= N @ (N.T @ lam0)
     answer = np.concatenate([normal[free], tangential[stick].T.ravel()])
-    if np.max(np.abs(W @ (B @ lam0) + u - after), initial=0.0) > tol * scale:
+    if np.max(np.abs(W @ (B @ lam0) + u - after), initial=0.0) > MODES_TOL * scale:
         return None  # the answer's velocities are not its modes' (not the law's answer)
     cones = _Cones(int(free.sum()), np.searchsorted(np.flatnonzero(free), owner[stick]), mu, tangents)
     if min(cones.margins(answer), default=0.0) < -tol * size:
