@@ -59,7 +59,7 @@ from scipy.spatial.transform import Rotation
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import POLYGON, cone_unilateral, modes_of
-from impulse_core.impact.coulomb import ContactMode, UnilateralSolution, contact_modes, solve_unilateral
+from impulse_core.impact.coulomb import ContactMode, UnilateralSolution, contact_modes, solve_unilateral, use_compiled_lemke
 from impulse_core.impact.laws import least_norm_law_split, least_norm_split, redundant, share_among_twins, twin_groups
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
@@ -958,6 +958,7 @@ class _Landing:
             from impulse_core.timedomain.landing_step import compiled_landing_function  # it builds on this module
 
             fn = compiled_landing_function(self.topology, ground, space)
+            use_compiled_lemke()  # the impacts' and mode choices' LCPs: the same numbers, as C
         else:
             fn = landing_function(self.topology, ground, space)
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
