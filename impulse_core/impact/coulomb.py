@@ -225,6 +225,12 @@ def solve_unilateral(
         NumericalError: Lemke's method found no solution (a ray, or too many pivots).
     """
     n, m = len(restitution), len(owner)
+    # the compiled LCP, scaling and first Lemke path (the same numbers); else, or on a ray, Python's
+    z = None if _KERNEL is None or not n + m else _KERNEL.unilateral(W, u, owner, restitution, mu, LEMKE_TOL)
+    if z is not None:
+        normal, tangential = z[:n], z[n : n + m] - z[n + m : n + 2 * m]
+        velocity = u + W @ np.concatenate([normal, tangential])
+        return UnilateralSolution(normal, tangential, velocity, z[n + 2 * m :])
     M, q = unilateral_lcp(W, u, owner, restitution, mu)
     # Diagonal scaling z = D z', w' = D w with D = (s, s, s, 1/s), s_i = 1/sqrt(W_nn,ii): the velocity
     # blocks get a unit diagonal and the cone and slip blocks stay mu and 1, whatever the units.

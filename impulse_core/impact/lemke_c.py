@@ -47,14 +47,15 @@ static void pivot(double *T, int *basis, int n, int w, int row, int col, double 
     basis[row] = col;
 }
 
-/* coulomb.lemke (n > 0) on data = [M (n x n, row-major), q, cover, z]: 0 where M or q is not
-   finite (no pivoting on NaN), 2 where q >= 0 (z = 0), 1 and z (before the clip at 0), 0 on a
-   secondary ray or out of pivots, -1 without memory. */
-int footopt_lemke(int n, double *data, int max_pivots, double tol_unit) {
-    const double *M = data, *q = data + n * n, *cover = q + n;
-    double *z = data + n * n + 2 * n;
-    for (int i = 0; i < n * n + n; ++i)
-        if (!isfinite(data[i])) return 0;
+/* coulomb.lemke (n > 0): 0 where M or q is not finite (no pivoting on NaN), 2 where q >= 0
+   (z = 0), 1 and z (before the clip at 0), 0 on a secondary ray or out of pivots, -1 without
+   memory. */
+static int lemke_core(int n, const double *M, const double *q, const double *cover, int max_pivots,
+                      double tol_unit, double *z) {
+    for (int i = 0; i < n * n; ++i)
+        if (!isfinite(M[i])) return 0;
+    for (int i = 0; i < n; ++i)
+        if (!isfinite(q[i])) return 0;
     int negative = 0;
     for (int i = 0; i < n; ++i) negative |= !(q[i] >= 0.0);
     if (!negative) return 2;
@@ -122,6 +123,73 @@ int footopt_lemke(int n, double *data, int max_pivots, double tol_unit) {
     free(basis);
     return status;
 }
+
+/* lemke_core on data = [M (n x n, row-major), q, cover, z]. */
+int footopt_lemke(int n, double *data, int max_pivots, double tol_unit) {
+    return lemke_core(n, data, data + n * n, data + n * n + n, max_pivots, tol_unit, data + n * n + 2 * n);
+}
+
+/* coulomb.solve_unilateral's LCP (unilateral_lcp), its scaling (scaled_lemke's D and speed) and
+   Lemke's method with the unit cover, on data = [W (k x k, row-major, k = n + m), u (k),
+   restitution (n), mu (m), owner (m, as doubles), then out: z (N = n + 3 m, before the clip),
+   d (N), speed]; returns lemke_core's status (the caller retries other covers in Python). */
+int footopt_unilateral(int n, int m, double *data, int max_pivots, double tol_unit) {
+    int k = n + m, N = n + 3 * m;
+    const double *W = data, *u = W + k * k, *e = u + k, *mu = e + n, *owner = mu + m;
+    double *z = (double *)owner + m, *d = z + N, *speed = d + N;
+    double *M = malloc(sizeof(double) * (N * N + 2 * N));
+    if (!M) return -1;
+    double *q = M + N * N, *cover = q + N;
+    const double tiny = 2.2250738585072014e-308;
+    for (int i = 0; i < N * N; ++i) M[i] = 0.0;
+#define MM(i, j) M[(i) * N + (j)]
+#define WW(i, j) W[(i) * k + (j)]
+    int t = n, s = n + m, b = n + 2 * m;  /* lambda_t+, lambda_t-, beta */
+    for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) MM(i, j) = WW(i, j);
+        for (int j = 0; j < m; ++j) { MM(i, t + j) = WW(i, n + j); MM(i, s + j) = -WW(i, n + j); }
+    }
+    for (int i = 0; i < m; ++i) {
+        for (int j = 0; j < n; ++j) { MM(t + i, j) = WW(n + i, j); MM(s + i, j) = -WW(n + i, j); }
+        for (int j = 0; j < m; ++j) {
+            MM(t + i, t + j) = WW(n + i, n + j);
+            MM(t + i, s + j) = -WW(n + i, n + j);
+            MM(s + i, t + j) = -WW(n + i, n + j);
+            MM(s + i, s + j) = WW(n + i, n + j);
+            /* M[b, t] = M[b, s] = -eye(m): -0.0 off the diagonal */
+            MM(b + i, t + j) = i == j ? -1.0 : -0.0;
+            MM(b + i, s + j) = i == j ? -1.0 : -0.0;
+        }
+        MM(t + i, b + i) = 1.0;
+        MM(s + i, b + i) = 1.0;
+        MM(b + i, (int)owner[i]) = mu[i];
+    }
+#undef MM
+#undef WW
+    for (int i = 0; i < n; ++i) q[i] = (1.0 + e[i]) * u[i];
+    for (int i = 0; i < m; ++i) { q[t + i] = u[n + i]; q[s + i] = -u[n + i]; q[b + i] = 0.0; }
+    double top = 0.0;
+    for (int i = 0; i < k; ++i) { double a = fabs(u[i]); if (a > top) top = a; }
+    *speed = top > tiny ? top : tiny;  /* max(max |u|, tiny); a NaN u stops at lemke_core's check */
+    for (int i = 0; i < n; ++i) {
+        double a = fabs(W[i * k + i]);
+        d[i] = 1.0 / sqrt(a < tiny ? tiny : a);  /* np.maximum(|W_ii|, tiny): NaN propagates */
+    }
+    for (int i = 0; i < m; ++i) {
+        double st = d[(int)owner[i]];
+        d[t + i] = st;
+        d[s + i] = st;
+        d[b + i] = 1.0 / st;
+    }
+    for (int i = 0; i < N; ++i) {
+        for (int j = 0; j < N; ++j) M[i * N + j] = d[i] * M[i * N + j] * d[j];
+        q[i] = d[i] * q[i] / *speed;
+        cover[i] = 1.0;
+    }
+    int status = lemke_core(N, M, q, cover, max_pivots, tol_unit, z);
+    free(M);
+    return status;
+}
 """
 
 
@@ -144,19 +212,50 @@ def kernel(cache_dir: str | None = None):
         folder = lookup(root, NAME, key) or store(root, NAME, key, lambda work: _build(compiler, work))
     except CompileError:
         return None
-    fn = ctypes.CDLL(str(folder / LIBRARY)).footopt_lemke
-    fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
-    fn.restype = ctypes.c_int
-    return fn
+    library = ctypes.CDLL(str(folder / LIBRARY))
+    lemke, unilateral = library.footopt_lemke, library.footopt_unilateral
+    lemke.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
+    unilateral.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
+    lemke.restype = unilateral.restype = ctypes.c_int
+    return lemke, unilateral
 
 
 class Lemke:
     """The compiled Lemke's method on per-size work arrays (their addresses taken once: a call
     then costs a few copies and the C function's own time)."""
 
-    def __init__(self, fn) -> None:
-        self.fn = fn
+    def __init__(self, functions) -> None:
+        self.fn, self.fn_unilateral = functions
         self.work: dict[int, tuple[np.ndarray, int]] = {}
+        self.work_unilateral: dict[tuple[int, int], tuple[np.ndarray, int]] = {}
+
+    def unilateral(self, W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray,
+                   tol: float) -> np.ndarray | None:
+        """:func:`impulse_core.impact.coulomb.scaled_lemke`'s z of :func:`~impulse_core.impact.coulomb.
+        unilateral_lcp`'s LCP with solve_unilateral's scaling, where the unit covering vector finds it;
+        None where not (the caller then takes the Python path, which retries other covers)."""
+        n, m = len(restitution), len(owner)
+        k, N = n + m, n + 3 * m
+        work = self.work_unilateral.get((n, m))
+        if work is None:
+            data = np.zeros(k * k + k + n + 2 * m + 2 * N + 1)
+            work = self.work_unilateral[n, m] = (data, data.ctypes.data)
+        data, address = work
+        kk = k * k
+        data[:kk].reshape(k, k)[:] = W
+        data[kk : kk + k] = u
+        data[kk + k : kk + k + n] = restitution
+        data[kk + k + n : kk + k + n + m] = mu
+        data[kk + k + n + m : kk + k + n + 2 * m] = owner
+        status = self.fn_unilateral(n, m, address, 50 * N + 50, tol)
+        if status < 0:
+            raise MemoryError("Lemke's method: no memory for the tableau")
+        if status == 0:
+            return None
+        z0 = kk + k + n + 2 * m
+        d, speed = data[z0 + N : z0 + 2 * N], data[z0 + 2 * N]
+        z = np.maximum(data[z0 : z0 + N], 0.0) if status == 1 else np.zeros(N)
+        return d * z * speed
 
     def __call__(self, M: np.ndarray, q: np.ndarray, cover: np.ndarray | None, max_pivots: int, tol: float
                  ) -> np.ndarray | None:

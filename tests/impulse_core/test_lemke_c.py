@@ -1,7 +1,9 @@
 """Lemke's method as C (impulse_core.impact.lemke_c) returns the Python code's z bit for bit:
 on random LCPs (symmetric positive definite, nonsymmetric, with repeated columns, some ending
 on rays, with and without a covering vector), on the landing's kind of impact LCP (the plane's
-friction LCP of three toes), and on its early answers (not finite, q >= 0)."""
+friction LCP of three toes), and on its early answers (not finite, q >= 0); and so does
+solve_unilateral with the LCP built, scaled and solved as C (rows with and without friction,
+stops sharing no tangent row, restitution 0 to 1, a NaN falling back to Python)."""
 
 from __future__ import annotations
 
@@ -9,7 +11,8 @@ import numpy as np
 import pytest
 
 from impulse_core.impact import coulomb
-from impulse_core.impact.coulomb import lemke, unilateral_lcp, use_compiled_lemke
+from impulse_core.errors import NumericalError
+from impulse_core.impact.coulomb import lemke, solve_unilateral, unilateral_lcp, use_compiled_lemke
 
 
 def _both(M, q, cover=None):
@@ -60,3 +63,44 @@ def test_compiled_lemke_equals_python_bit_for_bit():
                  (np.eye(2), np.array([-0.0, 1.0]))]:
         a, b, _ = _both(M, q)
         assert _same(a, b)
+
+
+def _unilateral(*args):
+    use_compiled_lemke(False)
+    try:
+        a = solve_unilateral(*args)
+    except NumericalError:
+        a = None
+    finally:
+        use_compiled_lemke()
+    try:
+        b = solve_unilateral(*args)
+    except NumericalError:
+        b = None
+    return a, b
+
+
+def test_compiled_unilateral_equals_python_bit_for_bit():
+    if not use_compiled_lemke():
+        pytest.skip("no C compiler")
+    rng = np.random.default_rng(11)
+    for k in range(300):
+        n = int(rng.integers(1, 6))
+        friction = rng.random(n) < 0.7 if k % 4 else np.zeros(n, bool)  # some rows frictionless (stops)
+        owner = np.flatnonzero(friction)
+        m = len(owner)
+        J = rng.normal(size=(n + m, 9))
+        if k % 7 == 0 and n > 1:
+            J[1] = J[0]  # twin rows
+        W = J @ np.diag(rng.uniform(0.1, 3.0, 9)) @ J.T
+        u = rng.normal(size=n + m) * (10.0 if k % 3 else 1e-3)
+        e = rng.choice([0.0, 0.5, 0.8, 1.0], n)
+        mu = np.full(m, rng.choice([0.3, 0.5, 1.0]))
+        a, b = _unilateral(W, u, owner, e, mu)
+        assert (a is None) == (b is None), k
+        if a is not None:
+            for name in ("normal", "tangential", "velocity", "slip"):
+                assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), (k, name)
+    W, u = np.eye(2), np.array([np.nan, -1.0])  # not finite: Python's answer (an error) either way
+    a, b = _unilateral(W, u, np.array([0]), np.array([0.5]), np.array([0.5]))
+    assert a is None and b is None
