@@ -1069,39 +1069,52 @@ class _Landing:
         """The dynamics at (q, v); the last one is kept, since a step's end is asked for by the
         momentum balance, the divergence check and the witnesses in turn (read only)."""
         key = (q.tobytes(), v.tobytes())
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]
-        pt = self._evaluate(q, v)
+        last = self._last
+        if last is not None and last[0] == key:
+            return last[1]
+        # at the last point's q (an impact's velocity after it): its geometry is this one's
+        pt = self._evaluate(q, v, last[1] if last is not None and last[0][0] == key[0] else None)
         self._last = (key, pt)
         return pt
 
-    def _evaluate(self, q: np.ndarray, v: np.ndarray) -> _Point:
+    def _evaluate(self, q: np.ndarray, v: np.ndarray, like: _Point | None = None) -> _Point:
+        """The dynamics at (q, v); ``like``: a point at the same q, whose figures of q alone (gap,
+        normal and tangents, Jacobians, mass matrix, contact positions: the compiled function
+        computes them alike from q) are shared rather than derived again (read only)."""
         self.call.call(q, v)
         o, f = self.call.out, self.call.flat
         d = self.dims
-        normal = o[1].T.copy()
-        tangent = tangent_basis(normal)
-        J = o[2].reshape(self.nc, d, self.nv)  # per contact, its x, y (, z) rows
-        bias = f[3].reshape(self.nc, d)
-        if d == 2:  # the plane's one tangent: no stacking
-            Jt, bt = _along(tangent[:, 0], J)[:, None], _along(tangent[:, 0], bias)[:, None]
+        if like is None:
+            normal = o[1].T.copy()
+            tangent = tangent_basis(normal)
+            J = o[2].reshape(self.nc, d, self.nv)  # per contact, its x, y (, z) rows
+            if d == 2:  # the plane's one tangent: no stacking
+                Jt = _along(tangent[:, 0], J)[:, None]
+            else:
+                Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
+            gap, Jn, M, contacts = f[0].copy(), _along(normal, J), o[4].copy(), o[9].T.copy()
         else:
-            Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
+            normal, tangent, Jt = like.normal, like.tangent, like.Jt
+            gap, Jn, M, contacts = like.gap, like.Jn, like.M, like.contacts
+        bias = f[3].reshape(self.nc, d)
+        if d == 2:
+            bt = _along(tangent[:, 0], bias)[:, None]
+        else:
             bt = np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)])
         return _Point(
-            gap=f[0].copy(),
+            gap=gap,
             normal=normal,
             tangent=tangent,
-            Jn=_along(normal, J),
+            Jn=Jn,
             Jt=Jt,
             bn=_along(normal, bias),
             bt=bt,
-            M=o[4].copy(),
+            M=M,
             f=f[5] + self.joints.torque(q, v),
             kinetic=float(f[6][0]),
             momentum=o[7].copy(),
             com_height=float(f[8][0]),
-            contacts=o[9].T.copy(),
+            contacts=contacts,
             slip=Jt @ v,
             slip_floor=self.speed_tol,
         )
@@ -1703,17 +1716,19 @@ class _Landing:
 
     def position_correction(self, pt: _Point, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """The smallest (kinetic-metric) change of q that zeroes the mode's closed gaps and stops."""
-        rows = self.mode_solution(pt, mode, solve=False)[0]
-        n = rows.n
+        # the mode's normal and stop rows alone (:func:`_rows`' first rows, the same numbers)
+        contacts, d = np.flatnonzero(mode.closed), np.flatnonzero(mode.stop)
+        nc, n = len(contacts), len(contacts) + len(d)
         if not n:
             return np.zeros_like(q)
-        on = rows.contact >= 0
-        residual = np.zeros(n)
-        residual[on] = pt.gap[rows.contact[on]]
-        d = rows.dof[~on]
-        residual[~on] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, self.joints.hi[d], self.joints.lo[d]))
-        minv_gt = np.linalg.solve(pt.M, rows.G[:n].T)
-        return minv_gt @ np.linalg.lstsq(rows.G[:n] @ minv_gt, residual, rcond=None)[0]
+        G = np.zeros((n, self.nv))
+        G[:nc] = pt.Jn[contacts]
+        G[nc + np.arange(len(d)), d] = -mode.stop[d]
+        residual = np.empty(n)
+        residual[:nc] = pt.gap[contacts]
+        residual[nc:] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, self.joints.hi[d], self.joints.lo[d]))
+        minv_gt = np.linalg.solve(pt.M, G.T)
+        return minv_gt @ np.linalg.lstsq(G @ minv_gt, residual, rcond=None)[0]
 
     # ---- the run
 
