@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import math
 
 import numpy as np
 
@@ -190,6 +191,22 @@ int footopt_unilateral(int n, int m, double *data, int max_pivots, double tol_un
     free(M);
     return status;
 }
+
+/* landing._hermite_root (its arguments finite): the first of the ns samples s where the cubic
+   Hermite fit falls below 0 (Horner's rule), then 40 bisections; NaN where none or the first. */
+double footopt_hermite_root(double g0, double d0, double g1, double d1, const double *s, int ns) {
+    double c3 = 2 * g0 + d0 - 2 * g1 + d1, c2 = -3 * g0 - 2 * d0 + 3 * g1 - d1, c1 = d0, c0 = g0;
+    int first = 0;
+    for (int i = 0; i < ns; ++i)
+        if (((c3 * s[i] + c2) * s[i] + c1) * s[i] + c0 < 0) { first = i; break; }
+    if (first == 0) return NAN;
+    double a = s[first - 1], b = s[first];
+    for (int k = 0; k < 40; ++k) {
+        double m = 0.5 * (a + b);
+        if (((c3 * m + c2) * m + c1) * m + c0 >= 0) a = m; else b = m;
+    }
+    return b;
+}
 """
 
 
@@ -217,7 +234,10 @@ def kernel(cache_dir: str | None = None):
     lemke.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
     unilateral.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
     lemke.restype = unilateral.restype = ctypes.c_int
-    return lemke, unilateral
+    root = library.footopt_hermite_root
+    root.argtypes = [ctypes.c_double] * 4 + [ctypes.c_void_p, ctypes.c_int]
+    root.restype = ctypes.c_double
+    return lemke, unilateral, root
 
 
 class Lemke:
@@ -225,7 +245,7 @@ class Lemke:
     then costs a few copies and the C function's own time)."""
 
     def __init__(self, functions) -> None:
-        self.fn, self.fn_unilateral = functions
+        self.fn, self.fn_unilateral, self.fn_root = functions
         self.work: dict[int, tuple[np.ndarray, int]] = {}
         self.work_unilateral: dict[tuple[int, int], tuple[np.ndarray, int]] = {}
 
@@ -281,4 +301,22 @@ class Lemke:
         return None
 
 
-__all__ = ["SOURCE", "Lemke", "kernel"]
+def hermite_root(samples: np.ndarray):
+    """:func:`impulse_core.timedomain.landing._hermite_root` on ``samples`` as the compiled
+    library's (the same arithmetic, the same root bit for bit), or None without a C compiler."""
+    functions = kernel()
+    if functions is None:
+        return None
+    fn, s = functions[2], np.ascontiguousarray(samples, dtype=float)
+    address, ns, isfinite, nan = s.ctypes.data, len(s), math.isfinite, math.nan
+
+    def root(g0: float, d0: float, g1: float, d1: float) -> float:
+        if not (isfinite(d0) and isfinite(d1) and isfinite(g0) and isfinite(g1)):
+            return nan
+        return fn(g0, d0, g1, d1, address, ns)
+
+    root.samples = s  # the samples' array stays alive with the function
+    return root
+
+
+__all__ = ["SOURCE", "Lemke", "hermite_root", "kernel"]

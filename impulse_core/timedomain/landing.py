@@ -59,6 +59,7 @@ from scipy.spatial.transform import Rotation
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import POLYGON, cone_unilateral, modes_of
+from impulse_core.impact import lemke_c
 from impulse_core.impact.coulomb import ContactMode, UnilateralSolution, contact_modes, solve_unilateral, use_compiled_lemke
 from impulse_core.impact.laws import least_norm_law_split, least_norm_split, redundant, share_among_twins, twin_groups
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
@@ -961,6 +962,8 @@ class _Landing:
             use_compiled_lemke()  # the impacts' and mode choices' LCPs: the same numbers, as C
         else:
             fn = landing_function(self.topology, ground, space)
+        #: the location's root of a cubic (:func:`_hermite_root`; with step code c as C, the same numbers)
+        self.root = (settings.step_code == C_CODE and lemke_c.hermite_root(_ROOT_SAMPLES)) or _hermite_root
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
         #: in the call's copy (:meth:`rechart`), and the next run starts from this one again
         self.design = design_vector(tree, space.body_values)
@@ -1390,7 +1393,7 @@ class _Landing:
             if hi - lo <= 1e-14 * max(1.0, hi) or f_hi >= -offset:  # within one location tolerance
                 break
             i = int(np.argmin(w_hi))
-            mid = lo + (hi - lo) * _hermite_root(w_lo[i], r_lo[i] * (hi - lo), w_hi[i], r_hi[i] * (hi - lo))
+            mid = lo + (hi - lo) * self.root(w_lo[i], r_lo[i] * (hi - lo), w_hi[i], r_hi[i] * (hi - lo))
             if not lo < mid < hi:  # Illinois
                 mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_lo != f_hi else 0.5 * (lo + hi)
                 if not lo < mid < hi:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from impulse_core.timedomain.landing import _ROOT_SAMPLES, _hermite_root
 
@@ -24,10 +25,17 @@ def _reference_root(g0: float, d0: float, g1: float, d1: float) -> float:
     return float(b)
 
 
-def test_the_hermite_root_is_numpys_polyval_bit_for_bit():
-    """The event location's cubic root (Horner's rule on the samples written out) equals np.polyval's
-    sampling and bisection bit for bit: gaps that dip and come back, cross once, stay above, start
-    below, and unknown slopes."""
+@pytest.mark.parametrize("code", ["python", "c"])
+def test_the_hermite_root_is_numpys_polyval_bit_for_bit(code):
+    """The event location's cubic root (Horner's rule on the samples written out; and as the
+    compiled library's, which step code c locates with) equals np.polyval's sampling and
+    bisection bit for bit: gaps that dip and come back, cross once, stay above, start below, and
+    unknown slopes."""
+    from impulse_core.impact import lemke_c
+
+    root_of = _hermite_root if code == "python" else lemke_c.hermite_root(_ROOT_SAMPLES)
+    if root_of is None:
+        pytest.skip("no C compiler")
     rng = np.random.default_rng(3)
     found = 0
     for k in range(2000):
@@ -35,11 +43,11 @@ def test_the_hermite_root_is_numpys_polyval_bit_for_bit():
         d0, d1 = rng.standard_normal(2) * 4.0
         if k % 7 == 0:
             g0 = -abs(g0)  # below at the start
-        root, ref = _hermite_root(g0, d0, g1, d1), _reference_root(g0, d0, g1, d1)
+        root, ref = root_of(g0, d0, g1, d1), _reference_root(g0, d0, g1, d1)
         assert (math.isnan(root) and math.isnan(ref)) or root == ref
         found += not math.isnan(root)
     assert 500 < found < 1800
-    assert math.isnan(_hermite_root(1.0, math.nan, -1.0, 0.0))
+    assert math.isnan(root_of(1.0, math.nan, -1.0, 0.0))
 
 
 def _landing_records(run, h: float) -> tuple:
