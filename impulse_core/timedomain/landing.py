@@ -1087,30 +1087,44 @@ class _Landing:
         self.call.call(q, v)
         o, f = self.call.out, self.call.flat
         d = self.dims
-        if like is None:
+        nc, nv = self.nc, self.nv
+        bias = f[3].reshape(nc, d)
+        if like is None and d == 2:
+            # the plane: the normal and tangent components of the Jacobian rows and of the bias at
+            # once, (n_x x + n_y y, as _along adds them) over [J | bias] per contact
             normal = o[1].T.copy()
             tangent = tangent_basis(normal)
-            J = o[2].reshape(self.nc, d, self.nv)  # per contact, its x, y (, z) rows
-            if d == 2:  # the plane's one tangent: no stacking
-                Jt = _along(tangent[:, 0], J)[:, None]
-            else:
+            JB = np.concatenate([o[2].reshape(nc, d, nv), bias[:, :, None]], axis=2)  # nc x d x (nv + 1)
+            D = np.stack([normal, tangent[:, 0]], axis=1)[:, :, :, None]  # nc x (normal, tangent) x d x 1
+            out = D[:, :, 0] * JB[:, None, 0]
+            out += D[:, :, 1] * JB[:, None, 1]
+            # in _along's memory order (the compiled function's column-major J), the tangent's axis
+            # added as a view as before: matmul takes another path, and rounds otherwise, on other strides
+            Jn, Jt = np.asfortranarray(out[:, 0, :nv]), np.asfortranarray(out[:, 1, :nv])[:, None]
+            bn, bt = np.ascontiguousarray(out[:, 0, nv]), np.ascontiguousarray(out[:, 1, nv])[:, None]
+            gap, M, contacts = f[0].copy(), o[4].copy(), o[9].T.copy()
+        else:
+            if like is None:
+                normal = o[1].T.copy()
+                tangent = tangent_basis(normal)
+                J = o[2].reshape(nc, d, nv)  # per contact, its x, y, z rows
                 Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
-            gap, Jn, M, contacts = f[0].copy(), _along(normal, J), o[4].copy(), o[9].T.copy()
-        else:
-            normal, tangent, Jt = like.normal, like.tangent, like.Jt
-            gap, Jn, M, contacts = like.gap, like.Jn, like.M, like.contacts
-        bias = f[3].reshape(self.nc, d)
-        if d == 2:
-            bt = _along(tangent[:, 0], bias)[:, None]
-        else:
-            bt = np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)])
+                gap, Jn, M, contacts = f[0].copy(), _along(normal, J), o[4].copy(), o[9].T.copy()
+            else:
+                normal, tangent, Jt = like.normal, like.tangent, like.Jt
+                gap, Jn, M, contacts = like.gap, like.Jn, like.M, like.contacts
+            bn = _along(normal, bias)
+            if d == 2:
+                bt = _along(tangent[:, 0], bias)[:, None]
+            else:
+                bt = np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)])
         return _Point(
             gap=gap,
             normal=normal,
             tangent=tangent,
             Jn=Jn,
             Jt=Jt,
-            bn=_along(normal, bias),
+            bn=bn,
             bt=bt,
             M=M,
             f=f[5] + self.joints.torque(q, v),
