@@ -460,7 +460,8 @@ class CompiledStep(BufferedFunction):
         self.modes.evaluator(_rows_key(numbers))()
         block = self.block.copy()  # every output at once, as views of one copy
         o = [block[s] for s in self.slices]
-        if not np.isfinite(o[1].sum() + o[10].sum() + o[11].sum()):  # singular rows: NaN or inf, which propagate
+        total = np.add.reduce  # ndarray.sum's reduction, without its wrapper
+        if not np.isfinite(total(o[1]) + total(o[10]) + total(o[11])):  # singular rows: NaN or inf, which propagate
             return None
         stop_force = np.zeros(self.nv)
         stop_force[self.dof_index] = o[12]
