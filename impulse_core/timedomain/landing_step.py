@@ -383,7 +383,7 @@ def _rows_key(numbers: tuple[np.ndarray, ...]) -> bytes:
     return numbers[0].tobytes() + numbers[1].tobytes()
 
 
-@dataclass(slots=True)
+@dataclass
 class StepEnd:
     """A compiled step's results (copies): the state after it, its contact impulses ([normal,
     tangential] per contact), and its ends' figures in the step's mode (d = 2 in the plane, 3 in
