@@ -203,3 +203,52 @@ def test_adding_zero_impulses_leaves_the_totals_as_they_are():
     sliding[run.nc] = 1e-3
     run.add(totals, sliding, q, v)
     assert totals.tangential[0] == before[1][0] + 1e-3 and totals.impulse[0] == before[2][0] + 1e-3
+
+
+def test_a_points_figures_are_alongs_bit_for_bit():
+    """A point's plane figures (the normal and tangent components of the Jacobian rows and of the
+    bias, taken in one product over [J | bias]) equal _along's, bit for bit and in its memory order
+    (matmul rounds otherwise on other strides: the slip); a point at the last point's q sharing its
+    geometry equals one evaluated afresh; and the projection's position correction (its normal and
+    stop rows alone) equals the one from the mode's whole rows."""
+    from dataclasses import fields
+
+    from optimizer.config.model_file import load_model_file
+    from impulse_core.timedomain.landing import (
+        NUMPY_CODE, LandingSettings, _along, _Landing, _Mode, _Point, _mode_rows, tangent_basis,
+    )
+
+    m = load_model_file("configs/landing_case3.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(step_code=NUMPY_CODE))
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        q, v = run.q0 + 0.1 * rng.standard_normal(run.nv), rng.standard_normal(run.nv)
+        pt = run._evaluate(q, v)
+        run.call.call(q, v)
+        o, f = run.call.out, run.call.flat
+        normal = o[1].T.copy()
+        tangent = tangent_basis(normal)
+        J, bias = o[2].reshape(run.nc, 2, run.nv), f[3].reshape(run.nc, 2)
+        ref = {"Jn": _along(normal, J), "Jt": _along(tangent[:, 0], J)[:, None], "bn": _along(normal, bias),
+               "bt": _along(tangent[:, 0], bias)[:, None]}
+        for name, x in ref.items():
+            y = getattr(pt, name)
+            assert y.tobytes() == x.tobytes() and y.strides == x.strides, name
+        assert pt.slip.tobytes() == (ref["Jt"] @ v).tobytes()
+        v2 = rng.standard_normal(run.nv)
+        shared, fresh = run._evaluate(q, v2, like=pt), run._evaluate(q, v2)
+        for field in fields(_Point):
+            a, b = np.asarray(getattr(shared, field.name)), np.asarray(getattr(fresh, field.name))
+            assert a.tobytes() == b.tobytes() and a.strides == b.strides, field.name
+        mode = _Mode(rng.random(run.nc) < 0.6, np.zeros(run.nc), rng.choice([-1, 0, 1], run.nv) * run.joints.stopped)
+        rows = _mode_rows(pt, mode, run.mu)
+        n = rows.n
+        if n:  # the correction from the mode's whole rows, as before
+            residual = np.zeros(n)
+            on = rows.contact >= 0
+            residual[on] = pt.gap[rows.contact[on]]
+            d = rows.dof[~on]
+            residual[~on] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, run.joints.hi[d], run.joints.lo[d]))
+            minv_gt = np.linalg.solve(pt.M, rows.G[:n].T)
+            expected = minv_gt @ np.linalg.lstsq(rows.G[:n] @ minv_gt, residual, rcond=None)[0]
+            assert run.position_correction(pt, q, mode).tobytes() == expected.tobytes()
