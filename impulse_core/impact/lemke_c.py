@@ -19,6 +19,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
+import threading
 
 import numpy as np
 
@@ -246,8 +247,25 @@ class Lemke:
 
     def __init__(self, functions) -> None:
         self.fn, self.fn_unilateral, self.fn_root = functions
-        self.work: dict[int, tuple[np.ndarray, int]] = {}
-        self.work_unilateral: dict[tuple[int, int], tuple[np.ndarray, int]] = {}
+        self.local = threading.local()  # the work arrays, per thread (landings may run in threads)
+
+    @property
+    def work(self) -> dict[int, tuple[np.ndarray, int]]:
+        """Per size, this thread's work array for :meth:`__call__` and its address."""
+        try:
+            return self.local.work
+        except AttributeError:
+            self.local.work = {}
+            return self.local.work
+
+    @property
+    def work_unilateral(self) -> dict[tuple[int, int], tuple[np.ndarray, int]]:
+        """Per (n, m), this thread's work array for :meth:`unilateral` and its address."""
+        try:
+            return self.local.work_unilateral
+        except AttributeError:
+            self.local.work_unilateral = {}
+            return self.local.work_unilateral
 
     def unilateral(self, W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray,
                    tol: float) -> np.ndarray | None:
@@ -259,7 +277,7 @@ class Lemke:
         work = self.work_unilateral.get((n, m))
         if work is None:
             data = np.zeros(k * k + k + n + 2 * m + 2 * N + 1)
-            work = self.work_unilateral[n, m] = (data, data.ctypes.data)
+            work = self.work_unilateral[(n, m)] = (data, data.ctypes.data)
         data, address = work
         kk = k * k
         data[:kk].reshape(k, k)[:] = W

@@ -104,3 +104,24 @@ def test_compiled_unilateral_equals_python_bit_for_bit():
     W, u = np.eye(2), np.array([np.nan, -1.0])  # not finite: Python's answer (an error) either way
     a, b = _unilateral(W, u, np.array([0]), np.array([0.5]), np.array([0.5]))
     assert a is None and b is None
+
+
+def test_compiled_lemke_in_threads():
+    """The compiled calls' work arrays are per thread: LCPs of one size solved in four threads at
+    once give each its own answer."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    if not use_compiled_lemke():
+        pytest.skip("no C compiler")
+    rng = np.random.default_rng(2)
+    problems = []
+    for _ in range(64):
+        A = rng.normal(size=(8, 8))
+        problems.append((A @ A.T + np.eye(8), rng.normal(size=8)))
+    expected = [lemke(M, q) for M, q in problems]
+
+    def solve_all(_):
+        return all(_same(lemke(M, q), z) for (M, q), z in zip(problems * 20, expected * 20))
+
+    with ThreadPoolExecutor(4) as pool:
+        assert all(pool.map(solve_all, range(4)))
