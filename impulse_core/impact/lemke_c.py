@@ -1,17 +1,24 @@
-"""Lemke's method (:func:`impulse_core.impact.coulomb.lemke`) as C, through the compile cache.
+"""Lemke's method (:func:`impulse_core.impact.coulomb.lemke`) as C, through the compile cache;
+with it :func:`~impulse_core.impact.coulomb.solve_unilateral`'s LCP (its matrix, scaling and
+first pivoting path) and the landing's event-location root (:func:`impulse_core.timedomain.
+landing._hermite_root`).
 
 The same arithmetic as the numpy and Python-float code, operation for operation: the tableau
 [I, -M, -cover, q], its scale and tolerance, the first pivot on argmin(q / cover), each pivot's
 row divided by the pivot and the other rows less their factor times it (a product, then a
 difference: the library is built without fused multiply-adds, as every compiled function of the
 cache, :data:`impulse_core.compile.codegen.CFLAGS`), the ratio test's least ratio, its ties
-within tol (1 + |least|) going to the artificial variable first, then to the lowest row. So it
-returns the same z, bit for bit, at a few microseconds a call instead of about a hundred for a
-landing's 12-row impact LCP (tests/impulse_core/test_lemke_c.py checks the equality).
+within tol (1 + |least|) going to the artificial variable first, then to the lowest row; the
+unilateral LCP's blocks (with -eye's signed zeros), D M D and D q / speed as numpy multiplies
+them. So each returns the same numbers, bit for bit, at a few microseconds a call instead of
+about a hundred for a landing's 12-row impact LCP (tests/impulse_core/test_lemke_c.py and
+tests/impulse_core/test_landing_event_path.py check the equality). What numpy's own routines
+do (the matrix-vector products, clips at 0) stays in numpy.
 
-:func:`enable` builds (or loads) the library and makes :func:`~impulse_core.impact.coulomb.lemke`
-use it; a landing with ``step_code`` c does (:class:`impulse_core.timedomain.landing._Landing`).
-Without a C compiler it leaves the Python code in place.
+:func:`~impulse_core.impact.coulomb.use_compiled_lemke` builds (or loads) the library and makes
+``lemke`` and ``solve_unilateral`` use it (process-wide: the numbers are the same either way); a
+landing with ``step_code`` c does (:class:`impulse_core.timedomain.landing._Landing`), and
+locates its events with :func:`hermite_root`. Without a C compiler the Python code stays in place.
 """
 
 from __future__ import annotations
@@ -23,7 +30,9 @@ import threading
 
 import numpy as np
 
-from impulse_core.compile.cache import CompileError, compiler_identity, default_root, entry_key, lookup, run_compilers, store
+from impulse_core.compile.cache import (
+    CompileError, compiler_identity, default_root, entry_key, lookup, run_compilers, store,
+)
 from impulse_core.compile.codegen import CFLAGS, find_compiler
 
 NAME = "footopt_lemke"
@@ -219,8 +228,10 @@ def _build(compiler: str, work) -> list[str]:
 
 @functools.cache
 def kernel(cache_dir: str | None = None):
-    """The compiled ``footopt_lemke`` (ctypes), built into (or loaded from) the compile cache;
-    None without a C compiler or when the build fails."""
+    """The library's functions (ctypes: ``footopt_lemke``, ``footopt_unilateral``,
+    ``footopt_hermite_root``), built into (or loaded from) the compile cache (``cache_dir``,
+    default :func:`~impulse_core.compile.cache.default_root`); None without a C compiler, when the
+    build fails or the cache cannot be written."""
     compiler = find_compiler()
     if compiler is None:
         return None
@@ -228,17 +239,17 @@ def kernel(cache_dir: str | None = None):
     try:
         key = entry_key(SOURCE, compiler_identity(compiler), *CFLAGS)
         folder = lookup(root, NAME, key) or store(root, NAME, key, lambda work: _build(compiler, work))
-    except CompileError:
+    except (CompileError, OSError):  # no compiler, a failed build, an unwritable cache
         return None
     library = ctypes.CDLL(str(folder / LIBRARY))
     lemke, unilateral = library.footopt_lemke, library.footopt_unilateral
     lemke.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
     unilateral.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
     lemke.restype = unilateral.restype = ctypes.c_int
-    root = library.footopt_hermite_root
-    root.argtypes = [ctypes.c_double] * 4 + [ctypes.c_void_p, ctypes.c_int]
-    root.restype = ctypes.c_double
-    return lemke, unilateral, root
+    hermite = library.footopt_hermite_root
+    hermite.argtypes = [ctypes.c_double] * 4 + [ctypes.c_void_p, ctypes.c_int]
+    hermite.restype = ctypes.c_double
+    return lemke, unilateral, hermite
 
 
 class Lemke:

@@ -60,7 +60,9 @@ from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import POLYGON, cone_unilateral, modes_of
 from impulse_core.impact import lemke_c
-from impulse_core.impact.coulomb import ContactMode, UnilateralSolution, contact_modes, solve_unilateral, use_compiled_lemke
+from impulse_core.impact.coulomb import (
+    ContactMode, UnilateralSolution, contact_modes, solve_unilateral, use_compiled_lemke,
+)
 from impulse_core.impact.laws import least_norm_law_split, least_norm_split, redundant, share_among_twins, twin_groups
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
