@@ -179,7 +179,9 @@ class LandingSettings:
             the mode (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
             and a missing compiler falls back to ``vm`` with a warning; the events' dynamics at a
-            point, :func:`landing_function`, then run as C too), ``vm`` on CasADi's
+            point, :func:`landing_function`, their LCPs by Lemke's method and the location's
+            cubic roots then run as C too, :mod:`impulse_core.impact.lemke_c`, with the same
+            numbers as the Python code), ``vm`` on CasADi's
             virtual machine (a mode stepped 32 times by its own copy, the mode's rows as
             constants: :class:`~impulse_core.timedomain.landing_step.ModeFunctions`), ``numpy``
             the reference (rows built and solved per stage in numpy; always so for a redundant
