@@ -1442,10 +1442,12 @@ class _Landing:
         pt = self.point(q, v)
         stops = self.stops_touching(q, mode)
         rows = _rows(pt, contacts, self.no_slip(), stops, self.mu, self.nv)
+        n, on_contact, on_stop = rows.n, rows.contact >= 0, rows.dof >= 0
         u = rows.G @ v
-        e = np.where(rows.contact >= 0, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
-        e = np.where(-u[: rows.n] > PLASTIC_SPEED, e, 0.0)
-        e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < self.min_bounce, 0.0, e)
+        approach = -u[:n]
+        e = np.where(on_contact, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
+        e = np.where(approach > PLASTIC_SPEED, e, 0.0)
+        e = np.where(self.bounce_time(pt, rows, e * approach) < self.min_bounce, 0.0, e)
         law = rigid_impact(pt, v, rows, e, self.mu)
         self.last_impact = law
         if self.impact_log is not None:
@@ -1459,17 +1461,19 @@ class _Landing:
         joint = self.point(q, v_plus).momentum - pt.momentum - F @ self.in_subtree.T
         internal, magnitude = joint_impulses(joint)
         stop = np.zeros(self.nv)
-        stop[rows.dof[rows.dof >= 0]] = (-stops[rows.dof[rows.dof >= 0]]) * sol.normal[rows.dof >= 0]
+        stop_dofs = rows.dof[on_stop]
+        stop[stop_dofs] = (-stops[stop_dofs]) * sol.normal[on_stop]
         # resting afterwards: no bounce, or a plastic row left slower than the plastic speed (it
         # rests unless the forces pull it away; the velocity projection takes the rest)
-        after = (sol.velocity[: rows.n] <= self.speed_tol) | ((e == 0) & (sol.velocity[: rows.n] < PLASTIC_SPEED))
+        leaving = sol.velocity[:n]
+        after = (leaving <= self.speed_tol) | ((e == 0) & (leaving < PLASTIC_SPEED))
         # a contact above the ground (``contacts: all`` makes every one hit at t = 0) stays open
         on_ground = pt.gap[np.maximum(rows.contact, 0)] <= self.scene.contact_tolerance + self.settings.gap_tolerance
         new = mode.copy()
         new.closed[:] = False
-        new.closed[rows.contact[(rows.contact >= 0) & after & on_ground]] = True
+        new.closed[rows.contact[on_contact & after & on_ground]] = True
         new.stop[:] = 0
-        at = rows.dof[(rows.dof >= 0) & after]
+        at = rows.dof[on_stop & after]
         new.stop[at] = stops[at]
         event = LandingEvent(
             time=t, kind=kind, external=fn, tangential=self.public_tangential(ft), internal=internal[:, : self.dims],
@@ -1517,13 +1521,28 @@ class _Landing:
 
     def stops_touching(self, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """Per DOF: the stop it rests on or has reached (-1 lower, +1 upper), else 0."""
-        tol = self.settings.gap_tolerance
-        at = np.where(q <= self.joints.lo + tol, -1, np.where(q >= self.joints.hi - tol, 1, 0))
+        lo, hi = self.stop_reach
+        at = np.where(q <= lo, -1, np.where(q >= hi, 1, 0))
         return np.where(mode.stop != 0, mode.stop, at)
+
+    @functools.cached_property
+    def stop_reach(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where a joint reaches its stops (:meth:`stops_touching`): within the gap tolerance."""
+        tol = self.settings.gap_tolerance
+        return self.joints.lo + tol, self.joints.hi - tol
 
     def per_joint(self, per_dof: np.ndarray) -> np.ndarray:
         """A per-DOF quantity as one entry per non-base body (0 for fixed joints)."""
-        return np.array([0.0 if k is None else per_dof[k] for k in self.layout.body_dof[1:]])
+        jointed, dofs = self.joint_dofs
+        out = np.zeros(len(jointed))
+        out[jointed] = per_dof[dofs]
+        return out
+
+    @functools.cached_property
+    def joint_dofs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per non-base body whether it has a DOF, and those DOFs (:meth:`per_joint`)."""
+        body_dof = self.layout.body_dof[1:]
+        return np.array([k is not None for k in body_dof], bool), np.array([k for k in body_dof if k is not None], int)
 
     def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
         """Which resting rows stay closed, stick or slide: ``mode`` itself where it holds with a
