@@ -1323,13 +1323,16 @@ class _Landing:
         NaN for the force and slip witnesses)."""
         end = self.ended(q, v, mode)
         if end is None:
-            pt = self.point(q, v)
             fn, ft, stop_force = np.zeros(self.nc), np.zeros((self.nc, self.dims - 1)), np.zeros(self.nv)
             if _rests(mode):
+                pt = self.point(q, v)
                 rows, (_, lam) = self.mode_solution(pt, mode)
                 fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
                 stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
-            gap, vn, moving = pt.gap, pt.vn(v), pt.slip
+                gap, vn, moving = pt.gap, pt.vn(v), pt.slip
+            else:  # no rows: the gaps and normal speeds alone (the forces and slips go unwatched)
+                gap, vn = self.gaps_and_speeds(q, v)
+                moving = np.zeros((self.nc, self.dims - 1))
         else:
             fn, ft, stop_force, gap, vn, moving = end.fn, end.ft, end.stop_force, end.gap, end.vn, end.slip
         if ft.shape[1] == 1:  # the plane: |ft| and s . d of one tangent
@@ -1341,6 +1344,19 @@ class _Landing:
         values[self.unwatched(mode)] = np.inf
         rates = np.concatenate([vn, self.unknown_rates[0], v, -v, self.unknown_rates[1]]) / self.settings.gap_tolerance
         return values, rates
+
+    def gaps_and_speeds(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The gaps and normal contact speeds at (q, v): the point's ``gap`` and ``vn(v)`` to the
+        bit (the same normal components of the same Jacobian rows, in the same memory order),
+        from the kept point if it is at (q, v), else without the rest of a point (a flight's
+        witnesses at the start of a located step need no more)."""
+        last = self._last
+        if last is not None and last[0] == (q.tobytes(), v.tobytes()):
+            return last[1].gap, last[1].vn(v)
+        self.call.call(q, v)
+        o, f = self.call.out, self.call.flat
+        Jn = _along(o[1].T.copy(), o[2].reshape(self.nc, self.dims, self.nv))
+        return f[0].copy(), Jn @ v
 
     def unwatched(self, mode: _Mode) -> np.ndarray:
         """Per witness of :meth:`witness_and_rate`, whether the mode leaves it unwatched (inf):

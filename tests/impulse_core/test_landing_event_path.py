@@ -209,7 +209,8 @@ def test_a_points_figures_are_alongs_bit_for_bit():
     """A point's plane figures (the normal and tangent components of the Jacobian rows and of the
     bias, taken in one product over [J | bias]) equal _along's, bit for bit and in its memory order
     (matmul rounds otherwise on other strides: the slip); a point at the last point's q sharing its
-    geometry equals one evaluated afresh; and the projection's position correction (its normal and
+    geometry equals one evaluated afresh; a flight's witnesses from the gaps and normal speeds alone
+    equal those from the whole point; and the projection's position correction (its normal and
     stop rows alone) equals the one from the mode's whole rows."""
     from dataclasses import fields
 
@@ -240,6 +241,18 @@ def test_a_points_figures_are_alongs_bit_for_bit():
         for field in fields(_Point):
             a, b = np.asarray(getattr(shared, field.name)), np.asarray(getattr(fresh, field.name))
             assert a.tobytes() == b.tobytes() and a.strides == b.strides, field.name
+        run._last = None  # a flight's witnesses without a point: its gaps and speeds, and the rest unwatched
+        gap, vn = run.gaps_and_speeds(q, v)
+        assert gap.tobytes() == pt.gap.tobytes() and vn.tobytes() == pt.vn(v).tobytes()
+        flight = run.flight()
+        flight.slip[:] = rng.choice([-1.0, 0.0, 1.0], (run.nc, 1))  # open contacts keep a slip from before
+        w, r = run.witness_and_rate(q, v, flight)
+        zero = np.zeros(run.nc)
+        values = np.concatenate([pt.gap, zero, run.mu * zero, flight.slip[:, 0] * pt.slip[:, 0], q - run.joints.lo,
+                                 run.joints.hi - q, np.zeros(run.nv)]) / run.witness_scale + 1.0
+        values[run.unwatched(flight)] = np.inf
+        rates = np.concatenate([pt.vn(v), run.unknown_rates[0], v, -v, run.unknown_rates[1]]) / run.settings.gap_tolerance
+        assert w.tobytes() == values.tobytes() and r.tobytes() == rates.tobytes()
         mode = _Mode(rng.random(run.nc) < 0.6, np.zeros(run.nc), rng.choice([-1, 0, 1], run.nv) * run.joints.stopped)
         rows = _mode_rows(pt, mode, run.mu)
         n = rows.n
