@@ -36,6 +36,24 @@ from impulse_core.errors import NumericalError
 LEMKE_TOL = 1e-12
 #: Covering vectors tried after the first when a pivoting path ends on a ray (degenerate ties).
 RETRIES = 8
+#: Lemke's method as C (:mod:`impulse_core.impact.lemke_c`, the same numbers), once
+#: :func:`use_compiled_lemke` has built it; None: the Python code.
+_KERNEL = None
+
+
+def use_compiled_lemke(on: bool = True) -> bool:
+    """Make :func:`lemke` run as compiled C (:mod:`impulse_core.impact.lemke_c`: the same
+    arithmetic, so the same z to the bit, ~30 x faster on an impact's LCP), or (``on`` False)
+    as Python again. Returns whether the C code is in use (False without a C compiler)."""
+    global _KERNEL
+    if not on:
+        _KERNEL = None
+        return False
+    from impulse_core.impact import lemke_c
+
+    fn = lemke_c.kernel()
+    _KERNEL = None if fn is None else lemke_c.Lemke(fn)
+    return _KERNEL is not None
 
 
 class ContactMode(Enum):
@@ -75,6 +93,8 @@ def lemke(
     """
     M, q = np.asarray(M, dtype=float), np.asarray(q, dtype=float)
     n = q.size
+    if _KERNEL is not None and n:  # the same code as C (its checks too)
+        return _KERNEL(M, q, cover, max_pivots or 50 * n + 50, LEMKE_TOL)
     if not (np.all(np.isfinite(M)) and np.all(np.isfinite(q))):
         return None  # no pivoting on NaN (a diverged state upstream)
     if n == 0 or np.all(q >= 0):
@@ -205,6 +225,12 @@ def solve_unilateral(
         NumericalError: Lemke's method found no solution (a ray, or too many pivots).
     """
     n, m = len(restitution), len(owner)
+    # the compiled LCP, scaling and first Lemke path (the same numbers); else, or on a ray, Python's
+    z = None if _KERNEL is None or not n + m else _KERNEL.unilateral(W, u, owner, restitution, mu, LEMKE_TOL)
+    if z is not None:
+        normal, tangential = z[:n], z[n : n + m] - z[n + m : n + 2 * m]
+        velocity = u + W @ np.concatenate([normal, tangential])
+        return UnilateralSolution(normal, tangential, velocity, z[n + 2 * m :])
     M, q = unilateral_lcp(W, u, owner, restitution, mu)
     # Diagonal scaling z = D z', w' = D w with D = (s, s, s, 1/s), s_i = 1/sqrt(W_nn,ii): the velocity
     # blocks get a unit diagonal and the cone and slip blocks stay mu and 1, whatever the units.
@@ -263,6 +289,7 @@ __all__ = [
     "coulomb_impact",
     "coulomb_lcp",
     "lemke",
+    "use_compiled_lemke",
     "scaled_lemke",
     "solve_unilateral",
     "unilateral_lcp",

@@ -68,6 +68,8 @@ smallest-norm admissible split is returned (:func:`least_norm_split`).
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from enum import Enum
 
@@ -165,7 +167,35 @@ def redundant(J: np.ndarray, A: np.ndarray | None = None) -> bool:
             else:
                 if np.min(np.diag(L)) ** 2 >= PIVOT_TOL:
                     return False
+    if _surely_independent(J):
+        return False
     return _rank(J) < J.shape[0]
+
+
+#: :func:`_surely_independent`'s margin: a lower bound of the smallest eigenvalue of the unit-column
+#: Gram matrix at least this times its trace (singular values at least 1e-4 of the largest, five
+#: orders above RANK_TOL: what rounding does to the bound or to the SVD cannot reach the rank test).
+SURE_GAP = 1e-8
+
+
+def _surely_independent(J: np.ndarray) -> bool:
+    """Whether J's rows (r <= columns) are certainly independent by :func:`_rank`'s test, from a
+    bound that needs no SVD: with B = U U^T (U: J with unit columns), lambda_min(B) >= det B /
+    (trace B / (r - 1))^(r - 1) (the other eigenvalues' product is at most that, their sum being
+    below the trace) and lambda_max(B) <= trace B. False where the bound does not settle it (the
+    SVD then answers), so :func:`redundant` answers as the SVD alone would, cheaper."""
+    r, c = J.shape
+    if not 0 < r <= c:
+        return False
+    squares = np.einsum("ij,ij->j", J, J)
+    B = (J / np.where(squares > 0, squares, 1.0)) @ J.T
+    trace = float(B.trace())
+    if not 0.0 < trace < math.inf:
+        return False
+    if r == 1:
+        return True
+    bound = float(np.linalg.det(B)) / (trace / (r - 1)) ** (r - 1)
+    return bound >= SURE_GAP * trace
 
 
 def twin_groups(rows: np.ndarray, tol: float = 1e-12) -> list[np.ndarray]:

@@ -59,7 +59,10 @@ from scipy.spatial.transform import Rotation
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import POLYGON, cone_unilateral, modes_of
-from impulse_core.impact.coulomb import ContactMode, UnilateralSolution, contact_modes, solve_unilateral
+from impulse_core.impact import lemke_c
+from impulse_core.impact.coulomb import (
+    ContactMode, UnilateralSolution, contact_modes, solve_unilateral, use_compiled_lemke,
+)
 from impulse_core.impact.laws import least_norm_law_split, least_norm_split, redundant, share_among_twins, twin_groups
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield
@@ -176,7 +179,9 @@ class LandingSettings:
             the mode (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
             and a missing compiler falls back to ``vm`` with a warning; the events' dynamics at a
-            point, :func:`landing_function`, then run as C too), ``vm`` on CasADi's
+            point, :func:`landing_function`, their LCPs by Lemke's method and the location's
+            cubic roots then run as C too, :mod:`impulse_core.impact.lemke_c`, with the same
+            numbers as the Python code), ``vm`` on CasADi's
             virtual machine (a mode stepped 32 times by its own copy, the mode's rows as
             constants: :class:`~impulse_core.timedomain.landing_step.ModeFunctions`), ``numpy``
             the reference (rows built and solved per stage in numpy; always so for a redundant
@@ -755,9 +760,14 @@ def impact_modes(pt: _Point, v: np.ndarray, v_plus: np.ndarray, contacts: np.nda
     return modes_of(normal, None, after, scale)
 
 
+def _any(x: np.ndarray) -> bool:
+    """Whether some entry of ``x`` is nonzero (True, or NaN): ``x.any()``, cheaper on a few entries."""
+    return np.count_nonzero(x) != 0
+
+
 def _rests(mode: _Mode) -> bool:
     """Some contact is closed or some joint rests on a stop (the mode has rows)."""
-    return bool(mode.closed.any() or mode.stop.any())
+    return bool(_any(mode.closed) or _any(mode.stop))
 
 
 def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
@@ -972,8 +982,11 @@ class _Landing:
             from impulse_core.timedomain.landing_step import compiled_landing_function  # it builds on this module
 
             fn = compiled_landing_function(self.topology, ground, space)
+            use_compiled_lemke()  # the impacts' and mode choices' LCPs: the same numbers, as C
         else:
             fn = landing_function(self.topology, ground, space)
+        #: the location's root of a cubic (:func:`_hermite_root`; with step code c as C, the same numbers)
+        self.root = (settings.step_code == C_CODE and lemke_c.hermite_root(_ROOT_SAMPLES)) or _hermite_root
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
         #: in the call's copy (:meth:`rechart`), and the next run starts from this one again
         self.design = design_vector(tree, space.body_values)
@@ -1082,39 +1095,66 @@ class _Landing:
         """The dynamics at (q, v); the last one is kept, since a step's end is asked for by the
         momentum balance, the divergence check and the witnesses in turn (read only)."""
         key = (q.tobytes(), v.tobytes())
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]
-        pt = self._evaluate(q, v)
+        last = self._last
+        if last is not None and last[0] == key:
+            return last[1]
+        # at the last point's q (an impact's velocity after it): its geometry is this one's
+        pt = self._evaluate(q, v, last[1] if last is not None and last[0][0] == key[0] else None)
         self._last = (key, pt)
         return pt
 
-    def _evaluate(self, q: np.ndarray, v: np.ndarray) -> _Point:
+    def _evaluate(self, q: np.ndarray, v: np.ndarray, like: _Point | None = None) -> _Point:
+        """The dynamics at (q, v); ``like``: a point at the same q, whose figures of q alone (gap,
+        normal and tangents, Jacobians, mass matrix, contact positions: the compiled function
+        computes them alike from q) are shared rather than derived again (read only)."""
         self.call.call(q, v)
         o, f = self.call.out, self.call.flat
         d = self.dims
-        normal = o[1].T.copy()
-        tangent = tangent_basis(normal)
-        J = o[2].reshape(self.nc, d, self.nv)  # per contact, its x, y (, z) rows
-        bias = f[3].reshape(self.nc, d)
-        if d == 2:  # the plane's one tangent: no stacking
-            Jt, bt = _along(tangent[:, 0], J)[:, None], _along(tangent[:, 0], bias)[:, None]
+        nc, nv = self.nc, self.nv
+        bias = f[3].reshape(nc, d)
+        if like is None and d == 2:
+            # the plane: the normal and tangent components of the Jacobian rows and of the bias at
+            # once, (n_x x + n_y y, as _along adds them) over [J | bias] per contact
+            normal = o[1].T.copy()
+            tangent = tangent_basis(normal)
+            JB = np.concatenate([o[2].reshape(nc, d, nv), bias[:, :, None]], axis=2)  # nc x d x (nv + 1)
+            D = np.stack([normal, tangent[:, 0]], axis=1)[:, :, :, None]  # nc x (normal, tangent) x d x 1
+            out = D[:, :, 0] * JB[:, None, 0]
+            out += D[:, :, 1] * JB[:, None, 1]
+            # in _along's memory order (the compiled function's column-major J), the tangent's axis
+            # added as a view as before: matmul takes another path, and rounds otherwise, on other strides
+            Jn, Jt = np.asfortranarray(out[:, 0, :nv]), np.asfortranarray(out[:, 1, :nv])[:, None]
+            bn, bt = np.ascontiguousarray(out[:, 0, nv]), np.ascontiguousarray(out[:, 1, nv])[:, None]
+            gap, M, contacts = f[0].copy(), o[4].copy(), o[9].T.copy()
         else:
-            Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
-            bt = np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)])
+            if like is None:
+                normal = o[1].T.copy()
+                tangent = tangent_basis(normal)
+                J = o[2].reshape(nc, d, nv)  # per contact, its x, y, z rows
+                Jt = np.stack([_along(tangent[:, a], J) for a in range(d - 1)], axis=1)
+                gap, Jn, M, contacts = f[0].copy(), _along(normal, J), o[4].copy(), o[9].T.copy()
+            else:
+                normal, tangent, Jt = like.normal, like.tangent, like.Jt
+                gap, Jn, M, contacts = like.gap, like.Jn, like.M, like.contacts
+            bn = _along(normal, bias)
+            if d == 2:
+                bt = _along(tangent[:, 0], bias)[:, None]
+            else:
+                bt = np.column_stack([_along(tangent[:, a], bias) for a in range(d - 1)])
         return _Point(
-            gap=f[0].copy(),
+            gap=gap,
             normal=normal,
             tangent=tangent,
-            Jn=_along(normal, J),
+            Jn=Jn,
             Jt=Jt,
-            bn=_along(normal, bias),
+            bn=bn,
             bt=bt,
-            M=o[4].copy(),
+            M=M,
             f=f[5] + self.joints.torque(q, v),
             kinetic=float(f[6][0]),
             momentum=o[7].copy(),
             com_height=float(f[8][0]),
-            contacts=o[9].T.copy(),
+            contacts=contacts,
             slip=Jt @ v,
             slip_floor=self.speed_tol,
         )
@@ -1297,13 +1337,16 @@ class _Landing:
         NaN for the force and slip witnesses)."""
         end = self.ended(q, v, mode)
         if end is None:
-            pt = self.point(q, v)
             fn, ft, stop_force = np.zeros(self.nc), np.zeros((self.nc, self.dims - 1)), np.zeros(self.nv)
             if _rests(mode):
+                pt = self.point(q, v)
                 rows, (_, lam) = self.mode_solution(pt, mode)
                 fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
                 stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
-            gap, vn, moving = pt.gap, pt.vn(v), pt.slip
+                gap, vn, moving = pt.gap, pt.vn(v), pt.slip
+            else:  # no rows: the gaps and normal speeds alone (the forces and slips go unwatched)
+                gap, vn = self.gaps_and_speeds(q, v)
+                moving = np.zeros((self.nc, self.dims - 1))
         else:
             fn, ft, stop_force, gap, vn, moving = end.fn, end.ft, end.stop_force, end.gap, end.vn, end.slip
         if ft.shape[1] == 1:  # the plane: |ft| and s . d of one tangent
@@ -1315,6 +1358,19 @@ class _Landing:
         values[self.unwatched(mode)] = np.inf
         rates = np.concatenate([vn, self.unknown_rates[0], v, -v, self.unknown_rates[1]]) / self.settings.gap_tolerance
         return values, rates
+
+    def gaps_and_speeds(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The gaps and normal contact speeds at (q, v): the point's ``gap`` and ``vn(v)`` to the
+        bit (the same normal components of the same Jacobian rows, in the same memory order),
+        from the kept point if it is at (q, v), else without the rest of a point (a flight's
+        witnesses at the start of a located step need no more)."""
+        last = self._last
+        if last is not None and last[0] == (q.tobytes(), v.tobytes()):
+            return last[1].gap, last[1].vn(v)
+        self.call.call(q, v)
+        o, f = self.call.out, self.call.flat
+        Jn = _along(o[1].T.copy(), o[2].reshape(self.nc, self.dims, self.nv))
+        return f[0].copy(), Jn @ v
 
     def unwatched(self, mode: _Mode) -> np.ndarray:
         """Per witness of :meth:`witness_and_rate`, whether the mode leaves it unwatched (inf):
@@ -1346,11 +1402,11 @@ class _Landing:
         g = h00 * g0 + h10 * d0 + h01 * g1 + h11 * d1
         tol = self.settings.gap_tolerance
         dips = (g < -tol) & ~mode.closed
-        if self.joints.stopped.any():
+        if _any(self.joints.stopped):
             x = h00 * q0 + h10 * v0 * h + h01 * q1 + h11 * v1 * h
             past = ((x > self.joints.hi + tol) | (x < self.joints.lo - tol)) & (mode.stop == 0)
             dips = np.hstack([dips, past])
-        if not dips.any():
+        if not _any(dips):
             return None
         return float(s[np.argmax(dips.any(axis=1)), 0])
 
@@ -1393,12 +1449,12 @@ class _Landing:
 
         lo, hi, (w_lo, r_lo), found = 0.0, first.tau, (start + offset, r0[watch]), first
         w_hi, r_hi = phi(first)
-        f_lo, f_hi, side, slow = float(np.min(w_lo)), float(np.min(w_hi)), 0, 0
+        f_lo, f_hi, side, slow = float(w_lo.min()), float(w_hi.min()), 0, 0
         for _ in range(100):
             if hi - lo <= 1e-14 * max(1.0, hi) or (w_hi >= -offset).all():  # inside the window
                 break
-            i, width = int(np.argmin(w_hi)), hi - lo
-            mid = lo + width * _hermite_root(w_lo[i] + aim[i], r_lo[i] * width, w_hi[i] + aim[i], r_hi[i] * width)
+            i, width = int(w_hi.argmin()), hi - lo
+            mid = lo + width * self.root(w_lo[i] + aim[i], r_lo[i] * width, w_hi[i] + aim[i], r_hi[i] * width)
             if slow >= 2:  # two steps without halving the bracket
                 mid, slow = 0.5 * (lo + hi), 0
             elif not lo < mid < hi:  # Illinois
@@ -1407,7 +1463,7 @@ class _Landing:
                     mid = 0.5 * (lo + hi)
             trial = self.trial(q, v, mode, mid)
             w_mid, r_mid = phi(trial)
-            f_mid = float(np.min(w_mid))
+            f_mid = float(w_mid.min())
             if f_mid < 0:
                 hi, w_hi, r_hi, f_hi, found = mid, w_mid, r_mid, f_mid, trial
                 f_lo = f_lo / 2 if side == -1 else f_lo
@@ -1427,10 +1483,12 @@ class _Landing:
         pt = self.point(q, v)
         stops = self.stops_touching(q, mode)
         rows = _rows(pt, contacts, self.no_slip(), stops, self.mu, self.nv)
+        n, on_contact, on_stop = rows.n, rows.contact >= 0, rows.dof >= 0
         u = rows.G @ v
-        e = np.where(rows.contact >= 0, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
-        e = np.where(-u[: rows.n] > PLASTIC_SPEED, e, 0.0)
-        e = np.where(self.bounce_time(pt, rows, e * -u[: rows.n]) < self.min_bounce, 0.0, e)
+        approach = -u[:n]
+        e = np.where(on_contact, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
+        e = np.where(approach > PLASTIC_SPEED, e, 0.0)
+        e = np.where(self.bounce_time(pt, rows, e * approach) < self.min_bounce, 0.0, e)
         law = rigid_impact(pt, v, rows, e, self.mu)
         self.last_impact = law
         if self.impact_log is not None:
@@ -1444,17 +1502,19 @@ class _Landing:
         joint = self.point(q, v_plus).momentum - pt.momentum - F @ self.in_subtree.T
         internal, magnitude = joint_impulses(joint)
         stop = np.zeros(self.nv)
-        stop[rows.dof[rows.dof >= 0]] = (-stops[rows.dof[rows.dof >= 0]]) * sol.normal[rows.dof >= 0]
+        stop_dofs = rows.dof[on_stop]
+        stop[stop_dofs] = (-stops[stop_dofs]) * sol.normal[on_stop]
         # resting afterwards: no bounce, or a plastic row left slower than the plastic speed (it
         # rests unless the forces pull it away; the velocity projection takes the rest)
-        after = (sol.velocity[: rows.n] <= self.speed_tol) | ((e == 0) & (sol.velocity[: rows.n] < PLASTIC_SPEED))
+        leaving = sol.velocity[:n]
+        after = (leaving <= self.speed_tol) | ((e == 0) & (leaving < PLASTIC_SPEED))
         # a contact above the ground (``contacts: all`` makes every one hit at t = 0) stays open
         on_ground = pt.gap[np.maximum(rows.contact, 0)] <= self.scene.contact_tolerance + self.settings.gap_tolerance
         new = mode.copy()
         new.closed[:] = False
-        new.closed[rows.contact[(rows.contact >= 0) & after & on_ground]] = True
+        new.closed[rows.contact[on_contact & after & on_ground]] = True
         new.stop[:] = 0
-        at = rows.dof[(rows.dof >= 0) & after]
+        at = rows.dof[on_stop & after]
         new.stop[at] = stops[at]
         event = LandingEvent(
             time=t, kind=kind, external=fn, tangential=self.public_tangential(ft), internal=internal[:, : self.dims],
@@ -1468,7 +1528,7 @@ class _Landing:
         """Per contact: closed in ``mode`` and pushed by its force at (q, v) beyond the force
         tolerance (a contact resting unloaded is not)."""
         pt = self.point(q, v)
-        if not mode.closed.any():
+        if not _any(mode.closed):
             return np.zeros(self.nc, bool)
         rows, (_, lam) = self.mode_solution(pt, mode)
         return mode.closed & (_contact_forces(rows, lam, self.mu, self.nc)[0] > self.force_tol)
@@ -1477,7 +1537,7 @@ class _Landing:
     def rests_nowhere(contacts: np.ndarray, stops: np.ndarray) -> bool:
         """No contact near the ground at rest and no joint on a stop: :meth:`resolve`'s LCP would
         have no rows and leave every contact open and every joint free (:meth:`flight`)."""
-        return not contacts.size and not stops.any()
+        return not contacts.size and not _any(stops)
 
     def flight(self) -> _Mode:
         """The mode without rows: every contact open, every joint free."""
@@ -1502,13 +1562,28 @@ class _Landing:
 
     def stops_touching(self, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """Per DOF: the stop it rests on or has reached (-1 lower, +1 upper), else 0."""
-        tol = self.settings.gap_tolerance
-        at = np.where(q <= self.joints.lo + tol, -1, np.where(q >= self.joints.hi - tol, 1, 0))
+        lo, hi = self.stop_reach
+        at = np.where(q <= lo, -1, np.where(q >= hi, 1, 0))
         return np.where(mode.stop != 0, mode.stop, at)
+
+    @functools.cached_property
+    def stop_reach(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where a joint reaches its stops (:meth:`stops_touching`): within the gap tolerance."""
+        tol = self.settings.gap_tolerance
+        return self.joints.lo + tol, self.joints.hi - tol
 
     def per_joint(self, per_dof: np.ndarray) -> np.ndarray:
         """A per-DOF quantity as one entry per non-base body (0 for fixed joints)."""
-        return np.array([0.0 if k is None else per_dof[k] for k in self.layout.body_dof[1:]])
+        jointed, dofs = self.joint_dofs
+        out = np.zeros(len(jointed))
+        out[jointed] = per_dof[dofs]
+        return out
+
+    @functools.cached_property
+    def joint_dofs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per non-base body whether it has a DOF, and those DOFs (:meth:`per_joint`)."""
+        body_dof = self.layout.body_dof[1:]
+        return np.array([k is not None for k in body_dof], bool), np.array([k for k in body_dof if k is not None], int)
 
     def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
         """Which resting rows stay closed, stick or slide: ``mode`` itself where it holds with a
@@ -1681,8 +1756,8 @@ class _Landing:
         if self.tape is not None:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         end = self.ended(q, v, mode)
-        own = (end is not None and not (~mode.closed & (end.gap < 0)).any()
-               and not ((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))).any())
+        own = (end is not None and not _any(~mode.closed & (end.gap < 0))
+               and not _any((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))))
         if own:  # a compiled step's end whose placement is the mode's own: the compiled projection
             projected = self.fast.project(q, v, mode)
             if projected is not None:
@@ -1702,7 +1777,7 @@ class _Landing:
     def in_place(self, pt: _Point, q: np.ndarray, mode: _Mode) -> bool:
         """Whether :meth:`project` has nothing to do at (q, ``pt``): no rows in the mode, no open
         contact below the ground, no joint past a stop (a flight after a bounce)."""
-        return not _rests(mode) and not (pt.gap < 0).any() and not self.beyond(q).any()
+        return not _rests(mode) and not _any(pt.gap < 0) and not _any(self.beyond(q))
 
     def placement(self, pt: _Point, q: np.ndarray, mode: _Mode) -> tuple[_Mode, np.ndarray]:
         """The rows a projection at (q, ``pt``) zeroes: the mode's, an open contact left below the
@@ -1713,7 +1788,7 @@ class _Landing:
         place.stop = np.where(place.stop == 0, self.beyond(q), place.stop)
         dq = self.position_correction(pt, q, place)
         carried = np.where(place.stop == 0, self.beyond(q - dq), 0)
-        if carried.any():
+        if _any(carried):
             place.stop = np.where(place.stop == 0, carried, place.stop)
             dq = self.position_correction(pt, q, place)
         return place, dq
@@ -1727,17 +1802,19 @@ class _Landing:
 
     def position_correction(self, pt: _Point, q: np.ndarray, mode: _Mode) -> np.ndarray:
         """The smallest (kinetic-metric) change of q that zeroes the mode's closed gaps and stops."""
-        rows = self.mode_solution(pt, mode, solve=False)[0]
-        n = rows.n
+        # the mode's normal and stop rows alone (:func:`_rows`' first rows, the same numbers)
+        contacts, d = np.flatnonzero(mode.closed), np.flatnonzero(mode.stop)
+        nc, n = len(contacts), len(contacts) + len(d)
         if not n:
             return np.zeros_like(q)
-        on = rows.contact >= 0
-        residual = np.zeros(n)
-        residual[on] = pt.gap[rows.contact[on]]
-        d = rows.dof[~on]
-        residual[~on] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, self.joints.hi[d], self.joints.lo[d]))
-        minv_gt = np.linalg.solve(pt.M, rows.G[:n].T)
-        return minv_gt @ np.linalg.lstsq(rows.G[:n] @ minv_gt, residual, rcond=None)[0]
+        G = np.zeros((n, self.nv))
+        G[:nc] = pt.Jn[contacts]
+        G[nc + np.arange(len(d)), d] = -mode.stop[d]
+        residual = np.empty(n)
+        residual[:nc] = pt.gap[contacts]
+        residual[nc:] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, self.joints.hi[d], self.joints.lo[d]))
+        minv_gt = np.linalg.solve(pt.M, G.T)
+        return minv_gt @ np.linalg.lstsq(G @ minv_gt, residual, rcond=None)[0]
 
     # ---- the run
 
@@ -1815,7 +1892,7 @@ class _Landing:
         mode = self.resolve(q, v_plus, mode)
         q1, v1, impulse = self.project(q, v_plus, mode)
         self.add(totals, impulse, q1, v1)
-        self.tally_joints(totals, q, v_plus, q1, v1, impulse, 0.0, mode.closed.any())
+        self.tally_joints(totals, q, v_plus, q1, v1, impulse, 0.0, _any(mode.closed))
         return q1, v1, mode, totals
 
     def first_contacts(self, pt: _Point) -> np.ndarray:
@@ -1830,7 +1907,7 @@ class _Landing:
     def add(self, totals: _Totals, impulses: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:
         """Add stacked contact impulses (:func:`_stacked`, taken at (q, v)) to the totals (none
         changes where every impulse is 0: a flight's step, a projection without rows)."""
-        if not impulses.any():  # adding zeros leaves every total as it is, to the bit
+        if not _any(impulses):  # adding zeros leaves every total as it is, to the bit
             return
         ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
         totals.normal += impulses[: self.nc]
@@ -1904,11 +1981,12 @@ class _Landing:
                 raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
             _check_chart(q1, self.space, t + dt)
             w, r = self.witness_and_rate(q1, v1, mode)
-            graze = None if (w >= 0).all() else _Trial(dt, q1, v1, impulse, self._end, w, r)
+            all_hold = np.count_nonzero(w >= 0) == w.size  # (w >= 0).all()
+            graze = None if all_hold else _Trial(dt, q1, v1, impulse, self._end, w, r)
             if graze is None:
                 fraction = self.grazing(q, v, q1, v1, mode, dt)
                 graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
-                graze = graze if graze is not None and (graze.w < 0).any() else None
+                graze = graze if graze is not None and _any(graze.w < 0) else None
             if graze is None:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
@@ -1916,7 +1994,7 @@ class _Landing:
                 q, v, p = self.project(q1, v1, mode)
                 self.follow_slip(q, v, mode)
                 self.add(totals, impulse + p, q, v)
-                self.tally_joints(totals, q0, v0, q, v, impulse + p, dt, mode.closed.any())
+                self.tally_joints(totals, q0, v0, q, v, impulse + p, dt, _any(mode.closed))
                 self.record(totals, t, v0, t + dt, q, v)
                 t += dt
                 totals.steps += 1
@@ -1927,7 +2005,7 @@ class _Landing:
             located = self.locate(q, v, mode, graze, watch)
             for _ in range(8):  # a witness that crossed earlier and came back by the step's end
                 missed = (located.w < 0) & ~watch
-                if not missed.any():
+                if not _any(missed):
                     break
                 watch = located.w < 0
                 located = self.locate(q, v, mode, located, watch)
@@ -1936,7 +2014,7 @@ class _Landing:
                 self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, watch))
             q_e, v_e, impulse = self.take(q, v, mode, located)
             self.add(totals, impulse, q_e, v_e)
-            self.tally_joints(totals, q, v, q_e, v_e, impulse, tau, mode.closed.any())
+            self.tally_joints(totals, q, v, q_e, v_e, impulse, tau, _any(mode.closed))
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
@@ -1964,17 +2042,17 @@ class _Landing:
         reaching = (mode.stop == 0) & (((q <= self.joints.lo + self.settings.gap_tolerance) & (v < 0))
                                         | ((q >= self.joints.hi - self.settings.gap_tolerance) & (v > 0)))
         v_before = v
-        if touching.any() or reaching.any():
+        if _any(touching) or _any(reaching):
             # every contact at the ground takes part (one just released may be pushed back down)
             contacts = np.flatnonzero(mode.closed | (pt.gap <= self.settings.gap_tolerance))
             v_minus = v
-            v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if touching.any() else "stop")
+            v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if _any(touching) else "stop")
             totals.events.append(event)
             self.add_impact(totals, event, q, v_minus, v)
         mode = self.resolve(q, v, mode)
         q1, v1, p = self.project(q, v, mode)
         self.add(totals, p, q1, v1)
-        self.tally_joints(totals, q, v, q1, v1, p, 0.0, mode.closed.any())
+        self.tally_joints(totals, q, v, q1, v1, p, 0.0, _any(mode.closed))
         self.record(totals, t, v_before, t, q1, v1)
         return q1, v1, mode
 

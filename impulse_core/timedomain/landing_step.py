@@ -383,7 +383,7 @@ def _rows_key(numbers: tuple[np.ndarray, ...]) -> bytes:
     return numbers[0].tobytes() + numbers[1].tobytes()
 
 
-@dataclass(frozen=True)
+@dataclass
 class StepEnd:
     """A compiled step's results (copies): the state after it, its contact impulses ([normal,
     tangential] per contact), and its ends' figures in the step's mode (d = 2 in the plane, 3 in
@@ -429,6 +429,7 @@ class CompiledStep(BufferedFunction):
             projection = landing_projection_function(topology, terrain, self.stop_dofs, space)
         super().__init__(step)
         self.block, self.spans = self.contiguous()
+        self.slices = [slice(a, b) for a, b in self.spans]
         self.projection = BufferedFunction(projection)
         #: per mode, the step's and the projection's evaluations (the inputs the mode's rows
         #: set: active, stop; place, place_stop, limit, active, stop)
@@ -438,6 +439,7 @@ class CompiledStep(BufferedFunction):
         self.set_design(p)
         self.projection.args[8][:] = gravity
         self.dofs = list(self.stop_dofs)
+        self.dof_index = np.array(self.dofs, dtype=int)
         self.lo, self.hi = joints.lo[self.dofs], joints.hi[self.dofs]
         self.lo_all, self.hi_all = joints.lo, joints.hi
         self.stopless = np.isneginf(joints.lo) & np.isposinf(joints.hi)  # DOFs that no stop row covers
@@ -457,11 +459,12 @@ class CompiledStep(BufferedFunction):
         a[6][:] = mode.core
         self.modes.evaluator(_rows_key(numbers))()
         block = self.block.copy()  # every output at once, as views of one copy
-        o = [block[a:b] for a, b in self.spans]
-        if not np.isfinite(o[1].sum() + o[10].sum() + o[11].sum()):  # singular rows: NaN or inf, which propagate
+        o = [block[s] for s in self.slices]
+        total = np.add.reduce  # ndarray.sum's reduction, without its wrapper
+        if not np.isfinite(total(o[1]) + total(o[10]) + total(o[11])):  # singular rows: NaN or inf, which propagate
             return None
         stop_force = np.zeros(self.nv)
-        stop_force[self.dofs] = o[12]
+        stop_force[self.dof_index] = o[12]
         shape = (self.nc, self.nt)
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9].reshape(shape, order="F"), o[10],
                        o[11].reshape(shape, order="F"), stop_force, o[13].reshape(self.out[13].shape, order="F").T,

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from impulse_core.timedomain.landing import _ROOT_SAMPLES, _hermite_root
 
@@ -24,10 +25,17 @@ def _reference_root(g0: float, d0: float, g1: float, d1: float) -> float:
     return float(b)
 
 
-def test_the_hermite_root_is_numpys_polyval_bit_for_bit():
-    """The event location's cubic root (Horner's rule on the samples written out) equals np.polyval's
-    sampling and bisection bit for bit: gaps that dip and come back, cross once, stay above, start
-    below, and unknown slopes."""
+@pytest.mark.parametrize("code", ["python", "c"])
+def test_the_hermite_root_is_numpys_polyval_bit_for_bit(code):
+    """The event location's cubic root (Horner's rule on the samples written out; and as the
+    compiled library's, which step code c locates with) equals np.polyval's sampling and
+    bisection bit for bit: gaps that dip and come back, cross once, stay above, start below, and
+    unknown slopes."""
+    from impulse_core.impact import lemke_c
+
+    root_of = _hermite_root if code == "python" else lemke_c.hermite_root(_ROOT_SAMPLES)
+    if root_of is None:
+        pytest.skip("no C compiler")
     rng = np.random.default_rng(3)
     found = 0
     for k in range(2000):
@@ -35,11 +43,11 @@ def test_the_hermite_root_is_numpys_polyval_bit_for_bit():
         d0, d1 = rng.standard_normal(2) * 4.0
         if k % 7 == 0:
             g0 = -abs(g0)  # below at the start
-        root, ref = _hermite_root(g0, d0, g1, d1), _reference_root(g0, d0, g1, d1)
+        root, ref = root_of(g0, d0, g1, d1), _reference_root(g0, d0, g1, d1)
         assert (math.isnan(root) and math.isnan(ref)) or root == ref
         found += not math.isnan(root)
     assert 500 < found < 1800
-    assert math.isnan(_hermite_root(1.0, math.nan, -1.0, 0.0))
+    assert math.isnan(root_of(1.0, math.nan, -1.0, 0.0))
 
 
 def _landing_records(run, h: float) -> tuple:
@@ -195,3 +203,65 @@ def test_adding_zero_impulses_leaves_the_totals_as_they_are():
     sliding[run.nc] = 1e-3
     run.add(totals, sliding, q, v)
     assert totals.tangential[0] == before[1][0] + 1e-3 and totals.impulse[0] == before[2][0] + 1e-3
+
+
+def test_a_points_figures_are_alongs_bit_for_bit():
+    """A point's plane figures (the normal and tangent components of the Jacobian rows and of the
+    bias, taken in one product over [J | bias]) equal _along's, bit for bit and in its memory order
+    (matmul rounds otherwise on other strides: the slip); a point at the last point's q sharing its
+    geometry equals one evaluated afresh; a flight's witnesses from the gaps and normal speeds alone
+    equal those from the whole point; and the projection's position correction (its normal and
+    stop rows alone) equals the one from the mode's whole rows."""
+    from dataclasses import fields
+
+    from optimizer.config.model_file import load_model_file
+    from impulse_core.timedomain.landing import (
+        NUMPY_CODE, LandingSettings, _along, _Landing, _Mode, _Point, _mode_rows, tangent_basis,
+    )
+
+    m = load_model_file("configs/landing_case3.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(step_code=NUMPY_CODE))
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        q, v = run.q0 + 0.1 * rng.standard_normal(run.nv), rng.standard_normal(run.nv)
+        pt = run._evaluate(q, v)
+        run.call.call(q, v)
+        o, f = run.call.out, run.call.flat
+        normal = o[1].T.copy()
+        tangent = tangent_basis(normal)
+        J, bias = o[2].reshape(run.nc, 2, run.nv), f[3].reshape(run.nc, 2)
+        ref = {"Jn": _along(normal, J), "Jt": _along(tangent[:, 0], J)[:, None], "bn": _along(normal, bias),
+               "bt": _along(tangent[:, 0], bias)[:, None]}
+        for name, x in ref.items():
+            y = getattr(pt, name)
+            assert y.tobytes() == x.tobytes() and y.strides == x.strides, name
+        assert pt.slip.tobytes() == (ref["Jt"] @ v).tobytes()
+        v2 = rng.standard_normal(run.nv)
+        shared, fresh = run._evaluate(q, v2, like=pt), run._evaluate(q, v2)
+        for field in fields(_Point):
+            a, b = np.asarray(getattr(shared, field.name)), np.asarray(getattr(fresh, field.name))
+            assert a.tobytes() == b.tobytes() and a.strides == b.strides, field.name
+        run._last = None  # a flight's witnesses without a point: its gaps and speeds, and the rest unwatched
+        gap, vn = run.gaps_and_speeds(q, v)
+        assert gap.tobytes() == pt.gap.tobytes() and vn.tobytes() == pt.vn(v).tobytes()
+        flight = run.flight()
+        flight.slip[:] = rng.choice([-1.0, 0.0, 1.0], (run.nc, 1))  # open contacts keep a slip from before
+        w, r = run.witness_and_rate(q, v, flight)
+        zero = np.zeros(run.nc)
+        values = np.concatenate([pt.gap, zero, run.mu * zero, flight.slip[:, 0] * pt.slip[:, 0], q - run.joints.lo,
+                                 run.joints.hi - q, np.zeros(run.nv)]) / run.witness_scale + 1.0
+        values[run.unwatched(flight)] = np.inf
+        rates = np.concatenate([pt.vn(v), run.unknown_rates[0], v, -v, run.unknown_rates[1]]) / run.settings.gap_tolerance
+        assert w.tobytes() == values.tobytes() and r.tobytes() == rates.tobytes()
+        mode = _Mode(rng.random(run.nc) < 0.6, np.zeros(run.nc), rng.choice([-1, 0, 1], run.nv) * run.joints.stopped)
+        rows = _mode_rows(pt, mode, run.mu)
+        n = rows.n
+        if n:  # the correction from the mode's whole rows, as before
+            residual = np.zeros(n)
+            on = rows.contact >= 0
+            residual[on] = pt.gap[rows.contact[on]]
+            d = rows.dof[~on]
+            residual[~on] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, run.joints.hi[d], run.joints.lo[d]))
+            minv_gt = np.linalg.solve(pt.M, rows.G[:n].T)
+            expected = minv_gt @ np.linalg.lstsq(rows.G[:n] @ minv_gt, residual, rcond=None)[0]
+            assert run.position_correction(pt, q, mode).tobytes() == expected.tobytes()

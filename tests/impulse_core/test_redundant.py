@@ -430,3 +430,26 @@ def test_the_friction_rung_and_the_landing_report_one_split(case):
         assert np.max(np.abs(a - b), initial=0.0) <= 1e-9 * np.max(np.abs(b), initial=0.0)
     assert instant.modes == rung.modes
     assert rung.notes == instant.notes == ()  # the exact circular cone in both
+
+
+def test_surely_independent_never_overrules_the_svd():
+    """redundant()'s bound without an SVD (laws._surely_independent) settles "independent" only
+    where the SVD's rank test says so too: on random rows of mixed units, with zero columns, and
+    with a row within 1e-16 .. 1e-2 of a multiple of another (both sides of RANK_TOL)."""
+    from impulse_core.impact.laws import _rank, _surely_independent
+
+    rng = np.random.default_rng(3)
+    settled = near = 0
+    for k in range(3000):
+        r = int(rng.integers(1, 8))
+        c = int(rng.integers(r, 14))
+        J = rng.normal(size=(r, c)) * rng.choice([1e-6, 1.0, 1e6], c)
+        if k % 2 and r > 1:
+            J[-1] = J[0] * rng.uniform(-2.0, 2.0) + rng.normal(size=c) * 10.0 ** rng.uniform(-16.0, -2.0)
+            near += 1
+        if k % 5 == 0:
+            J[:, rng.integers(0, c)] = 0.0
+        if _surely_independent(J):
+            settled += 1
+            assert _rank(J) == r, k
+    assert settled > 1000 and near > 1000
