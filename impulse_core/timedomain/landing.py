@@ -2019,7 +2019,7 @@ class _Landing:
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
             if stalled > 20:
-                raise NumericalError(f"the landing chatters at t = {t:.6g} s (events without progress)")
+                raise NumericalError(self.stall_message(q_e, v_e, mode, t))
             if len(totals.events) > self.settings.max_events:
                 raise NumericalError(f"the landing took more than {self.settings.max_events} impacts by t = {t:.6g} s")
             q, v, mode = self.event(q_e, v_e, mode, t, totals)
@@ -2033,6 +2033,32 @@ class _Landing:
         out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
         self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
         return replace(out, momentum_balance=balance, duration=end)
+
+    def stall_message(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float) -> str:
+        """Why events stopped making progress at (q, v): Painleve's paradox where a sliding
+        contact has no consistent force (:meth:`painleve`), else chatter."""
+        jammed = self.painleve(q, v, mode)
+        if not jammed.size:
+            return f"the landing chatters at t = {t:.6g} s (events without progress)"
+        names = ", ".join(f"{self.tree.bodies[b].name}[{k}]" for b, k in (self.tree.contacts[c] for c in jammed))
+        return (f"Painleve's paradox at t = {t:.6g} s: contacts {names} slide with no consistent contact force "
+                f"(friction {self.mu:g} makes their rows' effective mass negative; rigid bodies then need an "
+                "impulsive jam, which the landing does not model): lower the friction")
+
+    def painleve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
+        """Closed sliding contacts in Painleve's paradox at (q, v): their own row's effective
+        inverse mass with its friction along the slip, n M^-1 (n - mu u t)^T, is negative, so no
+        pushing force keeps them on the ground, and the mode's force on them pulls."""
+        if not self.mu or not _any(mode.sliding & mode.closed):
+            return np.zeros(0, int)
+        pt = self.point(q, v)
+        rows, (_, lam) = self.mode_solution(pt, mode)
+        fn = _contact_forces(rows, lam, self.mu, self.nc)[0]
+        c = np.flatnonzero(rows.contact[: rows.n] >= 0)
+        inverse_mass = np.einsum("ij,ji->i", rows.G[c], np.linalg.solve(pt.M, rows.F[c].T))
+        contact = rows.contact[c]
+        jammed = (inverse_mass < 0) & mode.sliding[contact] & (fn[contact] < -self.force_tol)
+        return contact[jammed]
 
     def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals) -> tuple[np.ndarray, np.ndarray, _Mode]:
         """Handle the event at (q, v): an impact where a contact touches or a joint reaches a

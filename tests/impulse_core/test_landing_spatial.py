@@ -482,3 +482,19 @@ def test_bounces_of_a_driven_contact_shrink_by_restitution_to_rest():
     ratios = impulses[10:-1] / impulses[9:-2]  # the bounces after the spin's first ones, but the plastic last
     assert np.all((ratios > 0.7) & (ratios < 0.9)), ratios
     assert abs(r.momentum_balance) < 1e-6
+
+
+def test_a_sliding_contact_in_painleves_paradox_is_named():
+    """Random file 20120 (data/painleve_20120.yaml): at 0.1086 s a light rod's tip slides with
+    friction 1 where n M^-1 (n - mu u t)^T < 0 and gravity pushes it down: no contact force keeps
+    it sliding on the ground (the acceleration LCP has none), so each event re-chose the same
+    mode and the run stalled. It now stops saying so, naming the contact."""
+    from pathlib import Path
+
+    from impulse_core.errors import NumericalError
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(Path(__file__).parent / "data" / "painleve_20120.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    with pytest.raises(NumericalError, match=r"Painleve's paradox at t = 0\.1086\d* s: contacts b0\[0\] slide"):
+        run.run(run.first_step())
