@@ -22,12 +22,16 @@ where the rest is unique: frictionless, or where friction holds the contacts fro
 A leg whose contacts slide on the way to rest may stop elsewhere (the slide's length depends on
 the contact law during the impacts: rigid here, soft in MuJoCo), and its base angle with it.
 
-No MuJoCo setting is footopt's contact law, so none is the default: MuJoCo's friction rows relax a
-slip at the contact damping's rate, which leaves a stiffness-independent share of an impact
-slipping; stiffer friction rows (``fd``) stop that but make a sliding tip glide above the ground
-(MuJoCo's convex cone); ``impratio`` and ``noslip`` change the gaps by less than 5 %. The small
-sphere (``r=1e-5``) is the point contact's closest model (a 1 mm sphere rolls). ``--resting``
-tests the friction between impacts alone (:func:`compare_resting`).
+No MuJoCo setting is footopt's contact law, so none is the default (settled_posture_tips.md:
+none brings the legs with friction within 2e-3, and MuJoCo's own answer moves by more than that
+between 1e7 and 1e8 1/s^2 on 10 of the 20 legs). MuJoCo's friction rows relax a slip at the
+contact damping's rate: a tip leaves seed 6's first impact slipping at 5.1, 2.3, 0.73 cm/s at
+1e6, 1e7, 1e8 (footopt's rigid impact: stuck). Stiffer friction rows (``fd``) stop the slip
+but make a sliding tip glide above the ground (MuJoCo's convex cone: 0.38 mm on seed 0 resting
+at 1e7, fd 1), and ``impratio`` and ``noslip`` hardly change the gaps. The small sphere (``r``
+1e-5) is the point contact's closest model: a 1 mm sphere rolls with its rod (seed 13 resting
+on its tip for 0.2 s: 3.2e-3 rad at 1 mm, 3.3e-4 at 0.01 mm, settled_posture_resting.md).
+``--resting`` tests the friction between impacts alone (:func:`compare_resting`).
 
 Run: python studies/whole_landing/settled_posture.py [--seeds 20] [--tips] [--mujoco SPEC ...]
 [--resting]  (writes settled_posture[_tips][_resting].md next to this file)
@@ -102,12 +106,11 @@ class MujocoSettings:
             restitution (the bridge's ``contact_parameters``).
         radius: the contact spheres' radius (m; ``r``). The bridge's 1 mm sphere rolls on the
             ground with its rod: a sticking tip moves r x the rod's turn (a point contact does
-            not), 2.9e-3 rad on seed 13 resting on its tip for 0.2 s, 6.6e-5 at 0.01 mm.
+            not).
         friction_damping: 0 (``fd``; MuJoCo's default): the friction rows take the contact's
             solref, whose reference acceleration for a friction row is -b v_t alone (b: the
-            contact damping), so a tip's slip relaxes at the rate b, which grows with sqrt(k) as
-            the impact's duration shrinks: the share of an impact spent slipping does not
-            shrink as the contact stiffens. f > 0: the contacts as explicit ``<pair>``s with
+            contact damping, ~ sqrt(k)), so a tip's slip relaxes at the rate b, over a time
+            as long as the impact's. f > 0: the contacts as explicit ``<pair>``s with
             ``solreffriction`` damping f / h (h the step; f = 1 stops a slip in one step).
         impratio: ``<option impratio>`` (elliptic cones: the friction rows' impedance over the
             normal's).
