@@ -24,11 +24,14 @@ the contact law during the impacts: rigid here, soft in MuJoCo), and its base an
 
 No MuJoCo setting is footopt's contact law, so none is the default (settled_posture_tips.md:
 none brings the legs with friction within 2e-3, and MuJoCo's own answer moves by more than that
-between 1e7 and 1e8 1/s^2 on 10 of the 20 legs). MuJoCo's friction rows relax a slip at the
-contact damping's rate: a tip leaves seed 6's first impact slipping at 5.1, 2.3, 0.73 cm/s at
-1e6, 1e7, 1e8 (footopt's rigid impact: stuck). Stiffer friction rows (``fd``) stop the slip
-but make a sliding tip glide above the ground (MuJoCo's convex cone: 0.38 mm on seed 0 resting
-at 1e7, fd 1), and ``impratio`` and ``noslip`` hardly change the gaps. The small sphere (``r``
+between 1e8 and 1e9 1/s^2 on 7 of the 20 legs). A tip leaves seed 6's first impact
+slipping at 5.1, 2.3, 0.72, 0.23 cm/s at 1e6, 1e7, 1e8, 1e9 (footopt's rigid impact: stuck):
+at 1e6 mostly MuJoCo's friction rows, which relax a slip at the contact damping's rate (with
+their damping at 1 / h: 0.50 cm/s), from 1e8 on the soft impact's length alone (the same with
+the friction rows at 1 / h), in which the springs and gravity slide the tip while its normal
+force fades. Stiffer friction rows (``fd``) make a sliding tip glide above the ground
+(MuJoCo's convex cone: 0.38 mm on seed 0 resting at 1e7, fd 1), and ``impratio`` and
+``noslip`` hardly change the gaps. The small sphere (``r``
 1e-5) is the point contact's closest model: a 1 mm sphere rolls with its rod (seed 13 resting
 on its tip for 0.2 s: 3.2e-3 rad at 1 mm, 3.3e-4 at 0.01 mm, settled_posture_resting.md).
 ``--resting`` tests the friction between impacts alone (:func:`compare_resting`).
