@@ -13,15 +13,31 @@ sprung legs: it lands on the lowest tips and comes to rest on its legs or its en
 - MuJoCo: ``footopt export``'s MJCF (joint springs, dampers, stops) made droppable as in
   ``speed.py`` (the bridge's 1 mm contact spheres, direct solref at 1e6 1/s^2, elliptic cones with
   friction), ``mj_step`` at 5e-5 s over the same 3 s, its final absolute base angle and joint
-  angles in footopt's order.
+  angles in footopt's order. ``--mujoco`` compares with other contact settings, one column each
+  (:class:`MujocoSettings`: stiffness, sphere radius, the friction rows' damping, impratio,
+  noslip iterations); the default stays the bridge's, which the planks' table used.
 
 Both are the same statics once at rest (springs, gravity, the ground), so the postures agree
 where the rest is unique: frictionless, or where friction holds the contacts from the first touch.
 A leg whose contacts slide on the way to rest may stop elsewhere (the slide's length depends on
 the contact law during the impacts: rigid here, soft in MuJoCo), and its base angle with it.
 
-Run: python studies/whole_landing/settled_posture.py [--seeds 20] [--tips]  (writes
-settled_posture.md next to this file)
+No MuJoCo setting is footopt's contact law, so none is the default (settled_posture_tips.md:
+none brings the legs with friction within 2e-3, and MuJoCo's own answer moves by more than that
+between 1e8 and 1e9 1/s^2 on 7 of the 20 legs). A tip leaves seed 6's first impact
+slipping at 5.1, 2.3, 0.72, 0.23 cm/s at 1e6, 1e7, 1e8, 1e9 (footopt's rigid impact: stuck):
+at 1e6 mostly MuJoCo's friction rows, which relax a slip at the contact damping's rate (with
+their damping at 1 / h: 0.50 cm/s), from 1e8 on the soft impact's length alone (the same with
+the friction rows at 1 / h), in which the springs and gravity slide the tip while its normal
+force fades. Stiffer friction rows (``fd``) make a sliding tip glide above the ground
+(MuJoCo's convex cone: 0.38 mm on seed 0 resting at 1e7, fd 1), and ``impratio`` and
+``noslip`` hardly change the gaps. The small sphere (``r``
+1e-5) is the point contact's closest model: a 1 mm sphere rolls with its rod (seed 13 resting
+on its tip for 0.2 s: 3.2e-3 rad at 1 mm, 3.3e-4 at 0.01 mm, settled_posture_resting.md).
+``--resting`` tests the friction between impacts alone (:func:`compare_resting`).
+
+Run: python studies/whole_landing/settled_posture.py [--seeds 20] [--tips] [--mujoco SPEC ...]
+[--resting]  (writes settled_posture[_tips][_resting].md next to this file)
 """
 
 from __future__ import annotations
@@ -29,7 +45,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -38,6 +54,7 @@ import numpy as np
 from impulse_core.model.joints import JointLaw
 from impulse_core.model.tree import Body, Scene, Tree
 from impulse_core.timedomain.landing import LandingSettings, landing
+from optimizer.validation.mujoco_bridge import CONTACT_RADIUS
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -83,39 +100,121 @@ def _below(tree: Tree, j: int, i: int) -> bool:
     return j == i
 
 
+@dataclass(frozen=True)
+class MujocoSettings:
+    """MuJoCo's contact settings for one comparison (``--mujoco``: ``k=1e7,r=1e-5,fd=1,impratio=100,noslip=30``).
+
+    Attributes:
+        stiffness: the contacts' direct stiffness (1/s^2; ``k``); their damping gives each leg's
+            restitution (the bridge's ``contact_parameters``).
+        radius: the contact spheres' radius (m; ``r``). The bridge's 1 mm sphere rolls on the
+            ground with its rod: a sticking tip moves r x the rod's turn (a point contact does
+            not).
+        friction_damping: 0 (``fd``; MuJoCo's default): the friction rows take the contact's
+            solref, whose reference acceleration for a friction row is -b v_t alone (b: the
+            contact damping, ~ sqrt(k)), so a tip's slip relaxes at the rate b, over a time
+            as long as the impact's. f > 0: the contacts as explicit ``<pair>``s with
+            ``solreffriction`` damping f / h (h the step; f = 1 stops a slip in one step).
+        impratio: ``<option impratio>`` (elliptic cones: the friction rows' impedance over the
+            normal's).
+        noslip: ``<option noslip_iterations>`` (MuJoCo's post-processing that removes the
+            friction rows' slip within a step).
+    """
+
+    stiffness: float = STIFFNESS
+    radius: float = CONTACT_RADIUS
+    friction_damping: float = 0.0
+    impratio: float = 1.0
+    noslip: int = 0
+
+    KEYS = {"k": "stiffness", "r": "radius", "fd": "friction_damping", "impratio": "impratio", "noslip": "noslip"}
+
+    @classmethod
+    def parse(cls, spec: str) -> MujocoSettings:
+        """``key=value,...`` (keys: :attr:`KEYS`); an empty spec is the bridge's settings."""
+        values: dict = {}
+        for item in filter(None, spec.split(",")):
+            key, _, value = item.partition("=")
+            if key.strip() not in cls.KEYS:
+                raise SystemExit(f"--mujoco: {key!r} is not one of {', '.join(cls.KEYS)}")
+            name = cls.KEYS[key.strip()]
+            values[name] = int(value) if name == "noslip" else float(value)
+        return cls(**values)
+
+    @property
+    def label(self) -> str:
+        parts = [f"k {self.stiffness:g}", f"r {self.radius * 1e3:g} mm"]
+        parts += [f"friction damping {self.friction_damping:g}/h"] if self.friction_damping else []
+        parts += [f"impratio {self.impratio:g}"] if self.impratio != 1.0 else []
+        parts += [f"noslip {self.noslip}"] if self.noslip else []
+        return ", ".join(parts)
+
+
 class PlanarMujoco(Mujoco):
     """The speed study's MuJoCo landing with the base held in the plane (slides along x and y, a
     hinge about z) instead of the export's free joint: a plank on two points of its axis is a
     line contact, about which a free body in MuJoCo topples sideways (its roll, unstable, grows
-    from rounding within 2 s), a motion the planar model does not have."""
+    from rounding within 2 s), a motion the planar model does not have. ``settings``: the
+    contacts' (:class:`MujocoSettings`); the step: ``step``, or 0.2 / the contacts' damping (1/s)
+    if shorter: MuJoCo's step takes the damper explicitly, and at h x damping > 1 a nearly
+    plastic contact (e -> 0: damping -> infinity) throws the leg back up faster than it came (the
+    study's first run: e = 0.0008, 1.7)."""
 
-    def __init__(self, model, stiffness: float) -> None:  # type: ignore[no-untyped-def]
+    def __init__(self, model, settings: MujocoSettings = MujocoSettings(),  # type: ignore[no-untyped-def]
+                 step: float = STEP) -> None:
         import mujoco
 
-        super().__init__(model, stiffness)
+        super().__init__(model, settings.stiffness)
         base = model.tree.bodies[0].name
         planar = (f'<joint name="{base}_x" type="slide" axis="1 0 0" /><joint name="{base}_y" type="slide" '
                   f'axis="0 1 0" /><joint name="{base}" type="hinge" axis="0 0 1" />')
         self.text = self.text.replace(f'<freejoint name="{base}" />', planar, 1)
+        damping = float(np.max(-np.array([float(g.split()[1]) for g in _solrefs(self.text)])))
+        self.h = min(step, 0.2 / damping)
+        self.text = _with_contacts(self.text, settings, self.h)
         self.m = mujoco.MjModel.from_xml_string(self.text)
         self.m.opt.tolerance, self.m.opt.iterations, self.m.opt.ls_tolerance = 1e-8, 100, 0.01
+        self.m.opt.impratio, self.m.opt.noslip_iterations = settings.impratio, settings.noslip
         self.base_q, self.base_v = self.m.joint(f"{base}_x").qposadr[0], self.m.joint(f"{base}_x").dofadr[0]
 
-    def final_angles(self, h: float) -> np.ndarray:
-        """The base's absolute angle and the joint angles after the landing at step ``h``, or at
-        0.2 / the contacts' damping (1/s) if shorter: MuJoCo's step takes the damper explicitly,
-        and at h x damping > 1 a nearly plastic contact (e -> 0: damping -> infinity) throws the
-        leg back up faster than it came (the study's first run: e = 0.0008, 1.7)."""
-        damping = float(np.max(-np.array([float(g.split()[1]) for g in _solrefs(self.text)])))
-        h = min(h, 0.2 / damping)
-        d, n = self.start(h)
-        for _ in range(n):
-            self.mj.mj_step(self.m, d)
+    def angles(self, d) -> np.ndarray:  # type: ignore[no-untyped-def]
+        """The base's absolute angle and the joint angles in footopt's order at MuJoCo's state d."""
         angles = self.touchdown.copy()
         angles[0] += d.qpos[self.base_q + 2]
         for i, name in zip(self.revolute, self.joints):
             angles[i] += d.qpos[self.m.joint(name).qposadr[0]]
         return angles
+
+    def final_angles(self) -> np.ndarray:
+        """The angles after the landing."""
+        d, n = self.start(self.h)
+        for _ in range(n):
+            self.mj.mj_step(self.m, d)
+        return self.angles(d)
+
+
+def _with_contacts(text: str, settings: MujocoSettings, h: float) -> str:
+    """The MJCF text with the contact spheres of ``settings.radius`` (the ground lowered alike, so
+    that a sphere touches it where its centre, the contact point, is at height 0) and, with
+    ``settings.friction_damping``, each sphere's contact with the ground as an explicit pair
+    (same condim, friction, solref, solimp; the sphere's own contacts off) with solreffriction."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(text)
+    spheres = [g for g in root.iter("geom") if (g.get("name") or "").startswith("contact")]
+    for g in spheres:
+        g.set("size", repr(settings.radius))
+    ground = next(g for g in root.iter("geom") if g.get("name") == "ground")
+    ground.set("pos", f"0 {-settings.radius!r} 0")
+    if settings.friction_damping and all(g.get("friction") for g in spheres):  # frictionless: no friction rows
+        contact = ET.SubElement(root, "contact")
+        for g in spheres:
+            g.set("contype", "0")
+            mu = g.get("friction").split()[0]
+            ET.SubElement(contact, "pair", geom1="ground", geom2=g.get("name"), condim=g.get("condim"),
+                          friction=f"{mu} {mu} 0 0 0", solref=g.get("solref"), solimp=g.get("solimp"),
+                          solreffriction=f"-1 {-settings.friction_damping / h!r}")
+    return ET.tostring(root, encoding="unicode")
 
 
 def _solrefs(text: str) -> list[str]:
@@ -125,17 +224,75 @@ def _solrefs(text: str) -> list[str]:
     return re.findall(r'solref="(-[^"]+)"', text)
 
 
-def compare(seed: int, tips: bool, friction: float | None = None) -> dict:
-    """footopt's and MuJoCo's final angles for one leg (``friction``: instead of the leg's)."""
+def compare(seed: int, tips: bool, friction: float | None = None,
+            settings: tuple[MujocoSettings, ...] = (MujocoSettings(),)) -> dict:
+    """footopt's final angles for one leg (``friction``: instead of the leg's) against MuJoCo's at
+    each of ``settings``: the largest gap in the base angle and in the joint angles, per setting."""
     tree, laws, scene = random_leg(seed, tips)
     scene = scene if friction is None else replace(scene, friction=friction)
     ours = landing(tree, scene, laws, LandingSettings())
-    mj = PlanarMujoco(SimpleNamespace(tree=tree, scene=scene, joints=laws), STIFFNESS)
-    theirs = mj.final_angles(STEP)
-    gap = np.abs(ours.final_angles - theirs)
+    model = SimpleNamespace(tree=tree, scene=scene, joints=laws)
+    theirs = [PlanarMujoco(model, s).final_angles() for s in settings]
+    gaps = [np.abs(ours.final_angles - a) for a in theirs]
+    spread = float(np.max(np.abs(theirs[-1] - theirs[-2]))) if len(theirs) > 1 else math.nan
     return {"seed": seed, "bodies": len(tree.bodies), "friction": scene.friction, "restitution": scene.restitution,
-            "settled_at": ours.settled_at, "events": len(ours.events), "base": float(gap[0]),
-            "joints": float(np.max(gap[1:])), "converged": ours.converged}
+            "settled_at": ours.settled_at, "events": len(ours.events), "base": [float(g[0]) for g in gaps],
+            "joints": [float(np.max(g[1:])) for g in gaps], "spread": spread, "converged": ours.converged}
+
+
+#: the resting legs' touchdown speed (m/s): above the landing's plastic speed, so a bounce of e x it
+RESTING_SPEED = 1e-3
+#: a resting leg is compared until this long (s) before another contact than its first touches
+RESTING_MARGIN = 5e-3
+
+
+def compare_resting(seed: int, settings: tuple[MujocoSettings, ...]) -> dict:
+    """The between-impact friction alone: the leg touching down at :data:`RESTING_SPEED` on its
+    lowest tip, footopt's landing (``--tolerance 1e-5``) against MuJoCo's while it rests, sticks
+    or slides on that tip only (until :data:`RESTING_MARGIN` before another contact touches):
+    the largest angle gap over that phase (at footopt's step ends, MuJoCo's steps interpolated
+    there: footopt's steps are too long to interpolate, 6.6e-4 rad on seed 10's springs) and
+    when; and the frictional contact problem at touchdown (the tip's free normal acceleration,
+    with its tangent held, and Painleve's W_nn - mu |W_nt|, negative: the problem may have
+    several answers or none)."""
+    import mujoco
+
+    from impulse_core.timedomain.landing import _Landing
+
+    tree, laws, scene = random_leg(seed, True)
+    scene = replace(scene, speed=RESTING_SPEED, duration=1.0)
+    ours = landing(tree, scene, laws, LandingSettings(tolerance=1e-5))
+    first = ours.events[0].external > 0
+    later = [e.time for e in ours.events if (e.external[~first] > 0).any()]
+    end = (later[0] if later else scene.duration) - RESTING_MARGIN
+    times, states = ours.trajectory
+    run = _Landing(tree, scene, laws, LandingSettings())
+    v = np.zeros(run.nv)
+    v[1] = -scene.speed
+    pt = run.point(run.q0, v)
+    j = int(np.argmin(pt.gap))
+    J = np.vstack([pt.Jn[j], pt.Jt[j, 0]])
+    W = J @ np.linalg.solve(pt.M, J.T)
+    free = J @ np.linalg.solve(pt.M, pt.f) + np.array([pt.bn[j], pt.bt[j, 0]])
+    row = {"seed": seed, "friction": scene.friction, "end": end, "free": float(free[0]),
+           "held": float(free[0] - W[0, 1] * free[1] / W[1, 1]),
+           "painleve": float(W[0, 0] - scene.friction * abs(W[0, 1])), "gaps": [], "at": []}
+    for s in settings:
+        mj = PlanarMujoco(SimpleNamespace(tree=tree, scene=scene, joints=laws), s)
+        d, _ = mj.start(mj.h)
+        steps = int(end / mj.h)
+        theirs = np.empty((steps + 1, len(mj.touchdown)))
+        theirs[0] = mj.angles(d)
+        for i in range(steps):
+            mujoco.mj_step(mj.m, d)
+            theirs[i + 1] = mj.angles(d)
+        at = times[times <= steps * mj.h]  # footopt's step ends; MuJoCo's fine steps interpolated there
+        mine = np.column_stack([states[: len(at), 2], states[: len(at), 3:]])
+        grid = mj.h * np.arange(steps + 1)
+        gap = np.max(np.abs(mine - np.column_stack([np.interp(at, grid, c) for c in theirs.T])), axis=1)
+        row["gaps"].append(float(gap.max()))
+        row["at"].append(float(at[int(gap.argmax())]))
+    return row
 
 
 def main() -> None:
@@ -143,30 +300,100 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--tips", action="store_true", help="the chains hang below the plank, contacts at their tips")
     parser.add_argument("--friction", type=float, default=None, help="every leg at this friction (default: its own)")
+    parser.add_argument("--mujoco", nargs="+", default=[""], metavar="SPEC",
+                        help="MuJoCo's contact settings, one table column each: key=value,... with keys k "
+                             "(stiffness, 1/s^2), r (sphere radius, m), fd (solreffriction damping x 1/h; 0: the "
+                             "contact's solref), impratio, noslip (iterations); '' (default): the bridge's "
+                             "(k=1e6,r=0.001). With several, the table also gives the largest difference between "
+                             "MuJoCo's own final angles at the last two")
+    parser.add_argument("--resting", action="store_true",
+                        help="the tips' legs with friction touching down at 1 mm/s: the between-impact friction alone "
+                             "(compare_resting; writes settled_posture_resting.md)")
+    parser.add_argument("--only-friction", action="store_true", help="skip the frictionless legs")
     args = parser.parse_args()
+    settings = tuple(MujocoSettings.parse(spec) for spec in args.mujoco)
+    command = f"`python studies/whole_landing/settled_posture.py {' '.join(_quoted(a) for a in sys.argv[1:])}`"
+    if args.resting:
+        return resting_table(args, settings, command)
     rows = []
     for seed in range(args.seeds):
-        r = compare(seed, args.tips, args.friction)
+        if args.only_friction and random_leg(seed, args.tips)[2].friction == 0 and not args.friction:
+            continue
+        r = compare(seed, args.tips, args.friction, settings)
         rows.append(r)
         print(r, flush=True)
     lines = [
         "# The settled posture of random legs: footopt against MuJoCo",
         "",
-        f"`python studies/whole_landing/settled_posture.py {' '.join(sys.argv[1:])}`;"
-        " the legs and settings: the script's docstring. Issue #13's check: 2e-3 rad.",
+        f"{command}; the legs and settings: the script's docstring. Issue #13's check: 2e-3 rad.",
         "",
-        "| seed | bodies | friction | restitution | events | settled at (s) | base angle gap (rad) | worst joint gap (rad) |",
-        "|---|---|---|---|---|---|---|---|",
+        "MuJoCo's settings (`--mujoco`, `MujocoSettings`): "
+        + "; ".join(f"**{chr(65 + i)}** {s.label}" for i, s in enumerate(settings)) + ".",
+        "",
     ]
+    several = len(settings) > 1
+    last = f"{chr(63 + len(settings))}-{chr(64 + len(settings))}"
+    head = (" | ".join(f"gap {chr(65 + i)} (rad)" for i in range(len(settings))) + f" | MuJoCo {last} (rad)"
+            if several else "base angle gap (rad) | worst joint gap (rad)")
+    lines += [f"| seed | bodies | friction | restitution | events | settled at (s) | {head} |",
+              "|---|---|---|---|---|---|" + "---|" * (len(settings) + 1 if several else 2)]
     for r in rows:
         settled = "-" if r["settled_at"] is None else f"{r['settled_at']:.3f}"
+        gaps = ([f"{max(b, j):.1e}" for b, j in zip(r["base"], r["joints"])] + [f"{r['spread']:.1e}"] if several
+                else [f"{r['base'][0]:.1e}", f"{r['joints'][0]:.1e}"])
         lines.append(f"| {r['seed']} | {r['bodies']} | {r['friction']:g} | {r['restitution']:.2f} | {r['events']} | "
-                     f"{settled} | {r['base']:.1e} | {r['joints']:.1e} |")
-    worst = max(max(r["base"], r["joints"]) for r in rows)
-    lines += ["", f"Worst gap over the {len(rows)} legs: {worst:.1e} rad (check: 2e-3).", ""]
+                     f"{settled} | {' | '.join(gaps)} |")
+    lines.append("")
+    for i, s in enumerate(settings):
+        worst = max(max(r["base"][i], r["joints"][i]) for r in rows)
+        within = sum(max(r["base"][i], r["joints"][i]) <= 2e-3 for r in rows)
+        name = f"{chr(65 + i)} ({s.label})" if several else f"the {len(rows)} legs"
+        lines.append(f"- Worst gap over {name}: {worst:.1e} rad (check: 2e-3); {within} of {len(rows)} legs within it.")
+    if several:
+        spread = [r["spread"] for r in rows]
+        lines.append(f"- MuJoCo {last}: the largest difference between MuJoCo's own final angles at the last two "
+                     f"settings; over 2e-3 on {sum(x > 2e-3 for x in spread)} of {len(rows)} legs (worst "
+                     f"{max(spread):.1e} rad).")
+    lines.append("")
     name = "_".join(["settled_posture"] + (["tips"] if args.tips else [])
                     + ([f"friction{args.friction:g}"] if args.friction is not None else []))
     (HERE / f"{name}.md").write_text("\n".join(lines), encoding="utf-8")
+    print("\n".join(lines))
+
+
+def _quoted(arg: str) -> str:
+    return arg if arg and " " not in arg else f"'{arg}'"
+
+
+def resting_table(args, settings: tuple[MujocoSettings, ...], command: str) -> None:  # type: ignore[no-untyped-def]
+    rows = []
+    for seed in range(args.seeds):
+        if random_leg(seed, True)[2].friction == 0:
+            continue
+        r = compare_resting(seed, settings)
+        rows.append(r)
+        print(r, flush=True)
+    lines = [
+        "# Resting on a tip with friction: footopt's landing against MuJoCo between impacts",
+        "",
+        f"{command}: the `--tips` legs with friction touching down at {RESTING_SPEED:g} m/s on their lowest tip "
+        "(`compare_resting`), compared while they rest, stick or slide on that tip alone. The contact problem at "
+        "touchdown: the tip's free normal acceleration, the same with its tangent held (both negative: it stays "
+        "loaded; free > 0 > held: it may lift or stick, two answers), and Painleve's W_nn - mu |W_nt| (< 0: "
+        "sliding may have two answers or none).",
+        "",
+        "MuJoCo's settings: " + "; ".join(f"**{chr(65 + i)}** {s.label}" for i, s in enumerate(settings)) + ".",
+        "",
+        "| seed | friction | compared to (s) | free a_n (m/s^2) | held a_n | W_nn - mu W_nt | "
+        + " | ".join(f"worst gap {chr(65 + i)} (rad, at s)" for i in range(len(settings))) + " |",
+        "|---|---|---|---|---|---|" + "---|" * len(settings),
+    ]
+    for r in rows:
+        gaps = [f"{g:.1e} ({t:.3f})" for g, t in zip(r["gaps"], r["at"])]
+        lines.append(f"| {r['seed']} | {r['friction']:g} | {r['end']:.3f} | {r['free']:.1f} | {r['held']:.1f} | "
+                     f"{r['painleve']:.2f} | {' | '.join(gaps)} |")
+    lines.append("")
+    (HERE / "settled_posture_resting.md").write_text("\n".join(lines), encoding="utf-8")
     print("\n".join(lines))
 
 
