@@ -882,6 +882,9 @@ _GRAZE_BASIS = tuple(
 )
 
 
+#: A mass matrix whose condition number exceeds this is near singular (:meth:`_Landing.singular_note`).
+SINGULAR_MASS = 1e8
+
 #: Where :meth:`_Landing.locate` puts an event, in witness tolerances below zero: gaps and stop
 #: margins (LOCATE_DEPTH), forces, cone margins and slips (FORCE_DEPTH); see its docstring.
 LOCATE_DEPTH = 0.01
@@ -1978,7 +1981,7 @@ class _Landing:
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, grown)
             if not (np.isfinite(q1).all() and np.isfinite(v1).all() and self.kinetic(q1, v1) <= cap):
-                raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s)")
+                raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s){self.singular_note(q)}")
             _check_chart(q1, self.space, t + dt)
             w, r = self.witness_and_rate(q1, v1, mode)
             all_hold = np.count_nonzero(w >= 0) == w.size  # (w >= 0).all()
@@ -2033,6 +2036,16 @@ class _Landing:
         out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
         self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
         return replace(out, momentum_balance=balance, duration=end)
+
+    def singular_note(self, q: np.ndarray) -> str:
+        """Why a run diverged at ``q`` where its mass matrix is near singular (condition number
+        above SINGULAR_MASS): e.g. rods of zero radius in line, whose common axis carries no
+        inertia, spin up without bound as they pass that posture; else nothing."""
+        cond = float(np.linalg.cond(self.mass_matrix_at(q)))
+        if cond <= SINGULAR_MASS:
+            return ""
+        return (f": its mass matrix is near singular there (condition number {cond:.1e}: a motion with almost no "
+                "inertia, e.g. rods of zero radius in line spinning about their common axis); give the rods a radius")
 
     def stall_message(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float) -> str:
         """Why events stopped making progress at (q, v): Painleve's paradox where a sliding

@@ -498,3 +498,21 @@ def test_a_sliding_contact_in_painleves_paradox_is_named():
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     with pytest.raises(NumericalError, match=r"Painleve's paradox at t = 0\.1086\d* s: contacts b0\[0\] slide"):
         run.run(run.first_step())
+
+
+def test_a_divergence_through_a_singular_mass_matrix_says_so():
+    """Random file 20069 (data/zero_radius_20069.yaml): two rods of zero radius; after the impact
+    they pass, in flight, a posture where the mass matrix's condition number passes 1e10 and
+    spin up without bound (the kinetic energy stays 1.09 J until the step fails), at any step.
+    The error says why; with 5 mm rods the same landing runs."""
+    from pathlib import Path
+
+    from impulse_core.timedomain.landing import Diverged
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(Path(__file__).parent / "data" / "zero_radius_20069.yaml")
+    with pytest.raises(Diverged, match=r"diverged at t = 0\.002853 s .*mass matrix is near singular there"):
+        _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space).run(2e-3)
+    thick = replace(model.tree, bodies=tuple(replace(b, radius=0.005) for b in model.tree.bodies))
+    r = _Landing(thick, model.scene, model.joints, LandingSettings(), model.space).run(2e-3)
+    assert r.momentum_balance < 1e-4
