@@ -76,7 +76,7 @@ def polyhedral_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu
     return _polyhedral(W, v_minus, np.arange(n), np.full(n, float(restitution)), np.full(n, float(mu)), k)
 
 
-def _polyhedral(W, u, owner, e, mu, k: int = POLYGON):
+def _polyhedral(W, u, owner, e, mu, k: int = POLYGON, kernel=None):
     """Stage 1 over n normal rows (restitution ``e`` each) of which those in ``owner`` carry a
     tangent pair (coefficient ``mu`` each): (normal (n,), tangential (m, 2))."""
     n, m = len(e), len(owner)
@@ -100,7 +100,8 @@ def _polyhedral(W, u, owner, e, mu, k: int = POLYGON):
     )
     q = np.concatenate([(1.0 + e) * u[N], G.T @ u[T], np.zeros(m)])
     s = 1.0 / np.sqrt(np.maximum(np.abs(np.diag(Wnn)), np.finfo(float).tiny))  # unit velocity diagonals
-    z = scaled_lemke(M, q, np.concatenate([s, np.repeat(s[owner], k), 1.0 / s[owner]]), u, "the polyhedral Coulomb impact LCP")
+    z = scaled_lemke(M, q, np.concatenate([s, np.repeat(s[owner], k), 1.0 / s[owner]]), u, "the polyhedral Coulomb impact LCP",
+                     kernel)
     t = G @ z[n : n + m * k]
     return z[:n], np.column_stack([t[:m], t[m:]])
 
@@ -250,7 +251,8 @@ def cone_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: floa
     return cone_unilateral(W, v_minus, np.arange(n), np.full(n, float(restitution)), np.full(n, float(mu)))
 
 
-def cone_unilateral(W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray) -> ConeImpact:
+def cone_unilateral(W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray,
+                    kernel=None) -> ConeImpact:
     """:func:`cone_impact` over n normal rows of which the rows ``owner`` carry a tangent pair:
     the circular-cone counterpart of :func:`impulse_core.impact.coulomb.solve_unilateral` (a joint
     stop is a normal row without a pair; each row has its own restitution, each pair its mu).
@@ -261,12 +263,13 @@ def cone_unilateral(W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution
         owner: (m,) normal row of each tangent pair.
         restitution: (n,) per normal row.
         mu: (m,) per pair.
+        kernel: Lemke's method as C for the polygon's LCP (:func:`impulse_core.impact.coulomb.lemke`).
 
     Returns:
         ConeImpact with ``tangential`` (m, 2) and ``modes`` per normal row.
     """
     owner, e, mu = np.asarray(owner, dtype=int), np.asarray(restitution, dtype=float), np.asarray(mu, dtype=float)
-    normal, tangential = _polyhedral(W, u, owner, e, mu)
+    normal, tangential = _polyhedral(W, u, owner, e, mu, kernel=kernel)
     scale_v = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
     n, m = normal.size, len(owner)
 

@@ -36,24 +36,6 @@ from impulse_core.errors import NumericalError
 LEMKE_TOL = 1e-12
 #: Covering vectors tried after the first when a pivoting path ends on a ray (degenerate ties).
 RETRIES = 8
-#: Lemke's method as C (:mod:`impulse_core.impact.lemke_c`, the same numbers), once
-#: :func:`use_compiled_lemke` has built it; None: the Python code.
-_KERNEL = None
-
-
-def use_compiled_lemke(on: bool = True) -> bool:
-    """Make :func:`lemke` run as compiled C (:mod:`impulse_core.impact.lemke_c`: the same
-    arithmetic, so the same z to the bit, ~30 x faster on an impact's LCP), or (``on`` False)
-    as Python again. Returns whether the C code is in use (False without a C compiler)."""
-    global _KERNEL
-    if not on:
-        _KERNEL = None
-        return False
-    from impulse_core.impact import lemke_c
-
-    fn = lemke_c.kernel()
-    _KERNEL = None if fn is None else lemke_c.Lemke(fn)
-    return _KERNEL is not None
 
 
 class ContactMode(Enum):
@@ -82,19 +64,21 @@ class CoulombImpact:
 
 
 def lemke(
-    M: np.ndarray, q: np.ndarray, cover: np.ndarray | None = None, max_pivots: int | None = None
+    M: np.ndarray, q: np.ndarray, cover: np.ndarray | None = None, max_pivots: int | None = None, kernel=None
 ) -> np.ndarray | None:
     """A solution z of the LCP  z >= 0, w = M z + q >= 0, z^T w = 0  by Lemke's complementary
     pivoting with the covering vector ``cover`` (> 0; default (1, ..., 1)); None when it ends on a
     secondary ray (no solution found) or runs out of pivots.
 
     Ties in the ratio test go to the artificial variable first (it ends the path), then to the
-    lowest row, which is enough for the small, nondegenerate problems of an impact.
+    lowest row, which is enough for the small, nondegenerate problems of an impact. ``kernel``:
+    the same method as C (:func:`impulse_core.impact.lemke_c.compiled_lemke`: the same z to the
+    bit, ~30 x faster on an impact's LCP), or None (this Python code).
     """
     M, q = np.asarray(M, dtype=float), np.asarray(q, dtype=float)
     n = q.size
-    if _KERNEL is not None and n:  # the same code as C (its checks too)
-        return _KERNEL(M, q, cover, max_pivots or 50 * n + 50, LEMKE_TOL)
+    if kernel is not None and n:  # the same code as C (its checks too)
+        return kernel(M, q, cover, max_pivots or 50 * n + 50, LEMKE_TOL)
     if not (np.all(np.isfinite(M)) and np.all(np.isfinite(q))):
         return None  # no pivoting on NaN (a diverged state upstream)
     if n == 0 or np.all(q >= 0):
@@ -196,37 +180,39 @@ class UnilateralSolution:
     slip: np.ndarray
 
 
-def scaled_lemke(M: np.ndarray, q: np.ndarray, d: np.ndarray, u: np.ndarray, what: str) -> np.ndarray:
-    """Lemke's method on the LCP (M, q) scaled by the diagonal ``d`` (z = D z', w' = D w) and by
-    the largest approach speed in ``u``; other covering vectors on a degenerate path.
+def scaled_lemke(M: np.ndarray, q: np.ndarray, d: np.ndarray, u: np.ndarray, what: str, kernel=None) -> np.ndarray:
+    """Lemke's method (:func:`lemke`, on ``kernel``) on the LCP (M, q) scaled by the diagonal ``d``
+    (z = D z', w' = D w) and by the largest approach speed in ``u``; other covering vectors on a
+    degenerate path.
 
     Raises:
         NumericalError: no solution (a secondary ray, or too many pivots), naming ``what``.
     """
     speed = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
     Ms, qs = d[:, None] * M * d[None, :], d * q / speed
-    z = lemke(Ms, qs)
+    z = lemke(Ms, qs, kernel=kernel)
     rng = None if z is not None else np.random.default_rng(0)
     for _ in range(RETRIES):  # a degenerate path (extreme conditioning): other covering vectors
         if z is not None:
             break
-        z = lemke(Ms, qs, cover=rng.uniform(0.5, 2.0, qs.size))
+        z = lemke(Ms, qs, cover=rng.uniform(0.5, 2.0, qs.size), kernel=kernel)
     if z is None:
         raise NumericalError(f"Lemke's method found no solution of {what} (a secondary ray)")
     return d * z * speed
 
 
 def solve_unilateral(
-    W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray
+    W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution: np.ndarray, mu: np.ndarray, kernel=None
 ) -> UnilateralSolution:
-    """Solve :func:`unilateral_lcp` by Lemke's method, scaled and with retries.
+    """Solve :func:`unilateral_lcp` by Lemke's method, scaled and with retries (``kernel``: as
+    :func:`lemke`'s; with it the LCP, its scaling and the first path are built as C too).
 
     Raises:
         NumericalError: Lemke's method found no solution (a ray, or too many pivots).
     """
     n, m = len(restitution), len(owner)
     # the compiled LCP, scaling and first Lemke path (the same numbers); else, or on a ray, Python's
-    z = None if _KERNEL is None or not n + m else _KERNEL.unilateral(W, u, owner, restitution, mu, LEMKE_TOL)
+    z = None if kernel is None or not n + m else kernel.unilateral(W, u, owner, restitution, mu, LEMKE_TOL)
     if z is not None:
         normal, tangential = z[:n], z[n : n + m] - z[n + m : n + 2 * m]
         velocity = u + W @ np.concatenate([normal, tangential])
@@ -236,7 +222,7 @@ def solve_unilateral(
     # blocks get a unit diagonal and the cone and slip blocks stay mu and 1, whatever the units.
     s = 1.0 / np.sqrt(np.maximum(np.abs(np.diag(W)[:n]), np.finfo(float).tiny))
     st = s[owner]
-    z = scaled_lemke(M, q, np.concatenate([s, st, st, 1.0 / st]), u, "the unilateral LCP")
+    z = scaled_lemke(M, q, np.concatenate([s, st, st, 1.0 / st]), u, "the unilateral LCP", kernel)
     normal, tangential = z[:n], z[n : n + m] - z[n + m : n + 2 * m]
     velocity = u + W @ np.concatenate([normal, tangential])
     return UnilateralSolution(normal, tangential, velocity, z[n + 2 * m :])
@@ -289,7 +275,6 @@ __all__ = [
     "coulomb_impact",
     "coulomb_lcp",
     "lemke",
-    "use_compiled_lemke",
     "scaled_lemke",
     "solve_unilateral",
     "unilateral_lcp",

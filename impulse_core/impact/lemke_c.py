@@ -15,9 +15,9 @@ about a hundred for a landing's 12-row impact LCP (tests/impulse_core/test_lemke
 tests/impulse_core/test_landing_event_path.py check the equality). What numpy's own routines
 do (the matrix-vector products, clips at 0) stays in numpy.
 
-:func:`~impulse_core.impact.coulomb.use_compiled_lemke` builds (or loads) the library and makes
-``lemke`` and ``solve_unilateral`` use it (process-wide: the numbers are the same either way); a
-landing with ``step_code`` c does (:class:`impulse_core.timedomain.landing._Landing`), and
+:func:`compiled_lemke` builds (or loads) the library; ``lemke``, ``solve_unilateral`` and
+``cone_unilateral`` run on it when given it as their ``kernel`` (the numbers are the same either
+way): a landing with ``step_code`` c does (:class:`impulse_core.timedomain.landing._Landing`), and
 locates its events with :func:`hermite_root`. Without a C compiler the Python code stays in place.
 """
 
@@ -252,6 +252,14 @@ def kernel(cache_dir: str | None = None):
     return lemke, unilateral, hermite
 
 
+@functools.cache
+def compiled_lemke(cache_dir: str | None = None) -> Lemke | None:
+    """Lemke's method as C (:class:`Lemke` on :func:`kernel`'s functions), or None without a C
+    compiler: the ``kernel`` of :func:`impulse_core.impact.coulomb.lemke` and its callers."""
+    functions = kernel(cache_dir)
+    return None if functions is None else Lemke(functions)
+
+
 class Lemke:
     """The compiled Lemke's method on per-size work arrays (their addresses taken once: a call
     then costs a few copies and the C function's own time)."""
@@ -348,4 +356,4 @@ def hermite_root(samples: np.ndarray):
     return root
 
 
-__all__ = ["SOURCE", "Lemke", "hermite_root", "kernel"]
+__all__ = ["SOURCE", "Lemke", "compiled_lemke", "hermite_root", "kernel"]

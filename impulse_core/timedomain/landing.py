@@ -61,7 +61,7 @@ from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import POLYGON, cone_unilateral, modes_of
 from impulse_core.impact import lemke_c
 from impulse_core.impact.coulomb import (
-    ContactMode, UnilateralSolution, contact_modes, solve_unilateral, use_compiled_lemke,
+    ContactMode, UnilateralSolution, contact_modes, solve_unilateral,
 )
 from impulse_core.impact.laws import least_norm_law_split, least_norm_split, redundant, share_among_twins, twin_groups
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
@@ -660,7 +660,7 @@ def _mode_bytes(mode: _Mode) -> bytes:
 
 
 def _solve_rows(
-    W: np.ndarray, u: np.ndarray, rows: _Rows, restitution: np.ndarray
+    W: np.ndarray, u: np.ndarray, rows: _Rows, restitution: np.ndarray, kernel=None
 ) -> tuple[UnilateralSolution, np.ndarray, bool]:
     """The unilateral law over the rows (Newton's restitution per normal row, Coulomb friction
     per sticking contact; at the acceleration level with ``restitution`` 0): in the plane the
@@ -669,12 +669,13 @@ def _solve_rows(
     LCP, then Newton's method on the exact law). Returns the solution (tangential impulses and
     tangent-row velocities in :class:`_Rows`' order, ``slip`` the slip speed per sticking contact),
     the tangent rows' velocities after, per sticking contact (m x (d - 1)), and whether the exact
-    law was met (False: the cone's polyhedral answer)."""
+    law was met (False: the cone's polyhedral answer). ``kernel``: Lemke's method as C (the same
+    numbers; :func:`impulse_core.impact.lemke_c.compiled_lemke`), or None."""
     m, tangents = len(rows.owner), rows.direction.shape[1]
     if tangents == 1 or not m:
-        sol = solve_unilateral(W, u, rows.owner, restitution, rows.mu)
+        sol = solve_unilateral(W, u, rows.owner, restitution, rows.mu, kernel)
         return sol, sol.velocity[rows.n :].reshape(tangents, m).T, True
-    law = cone_unilateral(W, u, rows.owner, restitution, rows.mu)
+    law = cone_unilateral(W, u, rows.owner, restitution, rows.mu, kernel)
     after = law.velocity[rows.n :].reshape(tangents, m).T
     slip = np.linalg.norm(after, axis=1)
     return UnilateralSolution(law.normal, law.tangential.T.ravel(), law.velocity, slip), after, law.exact
@@ -702,15 +703,17 @@ class RigidImpact:
     exact: bool
 
 
-def rigid_impact(pt: _Point, v: np.ndarray, rows: _Rows, restitution: np.ndarray, mu: float) -> RigidImpact:
+def rigid_impact(pt: _Point, v: np.ndarray, rows: _Rows, restitution: np.ndarray, mu: float, kernel=None
+                 ) -> RigidImpact:
     """Newton's restitution (``restitution`` per normal row) with exact Coulomb friction (``mu``;
     0: the frictionless LCP) over ``rows`` at ``pt``, from the velocity ``v`` (:func:`_solve_rows`):
     the law of every impact of the landing and of the first instant on uneven ground. Redundant
-    rows: without friction the lcp rung's smallest-norm split, with friction twins share alike."""
+    rows: without friction the lcp rung's smallest-norm split, with friction twins share alike.
+    ``kernel``: as :func:`_solve_rows`'."""
     u = rows.G @ v
     minv_gt = np.linalg.solve(pt.M, rows.G.T)
     W = rows.G @ minv_gt
-    sol, _, exact = _solve_rows(W, u, rows, restitution)
+    sol, _, exact = _solve_rows(W, u, rows, restitution, kernel)
     split_unique = not redundant(rows.G)
     if not split_unique and mu == 0:  # the lcp rung's split (G has no tangent rows without friction)
         sol = replace(sol, normal=least_norm_split(rows.G, sol.normal))
@@ -985,9 +988,11 @@ class _Landing:
             from impulse_core.timedomain.landing_step import compiled_landing_function  # it builds on this module
 
             fn = compiled_landing_function(self.topology, ground, space)
-            use_compiled_lemke()  # the impacts' and mode choices' LCPs: the same numbers, as C
         else:
             fn = landing_function(self.topology, ground, space)
+        #: the impacts' and mode choices' LCPs by Lemke's method as C with step code c (the same
+        #: numbers; None: Python's, also without a C compiler)
+        self.lemke = lemke_c.compiled_lemke() if settings.step_code == C_CODE else None
         #: the location's root of a cubic (:func:`_hermite_root`; with step code c as C, the same numbers)
         self.root = (settings.step_code == C_CODE and lemke_c.hermite_root(_ROOT_SAMPLES)) or _hermite_root
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
@@ -1492,7 +1497,7 @@ class _Landing:
         e = np.where(on_contact, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
         e = np.where(approach > PLASTIC_SPEED, e, 0.0)
         e = np.where(self.bounce_time(pt, rows, e * approach) < self.min_bounce, 0.0, e)
-        law = rigid_impact(pt, v, rows, e, self.mu)
+        law = rigid_impact(pt, v, rows, e, self.mu, self.lemke)
         self.last_impact = law
         if self.impact_log is not None:
             self.impact_log.append((q.copy(), v.copy(), np.array(contacts), pt, law))
@@ -1608,7 +1613,7 @@ class _Landing:
             minv = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
             u = rows.G @ minv[:, 0] + rows.b
             try:
-                sol, acceleration, exact = _solve_rows(rows.G @ minv[:, 1:], u, rows, np.zeros(rows.n))
+                sol, acceleration, exact = _solve_rows(rows.G @ minv[:, 1:], u, rows, np.zeros(rows.n), self.lemke)
                 self.inexact += not exact
                 break
             except NumericalError:

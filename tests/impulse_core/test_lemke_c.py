@@ -10,35 +10,29 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from impulse_core.impact import coulomb
 from impulse_core.errors import NumericalError
-from impulse_core.impact.coulomb import lemke, solve_unilateral, unilateral_lcp, use_compiled_lemke
+from impulse_core.impact.coulomb import lemke, solve_unilateral, unilateral_lcp
+from impulse_core.impact.lemke_c import compiled_lemke
 
 
-def _both(M, q, cover=None):
-    use_compiled_lemke(False)
-    try:
-        a = lemke(M, q, cover)
-    finally:
-        compiled = use_compiled_lemke()
-    b = lemke(M, q, cover)
-    return a, b, compiled
+@pytest.fixture(scope="module")
+def kernel():
+    """Lemke's method as C, or a skip without a C compiler."""
+    compiled = compiled_lemke()
+    if compiled is None:
+        pytest.skip("no C compiler")
+    return compiled
+
+
+def _both(kernel, M, q, cover=None):
+    return lemke(M, q, cover), lemke(M, q, cover, kernel=kernel)
 
 
 def _same(a, b) -> bool:
     return (a is None and b is None) or (a is not None and b is not None and a.tobytes() == b.tobytes())
 
 
-@pytest.fixture(autouse=True)
-def _restore():
-    before = coulomb._KERNEL
-    yield
-    coulomb._KERNEL = before
-
-
-def test_compiled_lemke_equals_python_bit_for_bit():
-    if not use_compiled_lemke():
-        pytest.skip("no C compiler")
+def test_compiled_lemke_equals_python_bit_for_bit(kernel):
     rng = np.random.default_rng(7)
     rays = solved = 0
     for k in range(600):
@@ -48,7 +42,7 @@ def test_compiled_lemke_equals_python_bit_for_bit():
         if k % 5 == 0 and n > 1:
             M[:, 0] = M[:, 1]  # degenerate ties
         q = rng.normal(size=n) if k % 4 else rng.integers(-2, 2, size=n).astype(float)
-        a, b, _ = _both(M, q, rng.uniform(0.5, 2.0, n) if k % 4 == 1 else None)
+        a, b = _both(kernel, M, q, rng.uniform(0.5, 2.0, n) if k % 4 == 1 else None)
         assert _same(a, b), k
         rays += a is None
         solved += a is not None
@@ -57,32 +51,27 @@ def test_compiled_lemke_equals_python_bit_for_bit():
         J = rng.normal(size=(6, 11))
         W = J @ np.linalg.inv(np.diag(rng.uniform(0.05, 2.0, 11))) @ J.T
         M, q = unilateral_lcp(W, rng.normal(size=6), np.arange(3), np.full(3, 0.8), np.full(3, 0.5))
-        a, b, _ = _both(M, q)
+        a, b = _both(kernel, M, q)
         assert a is not None and _same(a, b)
     for M, q in [(np.eye(3), np.array([1.0, np.nan, -1.0])), (np.full((2, 2), np.inf), -np.ones(2)),
                  (np.eye(2), np.array([-0.0, 1.0]))]:
-        a, b, _ = _both(M, q)
+        a, b = _both(kernel, M, q)
         assert _same(a, b)
 
 
-def _unilateral(*args):
-    use_compiled_lemke(False)
+def _unilateral(kernel, *args):
     try:
         a = solve_unilateral(*args)
     except NumericalError:
         a = None
-    finally:
-        use_compiled_lemke()
     try:
-        b = solve_unilateral(*args)
+        b = solve_unilateral(*args, kernel)
     except NumericalError:
         b = None
     return a, b
 
 
-def test_compiled_unilateral_equals_python_bit_for_bit():
-    if not use_compiled_lemke():
-        pytest.skip("no C compiler")
+def test_compiled_unilateral_equals_python_bit_for_bit(kernel):
     rng = np.random.default_rng(11)
     for k in range(300):
         n = int(rng.integers(1, 6))
@@ -96,23 +85,21 @@ def test_compiled_unilateral_equals_python_bit_for_bit():
         u = rng.normal(size=n + m) * (10.0 if k % 3 else 1e-3)
         e = rng.choice([0.0, 0.5, 0.8, 1.0], n)
         mu = np.full(m, rng.choice([0.3, 0.5, 1.0]))
-        a, b = _unilateral(W, u, owner, e, mu)
+        a, b = _unilateral(kernel, W, u, owner, e, mu)
         assert (a is None) == (b is None), k
         if a is not None:
             for name in ("normal", "tangential", "velocity", "slip"):
                 assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), (k, name)
     W, u = np.eye(2), np.array([np.nan, -1.0])  # not finite: Python's answer (an error) either way
-    a, b = _unilateral(W, u, np.array([0]), np.array([0.5]), np.array([0.5]))
+    a, b = _unilateral(kernel, W, u, np.array([0]), np.array([0.5]), np.array([0.5]))
     assert a is None and b is None
 
 
-def test_compiled_lemke_in_threads():
+def test_compiled_lemke_in_threads(kernel):
     """The compiled calls' work arrays are per thread: LCPs of one size solved in four threads at
     once give each its own answer."""
     from concurrent.futures import ThreadPoolExecutor
 
-    if not use_compiled_lemke():
-        pytest.skip("no C compiler")
     rng = np.random.default_rng(2)
     problems = []
     for _ in range(64):
@@ -121,7 +108,7 @@ def test_compiled_lemke_in_threads():
     expected = [lemke(M, q) for M, q in problems]
 
     def solve_all(_):
-        return all(_same(lemke(M, q), z) for (M, q), z in zip(problems * 20, expected * 20))
+        return all(_same(lemke(M, q, kernel=kernel), z) for (M, q), z in zip(problems * 20, expected * 20))
 
     with ThreadPoolExecutor(4) as pool:
         assert all(pool.map(solve_all, range(4)))
