@@ -136,8 +136,8 @@ def _spied_events(monkeypatch) -> dict:
         seen["impacts"].append((self, q.copy(), v.copy()))
         return impact(self, q, v, mode, t, contacts, kind)
 
-    def spy_law(pt, v, rows, e, mu):
-        out = law(pt, v, rows, e, mu)
+    def spy_law(pt, v, rows, e, mu, kernel=None):
+        out = law(pt, v, rows, e, mu, kernel)
         seen["laws"].append((pt, rows, np.array(e), out))
         return out
 
