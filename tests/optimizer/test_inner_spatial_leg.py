@@ -194,3 +194,37 @@ def test_the_whole_landing_nlp_differentiates_the_spatial_leg(leg_folder):
     (leg_folder / "landing.yaml").write_text(text)
     tree = assert_the_yaw_derivative(load_study(leg_folder / "landing.yaml"))
     assert len(tree.bodies) == 6 and tree.bodies[5].parent == 3
+
+
+def test_the_spatial_legs_own_springs_dampers_and_stops_act_over_the_landing(tmp_path):
+    """solo12's leg from its trunk with a spring, a damper and stops (+-0.05 rad about the
+    touchdown angle) on each of its three joints, written into its model file: the whole-landing
+    NLP's landed model carries them on the leg's joints, they change the landing (against the
+    same model with the leg's joints free), and the toe yaw's exact derivative is still the
+    central difference of the landed objectives."""
+    import yaml
+
+    from impulse_core.kinematics.spatial import SPATIAL
+    from impulse_core.model.joints import FREE
+    from impulse_core.timedomain.landing import LandingSettings, landing
+    from optimizer.search.landing_inner import _Landed, build_landing_nlp, start_landing
+    from tests.optimizer.test_landing_inner_spatial import SPATIAL_LANDING_YAML
+    from tests.optimizer.test_leg_chains import assert_the_yaw_derivative
+
+    solo_leg(tmp_path, root="base_link")
+    data = yaml.safe_load((tmp_path / "leg.yaml").read_text())
+    for body in data["model"]["bodies"][1:]:
+        body.update(stiffness=3.0, damping=0.05, limits=[body["angle"] - 0.05, body["angle"] + 0.05])
+    (tmp_path / "leg.yaml").write_text(yaml.safe_dump(data))
+    text = re.sub(r"leg:.*?\n(?=\S)", "leg: {file: leg.yaml}\n", SPATIAL_LANDING_YAML, flags=re.S)
+    (tmp_path / "landing.yaml").write_text(text)
+    config = load_study(tmp_path / "landing.yaml")
+    nlp = build_landing_nlp(config, FootShape(1, 1))
+    tree, laws, scene = _Landed(nlp).model(start_landing(nlp, np.random.default_rng(0)))
+    leg = list(laws[1:4])
+    assert leg == list(config.leg.joints[1:4]) and all(law.stiffness == 3.0 and law.limits for law in leg)
+    settings = LandingSettings(tolerance=1e-2)
+    sprung = landing(tree, scene, laws, settings, SPATIAL)
+    free = landing(tree, scene, (FREE,) * 4 + tuple(laws[4:]), settings, SPATIAL)
+    assert np.max(np.abs(sprung.final_angles[1:4] - free.final_angles[1:4])) > 1e-3  # 1.1e-2 rad
+    assert assert_the_yaw_derivative(config) == tree
