@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -466,16 +467,20 @@ def test_the_balanced_length_doubles_where_the_order_allows():
     assert balanced_length(1e-3, 0.0, 2) == 2e-3
 
 
+def _data_model(name: str):
+    """A random file kept in tests/impulse_core/data, read as footopt reads it."""
+    from optimizer.config.model_file import load_model_file
+
+    return load_model_file(Path(__file__).parent / "data" / name)
+
+
 def test_bounces_of_a_driven_contact_shrink_by_restitution_to_rest():
     """Random file 12372 (data/bounce_plateau_12372.yaml: a light rod on a stiff spring, e =
     0.8) drives its contact into the ground at about 1.8e4 m/s^2 between bounces. Each bounce is
     located within 2 LOCATE_DEPTH gap tolerances of zero, where the last one left from, so the
     bounces shrink by about e and end plastic. Located 0.1..0.2 tolerances deep (the old
     window), the drive's work over that depth held them at ~1e-4 m/s: 20000 impacts by 0.5 ms."""
-    from optimizer.config.model_file import load_model_file
-    from pathlib import Path
-
-    model = load_model_file(Path(__file__).parent / "data" / "bounce_plateau_12372.yaml")
+    model = _data_model("bounce_plateau_12372.yaml")
     r = _Landing(model.tree, model.scene, model.joints, LandingSettings(max_events=300), model.space).run(5e-5)
     impulses = np.array([e.external[1] for e in r.events])
     assert len(r.events) < 60 and np.all(impulses > 0)
@@ -489,12 +494,9 @@ def test_a_sliding_contact_in_painleves_paradox_is_named():
     friction 1 where n M^-1 (n - mu u t)^T < 0 and gravity pushes it down: no contact force keeps
     it sliding on the ground (the acceleration LCP has none), so each event re-chose the same
     mode and the run stalled. It now stops saying so, naming the contact."""
-    from pathlib import Path
-
     from impulse_core.errors import NumericalError
-    from optimizer.config.model_file import load_model_file
 
-    model = load_model_file(Path(__file__).parent / "data" / "painleve_20120.yaml")
+    model = _data_model("painleve_20120.yaml")
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     with pytest.raises(NumericalError, match=r"Painleve's paradox at t = 0\.1086\d* s: contacts b0\[0\] slide"):
         run.run(run.first_step())
@@ -505,12 +507,9 @@ def test_a_divergence_through_a_singular_mass_matrix_says_so():
     they pass, in flight, a posture where the mass matrix's condition number passes 1e10 and
     spin up without bound (the kinetic energy stays 1.09 J until the step fails), at any step.
     The error says why; with 5 mm rods the same landing runs."""
-    from pathlib import Path
-
     from impulse_core.timedomain.landing import Diverged
-    from optimizer.config.model_file import load_model_file
 
-    model = load_model_file(Path(__file__).parent / "data" / "zero_radius_20069.yaml")
+    model = _data_model("zero_radius_20069.yaml")
     with pytest.raises(Diverged, match=r"diverged at t = 0\.002853 s .*mass matrix is near singular there"):
         _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space).run(2e-3)
     thick = replace(model.tree, bodies=tuple(replace(b, radius=0.005) for b in model.tree.bodies))
