@@ -161,3 +161,18 @@ def test_twin_contacts_share_the_impact_alike_in_the_landing_and_the_friction_ru
     assert np.max(np.abs(e.internal_magnitude - first.internal_magnitude)) <= 1e-9 * np.max(first.internal_magnitude)
     assert first.external[3] == pytest.approx(first.external[4], rel=1e-12) and first.external[3] > 0.1 * scale
     assert np.linalg.norm(first.tangential[3]) <= scene.friction * first.external[3] * (1 + 1e-9)
+
+
+def test_twin_contacts_reaching_the_cone_beside_a_sliding_one_slide_too():
+    """Random file 20656 (data/edge_twins_20656.yaml: two contacts at one point, on two rods
+    hinged at the tip of a third, and a third contact on one of them; friction 0.3). At 0.0181
+    s the acceleration LCP puts all three on the cone's edge with no slip acceleration; the third
+    slid, which moved its friction onto the twins, and they stuck a rounding outside the cone:
+    the run stalled ("chatters"). Contacts reaching the edge now slide until none does, and
+    the landing goes on past that instant with its momentum balance."""
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(Path(__file__).parent / "data" / "edge_twins_20656.yaml")
+    run = _Landing(model.tree, replace(model.scene, duration=0.025), model.joints, LandingSettings(), model.space)
+    r = run.run(run.first_step())
+    assert r.duration == pytest.approx(0.025) and r.momentum_balance < 1e-4  # a stall raises NumericalError

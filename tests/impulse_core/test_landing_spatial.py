@@ -515,3 +515,33 @@ def test_a_divergence_through_a_singular_mass_matrix_says_so():
     thick = replace(model.tree, bodies=tuple(replace(b, radius=0.005) for b in model.tree.bodies))
     r = _Landing(thick, model.scene, model.joints, LandingSettings(), model.space).run(2e-3)
     assert r.momentum_balance < 1e-4
+
+
+def test_resting_contacts_of_one_rigid_body_stick_where_they_can():
+    """Random file 20606 (data/redundant_stick_20606.yaml: five contacts with friction 1 on a
+    base and its welded rod, one on a hinged rod) at 0.1822 s (the kept state and mode,
+    data/redundant_stick_20606_state.json): the base is at rest and its four contacts are
+    redundant. The acceleration-level contact problem then has both answers, and Lemke's pivots
+    gave the sliding one; its least-norm forces in the mode's own solve disagreed with it and
+    the run switched slip directions at every event (4000 events at 6e-11 s each, no end in
+    240 s). The four contacts now stick (their forces inside the cone, no slip acceleration),
+    and the landing ends (10 events; tests/impulse_core/test_landing.py's laws hold on it)."""
+    import json
+
+    from impulse_core.timedomain.landing import _contact_forces, _Mode
+
+    model = _data_model("redundant_stick_20606.yaml")
+    kept = json.loads((Path(__file__).parent / "data" / "redundant_stick_20606_state.json").read_text())
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    run.first_impact()  # the run's chart
+    q, v = np.array(kept["q"]), np.array(kept["v"])
+    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
+                 np.array(kept["core"]))
+    new = run.resolve(q, v, mode)
+    base_contacts = [0, 1, 3, 4]
+    assert new.closed.all() and not new.sliding[base_contacts].any() and new.sliding[2]
+    pt = run.point(q, v)
+    rows, (a, lam) = run.mode_solution(pt, new)
+    fn, ft = _contact_forces(rows, lam, run.mu, run.nc)
+    assert np.all(fn > 0.1) and np.all(run.mu * fn[base_contacts] - np.linalg.norm(ft[base_contacts], axis=1) > 0.1 * fn[base_contacts])
+    assert np.max(np.abs((pt.Jt @ a + pt.bt)[base_contacts])) < 1e-12
