@@ -86,7 +86,9 @@ event sequence:
 
 * mu is a symbol of every operation, as theta is: the force -mu u f_n of a sliding contact, the
   sliding impact's cone edge, the step's regularisation core in space, the cone-margin witness
-  (the time a contact starts to slip). Whether mu > 0 (which rows exist) is built in.
+  (the time a contact starts to slip; the force is continuous there, so that time moves the
+  objectives only through the steps' lengths). Whether mu > 0 (which rows exist) is built in, so
+  one structure serves every positive friction.
 * the speed sets the approach, v0 = [velocity_x, -speed(, velocity_z)] and the angular velocity
   along the base's DOFs (:func:`~impulse_core.evaluate.pre_impact_velocity`, linear in it): the
   sensitivities start with dv0/dspeed, and the energy touchdown brings (``energy_absorbed``'s

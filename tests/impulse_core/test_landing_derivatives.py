@@ -268,3 +268,14 @@ def test_the_scene_values_and_their_names(gradients):
 
 def _jacobian_of(jacobian: dict) -> np.ndarray:
     return np.vstack([jacobian[k] for k in SCALARS] + [jacobian["total_external"], jacobian["final_angles"]])
+
+
+def test_one_structure_serves_every_positive_friction():
+    """mu is a symbol of the operations, not built in: landings at two positive frictions share
+    their symbolic structure, and the replay at the second is still its landing."""
+    from impulse_core.timedomain.landing_derivatives import _symbolic
+
+    tree, laws, scene = _case("friction")
+    other = replace(scene, friction=0.98)
+    assert _symbolic(taped_run(tree, scene, laws, STEP)[2], laws) is _symbolic(taped_run(tree, other, laws, STEP)[2], laws)
+    assert_replay_is_the_landing(landing_gradient(tree, other, laws, step=STEP))
