@@ -89,11 +89,11 @@ event sequence:
   (the time a contact starts to slip; the force is continuous there, so that time moves the
   objectives only through the steps' lengths). Whether mu > 0 (which rows exist) is built in, so
   one structure serves every positive friction.
-* the speed sets the approach, v0 = [velocity_x, -speed(, velocity_z)] and the angular velocity
-  along the base's DOFs (:func:`~impulse_core.evaluate.pre_impact_velocity`, linear in it): the
-  sensitivities start with dv0/dspeed, and the energy touchdown brings (``energy_absorbed``'s
-  denominator) is the kinetic energy at v0. The tolerances it scales (the slip floor,
-  1e-9 max(1, speed) m/s) are thresholds of decisions, not differentiated.
+* the speed sets the approach velocity v0 (:func:`~impulse_core.evaluate.pre_impact_velocity`:
+  the base origin's [velocity_x, -speed(, velocity_z)] and the angular velocity along the base's
+  DOFs, linear in the speed): the sensitivities start with dv0/dspeed, and the energy touchdown
+  brings (``energy_absorbed``'s denominator) is the kinetic energy at v0. The tolerances it
+  scales (the slip floor, 1e-9 max(1, speed) m/s) are thresholds of decisions, not differentiated.
 * a row's restitution is the scene's at a contact and its joint's ``stop_restitution`` at a stop,
   0 where the plastic rules zeroed it (approaching slower than
   :data:`~landing.PLASTIC_SPEED`, or a rebound shorter than the shortest bounce: the tape says
