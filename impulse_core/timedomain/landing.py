@@ -1043,8 +1043,9 @@ class _Landing:
         self.min_bounce = MIN_BOUNCE * float(scene.duration or 0.0)
         #: None, or a list that a run appends its committed operations to, in order (what
         #: :mod:`impulse_core.timedomain.landing_derivatives` replays): ("step", q, v, mode, dt,
-        #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol) and
-        #: ("project", q, v, mode); q, v are the operation's inputs.
+        #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol, plastic:
+        #: the rows whose restitution the plastic rules zeroed) and ("project", q, v, mode); q, v
+        #: are the operation's inputs.
         self.tape: list | None = None
         #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
@@ -1496,7 +1497,8 @@ class _Landing:
         approach = -u[:n]
         e = np.where(on_contact, self.e, self.joints.restitution[np.maximum(rows.dof, 0)])
         e = np.where(approach > PLASTIC_SPEED, e, 0.0)
-        e = np.where(self.bounce_time(pt, rows, e * approach) < self.min_bounce, 0.0, e)
+        plastic = (approach <= PLASTIC_SPEED) | (self.bounce_time(pt, rows, e * approach) < self.min_bounce)
+        e = np.where(plastic, 0.0, e)
         law = rigid_impact(pt, v, rows, e, self.mu, self.lemke)
         self.last_impact = law
         if self.impact_log is not None:
@@ -1505,7 +1507,7 @@ class _Landing:
         self.non_unique += not law.split_unique
         sol, v_plus, fn, ft = law.solution, law.v_plus, law.normal, law.tangential
         if self.tape is not None:
-            self.tape.append(("impact", q.copy(), v.copy(), rows, e.copy(), sol))
+            self.tape.append(("impact", q.copy(), v.copy(), rows, e.copy(), sol, plastic))
         F = contact_impulses(pt, fn, ft)
         joint = self.point(q, v_plus).momentum - pt.momentum - F @ self.in_subtree.T
         internal, magnitude = joint_impulses(joint)

@@ -2,10 +2,11 @@
 
 :func:`landing_gradient` runs the numeric landing (:mod:`impulse_core.timedomain.landing`) at the
 reported step h with a tape that records every committed operation, then replays the same
-computation operation by operation with CasADi functions symbolic in the design values theta
-(built once per mode and cached for every design of the same structure), carrying the forward
-sensitivities dz/dtheta of every quantity z by the chain rule with each operation's exact
-Jacobian (CasADi's algorithmic differentiation):
+computation operation by operation with CasADi functions symbolic in the design values theta and
+the friction coefficient (built once per mode and cached for every design of the same
+structure), carrying the forward sensitivities dz/dtheta of every quantity z (and dz/ds, s the
+scene's values: see below) by the chain rule with each operation's exact Jacobian (CasADi's
+algorithmic differentiation):
 
 * each step of the run's integrator (classical RK4, or ROS2 where the run is implicit) in its
   segment's mode (the same closed rows, slip directions and stops: M a = f + F^T lambda,
@@ -22,7 +23,8 @@ Jacobian (CasADi's algorithmic differentiation):
   the active rows fixed, the impulse solves the linear equations of that mode (a pushing row
   meets Newton's restitution, a separating row has no impulse, a sticking contact no slip, a
   sliding one its impulse on the cone's edge against the reported slip); each row's restitution
-  is the number the run used (the plastic rules are decisions of the sequence);
+  is the number the run used (the plastic rules are decisions of the sequence), an input whose
+  Jacobian carries the restitutions' derivatives;
 * the step count fixed: regular steps keep the length h, an event step is tau(theta), and the
   last step ends at T, so its length T - t(theta) moves with the event times. The derivative is
   that of the discretisation itself: central differences of the numeric landing at the same h
@@ -60,7 +62,8 @@ Outputs (:class:`LandingGradient`): ``peak_external_norm``, ``peak_internal_norm
 ``peak_max_internal`` (the event, and joint, attaining the maximum is differentiated: where
 several tie within 1e-9 relative this is the gradient of one of them, an element of the Clarke
 subdifferential, and ``ties`` says so), ``energy_absorbed``, ``total_external`` (per contact)
-and ``final_angles``. ``settled_at`` is not differentiable (a threshold crossing of |v| with
+and ``final_angles``; w.r.t. theta in ``jacobian`` and w.r.t. the scene's values in
+``scene_jacobian``. ``settled_at`` is not differentiable (a threshold crossing of |v| with
 linear interpolation, constant where the landing never settles): it is not offered.
 
 theta (:func:`design_names`): the tree's design vector (:func:`~impulse_core.model.tree.design_vector`:
@@ -73,8 +76,35 @@ derivative w.r.t. its angle carries it and the rest entry's is 0; a joint withou
 derivatives for its limit entries (their values are reported as 0). The touchdown height
 follows the lowest contact (where several are lowest, the first: a one-sided derivative; on a
 foot whose tips a search keeps level, the sides differ by a combination of the level-tip
-constraints' gradients, which the constraints' multipliers absorb). Restitution, friction,
-speed and stop restitution are scene constants here.
+constraints' gradients, which the constraints' multipliers absorb).
+
+The scene's values s (:func:`scene_names`, :func:`scene_theta`; the derivatives in
+:attr:`LandingGradient.scene_jacobian`, laid out as ``jacobian``): ``friction`` (mu), ``speed``,
+``restitution``, then per revolute joint its law's ``stop_restitution`` (a study's foot joints
+share one: its derivative is the sum of theirs; 0 for a joint that hits no stop), along the same
+event sequence:
+
+* mu is a symbol of every operation, as theta is: the force -mu u f_n of a sliding contact, the
+  sliding impact's cone edge, the step's regularisation core in space, the cone-margin witness
+  (the time a contact starts to slip; the force is continuous there, so that time moves the
+  objectives only through the steps' lengths). Whether mu > 0 (which rows exist) is built in, so
+  one structure serves every positive friction.
+* the speed sets the approach velocity v0 (:func:`~impulse_core.evaluate.pre_impact_velocity`:
+  the base origin's [velocity_x, -speed(, velocity_z)] and the angular velocity along the base's
+  DOFs, linear in the speed): the sensitivities start with dv0/dspeed, and the energy touchdown
+  brings (``energy_absorbed``'s denominator) is the kinetic energy at v0. The tolerances it
+  scales (the slip floor, 1e-9 max(1, speed) m/s) are thresholds of decisions, not differentiated.
+* a row's restitution is the scene's at a contact and its joint's ``stop_restitution`` at a stop,
+  0 where the plastic rules zeroed it (approaching slower than
+  :data:`~landing.PLASTIC_SPEED`, or a rebound shorter than the shortest bounce: the tape says
+  which rows): there its derivative is 0.
+
+Not sound for the scene's values where a decision sits on its threshold: a row at the plastic
+rules' (approach speed 1e-4 m/s, bounce time), a restitution of 0 (a row whose free
+acceleration pulls it away rests after a plastic impact but leaves after any e > 0: the
+derivative is that of the plastic run; where every such row is pushed back, the plastic rule
+keeps zeroing it for small e and the derivative is the one from above), and friction at 0 (a
+frictionless scene has no friction rows: its friction column is NaN, not a derivative).
 
 Sound where: the event sequence is locally constant, i.e. away from grazing touchdowns, ties of
 event times, and ties inside the impact law (a row on the edge between two modes). Redundant
@@ -122,6 +152,9 @@ TIE = 1e-9
 LAW_VALUES = ("stiffness", "damping", "rest", "limits[0]", "limits[1]")
 #: The scalar objectives, in the order of :attr:`LandingGradient.values`.
 SCALARS = ("peak_external_norm", "peak_internal_norm", "peak_max_internal", "energy_absorbed")
+#: The scene's values differentiated (:attr:`LandingGradient.scene_jacobian`), before each revolute
+#: joint's stop restitution (:func:`scene_names`).
+SCENE_VALUES = ("friction", "speed", "restitution")
 
 
 @dataclass(frozen=True)
@@ -135,6 +168,11 @@ class LandingGradient:
             per entry for the arrays).
         theta: the design values differentiated (:func:`design_names` order).
         names: their names.
+        scene_jacobian: objective name -> derivative w.r.t. the landing's conditions
+            ``scene_theta`` (as ``jacobian``; the friction column NaN in a frictionless scene).
+        scene_theta: the scene's friction, speed and restitution, then each revolute joint's
+            stop restitution (:func:`scene_theta`).
+        scene_names: their names (:func:`scene_names`).
         sequence: the event sequence and step counts the derivative holds along
             (:func:`sequence_signature`).
         peak_events: objective -> (event index, joint index or -1) whose value is the peak.
@@ -153,6 +191,9 @@ class LandingGradient:
     ties: dict
     result: LandingResult
     timings: dict
+    scene_jacobian: dict
+    scene_theta: np.ndarray
+    scene_names: tuple[str, ...]
 
 
 def _joint_dofs(tree: Tree, space: Space = PLANAR) -> list[tuple[int, int]]:
@@ -181,6 +222,20 @@ def design_theta(tree: Tree, laws: tuple[JointLaw, ...], space: Space = PLANAR) 
         lo, hi = law.limits if law.limits is not None else (0.0, 0.0)
         extra += [law.stiffness, law.damping, tree.bodies[b].angle if law.rest is None else law.rest, lo, hi]
     return np.concatenate([design_vector(tree, body_values(tree, space)), np.array(extra, dtype=float)])
+
+
+def scene_names(tree: Tree, space: Space = PLANAR) -> tuple[str, ...]:
+    """Names of the landing's conditions differentiated: :data:`SCENE_VALUES`, then per revolute
+    joint its law's ``stop_restitution`` (``<body>.stop_restitution``)."""
+    return SCENE_VALUES + tuple(f"{tree.bodies[b].name}.stop_restitution" for b, _ in _joint_dofs(tree, space))
+
+
+def scene_theta(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], space: Space = PLANAR) -> np.ndarray:
+    """The values of :func:`scene_names`: the scene's friction, speed and restitution, each joint
+    law's stop restitution."""
+    laws = laws or (FREE,) * tree.n_bodies
+    stops = [laws[b].stop_restitution for b, _ in _joint_dofs(tree, space)]
+    return np.array([scene.friction, scene.speed, scene.restitution, *stops], dtype=float)
 
 
 def apply_theta(tree: Tree, laws: tuple[JointLaw, ...], theta: np.ndarray, space: Space = PLANAR
@@ -235,16 +290,18 @@ def _mode_key(mode: _Mode) -> tuple:
     return (tuple(int(x) for x in mode.closed), tuple(int(x) for x in slip), tuple(int(x) for x in mode.stop))
 
 
-def _moving(mode: _Mode, mu: float) -> np.ndarray:
+def _moving(mode: _Mode, frictional: bool) -> np.ndarray:
     """Per contact: closed and sliding with friction (its force turns with the slip in space)."""
-    return mode.closed & mode.sliding if mu > 0 else np.zeros(len(mode.closed), bool)
+    return mode.closed & mode.sliding if frictional else np.zeros(len(mode.closed), bool)
 
 
 class _Symbolic:
     """The landing's operations as CasADi functions of (x = [q; v], theta, ...), built once per
-    mode or impact and cached. In space the operations of a mode with sliding contacts also take
-    d, the slip directions the mode carries (n_c x 2 flattened, :attr:`_Mode.slip`), and a step
-    returns its regularisation core (:meth:`_Landing.steer`)."""
+    mode or impact and cached. Their theta is the design values' followed by the friction
+    coefficient mu (:attr:`mu`, symbolic like them; whether it is positive, which decides the
+    rows, is built in: :attr:`frictional`). In space the operations of a mode with sliding
+    contacts also take d, the slip directions the mode carries (n_c x 2 flattened,
+    :attr:`_Mode.slip`), and a step returns its regularisation core (:meth:`_Landing.steer`)."""
 
     def __init__(self, run: _Landing, laws: tuple[JointLaw, ...]) -> None:
         self.run = run
@@ -259,12 +316,13 @@ class _Symbolic:
         self.dofs = _joint_dofs(tree, run.space)
         self.n_theta = self.n_p + len(LAW_VALUES) * len(self.dofs)
         self.laws = laws or (FREE,) * tree.n_bodies
-        self.mu, self.gravity = run.mu, run.scene.gravity
+        self.frictional, self.gravity = run.mu > 0, run.scene.gravity
         self.floor = run.speed_tol  # below this slip speed a sliding contact keeps its direction d
         self.S = subtree_incidence(tree)
         self.cache: dict = {}
         self.x = ca.SX.sym("x", 2 * self.nv)
-        self.th = ca.SX.sym("theta", self.n_theta)
+        self.th = ca.SX.sym("theta", self.n_theta + 1)  # the design values, then mu
+        self.mu = self.th[self.n_theta]
         self.d = ca.SX.sym("d", self.nt * self.nc)  # space: the carried slip directions
 
     # ---- pieces of theta
@@ -317,7 +375,7 @@ class _Symbolic:
         """Per contact, the unit direction its sliding friction opposes (a list of n_t entries), or
         None: the plane's +-1; in space :func:`landing.slip_direction` of the slip at ``pt``, the
         carried direction ``d`` and the step's ``core``."""
-        moving = _moving(mode, self.mu)
+        moving = _moving(mode, self.frictional)
         out: list = [None] * self.nc
         for i in np.flatnonzero(moving):
             if self.planar:
@@ -333,8 +391,8 @@ class _Symbolic:
         contacts = np.asarray(contacts, int)
         dofs = np.flatnonzero(stops)
         mu = self.mu
-        sliding = sliding[contacts] if mu > 0 else np.zeros(len(contacts), bool)
-        sticking = contacts[~sliding] if mu > 0 else contacts[:0]
+        sliding = sliding[contacts] if self.frictional else np.zeros(len(contacts), bool)
+        sticking = contacts[~sliding] if self.frictional else contacts[:0]
         G_stop = np.zeros((len(dofs), self.nv))
         G_stop[np.arange(len(dofs)), dofs] = -stops[dofs]
         Jn, Jt = pt["Jn"], pt["Jt"]
@@ -353,7 +411,7 @@ class _Symbolic:
             np.zeros((0, 0)), np.zeros((0, 0)), np.zeros(0),
             np.concatenate([contacts, -np.ones(len(dofs), int)]),
             np.concatenate([-np.ones(len(contacts), int), dofs]),
-            np.searchsorted(contacts, sticking), np.full(len(sticking), mu),
+            np.searchsorted(contacts, sticking), np.full(len(sticking), np.nan),  # mu: symbolic (self.mu)
         )
         return G, F, b, info
 
@@ -374,7 +432,7 @@ class _Symbolic:
             a = a0 + minv_ft @ lam
         return a, lam, self.contact_forces(info, lam, u, self.mu), info
 
-    def contact_forces(self, info: _Rows, lam: ca.SX, u: list, mu: float) -> ca.SX:
+    def contact_forces(self, info: _Rows, lam: ca.SX, u: list, mu: ca.SX | float) -> ca.SX:
         """[fn; ft (first tangent of every contact, then the second's)] of the rows' multipliers;
         a contact with a direction in ``u`` has -mu u fn."""
         fn = [ca.SX(0)] * self.nc
@@ -442,7 +500,7 @@ class _Symbolic:
         normal force with the exact direction at the step's start, w the trace of its tangential
         inverse mass), 0 elsewhere and in the plane."""
         core = ca.SX.zeros(self.nc)
-        moving = np.flatnonzero(_moving(mode, self.mu))
+        moving = np.flatnonzero(_moving(mode, self.frictional))
         if self.planar or not len(moving):
             return core
         pt = self.point(q, v, th)
@@ -681,8 +739,9 @@ class _Symbolic:
         return self.cache[key]
 
     def touchdown(self, lowest: int, lowest_x: float) -> _Op:
-        """theta -> (q0, kinetic energy before, com height at q0, total mass); the contact
-        ``lowest`` (at x = ``lowest_x`` at theta*) sets the touchdown height."""
+        """(theta, v0) -> (q0, kinetic energy before at the approach's velocity v0, com height at
+        q0, total mass); the contact ``lowest`` (at x = ``lowest_x`` at theta*) sets the touchdown
+        height."""
         key = ("touchdown", lowest)
         if key not in self.cache:
             th = self.th
@@ -697,7 +756,7 @@ class _Symbolic:
             for b in range(1, self.tree.n_bodies):
                 if layout.body_dof[b] is not None:
                     q[layout.body_dof[b]] = self.angle(th, b)
-            v = ca.DM(pre_impact_velocity(run.topology, run.scene, run.space))
+            v = ca.SX.sym("v0", self.nv)
             C = self.fn(q, v, th[: self.n_p], self.gravity)[9]
             x, y = C[0, lowest], C[1, lowest]
             if self.planar:
@@ -708,7 +767,7 @@ class _Symbolic:
             q[1] = TOUCHDOWN_CLEARANCE - (y - ground)
             pt = self.point(q, v, th)
             mass = sum(th[len(self.values) * b + self.values.index("mass")] for b in range(self.tree.n_bodies))
-            self.cache[key] = _Op("touchdown", [th], [q, pt["kinetic"], pt["com"], mass])
+            self.cache[key] = _Op("touchdown", [th, v], [q, pt["kinetic"], pt["com"], mass])
         return self.cache[key]
 
     def final(self) -> _Op:
@@ -860,12 +919,13 @@ _SYMBOLIC: dict = {}
 
 def _symbolic(run: _Landing, laws: tuple[JointLaw, ...]) -> _Symbolic:
     """The symbolic operations of a run, shared by every run whose structure is the same (the
-    design values are symbols; which rests follow the angle and which joints have stops, the
-    ground, friction, gravity and the approach are built in): a search that lands many designs
-    of one topology builds each mode's functions, and CasADi their derivatives, once."""
+    design values and the friction coefficient are symbols; which rests follow the angle and
+    which joints have stops, the ground, whether there is friction, gravity and the approach are
+    built in): a search that lands many designs of one topology builds each mode's functions,
+    and CasADi their derivatives, once."""
     laws = laws or (FREE,) * run.tree.n_bodies
     scene = run.scene
-    key = (run.topology, run.space, scene.terrain, scene.heightfield, run.mu, scene.gravity, scene.base_x, scene.base_z,
+    key = (run.topology, run.space, scene.terrain, scene.heightfield, run.mu > 0, scene.gravity, scene.base_x, scene.base_z,
            scene.velocity, scene.angular_velocity_3d, tuple(law.rest is None for law in laws),
            tuple(law.limits is None for law in laws))
     if key not in _SYMBOLIC:
@@ -910,7 +970,7 @@ def _signature(entry: tuple, run: _Landing) -> tuple | None:
         _, q, v, mode, tau, watch = entry
         return ("event", _mode_key(mode), _crossing(run, q, v, mode, tau, watch))
     if kind == "impact":
-        _, q, v, rows, e, sol = entry
+        _, q, v, rows, e, sol, _ = entry
         return ("impact", tuple(int(c) for c in rows.contact), tuple(int(d) for d in rows.dof),
                 tuple(float(z) == 0 for z in e), _impact_modes(rows, sol, _approach_speed(rows, v)))
     return None
@@ -972,9 +1032,10 @@ def landing_gradient(
     step: float | None = None,
     space: Space = PLANAR,
 ) -> LandingGradient:
-    """The landing's objectives and their exact derivatives w.r.t. theta (module docstring) along
-    the event sequence of the run at ``step`` (None: the step :func:`landing` reports at
-    ``settings``, which costs that landing first), in the plane or in ``space``.
+    """The landing's objectives and their exact derivatives w.r.t. theta and the scene's values
+    (module docstring) along the event sequence of the run at ``step`` (None: the step
+    :func:`landing` reports at ``settings``, which costs that landing first), in the plane or in
+    ``space``.
 
     Raises:
         ModelError: as :func:`landing`.
@@ -984,12 +1045,19 @@ def landing_gradient(
     """
     t0 = time.perf_counter()
     theta = design_theta(tree, laws, space)
+    conditions = scene_theta(tree, scene, laws, space)
     if step is None:
         step = landing(tree, scene, laws, settings, space).step
     result, tape, run = taped_run(tree, scene, laws, step, settings, space)
     t1 = time.perf_counter()
     sym = _symbolic(run, laws)
     nc, nv, n_theta, dims = sym.nc, sym.nv, sym.n_theta, sym.dims
+    # the operations' parameters: theta, then mu; the sensitivities' columns: theta, then the
+    # scene's values (:func:`scene_names`: mu first, so an operation's parameter columns lead)
+    p = np.append(theta, run.mu)
+    n = n_theta + len(conditions)
+    speed_col, restitution_col = n_theta + SCENE_VALUES.index("speed"), n_theta + SCENE_VALUES.index("restitution")
+    stop_col = {j: n_theta + len(SCENE_VALUES) + i for i, (_, j) in enumerate(sym.dofs)}
 
     # touchdown: the lowest contact (the first where several tie) sets the height
     geometry = run.point(np.array([run.q0[0], 0.0, *run.q0[2:]]), np.zeros(nv)).contacts
@@ -1002,17 +1070,21 @@ def landing_gradient(
 
         clearance = clearance_above(sym.ground, geometry)
     lowest = int(np.argmin(clearance))
-    (q0, e_before, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(theta)
-    d_e_before, d_height0, d_mass = J[1][0], J[2][0], J[3][0]  # 1 x n_theta each
-    # forward sensitivities: each quantity z carries dz/dtheta (rows: its entries)
-    x = np.concatenate([q0, pre_impact_velocity(run.topology, scene, run.space)])
-    S = np.vstack([J[0][0], np.zeros((nv, n_theta))])
-    totals, S_totals = np.zeros(dims * nc), np.zeros((dims * nc, n_theta))
+    v0 = pre_impact_velocity(run.topology, scene, run.space)
+    dv0 = pre_impact_velocity(run.topology, Scene(speed=1.0), run.space)  # d v0 / d speed (v0 is linear in it)
+    (q0, e_before, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(p, v0)
+    d_e_before, d_height0, d_mass = (_lift(Jo[0], n) for Jo in J[1:])  # 1 x n each
+    d_e_before[0, speed_col] += float((J[1][1] @ dv0)[0])
+    # forward sensitivities: each quantity z carries dz/d(theta, scene values) (rows: its entries)
+    x = np.concatenate([q0, v0])
+    S = np.vstack([_lift(J[0][0], n), np.zeros((nv, n))])
+    S[nv:, speed_col] = dv0
+    totals, S_totals = np.zeros(dims * nc), np.zeros((dims * nc, n))
     # space: the slip directions the mode carries, and the last step's core (:meth:`_Landing.steer`)
     nd = sym.nt * nc
-    d, S_d = np.zeros(nd), np.zeros((nd, n_theta))
-    core, S_core = np.zeros(nc), np.zeros((nc, n_theta))
-    t, dt = 0.0, np.zeros(n_theta)
+    d, S_d = np.zeros(nd), np.zeros((nd, n))
+    core, S_core = np.zeros(nc), np.zeros((nc, n))
+    t, dt = 0.0, np.zeros(n)
     T = float(scene.duration)
     events = []  # per impact: (fn, d fn, joint impulses, their derivative)
     signature = []
@@ -1021,7 +1093,7 @@ def landing_gradient(
 
     def chain(J: list, dh: np.ndarray | None = None) -> np.ndarray:
         """An output's derivative from its Jacobians w.r.t. (x, theta[, h][, d])."""
-        out = J[0] @ S + J[1]
+        out = _ahead(J[0], S, J[1])
         if dh is not None:
             out = out + np.outer(J[2], dh)
         return out if run.planar else out + J[-1] @ S_d
@@ -1040,17 +1112,17 @@ def landing_gradient(
                 _check_rows(run, q, v, mode)
                 checked.add(_mode_key(mode))
             if not run.planar:
-                _check_directions(mode, d, run.mu)
+                _check_directions(mode, d, run.mu > 0)
             extra = [] if run.planar else [d]
             if kind == "step":
                 _, q, v, mode, h, final = entry
-                h, dh = (T - t, -dt) if final else (h, np.zeros(n_theta))
+                h, dh = (T - t, -dt) if final else (h, np.zeros(n))
             else:
                 _, q, v, mode, tau, watch = entry
                 index, sign = item[2]
                 op = sym.event_witness(mode, index, sign, run.method)
-                (c,), _ = op(np.concatenate([q, v]), theta, tau, *extra)
-                (w,), Jw = op(x, theta, tau, *extra)
+                (c,), _ = op(np.concatenate([q, v]), p, tau, *extra)
+                (w,), Jw = op(x, p, tau, *extra)
                 rate = float(Jw[0][2][0, 0])
                 if rate == 0 or not math.isfinite(rate):
                     raise NumericalError("an event's witness does not cross (a graze): no derivative of its time")
@@ -1058,23 +1130,28 @@ def landing_gradient(
                 # Newton correction; its derivative is the implicit function theorem's)
                 h = tau - float(w[0] - c[0]) / rate
                 dh = -chain(Jw[0])[0] / rate
-            outs, J = sym.step(mode, run.method)(x, theta, h, *extra)
+            outs, J = sym.step(mode, run.method)(x, p, h, *extra)
             S_totals = S_totals + chain(J[1], dh)
             if not run.planar:
                 core, S_core = outs[2], chain(J[2], dh)
             S = chain(J[0], dh)
             x, totals, t, dt = outs[0], totals + outs[1], t + h, dt + dh
         elif kind == "impact":
-            _, q, v, rows, e, sol = entry
+            _, q, v, rows, e, sol, plastic = entry
             star = [] if run.planar else [np.concatenate([sol.normal, sol.tangential])]
-            outs, J = sym.impact(rows, e, item[4])(x, theta, e, *star)
+            outs, J = sym.impact(rows, e, item[4])(x, p, e, *star)
             v_plus, fn, ft, joint = outs[:4]
             if star:  # the run's impulse meets the mode's equations at the run's own state (not its polyhedral answer)
-                lam = np.asarray(sym.impact(rows, e, item[4]).f(np.concatenate([q, v]), theta, e, star[0])[4]).ravel()
+                lam = np.asarray(sym.impact(rows, e, item[4]).f(np.concatenate([q, v]), p, e, star[0])[4]).ravel()
                 if np.max(np.abs(lam - star[0]), initial=0.0) > 1e-6 * max(np.max(np.abs(star[0])), 1e-300):
                     raise NumericalError("an impact off the circular cone's exact law (its polyhedral answer): "
                                          "no derivative")
-            d_out = [Jo[0] @ S + Jo[1] for Jo in J]
+            # each row's restitution: the scene's (a contact) or its joint's stop restitution, 0
+            # where the plastic rules zeroed it (a decision of the sequence)
+            de = np.zeros((rows.n, n))
+            for r in np.flatnonzero(~plastic):
+                de[r, restitution_col if rows.contact[r] >= 0 else stop_col[int(rows.dof[r])]] = 1.0
+            d_out = [_ahead(Jo[0], S, Jo[1]) + Jo[2] @ de for Jo in J]
             x = np.concatenate([x[:nv], v_plus])
             S = np.vstack([S[:nv], d_out[0]])
             totals = totals + np.concatenate([fn, ft])
@@ -1083,22 +1160,22 @@ def landing_gradient(
         elif kind == "project":
             _, q, v, mode = entry
             if not run.planar and previous != "step":  # an event chose this mode: its slip directions
-                d, S_d = _event_directions(sym, run.point(q, v).slip, mode, x, theta, d, S, S_d)
+                d, S_d = _event_directions(sym, run.point(q, v).slip, mode, x, p, d, S, S_d)
             place, _ = run.placement(run.point(q, v), q, mode)
             lifted = tuple(int(i) for i in np.flatnonzero(place.closed & ~mode.closed))
             put_back = np.where(mode.stop == 0, place.stop, 0)
             beyond = tuple(int(b) for b in put_back) if np.any(put_back) else ()
-            (x1, imp), J = sym.project(mode, lifted, beyond)(x, theta)
-            S_totals = S_totals + J[1][0] @ S + J[1][1]
-            S = J[0][0] @ S + J[0][1]
+            (x1, imp), J = sym.project(mode, lifted, beyond)(x, p)
+            S_totals = S_totals + _ahead(J[1][0], S, J[1][1])
+            S = _ahead(J[0][0], S, J[0][1])
             x, totals = x1, totals + imp
-            if not run.planar and previous == "step" and np.any(_moving(mode, run.mu)):
-                (d1,), Jf = sym.follow(mode)(x, theta, d, core)
-                S_d = Jf[0][0] @ S + Jf[0][1] + Jf[0][2] @ S_d + Jf[0][3] @ S_core
+            if not run.planar and previous == "step" and np.any(_moving(mode, run.mu > 0)):
+                (d1,), Jf = sym.follow(mode)(x, p, d, core)
+                S_d = _ahead(Jf[0][0], S, Jf[0][1]) + Jf[0][2] @ S_d + Jf[0][3] @ S_core
                 d = d1
         previous = kind
-    (energy, com, angles), J = sym.final()(x, theta)
-    d_energy, d_com, d_angles = (Jo[0] @ S + Jo[1] for Jo in J)
+    (energy, com, angles), J = sym.final()(x, p)
+    d_energy, d_com, d_angles = (_ahead(Jo[0], S, Jo[1]) for Jo in J)
     brought = e_before[0] + float(mass[0]) * scene.gravity * (height0[0] - com[0])
     d_brought = d_e_before[0] + scene.gravity * (d_mass[0] * (height0[0] - com[0]) + float(mass[0]) * (d_height0[0] - d_com[0]))
     absorbed = 1.0 - energy[0] / brought
@@ -1115,8 +1192,8 @@ def landing_gradient(
         chosen[name] = i
 
     def norm_and_derivative(z: np.ndarray, dz: np.ndarray) -> tuple[float, np.ndarray]:
-        n = float(np.linalg.norm(z))
-        return n, (z @ dz) / n if n > 0 else np.zeros(n_theta)
+        size = float(np.linalg.norm(z))
+        return size, (z @ dz) / size if size > 0 else np.zeros(n)
 
     fn, d_fn, _, _ = events[chosen["peak_external_norm"]]
     peak_ext = norm_and_derivative(fn, d_fn)
@@ -1126,28 +1203,50 @@ def landing_gradient(
     magnitudes = result.events[chosen["peak_max_internal"]].internal_magnitude
     j = int(np.argmax(magnitudes)) if magnitudes.size else -1
     peak_max = (norm_and_derivative(joint[dims * j : dims * (j + 1)], d_joint[dims * j : dims * (j + 1)]) if j >= 0
-                else (0.0, np.zeros(n_theta)))
+                else (0.0, np.zeros(n)))
     peak_events = {"peak_external_norm": (chosen["peak_external_norm"], -1),
                    "peak_internal_norm": (chosen["peak_internal_norm"], -1),
                    "peak_max_internal": (chosen["peak_max_internal"], j)}
     out = np.concatenate([[peak_ext[0], peak_int[0], peak_max[0], absorbed], totals[:nc], angles])
     jac = np.vstack([peak_ext[1], peak_int[1], peak_max[1], d_absorbed, S_totals[:nc], d_angles])
+    if run.mu == 0:  # frictionless: the rows friction would add are not there (module docstring)
+        jac[:, n_theta + SCENE_VALUES.index("friction")] = np.nan
     t2 = time.perf_counter()
-    values, jacobian = {}, {}
-    for k, name in enumerate(SCALARS):
-        values[name], jacobian[name] = float(out[k]), jac[k].copy()
-    values["total_external"], jacobian["total_external"] = out[4 : 4 + nc].copy(), jac[4 : 4 + nc].copy()
-    values["final_angles"], jacobian["final_angles"] = out[4 + nc :].copy(), jac[4 + nc :].copy()
+    values, jacobian, scene_jacobian = {}, {}, {}
+    rows_of = {name: k for k, name in enumerate(SCALARS)}
+    rows_of["total_external"] = slice(4, 4 + nc)
+    rows_of["final_angles"] = slice(4 + nc, len(out))
+    for name, k in rows_of.items():
+        value = out[k]
+        values[name] = float(value) if isinstance(k, int) else value.copy()
+        jacobian[name], scene_jacobian[name] = jac[k, :n_theta].copy(), jac[k, n_theta:].copy()
     return LandingGradient(
         values=values, jacobian=jacobian, theta=theta, names=design_names(tree, space), sequence=tuple(signature),
         peak_events=peak_events, ties=ties, result=result,
         timings={"run": t1 - t0, "sensitivities": t2 - t1},
+        scene_jacobian=scene_jacobian, scene_theta=conditions, scene_names=scene_names(tree, space),
     )
 
 
-def _check_directions(mode: _Mode, d: np.ndarray, mu: float) -> None:
+def _ahead(Jx: np.ndarray, S: np.ndarray, Jp: np.ndarray) -> np.ndarray:
+    """An output's derivative ``Jx S + Jp``: S the sensitivities of the operation's input x (its
+    columns theta, then the scene's values), ``Jp`` its Jacobian w.r.t. its parameters (theta,
+    then mu: the leading columns)."""
+    out = Jx @ S
+    out[:, : Jp.shape[1]] += Jp
+    return out
+
+
+def _lift(Jp: np.ndarray, n: int) -> np.ndarray:
+    """A Jacobian w.r.t. an operation's parameters as ``n`` sensitivity columns (:func:`_ahead`)."""
+    out = np.zeros((Jp.shape[0], n))
+    out[:, : Jp.shape[1]] = Jp
+    return out
+
+
+def _check_directions(mode: _Mode, d: np.ndarray, frictional: bool) -> None:
     """The carried slip directions are the run's (space): else the replay has missed a rule."""
-    moving = _moving(mode, mu)
+    moving = _moving(mode, frictional)
     gap = np.abs(mode.slip[moving] - d.reshape(mode.slip.shape)[moving])
     # a missed rule differs at O(1); an ill-conditioned event time (a slow touchdown) moves the
     # replayed state, and with it d, by more than rounding
@@ -1155,14 +1254,14 @@ def _check_directions(mode: _Mode, d: np.ndarray, mu: float) -> None:
         raise NumericalError(f"a sliding contact's direction differs from the run's by {np.max(gap):.1e}: not replayed")
 
 
-def _event_directions(sym: _Symbolic, slip: np.ndarray, mode: _Mode, x: np.ndarray, theta: np.ndarray, d: np.ndarray,
+def _event_directions(sym: _Symbolic, slip: np.ndarray, mode: _Mode, x: np.ndarray, p: np.ndarray, d: np.ndarray,
                       S: np.ndarray, S_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The slip directions (and their derivatives) of a mode that an event chose (space): each
     sliding contact's is the one it carried (the mode persisted), its slip's s / |s| at the event
     (``slip``, the run's at x), or the fixed point of a contact starting to slide
     (:meth:`_Symbolic.new_directions`); the others take the run's (no effect)."""
     target = mode.slip.reshape(-1)
-    moving = _moving(mode, sym.mu)
+    moving = _moving(mode, sym.frictional)
     nt = sym.nt
     d_in, S_in = d.copy(), S_d.copy()
     kinds = []
@@ -1179,11 +1278,11 @@ def _event_directions(sym: _Symbolic, slip: np.ndarray, mode: _Mode, x: np.ndarr
         d_in[at], S_in[at] = target[at], 0.0
     if not np.any(moving):
         return d_in, S_in
-    (d_out,), J = sym.new_directions(mode, tuple(kinds))(x, theta, d_in)
+    (d_out,), J = sym.new_directions(mode, tuple(kinds))(x, p, d_in)
     if np.max(np.abs(d_out - target)) > 1e-6:
         raise NumericalError("a contact starting to slide in space whose direction is not the circular cone's "
                              f"(off by {np.max(np.abs(d_out - target)):.1e}): no derivative")
-    return d_out, J[0][0] @ S + J[0][1] + J[0][2] @ S_in
+    return d_out, _ahead(J[0][0], S, J[0][1]) + J[0][2] @ S_in
 
 
 def _check_rows(run: _Landing, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:
@@ -1199,5 +1298,6 @@ def _check_rows(run: _Landing, q: np.ndarray, v: np.ndarray, mode: _Mode) -> Non
                                  "so it has no derivative")
 
 
-__all__ = ["LAW_VALUES", "apply_theta", "body_values", "SCALARS", "LandingGradient", "design_names", "design_theta", "landing_gradient",
+__all__ = ["LAW_VALUES", "apply_theta", "body_values", "SCALARS", "SCENE_VALUES", "LandingGradient", "design_names",
+           "design_theta", "landing_gradient", "scene_names", "scene_theta",
            "sequence_signature", "taped_run"]

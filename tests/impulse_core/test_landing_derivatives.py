@@ -9,7 +9,10 @@ springs, dampers and gravity. For each:
 - the replayed graph's values equal the numeric landing's (same step) to 1e-10;
 - the exact derivatives agree with central differences of the numeric landing at the same step,
   along seeded random directions over lengths, masses, angles and joint-law values, where the
-  event sequence (modes, event witnesses, impact modes, step counts) is the same at +- the step.
+  event sequence (modes, event witnesses, impact modes, step counts) is the same at +- the step;
+- so do the derivatives w.r.t. the scene's values (friction, speed, restitution) and a joint's
+  stop restitution, one at a time (the friction case: sliding and sticking, restitution 0.07 with
+  rows the plastic rules zero; the stop leg: the knee's stop hit at stop restitution 0.3).
 """
 
 from __future__ import annotations
@@ -29,6 +32,8 @@ from impulse_core.timedomain.landing_derivatives import (
     design_names,
     design_theta,
     landing_gradient,
+    scene_names,
+    scene_theta,
     sequence_signature,
     taped_run,
 )
@@ -38,6 +43,9 @@ G = 9.81
 STEP = 5e-4
 #: Central differences' step, relative to max(1, |theta_i|) along the direction.
 EPS = 1e-6
+#: Central differences' step for a scene value (absolute): at EPS the rounding of the objectives
+#: (1e-10 relative) is 1e-4 of the smallest restitution derivatives.
+SCENE_EPS = 1e-5
 
 
 def _stop_leg() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
@@ -94,7 +102,7 @@ def _objectives(tree, laws, scene, theta) -> tuple[np.ndarray, tuple]:
 
 
 def _jacobian(g) -> np.ndarray:
-    return np.vstack([g.jacobian[k] for k in SCALARS] + [g.jacobian["total_external"], g.jacobian["final_angles"]])
+    return _jacobian_of(g.jacobian)
 
 
 def _searched(g) -> np.ndarray:
@@ -210,3 +218,64 @@ def test_centres_of_mass_off_the_rods_are_design_values(gradients):
     assert "thigh.com_y" in g.names and not any(n.endswith("com_y") for n in gradients["stop"].names)
     J = _jacobian(g)
     assert np.max(np.abs(J[:, g.names.index("thigh.com_y")])) > 1e-3 * np.max(np.abs(J))
+
+
+def moved_scene(tree: Tree, laws: tuple[JointLaw, ...], scene: Scene, name: str, h: float
+                ) -> tuple[Scene, tuple[JointLaw, ...]]:
+    """The scene and laws with the scene value ``name`` (:func:`scene_names`) moved by ``h``."""
+    if "." not in name:
+        return replace(scene, **{name: getattr(scene, name) + h}), laws
+    b = [body.name for body in tree.bodies].index(name.split(".")[0])
+    out = list(laws)
+    out[b] = replace(out[b], stop_restitution=out[b].stop_restitution + h)
+    return scene, tuple(out)
+
+
+@pytest.mark.parametrize(("name", "value"), [("friction", "friction"), ("friction", "speed"), ("friction", "restitution"),
+                                             ("stop", "speed"), ("stop", "restitution"), ("stop", "shank.stop_restitution")])
+def test_scene_derivatives_agree_with_central_differences(gradients, name, value):
+    """Along one scene value: its column of the scene Jacobian against central differences of the
+    numeric landing at the same step, the event sequence unchanged at both ends."""
+    tree, laws, scene = _case(name)
+    g = gradients[name]
+    i = g.scene_names.index(value)
+    column = _jacobian_of(g.scene_jacobian)[:, i]
+    assert np.max(np.abs(column)) > 1e-3
+    ends = []
+    for h in (SCENE_EPS, -SCENE_EPS):
+        s, l = moved_scene(tree, laws, scene, value, h)
+        r, tape, run = taped_run(tree, s, l, STEP)
+        assert sequence_signature(tape, run) == g.sequence
+        ends.append(np.concatenate([[getattr(r, k) for k in SCALARS], r.total_external, r.final_angles]))
+    fd = (ends[0] - ends[1]) / (2 * SCENE_EPS)
+    assert np.all(np.abs(fd - column) <= 1e-4 * np.maximum(np.abs(column), 1e-6)), np.abs(fd - column) / np.abs(column)
+
+
+def test_the_scene_values_and_their_names(gradients):
+    """Friction, speed, restitution, then each joint's stop restitution; a joint that never hits a
+    stop has 0 derivatives, and a frictionless scene's friction column is NaN (not a derivative:
+    friction's rows are not there)."""
+    tree, laws, scene = _stop_leg()
+    g = gradients["stop"]
+    assert g.scene_names == scene_names(tree) == ("friction", "speed", "restitution", "shank.stop_restitution",
+                                                  "toe.stop_restitution", "heel.stop_restitution")
+    assert np.array_equal(g.scene_theta, scene_theta(tree, scene, laws)) and list(g.scene_theta) == [0.0, 2.0, 0.3, 0.3, 0.0, 0.0]
+    J = _jacobian_of(g.scene_jacobian)
+    assert np.all(np.isnan(J[:, 0])) and np.all(J[:, 4:] == 0) and np.all(np.isfinite(J[:, 1:]))
+    assert np.all(np.isfinite(_jacobian_of(gradients["friction"].scene_jacobian)))
+    assert g.jacobian["final_angles"].shape == (len(g.values["final_angles"]), len(g.theta))  # theta's as before
+
+
+def _jacobian_of(jacobian: dict) -> np.ndarray:
+    return np.vstack([jacobian[k] for k in SCALARS] + [jacobian["total_external"], jacobian["final_angles"]])
+
+
+def test_one_structure_serves_every_positive_friction():
+    """mu is a symbol of the operations, not built in: landings at two positive frictions share
+    their symbolic structure, and the replay at the second is still its landing."""
+    from impulse_core.timedomain.landing_derivatives import _symbolic
+
+    tree, laws, scene = _case("friction")
+    other = replace(scene, friction=0.98)
+    assert _symbolic(taped_run(tree, scene, laws, STEP)[2], laws) is _symbolic(taped_run(tree, other, laws, STEP)[2], laws)
+    assert_replay_is_the_landing(landing_gradient(tree, other, laws, step=STEP))

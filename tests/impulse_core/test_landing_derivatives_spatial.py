@@ -9,7 +9,9 @@ impacts on the circular cone's edge, the knee reaching its stop). For each:
 - the replayed graph's values equal the numeric landing's (same step) to 1e-10;
 - the exact derivatives agree with central differences of the numeric landing at the same step
   along seeded random directions over lengths, masses, angles, rpy angles and joint-law values,
-  the event sequence the same at +- the step;
+  the event sequence the same at +- the step; so do the derivatives w.r.t. the scene's values
+  (the splayed foot: friction, speed, restitution and the knee's stop restitution; the two-rod
+  leg, whose tip starts sliding: friction and speed), one at a time;
 - a planar leg read as spatial gives the planar gradient (the entries both have; the plane's base
   angle is the spatial base angle plus the rotation coordinate about z).
 """
@@ -37,7 +39,16 @@ from impulse_core.timedomain.landing_derivatives import (
 )
 from tests.conftest import report
 from tests.impulse_core.test_compliant_spatial import rpy_of
-from tests.impulse_core.test_landing_derivatives import EPS, G, STEP, _stop_leg, assert_replay_is_the_landing
+from tests.impulse_core.test_landing_derivatives import (
+    EPS,
+    G,
+    SCENE_EPS,
+    STEP,
+    _jacobian_of,
+    _stop_leg,
+    assert_replay_is_the_landing,
+    moved_scene,
+)
 
 CASES = ("two_rod", "splayed_stop")
 #: The two-rod leg's integrator: ROS2 (its replay in space).
@@ -156,6 +167,28 @@ def test_gradients_agree_with_central_differences(gradients, name):
         assert np.all(error <= 1e-4), error
         worst = max(worst, float(np.max(error)))
     report("landing-gradient-spatial", f"{name}: {len(g.result.events)} events, J u vs central differences {worst:.1e}")
+
+
+@pytest.mark.parametrize(("name", "value"), [("splayed_stop", "friction"), ("splayed_stop", "speed"),
+                                             ("splayed_stop", "restitution"), ("splayed_stop", "shank.stop_restitution"),
+                                             ("two_rod", "friction"), ("two_rod", "speed")])
+def test_scene_derivatives_agree_with_central_differences(gradients, name, value):
+    """Along one scene value: its column of the scene Jacobian against central differences of the
+    numeric landing at the same step, the event sequence unchanged at both ends."""
+    tree, laws, scene, settings = _case(name)
+    g = gradients[name]
+    column = _jacobian_of(g.scene_jacobian)[:, g.scene_names.index(value)]
+    assert np.max(np.abs(column)) > 1e-3
+    ends = []
+    for h in (SCENE_EPS, -SCENE_EPS):
+        s, l = moved_scene(tree, laws, scene, value, h)
+        r, tape, run = taped_run(tree, s, l, STEP, settings, SPATIAL)
+        assert sequence_signature(tape, run) == g.sequence
+        ends.append(np.concatenate([[getattr(r, k) for k in SCALARS], r.total_external, r.final_angles]))
+    fd = (ends[0] - ends[1]) / (2 * SCENE_EPS)
+    error = np.abs(fd - column) / np.maximum(np.abs(column), 1e-6)
+    assert np.all(error <= 1e-4), error
+    report("landing-gradient-spatial", f"{name}: d/d {value} vs central differences {np.max(error):.1e}")
 
 
 def test_a_planar_leg_read_as_spatial_gives_the_planar_gradient():
