@@ -176,3 +176,25 @@ def test_twin_contacts_reaching_the_cone_beside_a_sliding_one_slide_too():
     run = _Landing(model.tree, replace(model.scene, duration=0.025), model.joints, LandingSettings(), model.space)
     r = run.run(run.first_step())
     assert r.duration == pytest.approx(0.025) and r.momentum_balance < 1e-4  # a stall raises NumericalError
+
+
+def test_an_impact_budget_passed_names_the_contact_or_stop_and_an_elastic_one():
+    """Past ``max_events`` the run stops naming who took the last impacts; where that contact or
+    stop has restitution 1 it says an elastic one pressed down bounces without end (random file
+    20144 bounced at e = 1 ever faster, 20000 impacts by 18 ms). A flat rod bouncing on both
+    ends at e = 1, and a sprung joint pressed onto its stop at stop restitution 1."""
+    from impulse_core.errors import NumericalError
+
+    flat = Tree((Body("plank", None, 0.1, 1.0, 0.0, contacts=(0.0, 1.0)),))
+    scene = Scene(speed=0.01, restitution=1.0, gravity=9.81, duration=1.0)
+    with pytest.raises(NumericalError, match=r"more than 20 impacts .*: contact plank\[0\] took 21 of the last 21 "
+                                             r"at restitution 1 \(.*lower scene\.restitution\)"):
+        _Landing(flat, scene, (), LandingSettings(max_events=20), PLANAR).run(1e-3)
+    leg = Tree((Body("plank", None, 0.1, 1.0, 0.0, contacts=(0.0, 1.0)), Body("flap", 0, 0.05, 0.1, 0.5)))
+    laws = (FREE, JointLaw(stiffness=5.0, rest=0.8, limits=(-0.5, 0.5), stop_restitution=1.0))
+    with pytest.raises(NumericalError, match=r"the stop of flap took \d+ of the last 21 at restitution 1 "
+                                             r"\(.*lower flap\.stop_restitution\)"):
+        _Landing(leg, replace(scene, restitution=0.0), laws, LandingSettings(max_events=20), PLANAR).run(1e-3)
+    with pytest.raises(NumericalError, match=r"took \d+ of the last 21$"):  # e < 1: no advice
+        inelastic = (FREE, replace(laws[1], stop_restitution=0.99))
+        _Landing(leg, replace(scene, restitution=0.0), inelastic, LandingSettings(max_events=20), PLANAR).run(1e-3)
