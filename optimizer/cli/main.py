@@ -409,7 +409,8 @@ def _sensitivity(model: ModelFile, result: Result) -> tuple[LandingGradient | No
 
     shown = sys.stderr.isatty()
     if shown:
-        print("sensitivity: differentiating the landing (about 4-11 landings) ...", end="\r", file=sys.stderr, flush=True)
+        print("sensitivity: differentiating the landing (about 4-11 landings) ...", end="\r", file=sys.stderr,
+              flush=True)
     try:
         with np.errstate(all="ignore"):
             return landing_sensitivity(model, result), None

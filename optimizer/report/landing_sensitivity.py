@@ -168,7 +168,8 @@ def _sorted_rows(names: list[str], values: np.ndarray, d: np.ndarray, f: float
                  ) -> list[tuple[str, float, float, float | None]]:
     """(name, value, derivative, elasticity), by |elasticity| (largest first; values without one
     after, by |derivative|)."""
-    rows = [(n, float(x), float(dx), elasticity(float(x), f, float(dx))) for n, x, dx in zip(names, values, d, strict=True)]
+    rows = [(n, float(x), float(dx), elasticity(float(x), f, float(dx)))
+            for n, x, dx in zip(names, values, d, strict=True)]
     return sorted(rows, key=lambda r: (r[3] is None, -abs(r[3] or 0.0), -abs(r[2]) if math.isfinite(r[2]) else 0.0))
 
 
@@ -206,7 +207,8 @@ def format_sensitivity(model: ModelFile, g: LandingGradient, shown: int = SHOWN_
     lowest = lowest_contacts(model)
     if len(lowest) > 1:
         contacts = contact_names(model.tree)
-        lines.append(f"note: {len(lowest)} contacts are lowest at touchdown ({', '.join(contacts[i] for i in lowest)}): "
+        which = ", ".join(contacts[i] for i in lowest)
+        lines.append(f"note: {len(lowest)} contacts are lowest at touchdown ({which}): "
                      f"the touchdown height follows the first, so a value that moves one of them has a one-sided "
                      "derivative (the height has a kink there)")
     if any(np.isnan(g.scene_jacobian[k]).any() for k in SCALARS):
