@@ -18,6 +18,7 @@ import contextlib
 import io
 import json
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,7 @@ from impulse_core.timedomain.landing import LandingSettings
 from impulse_core.timedomain.landing_derivatives import SCALARS, landing_gradient
 from optimizer.cli.main import main
 from optimizer.config.model_file import load_model_file
+from optimizer.report.landing_sensitivity import format_sensitivity
 
 REPO = Path(__file__).resolve().parents[2]
 TOLERANCE = "1e-10"
@@ -79,6 +81,11 @@ def test_the_json_derivatives_are_landing_gradients_at_the_reported_step(case):
             assert e == (None if x == 0 or f == 0 else x / f * s["derivatives"][k][name]), (k, name)
     assert "shank.rest" in s["unset"] and "heel.limits[0]" in s["unset"] and "shank.limits[0]" not in s["unset"]
     assert len(s["lowest_contacts"]) == 4  # contacts: all, level tips: the touchdown height's kink
+    # a peak two events tie for is noted: the derivatives are a subgradient
+    assert s["ties"] == {}
+    tied = "\n".join(format_sensitivity(model, replace(g, ties={**g.ties, "peak_internal_norm": (0, 1)})))
+    assert tied.count("note: 2 events tie for the peak") == 1 and "Clarke subdifferential" in tied
+    assert tied.index("note: 2 events tie") > tied.index("peak_internal_norm = ") > tied.index("peak_external_norm = ")
 
 
 @pytest.mark.parametrize("value", ["speed", "heel.mass"])
