@@ -145,8 +145,8 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         "(lengths, masses, angles, ..., joint stiffness, damping, rest, limits) and scene value (friction, speed, "
         "restitution, each joint's stop_restitution) with its derivative and elasticity x/f df/dx, largest first. "
         "The derivatives are exact for the reported run (its step) along its event sequence and cost about 4-11 "
-        "landings; where they are refused (a graze, redundant rows, ...) the landing is reported with a warning. "
-        "--json adds a 'sensitivity' object (MODEL_FORMAT.md)",
+        "landings; where they are refused (redundant rows, an impact off the exact cone law, ...) the landing is "
+        "reported with a warning. --json adds a 'sensitivity' object (MODEL_FORMAT.md)",
     )
     p.add_argument(
         "--animate",
