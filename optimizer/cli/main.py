@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from importlib import metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,7 +40,10 @@ from impulse_core.timedomain.landing import LandingProgress, LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown, plot_views
 from impulse_core.kinematics.spatial import PLANAR
-from optimizer.report.text import Result, format_report, is_finite, result_record
+from optimizer.report.text import Result, format_report, is_finite, result_record, rung
+
+if TYPE_CHECKING:
+    from impulse_core.timedomain.landing_derivatives import LandingGradient
 
 #: The paper's three-toed foot, evaluated when no file is given.
 DEFAULT_MODEL = Path(__file__).resolve().parents[2] / "configs" / "paper_case3.yaml"
@@ -132,6 +136,17 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         metavar="STUDY.yaml",
         help="score each file over a study's landings (its landings: and statistic: blocks): each objective's "
         "statistic over the scenarios (--json: an object with 'statistics')",
+    )
+    p.add_argument(
+        "--sensitivity",
+        action="store_true",
+        help="a whole landing (scene.duration): also report which values move its objectives (peak_external_norm, "
+        "peak_internal_norm, peak_max_internal, energy_absorbed) and by how much: per objective each design value "
+        "(lengths, masses, angles, ..., joint stiffness, damping, rest, limits) and scene value (friction, speed, "
+        "restitution, each joint's stop_restitution) with its derivative and elasticity x/f df/dx, largest first. "
+        "The derivatives are exact for the reported run (its step) along its event sequence and cost about 4-11 "
+        "landings; where they are refused (redundant rows, an impact off the exact cone law, ...) the landing is "
+        "reported with a warning. --json adds a 'sensitivity' object (MODEL_FORMAT.md)",
     )
     p.add_argument(
         "--animate",
@@ -276,7 +291,14 @@ def run_evaluate(args: argparse.Namespace) -> int:
             return EXIT_USAGE
         animations = _plot_paths(Path(args.animate), files)
     if args.landings is not None:
+        if args.sensitivity:
+            _error("--sensitivity", "not with --landings: it differentiates one landing of each file")
+            return EXIT_USAGE
         return _evaluate_over_landings(args)
+    if args.sensitivity and args.model not in ("auto", LANDING):
+        _error("--sensitivity", f"needs the whole landing (--model landing, or auto with scene.duration), "
+               f"got --model {args.model}")
+        return EXIT_USAGE
     options = _time_domain_options(args)
     if options is None:
         return EXIT_USAGE
@@ -289,10 +311,30 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 _error(file, f"numerical failure: {result}")
                 status = max(status, EXIT_FAILURE)
                 continue
+            if args.sensitivity and not _is_landing(result):
+                _error(file, f"--sensitivity: the file runs the {rung(result)[0]} model, "
+                       "a first impact: derivatives are offered for the whole landing only (give scene.duration)")
+                status = EXIT_USAGE
+                continue
+            gradient, refused = _sensitivity(model, result) if args.sensitivity else (None, None)
             if args.json:
-                print(json.dumps(result_record(model, result, file), allow_nan=False))
+                record = result_record(model, result, file)
+                if args.sensitivity:
+                    from optimizer.report.landing_sensitivity import sensitivity_record
+
+                    record["sensitivity"] = None if gradient is None else sensitivity_record(model, gradient)
+                    if refused is not None:
+                        record["warnings"].append(refused)
+                print(json.dumps(record, allow_nan=False))
             else:
-                print(("\n" if n else "") + format_report(model, result, file), end="")
+                text = format_report(model, result, file)
+                if gradient is not None:
+                    from optimizer.report.landing_sensitivity import format_sensitivity
+
+                    text += "\n".join(format_sensitivity(model, gradient)) + "\n"
+                if refused is not None:
+                    text += f"warning: {refused}\n"
+                print(("\n" if n else "") + text, end="")
             if n in plots and _is_landing(result):
                 from optimizer.report.landing_plot import plot_landing
 
@@ -358,6 +400,26 @@ def _evaluate_over_landings(args: argparse.Namespace) -> int:
             print(f"{file}: over {len(robust.rows)} landings of {args.landings}")
             print("\n".join(f"  {k:<22} {names[k]:<14} {v:.6g}" for k, v in stats.items()))
     return status
+
+
+def _sensitivity(model: ModelFile, result: Result) -> tuple[LandingGradient | None, str | None]:
+    """The whole landing's exact derivatives at its reported step, or None and the warning saying
+    why they are refused (the landing itself is still reported)."""
+    from optimizer.report.landing_sensitivity import landing_sensitivity
+
+    shown = sys.stderr.isatty()
+    if shown:
+        print("sensitivity: differentiating the landing (about 4-11 landings) ...", end="\r", file=sys.stderr,
+              flush=True)
+    try:
+        with np.errstate(all="ignore"):
+            return landing_sensitivity(model, result), None
+    except (np.linalg.LinAlgError, NumericalError) as e:
+        why = str(e).splitlines()[0] if str(e) else "a singular solve"
+        return None, f"no sensitivity: the landing's derivatives are refused ({why})"
+    finally:
+        if shown:
+            print(" " * 70, end="\r", file=sys.stderr, flush=True)
 
 
 def _animate(model: ModelFile, result: Result, path: Path, quiet: bool) -> None:
