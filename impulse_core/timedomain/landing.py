@@ -1667,6 +1667,33 @@ class _Landing:
         forces = np.concatenate([w[nc : 3 * nc], w[4 * nc + 2 * nv :]])  # normal forces, cone margins, stop forces
         return probe if bool((forces >= 2.0).all()) else mode
 
+    def arrest(self, q: np.ndarray, v: np.ndarray, mode: _Mode, totals: _Totals) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) with the slip of each closed contact whose slip has turned to or past a right
+        angle from the direction it slid along (the slip-reversal witness s . d <= 0) at a slip
+        speed below :data:`PLASTIC_SPEED` taken to zero, as a plastic impact takes an approach
+        that slow: the mode's projection with those contacts sticking (its impulse, at most
+        PLASTIC_SPEED times their effective mass, counted in the totals). The contact LCP then
+        sticks them or starts them sliding from rest. In the plane a reversal is located at
+        s = 0 and nothing changes; in space a slow slip under a lateral drive turns rather than
+        stops (the regularised direction lags it: the lateral slip settles at the drive times the
+        step), and each right angle was an event: random file 20693 slid at 1e-5 m/s with an
+        event every 1e-5 s, and a contact the LCP started sliding along its old direction kept
+        its turned slip and reversed again at once."""
+        if self.dims == 2 or self.mu <= 0 or not _any(mode.closed & mode.sliding):
+            return q, v
+        slip = self.point(q, v).slip
+        turned = (mode.closed & mode.sliding & (np.sum(slip * mode.slip, axis=1) <= 0)
+                  & (np.linalg.norm(slip, axis=1) < PLASTIC_SPEED))
+        if not _any(turned):
+            return q, v
+        stuck = mode.copy()
+        stuck.slip[turned] = 0.0
+        stuck.redundant = self.redundant(self.point(q, v), stuck)
+        q1, v1, p = self.project(q, v, stuck)
+        self.add(totals, p, q1, v1)
+        self.tally_joints(totals, q, v, q1, v1, p, 0.0, True)
+        return q1, v1
+
     def held(self, pt: _Point, mode: _Mode, rows: _Rows, sol: UnilateralSolution, acc_tol: float) -> np.ndarray:
         """Per normal row of ``rows``: a closed contact that the acceleration-level LCP ``sol``
         leaves unloaded (force within the force tolerance) and not accelerating away (within
@@ -2149,6 +2176,7 @@ class _Landing:
             v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if _any(touching) else "stop")
             totals.events.append(event)
             self.add_impact(totals, event, q, v_minus, v)
+        q, v = self.arrest(q, v, mode, totals)
         mode = self.resolve(q, v, mode)
         q1, v1, p = self.project(q, v, mode)
         self.add(totals, p, q1, v1)

@@ -545,3 +545,32 @@ def test_resting_contacts_of_one_rigid_body_stick_where_they_can():
     fn, ft = _contact_forces(rows, lam, run.mu, run.nc)
     assert np.all(fn > 0.1) and np.all(run.mu * fn[base_contacts] - np.linalg.norm(ft[base_contacts], axis=1) > 0.1 * fn[base_contacts])
     assert np.max(np.abs((pt.Jt @ a + pt.bt)[base_contacts])) < 1e-12
+
+
+def test_a_slow_slip_turned_past_a_right_angle_comes_to_rest():
+    """Random file 20693 (data/turned_slip_20693.yaml: friction 0.3) at 0.1710 s (the kept state
+    and mode, data/turned_slip_20693_state.json): two contacts slide at 2e-5 and 4e-5 m/s under
+    a lateral drive, their slips turned to a right angle from the directions they slid along.
+    They used to slide on along the new slip and turn again 1e-5 s later (an event each time;
+    the 0.2 s landing ran for minutes). Below PLASTIC_SPEED such a slip now comes to rest at the
+    event, as a plastic impact does: after the event their slip is zero, the new mode holds at
+    its start (no witness negative), and the momentum changes by the counted impulses."""
+    import json
+
+    from impulse_core.timedomain.landing import _Mode
+
+    model = _data_model("turned_slip_20693.yaml")
+    kept = json.loads((Path(__file__).parent / "data" / "turned_slip_20693_state.json").read_text())
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    totals = run.first_impact()[3]  # and the run's chart
+    q, v = np.array(kept["q"]), np.array(kept["v"])
+    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
+                 np.array(kept["core"]))
+    before, p0 = totals.impulse.copy(), run.point(q, v).momentum[:, 0]
+    q1, v1, new = run.event(q, v, mode, 0.171, totals)
+    turned = kept["turned"]
+    assert np.max(np.linalg.norm(run.point(q1, v1).slip[turned], axis=1)) < 1e-12
+    w, _ = run.witness_and_rate(q1, v1, new)
+    assert np.all(w >= 0), np.flatnonzero(w < 0)
+    change = run.point(q1, v1).momentum[:, 0] - p0
+    assert np.max(np.abs(change - (totals.impulse - before))) < 1e-12 * max(1.0, np.max(np.abs(p0)))
