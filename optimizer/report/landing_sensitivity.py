@@ -164,25 +164,35 @@ def sensitivity_record(model: ModelFile, g: LandingGradient) -> dict[str, Any]:
     }
 
 
+def effect(name: str, x: float, f: float, d: float) -> float | None:
+    """The text report's measure of a value's weight: the % change of f for +1 % of x (the
+    elasticity), or for an angle (unit rad), whose zero is a choice of frame, for +1 degree
+    (100 d pi / 180 / f); None where f (or, not an angle, x) is 0 or d is not a number."""
+    if value_unit(name) == "rad":
+        return None if f == 0.0 or not math.isfinite(d) else 100.0 * d * math.pi / 180.0 / f
+    return elasticity(x, f, d)
+
+
 def _sorted_rows(names: list[str], values: np.ndarray, d: np.ndarray, f: float
                  ) -> list[tuple[str, float, float, float | None]]:
-    """(name, value, derivative, elasticity), by |elasticity| (largest first; values without one
+    """(name, value, derivative, :func:`effect`), by |effect| (largest first; values without one
     after, by |derivative|)."""
-    rows = [(n, float(x), float(dx), elasticity(float(x), f, float(dx)))
+    rows = [(n, float(x), float(dx), effect(n, float(x), f, float(dx)))
             for n, x, dx in zip(names, values, d, strict=True)]
     return sorted(rows, key=lambda r: (r[3] is None, -abs(r[3] or 0.0), -abs(r[2]) if math.isfinite(r[2]) else 0.0))
 
 
 def format_sensitivity(model: ModelFile, g: LandingGradient, shown: int = SHOWN_VALUES) -> list[str]:
-    """The text report's sensitivity tables: per scalar objective its values by |elasticity|, the
+    """The text report's sensitivity tables: per scalar objective its values by |effect|, the
     first ``shown`` of them, and what the derivatives are (and, where the peak is a tie, what that
     means)."""
     from optimizer.report.text import _table, contact_names
 
     unset = set(unset_values(model, g))
     lines = ["", f"Sensitivity: {ALONG}.",
-             f"({len(g.result.events)} impacts, step {g.result.step:.3g} s; elasticity = (x / f) df/dx, the % change "
-             "of f per % change of x, '-' where x or f is 0; values the file does not set are not listed)"]
+             f"({len(g.result.events)} impacts, step {g.result.step:.3g} s; effect: the % change of f for +1 % of x "
+             "(the elasticity (x / f) df/dx), or for +1 degree of an angle (its zero is a choice of frame), '-' where "
+             "f or x is 0; values the file does not set are not listed)"]
     for objective in SCALARS:
         names, values, d = _columns(g, objective)
         f, unit = float(g.values[objective]), OBJECTIVE_UNITS[objective]
@@ -195,7 +205,7 @@ def format_sensitivity(model: ModelFile, g: LandingGradient, shown: int = SHOWN_
         per = "per unit of x" if unit == "1" else f"{unit} per unit of x"
         lines += ["", f"{objective} = {f:.6g} " + ("(a fraction)" if unit == "1" else unit),
                   *("  " + s for s in _table(["value", "x", "unit of x", f"df/dx [{per}]",
-                                              "elasticity [1]"], table))]
+                                              "effect [% of f]"], table))]
         if hidden:
             lines.append(f"  ... {len(hidden)} more values ({zero} with derivative 0): "
                          "footopt evaluate --json --sensitivity lists them all")
@@ -217,5 +227,5 @@ def format_sensitivity(model: ModelFile, g: LandingGradient, shown: int = SHOWN_
     return lines
 
 
-__all__ = ["ALONG", "OBJECTIVE_UNITS", "SHOWN_VALUES", "elasticity", "format_sensitivity", "landing_sensitivity",
+__all__ = ["ALONG", "OBJECTIVE_UNITS", "SHOWN_VALUES", "effect", "elasticity", "format_sensitivity", "landing_sensitivity",
            "sensitivity_record", "unset_values", "value_unit"]

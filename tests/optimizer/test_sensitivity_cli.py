@@ -6,7 +6,7 @@ configs/landing_case3.yaml over 4 ms (two impacts: the touchdown, a re-touchdown
 - the derivatives w.r.t. the speed and the heel's mass (a value that moves no contact: the
   touchdown height's kink at the four level contacts is not straddled) agree with central
   differences of `footopt evaluate --json` runs at the same step and event sequence;
-- the text tables list x, df/dx and x / f df/dx, sorted by |elasticity|;
+- the text tables list x, df/dx and the effect (x / f df/dx, or per degree of an angle), sorted by |effect|;
 - a refused derivative (a plank resting on both ends with friction: redundant rows) is a warning
   beside the landing (exit 0); a first-impact file or model is
   an error naming --sensitivity (exit 2); without the flag the JSON has no "sensitivity" key.
@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -110,7 +111,7 @@ def test_derivatives_agree_with_central_differences_of_the_cli(case, tmp_path, c
 
 
 def _tables(text: str) -> dict[str, list[tuple[str, float, float, str]]]:
-    """Per objective, the rows (name, x, df/dx, elasticity) of the text report's tables."""
+    """Per objective, the rows (name, x, df/dx, effect) of the text report's tables."""
     out: dict[str, list] = {}
     current = None
     for line in text.splitlines():
@@ -125,7 +126,7 @@ def _tables(text: str) -> dict[str, list[tuple[str, float, float, str]]]:
     return out
 
 
-def test_the_text_tables_are_sorted_by_elasticity(case, capsys):
+def test_the_text_tables_are_sorted_by_effect(case, capsys):
     path, d = case
     assert main(["evaluate", "--sensitivity", "--tolerance", TOLERANCE, str(path)]) == 0
     text = capsys.readouterr().out
@@ -141,7 +142,8 @@ def test_the_text_tables_are_sorted_by_elasticity(case, capsys):
         for name, x, dfdx, el in rows:
             assert name not in d["sensitivity"]["unset"]
             if el != "-":  # printed to 4 decimals, x and df/dx to 6 and 4 significant digits
-                assert float(el) == pytest.approx(x / f * dfdx, rel=1e-3, abs=1e-4), (k, name)
+                per = 100 * math.pi / 180 / f * dfdx if name.endswith(".angle") else x / f * dfdx  # % per degree
+                assert float(el) == pytest.approx(per, rel=1e-3, abs=1e-4), (k, name)
     assert "speed" in [r[0] for r in tables["peak_external_norm"]]
     assert re.search(r"\.\.\. \d+ more values \(\d+ with derivative 0\)", text)
     assert "note: 4 contacts are lowest at touchdown" in text
