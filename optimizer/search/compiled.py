@@ -816,7 +816,7 @@ def _support_rows(
 ) -> None:
     """The support margin (``constraints.support_margin``, b): the centre of mass's ground
     projection at least b inside the contacts' hull, smoothly, per edge of :func:`support_edges`
-    (s = |d| times the distance to the edge's line, > 0 inside), one row per edge:
+    (s = |d| times the distance to the edge's line, > 0 inside):
 
         s - b sqrt(|d|^2 + eps^2) >= 0       (``form="distance"``, the default; eps :data:`MARGIN_EPS`)
         s >= 0  and  s^2 >= b^2 |d|^2        (``form="quadratic"``, two rows per edge)
