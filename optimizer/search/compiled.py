@@ -785,39 +785,82 @@ def support_edges(kind: FootKind, topology: Topology, p: ca.SX, masses: list) ->
     com = sum((masses[b] * coms[:, b] for b in range(1, len(masses))), masses[0] * coms[:, 0]) / total
     c = ca.vertcat(com[0], com[2])
     order = [0, *range(kind.splayed_toes, 0, -1)]
-    corners = [ca.vertcat(contacts[0, i], contacts[2, i]) for i in order]
+    return polygon_edges([ca.vertcat(contacts[0, i], contacts[2, i]) for i in order], c)
+
+
+def polygon_edges(corners: Sequence, c) -> tuple:
+    """Per edge (P, Q) of the closed polygon ``corners`` (each 2 x 1, SX or DM), d = Q - P: the
+    cross product s = d x (c - P) (|d| times c's signed distance to the edge's line, > 0 left of
+    it) and |d|^2, each stacked in a column."""
     cross, squared = [], []
-    for P, Q in zip(corners, corners[1:] + corners[:1], strict=True):
+    for P, Q in zip(corners, [*corners[1:], corners[0]], strict=True):
         d, w = Q - P, c - P
         cross.append(d[0] * w[1] - d[1] * w[0])
         squared.append(ca.sumsqr(d))
     return ca.vertcat(*cross), ca.vertcat(*squared)
 
 
+#: The support margin rows' smoothing length (m): the distance row asks s >= b sqrt(|d|^2 + eps^2)
+#: (:func:`_support_rows`), 1e-4 of the landing NLP's unit; conservative by b (sqrt(1 + eps^2 /
+#: |d|^2) - 1) ~ b eps^2 / (2 |d|^2) in the distance to an edge's line (1e-7 m for b = 4 cm and a
+#: 4 cm edge).
+MARGIN_EPS = 1e-5
+#: The support margin rows' forms (:func:`_support_rows`): ``distance`` (the default) and
+#: ``quadratic`` (the earlier one, for comparison).
+MARGIN_FORMS = ("distance", "quadratic")
+
+
 def _support_rows(
-    config: StudyConfig, kind: FootKind, topology: Topology, p: ca.SX, masses: list, add: Callable, unit: float = 1.0
+    config: StudyConfig, kind: FootKind, topology: Topology, p: ca.SX, masses: list, add: Callable,
+    unit: float = 1.0, form: str = "distance",
 ) -> None:
     """The support margin (``constraints.support_margin``, b): the centre of mass's ground
-    projection at least b inside the contacts' hull, smoothly, per edge of :func:`support_edges`:
+    projection at least b inside the contacts' hull, smoothly, per edge of :func:`support_edges`
+    (s = |d| times the distance to the edge's line, > 0 inside):
 
-        s >= 0   and   s^2 >= b^2 |d|^2   (b > 0; b <= 0: s >= 0 alone)
+        s - b sqrt(|d|^2 + eps^2) >= 0       (``form="distance"``, the default; eps :data:`MARGIN_EPS`)
+        s >= 0  and  s^2 >= b^2 |d|^2        (``form="quadratic"``, two rows per edge)
+        s >= 0                               (b <= 0, either form)
 
-    smooth, and exact on a degenerate edge (d = 0: nothing asked). Sound for any order: a point
-    at least b left of every edge's line of a closed polygon is at least b inside its vertices'
-    hull (the edges wind around it), so a realised design meets the true margin; exact when the
-    order is the hull's (identical toes: their tips on a circle about the ankle, the heel behind).
-    A bound b <= 0 is met by keeping c inside (conservative: the true margin may go to b). One toe
-    and the heel span no area: no rows (the realised design's margin decides). ``unit``: the rows'
-    length unit (m; s in unit^2, the second row in unit^4), their scale for the solver."""
+    Sound for any order: a point at least b left of every edge's line of a closed polygon is at
+    least b inside its vertices' hull (the edges wind around it), so a realised design meets the
+    true margin; both forms ask s >= b |d|, the distance form a little more, so both are sound.
+    The quadratic form is exact where the order is the hull's (identical toes: their tips on a
+    circle about the ankle, the heel behind) and on a degenerate edge (d = 0: nothing asked), but
+    its gradient, 2 s grad(s) - b^2 grad(|d|^2), loses its s term where s is small: from a start
+    near or outside an edge it pulls weakly (``studies/splayed_toes/results.md``, section 6). The
+    distance form's gradient, grad(s) - b grad(|d|^2) / (2 sqrt(|d|^2 + eps^2)), keeps grad(s) at
+    any s: near and outside an edge it pulls as |d| times the signed distance does. It is
+    conservative by b (sqrt(1 + eps^2/|d|^2) - 1) ~ b eps^2 / (2 |d|^2) in the distance to an
+    edge's line (at most b eps in s), and it refuses an edge shorter than about
+    b eps / sqrt(h^2 - b^2) (h: c's distance to its line): two contacts within ~1e-5 m of each
+    other (per-toe yaws that meet on identical toes), where the quadratic form asks nothing; with
+    two toes their true margin is <= 0 anyway (two coincident tips and the heel span no area). A
+    bound b <= 0 is met by keeping c inside (conservative: the true margin may go to b). One toe
+    and the heel span no area: no rows (the realised design's margin decides). ``unit``: the
+    rows' length unit (m; s in unit^2, the quadratic row in unit^4), their scale for the solver;
+    the rows' feasible set does not depend on it."""
+    if form not in MARGIN_FORMS:  # before the toe count: a wrong form fails on every shape
+        raise ValueError(f"support margin rows: form {form!r} is not one of {MARGIN_FORMS}")
     if kind.splayed_toes < 2:
         return
     cross, squared = support_edges(kind, topology, p, masses)
-    if unit != 1.0:
-        cross, squared = cross / unit**2, squared / unit**2
-    add(cross, 0.0, math.inf)
-    b = float(config.limits.support_margin) / unit
-    if b > 0:
-        add(cross**2 - (b + TIGHTEN / unit) ** 2 * squared, 0.0, math.inf)
+    for row in margin_rows(cross, squared, float(config.limits.support_margin), unit, form):
+        add(row, 0.0, math.inf)
+
+
+def margin_rows(cross, squared, margin: float, unit: float = 1.0, form: str = "distance") -> list:
+    """The support margin's rows of :func:`_support_rows` (each asked >= 0), in ``unit``, from
+    the edge terms s and |d|^2 (m^2, SX or DM) and the bound ``margin`` (m; TIGHTEN added)."""
+    if form not in MARGIN_FORMS:
+        raise ValueError(f"support margin rows: form {form!r} is not one of {MARGIN_FORMS}")
+    cross, squared = cross / unit**2, squared / unit**2
+    b = (margin + TIGHTEN) / unit
+    if margin <= 0:
+        return [cross]
+    if form == "distance":
+        return [cross - b * ca.sqrt(squared + (MARGIN_EPS / unit) ** 2)]
+    return [cross, cross**2 - b**2 * squared]
 
 
 def _geometric_rows(config: StudyConfig, distinct, a, m, L, h, mult, add, lengths=None, turns=None) -> None:
@@ -866,6 +909,8 @@ __all__ = [
     "COMPILE_SCENARIO_SOLVES",
     "COMPILE_SOLVES",
     "IPOPT_OPTIONS",
+    "MARGIN_EPS",
+    "MARGIN_FORMS",
     "TIGHTEN",
     "VALUE_OUTPUTS",
     "WARM_OPTIONS",
@@ -874,6 +919,8 @@ __all__ = [
     "NlpCache",
     "foot_kind",
     "load_nlp",
+    "margin_rows",
+    "polygon_edges",
     "support_edges",
     "toe_yaws",
     "values_function",

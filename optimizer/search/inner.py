@@ -40,13 +40,14 @@ spread from -s to +s; none for one toe) or one yaw per toe, in order (psi_1 <= .
 foot is one such after relabelling its toes); a fixed range [x, x] is a constant. Extra rows:
 
             F_min <= cos(psi_i) reach_i(x) - heel <= F_max   every toe's forward reach
-            s_e >= 0,  s_e^2 >= b^2 |d_e|^2                 support margin b, per hull edge e
+            s_e >= b sqrt(|d_e|^2 + eps^2)                  support margin b, per hull edge e
 
 (:func:`optimizer.search.compiled._support_rows`: the centre of mass's projection left of every
 edge of the contacts in a fixed order, heel then toes by decreasing yaw; sound in any order,
-exact when that order is the hull's). ``base_angular_velocity`` is the norm of the base's angular
-velocity, by an epigraph u^2 >= |omega|^2. A one-toe shape with a positive support margin is
-infeasible before any solve (one toe and the heel span no area). The leg may be spatial (a
+exact but for b eps^2 / (2 |d_e|^2) when that order is the hull's). ``base_angular_velocity``
+is the norm of the base's angular velocity, by an epigraph u^2 >= |omega|^2. A one-toe shape
+with a positive support margin is infeasible before any solve (one toe and the heel span no
+area). The leg may be spatial (a
 ``leg: {file}`` whose joint axes are not all parallel): each toe root's ``rpy`` is then
 :func:`optimizer.design_space.yaw_rpy` on the leg's last rod's frame at touchdown, symbolic in the
 yaws, and the leg's rods keep their own axes, frames and mass properties, as in the outer search's

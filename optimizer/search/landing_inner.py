@@ -16,11 +16,12 @@ of its own, while the plane's row keeps the in-plane run below the upper bound (
 the forward reach's: sound, a little conservative). The support margin (``constraints.
 support_margin``, two toes or more) is rows too, those of the first-impact NLP
 (:func:`optimizer.search.compiled._support_rows`: per edge of the contacts in a fixed order, heel
-then toes by decreasing yaw, s >= 0 and s^2 >= b^2 |d|^2), on the whole spatial tree of the
+then toes by decreasing yaw, s - b sqrt(|d|^2 + eps^2) >= 0), on the whole spatial tree of the
 NLP's point (:func:`landing_tree_values`: identical toes repeat their chain's angles, masses and
 lengths, as :meth:`LandingNlp.design` does), with exact derivatives, in units of
 :data:`MARGIN_UNIT`; per-toe yaws are then kept in order (a relabelling of the toes), so the
-fixed order follows the yaws (the rows are exact where it is the hull's, sound elsewhere).
+fixed order follows the yaws (the rows are exact where it is the hull's, but for
+:data:`optimizer.search.compiled.MARGIN_EPS`'s b eps^2 / (2 |d|^2), sound elsewhere).
 The realised design's evaluation still checks the margin, as every constraint.
 Objectives (at most two, each a landing objective but ``settled_at``, which has no derivative): a CasADi callback that lands
 the design numerically at a fixed Runge-Kutta step, and its Jacobian callback, the exact gradient
@@ -124,8 +125,8 @@ LANDING_IPOPT = {
     "ipopt.acceptable_tol": 1e-4,
     "print_time": False,
 }
-#: The support margin rows' length unit (m): s ~ |d| x distance is 1e-3 m^2 and its squared row
-#: 1e-6 m^4, below IPOPT's default constraint tolerance (1e-4) unscaled; in 0.1 m both are O(0.1-1).
+#: The support margin rows' length unit (m): s ~ |d| x distance is 1e-3 m^2 (the quadratic form's
+#: row 1e-6 m^4), below IPOPT's default constraint tolerance (1e-4) unscaled; in 0.1 m, O(0.1-1).
 MARGIN_UNIT = 0.1
 #: The law values a family may search, in the NLP's order.
 LAW_KEYS = ("stiffness", "damping", "stop")
@@ -300,9 +301,12 @@ def rpy_rates(leg: LegChain, yaw: float) -> np.ndarray:
     return np.linalg.solve(E, axis)
 
 
-def build_landing_nlp(config: StudyConfig, shape: FootShape, margin_rows: bool = True) -> LandingNlp:
+def build_landing_nlp(
+    config: StudyConfig, shape: FootShape, margin_rows: bool = True, margin_form: str = "distance"
+) -> LandingNlp:
     """The landing NLP of ``shape`` (see the module docstring). ``margin_rows=False`` leaves the
-    support margin's rows out (the realised design's evaluation alone checks it; for comparison)."""
+    support margin's rows out (the realised design's evaluation alone checks it; for comparison);
+    ``margin_form``: the rows' form (:func:`optimizer.search.compiled._support_rows`)."""
     lim = config.limits
     kind = foot_kind(config, shape)
     sizes = kind.sizes
@@ -346,7 +350,7 @@ def build_landing_nlp(config: StudyConfig, shape: FootShape, margin_rows: bool =
         if margin_rows and lim.support_margin is not None and shape.n_toes > 1:
             for j in range(len(yaws) - 1):  # per-toe yaws in order: the rows' contact order (docstring)
                 add(psi[j + 1] - psi[j], 0.0, math.inf)
-            _landing_support_rows(config, kind, distinct, a, m, L, psi, add)
+            _landing_support_rows(config, kind, distinct, a, m, L, psi, add, margin_form)
     x = ca.vertcat(a, m, L, h, w, psi)
     geometric = ca.Function("geometric", [x], [ca.vertcat(*g)])
     a_lo, a_hi = [], []
@@ -390,11 +394,14 @@ def landing_tree_values(config: StudyConfig, kind: FootKind, distinct: list, a, 
     return _splayed_values(config, kind, a, m, lengths, yaws)
 
 
-def _landing_support_rows(config: StudyConfig, kind: FootKind, distinct: list, a, m, L, psi, add) -> None:
-    """The support margin's rows (:func:`optimizer.search.compiled._support_rows`) on the tree of
-    the landing NLP's point (:func:`landing_tree_values`), in units of :data:`MARGIN_UNIT`."""
+def _landing_support_rows(
+    config: StudyConfig, kind: FootKind, distinct: list, a, m, L, psi, add, form: str = "distance"
+) -> None:
+    """The support margin's rows (:func:`optimizer.search.compiled._support_rows`, of ``form``) on
+    the tree of the landing NLP's point (:func:`landing_tree_values`), in units of
+    :data:`MARGIN_UNIT`."""
     p, masses, topology = landing_tree_values(config, kind, distinct, a, m, L, psi)
-    _support_rows(config, kind, topology, p, masses, add, MARGIN_UNIT)
+    _support_rows(config, kind, topology, p, masses, add, MARGIN_UNIT, form)
 
 
 def landing_objectives_of(config: StudyConfig) -> tuple[Objective, ...]:

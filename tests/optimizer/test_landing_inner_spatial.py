@@ -137,7 +137,16 @@ def _edge_terms(config, design) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
 
 
 def _margin_rows(nlp, x):
-    """The support margin's rows of the NLP at x (the last 2 x edges rows of ``geometric``), in m:
+    """The support margin's rows of the NLP at x (the last edges rows of ``geometric``), in m^2:
+    s - (b + TIGHTEN) sqrt(|d|^2 + MARGIN_EPS^2)."""
+    from optimizer.search.landing_inner import MARGIN_UNIT
+
+    n_edges = nlp.shape.n_toes + 1
+    return np.asarray(nlp.geometric(x)).ravel()[-n_edges:] * MARGIN_UNIT**2
+
+
+def _quadratic_rows(nlp, x):
+    """The quadratic form's rows (``margin_form="quadratic"``: the last 2 x edges rows), in m:
     cross products s, then s^2 - (b + TIGHTEN)^2 |d|^2."""
     from optimizer.search.landing_inner import MARGIN_UNIT
 
@@ -155,15 +164,19 @@ def margin_nlp(request, tmp_path_factory):
 
 
 def test_the_support_margin_rows_are_the_realised_designs_edge_terms(margin_nlp):
-    """At random level points (yaws random in their range): the rows are the design's edge terms;
-    where the contact order is the hull's, min s / |d| is the study's support margin (to 1e-9)."""
+    """At random level points (yaws random in their range): the rows (the default distance form
+    and the quadratic one) are the design's edge terms; where the contact order is the hull's,
+    min s / |d| is the study's support margin (to 1e-9)."""
     from optimizer.design_space import foot_support_margin
-    from optimizer.search.compiled import TIGHTEN
+    from optimizer.search.compiled import MARGIN_EPS, TIGHTEN
 
     nlp, config = margin_nlp, margin_nlp.config
     without = build_landing_nlp(config, nlp.shape, margin_rows=False)
+    quadratic = build_landing_nlp(config, nlp.shape, margin_form="quadratic")
     order = max(len(nlp.yaws) - 1, 0)  # per-toe yaws kept in order
-    assert nlp.geometric.size1_out(0) == without.geometric.size1_out(0) + order + 2 * (nlp.shape.n_toes + 1)
+    n_edges = nlp.shape.n_toes + 1
+    assert nlp.geometric.size1_out(0) == without.geometric.size1_out(0) + order + n_edges
+    assert quadratic.geometric.size1_out(0) == without.geometric.size1_out(0) + order + 2 * n_edges
     rng = np.random.default_rng(5)
     b, hull_order, inside = config.limits.support_margin, 0, 0
     for _ in range(12):
@@ -171,7 +184,9 @@ def test_the_support_margin_rows_are_the_realised_designs_edge_terms(margin_nlp)
         assert x is not None
         design = nlp.design(x)
         s, dd, corners, c = _edge_terms(config, design)
-        cross, squared = _margin_rows(nlp, x)
+        rows = _margin_rows(nlp, x)
+        assert np.max(np.abs(rows - (s - (b + TIGHTEN) * np.sqrt(dd + MARGIN_EPS**2)))) <= 1e-14
+        cross, squared = _quadratic_rows(quadratic, x)
         assert np.max(np.abs(cross - s)) <= 1e-14
         assert np.max(np.abs(squared - (s**2 - (b + TIGHTEN) ** 2 * dd))) <= 1e-16
         margin = foot_support_margin(config.leg, design)
@@ -192,18 +207,18 @@ def test_the_support_margin_rows_gradient_agrees_with_central_differences(margin
     terms (numeric), along random directions and along each variable."""
     import casadi as ca
 
-    from optimizer.search.compiled import TIGHTEN
+    from optimizer.search.compiled import MARGIN_EPS, TIGHTEN
     from optimizer.search.landing_inner import MARGIN_UNIT
 
     nlp, config = margin_nlp, margin_nlp.config
     n_edges = nlp.shape.n_toes + 1
     xs = ca.SX.sym("x", nlp.n_x)
-    J = ca.Function("J", [xs], [ca.jacobian(nlp.geometric(xs)[-2 * n_edges :], xs)])
+    J = ca.Function("J", [xs], [ca.jacobian(nlp.geometric(xs)[-n_edges:], xs)])
     b = config.limits.support_margin + TIGHTEN
 
     def rows(x):  # the NLP's rows, in its unit
         s, dd, _, _ = _edge_terms(config, nlp.design(x))
-        return np.concatenate([s / MARGIN_UNIT**2, (s**2 - b**2 * dd) / MARGIN_UNIT**4])
+        return (s - b * np.sqrt(dd + MARGIN_EPS**2)) / MARGIN_UNIT**2
 
     rng = np.random.default_rng(7)
     for _ in range(3):
@@ -256,9 +271,35 @@ def test_a_landing_sweep_with_margin_rows_records_only_designs_within_the_margin
     monkeypatch.setattr(landing_inner, "solve_landing", recording)
     records = list(landing_sweep(nlp, np.random.default_rng(config.seed)))
     assert len(solutions) == 1 and solutions[0].success
-    cross, squared = _margin_rows(nlp, solutions[0].x)
-    # the rows (m^2, m^4) to IPOPT's tolerance, within TIGHTEN's room (2 b TIGHTEN |d|^2 ~ 1e-10)
-    assert np.all(cross >= 0) and np.min(squared) >= -1e-11
+    # the rows (m^2) to IPOPT's tolerance, within TIGHTEN's room (TIGHTEN |d| ~ 1e-8 m^2)
+    assert np.min(_margin_rows(nlp, solutions[0].x)) >= -1e-9
     assert solutions[0].x[-1] > 0.1 + 1e-3  # the margin, not the bound, stops the splay
     assert foot_support_margin(config.leg, nlp.design(solutions[0].x)) >= b
     assert len(records) == 1 and all(foot_support_margin(config.leg, r.design) >= b for r in records)
+
+
+def test_from_a_start_outside_the_hull_the_distance_rows_reach_the_margin_where_the_quadratic_stall(
+    tmp_path, monkeypatch
+):
+    """The sweep test's NLP (the objective swapped for the splay) with a 4 cm margin, as
+    ``studies/splayed_toes/landing_margin.yaml``, from its seed-3 first start (the centre of mass
+    8.8 mm outside the hull): with the distance rows IPOPT ends at the margin; with the quadratic
+    rows (whose gradient loses its s term near an edge) it ends outside the margin after its 60
+    iterations."""
+    import math
+
+    from optimizer.design_space import foot_support_margin
+    from optimizer.search.landing_inner import solve_landing
+
+    monkeypatch.setattr(_Landed, "values", lambda self, x: np.array([x[-1]]))
+    monkeypatch.setattr(_Landed, "gradient", lambda self, x: np.eye(len(x))[-1:])
+    path = tmp_path / "margin.yaml"
+    path.write_text(SWEEP_MARGIN_YAML.replace("support_margin: 0.03", "support_margin: 0.04"), encoding="utf-8")
+    config = load_study(path)
+    shape, b = FootShape(2, 1), config.limits.support_margin
+    nlp, quadratic = build_landing_nlp(config, shape), build_landing_nlp(config, shape, margin_form="quadratic")
+    x0 = start_landing(nlp, np.random.default_rng(3))
+    assert foot_support_margin(config.leg, nlp.design(x0)) < -5e-3
+    new, old = (solve_landing(n, (1.0, 0.0), math.inf, x0) for n in (nlp, quadratic))
+    assert new.success and foot_support_margin(config.leg, nlp.design(new.x)) >= b
+    assert not old.success and foot_support_margin(config.leg, quadratic.design(old.x)) < b
