@@ -707,7 +707,9 @@ def solve_landing(nlp: LandingNlp, weights: tuple[float, float], eps: float, x0:
     sol = s(x0=np.concatenate([x0, _extra_start(nlp, landed, x0)]), p=list(weights),
             lbx=np.concatenate([nlp.lbx, lo_e]), ubx=np.concatenate([nlp.ubx, hi_e]), lbg=lbg, ubg=ubg)
     stats = s.stats()
-    x = np.asarray(sol["x"]).ravel()[: nlp.n_x]
+    # IPOPT relaxes the bounds by 1e-8 (bound_relax_factor): a joint angle at its limit ended 1e-8
+    # rad past it, and the realised design was dropped as infeasible (studies/splayed_toes/results.md)
+    x = np.clip(np.asarray(sol["x"]).ravel()[: nlp.n_x], nlp.lbx, nlp.ubx)
     return LandingSolution(x, bool(stats["success"]), float(sol["f"]), float(np.asarray(sol["g"]).ravel()[0]),
                            str(stats["return_status"]))
 

@@ -259,6 +259,7 @@ def test_a_landing_sweep_with_margin_rows_records_only_designs_within_the_margin
     x0 = start_landing(nlp, np.random.default_rng(config.seed))  # the sweep's own first start
     unconstrained = solve_landing(free, (1.0, 0.0), math.inf, x0)
     assert unconstrained.x[-1] == pytest.approx(0.1, abs=1e-6)  # the splay at its lower bound
+    assert np.all(unconstrained.x >= free.lbx) and np.all(unconstrained.x <= free.ubx)  # not IPOPT's relaxed bound
     assert foot_support_margin(config.leg, free.design(unconstrained.x)) < b
     assert realise_landing(free, unconstrained.x) is None  # the evaluation drops it
 
