@@ -1595,10 +1595,11 @@ class _Landing:
         body_dof = self.layout.body_dof[1:]
         return np.array([k is not None for k in body_dof], bool), np.array([k for k in body_dof if k is not None], int)
 
-    def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:
+    def resolve(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float = 0.0) -> _Mode:
         """Which resting rows stay closed, stick or slide: ``mode`` itself where it holds with a
         margin (:meth:`persists`), else the contact LCP at the acceleration level (e = 0; a
-        contact already sliding keeps its direction)."""
+        contact already sliding keeps its direction). ``t``: the time, for the error where no
+        contact force exists (Painleve's paradox)."""
         if self.persists(q, v, mode):
             return mode
         pt = self.point(q, v)
@@ -1620,10 +1621,8 @@ class _Landing:
                 break
             except NumericalError:
                 if attempt or not slip[contacts].any():
-                    raise NumericalError(
-                        f"no consistent contact forces at t with sliding contacts {list(contacts)} "
-                        "(Painleve's paradox: lower the friction)"
-                    ) from None
+                    raise NumericalError(self.painleve_message(
+                        t, contacts, None, f"the contact problem has no solution with friction {self.mu:g}")) from None
                 slip = self.no_slip()  # let the sliding contacts stick or slide afresh
         acc_tol = 1e-9 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
         rest = sol.normal > self.force_tol  # an unloaded row opens (if it sinks, it touches again)
@@ -2114,8 +2113,7 @@ class _Landing:
         k = int(np.argmax(counts))
         head = f"the landing took more than {self.settings.max_events} impacts by t = {t:.6g} s"
         if k < self.nc:
-            b, i = self.tree.contacts[k]
-            who, e, field = f"contact {self.tree.bodies[b].name}[{i}]", self.e, "scene.restitution"
+            who, e, field = f"contact {self.contact_labels([k])}", self.e, "scene.restitution"
         else:
             body = self.tree.bodies[k - self.nc + 1]
             e = float(self.per_joint(self.joints.restitution)[k - self.nc])
@@ -2124,6 +2122,10 @@ class _Landing:
         if e >= 1.0:
             note += f" at restitution {e:g} (an elastic contact pressed to the ground bounces without end: lower {field})"
         return head + note
+
+    def contact_labels(self, contacts) -> str:
+        """The contacts (indices) as the model file names them: ``body[k]``, comma-separated."""
+        return ", ".join(f"{self.tree.bodies[b].name}[{k}]" for b, k in (self.tree.contacts[int(c)] for c in contacts))
 
     def singular_note(self, q: np.ndarray) -> str:
         """Why a run diverged at ``q`` where its mass matrix is near singular (condition number
@@ -2141,10 +2143,15 @@ class _Landing:
         jammed = self.painleve(q, v, mode)
         if not jammed.size:
             return f"the landing chatters at t = {t:.6g} s (events without progress)"
-        names = ", ".join(f"{self.tree.bodies[b].name}[{k}]" for b, k in (self.tree.contacts[c] for c in jammed))
-        return (f"Painleve's paradox at t = {t:.6g} s: contacts {names} slide with no consistent contact force "
-                f"(friction {self.mu:g} makes their rows' effective mass negative; rigid bodies then need an "
-                "impulsive jam, which the landing does not model): lower the friction")
+        return self.painleve_message(t, jammed, None, f"friction {self.mu:g} makes their rows' effective mass negative")
+
+    def painleve_message(self, t: float, contacts: np.ndarray, speeds: np.ndarray | None, why: str) -> str:
+        """Painleve's paradox at ``t``: the sliding ``contacts`` (at ``speeds``, m/s) have no
+        consistent contact force, ``why``."""
+        at = "" if speeds is None else f" (at {', '.join(f'{x:.3g}' for x in speeds)} m/s)"
+        return (f"Painleve's paradox at t = {t:.6g} s: contacts {self.contact_labels(contacts)} slide{at} with no "
+                f"consistent contact force ({why}; rigid bodies then need an impulsive jam, which the landing does "
+                "not model): lower the friction")
 
     def painleve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
         """Closed sliding contacts in Painleve's paradox at (q, v): their own row's effective
@@ -2177,7 +2184,7 @@ class _Landing:
             totals.events.append(event)
             self.add_impact(totals, event, q, v_minus, v)
         q, v = self.arrest(q, v, mode, totals)
-        mode = self.resolve(q, v, mode)
+        mode = self.resolve(q, v, mode, t)
         q1, v1, p = self.project(q, v, mode)
         self.add(totals, p, q1, v1)
         self.tally_joints(totals, q, v, q1, v1, p, 0.0, _any(mode.closed))
