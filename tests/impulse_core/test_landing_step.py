@@ -278,8 +278,8 @@ def test_resolve_marks_a_mode_redundant_exactly_when_its_rows_are(monkeypatch):
     chosen = []
     resolve = run.resolve
 
-    def recording(q, v, mode):
-        new = resolve(q, v, mode)
+    def recording(q, v, mode, *when):
+        new = resolve(q, v, mode, *when)
         chosen.append((q.copy(), v.copy(), mode.copy(), new.copy()))
         return new
 
