@@ -1622,7 +1622,7 @@ class _Landing:
             except NumericalError:
                 if attempt or not slip[contacts].any():
                     raise NumericalError(self.painleve_message(
-                        t, contacts, None, f"the contact problem has no solution with friction {self.mu:g}")) from None
+                        t, contacts, f"the contact problem has no solution with friction {self.mu:g}")) from None
                 slip = self.no_slip()  # let the sliding contacts stick or slide afresh
         acc_tol = 1e-9 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
         rest = sol.normal > self.force_tol  # an unloaded row opens (if it sinks, it touches again)
@@ -2143,13 +2143,12 @@ class _Landing:
         jammed = self.painleve(q, v, mode)
         if not jammed.size:
             return f"the landing chatters at t = {t:.6g} s (events without progress)"
-        return self.painleve_message(t, jammed, None, f"friction {self.mu:g} makes their rows' effective mass negative")
+        return self.painleve_message(t, jammed, f"friction {self.mu:g} makes their rows' effective mass negative")
 
-    def painleve_message(self, t: float, contacts: np.ndarray, speeds: np.ndarray | None, why: str) -> str:
-        """Painleve's paradox at ``t``: the sliding ``contacts`` (at ``speeds``, m/s) have no
-        consistent contact force, ``why``."""
-        at = "" if speeds is None else f" (at {', '.join(f'{x:.3g}' for x in speeds)} m/s)"
-        return (f"Painleve's paradox at t = {t:.6g} s: contacts {self.contact_labels(contacts)} slide{at} with no "
+    def painleve_message(self, t: float, contacts: np.ndarray, why: str) -> str:
+        """Painleve's paradox at ``t``: the sliding ``contacts`` have no consistent contact
+        force, ``why``."""
+        return (f"Painleve's paradox at t = {t:.6g} s: contacts {self.contact_labels(contacts)} slide with no "
                 f"consistent contact force ({why}; rigid bodies then need an impulsive jam, which the landing does "
                 "not model): lower the friction")
 
