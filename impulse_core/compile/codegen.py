@@ -195,7 +195,10 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
     designs, one per vector lane (the last step repeats the last design in its spare lanes and
     stores only the real ones). A step's outputs go to a staging buffer on the stack and then to
     each design's rows, one contiguous copy per output (the gradient's 388 values per design of
-    spatial case 3, stored in place lane by lane, cost 5-11 % of its time at 2000 designs).
+    spatial case 3, stored in place lane by lane, cost 5-11 % of its time at 2000 designs). The
+    inputs a step reads are all loaded at its start, in memory order (:func:`_input_loads`), not
+    where each is first used: the lanes' rows are read in one sweep (spatial case 3, 2000 designs:
+    the all-values gradient about 10 % faster, the evaluation alike or a little faster).
     Arithmetic, sqrt and fabs are IEEE operations lane by lane, so they round as the scalar code does; sin and cos come from a vector kernel within 1 ulp of
     libm's for |x| <= 10 (2 ulp up to 1e5; libm itself beyond), one call for the sin and cos of
     one value. ``<name>_simd_lanes()`` returns ``lanes``. None when ``f`` is not an SX function
@@ -204,6 +207,7 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
         return None
     pairs = _sincos_pairs(f)
     staged = np.cumsum([0] + [f.nnz_out(i) for i in range(f.n_out())]).tolist()
+    loads, read = _input_loads(f)
     body = []
     for k in range(f.n_instructions()):
         op, i, o = f.instruction_id(k), f.instruction_input(k), f.instruction_output(k)
@@ -213,7 +217,7 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
                 body.append(f"  footopt_sincos(w{i[0]}, &s{pair}, &c{pair});")
             body.append(f"  w{o[0]} = {'s' if op == ca.OP_SIN else 'c'}{pair};")
         elif op == ca.OP_INPUT:
-            body.append(f"  w{o[0]} = footopt_load(in[{i[0]}] + {i[1]}, {f.nnz_in(i[0])}, kk);")
+            body.append(f"  w{o[0]} = inputs[{loads[k]}];")
         elif op == ca.OP_OUTPUT:
             body.append(f"  footopt_stage(staged + {staged[o[0]] + o[1]}, {staged[-1]}, w{i[0]});")
         elif op == ca.OP_CONST:
@@ -238,6 +242,8 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
                 "  footopt_vd zero = {0};",
                 f"  casadi_real staged[FOOTOPT_LANES * {max(staged[-1], 1)}];",
                 "  for (l = 0; l < FOOTOPT_LANES; ++l) kk[l] = l < valid ? k0 + l : n - 1;",
+                f"  footopt_vd inputs[{max(len(read), 1)}];",
+                *(f"  inputs[{n}] = footopt_load(in[{i}] + {j}, {f.nnz_in(i)}, kk);" for n, (i, j) in enumerate(read)),
                 *declarations,
                 *body,
                 *_unstaged(f, staged),
@@ -258,6 +264,20 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
         )
         + "\n"
     )
+
+
+def _input_loads(f: ca.Function) -> tuple[dict[int, int], list[tuple[int, int]]]:
+    """What the SIMD step loads at its start: each INPUT instruction of ``f`` -> its place, and
+    the (input, nonzero) read at each place, ordered by input, then nonzero (memory order within
+    each design's rows)."""
+    reads = {
+        k: (int(f.instruction_input(k)[0]), int(f.instruction_input(k)[1]))
+        for k in range(f.n_instructions())
+        if f.instruction_id(k) == ca.OP_INPUT
+    }
+    order = sorted(set(reads.values()))
+    place = {value: n for n, value in enumerate(order)}
+    return {k: place[value] for k, value in reads.items()}, order
 
 
 def _unstaged(f: ca.Function, staged: list[int]) -> list[str]:
