@@ -198,7 +198,8 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
     spatial case 3, stored in place lane by lane, cost 5-11 % of its time at 2000 designs). The
     inputs a step reads are all loaded at its start, in memory order (:func:`_input_loads`), not
     where each is first used: the lanes' rows are read in one sweep (spatial case 3, 2000 designs:
-    the all-values gradient about 10 % faster, the evaluation alike or a little faster).
+    the all-values gradient faster in seven of eight paired runs, by 12 % at the median; the
+    evaluation alike within the noise).
     Arithmetic, sqrt and fabs are IEEE operations lane by lane, so they round as the scalar code does; sin and cos come from a vector kernel within 1 ulp of
     libm's for |x| <= 10 (2 ulp up to 1e5; libm itself beyond), one call for the sin and cos of
     one value. ``<name>_simd_lanes()`` returns ``lanes``. None when ``f`` is not an SX function
