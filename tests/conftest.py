@@ -10,6 +10,7 @@ directory; the repository root goes first so that the packages import without in
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import zlib
@@ -222,6 +223,20 @@ REPORT: dict[str, list[str]] = defaultdict(list)
 def report(section: str, line: str) -> None:
     """Record a line for the end-of-run summary (counts, worst errors, flagged cases)."""
     REPORT[section].append(line)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """An xdist worker hands its report lines to the controller (printed there)."""
+    workeroutput = getattr(session.config, "workeroutput", None)
+    if workeroutput is not None:
+        workeroutput["footopt_report"] = json.dumps(REPORT)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """The controller gathers each xdist worker's report lines as the worker ends."""
+    for section, lines in json.loads(getattr(node, "workeroutput", {}).get("footopt_report", "{}")).items():
+        REPORT[section].extend(lines)
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):

@@ -91,7 +91,7 @@ def test_the_compiled_spatial_step_equals_the_numpy_step(leg):
     direction regularised below them, or exact above): the compiled step's state, impulses,
     ends' figures and witnesses equal the numpy path's to 1e-12 (or rounding's share of an
     ill-conditioned mode, :func:`_tolerance`); a redundant mode is left to numpy; the compiled
-    projection equals numpy's (velocities to that, corrections and impulses to 100 x). Every
+    projection equals numpy's (velocities to 10 x that, corrections and impulses to 100 x). Every
     kind is met: a turning direction, one held at d, one regularised, a step that steers
     (:meth:`_Landing.steer`) with a positive core."""
     tree, laws, scene = list(_legs())[leg]
@@ -140,7 +140,9 @@ def test_the_compiled_spatial_step_equals_the_numpy_step(leg):
         projected += compiled
         (pq, pv, pimpulse), (rq, rv, rimpulse) = fast.project(q1, v1, a), ref.project(q1, v1, b)
         scale = max(np.max(np.abs(v1)), np.max(np.abs(rv)))  # a locked tree projects v to rounding's 1e-11
-        assert _rel(pq - q1, rq - q1) <= 100 * tol and np.max(np.abs(pv - rv)) <= tol * scale
+        # v is projected at the corrected q, which the two reach up to 100 tol apart: 10 tol on v (1.75 tol
+        # measured on an AVX2 machine, where numpy's kernels round otherwise than on the AVX-512 one)
+        assert _rel(pq - q1, rq - q1) <= 100 * tol and np.max(np.abs(pv - rv)) <= 10 * tol * scale
         assert _rel(pimpulse, rimpulse) <= 100 * tol or np.max(np.abs(rimpulse)) == 0.0 == np.max(np.abs(pimpulse))
     assert projected >= 2
     expected = {"flight"} | ({"turning", "held", "regularised", "sticking"} if fast.mu > 0 else set())

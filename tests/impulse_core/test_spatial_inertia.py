@@ -2,7 +2,7 @@
 ``inertia_tensor``): random spatial trees whose centres of mass sit off their rods and whose
 inertia tensors are full give Pinocchio's impulses, velocities and joint impulses (1e-8); the
 derivatives with respect to the new values match central differences; a rod (no offset, no tensor
-added) gives the answers of commit 871616f, before these values existed, bit for bit; a tensor
+added) gives the answers of commit 871616f, before these values existed, to rounding (1e-12); a tensor
 that is no rigid body's is refused naming the field."""
 
 from __future__ import annotations
@@ -141,17 +141,13 @@ def test_the_batch_evaluator_takes_general_bodies() -> None:
     np.testing.assert_allclose(out.external_norm[0], np.linalg.norm(r.external), rtol=1e-12)
 
 
-def _hexes(a) -> list[str]:
-    return [float(x).hex() for x in np.asarray(a, dtype=float).ravel()]
-
-
-def test_rods_give_the_answers_of_commit_871616f_bit_for_bit() -> None:
+def test_rods_give_the_answers_of_commit_871616f_to_rounding() -> None:
     """Seeded random trees (planar, planar read as spatial, spatial; Newton and the exact cone) with
     no offset and no tensor: today's external and joint impulses and velocities are those written
-    by commit 871616f's code (data/make_rod_answers.py), to the last bit; the exact cone's to
-    rounding (1e-13), since its first stage's answer is kept where it already meets the exact law
-    (all contacts sticking: up to 2e-15 from 871616f's Newton-polished one), and a redundant
-    impact's split solves its modes' equations afresh (up to 1.3e-14)."""
+    by commit 871616f's code (data/make_rod_answers.py) to rounding: 1e-12 of each list's largest
+    entry. Not to the bit, since numpy's matrix kernels round by the CPU they dispatch to: on an
+    AVX2 machine the file, written on another, is met to 6e-14 (Newton) where the machine that
+    wrote it met it bit for bit. A rod's inertia scaled by 1 + 1e-10 fails it."""
     golden = json.loads(GOLDEN.read_text())
     out = {}
     for k, t in enumerate(spatial_trees()):
@@ -167,13 +163,10 @@ def test_rods_give_the_answers_of_commit_871616f_bit_for_bit() -> None:
         out[f"planar{k}.as_spatial"] = evaluate(t, scene, ImpactModel.NEWTON, space=SPATIAL)
     assert set(out) == set(golden)
     for key, r in out.items():
-        got = {"external": _hexes(r.external), "internal": _hexes(r.internal_magnitude), "v_plus": _hexes(r.v_plus)}
-        if key.endswith(".friction"):
-            for name, values in got.items():
-                a, b = (np.array([float.fromhex(x) for x in v]) for v in (values, golden[key][name]))
-                assert a.shape == b.shape and np.all(np.abs(a - b) <= 1e-13 * np.max(np.abs(b), initial=0.0)), key
-        else:
-            assert got == golden[key], key
+        for name, values in (("external", r.external), ("internal", r.internal_magnitude), ("v_plus", r.v_plus)):
+            a = np.asarray(values, dtype=float).ravel()
+            b = np.array([float.fromhex(x) for x in golden[key][name]])
+            assert a.shape == b.shape and np.all(np.abs(a - b) <= 1e-12 * np.max(np.abs(b), initial=0.0)), (key, name)
 
 
 @pytest.mark.parametrize(
