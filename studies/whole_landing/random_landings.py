@@ -423,8 +423,8 @@ def summary(outcomes: list[Outcome]) -> str:
     bad = [o for o in outcomes if o.verdict not in ("ok", "refused")]
     if bad:
         lines += ["", "Failures:", *[f"- {o.line()}" for o in bad]]
-    slow = sorted(outcomes, key=lambda o: -o.seconds)[:5]
-    lines += ["", "Slowest: " + ", ".join(f"{o.seed} ({o.seconds:.0f} s, {o.verdict})" for o in slow)]
+    slow = sorted((o for o in outcomes if o.status is not None), key=lambda o: -o.seconds)[:6]
+    lines += ["", "Slowest within the limit: " + ", ".join(f"{o.seed} ({o.seconds:.0f} s, {o.verdict})" for o in slow)]
     return "\n".join(lines)
 
 
@@ -440,7 +440,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--terrain", type=float, default=Options.terrain, help="planar: probability of a terrain")
     p.add_argument("--heightfield", type=float, default=Options.heightfield, help="spatial: probability of a heightfield")
     p.add_argument("--out", type=Path, default=Path("/tmp/random_landings"), help="folder for the files and results.jsonl")
+    p.add_argument("--report", action="store_true", help="only print the summary of DIR's results.jsonl")
     args = p.parse_args(argv)
+    if args.report:
+        fields = set(Outcome.__dataclass_fields__)
+        rows = [json.loads(ln) for ln in (args.out / "results.jsonl").read_text().splitlines() if ln.strip()]
+        print(summary([Outcome(**{k: v for k, v in r.items() if k in fields}) for r in rows]))
+        return 0
     options = Options(spatial=args.spatial, terrain=args.terrain, heightfield=args.heightfield)
     args.out.mkdir(parents=True, exist_ok=True)
     outcomes = []
