@@ -91,6 +91,8 @@ from impulse_core.timedomain.compliant import (
 MODEL_NAME = "landing"
 #: An impact approaching slower than this (m/s at a contact, rad/s at a stop) is plastic.
 PLASTIC_SPEED = 1e-4
+#: Angles scanned for a starting slip its acceleration follows (:func:`_followed_slip`, space).
+SLIP_SCAN = 72
 #: A rebound that the row's free acceleration would end within this fraction of the landing's
 #: duration is plastic too: a contact driven into the ground (a fast-spinning light rod, a stiff
 #: spring) would otherwise chatter at nanosecond intervals without end.
@@ -859,6 +861,29 @@ def _unit(x: np.ndarray, tol: float) -> np.ndarray:
     """Rows of ``x`` made unit length where longer than ``tol``, else 0 (the plane: their signs)."""
     size = np.linalg.norm(x, axis=1, keepdims=True)
     return np.divide(x, size, out=np.zeros_like(x, dtype=float), where=size > tol)
+
+
+def _followed_slip(along: Callable[[np.ndarray], tuple[float, float]], dims: int, acc_tol: float) -> np.ndarray | None:
+    """A unit slip d whose acceleration follows it (``along(d)`` = (d x a_t(d), d . a_t(d)), the
+    cross product 0 and the dot >= -acc_tol), or None: in the plane (``dims`` 1) the sign that
+    does; in space the first of :data:`SLIP_SCAN` angles' brackets of the cross product's sign
+    with a following acceleration, bisected to rounding."""
+    if dims == 1:
+        return next((d for d in (np.array([1.0]), np.array([-1.0])) if along(d)[1] >= -acc_tol), None)
+    unit = lambda theta: np.array([math.cos(theta), math.sin(theta)])  # noqa: E731
+    angles = np.linspace(-math.pi, math.pi, SLIP_SCAN + 1)
+    values = [along(unit(theta)) for theta in angles]
+    for (a, (ca_, _)), (b, (cb, _)) in zip(zip(angles, values), zip(angles[1:], values[1:])):
+        if ca_ == 0.0 or (ca_ < 0.0) != (cb < 0.0):
+            for _ in range(60):
+                if ca_ == 0.0 or b - a <= 1e-15:
+                    break
+                mid = 0.5 * (a + b)
+                cm = along(unit(mid))[0]
+                a, b, ca_ = (a, mid, ca_) if (cm < 0.0) != (ca_ < 0.0) else (mid, b, cm)
+            if along(unit(a))[1] >= -acc_tol:
+                return unit(a)
+    return None
 
 
 def _stacked(fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
@@ -1776,19 +1801,46 @@ class _Landing:
         sliding opposite ways), the mode's forces can make it accelerate against it, and the run
         would switch between mirror modes without end at one instant. Each such contact takes the
         slip of its acceleration in the mode (or sticks when that is below the tolerance), until
-        the mode agrees with itself (at most one pass per contact)."""
+        the mode agrees with itself (at most one pass per contact); a mode still at odds with
+        itself then has its slips searched (:meth:`searched_slip`)."""
         if self.mu <= 0:
             return mode
         for _ in range(self.nc):
-            rows, (a, _) = self.mode_solution(pt, mode)
-            at = pt.Jt @ a + pt.bt
-            starting = mode.closed & mode.sliding & (np.linalg.norm(pt.vt(v), axis=1) <= self.speed_tol)
-            wrong = starting & (np.sum(mode.slip * at, axis=1) < -acc_tol)
+            wrong, at = self.wrong_slip(pt, v, mode, acc_tol)
             if not wrong.any():
-                break
+                return mode
             mode = mode.copy()
             mode.redundant = False
             mode.slip[wrong] = _unit(at[wrong], acc_tol)
+        wrong, _ = self.wrong_slip(pt, v, mode, acc_tol)
+        return self.searched_slip(pt, v, mode, wrong, acc_tol) if wrong.any() else mode
+
+    def wrong_slip(self, pt: _Point, v: np.ndarray, mode: _Mode, acc_tol: float) -> tuple[np.ndarray, np.ndarray]:
+        """The contacts starting to slide against their own slip acceleration in ``mode``, and
+        every contact's slip acceleration."""
+        _, (a, _) = self.mode_solution(pt, mode)
+        at = pt.Jt @ a + pt.bt
+        starting = mode.closed & mode.sliding & (np.linalg.norm(pt.vt(v), axis=1) <= self.speed_tol)
+        return starting & (np.sum(mode.slip * at, axis=1) < -acc_tol), at
+
+    def searched_slip(self, pt: _Point, v: np.ndarray, mode: _Mode, wrong: np.ndarray, acc_tol: float) -> _Mode:
+        """Where turning each slip to its acceleration cycles (random file 30249: a contact on its
+        cone's edge turned from (0.20, -0.98) to (-0.93, -0.36), whose acceleration points 122
+        degrees away, at every event), each such contact in turn takes a slip d that its
+        acceleration follows, a_t(d) = k d with k >= 0: in the plane the sign that does, in space
+        the angle where d x a_t(d) changes sign with d . a_t(d) >= 0 (a scan of :data:`SLIP_SCAN`
+        angles, then bisection). Where none exists the mode is left as it was."""
+        mode = mode.copy()
+        mode.redundant = False
+        for k in np.flatnonzero(wrong):
+            def along(d: np.ndarray) -> tuple[float, float]:  # (d x a_t(d), d . a_t(d)); the plane's cross is 0
+                mode.slip[k] = d
+                at = self.wrong_slip(pt, v, mode, acc_tol)[1][k]
+                return (float(d[0] * at[1] - d[1] * at[0]) if d.size == 2 else 0.0), float(d @ at)
+
+            kept = mode.slip[k].copy()
+            found = _followed_slip(along, kept.size, acc_tol)
+            mode.slip[k] = kept if found is None else found
         return mode
 
     def slide_on_the_edge(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> _Mode:

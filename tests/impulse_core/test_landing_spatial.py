@@ -27,7 +27,15 @@ from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.rods import rotation_rpy
 from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import chart_rates
-from impulse_core.timedomain.landing import SETTLE_SPEED, LandingResult, LandingSettings, _Landing, balanced_length
+from impulse_core.timedomain.landing import (
+    SETTLE_SPEED,
+    LandingResult,
+    LandingSettings,
+    _followed_slip,
+    _Landing,
+    balanced_length,
+    landing,
+)
 from tests.conftest import report
 from tests.impulse_core.test_compliant_spatial import rpy_of
 from tests.impulse_core.test_landing import G, _random_leg
@@ -574,3 +582,42 @@ def test_a_slow_slip_turned_past_a_right_angle_comes_to_rest():
     assert np.all(w >= 0), np.flatnonzero(w < 0)
     change = run.point(q1, v1).momentum[:, 0] - p0
     assert np.max(np.abs(change - (totals.impulse - before))) < 1e-12 * max(1.0, np.max(np.abs(p0)))
+
+
+def test_a_starting_slip_that_cycles_is_searched_until_its_acceleration_follows_it(monkeypatch):
+    """Random file 30249 (data/random_30249.yaml: friction 0.5): at 0.2126 s a contact on its
+    cone's edge starts sliding; turning its slip to its acceleration cycled ((0.20, -0.98), then
+    (-0.93, -0.36), whose acceleration points 122 degrees away) and the run took an event every
+    5e-11 s without end. Now every mode choice of the landing leaves each contact that starts
+    sliding accelerating along its slip (``wrong_slip`` empty), the search being needed at least
+    once, and the landing ends with its momentum balanced (1e-4)."""
+    model = _data_model("random_30249.yaml")
+    searched, original = [0], _Landing.consistent_slip
+
+    def checked(self, pt, v, mode, acc_tol):
+        out = original(self, pt, v, mode, acc_tol)
+        assert not self.wrong_slip(pt, v, out, acc_tol)[0].any()
+        return out
+
+    def counted(self, *args):
+        searched[0] += 1
+        return search(self, *args)
+
+    search = _Landing.searched_slip
+    monkeypatch.setattr(_Landing, "consistent_slip", checked)
+    monkeypatch.setattr(_Landing, "searched_slip", counted)
+    r = landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    assert searched[0] >= 1 and r.momentum_balance <= 1e-4
+
+
+@pytest.mark.parametrize("angle", [2.0, -2.5, 0.3])
+def test_the_followed_slip_is_along_a_constant_drive_not_against_it(angle):
+    """A slip acceleration that does not depend on the slip (a constant drive g): the slip it
+    follows is g / |g| (to 1e-12), not -g / |g|, where d x g changes sign too (found first in the
+    scan for these angles' opposites); in the plane the sign along the drive, and none where the
+    acceleration turns against either sign."""
+    g = 3.0 * np.array([math.cos(angle), math.sin(angle)])
+    found = _followed_slip(lambda d: (float(d[0] * g[1] - d[1] * g[0]), float(d @ g)), 2, 1e-9)
+    np.testing.assert_allclose(found, g / 3.0, atol=1e-12)
+    assert _followed_slip(lambda d: (0.0, float(-2.0 * d[0])), 1, 1e-9)[0] == -1.0
+    assert _followed_slip(lambda d: (0.0, -1.0), 1, 1e-9) is None
