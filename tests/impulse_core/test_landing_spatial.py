@@ -621,3 +621,34 @@ def test_the_followed_slip_is_along_a_constant_drive_not_against_it(angle):
     np.testing.assert_allclose(found, g / 3.0, atol=1e-12)
     assert _followed_slip(lambda d: (0.0, float(-2.0 * d[0])), 1, 1e-9)[0] == -1.0
     assert _followed_slip(lambda d: (0.0, -1.0), 1, 1e-9) is None
+
+
+@pytest.mark.parametrize("scale", [1.0, 3.0, 10.0])
+def test_only_a_slip_slower_than_the_contracts_plastic_speed_is_arrested(scale):
+    """Random file 20693's kept state (data/turned_slip_20693_state.json) with every velocity
+    scaled: of the contacts whose slip turned past a right angle, those slower than the
+    contract's 1e-4 m/s come to rest at the event (``arrest``), the faster ones keep their slip
+    (changed only through the others' arrest: 1.18e-4 -> 0.98e-4 m/s at 3 x), and nothing moves
+    when none is that slow."""
+    import json
+
+    from impulse_core.timedomain.landing import _Mode
+
+    model = _data_model("turned_slip_20693.yaml")
+    kept = json.loads((Path(__file__).parent / "data" / "turned_slip_20693_state.json").read_text())
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    totals = run.first_impact()[3]
+    q, v = np.array(kept["q"]), scale * np.array(kept["v"])
+    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
+                 np.array(kept["core"]))
+    speed = np.linalg.norm(run.point(q, v).slip, axis=1)
+    turned = np.zeros(run.nc, bool)
+    turned[kept["turned"]] = True
+    slow = turned & (speed < 1e-4)
+    assert (turned & ~slow).any() or scale == 1.0
+    q1, v1 = run.arrest(q, v, mode, totals)
+    after = np.linalg.norm(run.point(q1, v1).slip, axis=1)
+    assert np.all(after[slow] < 1e-12)
+    assert np.all(after[turned & ~slow] > 0.5 * speed[turned & ~slow])  # moved only through the slow ones' arrest
+    if not slow.any():
+        assert np.array_equal(v1, v)
