@@ -1097,10 +1097,18 @@ class _Landing:
         if self.settings.step:
             return self.settings.step
         T = float(self.scene.duration)
-        shortest, longest = FIRST_STEPS[0] * T, FIRST_STEPS[1] * T
         if self.method == IMPLICIT:
-            return shortest
-        return min(longest, max(shortest, RK4_STABLE / self.rate if self.rate > 0 else math.inf))
+            return FIRST_STEPS[0] * T
+        return max(FIRST_STEPS[0] * T, self.stable_step())
+
+    def stable_step(self) -> float:
+        """RK4's longest stable step for the joint laws at touchdown (RK4_STABLE / rate), at most
+        duration / 100: where ``auto``'s implicit run overran its step budget (the momentum
+        balance split its steps), :func:`landing` runs RK4 from this step instead (random file
+        30039, h x rate 3.6: 97 s on ROS2 restarted at h / 16, 3.9 s so; 30094: about 10 min
+        against 5.2 s; 30000: over 120 s against 28.5 s)."""
+        longest = FIRST_STEPS[1] * float(self.scene.duration)
+        return min(longest, RK4_STABLE / self.rate) if self.rate > 0 else longest
 
     def compiled_step(self, code: str):
         """The compiled step of this landing's integrator (:mod:`impulse_core.timedomain.landing_step`),
@@ -2311,7 +2319,9 @@ def landing(
     halved from ``settings.step`` until two successive runs differ by at most the tolerance
     (:func:`landing_difference`); the finer run is returned with that difference as its
     ``error_estimate`` (an unmet tolerance: ``converged`` is False). ``progress`` is told where
-    each run is (:class:`LandingProgress`; a run that diverged is followed by one at a shorter step).
+    each run is (:class:`LandingProgress`; a run that diverged is followed by one at a shorter step,
+    and an implicit run that ``auto`` chose and whose steps overran their budget by one of RK4 at
+    its stable step, :meth:`_Landing.stable_step`).
 
     Raises:
         ModelError: no ``scene.duration``, or joint laws that do not match the tree.
@@ -2330,6 +2340,10 @@ def landing(
         except Diverged as e:
             if halvings == settings.max_refinements:
                 raise
+            if e.reached > 0 and run.method == IMPLICIT and settings.integrator == AUTO:
+                run = _Landing(tree, scene, joints, replace(settings, integrator=RK4), space)
+                h = run.stable_step()
+                continue
             h /= retry_factor(e.reached)
     error = math.inf
     current = previous

@@ -583,3 +583,31 @@ def test_the_landing_figures_are_their_definitions():
         later_over_first.append(min(max(external[1:]) / external[0], max(internal[1:]) / internal[0],
                                     max(largest[1:]) / largest[0]))
     assert max(later_over_first) > 1.0, later_over_first
+
+
+def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable_step(monkeypatch):
+    """Random file 30039 (data/random_30039.yaml: planar, friction 1, h x rate 3.6 at touchdown,
+    so ``auto`` takes ROS2): the momentum balance split ROS2's steps until the run overran its
+    budget, and the landing restarted ROS2 at h / 16 (97 s). Now the next run is RK4 at its
+    stable step (RK4_STABLE / rate) and no implicit run follows an overrun; the landing meets its
+    tolerance and balances its momentum (1e-4)."""
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(Path(__file__).parent / "data" / "random_30039.yaml")
+    runs, overran, original = [], [], _Landing.run
+
+    def watched(self, h, *args):
+        assert not (overran and self.method == "implicit"), "an implicit run after an overrun"
+        runs.append((self.method, h, self.rate))
+        try:
+            return original(self, h, *args)
+        except Diverged as e:
+            overran.append(e.reached > 0)
+            raise
+
+    monkeypatch.setattr(_Landing, "run", watched)
+    r = landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    assert runs[0][0] == "implicit" and overran == [True]
+    method, h, rate = runs[1]
+    assert method == "rk4" and h == pytest.approx(2.0 / rate, rel=1e-12)
+    assert r.integrator == "rk4" and r.converged and r.momentum_balance <= 1e-4
