@@ -103,17 +103,23 @@ SETTLE_SPEED = 1e-3
 MAX_EVENTS = 20000
 #: The integrators between events (:attr:`LandingSettings.integrator`).
 RK4, IMPLICIT, AUTO = "rk4", "implicit", "auto"
-#: ``auto`` takes the implicit integrator when the first step times the joint laws' fastest rate
-#: at touchdown (:func:`joint_law_rate`) exceeds this: classical RK4 is stable on the negative
-#: real axis up to 2.785 (a damper's mode) and on the imaginary axis up to 2.828 (a spring's).
+#: RK4's stable step times the joint laws' fastest rate at touchdown (:func:`joint_law_rate`):
+#: classical RK4 is stable on the negative real axis up to 2.785 (a damper's mode) and on the
+#: imaginary axis up to 2.828 (a spring's). With a given step, ``auto`` takes the implicit
+#: integrator when that step times the rate exceeds this.
 RK4_STABLE = 2.0
+#: Without a given step, ``auto`` takes the implicit integrator only when duration / 200 times the
+#: rate exceeds this, i.e. when RK4's stable step is over 16 x shorter than ROS2's first step;
+#: below it RK4 from its stable step was the faster on the random sweep's files (up to 30 x at
+#: h x rate 2-20; ROS2 the faster at 66: ``studies/whole_landing/spatial_chatter.md``).
+AUTO_IMPLICIT = 32.0
 #: The code of the integrator's step (:attr:`LandingSettings.step_code`): one CasADi function
 #: compiled to C through the trusted cache (:mod:`impulse_core.timedomain.landing_step`), the same
 #: function on CasADi's virtual machine, or the numpy reference.
 C_CODE, VM_CODE, NUMPY_CODE = "c", "vm", "numpy"
-#: The default first step (:attr:`LandingSettings.step`) lies within these fractions of the
-#: duration: RK4 takes the longest step within them that is stable for the joint laws at touchdown
-#: (RK4_STABLE / :func:`joint_law_rate`), the implicit integrator the shortest. The step-halving
+#: The default first step (:attr:`LandingSettings.step`): the implicit integrator's is duration /
+#: 200; RK4's is its longest stable step for the joint laws at touchdown (RK4_STABLE /
+#: :func:`joint_law_rate`), at most duration / 100. The step-halving
 #: estimate that follows is what holds the tolerance (case 3: runs at 2.7 and 1.3 ms instead of
 #: 1.5 and 0.75 ms, estimate 4e-7 against a tolerance of 1e-3, 0.6 x the time).
 FIRST_STEPS = (1.0 / 200.0, 1.0 / 100.0)
@@ -173,9 +179,10 @@ class LandingSettings:
         max_events: impacts after which a run is abandoned (a chattering contact, or a budget).
         integrator: between events, ``rk4`` (classical Runge-Kutta 4, explicit), ``implicit``
             (ROS2, a linearly implicit Rosenbrock-W method of order 2 with the joint springs and
-            dampers in its matrix: stable for any damper on any rod) or ``auto``: RK4 unless
-            the first step is beyond RK4's stability for the joint laws at touchdown
-            (:data:`RK4_STABLE`), then implicit. One landing keeps one integrator at every step
+            dampers in its matrix: stable for any damper on any rod) or ``auto``: RK4 from its
+            stable step unless that is over 16 x shorter than duration / 200
+            (:data:`AUTO_IMPLICIT`; with a given step, unless that step is beyond RK4's
+            stability, :data:`RK4_STABLE`), then implicit. One landing keeps one integrator at every step
             length, so that the step-halving estimate compares like with like.
         step_code: the steps of either integrator (plane and space) by one CasADi function of
             the mode (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
@@ -1049,8 +1056,9 @@ class _Landing:
         #: the joint laws' fastest rate at touchdown (1/s, :func:`joint_law_rate`)
         self.rate = joint_law_rate(self.mass_matrix_at(self.q0), self.joints.damping, self.joints.stiffness)
         if self.method == AUTO:
-            h0 = settings.step or (scene.duration or 0.0) * FIRST_STEPS[0]
-            self.method = IMPLICIT if h0 * self.rate > RK4_STABLE else RK4
+            h0, limit = ((settings.step, RK4_STABLE) if settings.step
+                         else ((scene.duration or 0.0) * FIRST_STEPS[0], AUTO_IMPLICIT))
+            self.method = IMPLICIT if h0 * self.rate > limit else RK4
         if self.method not in (RK4, IMPLICIT):
             raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, auto")
         #: circular-cone solves of the current run that fell back to the polyhedral answer
@@ -1091,15 +1099,12 @@ class _Landing:
 
     def first_step(self) -> float:
         """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
-        integrator's duration / 200 and RK4's longest step up to duration / 100 at which it is
-        stable for the joint laws at touchdown, but not below duration / 200 (where ``auto``
-        takes RK4, it is stable there)."""
+        integrator's duration / 200 and RK4's :meth:`stable_step`."""
         if self.settings.step:
             return self.settings.step
-        T = float(self.scene.duration)
         if self.method == IMPLICIT:
-            return FIRST_STEPS[0] * T
-        return max(FIRST_STEPS[0] * T, self.stable_step())
+            return FIRST_STEPS[0] * float(self.scene.duration)
+        return self.stable_step()
 
     def stable_step(self) -> float:
         """RK4's longest stable step for the joint laws at touchdown (RK4_STABLE / rate), at most
@@ -2365,6 +2370,7 @@ __all__ = [
     "MAX_EVENTS",
     "RK4",
     "RK4_STABLE",
+    "AUTO_IMPLICIT",
     "MODEL_NAME",
     "MIN_BOUNCE",
     "PLASTIC_SPEED",

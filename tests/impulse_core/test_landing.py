@@ -539,7 +539,7 @@ def test_a_mode_that_holds_persists_where_the_contact_problem_has_two_answers(mo
     from optimizer.config.model_file import load_model_file
 
     model = load_model_file(STICK_OR_SLIDE)
-    settings = LandingSettings(max_events=300)
+    settings = LandingSettings(max_events=300, integrator="implicit")  # at 7.5e-4 s, h x rate 8.5
     r = _assert_the_laws(model.tree, model.joints, model.scene, 7.5e-4, settings, momentum=1e-5)
     assert 5 < len(r.events) < 60 and any(e.kind == "stop" for e in r.events)
     monkeypatch.setattr(_Landing, "persists", lambda self, q, v, mode: False)
@@ -586,14 +586,15 @@ def test_the_landing_figures_are_their_definitions():
 
 
 def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable_step(monkeypatch):
-    """Random file 30039 (data/random_30039.yaml: planar, friction 1, h x rate 3.6 at touchdown,
-    so ``auto`` takes ROS2): the momentum balance split ROS2's steps until the run overran its
-    budget, and the landing restarted ROS2 at h / 16 (97 s). Now the next run is RK4 at its
-    stable step (RK4_STABLE / rate) and no implicit run follows an overrun; the landing meets its
-    tolerance and balances its momentum (1e-4)."""
+    """Random file 30039 (data/random_30039.yaml: planar, friction 1, h x rate 3.6 at touchdown):
+    where ``auto`` takes ROS2 there (its threshold as it was, RK4_STABLE), the momentum balance
+    split ROS2's steps until the run overran its budget, and the landing restarted ROS2 at h / 16
+    (97 s). Now the next run is RK4 at its stable step (RK4_STABLE / rate) and no implicit run
+    follows an overrun; the landing meets its tolerance and balances its momentum (1e-4)."""
     from optimizer.config.model_file import load_model_file
 
     model = load_model_file(Path(__file__).parent / "data" / "random_30039.yaml")
+    monkeypatch.setattr(landing_module, "AUTO_IMPLICIT", landing_module.RK4_STABLE)
     runs, overran, original = [], [], _Landing.run
 
     def watched(self, h, *args):

@@ -180,6 +180,37 @@ def test_the_first_step_is_rk4s_longest_stable_one():
     assert _Landing(tree, scene, laws, LandingSettings(step=1e-3)).first_step() == 1e-3
 
 
+def test_auto_takes_rk4_from_its_stable_step_up_to_its_threshold(monkeypatch):
+    """Without a given step, ``auto`` takes RK4 from its stable step (2 / rate) unless duration /
+    200 times the rate exceeds AUTO_IMPLICIT (32), then ROS2 from duration / 200; with a given
+    step, RK4 while that step is stable (RK4_STABLE). Random file 30039 (h x rate 3.6), on both
+    sides of a threshold moved to its own h x rate, and the light-tipped leg over the study's 0.15 s (about 200)."""
+    from pathlib import Path
+
+    import impulse_core.timedomain.landing as landing_module
+    from optimizer.config.model_file import load_model_file
+    from tests.impulse_core.test_landing import _light_tip_leg
+
+    m = load_model_file(Path(__file__).parent / "data" / "random_30039.yaml")
+    T = m.scene.duration
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(), m.space)
+    assert run.method == "rk4" and run.first_step() == pytest.approx(2.0 / run.rate, rel=1e-12)
+    x = T / 200 * run.rate
+    assert 2.0 < x < landing_module.AUTO_IMPLICIT == 32.0
+    for threshold, method, step in ((x * (1 + 1e-9), "rk4", 2.0 / run.rate), (x * (1 - 1e-9), "implicit", T / 200)):
+        monkeypatch.setattr(landing_module, "AUTO_IMPLICIT", threshold)
+        r = _Landing(m.tree, m.scene, m.joints, LandingSettings(), m.space)
+        assert (r.method, r.first_step()) == (method, pytest.approx(step, rel=1e-12))
+    monkeypatch.undo()
+    given = 1.01 * 2.0 / run.rate
+    assert _Landing(m.tree, m.scene, m.joints, LandingSettings(step=given), m.space).method == "implicit"
+    assert _Landing(m.tree, m.scene, m.joints, LandingSettings(step=given / 1.02), m.space).method == "rk4"
+    tree, laws, scene = _light_tip_leg()
+    scene = replace(scene, duration=0.15)  # the study's
+    stiff = _Landing(tree, scene, laws, LandingSettings())
+    assert scene.duration / 200 * stiff.rate > 32.0 and stiff.method == "implicit"
+
+
 @pytest.mark.parametrize("seed, sloped, offsets", [(1, False, False), (9, True, False), (1, False, True)])
 def test_random_legs_land_alike_on_the_compiled_step(seed, sloped, offsets):
     """Random legs (30 and 35 events: toe bounces, stops, sliding), one on a slope, one with its
