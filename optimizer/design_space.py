@@ -50,7 +50,6 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import linprog
 
 from impulse_core.evaluate import ImpactResult, approach_velocity, compiled_model, evaluate, touchdown_geometry
 from impulse_core.errors import NumericalError
@@ -1025,6 +1024,8 @@ class _LengthRows:
         cost[:n] = 1e-6
         cost[n + 1] = -1.0
         bounds = [(LENGTH_FLOOR, None)] * n + [(None, None), (None, MARGIN_CAP)]
+        from scipy.optimize import linprog  # here: importing scipy.optimize costs ~0.2 s of CPU
+
         sol = linprog(
             cost,
             A_ub=np.array(self.a_ub),

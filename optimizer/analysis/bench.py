@@ -40,10 +40,9 @@ from impulse_core.evaluate import active_contacts, approach_velocity, compiled_m
 from impulse_core.impact.delassus import LEAN_OUTPUTS, lean_impact_function, norms_gradient_function
 from impulse_core.kinematics.spatial import PLANAR, Space, n_values, rods_only
 from impulse_core.model.tree import Body, ContactSelection, Scene, Topology, Tree, design_vector
+from optimizer.analysis.sizes import SCALING_SIZES
 from optimizer.design_space import leg_rod_count, search_columns
 
-#: Body counts of the scaling series (more toes and more segments per toe).
-SCALING_SIZES = (5, 10, 20, 50, 100, 200)
 #: Outputs compared between batched and single calls, and between the lean and the full model.
 CHECKED_OUTPUTS = ("external", "internal_magnitude", "external_norm", "internal_norm")
 

@@ -15,7 +15,6 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -25,7 +24,7 @@ from impulse_core.errors import FootoptError, NumericalError
 from impulse_core.evaluate import touchdown_geometry
 from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw
 from impulse_core.timedomain.sequential import SequentialSettings
-from optimizer.analysis.bench import SCALING_SIZES
+from optimizer.analysis.sizes import SCALING_SIZES
 from optimizer.cli.export import add_export
 from optimizer.cli.drop import add_drop
 from optimizer.cli.importer import add_import
@@ -34,7 +33,6 @@ from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
-from optimizer.design_space import Objective
 from optimizer.errors import ConfigError, interrupted
 from impulse_core.timedomain.landing import LandingProgress, LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
@@ -221,7 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Design robot feet that spread landing impulses.",
         epilog="Run 'footopt COMMAND --help' for a command's options.",
     )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action=_VersionAction)
     parser.add_argument("--debug", action="store_true", help="show a Python traceback for any error")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for add in SUBCOMMANDS:
@@ -366,7 +364,7 @@ def _evaluate_over_landings(args: argparse.Namespace) -> int:
     """``footopt evaluate --landings STUDY.yaml MODEL.yaml...``: each file's statistics over the
     study's landings (each scenario by the model ``auto`` picks)."""
     from optimizer.config.study_config import load_study
-    from optimizer.design_space import study_landing
+    from optimizer.design_space import Objective, study_landing
     from optimizer.evaluation.robust import evaluate_over_landings
 
     try:
@@ -668,7 +666,18 @@ def _plot_paths(path: Path, files: list[str]) -> dict[int, Path]:
     return out
 
 
+class _VersionAction(argparse._VersionAction):
+    """argparse's ``version`` action, the version looked up only when ``--version`` is given
+    (importlib.metadata and its scan of the installed packages are not free)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):  # type: ignore[no-untyped-def]
+        self.version = f"%(prog)s {_version()}"
+        super().__call__(parser, namespace, values, option_string)
+
+
 def _version() -> str:
+    from importlib import metadata
+
     try:
         return metadata.version("footopt")
     except metadata.PackageNotFoundError:

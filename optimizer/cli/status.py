@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 
-from optimizer.config.study_config import redact_url
+from optimizer.config.redact import redact_url
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 

@@ -10,7 +10,6 @@ with defaults, is ``configs/quick_study.yaml``; :func:`format_study` writes a re
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field, replace
 from enum import Enum
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Any
 from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Scene
 from optimizer.config.model_file import joint_law, load_yaml, read_text
+from optimizer.config.redact import redact_url
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import mapping as _checked_mapping
 from optimizer.config.yaml_fields import number as _number
@@ -416,11 +416,6 @@ def resolve_storage(url: str, folder: Path | None) -> str:
         return url
     path = Path(url[len(prefix) :])
     return url if path.is_absolute() else prefix + str((folder / path).resolve())
-
-
-def redact_url(url: str) -> str:
-    """A storage URL fit for logs, run folders and reports: any password replaced by ``***``."""
-    return re.sub(r"(//[^/@:]*:)[^/@]*@", r"\1***@", url)
 
 
 def _scene(data: Any) -> Scene:
