@@ -1103,6 +1103,9 @@ def landing_gradient(
         if kind == "rechart":
             raise NumericalError(f"the base turned more than {RECHART:g} rad: its rotation coordinates were "
                                  "re-centred, which the derivatives' replay does not follow")
+        if kind == "vertex_step":
+            raise NumericalError("a resting contact passed a breakpoint of scene.terrain (an event where the "
+                                 "ground's normal jumps), which the derivatives' replay does not follow")
         item = _signature(entry, run)
         if item is not None:
             signature.append(item)
