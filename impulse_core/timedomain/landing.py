@@ -1044,6 +1044,8 @@ class _Landing:
         #: the plane's terrain breakpoints (x, m) where a sloped profile's normal jumps; None: flat
         #: or space (:meth:`vertex_crossing`)
         self.vertices = np.asarray(scene.terrain.x, dtype=float) if self.planar and self.sloped else None
+        #: the contact normals at the last accepted step's end (None: after an event or a crossing)
+        self.end_normals: np.ndarray | None = None
         weight = self.mass * max(scene.gravity, 1.0)
         self.force_tol = 1e-9 * weight
         self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
@@ -1470,8 +1472,24 @@ class _Landing:
         valley's impact plastically whatever the restitution, and pulled the contact down onto
         the ridge's far side (a pulling impulse). A crossing that changes no normal speed by more
         than the plastic speed (1e-4 m/s) is left to the projection (a plastic change)."""
+        # the normals at the step's ends (the last accepted step's end's for its start): unchanged,
+        # no breakpoint passed (nor one between collinear segments, which changes nothing)
+        end = self.ended(q1, v1, mode)
+        n1 = end.normal if end is not None else self.point(q1, v1).normal
+        n0, self.end_normals = self.end_normals, n1
+        n0 = n0 if n0 is not None else self.point(q, v).normal
+        if not _any(mode.closed & (np.max(np.abs(n1 - n0), axis=1) > 1e-12)):
+            return None
+        self.end_normals = None
         k0 = self.pieces(q, v)
-        if not _any(mode.closed & (self.pieces(q1, v1) != k0)):
+        passing = mode.closed & (self.pieces(q1, v1) != k0)
+        if not _any(passing):
+            return None
+        # a crossing too slow to locate (the contact's velocity at the step's start along the
+        # next segment's normal within half the plastic speed): no bisection (the step's cost x 50)
+        pt, normal = self.point(q, v), self.point(q1, v1).normal
+        velocity = pt.normal * pt.vn(v)[:, None] + pt.tangent[:, 0] * pt.vt(v)[:, 0][:, None]
+        if not _any(passing & (np.abs(np.sum(normal * velocity, axis=1)) > 0.5 * PLASTIC_SPEED)):
             return None
         lo, hi, found, before = 0.0, h, None, None
         for _ in range(200):
@@ -2122,6 +2140,7 @@ class _Landing:
         self.inexact = self.non_unique = 0
         self.min_bounce = MIN_BOUNCE * T
         q, v, mode, totals = self.first_impact()
+        self.end_normals = None
         self.min_bounce = max(MIN_BOUNCE * T, self.settings.bounce_steps * h)
         energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
@@ -2160,6 +2179,8 @@ class _Landing:
             crossing = None
             if graze is None and self.vertices is not None and _any(mode.closed):
                 crossing = self.vertex_crossing(q, v, q1, v1, mode, dt)
+            if graze is not None or crossing is not None:
+                self.end_normals = None
             if graze is None and crossing is None:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
