@@ -1073,7 +1073,9 @@ class _Landing:
         self.min_bounce = MIN_BOUNCE * float(scene.duration or 0.0)
         #: None, or a list that a run appends its committed operations to, in order (what
         #: :mod:`impulse_core.timedomain.landing_derivatives` replays): ("step", q, v, mode, dt,
-        #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol, plastic:
+        #: final), ("event_step", q, v, mode, tau, watch), ("vertex_step", q, v, mode, tau, crossed:
+        #: a step to a resting contact passing a terrain breakpoint, :meth:`vertex_crossing`; the
+        #: replay refuses it), ("impact", q, v, rows, e, sol, plastic:
         #: the rows whose restitution the plastic rules zeroed) and ("project", q, v, mode); q, v
         #: are the operation's inputs.
         self.tape: list | None = None

@@ -117,3 +117,16 @@ def test_a_contact_sliding_off_a_breakpoint_is_not_pulled_down():
     full = landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     assert full.momentum_balance <= 1e-4
     assert np.max(np.abs(full.events[0].external - r.events[0].external)) <= 1e-12 * np.max(r.events[0].external)
+
+
+def test_the_derivatives_refuse_a_breakpoint_crossing():
+    """The derivatives' replay has no witness for a breakpoint: it refuses such a landing (naming
+    scene.terrain) rather than replaying the crossing's event as a step; the taped sequence names it."""
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain.landing_derivatives import landing_gradient, sequence_signature, taped_run
+
+    model = _model("ridge_valley.yaml")
+    _, tape, run = taped_run(model.tree, model.scene, model.joints, 0.005)
+    assert [s[2] for s in sequence_signature(tape, run) if s[0] == "vertex"] == [(0,)] * 3  # two ledges, the valley
+    with pytest.raises(NumericalError, match="scene.terrain"):
+        landing_gradient(model.tree, model.scene, model.joints, step=0.005)
