@@ -1047,6 +1047,11 @@ class _Landing:
         self.mass = sum(b.mass for b in tree.bodies)
         self.subtree_mass = subtree_masses(tree)
         self.sloped = not ground.is_flat
+        #: the plane's terrain breakpoints (x, m) where a sloped profile's normal jumps; None: flat
+        #: or space (:meth:`vertex_crossing`)
+        self.vertices = np.asarray(scene.terrain.x, dtype=float) if self.planar and self.sloped else None
+        #: the contact normals at the last accepted step's end (None: after an event or a crossing)
+        self.end_normals: np.ndarray | None = None
         weight = self.mass * max(scene.gravity, 1.0)
         self.force_tol = 1e-9 * weight
         self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
@@ -1075,7 +1080,9 @@ class _Landing:
         self.min_bounce = MIN_BOUNCE * float(scene.duration or 0.0)
         #: None, or a list that a run appends its committed operations to, in order (what
         #: :mod:`impulse_core.timedomain.landing_derivatives` replays): ("step", q, v, mode, dt,
-        #: final), ("event_step", q, v, mode, tau, watch), ("impact", q, v, rows, e, sol, plastic:
+        #: final), ("event_step", q, v, mode, tau, watch), ("vertex_step", q, v, mode, tau, crossed:
+        #: a step to a resting contact passing a terrain breakpoint, :meth:`vertex_crossing`; the
+        #: replay refuses it), ("impact", q, v, rows, e, sol, plastic:
         #: the rows whose restitution the plastic rules zeroed) and ("project", q, v, mode); q, v
         #: are the operation's inputs.
         self.tape: list | None = None
@@ -1455,6 +1462,62 @@ class _Landing:
         if not _any(dips):
             return None
         return float(s[np.argmax(dips.any(axis=1)), 0])
+
+    def pieces(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Per contact, the piece of the plane's terrain below it: the number of breakpoints at or
+        left of its x (0: the left ray)."""
+        return np.searchsorted(self.vertices, self.point(q, v).contacts[:, 0], side="right")
+
+    def vertex_crossing(self, q: np.ndarray, v: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, h: float
+                        ) -> tuple[_Trial, np.ndarray] | None:
+        """Where a closed contact passes a breakpoint of the plane's terrain over the step (q, v)
+        -> (q1, v1) of length ``h``: the step to just past it (bisected to rounding) and which
+        closed contacts passed one; or None. Beyond a breakpoint the ground's normal is the next
+        segment's: a contact sliding into a valley meets it moving into it (an impact), one
+        sliding over a ridge leaves it. Unlocated, the projection onto the next segment took the
+        valley's impact plastically whatever the restitution, and pulled the contact down onto
+        the ridge's far side (a pulling impulse). A crossing that changes no normal speed by more
+        than the plastic speed (1e-4 m/s) is left to the projection (a plastic change)."""
+        # the normals at the step's ends (the last accepted step's end's for its start): unchanged,
+        # no breakpoint passed (nor one between collinear segments, which changes nothing)
+        end = self.ended(q1, v1, mode)
+        n1 = end.normal if end is not None else self.point(q1, v1).normal
+        n0, self.end_normals = self.end_normals, n1
+        n0 = n0 if n0 is not None else self.point(q, v).normal
+        if not _any(mode.closed & (np.max(np.abs(n1 - n0), axis=1) > 1e-12)):
+            return None
+        self.end_normals = None
+        k0 = self.pieces(q, v)
+        passing = mode.closed & (self.pieces(q1, v1) != k0)
+        if not _any(passing):
+            return None
+        # a crossing too slow to locate (the contact's velocity at the step's start along the
+        # next segment's normal within half the plastic speed): no bisection (the step's cost x 50)
+        pt, normal = self.point(q, v), self.point(q1, v1).normal
+        velocity = pt.normal * pt.vn(v)[:, None] + pt.tangent[:, 0] * pt.vt(v)[:, 0][:, None]
+        if not _any(passing & (np.abs(np.sum(normal * velocity, axis=1)) > 0.5 * PLASTIC_SPEED)):
+            return None
+        lo, hi, found, before = 0.0, h, None, None
+        for _ in range(200):
+            if hi - lo <= 1e-15 * max(1.0, hi):
+                break
+            mid = 0.5 * (lo + hi)
+            trial = self.trial(q, v, mode, mid)
+            if _any(mode.closed & (self.pieces(trial.q, trial.v) != k0)):
+                hi, found = mid, trial
+            else:
+                lo, before = mid, trial
+        found = found if found is not None else self.trial(q, v, mode, hi)
+        if before is not None:
+            # the step to just before the breakpoint (its stages all on this side: a step past it
+            # holds the contact to the next segment in its last stages), then on at that speed
+            # (the plane's q' = v) over the bracket's rest, twice, to just past it
+            nudged = replace(before, tau=lo + 2.0 * (hi - lo), q=before.q + 2.0 * (hi - lo) * before.v, end=None)
+            if _any(mode.closed & (self.pieces(nudged.q, nudged.v) != k0)):
+                found = nudged
+        crossed = mode.closed & (self.pieces(found.q, found.v) != k0)
+        crossed &= np.abs(self.point(found.q, found.v).vn(found.v)) > PLASTIC_SPEED
+        return (found, crossed) if _any(crossed) else None
 
     def trial(self, q: np.ndarray, v: np.ndarray, mode: _Mode, tau: float) -> _Trial:
         """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates."""
@@ -2085,6 +2148,7 @@ class _Landing:
         self.inexact = self.non_unique = 0
         self.min_bounce = MIN_BOUNCE * T
         q, v, mode, totals = self.first_impact()
+        self.end_normals = None
         self.min_bounce = max(MIN_BOUNCE * T, self.settings.bounce_steps * h)
         energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
@@ -2120,7 +2184,12 @@ class _Landing:
                 fraction = self.grazing(q, v, q1, v1, mode, dt)
                 graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
                 graze = graze if graze is not None and _any(graze.w < 0) else None
-            if graze is None:
+            crossing = None
+            if graze is None and self.vertices is not None and _any(mode.closed):
+                crossing = self.vertex_crossing(q, v, q1, v1, mode, dt)
+            if graze is not None or crossing is not None:
+                self.end_normals = None
+            if graze is None and crossing is None:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
                 q0, v0 = q, v
@@ -2134,17 +2203,23 @@ class _Landing:
                 if progress is not None:
                     progress(LandingProgress(index, h, t, T, len(totals.events)))
                 continue
-            watch = graze.w < 0
-            located = self.locate(q, v, mode, graze, watch)
-            for _ in range(8):  # a witness that crossed earlier and came back by the step's end
-                missed = (located.w < 0) & ~watch
-                if not _any(missed):
-                    break
-                watch = located.w < 0
-                located = self.locate(q, v, mode, located, watch)
+            if crossing is not None:  # a closed contact passed a terrain vertex (located just past it)
+                located, crossed = crossing
+                if self.tape is not None:
+                    self.tape.append(("vertex_step", q.copy(), v.copy(), mode.copy(), located.tau, crossed))
+            else:
+                crossed = None
+                watch = graze.w < 0
+                located = self.locate(q, v, mode, graze, watch)
+                for _ in range(8):  # a witness that crossed earlier and came back by the step's end
+                    missed = (located.w < 0) & ~watch
+                    if not _any(missed):
+                        break
+                    watch = located.w < 0
+                    located = self.locate(q, v, mode, located, watch)
+                if self.tape is not None:
+                    self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), located.tau, watch))
             tau = located.tau
-            if self.tape is not None:
-                self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), tau, watch))
             q_e, v_e, impulse = self.take(q, v, mode, located)
             self.add(totals, impulse, q_e, v_e)
             self.tally_joints(totals, q, v, q_e, v_e, impulse, tau, _any(mode.closed))
@@ -2155,7 +2230,7 @@ class _Landing:
                 raise NumericalError(self.stall_message(q_e, v_e, mode, t))
             if len(totals.events) > self.settings.max_events:
                 raise NumericalError(self.budget_message(totals.events, t))
-            q, v, mode = self.event(q_e, v_e, mode, t, totals)
+            q, v, mode = self.event(q_e, v_e, mode, t, totals, crossed)
             if progress is not None:
                 progress(LandingProgress(index, h, t, T, len(totals.events)))
         pt = self.point(q, v)
@@ -2233,17 +2308,27 @@ class _Landing:
         jammed = (inverse_mass < 0) & mode.sliding[contact] & (fn[contact] < -self.force_tol)
         return contact[jammed]
 
-    def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals) -> tuple[np.ndarray, np.ndarray, _Mode]:
+    def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
+              crossed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, _Mode]:
         """Handle the event at (q, v): an impact where a contact touches or a joint reaches a
-        stop, then the new modes."""
+        stop, then the new modes. ``crossed``: the closed contacts that have just passed a
+        terrain vertex (:meth:`vertex_crossing`): each meets the segment beyond it afresh, along
+        that segment's normal: an impact where it approaches it (a valley), free where it leaves
+        it (a ridge)."""
         pt = self.point(q, v)
-        touching = ~mode.closed & (pt.gap <= self.settings.gap_tolerance) & (pt.vn(v) < 0)
+        vn = pt.vn(v)
+        touching = ~mode.closed & (pt.gap <= self.settings.gap_tolerance) & (vn < 0)
+        if crossed is not None:
+            mode = mode.copy()
+            mode.closed[crossed] = False
+            mode.slip[crossed] = 0.0
+            touching |= crossed & (vn < 0)
         reaching = (mode.stop == 0) & (((q <= self.joints.lo + self.settings.gap_tolerance) & (v < 0))
                                         | ((q >= self.joints.hi - self.settings.gap_tolerance) & (v > 0)))
         v_before = v
         if _any(touching) or _any(reaching):
             # every contact at the ground takes part (one just released may be pushed back down)
-            contacts = np.flatnonzero(mode.closed | (pt.gap <= self.settings.gap_tolerance))
+            contacts = np.flatnonzero(mode.closed | (pt.gap <= self.settings.gap_tolerance) | touching)
             v_minus = v
             v, event, mode = self.impact(q, v, mode, t, contacts, "touchdown" if _any(touching) else "stop")
             totals.events.append(event)

@@ -969,6 +969,9 @@ def _signature(entry: tuple, run: _Landing) -> tuple | None:
     if kind == "event_step":
         _, q, v, mode, tau, watch = entry
         return ("event", _mode_key(mode), _crossing(run, q, v, mode, tau, watch))
+    if kind == "vertex_step":  # a resting contact passed a terrain breakpoint (not replayed: landing_gradient)
+        _, q, v, mode, tau, crossed = entry
+        return ("vertex", _mode_key(mode), tuple(int(c) for c in np.flatnonzero(crossed)))
     if kind == "impact":
         _, q, v, rows, e, sol, _ = entry
         return ("impact", tuple(int(c) for c in rows.contact), tuple(int(d) for d in rows.dof),
@@ -1103,6 +1106,9 @@ def landing_gradient(
         if kind == "rechart":
             raise NumericalError(f"the base turned more than {RECHART:g} rad: its rotation coordinates were "
                                  "re-centred, which the derivatives' replay does not follow")
+        if kind == "vertex_step":
+            raise NumericalError("a resting contact passed a breakpoint of scene.terrain (an event where the "
+                                 "ground's normal jumps), which the derivatives' replay does not follow")
         item = _signature(entry, run)
         if item is not None:
             signature.append(item)

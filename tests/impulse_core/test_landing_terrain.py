@@ -1,0 +1,132 @@
+"""The whole landing on a planar ``scene.terrain`` where a resting contact passes a breakpoint.
+
+Beyond a breakpoint the ground's normal is the next segment's. A contact that slides into a
+valley meets the far slope moving into it (an impact, with the file's restitution); one that
+slides off a ledge or over a ridge finds the ground falling away and flies. The landing locates
+the crossing and handles it as an event (``_Landing.vertex_crossing``). Before, the step went on
+past the breakpoint and the projection put the contact back onto the next segment: the valley's
+impact plastic and unreported, the ledge's a pull (a negative normal impulse) that held the
+contact down on the slope.
+
+- data/ridge_valley.yaml (hand-made, a puck that does not turn): the laws by hand: it leaves the
+  ledge at x = -0.2 and lands on the slope after the parabola's flight; the impact at the
+  valley's breakpoint meets Newton's restitution along the far slope's normal and keeps the
+  velocity along it; the kinetic energy changes only by gravity's work and the events' losses;
+  no penetration; the first event is the lcp rung's; the momentum balance.
+- data/ridge_40056.yaml (random file, two contacts on a sprung leg): no projection pulls (-1.1
+  N s before) and the contract's checks (first event, momentum balance, no penetration).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from impulse_core.impact.laws import ImpactModel
+from impulse_core.timedomain.first_instant import first_instant
+from impulse_core.timedomain.landing import LandingSettings, _Landing, landing
+
+DATA = Path(__file__).resolve().parent / "data"
+G = 9.81
+
+
+def _model(name: str):
+    from optimizer.config.model_file import load_model_file
+
+    return load_model_file(DATA / name)
+
+
+def _run(model, pulls: list | None = None):
+    """The landing of ``model`` at its first step; ``pulls`` collects every projection's normal
+    impulses (the resting contacts' share of each step's impulse that the projection adds)."""
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    if pulls is not None:
+        project = run.project
+
+        def spy(q, v, mode):
+            q1, v1, p = project(q, v, mode)
+            pulls.append(p[: run.nc].copy())
+            return q1, v1, p
+
+        run.project = spy
+    return run, run.run(run.first_step())
+
+
+def _common_laws(model, run: _Landing, r) -> None:
+    """The contract's checks: the first event the lcp rung's (1e-9), the momentum balance (1e-4),
+    no contact below the ground at any step's end or event (1e-9 m)."""
+    first = first_instant(model.tree, model.scene, ImpactModel.LCP, model.space)  # --model lcp on uneven ground
+    scale = np.max(first.external)
+    assert np.max(np.abs(r.events[0].external - first.external)) <= 1e-9 * scale
+    assert r.momentum_balance <= 1e-4
+    times, states = r.trajectory
+    gaps = np.array([run.point(q, np.zeros(run.nv)).gap for q in states])
+    assert gaps.min() >= -1e-9
+
+
+def test_a_puck_flies_off_the_ledge_and_bounces_in_the_valley():
+    model = _model("ridge_valley.yaml")
+    pulls: list = []
+    run, r = _run(model, pulls)
+    _common_laws(model, run, r)
+    e, m = model.scene.restitution, 0.5
+    assert len(r.events) >= 3  # the first touchdown, the slope's after the ledge, the valley's (1 before)
+    # plastic on the flat top, it slides at 1.2 m/s to the ledge (x = -0.25 -> -0.2) and leaves it
+    # horizontally; the parabola meets the slope of 1/4 after 2 v / (4 g)
+    assert np.allclose(r.events[0].v_plus[:2], [1.2, 0.0], atol=1e-12)
+    ledge = 0.05 / 1.2
+    flight = 2 * 1.2 * 0.25 / G
+    assert r.events[1].time == pytest.approx(ledge + flight, rel=1e-9)
+    assert np.allclose(r.events[1].v_minus[:2], [1.2, -G * flight], rtol=1e-9)
+    times, states = r.trajectory
+    flying = (times > ledge + 1e-3) & (times < ledge + flight - 1e-3)
+    assert flying.any() and all(run.point(q, np.zeros(run.nv)).gap[0] > 1e-5 for q in states[flying])
+    # the impact at the valley's breakpoint (x = 0): along the far slope's normal, Newton's
+    # restitution; along its tangent, the velocity kept (frictionless); the puck does not turn
+    n = np.array([-0.05, 0.2]) / math.hypot(0.05, 0.2)
+    t = np.array([n[1], -n[0]])
+    valley = []
+    for ev in r.events[1:]:
+        q = states[np.flatnonzero(times == ev.time)[-1]]
+        if abs(run.point(q, np.zeros(run.nv)).contacts[0, 0]) <= 1e-9:
+            valley.append(ev)
+    assert len(valley) == 1
+    v0, v1 = valley[0].v_minus[:2], valley[0].v_plus[:2]
+    assert n @ v0 < -0.5
+    assert n @ v1 == pytest.approx(-e * (n @ v0), rel=1e-9)
+    assert t @ v1 == pytest.approx(t @ v0, rel=1e-9)
+    assert valley[0].external[0] == pytest.approx(m * (1 + e) * -(n @ v0), rel=1e-9)
+    assert np.all(np.abs([ev.v_plus[2] for ev in r.events]) <= 1e-12)
+    # the energy leaves at the events only (no resting force works on a frictionless puck)
+    lost = sum(ev.energy_before - ev.energy_after for ev in r.events[1:])
+    assert r.energy_final - r.gravity_work == pytest.approx(r.events[0].energy_after - lost, rel=1e-6)
+    assert min(p.min() for p in pulls) >= 0.0
+
+
+def test_a_contact_sliding_off_a_breakpoint_is_not_pulled_down():
+    model = _model("ridge_40056.yaml")
+    pulls: list = []
+    run, r = _run(model, pulls)
+    _common_laws(model, run, r)
+    p0 = float(np.max(np.abs(run.point(run.q0, r.events[0].v_minus).momentum[:, 0])))
+    # the projections' normal impulses: drift corrections (4e-8 of p0 here), no pull (-1.1 N s, 7.6e-2 of p0, before)
+    assert min(p.min() for p in pulls) >= -1e-5 * p0
+    full = landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    assert full.momentum_balance <= 1e-4
+    assert np.max(np.abs(full.events[0].external - r.events[0].external)) <= 1e-12 * np.max(r.events[0].external)
+
+
+def test_the_derivatives_refuse_a_breakpoint_crossing():
+    """The derivatives' replay has no witness for a breakpoint: it refuses such a landing (naming
+    scene.terrain) rather than replaying the crossing's event as a step; the taped sequence names it."""
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain.landing_derivatives import landing_gradient, sequence_signature, taped_run
+
+    model = _model("ridge_valley.yaml")
+    _, tape, run = taped_run(model.tree, model.scene, model.joints, 0.005)
+    assert [s[2] for s in sequence_signature(tape, run) if s[0] == "vertex"] == [(0,)] * 3  # two ledges, the valley
+    with pytest.raises(NumericalError, match="scene.terrain"):
+        landing_gradient(model.tree, model.scene, model.joints, step=0.005)
