@@ -27,12 +27,20 @@ def nnls(E: np.ndarray, f: np.ndarray, max_iter: int | None = None) -> np.ndarra
             if np.all(z[passive] > 0):
                 x = z
                 break
-            blocking = passive & (z <= 0)
-            alpha = np.min(x[blocking] / (x[blocking] - z[blocking]))
+            # the step along z - x that keeps x >= 0; a variable at 0 in both (x = z = 0, as one
+            # just entered whose least-squares value is 0) blocks nothing: 0 / 0 would make alpha
+            # NaN, and x all zeros (a wrong answer: the twin-contact test's LDP, residual 1 for 3e-16)
+            blocking = passive & (z <= 0) & (x > z)
+            alpha = np.min(x[blocking] / (x[blocking] - z[blocking])) if blocking.any() else 1.0
             x = x + alpha * (z - x)
             passive &= x > tol
             x[~passive] = 0.0
     return x
+
+
+#: How far below its bound (relative to max |h|) :func:`least_distance`'s answer may leave a
+#: constraint before it is rejected.
+LDP_TOL = 1e-9
 
 
 def least_distance(G: np.ndarray, h: np.ndarray) -> np.ndarray | None:
@@ -54,4 +62,11 @@ def least_distance(G: np.ndarray, h: np.ndarray) -> np.ndarray | None:
     r = E @ u - f
     if abs(r[-1]) <= 1e-12:  # f lies in the cone of E's columns: the constraints conflict
         return None
-    return -r[:n] / r[-1] * scale
+    z = -r[:n] / r[-1]
+    # a constraint that conflicts only at rounding's level (a row of G at 1e-16 against an h of
+    # 3e-9) leaves the residual ill-determined, and z from it can break the constraints by O(1):
+    # such an answer is no answer (None), as the callers then keep what they had
+    if np.min(G @ z - h / scale) < -LDP_TOL:
+        return None
+    return z * scale
+

@@ -120,3 +120,48 @@ def test_least_distance_is_homogeneous(k, rng):
     # and infeasibility does not depend on the scale either
     G = np.array([[1.0], [-1.0]])
     assert least_distance(G, k * np.array([1.0, 1.0])) is None
+
+
+#: The twin-contact landing's least-norm split (test_landing_edge_cases, twin contacts reaching the
+#: cone): the LDP min |z| s.t. G z >= h whose third row of G is rounding (1e-16) against an h of
+#: 2.7e-9. Its NNLS once entered a variable whose least-squares value was 0 (0 / 0 in the step:
+#: NaN, then x all zeros, residual 1 where scipy's is 3e-16), and the LDP's answer broke its
+#: constraints by O(1).
+TWIN_G = np.array([
+    [-0.6512015628594275, 0.2755658261276951, 1.1169744227477746e-16],
+    [0.6512015628594272, -0.27556582612769565, -8.482232998841035e-17],
+    [1.1102230246251565e-16, 4.85722573273506e-16, 1.7088398216353577e-17],
+    [0.0, 1.1102230246251565e-16, -8.933825901280557e-17],
+    [-0.03626246496373703, 0.4586411454519866, -0.7071067811865475],
+    [-0.35445847275231024, -0.2933016497752042, 0.7071067811865475],
+    [0.3544584727523101, 0.2933016497752041, 0.7071067811865475],
+    [0.036262464963736946, -0.45864114545198686, -0.7071067811865475],
+    [-0.31819600778857315, -0.7519427952271905, -8.206877163270672e-17],
+    [0.31819600778857327, 0.7519427952271908, 9.232181056252913e-17],
+])
+TWIN_H = np.array([-0.9999999999999999, -1.0, 2.668578357655526e-09, -0.20301755192295945, -0.4632626580934025, -0.13673734190719752, -0.4632626580934025, -0.13673734190719752, -0.16326265729252823, 0.16326265889367525])
+
+
+def test_nnls_where_an_entering_variable_solves_to_zero():
+    """No NaN step (warnings are errors here) and scipy's residual, to 1e-6 of |f| on this
+    ill-conditioned problem (a column of 3e-9: x = 3.7e8)."""
+    E = np.vstack([TWIN_G.T, TWIN_H[None, :]])
+    f = np.zeros(4)
+    f[-1] = 1.0
+    with np.errstate(all="raise"):
+        x = nnls(E, f)
+    assert x.min() >= 0 and np.linalg.norm(E @ x - f) <= 1e-6 + scipy_nnls(E, f)[1]
+
+
+def test_least_distance_never_answers_outside_its_constraints(rng):
+    """The twin contacts' LDP: no answer (its callers keep their admissible impulse) rather than
+    one that breaks a constraint; seeded near-degenerate LDPs (a row of G scaled to rounding):
+    every answer meets G z >= h to 1e-9 of max |h|."""
+    assert least_distance(TWIN_G, TWIN_H) is None
+    for _ in range(300):
+        m, n = rng.integers(2, 9), rng.integers(1, 5)
+        G, h = rng.normal(size=(m, n)), rng.normal(size=m)
+        G[rng.integers(m)] *= rng.choice([1e-16, 1e-12, 1.0])
+        z = least_distance(G, h)
+        if z is not None:
+            assert np.min(G @ z - h) >= -1e-9 * np.max(np.abs(h))
