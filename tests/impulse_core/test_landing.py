@@ -585,6 +585,26 @@ def test_the_landing_figures_are_their_definitions():
     assert max(later_over_first) > 1.0, later_over_first
 
 
+def test_runs_whose_steps_the_balance_split_alike_are_not_an_estimate(monkeypatch):
+    """The step-halving estimate takes the difference of two runs only where the finer took at
+    least DISTINCT_RUNS (1.1) x the coarser's steps (30113 on ROS2: runs of 2855 and 2858 steps
+    differed by 1.4e-6, the finer 1.6e-5 from the converged answer). Runs of 1000, 1005 and 2000
+    steps (a random leg's result, its final angles scaled by 1, 1 + 1e-6, 1 + 3e-6): the estimate is the last
+    pair's, 2e-6, and the 2000-step run is returned."""
+    tree, laws, scene = _random_leg(1)
+    base = landing(tree, scene, laws, LandingSettings(tolerance=1e-2))
+    runs = iter([(1000, 0.0), (1005, 1e-6), (2000, 3e-6)])
+
+    def fake(self, h, *args):
+        n, moved = next(runs)
+        return replace(base, n_steps=n, final_angles=base.final_angles * (1 + moved))
+
+    monkeypatch.setattr(_Landing, "run", fake)
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-3))
+    assert r.n_steps == 2000
+    assert r.error_estimate == pytest.approx(2e-6 / (1 + 1e-6), rel=1e-9)
+
+
 def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable_step(monkeypatch):
     """Random file 30039 (data/random_30039.yaml: planar, friction 1, h x rate 3.6 at touchdown):
     where ``auto`` takes ROS2 there (its threshold as it was, RK4_STABLE), the momentum balance
