@@ -924,6 +924,9 @@ _GRAZE_BASIS = tuple(
 
 #: A mass matrix whose condition number exceeds this is near singular (:meth:`_Landing.singular_note`).
 SINGULAR_MASS = 1e8
+#: a diverged run names a pressed sliding contact whose row's effective inverse mass with
+#: friction is below this fraction of its frictionless one (:meth:`_Landing.jam_note`)
+JAM_NOTE = 1e-4
 
 #: Where :meth:`_Landing.locate` puts an event, in witness tolerances below zero: gaps and stop
 #: margins (LOCATE_DEPTH), forces, cone margins and slips (FORCE_DEPTH); see its docstring.
@@ -2181,7 +2184,8 @@ class _Landing:
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, grown)
             if not (np.isfinite(q1).all() and np.isfinite(v1).all() and self.kinetic(q1, v1) <= cap):
-                raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s){self.singular_note(q)}")
+                raise Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s){self.singular_note(q)}"
+                               f"{self.jam_note(q, v, mode)}")
             _check_chart(q1, self.space, t + dt)
             w, r = self.witness_and_rate(q1, v1, mode)
             all_hold = np.count_nonzero(w >= 0) == w.size  # (w >= 0).all()
@@ -2283,6 +2287,36 @@ class _Landing:
             return ""
         return (f": its mass matrix is near singular there (condition number {cond:.1e}: a motion with almost no "
                 "inertia, e.g. rods of zero radius in line spinning about their common axis); give the rods a radius")
+
+    def jam_note(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> str:
+        """Why a run diverged at (q, v) in ``mode`` where a closed sliding contact is pressed
+        while its row's effective inverse mass with friction along the slip, A = n M^-1 (n - mu u
+        t)^T, has fallen below JAM_NOTE of its frictionless n M^-1 n^T: its force -B / A grows
+        without bound as A reaches 0 (Painleve's paradox approached while sliding; Genot and
+        Brogliato 1999, Or and Rimon 2012), which no step resolves (random file 40029: at every
+        step of the halving, A fell from 0.46 of it at 0.11 s to 2e-6..1e-8 at 0.1423 s, the force
+        from 74 N to 1e5-1e9 N); else nothing."""
+        if not self.mu or not _any(mode.sliding & mode.closed):
+            return ""
+        try:
+            pt = self.point(q, v)
+            rows, (_, lam) = self.mode_solution(pt, mode)
+        except (NumericalError, np.linalg.LinAlgError):
+            return ""
+        fn = _contact_forces(rows, lam, self.mu, self.nc)[0]
+        c = np.flatnonzero(rows.contact[: rows.n] >= 0)
+        G = rows.G[c]
+        ratio = (np.einsum("ij,ji->i", G, np.linalg.solve(pt.M, rows.F[c].T))
+                 / np.einsum("ij,ji->i", G, np.linalg.solve(pt.M, G.T)))
+        contact = rows.contact[c]
+        near = (ratio < JAM_NOTE) & mode.sliding[contact] & (fn[contact] > self.force_tol)
+        if not _any(near):
+            return ""
+        return (f": contacts {self.contact_labels(contact[near])} slide pressed where their rows' effective mass "
+                f"with friction {self.mu:g} has nearly vanished (n M^-1 (n - mu u t)^T at "
+                f"{float(np.min(ratio[near])):.1e} of its frictionless value): Painleve's paradox ahead, the "
+                "contact force growing without bound (a dynamic jam, which the landing does not model): lower the "
+                "friction")
 
     def stall_message(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float) -> str:
         """Why events stopped making progress at (q, v): Painleve's paradox where a sliding

@@ -15,6 +15,8 @@ contact down on the slope.
   no penetration; the first event is the lcp rung's; the momentum balance.
 - data/ridge_40056.yaml (random file, two contacts on a sprung leg): no projection pulls (-1.1
   N s before) and the contract's checks (first event, momentum balance, no penetration).
+- data/jam_40029.yaml (random file, friction 0.3): not at a breakpoint; a sliding tip reaches
+  Painleve's paradox, and the divergence names it.
 """
 
 from __future__ import annotations
@@ -130,3 +132,18 @@ def test_the_derivatives_refuse_a_breakpoint_crossing():
     assert [s[2] for s in sequence_signature(tape, run) if s[0] == "vertex"] == [(0,)] * 3  # two ledges, the valley
     with pytest.raises(NumericalError, match="scene.terrain"):
         landing_gradient(model.tree, model.scene, model.joints, step=0.005)
+
+
+def test_a_divergence_into_painleves_paradox_names_the_sliding_contact():
+    """Random file 40029 (data/jam_40029.yaml, friction 0.3): from 0.11 s b3's tip slides pressed
+    down while its row's effective inverse mass with friction, n M^-1 (n - mu u t)^T, falls from
+    0.46 of its frictionless value to 0 at 0.1423 s, 0.25 m from any breakpoint; the force -B / A
+    then grows without bound (74 N to 1e5-1e9 N within the last microsecond), the steps split to
+    nanoseconds and the run diverges there at every step. The error said only "diverged"; it now
+    names the contact and Painleve's paradox. With friction 0.2 the same file lands."""
+    from impulse_core.timedomain.landing import Diverged
+
+    model = _model("jam_40029.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    with pytest.raises(Diverged, match=r"diverged at t = 0\.1423 s .*: contacts b3\[0\] slide pressed .*Painleve's paradox"):
+        run.run(run.first_step())
