@@ -117,6 +117,9 @@ def optimize(
     """Run ``config`` into ``run_dir`` (the body of ``footopt optimize``); returns the exit status.
     ``resume`` is the command that resumes it (printed when interrupted)."""
     import optuna
+    # before the study starts, not at a trial's first length assignment (design_space imports it
+    # lazily): a Ctrl-C landing inside that first import can surface as an ordinary error
+    import scipy.optimize  # noqa: F401
     from tqdm import tqdm
 
     from optimizer.config.study_config import SearchMethod
