@@ -1009,6 +1009,7 @@ class _Trial:
     end: tuple | None
     w: np.ndarray
     r: np.ndarray
+    vectors: np.ndarray | None = None  # sloped ground: its impulses' world vectors (_Landing.vectors)
 
 
 class _Landing:
@@ -1098,6 +1099,9 @@ class _Landing:
         #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         self._end: tuple[bytes, bytes, object] | None = None
+        #: sloped ground: the last step's contact impulses as world vectors (d x n_c), each
+        #: stage's force along its own point's normal and tangents (:meth:`stage_vectors`)
+        self.vectors: np.ndarray | None = None
         self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
         self._solutions: tuple[_Point | None, dict] = (None, {})  # see mode_solution()
         self._steering: tuple = (None, b"")  # steer()'s last point, mode and figures
@@ -1258,6 +1262,7 @@ class _Landing:
         end = None if self.fast is None else self.fast.step(q, v, h, mode)
         if end is not None:
             self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
+            self.vectors = end.vectors.copy() if self.sloped else None
             return end.q.copy(), end.v.copy(), end.impulse.copy()
         return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
 
@@ -1323,11 +1328,14 @@ class _Landing:
         k1q = v + g * k1v
         q2, v2 = q + h * k1q, v + h * k1v
         a2, f2 = self.derivative(q2, v2, mode)
+        v2_vectors = self.stage_vectors(q2, v2, f2)
         rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
         k2v, nu2 = _constrained_solve(W, rows, pt.M @ rv - g * K * rq, rows.G @ rv)
         k2q = rq + g * k2v
         f1 = _stacked(*_contact_forces(rows, nu1, self.mu, self.nc))
         f3 = _stacked(*_contact_forces(rows, nu2, self.mu, self.nc))
+        if self.sloped:
+            self.vectors = 0.5 * h * (self.stage_vectors(q, v, f1 + f3) + v2_vectors)
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
     def balanced_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: float, rate: float, floor: float
@@ -1359,9 +1367,12 @@ class _Landing:
 
     def momentum_change(self, p0: np.ndarray, q1: np.ndarray, v1: np.ndarray, impulse: np.ndarray) -> np.ndarray:
         """The linear momentum at (q1, v1) minus ``p0`` and the contact ``impulse`` ([normal,
-        tangential] per contact, along the normals and tangents at (q1, v1)): a step's momentum
-        balance but for the weight's impulse (numpy; a compiled step's is its ``balance``)."""
+        tangential] per contact, along the normals and tangents at (q1, v1); on sloped ground the
+        step's :attr:`vectors`): a step's momentum balance but for the weight's impulse (numpy; a
+        compiled step's is its ``balance``)."""
         pt = self.point(q1, v1)
+        if self.sloped:
+            return pt.momentum[:, 0] - p0 - self.vectors.sum(axis=1)
         ft = impulse[self.nc :].reshape(self.dims - 1, self.nc).T
         return pt.momentum[:, 0] - p0 - impulse_vector(pt.normal, impulse[: self.nc], ft)
 
@@ -1375,17 +1386,36 @@ class _Landing:
         return -self.mass * self.scene.gravity * duration * self.flat_ground[0][0]
 
     def rk4_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One classical Runge-Kutta 4 step: (q, v, contact impulses [normal, tangential])."""
+        """One classical Runge-Kutta 4 step: (q, v, contact impulses [normal, tangential]); on
+        sloped ground their world vectors by stage in :attr:`vectors`."""
         a1, f1 = self.derivative(q, v, mode)
+        V1 = self.stage_vectors(q, v, f1)
         a2, f2 = self.derivative(q + 0.5 * h * v, v + 0.5 * h * a1, mode)
+        V2 = self.stage_vectors(q + 0.5 * h * v, v + 0.5 * h * a1, f2)
         v2 = v + 0.5 * h * a1
         a3, f3 = self.derivative(q + 0.5 * h * v2, v + 0.5 * h * a2, mode)
+        V3 = self.stage_vectors(q + 0.5 * h * v2, v + 0.5 * h * a2, f3)
         v3 = v + 0.5 * h * a2
         a4, f4 = self.derivative(q + h * v3, v + h * a3, mode)
         v4 = v + h * a3
         q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
         v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+        if self.sloped:
+            self.vectors = h / 6.0 * (V1 + 2 * V2 + 2 * V3 + self.stage_vectors(q + h * v3, v + h * a3, f4))
         return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
+
+    def stage_vectors(self, q: np.ndarray, v: np.ndarray, forces: np.ndarray) -> np.ndarray | None:
+        """On sloped ground, the contact ``forces`` ([normal, tangential] per contact) at (q, v)
+        as world vectors (d x n_c) along that point's normals and tangents: a step's impulse is
+        its stages' forces, each along its own directions, which turn under a contact sliding
+        across a curved heightfield (random file 30649: along the end's alone, the step's
+        momentum balance is first order in the step, and the balance split steps to h / 2^13);
+        flat ground: None (one normal everywhere)."""
+        if not self.sloped:
+            return None
+        pt = self.point(q, v)
+        return contact_vectors(pt.normal, pt.tangent, forces[: self.nc],
+                               forces[self.nc :].reshape(self.dims - 1, self.nc).T)
 
     # ---- events
 
@@ -1532,14 +1562,14 @@ class _Landing:
         """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates."""
         q1, v1, impulse = self.step(q, v, mode, tau)
         w, r = self.witness_and_rate(q1, v1, mode)
-        return _Trial(tau, q1, v1, impulse, self._end, w, r)
+        return _Trial(tau, q1, v1, impulse, self._end, w, r, self.vectors)
 
     def take(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: _Trial
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``trial``'s step taken again without its cost: what :meth:`step` of its length would
         return and leave behind (the mode's steering, the compiled step's end for :meth:`ended`)."""
         self.steer(q, v, mode, trial.tau)
-        self._end = trial.end
+        self._end, self.vectors = trial.end, trial.vectors
         return trial.q.copy(), trial.v.copy(), trial.impulse.copy()
 
     def locate(self, q: np.ndarray, v: np.ndarray, mode: _Mode, first: _Trial, watch: np.ndarray) -> _Trial:
@@ -2109,20 +2139,24 @@ class _Landing:
             return np.arange(self.nc)
         return np.flatnonzero(pt.gap <= np.min(pt.gap) + self.scene.contact_tolerance)
 
-    def add(self, totals: _Totals, impulses: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:
+    def add(self, totals: _Totals, impulses: np.ndarray, q: np.ndarray, v: np.ndarray,
+            vectors: np.ndarray | None = None) -> None:
         """Add stacked contact impulses (:func:`_stacked`, taken at (q, v)) to the totals (none
-        changes where every impulse is 0: a flight's step, a projection without rows)."""
+        changes where every impulse is 0: a flight's step, a projection without rows);
+        ``vectors``: their world vectors where known (:meth:`step_vectors`), else along the
+        normals and tangents at (q, v)."""
         if not _any(impulses):  # adding zeros leaves every total as it is, to the bit
             return
         ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
         totals.normal += impulses[: self.nc]
         totals.tangential += ft
-        if self.sloped:
+        if vectors is not None:
+            F = vectors
+        elif self.sloped:
             pt = self.point(q, v)
-            normal, tangent = pt.normal, pt.tangent
+            F = contact_vectors(pt.normal, pt.tangent, impulses[: self.nc], ft)
         else:
-            normal, tangent = self.flat_ground
-        F = contact_vectors(normal, tangent, impulses[: self.nc], ft)
+            F = contact_vectors(*self.flat_ground, impulses[: self.nc], ft)
         totals.impulse += F.sum(axis=1)
         totals.vectors += F
 
@@ -2133,18 +2167,24 @@ class _Landing:
         self.add(totals, impulses, q, v)
         self.tally_joints(totals, q, v, q, v_plus, impulses, 0.0, True)
 
+    def step_vectors(self, q: np.ndarray, v: np.ndarray, p: np.ndarray) -> np.ndarray | None:
+        """On sloped ground, the last step's impulse vectors (:attr:`vectors`) plus those of the
+        projection after it (stacked ``p``, at its end (q, v)); flat ground: None."""
+        return None if not self.sloped else self.vectors + self.stage_vectors(q, v, p)
+
     def tally_joints(self, totals: _Totals, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray,
-                     impulses: np.ndarray, dt: float, loaded: bool) -> None:
+                     impulses: np.ndarray, dt: float, loaded: bool, vectors: np.ndarray | None = None) -> None:
         """Where kept (:attr:`_Totals.joint`) and a contact pushes (``loaded``: an impact, or a
         step with resting contacts), add the joint impulses from (q0, v0) to (q1, v1): each
         subtree's momentum change minus the contact impulses (stacked, at (q1, v1)) on it and its
-        weight's over ``dt``, as the compliant rung counts them."""
+        weight's over ``dt``, as the compliant rung counts them; ``vectors``: the impulses' world
+        vectors where known (:meth:`add`)."""
         if totals.joint is None or not loaded:
             return
         p0 = self.point(q0, v0).momentum.copy()
         pt = self.point(q1, v1)
         ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
-        F = contact_vectors(pt.normal, pt.tangent, impulses[: self.nc], ft)
+        F = contact_vectors(pt.normal, pt.tangent, impulses[: self.nc], ft) if vectors is None else vectors
         weight = np.outer(self.weight(dt), self.subtree_mass / self.mass)
         totals.joint += pt.momentum - p0 - F @ self.in_subtree.T - weight
 
@@ -2176,6 +2216,7 @@ class _Landing:
             if not self.planar and float(np.linalg.norm(q[3:6])) > RECHART:
                 q, v = self.rechart(q, v, totals)
             q1, v1, impulse, dt, grown = self.balanced_step(q, v, mode, min(trial, T - t), rate, h / 2.0**MAX_SPLITS)
+            step_vectors = self.vectors  # sloped ground (trial steps below replace self.vectors)
             if totals.steps > STEP_BUDGET * T / h:
                 raise Diverged(  # landing() shortens the step (retry_factor)
                     f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
@@ -2189,7 +2230,7 @@ class _Landing:
             _check_chart(q1, self.space, t + dt)
             w, r = self.witness_and_rate(q1, v1, mode)
             all_hold = np.count_nonzero(w >= 0) == w.size  # (w >= 0).all()
-            graze = None if all_hold else _Trial(dt, q1, v1, impulse, self._end, w, r)
+            graze = None if all_hold else _Trial(dt, q1, v1, impulse, self._end, w, r, step_vectors)
             if graze is None:
                 fraction = self.grazing(q, v, q1, v1, mode, dt)
                 graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
@@ -2205,8 +2246,10 @@ class _Landing:
                 q0, v0 = q, v
                 q, v, p = self.project(q1, v1, mode)
                 self.follow_slip(q, v, mode)
-                self.add(totals, impulse + p, q, v)
-                self.tally_joints(totals, q0, v0, q, v, impulse + p, dt, _any(mode.closed))
+                self.vectors = step_vectors
+                vectors = self.step_vectors(q, v, p)
+                self.add(totals, impulse + p, q, v, vectors)
+                self.tally_joints(totals, q0, v0, q, v, impulse + p, dt, _any(mode.closed), vectors)
                 self.record(totals, t, v0, t + dt, q, v)
                 t += dt
                 totals.steps += 1
@@ -2231,8 +2274,8 @@ class _Landing:
                     self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), located.tau, watch))
             tau = located.tau
             q_e, v_e, impulse = self.take(q, v, mode, located)
-            self.add(totals, impulse, q_e, v_e)
-            self.tally_joints(totals, q, v, q_e, v_e, impulse, tau, _any(mode.closed))
+            self.add(totals, impulse, q_e, v_e, self.vectors)
+            self.tally_joints(totals, q, v, q_e, v_e, impulse, tau, _any(mode.closed), self.vectors)
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0

@@ -17,7 +17,10 @@ active block that of the numpy path.
 The function also returns what the landing loop asks of the step's end point: the witnesses'
 ingredients (gaps, normal velocities, slip, contact forces, stop forces in the mode), the linear
 momentum at both ends and the step's momentum balance but for the weight (``balance``: the change
-of momentum minus the step's impulses along the end's normals and tangents), the normals and the
+of momentum minus the step's impulses as vectors, ``vectors``: on flat ground along the end's
+normal and tangents, on sloped ground each stage's force along that stage's own normal and
+tangents, since a contact sliding across a curved heightfield turns its normal within a step and
+the end's directions would leave a residual of first order in the step), the normals and the
 kinetic energy (the divergence check), so that a plain step costs one call; and the projection
 that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
 velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
@@ -69,7 +72,7 @@ from impulse_core.timedomain.landing_derivatives import (
 STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floor", "stiffness", "damping", "rest",
                "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
-                "stop_force", "normal", "kinetic", "balance")
+                "stop_force", "normal", "kinetic", "balance", "vectors")
 #: CasADi options of the step and projection. Not common subexpression elimination: it makes
 #: spatial case 3's step 11 % shorter (216861 -> 192431 instructions, ~15 % faster on the virtual
 #: machine) but its graph's build 3.0 s instead of 0.2 s, more than a short landing takes.
@@ -174,11 +177,11 @@ def _masked_forces(pt: dict, x: _Args, stop_dofs: tuple[int, ...]) -> tuple[ca.S
 
 
 def _derivative(fn: ca.Function, q: ca.SX, v: ca.SX, x: _Args, stop_dofs: tuple[int, ...], pt: dict | None = None
-                ) -> tuple[ca.SX, ca.SX]:
-    """(a, [fn; ft per tangent]) at (q, v) (``pt``: its point, if already built)."""
+                ) -> tuple[ca.SX, ca.SX, dict]:
+    """(a, [fn; ft per tangent], the point) at (q, v) (``pt``: its point, if already built)."""
     pt = _point(fn, q, v, x) if pt is None else pt
     a, fn_, ft, _ = _masked_forces(pt, x, stop_dofs)
-    return a, _stacked(fn_, ft)
+    return a, _stacked(fn_, ft), pt
 
 
 def _stacked(fn: ca.SX, ft: list[ca.SX]) -> ca.SX:
@@ -187,25 +190,29 @@ def _stacked(fn: ca.SX, ft: list[ca.SX]) -> ca.SX:
 
 
 def _rk4(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict
-         ) -> tuple[ca.SX, ca.SX, ca.SX]:
-    """One classical RK4 step: (q1, v1, contact impulses [normal; each tangent's])
-    (:meth:`landing._Landing.rk4_step`; ``start``: the point at (q, v))."""
-    a1, f1 = _derivative(fn, q, v, x, stop_dofs, start)
+         ) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    """One classical RK4 step: (q1, v1, contact impulses [normal; each tangent's], their world
+    vectors by stage: :func:`_force_vectors`) (:meth:`landing._Landing.rk4_step`; ``start``: the
+    point at (q, v))."""
+    a1, f1, p1 = _derivative(fn, q, v, x, stop_dofs, start)
     v2 = v + 0.5 * h * a1
-    a2, f2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
+    a2, f2, p2 = _derivative(fn, q + 0.5 * h * v, v2, x, stop_dofs)
     v3 = v + 0.5 * h * a2
-    a3, f3 = _derivative(fn, q + 0.5 * h * v2, v3, x, stop_dofs)
+    a3, f3, p3 = _derivative(fn, q + 0.5 * h * v2, v3, x, stop_dofs)
     v4 = v + h * a3
-    a4, f4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
+    a4, f4, p4 = _derivative(fn, q + h * v3, v4, x, stop_dofs)
     q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
     v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
-    return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
+    vectors = h / 6.0 * (_force_vectors(p1, f1) + 2 * _force_vectors(p2, f2) + 2 * _force_vectors(p3, f3)
+                         + _force_vectors(p4, f4))
+    return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4), vectors
 
 
 def _ros2(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict
-          ) -> tuple[ca.SX, ca.SX, ca.SX]:
+          ) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
     """One ROS2 step with the joint laws in its matrix W = M + g h D + g^2 h^2 K, the mode's rows
-    those of the start (:meth:`landing._Landing.implicit_step`, whose docstring derives it)."""
+    those of the start (:meth:`landing._Landing.implicit_step`, whose docstring derives it); its
+    impulses as :func:`_rk4`'s, the stages' forces along their own points' directions."""
     g = ROS2_GAMMA * h
     nc, ns = start["Jn"].shape[0], len(stop_dofs)
     G, F, b, u = _masked_rows(start, x, stop_dofs)
@@ -213,12 +220,21 @@ def _ros2(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tu
     k1v, nu1 = solve(start["f"] - g * x.stiffness * v, -b)
     k1q = v + g * k1v
     q2, v2 = q + h * k1q, v + h * k1v
-    a2, f2 = _derivative(fn, q2, v2, x, stop_dofs)
+    a2, f2, p2 = _derivative(fn, q2, v2, x, stop_dofs)
     rq, rv = v2 - 2.0 * k1q, a2 - 2.0 * k1v
     k2v, nu2 = solve(start["M"] @ rv - g * x.stiffness * rq, G @ rv)
     k2q = rq + g * k2v
     f1, f3 = (_stacked(*_row_forces(nu, u, x, nc, ns)[:2]) for nu in (nu1, nu2))
-    return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
+    vectors = 0.5 * h * (_force_vectors(start, f1 + f3) + _force_vectors(p2, f2))
+    return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3), vectors
+
+
+def _force_vectors(pt: dict, forces: ca.SX) -> ca.SX:
+    """Each contact's vector (d x n_c, world frame) of ``forces`` ([normal; each tangent's] per
+    contact) along the point's normals and tangents (:func:`landing.contact_vectors`)."""
+    nc = pt["gap"].shape[0]
+    directions = [pt["normal"], *pt["tangent"]]
+    return sum(d * ca.repmat(forces[k * nc : (k + 1) * nc].T, d.shape[0], 1) for k, d in enumerate(directions))
 
 
 def _impulse_vector(pt: dict, impulse: ca.SX) -> ca.SX:
@@ -252,12 +268,16 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
     )
     integrate, name = _INTEGRATORS[method]
     start = _point(fn, q, v, x)
-    q1, v1, impulse = integrate(fn, q, v, h, x, stop_dofs, start)
+    q1, v1, impulse, vectors = integrate(fn, q, v, h, x, stop_dofs, start)
     end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
+    if terrain.is_flat:  # one normal everywhere: the end's directions are every stage's
+        vectors, applied = _force_vectors(end, impulse), _impulse_vector(end, impulse)
+    else:  # the normals turn under a sliding contact: each stage's force along its own
+        applied = ca.sum2(vectors)
     outs = [q1, v1, impulse, start["momentum"], end["momentum"], start["gap"], start["Jn"] @ v, end["gap"],
             end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1, end["normal"], end["kinetic"],
-            end["momentum"] - start["momentum"] - _impulse_vector(end, impulse)]
+            end["momentum"] - start["momentum"] - applied, vectors]
     inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
               x.gravity]
     return ca.Function(name, inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
@@ -405,8 +425,10 @@ class StepEnd:
     normal: np.ndarray  # n_c x d
     kinetic: float
     #: the momentum balance but for the weight: momentum1 - momentum0 - the step's impulses'
-    #: sum along the end's normals and tangents (:meth:`landing._Landing.balanced_step`)
+    #: vectors' sum (:meth:`landing._Landing.balanced_step`)
     balance: np.ndarray
+    #: the step's impulses per contact as world vectors, d x n_c (sloped ground: by stage)
+    vectors: np.ndarray
 
 
 class CompiledStep(BufferedFunction):
@@ -468,7 +490,7 @@ class CompiledStep(BufferedFunction):
         shape = (self.nc, self.nt)
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9].reshape(shape, order="F"), o[10],
                        o[11].reshape(shape, order="F"), stop_force, o[13].reshape(self.out[13].shape, order="F").T,
-                       float(o[14][0]), o[15])
+                       float(o[14][0]), o[15], o[16].reshape(self.out[16].shape, order="F"))
 
     def set_design(self, p: np.ndarray) -> None:
         """Evaluate with the design vector ``p`` from now on (space: a re-centred base's rotation

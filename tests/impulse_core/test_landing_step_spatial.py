@@ -20,6 +20,7 @@ from impulse_core.timedomain.landing import (
     _Landing,
     _Mode,
     _mode_rows,
+    landing,
     landing_difference,
 )
 from tests.impulse_core.test_landing_spatial import _spinning_pair, _splayed_leg
@@ -214,3 +215,42 @@ def test_a_spatial_landing_runs_alike_in_c():
     r = _Landing(tree, scene, laws, LandingSettings(step_code=C_CODE, integrator="rk4"), SPATIAL).run(5e-4)
     assert (r.n_steps, len(r.events)) == (ref.n_steps, len(ref.events))
     assert landing_difference(r, ref) <= 1e-9 and _rel(r.q_final, ref.q_final) <= 1e-9
+
+
+@pytest.mark.parametrize("integrator, order", [("rk4", 5), ("implicit", 3)])
+def test_a_step_s_momentum_balance_on_a_heightfield_has_its_integrator_s_order(integrator, order):
+    """Spatial case 3's toes held on the heightfield's rising cell, sliding at 5 m/s under
+    gravity: their normals turn within a step. A step's momentum balance takes each stage's force
+    along its own normal and tangents, so its residual falls as h^5 under RK4 and h^3 under ROS2
+    (per step; measured ratios 32 and 8 per halving). Along the end's normals alone it fell as
+    h^2 (ratio 4: random file 30649's steps split to h / 2^13). The compiled step's vectors and
+    balance equal the numpy step's."""
+    tree, laws, scene = _file("spatial_heightfield", 0.6)
+    runs = [_Landing(tree, replace(scene, gravity=9.81), laws, LandingSettings(step_code=code, integrator=integrator),
+                     SPATIAL) for code in (VM_CODE, NUMPY_CODE)]
+    q, v = runs[0].q0.copy(), np.zeros(runs[0].nv)
+    v[:3] = [4.0, 0.0, 3.0]
+    pt = runs[1].point(q, v)
+    mode = _Mode(np.ones(pt.gap.size, bool), pt.slip / np.linalg.norm(pt.slip, axis=1, keepdims=True),
+                 np.zeros(v.size, int))
+    assert np.ptp(pt.normal[:, 0]) > 0.05 and not runs[1].redundant(pt, mode)
+    residuals = []
+    for h in (1e-3, 5e-4):
+        (q1, v1, impulse), (rq, rv, rimpulse) = (run.step(q, v, mode.copy(), h) for run in runs)
+        fast, ref = runs
+        assert np.min(rimpulse[: ref.nc]) > 0  # every toe pressed
+        balance = ref.momentum_change(pt.momentum[:, 0], rq, rv, rimpulse)
+        assert _rel(fast.vectors, ref.vectors) <= 1e-12 and _rel(fast.ended(q1, v1).balance, balance) <= 1e-9
+        residuals.append(np.max(np.abs(balance - ref.weight(h))))
+    assert residuals[0] / residuals[1] >= 2.0 ** order / 2.0
+
+
+def test_a_heightfield_landing_s_totals_take_the_steps_vectors():
+    """Over a 0.15 s landing of spatial case 3 on the heightfield with friction (66 events), the
+    run's momentum balance (its totals' impulse vectors against the momentum change) closes to
+    1.4e-9 of the touchdown momentum; with the steps' impulses along their ends' normals instead
+    of their stages' (a planted mistake) it was 2.6e-8."""
+    tree, laws, scene = _file("spatial_heightfield", 0.6)
+    r = landing(tree, replace(scene, gravity=9.81, duration=0.15, restitution=0.3), laws, LandingSettings(), SPATIAL)
+    assert r.converged and len(r.events) > 20
+    assert r.momentum_balance <= 6e-9
