@@ -516,11 +516,11 @@ def test_landing_retries_a_diverged_run_at_the_step_its_budget_asks(monkeypatch)
     steps: list[float] = []
     run = _Landing.run
 
-    def overrun_once(self, h, progress=None, index=0):
+    def overrun_once(self, h, progress=None, index=0, **kwargs):
         steps.append(h)
         if len(steps) == 1:
             raise Diverged("the landing took more than 64 x 100 steps", reached=0.2)
-        return run(self, h, progress, index)
+        return run(self, h, progress, index, **kwargs)
 
     monkeypatch.setattr(_Landing, "run", overrun_once)
     landing(tree, scene, laws)
@@ -588,21 +588,26 @@ def test_the_landing_figures_are_their_definitions():
 def test_runs_whose_steps_the_balance_split_alike_are_not_an_estimate(monkeypatch):
     """The step-halving estimate takes the difference of two runs only where the finer took at
     least DISTINCT_RUNS (1.1) x the coarser's steps (30113 on ROS2: runs of 2855 and 2858 steps
-    differed by 1.4e-6, the finer 1.6e-5 from the converged answer). Runs of 1000, 1005 and 2000
-    steps (a random leg's result, its final angles scaled by 1, 1 + 1e-6, 1 + 3e-6): the estimate is the last
-    pair's, 2e-6, and the 2000-step run is returned."""
+    differed by 1.4e-6, the finer 1.6e-5 from the converged answer). Runs of 1000, 1005, 2000
+    and 4000 steps (a random leg's result, its final angles scaled by 1, 1 + 1e-6, 1 + 3e-6, 1 +
+    3.01e-6) under a tolerance of 1e-6: the estimate is the last pair's, 1e-8, and the 4000-step
+    run is returned. After a pair split alike, each run asks the balance for a share smaller by
+    2^4 (RK4's balance_order) per halving, so that its split steps halve too (30730: seven runs
+    of 33,917 steps)."""
     tree, laws, scene = _random_leg(1)
-    base = landing(tree, scene, laws, LandingSettings(tolerance=1e-2))
-    runs = iter([(1000, 0.0), (1005, 1e-6), (2000, 3e-6)])
+    base = landing(tree, scene, laws, LandingSettings(tolerance=1e-2, integrator="rk4"))
+    runs = iter([(1000, 0.0), (1005, 1e-6), (2000, 3e-6), (4000, 3.01e-6)])
+    shares = []
 
-    def fake(self, h, *args):
+    def fake(self, h, *args, share=1.0):
         n, moved = next(runs)
+        shares.append(share)
         return replace(base, n_steps=n, final_angles=base.final_angles * (1 + moved))
 
     monkeypatch.setattr(_Landing, "run", fake)
-    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-3))
-    assert r.n_steps == 2000
-    assert r.error_estimate == pytest.approx(2e-6 / (1 + 1e-6), rel=1e-9)
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-6, integrator="rk4"))
+    assert r.n_steps == 4000 and shares == [1.0, 1.0, 1 / 16, 1 / 256]
+    assert r.error_estimate == pytest.approx(1e-8 / (1 + 3e-6), rel=1e-6)
 
 
 def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable_step(monkeypatch):
@@ -617,11 +622,11 @@ def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable
     monkeypatch.setattr(landing_module, "AUTO_IMPLICIT", landing_module.RK4_STABLE)
     runs, overran, original = [], [], _Landing.run
 
-    def watched(self, h, *args):
+    def watched(self, h, *args, **kwargs):
         assert not (overran and self.method == "implicit"), "an implicit run after an overrun"
         runs.append((self.method, h, self.rate))
         try:
-            return original(self, h, *args)
+            return original(self, h, *args, **kwargs)
         except Diverged as e:
             overran.append(e.reached > 0)
             raise
