@@ -1677,6 +1677,21 @@ class _Landing:
             nudged = replace(before, tau=lo + 2.0 * (hi - lo), q=before.q + 2.0 * (hi - lo) * before.v, end=None)
             if _any(mode.closed & (self.pieces(nudged.q, nudged.v) != k0)):
                 found = nudged
+            if _any(valley):
+                # past a valley's breakpoint by more than the profile's coincidence radius (1e-12
+                # m), where the normal is the far segment's: a leftward crossing located to
+                # rounding stayed within it (the segment's parameter rounds to its end), and met
+                # the mean of the two normals (its impact sent the puck of the valley file level
+                # into the far slope, a loss at the next step's projection)
+                k = np.minimum(k0, k1) % len(self.concave)
+                far = np.where((k1 > k0)[:, None], self.valleys[k][:, 1], self.valleys[k][:, 0])
+                reach = 2.0
+                while _any(valley & (np.max(np.abs(self.point(found.q, found.v).normal - far), axis=1) > 1e-12)):
+                    reach *= 2.0
+                    if lo + reach * (hi - lo) > h:
+                        break
+                    found = replace(before, tau=lo + reach * (hi - lo), q=before.q + reach * (hi - lo) * before.v,
+                                    end=None)
         crossed = mode.closed & ~mode.cornered & (self.pieces(found.q, found.v) != k0)
         pt = self.point(found.q, found.v)
         cornered = np.full(self.nc, -1)
