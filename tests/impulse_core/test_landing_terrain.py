@@ -17,6 +17,11 @@ contact down on the slope.
   N s before) and the contract's checks (first event, momentum balance, no penetration).
 - data/jam_40029.yaml (random file, friction 0.3): not at a breakpoint; a sliding tip reaches
   Painleve's paradox, and the divergence names it.
+- studies/whole_landing/terrain_valley_rest.yaml (hand-made, shortened): a puck rocking across a
+  valley's breakpoint at restitution 0 comes to rest in the corner, held by both slopes' rows
+  (frictionless and at friction 0.1): at x = 0, velocity 0, settled; the weight is the two rows'
+  forces summed along their own normals; the energy leaves at events only. A corner whose row
+  would pull is released, and so is one that an impact sends up a slope.
 """
 
 from __future__ import annotations
