@@ -1686,7 +1686,9 @@ class _Landing:
                 k = np.minimum(k0, k1) % len(self.concave)
                 far = np.where((k1 > k0)[:, None], self.valleys[k][:, 1], self.valleys[k][:, 0])
                 reach = 2.0
-                while _any(valley & (np.max(np.abs(self.point(found.q, found.v).normal - far), axis=1) > 1e-12)):
+                for _ in range(200):
+                    if not _any(valley & (np.max(np.abs(self.point(found.q, found.v).normal - far), axis=1) > 1e-12)):
+                        break
                     reach *= 2.0
                     if lo + reach * (hi - lo) > h:
                         break
