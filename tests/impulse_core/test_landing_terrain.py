@@ -251,6 +251,25 @@ def test_with_friction_a_puck_rests_in_the_valley_and_stays():
     assert resting.any() and np.ptp(states[resting][:, 0]) <= 1e-12
 
 
+def test_with_friction_a_puck_stops_in_a_shallow_valley_and_stays():
+    """Friction 0.3 above the slopes' 1 in 20: the puck slides into the valley, crosses its
+    breakpoint (an event: the far slope's impact with friction), stops on the far slope and sticks
+    there: no corner, no creep."""
+    from impulse_core.model.terrain import Terrain
+
+    T = 0.3
+    model = _valley(T, friction=0.3, base_x=-0.0502, terrain=Terrain.from_points([[-0.2, 0.01], [0.0, 0.0], [0.2, 0.01]]))
+    run, r, entry, _ = _corner_run(model)
+    _common_laws(model, run, r)
+    assert "t" not in entry and list(run.seated) == [-1]
+    assert len(r.events) == 3 and r.events[2].external[0] > 0  # touchdown, the slope's, the far slope's at x = 0
+    assert np.max(np.abs(r.v_final)) <= 1e-12 and r.settled_at is not None and r.settled_at < 0.05
+    times, states = r.trajectory
+    still = times > r.settled_at + 0.01
+    assert still.any() and np.ptp(states[still][:, 0]) <= 1e-12
+    assert 0.0 < run.point(r.q_final, np.zeros(run.nv)).contacts[0, 0] < 1e-3
+
+
 def _corner_state(terrain):
     """A landing of the valley's puck on ``terrain`` and the state at rest with its contact at the
     breakpoint x = 0 held in the corner (breakpoint 1)."""
