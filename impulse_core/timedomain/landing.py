@@ -67,7 +67,8 @@ from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_sp
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.rods import rotation_rpy
-from impulse_core.model.terrain import Terrain
+from impulse_core.model.terrain import Terrain, slope_normal
+from impulse_core.model.terrain import _segment_normals as terrain_normals
 from impulse_core.model.tree import ContactSelection, Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
     DYNAMICS_INPUTS,
@@ -581,15 +582,26 @@ class _Mode:
     #: per contact: the slip speed (m/s) below which its sliding friction's direction is
     #: regularised (:func:`slip_direction`, :meth:`_Landing.steer`); None: 0, exact
     core: np.ndarray | None = None
+    #: per contact: -1, or the index of the plane's valley breakpoint where it rests held by both
+    #: adjacent segments (two normal rows, :func:`_corner_rows`); None: -1 for every contact
+    corner: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.slip.ndim == 1:
             self.slip = self.slip.astype(float)[:, None]
         if self.core is None:
             self.core = np.zeros(len(self.closed))
+        if self.corner is None:
+            self.corner = np.full(len(self.closed), -1)
 
     def copy(self) -> _Mode:
-        return _Mode(self.closed.copy(), self.slip.copy(), self.stop.copy(), self.redundant, self.core.copy())
+        return _Mode(self.closed.copy(), self.slip.copy(), self.stop.copy(), self.redundant, self.core.copy(),
+                     self.corner.copy())
+
+    @property
+    def cornered(self) -> np.ndarray:
+        """Per contact: resting in a valley corner (:attr:`corner`)."""
+        return self.corner >= 0
 
     @property
     def sliding(self) -> np.ndarray:
@@ -618,6 +630,11 @@ class _Rows:
     #: per contact (n_c x (d - 1)): the unit direction its sliding friction opposes, or 0
     direction: np.ndarray = field(default_factory=lambda: np.zeros((0, 1)))
     redundant: bool = False  # the mode's rows are redundant: least-norm forces
+    #: per normal row, whether it is one of a valley corner's two rows (:func:`_corner_rows`), and
+    #: its direction's components along its contact's normal and tangent at the point (n x 2); None:
+    #: no corner, every contact row along its contact's normal
+    cornered: np.ndarray | None = None
+    turn: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -642,12 +659,32 @@ def slip_direction(pt: _Point, slip: np.ndarray, core: np.ndarray | None = None)
     return np.where(along, current, slip)
 
 
+def _corner_rows(pt: _Point, contacts: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two rows of each contact resting in a plane's valley corner: ``contacts`` (m indices),
+    ``normals`` (m x 2 x 2: the left and right segments' outward unit normals). A row along a
+    world direction u of the contact's velocity is u . J = (u . n) J_n + (u . t) J_t (n, t the
+    point's orthonormal normal and tangent there), its bias likewise. Returns G (2m x nv: each
+    contact's left row, then its right row), b (2m) and the rows' (u . n, u . t) (2m x 2)."""
+    n, t = pt.normal[contacts], pt.tangent[contacts, 0]
+    u = normals.reshape(-1, 2)  # left, right per contact
+    c = np.repeat(contacts, 2)
+    turn = np.column_stack([np.sum(u * np.repeat(n, 2, axis=0), axis=1), np.sum(u * np.repeat(t, 2, axis=0), axis=1)])
+    G = turn[:, :1] * pt.Jn[c] + turn[:, 1:] * pt.Jt[c, 0]
+    b = turn[:, 0] * pt.bn[c] + turn[:, 1] * pt.bt[c, 0]
+    return G, b, turn
+
+
 def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray, mu: float, nv: int,
-          core: np.ndarray | None = None) -> _Rows:
+          core: np.ndarray | None = None, corners: tuple[np.ndarray, np.ndarray] | None = None) -> _Rows:
     """Rows for the given contacts (indices; ``slip`` per contact, n_c x (d - 1)), stops (DOF ->
     side, dict-like array: 0 none) and friction coefficient; tangent rows for non-sliding contacts
     when mu > 0; a sliding contact's force row is n - mu u^T t along its slip direction u
-    (:func:`slip_direction`)."""
+    (:func:`slip_direction`). ``corners``: (contacts, their segments' normals m x 2 x 2) resting in
+    a valley corner, two frictionless normal rows each after the other contacts' (:func:`_corner_rows`;
+    the two normals fix the point in the plane, so a tangent row would be redundant, and with
+    both rows pushing no friction is needed: friction acts once one row is released)."""
+    if corners is not None and len(corners[0]):
+        return _with_corners(_rows(pt, contacts, slip, stops, mu, nv, core), pt, contacts, *corners)
     dofs = np.flatnonzero(stops)
     G_stop = np.zeros((len(dofs), nv))
     G_stop[np.arange(len(dofs)), dofs] = -stops[dofs]
@@ -668,9 +705,33 @@ def _rows(pt: _Point, contacts: np.ndarray, slip: np.ndarray, stops: np.ndarray,
     )
 
 
+def _with_corners(rows: _Rows, pt: _Point, contacts: np.ndarray, cornered: np.ndarray, normals: np.ndarray) -> _Rows:
+    """``rows`` (of ``contacts``) with the corner rows of ``cornered`` (:func:`_corner_rows`)
+    inserted after the contacts' normal rows."""
+    Gc, bc, turn = _corner_rows(pt, cornered, normals)
+    k, m = len(contacts), len(Gc)
+    G = np.vstack([rows.G[:k], Gc, rows.G[k:]])
+    F = np.vstack([rows.F[:k], Gc, rows.F[k:]])
+    b = np.concatenate([rows.b[:k], bc, rows.b[k:]])
+    n = rows.n
+    flags = np.zeros(n + m, bool)
+    flags[k : k + m] = True
+    axes = np.zeros((n + m, 2))
+    axes[:, 0] = 1.0
+    axes[k : k + m] = turn
+    return replace(
+        rows, G=G, F=F, b=b,
+        contact=np.concatenate([rows.contact[:k], np.repeat(cornered, 2), rows.contact[k:]]),
+        dof=np.concatenate([rows.dof[:k], -np.ones(m, int), rows.dof[k:]]),
+        cornered=flags, turn=axes,
+    )
+
+
 def _mode_bytes(mode: _Mode) -> bytes:
-    """What of a mode a compiled step depends on, as bytes (:meth:`_Landing.ended`)."""
-    return mode.closed.tobytes() + mode.slip.tobytes() + mode.stop.tobytes() + bytes([mode.redundant])
+    """What of a mode a compiled step depends on, as bytes (:meth:`_Landing.ended`; a mode with a
+    corner, which no compiled step takes, also names its corners)."""
+    key = mode.closed.tobytes() + mode.slip.tobytes() + mode.stop.tobytes() + bytes([mode.redundant])
+    return key + mode.corner.tobytes() if _any(mode.cornered) else key
 
 
 def _solve_rows(
@@ -787,8 +848,16 @@ def _rests(mode: _Mode) -> bool:
     return bool(_any(mode.closed) or _any(mode.stop))
 
 
-def _mode_rows(pt: _Point, mode: _Mode, mu: float) -> _Rows:
-    rows = _rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop, mu, pt.M.shape[0], mode.core)
+def _mode_rows(pt: _Point, mode: _Mode, mu: float, valleys: np.ndarray | None = None) -> _Rows:
+    """The mode's rows at ``pt``; ``valleys``: per breakpoint of the plane's terrain its two
+    segments' normals (:attr:`_Landing.valleys`), for the mode's contacts resting in a corner."""
+    if valleys is not None and _any(mode.cornered):
+        cornered = np.flatnonzero(mode.closed & mode.cornered)
+        contacts = np.flatnonzero(mode.closed & ~mode.cornered)
+        rows = _rows(pt, contacts, mode.slip, mode.stop, mu, pt.M.shape[0], mode.core,
+                     (cornered, valleys[mode.corner[cornered]]))
+    else:
+        rows = _rows(pt, np.flatnonzero(mode.closed), mode.slip, mode.stop, mu, pt.M.shape[0], mode.core)
     return replace(rows, redundant=True) if mode.redundant else rows
 
 
@@ -866,7 +935,39 @@ def _contact_forces(rows: _Rows, lam: np.ndarray, mu: float, nc: int) -> tuple[n
     fn[c] = lam[: rows.n][on]
     ft[c] = -mu * rows.direction[c] * fn[c][:, None]
     ft[rows.contact[rows.owner]] = lam[rows.n :].reshape(tangents, len(rows.owner)).T
+    if rows.cornered is not None:  # a corner's two rows: their forces' sum, along the point's normal and tangent
+        k = rows.cornered
+        corner, force = rows.contact[: rows.n][k], lam[: rows.n][k]
+        fn[corner] = 0.0
+        ft[corner] = 0.0
+        np.add.at(fn, corner, force * rows.turn[k, 0])
+        np.add.at(ft[:, 0], corner, force * rows.turn[k, 1])
     return fn, ft
+
+
+def _corner_side(rows: _Rows) -> np.ndarray:
+    """Per normal row: 0 for a corner's left segment's row (and any other row), 1 for its right's."""
+    side = np.zeros(rows.n, int)
+    k = np.flatnonzero(rows.cornered)
+    side[k] = (k - k[0]) % 2  # the corners' rows are consecutive, left then right (:func:`_with_corners`)
+    return side
+
+
+def _corner_row_forces(rows: _Rows, lam: np.ndarray, nc: int) -> np.ndarray:
+    """Per contact, its corner's left and right rows' forces (n_c x 2; NaN where it has none)."""
+    out = np.full((nc, 2), np.nan)
+    k = np.flatnonzero(rows.cornered)
+    out[rows.contact[k], _corner_side(rows)[k]] = lam[k]
+    return out
+
+
+def _corner_forces(rows: _Rows, lam: np.ndarray, nc: int) -> np.ndarray:
+    """Per contact, the smaller of its two corner rows' forces (inf where it has none)."""
+    out = np.full(nc, np.inf)
+    if rows.cornered is not None:
+        k = rows.cornered
+        np.minimum.at(out, rows.contact[: rows.n][k], lam[: rows.n][k])
+    return out
 
 
 def _unit(x: np.ndarray, tol: float) -> np.ndarray:
@@ -1009,7 +1110,7 @@ class _Trial:
     end: tuple | None
     w: np.ndarray
     r: np.ndarray
-    vectors: np.ndarray | None = None  # sloped ground: its impulses' world vectors (_Landing.vectors)
+    vectors: np.ndarray | None = None  # a curved heightfield: its impulses' world vectors (_Landing.vectors)
 
 
 class _Landing:
@@ -1057,11 +1158,32 @@ class _Landing:
         self.mass = sum(b.mass for b in tree.bodies)
         self.subtree_mass = subtree_masses(tree)
         self.sloped = not ground.is_flat
+        #: a curved ground whose normal turns under a sliding contact within a step (a sloped
+        #: heightfield; a plane's terrain turns it only at its breakpoints, whose crossings are
+        #: events): a step's impulse is then its stages' forces along their own directions
+        self.turning = self.sloped and not self.planar
         #: the plane's terrain breakpoints (x, m) where a sloped profile's normal jumps; None: flat
         #: or space (:meth:`vertex_crossing`)
         self.vertices = np.asarray(scene.terrain.x, dtype=float) if self.planar and self.sloped else None
         #: the contact normals at the last accepted step's end (None: after an event or a crossing)
         self.end_normals: np.ndarray | None = None
+        #: per breakpoint of the plane's terrain, its left and right pieces' outward normals
+        #: (K x 2 x 2; the rays beyond the ends are flat), and whether it is a valley's (concave:
+        #: the slope rises across it), where a contact can rest held by both; None: flat or space
+        self.valleys: np.ndarray | None = None
+        self.concave: np.ndarray | None = None
+        if self.vertices is not None:
+            up = np.array([[0.0, 1.0]])
+            pieces = np.vstack([up, terrain_normals(scene.terrain), up])
+            self.valleys = np.stack([pieces[:-1], pieces[1:]], axis=1)
+            left, right = self.valleys[:, 0], self.valleys[:, 1]
+            self.concave = left[:, 0] * right[:, 1] - left[:, 1] * right[:, 0] > 1e-12  # the normal turns anticlockwise
+        #: per contact, the valley breakpoint where the run's current mode holds it in the corner
+        #: (-1: none); there the point's normal and tangent are the breakpoint's (the mean of its
+        #: segments' normals, :func:`impulse_core.model.terrain.slope_normal`), whatever rounding
+        #: places it on, so that its impulses sum in one frame (:meth:`seat`)
+        self.seated = np.full(self.nc, -1)
+        self.seat_frames = None if self.vertices is None else slope_normal(scene.terrain, self.vertices)
         weight = self.mass * max(scene.gravity, 1.0)
         self.force_tol = 1e-9 * weight
         self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
@@ -1099,7 +1221,7 @@ class _Landing:
         #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         self._end: tuple[bytes, bytes, object] | None = None
-        #: sloped ground: the last step's contact impulses as world vectors (d x n_c), each
+        #: a curved heightfield (turning): the last step's contact impulses as world vectors (d x n_c), each
         #: stage's force along its own point's normal and tangents (:meth:`stage_vectors`)
         self.vectors: np.ndarray | None = None
         self._unwatched: dict[bytes, np.ndarray] = {}  # see unwatched()
@@ -1155,6 +1277,18 @@ class _Landing:
             return None
         return self._end[2]
 
+    def seat(self, mode: _Mode) -> None:
+        """Take ``mode``'s corners as the run's (:attr:`seated`): the kept points are dropped where
+        they change."""
+        if np.array_equal(mode.corner, self.seated):
+            return
+        self.seated = mode.corner.copy()
+        self._last, self._solutions, self._end = None, (None, {}), None
+
+    @property
+    def any_seated(self) -> bool:
+        return bool(_any(self.seated >= 0))
+
     # ---- dynamics
 
     def point(self, q: np.ndarray, v: np.ndarray) -> _Point:
@@ -1182,6 +1316,9 @@ class _Landing:
             # the plane: the normal and tangent components of the Jacobian rows and of the bias at
             # once, (n_x x + n_y y, as _along adds them) over [J | bias] per contact
             normal = o[1].T.copy()
+            if self.any_seated:  # a contact in a valley corner: the breakpoint's frame
+                held = self.seated >= 0
+                normal[held] = self.seat_frames[self.seated[held]]
             tangent = tangent_basis(normal)
             JB = np.concatenate([o[2].reshape(nc, d, nv), bias[:, :, None]], axis=2)  # nc x d x (nv + 1)
             D = np.stack([normal, tangent[:, 0]], axis=1)[:, :, :, None]  # nc x (normal, tangent) x d x 1
@@ -1236,7 +1373,7 @@ class _Landing:
         key = _mode_bytes(mode) + mode.core.tobytes()
         rows, solution = known.get(key, (None, None))
         if rows is None:
-            rows = _mode_rows(pt, mode, self.mu)
+            rows = _mode_rows(pt, mode, self.mu, self.valleys)
         if solve and solution is None:
             solution = _accelerations(pt, rows)
         known[key] = (rows, solution)
@@ -1252,17 +1389,17 @@ class _Landing:
         pt = self.point(q, v)
         if not _rests(mode):  # free flight: no rows to build
             return np.linalg.solve(pt.M, pt.f), np.zeros(self.dims * self.nc)
-        rows = _mode_rows(pt, mode, self.mu)
+        rows = _mode_rows(pt, mode, self.mu, self.valleys)
         a, lam = _accelerations(pt, rows)
         return a, _stacked(*_contact_forces(rows, lam, self.mu, self.nc))
 
     def step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the landing's integrator: (q, v, contact impulses [normal, tangential])."""
         self.steer(q, v, mode, h)
-        end = None if self.fast is None else self.fast.step(q, v, h, mode)
+        end = None if self.fast is None or _any(mode.cornered) else self.fast.step(q, v, h, mode)
         if end is not None:
             self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
-            self.vectors = end.vectors.copy() if self.sloped else None
+            self.vectors = end.vectors.copy() if self.turning else None
             return end.q.copy(), end.v.copy(), end.impulse.copy()
         return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
 
@@ -1322,7 +1459,7 @@ class _Landing:
         g = ROS2_GAMMA * h
         D, K = self.joints.damping, self.joints.stiffness
         pt = self.point(q, v)
-        rows = _mode_rows(pt, mode, self.mu)
+        rows = _mode_rows(pt, mode, self.mu, self.valleys)
         W = pt.M + np.diag(g * D + g * g * K)
         k1v, nu1 = _constrained_solve(W, rows, pt.f - g * K * v, -rows.b)
         k1q = v + g * k1v
@@ -1334,7 +1471,7 @@ class _Landing:
         k2q = rq + g * k2v
         f1 = _stacked(*_contact_forces(rows, nu1, self.mu, self.nc))
         f3 = _stacked(*_contact_forces(rows, nu2, self.mu, self.nc))
-        if self.sloped:
+        if self.turning:
             self.vectors = 0.5 * h * (self.stage_vectors(q, v, f1 + f3) + v2_vectors)
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
@@ -1377,11 +1514,11 @@ class _Landing:
 
     def momentum_change(self, p0: np.ndarray, q1: np.ndarray, v1: np.ndarray, impulse: np.ndarray) -> np.ndarray:
         """The linear momentum at (q1, v1) minus ``p0`` and the contact ``impulse`` ([normal,
-        tangential] per contact, along the normals and tangents at (q1, v1); on sloped ground the
+        tangential] per contact, along the normals and tangents at (q1, v1); on a curved heightfield the
         step's :attr:`vectors`): a step's momentum balance but for the weight's impulse (numpy; a
         compiled step's is its ``balance``)."""
         pt = self.point(q1, v1)
-        if self.sloped:
+        if self.turning:
             return pt.momentum[:, 0] - p0 - self.vectors.sum(axis=1)
         ft = impulse[self.nc :].reshape(self.dims - 1, self.nc).T
         return pt.momentum[:, 0] - p0 - impulse_vector(pt.normal, impulse[: self.nc], ft)
@@ -1397,7 +1534,7 @@ class _Landing:
 
     def rk4_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One classical Runge-Kutta 4 step: (q, v, contact impulses [normal, tangential]); on
-        sloped ground their world vectors by stage in :attr:`vectors`."""
+        a curved heightfield their world vectors by stage in :attr:`vectors`."""
         a1, f1 = self.derivative(q, v, mode)
         V1 = self.stage_vectors(q, v, f1)
         a2, f2 = self.derivative(q + 0.5 * h * v, v + 0.5 * h * a1, mode)
@@ -1410,18 +1547,18 @@ class _Landing:
         v4 = v + h * a3
         q1 = q + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
         v1 = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
-        if self.sloped:
+        if self.turning:
             self.vectors = h / 6.0 * (V1 + 2 * V2 + 2 * V3 + self.stage_vectors(q + h * v3, v + h * a3, f4))
         return q1, v1, h / 6.0 * (f1 + 2 * f2 + 2 * f3 + f4)
 
     def stage_vectors(self, q: np.ndarray, v: np.ndarray, forces: np.ndarray) -> np.ndarray | None:
-        """On sloped ground, the contact ``forces`` ([normal, tangential] per contact) at (q, v)
+        """On a curved heightfield, the contact ``forces`` ([normal, tangential] per contact) at (q, v)
         as world vectors (d x n_c) along that point's normals and tangents: a step's impulse is
         its stages' forces, each along its own directions, which turn under a contact sliding
         across a curved heightfield (random file 30649: along the end's alone, the step's
         momentum balance is first order in the step, and the balance split steps to h / 2^13);
-        flat ground: None (one normal everywhere)."""
-        if not self.sloped:
+        elsewhere (flat ground, a plane's terrain: :attr:`turning`) None."""
+        if not self.turning:
             return None
         pt = self.point(q, v)
         return contact_vectors(pt.normal, pt.tangent, forces[: self.nc],
@@ -1446,6 +1583,8 @@ class _Landing:
                 fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
                 stop_force[rows.dof[rows.dof >= 0]] = lam[: rows.n][rows.dof >= 0]
                 gap, vn, moving = pt.gap, pt.vn(v), pt.slip
+                if rows.cornered is not None:  # a corner holds while both its rows push
+                    fn = np.where(mode.cornered, _corner_forces(rows, lam, self.nc), fn)
             else:  # no rows: the gaps and normal speeds alone (the forces and slips go unwatched)
                 gap, vn = self.gaps_and_speeds(q, v)
                 moving = np.zeros((self.nc, self.dims - 1))
@@ -1479,10 +1618,12 @@ class _Landing:
         gaps of closed contacts, forces of open ones, cone margins but of sticking contacts, slip
         but of sliding ones, stop margins of joints on a stop, stop forces of free joints."""
         key = mode.closed.tobytes() + (mode.slip != 0).tobytes() + mode.stop.tobytes()
+        key = key + mode.corner.tobytes() if _any(mode.cornered) else key
         mask = self._unwatched.get(key)
         if mask is None:
             closed, friction, free = mode.closed, self.mu > 0, mode.stop == 0
             sticking, sliding = closed & ~mode.sliding & friction, closed & mode.sliding & friction
+            sticking &= ~mode.cornered  # a corner's frictionless rows: no cone (its force witness is its rows')
             mask = np.concatenate([closed, ~closed, ~sticking, ~sliding, ~free, ~free, free])
             self._unwatched = self._unwatched if len(self._unwatched) < 256 else {}
             self._unwatched[key] = mask
@@ -1518,7 +1659,7 @@ class _Landing:
         return np.searchsorted(self.vertices, self.point(q, v).contacts[:, 0], side="right")
 
     def vertex_crossing(self, q: np.ndarray, v: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, h: float
-                        ) -> tuple[_Trial, np.ndarray] | None:
+                        ) -> tuple[_Trial, np.ndarray, np.ndarray] | None:
         """Where a closed contact passes a breakpoint of the plane's terrain over the step (q, v)
         -> (q1, v1) of length ``h``: the step to just past it (bisected to rounding) and which
         closed contacts passed one; or None. Beyond a breakpoint the ground's normal is the next
@@ -1526,7 +1667,19 @@ class _Landing:
         sliding over a ridge leaves it. Unlocated, the projection onto the next segment took the
         valley's impact plastically whatever the restitution, and pulled the contact down onto
         the ridge's far side (a pulling impulse). A crossing that changes no normal speed by more
-        than the plastic speed (1e-4 m/s) is left to the projection (a plastic change)."""
+        than the plastic speed (1e-4 m/s) is left to the projection (a plastic change).
+
+        A contact that passes a valley's breakpoint (:attr:`concave`) is located whatever its
+        speed, and where its whole velocity there is below the plastic speed it comes to rest in
+        the corner, held by both segments (the third item returned: per contact the breakpoint, or
+        -1; :meth:`event`): the rocking across a valley's breakpoint at restitution 0 loses cos a
+        of its speed per crossing (a the angle between the normals) and the crossings accumulate
+        (Zeno), each step crossing it once its rocking is shorter than a step. That slow, the
+        corner's projection takes the point's velocity to zero within the plastic speed, as a
+        plastic impact takes an approach that slow (an event: the impact over both rows). A faster
+        contact crosses as before, but as an event however slowly it approaches the far segment
+        (plastic below the plastic speed; so a contact sliding through a shallow valley keeps its
+        speed along the far segment, and every loss at a valley is an event's)."""
         # the normals at the step's ends (the last accepted step's end's for its start): unchanged,
         # no breakpoint passed (nor one between collinear segments, which changes nothing)
         end = self.ended(q1, v1, mode)
@@ -1537,14 +1690,18 @@ class _Landing:
             return None
         self.end_normals = None
         k0 = self.pieces(q, v)
-        passing = mode.closed & (self.pieces(q1, v1) != k0)
+        k1 = self.pieces(q1, v1)
+        passing = mode.closed & ~mode.cornered & (k1 != k0)
         if not _any(passing):
             return None
         # a crossing too slow to locate (the contact's velocity at the step's start along the
         # next segment's normal within half the plastic speed): no bisection (the step's cost x 50)
+        # unless it passes a valley's breakpoint, where it may come to rest in the corner
         pt, normal = self.point(q, v), self.point(q1, v1).normal
         velocity = pt.normal * pt.vn(v)[:, None] + pt.tangent[:, 0] * pt.vt(v)[:, 0][:, None]
-        if not _any(passing & (np.abs(np.sum(normal * velocity, axis=1)) > 0.5 * PLASTIC_SPEED)):
+        valley = passing & (np.abs(k1 - k0) == 1) & self.concave[np.minimum(k0, k1) % len(self.concave)]
+        kept_end = self._end
+        if not _any(passing & (np.abs(np.sum(normal * velocity, axis=1)) > 0.5 * PLASTIC_SPEED)) and not _any(valley):
             return None
         lo, hi, found, before = 0.0, h, None, None
         for _ in range(200):
@@ -1564,9 +1721,36 @@ class _Landing:
             nudged = replace(before, tau=lo + 2.0 * (hi - lo), q=before.q + 2.0 * (hi - lo) * before.v, end=None)
             if _any(mode.closed & (self.pieces(nudged.q, nudged.v) != k0)):
                 found = nudged
-        crossed = mode.closed & (self.pieces(found.q, found.v) != k0)
-        crossed &= np.abs(self.point(found.q, found.v).vn(found.v)) > PLASTIC_SPEED
-        return (found, crossed) if _any(crossed) else None
+            if _any(valley):
+                # past a valley's breakpoint by more than the profile's coincidence radius (1e-12
+                # m), where the normal is the far segment's: a leftward crossing located to
+                # rounding stayed within it (the segment's parameter rounds to its end), and met
+                # the mean of the two normals (its impact sent the puck of the valley file level
+                # into the far slope, a loss at the next step's projection)
+                k = np.minimum(k0, k1) % len(self.concave)
+                far = np.where((k1 > k0)[:, None], self.valleys[k][:, 1], self.valleys[k][:, 0])
+                reach = 2.0
+                for _ in range(200):
+                    if not _any(valley & (np.max(np.abs(self.point(found.q, found.v).normal - far), axis=1) > 1e-12)):
+                        break
+                    reach *= 2.0
+                    if lo + reach * (hi - lo) > h:
+                        break
+                    found = replace(before, tau=lo + reach * (hi - lo), q=before.q + reach * (hi - lo) * before.v,
+                                    end=None)
+        crossed = mode.closed & ~mode.cornered & (self.pieces(found.q, found.v) != k0)
+        pt = self.point(found.q, found.v)
+        cornered = np.full(self.nc, -1)
+        if _any(valley):
+            speed = np.hypot(pt.vn(found.v), pt.vt(found.v)[:, 0])  # the contact point's whole velocity
+            resting = crossed & valley & (speed <= PLASTIC_SPEED)
+            cornered[resting] = np.minimum(k0, k1)[resting]
+            crossed &= ~resting
+        crossed &= (np.abs(pt.vn(found.v)) > PLASTIC_SPEED) | valley  # a valley's: an event, plastic that slow
+        if _any(crossed) or _any(cornered >= 0):
+            return found, crossed, cornered
+        self._end = kept_end  # as unlocated: the step's end (q1, v1) is the compiled step's again
+        return None
 
     def trial(self, q: np.ndarray, v: np.ndarray, mode: _Mode, tau: float) -> _Trial:
         """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates."""
@@ -1640,7 +1824,8 @@ class _Landing:
         velocities after, the event, and which rows rest afterwards."""
         pt = self.point(q, v)
         stops = self.stops_touching(q, mode)
-        rows = _rows(pt, contacts, self.no_slip(), stops, self.mu, self.nv)
+        plain, corners = self.corner_split(mode, contacts)
+        rows = _rows(pt, plain, self.no_slip(), stops, self.mu, self.nv, corners=corners)
         n, on_contact, on_stop = rows.n, rows.contact >= 0, rows.dof >= 0
         u = rows.G @ v
         approach = -u[:n]
@@ -1672,6 +1857,8 @@ class _Landing:
         new = mode.copy()
         new.closed[:] = False
         new.closed[rows.contact[on_contact & after & on_ground]] = True
+        if corners is not None:  # a corner rests on where both its rows do; else it opens (touching again)
+            self.keep_corners(new, mode, rows, (on_contact & after & on_ground)[:n])
         new.stop[:] = 0
         at = rows.dof[on_stop & after]
         new.stop[at] = stops[at]
@@ -1682,6 +1869,31 @@ class _Landing:
             energy_before=float(v @ pt.M @ v) / 2, energy_after=float(v_plus @ pt.M @ v_plus) / 2,
         )
         return v_plus, event, new
+
+    def corner_split(self, mode: _Mode, contacts: np.ndarray
+                     ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+        """``contacts`` split into those with one row each and ``mode``'s resting in a corner,
+        with their segments' normals (:func:`_rows`' ``corners``; None: none)."""
+        if not _any(mode.cornered):
+            return contacts, None
+        held = mode.cornered[contacts] & mode.closed[contacts]
+        cornered = contacts[held]
+        return contacts[~held], (cornered, self.valleys[mode.corner[cornered]])
+
+    def keep_corners(self, new: _Mode, mode: _Mode, rows: _Rows, rest: np.ndarray) -> None:
+        """In ``new`` (closed where some row of the contact rests): each of ``mode``'s corner
+        contacts in ``rows`` stays in its corner where both its rows rest (``rest``, per normal
+        row), else opens: released from one segment it touches the other again (an event, plastic
+        that slow) along that segment's own normal, which a point exactly at the breakpoint would
+        not have (its normal is the mean of the two)."""
+        both = np.zeros(self.nc, int)
+        np.add.at(both, rows.contact[: rows.n][rows.cornered], rest[rows.cornered].astype(int))
+        cornered = np.unique(rows.contact[: rows.n][rows.cornered])
+        kept = both[cornered] == 2
+        new.closed[cornered] = kept
+        new.corner[:] = -1
+        new.corner[cornered[kept]] = mode.corner[cornered[kept]]
+        new.slip[cornered] = 0.0
 
     def pressing(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
         """Per contact: closed in ``mode`` and pushed by its force at (q, v) beyond the force
@@ -1760,8 +1972,11 @@ class _Landing:
         if self.rests_nowhere(contacts, stops):  # the LCP would have no rows
             return self.flight()
         slip = _unit(pt.slip, self.speed_tol) if self.mu > 0 else self.no_slip()
+        plain, corners = self.corner_split(mode, contacts)
+        if corners is not None:
+            slip[corners[0]] = 0.0
         for attempt in range(2):
-            rows = _rows(pt, contacts, slip, stops, self.mu, self.nv)
+            rows = _rows(pt, plain, slip, stops, self.mu, self.nv, corners=corners)
             minv = np.linalg.solve(pt.M, np.column_stack([pt.f, rows.F.T]))
             u = rows.G @ minv[:, 0] + rows.b
             try:
@@ -1780,6 +1995,8 @@ class _Landing:
         c = rows.contact >= 0
         new.closed[rows.contact[c & rest]] = True
         new.slip[:] = np.where(new.closed[:, None], slip, 0)
+        if corners is not None:  # a corner rests on where both its rows do, else it opens
+            self.keep_corners(new, mode, rows, rest[: rows.n])
         k = rows.contact[rows.owner]
         starting = (sol.slip > acc_tol) & new.closed[k]
         new.slip[k[starting]] = _unit(acceleration[starting], 0.0)
@@ -1861,7 +2078,12 @@ class _Landing:
         probe.redundant = self.redundant(pt, probe)
         mode_rows, (_, lam) = self.mode_solution(pt, probe)
         fn = _contact_forces(mode_rows, lam, self.mu, self.nc)[0]
-        return candidates & (fn[np.maximum(rows.contact, 0)] >= -HOLD_FORCE * self.force_tol)
+        force = fn[np.maximum(rows.contact, 0)]
+        if rows.cornered is not None and mode_rows.cornered is not None:  # a corner's rows: each its own
+            own = _corner_row_forces(mode_rows, lam, self.nc)
+            k = np.flatnonzero(rows.cornered)
+            force[k] = own[rows.contact[k], _corner_side(rows)[k]]
+        return candidates & (force >= -HOLD_FORCE * self.force_tol)
 
     def persists(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> bool:
         """Whether ``mode`` (after an impact: the rows it left resting, the contacts' slip as
@@ -1902,7 +2124,7 @@ class _Landing:
         out = mode
         for a, i in enumerate(closed):
             for j in closed[a + 1 :]:
-                if (out.sliding[i] != out.sliding[j]
+                if (out.sliding[i] != out.sliding[j] and not (mode.cornered[i] or mode.cornered[j])
                         and np.max(np.abs(pt.contacts[i] - pt.contacts[j])) <= COINCIDENT
                         and np.linalg.norm(vt[i] - vt[j]) <= self.speed_tol):
                     out = out.copy() if out is mode else out
@@ -1985,6 +2207,7 @@ class _Landing:
             fn, ft = _contact_forces(rows, lam, self.mu, self.nc)
             magnitude = np.linalg.norm(ft, axis=1)
             edge = mode.closed & ~mode.sliding & (self.mu * fn - magnitude <= self.force_tol) & (magnitude != 0)
+            edge &= ~mode.cornered  # a corner's force lies between its two normals, no cone's
             if not edge.any():
                 break
             mode = mode.copy()
@@ -2056,6 +2279,15 @@ class _Landing:
         residual = np.empty(n)
         residual[:nc] = pt.gap[contacts]
         residual[nc:] = -mode.stop[d] * (q[d] - np.where(mode.stop[d] > 0, self.joints.hi[d], self.joints.lo[d]))
+        if _any(mode.cornered & mode.closed):  # a corner's two rows: the point's distances to the two segments' lines
+            c = np.flatnonzero(mode.cornered & mode.closed)
+            normals = self.valleys[mode.corner[c]]
+            Gc, _, _ = _corner_rows(pt, c, normals)
+            vertex = np.column_stack([self.vertices, self.ground.y])[mode.corner[c]]
+            distance = np.sum(normals * (pt.contacts[c] - vertex)[:, None, :], axis=2).ravel()
+            plain = ~np.isin(np.arange(nc), np.flatnonzero(np.isin(contacts, c)))
+            G = np.vstack([G[:nc][plain], Gc, G[nc:]])
+            residual = np.concatenate([residual[:nc][plain], distance, residual[nc:]])
         minv_gt = np.linalg.solve(pt.M, G.T)
         return minv_gt @ np.linalg.lstsq(G @ minv_gt, residual, rcond=None)[0]
 
@@ -2119,6 +2351,7 @@ class _Landing:
         """The first event (t = 0): the touchdown state (q, v), the velocity after, the event and
         the rows resting after it; the law's answer is :attr:`last_impact`."""
         self.set_chart(self.design, None)
+        self.seated = np.full(self.nc, -1)
         q = self.q0.copy()
         v = pre_impact_velocity(self.topology, self.scene, self.space) if self.v_minus is None else self.v_minus.copy()
         none = self.flight()
@@ -2178,9 +2411,10 @@ class _Landing:
         self.tally_joints(totals, q, v, q, v_plus, impulses, 0.0, True)
 
     def step_vectors(self, q: np.ndarray, v: np.ndarray, p: np.ndarray) -> np.ndarray | None:
-        """On sloped ground, the last step's impulse vectors (:attr:`vectors`) plus those of the
-        projection after it (stacked ``p``, at its end (q, v)); flat ground: None."""
-        return None if not self.sloped else self.vectors + self.stage_vectors(q, v, p)
+        """On a curved heightfield (:attr:`turning`), the last step's impulse vectors
+        (:attr:`vectors`) plus those of the projection after it (stacked ``p``, at its end (q,
+        v)); elsewhere None."""
+        return None if not self.turning else self.vectors + self.stage_vectors(q, v, p)
 
     def tally_joints(self, totals: _Totals, q0: np.ndarray, v0: np.ndarray, q1: np.ndarray, v1: np.ndarray,
                      impulses: np.ndarray, dt: float, loaded: bool, vectors: np.ndarray | None = None) -> None:
@@ -2228,7 +2462,7 @@ class _Landing:
             if not self.planar and float(np.linalg.norm(q[3:6])) > RECHART:
                 q, v = self.rechart(q, v, totals)
             q1, v1, impulse, dt, grown = self.balanced_step(q, v, mode, min(trial, T - t), rate, h / 2.0**MAX_SPLITS)
-            step_vectors = self.vectors  # sloped ground (trial steps below replace self.vectors)
+            step_vectors = self.vectors  # a curved heightfield (trial steps below replace self.vectors)
             if totals.steps > STEP_BUDGET * T / h:
                 raise Diverged(  # landing() shortens the step (retry_factor)
                     f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
@@ -2269,11 +2503,12 @@ class _Landing:
                     progress(LandingProgress(index, h, t, T, len(totals.events)))
                 continue
             if crossing is not None:  # a closed contact passed a terrain vertex (located just past it)
-                located, crossed = crossing
+                located, crossed, cornered = crossing
                 if self.tape is not None:
-                    self.tape.append(("vertex_step", q.copy(), v.copy(), mode.copy(), located.tau, crossed))
+                    self.tape.append(("vertex_step", q.copy(), v.copy(), mode.copy(), located.tau,
+                                      crossed | (cornered >= 0)))
             else:
-                crossed = None
+                crossed = cornered = None
                 watch = graze.w < 0
                 located = self.locate(q, v, mode, graze, watch)
                 for _ in range(8):  # a witness that crossed earlier and came back by the step's end
@@ -2295,7 +2530,7 @@ class _Landing:
                 raise NumericalError(self.stall_message(q_e, v_e, mode, t))
             if len(totals.events) > self.settings.max_events:
                 raise NumericalError(self.budget_message(totals.events, t))
-            q, v, mode = self.event(q_e, v_e, mode, t, totals, crossed)
+            q, v, mode = self.event(q_e, v_e, mode, t, totals, crossed, cornered)
             if progress is not None:
                 progress(LandingProgress(index, h, t, T, len(totals.events)))
         pt = self.point(q, v)
@@ -2404,12 +2639,16 @@ class _Landing:
         return contact[jammed]
 
     def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
-              crossed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, _Mode]:
+              crossed: np.ndarray | None = None, cornered: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, _Mode]:
         """Handle the event at (q, v): an impact where a contact touches or a joint reaches a
         stop, then the new modes. ``crossed``: the closed contacts that have just passed a
         terrain vertex (:meth:`vertex_crossing`): each meets the segment beyond it afresh, along
         that segment's normal: an impact where it approaches it (a valley), free where it leaves
-        it (a ridge)."""
+        it (a ridge). ``cornered``: per contact -1, or the valley breakpoint it has just reached
+        slower than the plastic speed: it rests in the corner, held by both segments' rows, while
+        the contact LCP loads both (:meth:`resolve`, :meth:`keep_corners`); the projection takes
+        its velocity to zero."""
         pt = self.point(q, v)
         vn = pt.vn(v)
         touching = ~mode.closed & (pt.gap <= self.settings.gap_tolerance) & (vn < 0)
@@ -2418,6 +2657,11 @@ class _Landing:
             mode.closed[crossed] = False
             mode.slip[crossed] = 0.0
             touching |= crossed & (vn < 0)
+        if cornered is not None and _any(cornered >= 0):
+            mode = mode.copy()
+            at = cornered >= 0
+            mode.closed[at], mode.corner[at], mode.slip[at] = True, cornered[at], 0.0
+            touching |= at  # a plastic impact over both rows (approaching slower than the plastic speed)
         reaching = (mode.stop == 0) & (((q <= self.joints.lo + self.settings.gap_tolerance) & (v < 0))
                                         | ((q >= self.joints.hi - self.settings.gap_tolerance) & (v > 0)))
         v_before = v
@@ -2430,6 +2674,8 @@ class _Landing:
             self.add_impact(totals, event, q, v_minus, v)
         q, v = self.arrest(q, v, mode, totals)
         mode = self.resolve(q, v, mode, t)
+        if self.valleys is not None:
+            self.seat(mode)
         q1, v1, p = self.project(q, v, mode)
         self.add(totals, p, q1, v1)
         self.tally_joints(totals, q, v, q1, v1, p, 0.0, _any(mode.closed))

@@ -17,10 +17,10 @@ active block that of the numpy path.
 The function also returns what the landing loop asks of the step's end point: the witnesses'
 ingredients (gaps, normal velocities, slip, contact forces, stop forces in the mode), the linear
 momentum at both ends and the step's momentum balance but for the weight (``balance``: the change
-of momentum minus the step's impulses as vectors, ``vectors``: on flat ground along the end's
-normal and tangents, on sloped ground each stage's force along that stage's own normal and
-tangents, since a contact sliding across a curved heightfield turns its normal within a step and
-the end's directions would leave a residual of first order in the step), the normals and the
+of momentum minus the step's impulses as vectors, ``vectors``: along the end's normals and
+tangents, but on a sloped heightfield each stage's force along that stage's own normal and
+tangents, since a contact sliding across a curved cell turns its normal within a step and the
+end's directions would leave a residual of first order in the step), the normals and the
 kinetic energy (the divergence check), so that a plain step costs one call; and the projection
 that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
 velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
@@ -271,7 +271,7 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
     q1, v1, impulse, vectors = integrate(fn, q, v, h, x, stop_dofs, start)
     end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
-    if terrain.is_flat:  # one normal everywhere: the end's directions are every stage's
+    if not isinstance(terrain, Heightfield) or terrain.is_flat:  # normals that turn only at events
         vectors, applied = _force_vectors(end, impulse), _impulse_vector(end, impulse)
     else:  # the normals turn under a sliding contact: each stage's force along its own
         applied = ca.sum2(vectors)
@@ -427,7 +427,7 @@ class StepEnd:
     #: the momentum balance but for the weight: momentum1 - momentum0 - the step's impulses'
     #: vectors' sum (:meth:`landing._Landing.balanced_step`)
     balance: np.ndarray
-    #: the step's impulses per contact as world vectors, d x n_c (sloped ground: by stage)
+    #: the step's impulses per contact as world vectors, d x n_c (a sloped heightfield: by stage)
     vectors: np.ndarray
 
 
