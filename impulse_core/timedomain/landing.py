@@ -162,6 +162,15 @@ class Diverged(NumericalError):
         self.reached = reached
 
 
+class _Jams(Exception):
+    """A run stopped by Painleve's paradox before the landing took impulsive jams
+    (:meth:`_Landing.run` then starts it again taking them); ``failure``: the error it stopped with."""
+
+    def __init__(self, failure: NumericalError) -> None:
+        super().__init__(str(failure))
+        self.failure = failure
+
+
 class PainleveParadox(NumericalError):
     """The contact problem at the acceleration level has no solution at an event (Painleve's
     paradox: a pressed sliding contact whose row's effective inverse mass with friction is
@@ -1193,9 +1202,9 @@ class _Landing:
         self._solutions: tuple[_Point | None, dict] = (None, {})  # see mode_solution()
         self._steering: tuple = (None, b"")  # steer()'s last point, mode and figures
         self._jams: tuple[float, int] = (math.nan, 0)  # the last impulsive jam's time and its count there
-        #: None, or, in a run repeated after it diverged with a contact sliding, the fraction of its
-        #: frictionless value below which a pressed sliding contact's A = n M^-1 (n - mu u t)^T
-        #: jams at a step's start (:meth:`run`)
+        #: None (no impulsive jams), or, once a run of this landing stopped with Painleve's paradox
+        #: (:meth:`run`), the fraction of its frictionless value below which a pressed sliding
+        #: contact's A = n M^-1 (n - mu u t)^T jams at a step's start
         self.jam_watch: float | None = None
         gap_tol, nc, nv = settings.gap_tolerance, self.nc, self.nv
         #: the witnesses' tolerances (:meth:`witness_and_rate`): gaps, forces, cone margins, slip,
@@ -2246,6 +2255,23 @@ class _Landing:
 
     def run(self, h: float, progress: Progress | None = None, index: int = 0, until: Until | None = None
             ) -> LandingResult:
+        """The landing at Runge-Kutta step ``h`` (:meth:`run_once`). Where a run stops with
+        Painleve's paradox (its contact problem without solution, events stalled on it, or a
+        divergence after a contact slid), the landing takes impulsive jams from then on
+        (:attr:`jam_watch`, kept for this landing's later runs) and the run starts again: the
+        same to the bit until a contact jams, and every run of the step halving judges alike
+        where one does (a pressed sliding contact's A falls below JAM_WATCH of its
+        frictionless value at a step's start, or the contact problem fails)."""
+        try:
+            return self.run_once(h, progress, index, until)
+        except _Jams as paradox:
+            if self.jam_watch is not None:
+                raise paradox.failure from None
+            self.jam_watch = JAM_WATCH
+        return self.run_once(h, progress, index, until)
+
+    def run_once(self, h: float, progress: Progress | None = None, index: int = 0, until: Until | None = None
+                 ) -> LandingResult:
         """The landing at Runge-Kutta step ``h`` (``progress``: told after each step and event,
         as run ``index`` of the step halving); ``until``, asked after the first impact and after
         each step and event, ends it early (its ``duration`` is then the time reached)."""
@@ -2274,7 +2300,8 @@ class _Landing:
             if not self.planar and float(np.linalg.norm(q[3:6])) > RECHART:
                 q, v = self.rechart(q, v, totals)
             if self.jam_watch is not None and _any(mode.closed & mode.sliding):
-                jammed = self.near_jam(q, v, mode, self.jam_watch)[0]
+                jammed, ratio = self.near_jam(q, v, mode, self.jam_watch)
+                jammed = jammed[ratio > 0.0]  # A falling to 0 while pressed (A < 0 pressed: a choice, B > 0)
                 if jammed.size:
                     failure = NumericalError(self.painleve_message(
                         t, jammed, f"friction {self.mu:g} takes their rows' effective mass to 0"))
@@ -2296,14 +2323,8 @@ class _Landing:
                 if self.jam_watch is not None or not slid:
                     raise failure
                 # a sliding contact may have run into Painleve's paradox (its force -B / A without
-                # bound as A falls to 0: the steps before the divergence are already off): the same
-                # run again, the same to the bit until a pressed sliding contact's A falls below
-                # JAM_WATCH of its frictionless value, where it jams (:meth:`watch_jam`)
-                self.jam_watch = JAM_WATCH
-                try:
-                    return self.run(h, progress, index, until)
-                finally:
-                    self.jam_watch = None
+                # bound as A falls to 0: the steps before the divergence are already off)
+                raise _Jams(failure)
             _check_chart(q1, self.space, t + dt)
             w, r = self.witness_and_rate(q1, v1, mode)
             all_hold = np.count_nonzero(w >= 0) == w.size  # (w >= 0).all()
@@ -2359,6 +2380,8 @@ class _Landing:
                 jammed = self.painleve(q_e, v_e, mode)
                 if not jammed.size:
                     raise failure
+                if self.jam_watch is None:
+                    raise _Jams(failure)
                 # events stalled by Painleve's paradox: the impulsive jam, here
                 q, v, mode = self.jam_event(q_e, v_e, mode, t, totals, jammed, failure)
                 stalled = 0
@@ -2633,6 +2656,8 @@ class _Landing:
             try:
                 new = self.resolve(q, v, mode, t)
             except PainleveParadox as paradox:
+                if self.jam_watch is None:
+                    raise _Jams(paradox) from None
                 q, v, mode = self.take_jam(q, v, mode, t, totals, self.sliding_jams(q, v, mode), paradox)
                 jammed = True
                 continue
