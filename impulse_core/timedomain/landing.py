@@ -33,7 +33,9 @@ Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
   its slip, A = n M^-1 (n - mu u t)^T, is negative (that LCP has no solution) or has fallen to 0
   (its force -B / A grows without bound), Painleve's paradox, the landing takes an impulsive jam
   there (:meth:`_Landing.jam`: Darboux-Keller's sliding phase along the cone's edge until the
-  slip stops, then the impact law at e = 0), reported as a "touchdown" event with ``jam`` set.
+  slip stops, then the impact law at e = 0), reported as a "touchdown" event with ``jam`` set;
+  only once a run has stopped on the paradox (:meth:`_Landing.run`), so that other landings are
+  unchanged to the bit.
 
 The error of a run at step h is estimated by comparing with the run at h / 2; the step is halved
 until that estimate meets ``tolerance`` (:func:`landing`).
