@@ -2267,7 +2267,7 @@ class _Landing:
         try:
             return self.run_once(h, progress, index, until)
         except _Jams as paradox:
-            if self.jam_watch is not None:
+            if self.jam_watch is not None or self.tape is not None:  # the derivatives' replay: no jams
                 raise paradox.failure from None
             self.jam_watch = JAM_WATCH
         return self.run_once(h, progress, index, until)
@@ -2455,8 +2455,8 @@ class _Landing:
         return (f": contacts {self.contact_labels(contact)} slide pressed where their rows' effective mass "
                 f"with friction {self.mu:g} has nearly vanished (n M^-1 (n - mu u t)^T at "
                 f"{float(np.min(ratio)):.1e} of its frictionless value): Painleve's paradox ahead, the "
-                "contact force growing without bound (a dynamic jam, which the landing does not model): lower the "
-                "friction")
+                "contact force growing without bound (a dynamic jam, which the landing could not take here: it jams "
+                "one sliding contact at a time, by a slide that stops its slip): lower the friction")
 
     def near_jam(self, q: np.ndarray, v: np.ndarray, mode: _Mode, below: float = JAM_NOTE
                  ) -> tuple[np.ndarray, np.ndarray]:
@@ -2492,8 +2492,9 @@ class _Landing:
         """Painleve's paradox at ``t``: the sliding ``contacts`` have no consistent contact
         force, ``why``."""
         return (f"Painleve's paradox at t = {t:.6g} s: contacts {self.contact_labels(contacts)} slide with no "
-                f"consistent contact force ({why}; rigid bodies then need an impulsive jam, which the landing does "
-                "not model): lower the friction")
+                f"consistent contact force ({why}; rigid bodies then need an impulsive jam, which the landing could "
+                "not take here: it jams one sliding contact at a time, by a slide that stops its slip): lower the "
+                "friction")
 
     def painleve(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
         """Closed sliding contacts in Painleve's paradox at (q, v): their own row's effective
