@@ -323,6 +323,7 @@ def _landing_record(r: LandingResult) -> dict[str, Any]:
             "tangential": _tangential(e.tangential),
             "internal": _floats(e.internal_magnitude),
             "stop": _floats(e.stop),
+            **({"jam": True} if e.jam else {}),  # an impulsive jam (Painleve's paradox), only where one is
         }
         for e in r.events
     ]
@@ -565,7 +566,7 @@ def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
     """The whole landing in the text report (the tables above are its first impact)."""
     names, tree = contact_names(model.tree), model.tree
     rows = [
-        [f"{1e3 * e.time:.3f}", e.kind, _num(e.external_norm), _num(e.internal_norm)]
+        [f"{1e3 * e.time:.3f}", e.kind + (" (jam)" if e.jam else ""), _num(e.external_norm), _num(e.internal_norm)]
         + [_num(x) for x in e.external]
         for e in r.events[:SHOWN_EVENTS]
     ]

@@ -497,19 +497,6 @@ def test_bounces_of_a_driven_contact_shrink_by_restitution_to_rest():
     assert abs(r.momentum_balance) < 1e-6
 
 
-def test_a_sliding_contact_in_painleves_paradox_is_named():
-    """Random file 20120 (data/painleve_20120.yaml): at 0.1086 s a light rod's tip slides with
-    friction 1 where n M^-1 (n - mu u t)^T < 0 and gravity pushes it down: no contact force keeps
-    it sliding on the ground (the acceleration LCP has none), so each event re-chose the same
-    mode and the run stalled. It now stops saying so, naming the contact."""
-    from impulse_core.errors import NumericalError
-
-    model = _data_model("painleve_20120.yaml")
-    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    with pytest.raises(NumericalError, match=r"Painleve's paradox at t = 0\.1086\d* s: contacts b0\[0\] slide"):
-        run.run(run.first_step())
-
-
 def test_a_divergence_through_a_singular_mass_matrix_says_so():
     """Random file 20069 (data/zero_radius_20069.yaml): two rods of zero radius; after the impact
     they pass, in flight, a posture where the mass matrix's condition number passes 1e10 and

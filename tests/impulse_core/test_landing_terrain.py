@@ -16,7 +16,7 @@ contact down on the slope.
 - data/ridge_40056.yaml (random file, two contacts on a sprung leg): no projection pulls (-1.1
   N s before) and the contract's checks (first event, momentum balance, no penetration).
 - data/jam_40029.yaml (random file, friction 0.3): not at a breakpoint; a sliding tip reaches
-  Painleve's paradox, and the divergence names it.
+  Painleve's paradox and jams (an impulsive jam: ``_Landing.jam``).
 - studies/whole_landing/terrain_valley_rest.yaml (hand-made, shortened): a puck rocking across a
   valley's breakpoint at restitution 0 comes to rest in the corner, held by both slopes' rows
   (frictionless and at friction 0.1): at x = 0, velocity 0, settled; the weight is the two rows'
@@ -27,6 +27,7 @@ contact down on the slope.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -139,19 +140,55 @@ def test_the_derivatives_refuse_a_breakpoint_crossing():
         landing_gradient(model.tree, model.scene, model.joints, step=0.005)
 
 
-def test_a_divergence_into_painleves_paradox_names_the_sliding_contact():
+def test_a_slide_into_painleves_paradox_lands_through_an_impulsive_jam():
     """Random file 40029 (data/jam_40029.yaml, friction 0.3): from 0.11 s b3's tip slides pressed
-    down while its row's effective inverse mass with friction, n M^-1 (n - mu u t)^T, falls from
-    0.46 of its frictionless value to 0 at 0.1423 s, 0.25 m from any breakpoint; the force -B / A
-    then grows without bound (74 N to 1e5-1e9 N within the last microsecond), the steps split to
-    nanoseconds and the run diverges there at every step. The error said only "diverged"; it now
-    names the contact and Painleve's paradox. With friction 0.2 the same file lands."""
-    from impulse_core.timedomain.landing import Diverged
-
+    down while its row's effective inverse mass with friction, A = n M^-1 (n - mu u t)^T, falls
+    from 0.46 of its frictionless value to 0 at 0.1423 s, 0.25 m from any breakpoint; the force
+    -B / A then grows without bound (74 N to 1e5-1e9 N within the last microsecond) and the run
+    diverged there at every step, stopping with Painleve's paradox named. Now the run that
+    diverged is repeated watching A, and the tip jams where A falls below JAM_WATCH of its
+    frictionless value (one event, kind "touchdown", ``jam``): the impulse along the cone's edge
+    (the dynamic jam's limit: the slide's force integrated until the slip stops), p = -s / (W_tn
+    - mu u W_tt) by hand from the contact's Delassus matrix, after which the tip sticks; the
+    contract's checks hold (first event, momentum balance, no penetration), the jam's impulse in
+    the totals. With friction 0.2 the same file lands without a jam."""
     model = _model("jam_40029.yaml")
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    with pytest.raises(Diverged, match=r"diverged at t = 0\.1423 s .*: contacts b3\[0\] slide pressed .*Painleve's paradox"):
-        run.run(run.first_step())
+    jams: list = []
+    jam = run.jam
+
+    def spy(q, v, mode, t, contact):
+        out = jam(q, v, mode, t, contact)
+        jams.append((q, v, contact, out))
+        return out
+
+    run.jam = spy
+    r = run.run(run.first_step())
+    first = first_instant(model.tree, model.scene, ImpactModel.FRICTION, model.space)  # --model friction
+    assert np.max(np.abs(r.events[0].external - first.external)) <= 1e-9 * np.max(first.external)
+    assert r.momentum_balance <= 1e-5
+    times, states = r.trajectory
+    assert min(run.point(q, np.zeros(run.nv)).gap.min() for q in states) >= -1e-9
+    events = [e for e in r.events if e.jam]
+    assert len(events) == len(jams) == 1 and events[0].kind == "touchdown"
+    assert events[0].time == pytest.approx(0.1422, abs=1e-4)
+    q, v, contact, (v_plus, event, mode) = jams[0]
+    assert contact == 0 and mode.closed[0] and not mode.sliding[0]
+    pt = run.point(q, v)
+    J = np.vstack([pt.Jn[:1], pt.Jt[0]])
+    W = J @ np.linalg.solve(pt.M, J.T)
+    u = np.sign(pt.slip[0, 0])
+    assert (W[0, 0] - 0.3 * u * W[0, 1]) / W[0, 0] < 1e-3  # A nearly 0 (JAM_WATCH)
+    p = -pt.slip[0, 0] / (W[1, 0] - 0.3 * u * W[1, 1])
+    assert event.external[0] == pytest.approx(p, rel=1e-6)
+    assert event.tangential[0] == pytest.approx(-0.3 * u * p, rel=1e-6)  # on the cone's edge
+    after = run.point(q, v_plus)
+    assert abs(after.slip[0, 0]) <= 1e-9 and 0.0 <= after.vn(v_plus)[0] <= 1e-3 * abs(pt.slip[0, 0])
+    # the totals hold the jam: the run's own momentum balance (above) and the impulse counted
+    assert r.total_external[0] > event.external[0]
+    calmer = replace(model.scene, friction=0.2)
+    r = _Landing(model.tree, calmer, model.joints, LandingSettings(), model.space).run(run.first_step())
+    assert not any(e.jam for e in r.events)
 
 
 # ------------------------------------------------------------------------------------------

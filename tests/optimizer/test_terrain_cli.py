@@ -272,3 +272,15 @@ def test_the_compliant_rung_meets_its_default_tolerance(capsys) -> None:
     assert record["model"] == "compliant"
     assert record["tolerance"] == 1e-3 and record["error_estimate"] <= 1e-3
     assert not any("not estimated" in w for w in record["warnings"])
+
+
+def test_an_impulsive_jam_is_a_touchdown_marked_jam_in_the_json(capsys) -> None:
+    """Random file 40029 slides into Painleve's paradox and jams (``_Landing.jam``): its event is a
+    ``touchdown`` (the contract's kind for an impact at the contacts) with ``"jam": true``, a key
+    no other event has."""
+    path = ROOT / "tests" / "impulse_core" / "data" / "jam_40029.yaml"
+    assert main(["evaluate", str(path), "--json", "--tolerance", "1"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    jams = [e for e in out["events"] if "jam" in e]
+    assert len(jams) == 1 and jams[0]["jam"] is True and jams[0]["kind"] == "touchdown"
+    assert jams[0]["external"][0] > 0 and abs(jams[0]["tangential"][0]) <= 0.3 * jams[0]["external"][0] * (1 + 1e-9)
