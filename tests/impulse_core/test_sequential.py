@@ -141,11 +141,11 @@ def _spied_events(monkeypatch) -> dict:
         seen["laws"].append((pt, rows, np.array(e), out))
         return out
 
-    def spy_tally(self, totals, q0, v0, q1, v1, impulses, dt, loaded):
+    def spy_tally(self, totals, q0, v0, q1, v1, impulses, dt, loaded, *vectors):
         if loaded and dt > 0:  # a step (or the part of one up to an event) with resting contacts
             fn, ft = impulses[: self.nc], impulses[self.nc :].reshape(self.dims - 1, self.nc).T
             seen["rest"].append((self.mu, fn.copy(), ft.copy()))
-        return tally(self, totals, q0, v0, q1, v1, impulses, dt, loaded)
+        return tally(self, totals, q0, v0, q1, v1, impulses, dt, loaded, *vectors)
 
     def spy_result(self, totals, q, v, *args):
         pt = self.point(q, v)
