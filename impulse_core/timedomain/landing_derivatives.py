@@ -1107,8 +1107,9 @@ def landing_gradient(
             raise NumericalError(f"the base turned more than {RECHART:g} rad: its rotation coordinates were "
                                  "re-centred, which the derivatives' replay does not follow")
         if kind == "vertex_step":
-            raise NumericalError("a resting contact passed a breakpoint of scene.terrain (an event where the "
-                                 "ground's normal jumps), which the derivatives' replay does not follow")
+            where = "a grid line of scene.heightfield" if run.grid is not None else "a breakpoint of scene.terrain"
+            raise NumericalError(f"a resting contact passed {where} (an event where the ground's normal jumps), "
+                                 "which the derivatives' replay does not follow")
         item = _signature(entry, run)
         if item is not None:
             signature.append(item)

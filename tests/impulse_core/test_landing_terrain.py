@@ -347,3 +347,28 @@ def test_a_puck_pushed_up_a_slope_leaves_the_corner():
     assert n_r @ v_plus[:2] == pytest.approx(0.0, abs=1e-12)  # plastic on the right slope
     assert n_l @ v_plus[:2] > 1e-2  # leaving the left one
     assert event.external[0] > 0
+
+
+def test_a_contact_sliding_across_a_heightfield_crease_meets_the_slope_by_its_laws():
+    """data/crease_puck.yaml: a frictionless puck slides at 0.5 m/s along x on a flat cell into
+    the next cell, a slope of 1 in 4 (a crease at the grid line x = 0), at restitution 0.5. The
+    crossing is an event at t = 0.1 s: an impact on the slope by the restitution law, impulse m (1
+    + e) |v_n| along the slope's normal (v_n = 0.5 m/s x n_x), the normal velocity after -e v_n;
+    the bounces that follow fall by e each, down to the plastic speed; the momentum balances.
+    Before, the crossing was left to a step's projection: plastic and frictionless whatever the
+    laws, no event (random file 30882: 0.38 N s so, its balance 1.9e-4)."""
+    model = _model("crease_puck.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    r = run.run(run.first_step())
+    m, e = 0.5, 0.5
+    n = np.array([-0.25, 1.0, 0.0]) / math.hypot(0.25, 1.0)
+    vn = 0.5 * n[0]
+    crease = [ev for ev in r.events if ev.time > 0]
+    first = crease[0]
+    assert first.kind == "touchdown" and first.time == pytest.approx(0.1, abs=1e-9)
+    assert first.external[0] == pytest.approx(m * (1 + e) * abs(vn), rel=1e-9)
+    assert n @ first.v_plus[:3] == pytest.approx(-e * (n @ first.v_minus[:3]), rel=1e-9)
+    assert n @ first.v_minus[:3] == pytest.approx(vn, rel=1e-6)
+    ratios = [b.external[0] / a.external[0] for a, b in zip(crease, crease[1:-1])]
+    assert len(ratios) >= 5 and np.allclose(ratios, e, rtol=1e-4)
+    assert r.momentum_balance <= 1e-8
