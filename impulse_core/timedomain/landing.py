@@ -1824,17 +1824,7 @@ class _Landing:
         kept_end = self._end
         if not _any(passing & (np.abs(np.sum(normal * velocity, axis=1)) > 0.5 * PLASTIC_SPEED)) and not _any(valley):
             return None
-        lo, hi, found, before = 0.0, h, None, None
-        for _ in range(200):
-            if hi - lo <= 1e-15 * max(1.0, hi):
-                break
-            mid = 0.5 * (lo + hi)
-            trial = self.trial(q, v, mode, mid)
-            if _any(mode.closed & (self.pieces(trial.q, trial.v) != k0)):
-                hi, found = mid, trial
-            else:
-                lo, before = mid, trial
-        found = found if found is not None else self.trial(q, v, mode, hi)
+        lo, hi, found, before = self.first_crossing(q, v, mode, h, k0)
         if before is not None:
             # the step to just before the breakpoint (its stages all on this side: a step past it
             # holds the contact to the next segment in its last stages), then on at that speed
@@ -1873,6 +1863,24 @@ class _Landing:
         self._end = kept_end  # as unlocated: the step's end (q1, v1) is the compiled step's again
         return None
 
+    def first_crossing(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float, k0: np.ndarray
+                       ) -> tuple[float, float, _Trial, _Trial | None]:
+        """Where a closed contact first leaves its piece of the ground (``k0``, :meth:`pieces`)
+        over a step of length ``h`` from (q, v), bisected to rounding: the step lengths (lo, hi)
+        that bracket it, the step to hi (just past it) and the step to lo (None where lo is 0)."""
+        lo, hi, found, before = 0.0, h, None, None
+        for _ in range(200):
+            if hi - lo <= 1e-15 * max(1.0, hi):
+                break
+            mid = 0.5 * (lo + hi)
+            trial = self.trial(q, v, mode, mid)
+            if _any(mode.closed & (self.pieces(trial.q, trial.v) != k0)):
+                hi, found = mid, trial
+            else:
+                lo, before = mid, trial
+        found = found if found is not None else self.trial(q, v, mode, hi)
+        return lo, hi, found, before
+
     def crossing_event(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode, k0: np.ndarray,
                        passing: np.ndarray) -> tuple[_Trial, np.ndarray, np.ndarray] | None:
         """Space: where closed contacts (``passing``) leave their heightfield cells (``k0``) over a
@@ -1884,17 +1892,7 @@ class _Landing:
         m/s onto a 32 degree slope met it at 0.6 m/s in a step's projection, 0.38 N s along the
         normal alone, plastic and frictionless whatever the laws, and its momentum balance 1.9e-4)."""
         kept_end = self._end
-        lo, hi, found = 0.0, h, None
-        for _ in range(200):
-            if hi - lo <= 1e-15 * max(1.0, hi):
-                break
-            mid = 0.5 * (lo + hi)
-            trial = self.trial(q, v, mode, mid)
-            if _any(mode.closed & (self.pieces(trial.q, trial.v) != k0)):
-                hi, found = mid, trial
-            else:
-                lo = mid
-        found = found if found is not None else self.trial(q, v, mode, hi)
+        found = self.first_crossing(q, v, mode, h, k0)[2]
         crossed = mode.closed & ~mode.cornered & (self.pieces(found.q, found.v) != k0)
         crossed &= np.abs(self.point(found.q, found.v).vn(found.v)) > PLASTIC_SPEED
         if _any(crossed):
@@ -2971,14 +2969,21 @@ class _Landing:
         ran into Painleve's paradox, or events stalled by it), then the modes after it (as
         :meth:`event`): the state and mode after."""
         q1, v1, new = self.take_jam(q, v, mode, t, totals, jammed, failure)
-        q1, v1, new = self.resolve_or_jam(q1, v1, new, t, totals, jammed=True)
+        return self.modes_after(q1, v1, new, t, totals, v, jammed=True)
+
+    def modes_after(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
+                    v_before: np.ndarray, jammed: bool = False) -> tuple[np.ndarray, np.ndarray, _Mode]:
+        """After an event at ``t`` (the velocities ``v_before`` it): the modes
+        (:meth:`resolve_or_jam`, ``jammed`` after a jam; a valley's corners seated), the
+        projection onto them, counted in ``totals``, and the record: (q, v, mode) after."""
+        q, v, mode = self.resolve_or_jam(q, v, mode, t, totals, jammed)
         if self.valleys is not None:
-            self.seat(new)
-        q2, v2, p = self.project(q1, v1, new)
-        self.add(totals, p, q2, v2)
-        self.tally_joints(totals, q1, v1, q2, v2, p, 0.0, _any(new.closed))
-        self.record(totals, t, v, t, q2, v2)
-        return q2, v2, new
+            self.seat(mode)
+        q1, v1, p = self.project(q, v, mode)
+        self.add(totals, p, q1, v1)
+        self.tally_joints(totals, q, v, q1, v1, p, 0.0, _any(mode.closed))
+        self.record(totals, t, v_before, t, q1, v1)
+        return q1, v1, mode
 
     def resolve_or_jam(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                        jammed: bool = False) -> tuple[np.ndarray, np.ndarray, _Mode]:
@@ -3039,14 +3044,7 @@ class _Landing:
             totals.events.append(event)
             self.add_impact(totals, event, q, v_minus, v)
         q, v = self.arrest(q, v, mode, totals)
-        q, v, mode = self.resolve_or_jam(q, v, mode, t, totals)
-        if self.valleys is not None:
-            self.seat(mode)
-        q1, v1, p = self.project(q, v, mode)
-        self.add(totals, p, q1, v1)
-        self.tally_joints(totals, q, v, q1, v1, p, 0.0, _any(mode.closed))
-        self.record(totals, t, v_before, t, q1, v1)
-        return q1, v1, mode
+        return self.modes_after(q, v, mode, t, totals, v_before)
 
     def record(self, totals: _Totals, t0: float, v0: np.ndarray, t1: float, q1: np.ndarray, v1: np.ndarray) -> None:
         """Keep the trajectory and when the model last moved (some |v| >= SETTLE_SPEED): a step

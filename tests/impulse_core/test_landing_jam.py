@@ -130,14 +130,9 @@ def _data_model(name: str):
     return load_model_file(Path(__file__).parent / "data" / name)
 
 
-def test_a_stalled_painleve_slide_lands_through_a_jam():
-    """Random file 20120 (data/painleve_20120.yaml; spatial, friction 1): at 0.1086 s a light
-    rod's tip slides where A < 0 and gravity presses it; the events stalled and the run stopped
-    with Painleve's paradox. Now the tip jams there (one event, kind "touchdown", ``jam``): every
-    event obeys the laws (impulse in the cone, pushing, Newton at e = 0, no energy gained), the
-    jammed tip leaves it at rest along the normal, and the linear momentum changes by the counted impulses (the
-    jam's included) minus the weight's."""
-    model = _data_model("painleve_20120.yaml")
+def jam_spied_run(model) -> tuple[_Landing, object, list]:
+    """``model``'s landing run at its first step, and each jam taken: (q, v, contact, the jam's
+    (v_plus, event, mode))."""
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     jams: list = []
     jam = run.jam
@@ -148,7 +143,18 @@ def test_a_stalled_painleve_slide_lands_through_a_jam():
         return out
 
     run.jam = spy
-    r = run.run(run.first_step())
+    return run, run.run(run.first_step()), jams
+
+
+def test_a_stalled_painleve_slide_lands_through_a_jam():
+    """Random file 20120 (data/painleve_20120.yaml; spatial, friction 1): at 0.1086 s a light
+    rod's tip slides where A < 0 and gravity presses it; the events stalled and the run stopped
+    with Painleve's paradox. Now the tip jams there (one event, kind "touchdown", ``jam``): every
+    event obeys the laws (impulse in the cone, pushing, Newton at e = 0, no energy gained), the
+    jammed tip leaves it at rest along the normal, and the linear momentum changes by the counted impulses (the
+    jam's included) minus the weight's."""
+    model = _data_model("painleve_20120.yaml")
+    run, r, jams = jam_spied_run(model)
     assert [e.time for e in r.events if e.jam] == [pytest.approx(0.108629, abs=1e-6)]
     assert len(jams) == 1
     q, v, contact, (v_plus, event, _) = jams[0]

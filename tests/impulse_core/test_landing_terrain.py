@@ -152,18 +152,10 @@ def test_a_slide_into_painleves_paradox_lands_through_an_impulsive_jam():
     - mu u W_tt) by hand from the contact's Delassus matrix, after which the tip sticks; the
     contract's checks hold (first event, momentum balance, no penetration), the jam's impulse in
     the totals. With friction 0.2 the same file lands without a jam."""
+    from tests.impulse_core.test_landing_jam import jam_spied_run
+
     model = _model("jam_40029.yaml")
-    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    jams: list = []
-    jam = run.jam
-
-    def spy(q, v, mode, t, contact):
-        out = jam(q, v, mode, t, contact)
-        jams.append((q, v, contact, out))
-        return out
-
-    run.jam = spy
-    r = run.run(run.first_step())
+    run, r, jams = jam_spied_run(model)
     first = first_instant(model.tree, model.scene, ImpactModel.FRICTION, model.space)  # --model friction
     assert np.max(np.abs(r.events[0].external - first.external)) <= 1e-9 * np.max(first.external)
     assert r.momentum_balance <= 1e-5
