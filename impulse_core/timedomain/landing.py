@@ -2798,18 +2798,25 @@ class _Landing:
         if not self.mu or not _any(mode.sliding & mode.closed):
             return none
         try:
-            pt = self.point(q, v)
-            rows, (_, lam) = self.mode_solution(pt, mode)
+            contact, A, A0, fn = self.sliding_rows(q, v, mode)
         except (NumericalError, np.linalg.LinAlgError):
             return none
+        ratio = A / A0
+        near = (ratio < below) & mode.sliding[contact] & (fn > self.force_tol)
+        return contact[near], ratio[near]
+
+    def sliding_rows(self, q: np.ndarray, v: np.ndarray, mode: _Mode
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The contacts of ``mode``'s normal rows at (q, v), each row's effective inverse mass
+        with its friction along the slip, A = n M^-1 (n - mu u t)^T (n M^-1 n^T where it sticks),
+        its frictionless one n M^-1 n^T, and the mode's normal force on it."""
+        pt = self.point(q, v)
+        rows, (_, lam) = self.mode_solution(pt, mode)
         fn = _contact_forces(rows, lam, self.mu, self.nc)[0]
         c = np.flatnonzero(rows.contact[: rows.n] >= 0)
-        G = rows.G[c]
-        ratio = (np.einsum("ij,ji->i", G, np.linalg.solve(pt.M, rows.F[c].T))
-                 / np.einsum("ij,ji->i", G, np.linalg.solve(pt.M, G.T)))
-        contact = rows.contact[c]
-        near = (ratio < below) & mode.sliding[contact] & (fn[contact] > self.force_tol)
-        return contact[near], ratio[near]
+        contact, G = rows.contact[c], rows.G[c]
+        A = np.einsum("ij,ji->i", G, np.linalg.solve(pt.M, rows.F[c].T))
+        return contact, A, np.einsum("ij,ji->i", G, np.linalg.solve(pt.M, G.T)), fn[contact]
 
     def stall_message(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float) -> str:
         """Why events stopped making progress at (q, v): Painleve's paradox where a sliding
@@ -2833,13 +2840,8 @@ class _Landing:
         pushing force keeps them on the ground, and the mode's force on them pulls."""
         if not self.mu or not _any(mode.sliding & mode.closed):
             return np.zeros(0, int)
-        pt = self.point(q, v)
-        rows, (_, lam) = self.mode_solution(pt, mode)
-        fn = _contact_forces(rows, lam, self.mu, self.nc)[0]
-        c = np.flatnonzero(rows.contact[: rows.n] >= 0)
-        inverse_mass = np.einsum("ij,ji->i", rows.G[c], np.linalg.solve(pt.M, rows.F[c].T))
-        contact = rows.contact[c]
-        jammed = (inverse_mass < 0) & mode.sliding[contact] & (fn[contact] < -self.force_tol)
+        contact, inverse_mass, _, fn = self.sliding_rows(q, v, mode)
+        jammed = (inverse_mass < 0) & mode.sliding[contact] & (fn < -self.force_tol)
         return contact[jammed]
 
     def sliding_jams(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
