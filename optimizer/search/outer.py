@@ -305,8 +305,16 @@ def mark_interrupted(study: optuna.Study) -> int:
 def finished_trials(study: optuna.Study) -> int:
     """Trials that count toward the target: complete, or failed by the numerics (not the ones
     an interruption left behind)."""
-    trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.FAIL))
-    return sum(1 for t in trials if not t.user_attrs.get(ATTR_INTERRUPTED))
+    return trial_counts(study)[0]
+
+
+def trial_counts(study: optuna.Study) -> tuple[int, int]:
+    """(finished, in flight) from one read of the storage: a trial another worker tells between
+    two reads would be counted in neither, and the workers would ask for it again."""
+    trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.FAIL, TrialState.RUNNING))
+    running = sum(1 for t in trials if t.state == TrialState.RUNNING)
+    finished = sum(1 for t in trials if t.state != TrialState.RUNNING and not t.user_attrs.get(ATTR_INTERRUPTED))
+    return finished, running
 
 
 #: Trials asked for at once and evaluated together.
@@ -347,10 +355,11 @@ def run_outer(
     while done < trials:
         size = min(OUTER_BATCH, trials - done)
         if workers > 1:
-            remaining = trials - done - in_flight(study)
+            done, flying = trial_counts(study)
+            remaining = trials - done - flying
             if remaining <= 0:  # the other workers are finishing the last ones
                 break
-            size = min(size, max(1, remaining // workers))
+            size = min(OUTER_BATCH, max(1, remaining // workers))
         asked = ask_batch(study, config, size, done, workers)
         try:
             evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked])
@@ -378,11 +387,6 @@ def ask_batch(study: optuna.Study, config: StudyConfig, size: int, done: int, wo
     if workers > 1:  # suggestions are drawn after the asks: seed them by a number no other worker has
         study.sampler = make_sampler(config.search, trial_seed(config.seed, asked[0].number))
     return asked
-
-
-def in_flight(study: optuna.Study) -> int:
-    """Trials asked for and not yet told (by any process)."""
-    return len(study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)))
 
 
 def run_worker(config: StudyConfig, run_dir: str, trials: int, workers: int) -> int:
@@ -520,5 +524,6 @@ __all__ = [
     "run_worker",
     "suggest_design",
     "tell",
+    "trial_counts",
     "trial_seed",
 ]

@@ -23,7 +23,7 @@ from optimizer.cli.main import main
 from optimizer.config.study_config import load_study
 from optimizer.results.pareto import non_dominated
 from optimizer.results.runs import storage_url
-from optimizer.search.outer import evaluate_designs, open_study, read_trial
+from optimizer.search.outer import evaluate_designs, open_study, read_trial, run_outer
 from tests.optimizer.conftest import TINY_OUTER_YAML
 
 PASSWORD = "s3cret-pw"
@@ -54,6 +54,32 @@ def test_two_workers_share_the_journal_file(tmp_path: Path, capsys):
     study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 30"), encoding="utf-8")
     assert main(["optimize", str(study), "--out", str(tmp_path / "run"), "--workers", "2", "--quiet"]) == 0
     _check_study(tmp_path / "run", None, 30, 2)
+
+
+@pytest.mark.parametrize("burst_after", [1, 2, 3, 4])
+def test_a_worker_counts_finished_and_in_flight_trials_in_one_read(tmp_path: Path, burst_after: int):
+    """Another worker tells its 8 trials at once, just after this worker's ``burst_after``-th read
+    of the storage: whichever read that is, this worker asks for at most the 2 the target of 10
+    lacks, plus 1 (workers - 1). Two reads for the finished and in-flight counts would see the 8
+    in neither state and ask for 5 more."""
+    study_file = tmp_path / "w.yaml"
+    study_file.write_text(TINY_OUTER_YAML, encoding="utf-8")
+    config = load_study(study_file)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = open_study(config, optuna.storages.InMemoryStorage())
+    others = [study.ask() for _ in range(8)]
+    reads = []
+
+    def get_trials(*args, **kwargs):
+        found = optuna.Study.get_trials(study, *args, **kwargs)
+        reads.append(1)
+        while len(reads) == burst_after and others:
+            study.tell(others.pop(), state=TrialState.FAIL)
+        return found
+
+    study.get_trials = get_trials
+    ran = run_outer(study, config, 10, None, workers=2)
+    assert not others and 2 <= ran <= 3 and len(optuna.Study.get_trials(study)) == 8 + ran
 
 
 def test_workers_need_the_outer_search(tmp_path: Path, capsys):
