@@ -95,6 +95,14 @@ class Heightfield:
 FLAT_HEIGHTFIELD = Heightfield()
 
 
+def is_twisted(hf: Heightfield) -> bool:
+    """Some cell is a twisted bilinear patch (h11 - h10 - h01 + h00 != 0): its normal turns
+    under a point moving across it, so a contact sliding there has a normal acceleration of
+    its own (:func:`impulse_core.timedomain.landing.landing_function`)."""
+    H = hf.grid
+    return bool(np.any(H[1:, 1:] - H[1:, :-1] - H[:-1, 1:] + H[:-1, :-1] != 0.0))
+
+
 def flat_heightfield(height: float = 0.0) -> Heightfield:
     """Horizontal ground at ``height`` (m)."""
     return Heightfield((0.0,), (0.0,), ((float(height),),))
@@ -203,6 +211,7 @@ __all__ = [
     "gap_function",
     "gradient",
     "height",
+    "is_twisted",
     "normal",
     "vertical_clearance",
 ]

@@ -341,6 +341,45 @@ def test_a_puck_pushed_up_a_slope_leaves_the_corner():
     assert event.external[0] > 0
 
 
+def _saddle_particle(d: float, x0: float, velocity: np.ndarray, T: float) -> np.ndarray:
+    """An independent answer: a particle on the frictionless saddle y = d x z without gravity,
+    from (x0, 0) with ``velocity`` less its normal component (a plastic touchdown), by Lagrange's
+    equations in (x, z) (mass matrix I + grad h grad h^T, h's Hessian [[0, d], [d, 0]]) at a
+    tolerance of 1e-12: its position and velocity (world, 3 each) at ``T``."""
+    from scipy.integrate import solve_ivp
+
+    def rhs(_t: float, s: np.ndarray) -> list:
+        x, z, xd, zd = s
+        g = np.array([d * z, d * x])
+        return [xd, zd, *-np.linalg.solve(np.eye(2) + np.outer(g, g), g * (2 * d * xd * zd))]
+
+    n = np.array([0.0, 1.0, -d * x0]) / math.hypot(1.0, d * x0)
+    v = velocity - (n @ velocity) * n
+    x, z, xd, zd = solve_ivp(rhs, (0.0, T), [x0, 0.0, v[0], v[2]], rtol=1e-12, atol=1e-13).y[:, -1]
+    return np.array([x, d * x * z, z, xd, d * (xd * z + x * zd), zd])
+
+
+def test_a_contact_sliding_across_a_twisted_heightfield_cell_follows_the_surface():
+    """data/twist_puck.yaml: a frictionless puck, no gravity, slides across the saddle h = 0.5 x z
+    (one twisted bilinear cell), along x and z, so the surface rises under its straight path: it
+    rests after its plastic touchdown, the ground pushing it along its path, and ends where a
+    particle on the saddle does by Lagrange's equations (1e-9). The contact rows' bias carries
+    the normal's turn under the sliding point (n' . p'); without it the contact problem missed
+    the normal acceleration 2 d x' z' / |N| (here 3e-5 m off at the end, and random file 30992
+    took 4,400 plastic touchdowns 1.9e-8 s apart where the contact problem opened a sinking
+    contact)."""
+    model = _model("twist_puck.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    r = run.run(run.first_step())
+    assert len(r.events) == 1 and r.total_external[0] > r.events[0].external[0] > 0  # pushed all along
+    expected = _saddle_particle(0.5, -0.1, np.array([1.0, -0.05005, 1.0]), 0.3)
+    contact = r.q_final[:3] + [0.05, 0.0, 0.0]  # the puck's centre, half its length along x (it does not turn)
+    assert np.abs(r.q_final[3:6]).max() <= 1e-12
+    assert np.abs(np.concatenate([contact, r.v_final[:3]]) - expected).max() <= 1e-9
+    assert r.energy_final == pytest.approx(r.events[0].energy_after, rel=1e-12)  # frictionless, no gravity
+    assert r.momentum_balance <= 1e-12
+
+
 def test_a_contact_sliding_across_a_heightfield_crease_meets_the_slope_by_its_laws():
     """data/crease_puck.yaml: a frictionless puck slides at 0.5 m/s along x on a flat cell into
     the next cell, a slope of 1 in 4 (a crease at the grid line x = 0), at restitution 0.5. The
