@@ -2577,6 +2577,22 @@ class _Landing:
         self.add(totals, impulses, q, v)
         self.tally_joints(totals, q, v, q, v_plus, impulses, 0.0, True)
 
+    def segment_normals(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray | None:
+        """On a plane's terrain, the normals at a compiled step's end (q, v) in ``mode``, where
+        the projection after it keeps every contact on its segment (no valley corner): the
+        normals at the projected point, bit for bit (each segment's is a constant), without the
+        numpy point :meth:`add` would evaluate there; else None."""
+        if not (self.planar and self.sloped) or self.any_seated or _any(mode.cornered):
+            return None
+        end = self.ended(q, v, mode)
+        return None if end is None else end.normal
+
+    def segment_vectors(self, normal: np.ndarray, impulses: np.ndarray) -> np.ndarray:
+        """Stacked contact impulses (:func:`_stacked`) as world vectors along ``normal`` (n_c x d)
+        and its tangents."""
+        ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
+        return contact_vectors(normal, tangent_basis(normal), impulses[: self.nc], ft)
+
     def step_vectors(self, q: np.ndarray, v: np.ndarray, p: np.ndarray) -> np.ndarray | None:
         """On a curved heightfield (:attr:`turning`), the last step's impulse vectors
         (:attr:`vectors`) plus those of the projection after it (stacked ``p``, at its end (q,
@@ -2691,10 +2707,13 @@ class _Landing:
                 if self.tape is not None:
                     self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
                 q0, v0 = q, v
+                segments = self.segment_normals(q1, v1, mode)
                 q, v, p = self.project(q1, v1, mode)
                 self.follow_slip(q, v, mode)
                 self.vectors = step_vectors
                 vectors = self.step_vectors(q, v, p)
+                if segments is not None and vectors is None:
+                    vectors = self.segment_vectors(segments, impulse + p)
                 self.add(totals, impulse + p, q, v, vectors)
                 self.tally_joints(totals, q0, v0, q, v, impulse + p, dt, _any(mode.closed), vectors)
                 self.record(totals, t, v0, t + dt, q, v)
