@@ -603,12 +603,44 @@ def test_runs_whose_steps_the_balance_split_alike_are_not_an_estimate(monkeypatc
     def fake(self, h, *args, share=1.0):
         n, moved = next(runs)
         shares.append(share)
-        return replace(base, n_steps=n, final_angles=base.final_angles * (1 + moved))
+        times = np.arange(n + 1) * h  # steps of h each: the run at h / 2 would not be split alike
+        return replace(base, n_steps=n, step=h, final_angles=base.final_angles * (1 + moved),
+                       trajectory=(times, np.zeros((n + 1, 0))))
 
     monkeypatch.setattr(_Landing, "run", fake)
     r = landing(tree, scene, laws, LandingSettings(tolerance=1e-6, integrator="rk4"))
     assert r.n_steps == 4000 and shares == [1.0, 1.0, 1 / 16, 1 / 16]
     assert r.error_estimate == pytest.approx(1e-8 / (1 + 3e-6), rel=1e-6)
+
+
+@pytest.mark.parametrize("longer", [0, 99, 100])
+def test_a_run_the_balance_split_below_half_its_step_skips_the_halving_that_would_repeat_it(monkeypatch, longer):
+    """Where all but fewer than (DISTINCT_RUNS - 1) x its steps are shorter than half its step
+    (``longer`` of 1000 steps are h long, the rest h / 4), the run at h / 2 would be split alike
+    (random file 50005: 12,439 steps at h and h / 2, a third of the landing's time): the landing
+    goes on at once as after an alike pair, at h / 4 and a share smaller by 2^4, and the estimate
+    is that run's difference from the first. Below 100 long steps it skips; at 100 it does not."""
+    tree, laws, scene = _random_leg(1)
+    base = landing(tree, scene, laws, LandingSettings(tolerance=1e-2, integrator="rk4"))
+    runs = iter([(1000, 0.0, longer), (2000, 1e-7, 2000), (2005, 2e-7, 2005)])
+    asked = []
+
+    def fake(self, h, *args, share=1.0):
+        n, moved, long = next(runs)
+        asked.append((h, share))
+        steps = np.r_[np.full(long, h), np.full(n - long, h / 4)]
+        return replace(base, n_steps=n, step=h, final_angles=base.final_angles * (1 + moved),
+                       trajectory=(np.r_[0.0, np.cumsum(steps)], np.zeros((n + 1, 0))))
+
+    monkeypatch.setattr(_Landing, "run", fake)
+    settings = LandingSettings(tolerance=1e-6, integrator="rk4")
+    h0 = _Landing(tree, scene, laws, settings).first_step()
+    r = landing(tree, scene, laws, settings)
+    if longer < 100:
+        assert asked == [(h0, 1.0), (h0 / 4, 1 / 16)] and r.n_steps == 2000
+    else:
+        assert asked == [(h0, 1.0), (h0 / 2, 1.0)] and r.n_steps == 2000
+    assert r.error_estimate == pytest.approx(1e-7 / (1 + 1e-7), rel=1e-6)
 
 
 def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable_step(monkeypatch):
