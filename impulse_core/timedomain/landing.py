@@ -66,6 +66,7 @@ from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import POLYGON, cone_unilateral, modes_of
 from impulse_core.impact import lemke_c
+from impulse_core.impact.nnls import least_distance
 from impulse_core.impact.coulomb import (
     ContactMode, UnilateralSolution, contact_modes, solve_unilateral,
 )
@@ -894,8 +895,8 @@ def _accelerations(pt: _Point, rows: _Rows) -> tuple[np.ndarray, np.ndarray]:
         return a0, np.zeros(0)
     W = rows.G @ minv_ft
     rhs = -(rows.G @ a0 + rows.b)
-    if rows.redundant:  # the least-norm split (np.linalg.solve would return any one, rounding's)
-        return _least_norm(W, rhs, a0, minv_ft)
+    if rows.redundant:  # the least-norm split (np.linalg.solve would return any one, rounding's), pushing
+        return _least_norm(W, rhs, a0, minv_ft, rows.n)
     try:
         lam = np.linalg.solve(W, rhs)
     except np.linalg.LinAlgError:  # redundant rows (e.g. two sticking contacts on one rod)
@@ -913,9 +914,34 @@ COINCIDENT = 1e-9
 REDUNDANT = 1e-10
 
 
-def _least_norm(W: np.ndarray, rhs: np.ndarray, a0: np.ndarray, minv_ft: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _least_norm(W: np.ndarray, rhs: np.ndarray, a0: np.ndarray, minv_ft: np.ndarray, pushing: int = 0
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(a0 + M^-1 F^T lambda, lambda) with W lambda = rhs for redundant rows W: the least-norm
+    lambda, or where that pulls on one of the first ``pushing`` rows (the normal rows: contacts'
+    and stops' forces, which Signorini's law keeps >= 0) the least-norm one of the splits that
+    push on all of them (:func:`_pushing_split`), where one exists."""
     lam = np.linalg.lstsq(W, rhs, rcond=REDUNDANT)[0]
+    if pushing and np.min(lam[:pushing]) < 0.0:
+        lam = _pushing_split(W, lam, pushing)
     return a0 + minv_ft @ lam, lam
+
+
+def _pushing_split(W: np.ndarray, lam: np.ndarray, pushing: int) -> np.ndarray:
+    """The least-norm lambda + N z (N an orthonormal basis of W's null space, as
+    :data:`REDUNDANT` ranks it; ``lam`` the least-norm solution, orthogonal to it) whose first
+    ``pushing`` entries are >= 0: the least-distance problem min |z| subject to N_p z >= -lam_p
+    (:func:`impulse_core.impact.nnls.least_distance`); ``lam`` where none exists (then no split of
+    these rows pushes everywhere, and the force witness opens the pulling row). The rows' total
+    force differs between splits where friction slides (F is not G): any of these meets the
+    contact laws, and the least-norm one pulled while Lemke's answer of the same rows, which
+    chose the mode, pushed (random file 30804: a hinged rod's tip at -2e-9 N, its force witness
+    at every 4.5e-10 s)."""
+    _, s, Vt = np.linalg.svd(W)
+    N = Vt[int(np.count_nonzero(s > REDUNDANT * s[0])) :].T
+    if not N.shape[1]:
+        return lam
+    z = least_distance(N[:pushing], -lam[:pushing])
+    return lam if z is None else lam + N @ z
 
 
 def _constrained_solve(W: np.ndarray, rows: _Rows, rhs: np.ndarray, row_rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
