@@ -908,10 +908,24 @@ def _accelerations(pt: _Point, rows: _Rows) -> tuple[np.ndarray, np.ndarray]:
 #: -HOLD_FORCE force tolerances (:meth:`_Landing.held`; a force witness is located below -0.1).
 HOLD_FORCE = 0.05
 
+#: Events shorter than REPEAT_SPAN (s, times the duration where that is longer than 1 s) that
+#: each give back the mode they stopped (:func:`_same_kind`), more than REPEATS in a row, are a
+#: stall (:meth:`_Landing.stall_message`) as events shorter than 1e-12 s are: the mode fails at
+#: once again each time (random file 30891: two contacts starting to slide from rest, an event
+#: every 4e-12 s, each with two failed slip searches of 0.4 s, for hours).
+REPEAT_SPAN = 1e-9
+REPEATS = 50
+
 #: Contacts closer than this (m) are at one point (:meth:`_Landing.unify`).
 COINCIDENT = 1e-9
 #: Rows whose matrix G M^-1 F^T has a singular value below this times its largest are redundant.
 REDUNDANT = 1e-10
+
+
+def _same_kind(a: _Mode, b: _Mode) -> bool:
+    """The same contacts closed, the same sliding, the same stops (slip directions aside)."""
+    return bool(np.array_equal(a.closed, b.closed) and np.array_equal(a.sliding, b.sliding)
+                and np.array_equal(a.stop, b.stop))
 
 
 def _least_norm(W: np.ndarray, rhs: np.ndarray, a0: np.ndarray, minv_ft: np.ndarray, pushing: int = 0
@@ -2645,7 +2659,7 @@ class _Landing:
         weight = sum(b.mass for b in self.tree.bodies) * self.scene.gravity
         reach = sum(b.length for b in self.tree.bodies)
         cap = 10.0 * (energy_before + weight * (height0 + reach + 10.0 * T * self.scene.speed)) + 1e-6
-        t, stalled = 0.0, 0
+        t, stalled, repeated, again = 0.0, 0, 0, False
         self.record(totals, t, v, t, q, v)
         p0 = self.point(self.q0, totals.events[0].v_minus).momentum[:, 0]
         reference = max(float(np.max(np.abs(p0))), self.mass * self.scene.gravity * T)
@@ -2734,7 +2748,8 @@ class _Landing:
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
-            if stalled > 20:
+            repeated = repeated + 1 if again and tau < REPEAT_SPAN * max(1.0, T) else 0
+            if stalled > 20 or repeated > REPEATS:
                 failure = NumericalError(self.stall_message(q_e, v_e, mode, t))
                 jammed = self.painleve(q_e, v_e, mode)
                 if not jammed.size:
@@ -2743,13 +2758,16 @@ class _Landing:
                     raise _Jams(failure)
                 # events stalled by Painleve's paradox: the impulsive jam, here
                 q, v, mode = self.jam_event(q_e, v_e, mode, t, totals, jammed, failure)
-                stalled = 0
+                stalled = repeated = 0
+                again = False
                 if progress is not None:
                     progress(LandingProgress(index, h, t, T, len(totals.events)))
                 continue
             if len(totals.events) > self.settings.max_events:
                 raise NumericalError(self.budget_message(totals.events, t))
+            before = mode.copy()
             q, v, mode = self.event(q_e, v_e, mode, t, totals, crossed, cornered)
+            again = _same_kind(before, mode)  # the event gave back the mode it stopped
             slid = slid or bool(self.mu) and _any(mode.closed & mode.sliding)
             if progress is not None:
                 progress(LandingProgress(index, h, t, T, len(totals.events)))
@@ -2849,7 +2867,12 @@ class _Landing:
         contact has no consistent force (:meth:`painleve`), else chatter."""
         jammed = self.painleve(q, v, mode)
         if not jammed.size:
-            return f"the landing chatters at t = {t:.6g} s (events without progress)"
+            pt = self.point(q, v)
+            against = np.flatnonzero(self.wrong_slip(pt, v, mode, 0.0)[0]) if self.mu > 0 else []
+            note = "" if not len(against) else (
+                f": contacts {self.contact_labels(against)} start to slide from rest against their own slip "
+                "acceleration in the mode (no slip direction found that it follows)")
+            return f"the landing chatters at t = {t:.6g} s (events without progress{note})"
         return self.painleve_message(t, jammed, f"friction {self.mu:g} makes their rows' effective mass negative")
 
     def painleve_message(self, t: float, contacts: np.ndarray, why: str) -> str:

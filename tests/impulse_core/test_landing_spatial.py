@@ -676,3 +676,31 @@ def test_a_redundant_modes_forces_push_where_a_pushing_split_exists():
     assert np.all(pt.gap[closed] > -1e-12)
     w = run.witness(q, v, new)
     assert np.all(w >= 1.0 - 1e-3), w[w < 1.0]  # the mode holds at its own event: no witness fires
+
+
+def test_events_that_give_back_the_mode_they_stopped_are_a_stall_naming_the_contacts(monkeypatch):
+    """A plank resting flat whose mode choice (patched) makes both contacts slide from rest
+    along +x: friction then accelerates each slip along -x, against the mode's, so the slip
+    witness fires about 1e-10 s after every event, and the event gives the same mode back
+    (random file 30891 did so at 4e-12 s, each event with two slip searches of 0.4 s, for hours:
+    neither the 1e-12 s stall guard nor the event budget ended it within minutes). More than
+    REPEATS such events shorter than REPEAT_SPAN are a stall, and its error names the contacts
+    that slide against their own slip acceleration."""
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain.landing import REPEATS
+
+    plank = Tree((Body("plank", None, 0.6, 3.0, 0.0, contacts=(0.0, 1.0), radius=0.02),))
+    scene = Scene(speed=0.5, restitution=0.0, friction=0.4, gravity=G, duration=0.1)
+    original, events = _Landing.resolve, [0]
+
+    def against(self, q, v, mode, t=0.0):
+        events[0] += 1
+        new = original(self, q, v, mode, t).copy()
+        new.slip[new.closed] = (1.0, 0.0)
+        return new
+
+    monkeypatch.setattr(_Landing, "resolve", against)
+    run = _Landing(plank, scene, (), LandingSettings(), SPATIAL)
+    with pytest.raises(NumericalError, match=r"chatters at t = .* plank\[0\], plank\[1\] start to slide from rest"):
+        run.run(2e-3, until=lambda *_: events[0] > 1000)  # (no impacts: the event budget never ends it)
+    assert events[0] <= REPEATS + 5
