@@ -14,8 +14,10 @@ structure, then the exact cone by a Newton method on the nonsmooth equations):
    if the whole law holds at every contact (``law_residuals``: sign, complementarity, cone,
    sliding direction, each to 1e-9 of the impact's scale); a sticking guess whose tangential
    impulse leaves the cone turns sliding and a sliding guess whose slip vanishes turns sticking,
-   a few rounds. If no round meets the law, the polyhedral answer is returned with ``exact``
-   False (the caller warns with the bound above).
+   a few rounds. If no round meets the law, the rounds start again from the answers of finer
+   polygons (``FINER``: where the tangent rows are nearly dependent the 16-gon's active set can
+   be wrong and the rounds cycle between wrong modes); if none meets it, the polyhedral answer is
+   returned with ``exact`` False (the caller warns with the bound above).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impulse_core.errors import NumericalError
 from impulse_core.impact.coulomb import ContactMode, scaled_lemke
 
 #: Sides of the polygon that stands for the cone in stage 1.
@@ -35,6 +38,11 @@ ROUNDS = 6
 #: Stage 1's answer meeting the circular cone's law to this (relative) is the answer: every
 #: contact sticking inside the polygon (so inside the circle) or needing no friction.
 EXACT_TOL = 1e-12
+#: Finer polygons whose answers start stage 2 again where the rounds from the POLYGON-gon's
+#: answer met no law: its active set can be wrong where the tangent rows are nearly dependent
+#: (random landing 30891: the 16-gon slides the contact that sticks, and the rounds cycle between
+#: two wrong mode sets; the 32-gon's modes are the law's).
+FINER = (2 * POLYGON, 4 * POLYGON)
 
 
 @dataclass(frozen=True)
@@ -271,14 +279,33 @@ def cone_unilateral(W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution
     owner, e, mu = np.asarray(owner, dtype=int), np.asarray(restitution, dtype=float), np.asarray(mu, dtype=float)
     normal, tangential = _polyhedral(W, u, owner, e, mu, kernel=kernel)
     scale_v = max(float(np.max(np.abs(u), initial=0.0)), np.finfo(float).tiny)
+    if max(_residuals(W, u, owner, e, mu, normal, tangential).values()) <= EXACT_TOL:
+        v = u + W @ np.concatenate([normal, tangential[:, 0], tangential[:, 1]])  # stage 1 meets the law: its split
+        return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, scale_v, owner), True)
+    polished = _rounds(W, u, owner, e, mu, normal, tangential, scale_v)
+    for k in FINER:  # the rounds cycled or stalled: their start from a finer polygon's answer
+        if polished is not None:
+            return polished
+        try:
+            start = _polyhedral(W, u, owner, e, mu, k, kernel=kernel)
+        except NumericalError:
+            break
+        polished = _rounds(W, u, owner, e, mu, *start, scale_v)
+    if polished is not None:
+        return polished
+    v = u + W @ np.concatenate([normal, tangential[:, 0], tangential[:, 1]])
+    return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, scale_v, owner), False)
+
+
+def _rounds(W, u, owner, e, mu, normal, tangential, scale_v) -> ConeImpact | None:
+    """Stage 2 from a polyhedral answer (``normal``, ``tangential``): Newton's method on the exact
+    equations of its modes, the modes corrected for up to :data:`ROUNDS` rounds; the exact answer,
+    or None where no round met the law."""
     n, m = normal.size, len(owner)
 
     def velocity(nrm, tan):
         return u + W @ np.concatenate([nrm, tan[:, 0], tan[:, 1]])
 
-    if max(_residuals(W, u, owner, e, mu, normal, tangential).values()) <= EXACT_TOL:
-        v = velocity(normal, tangential)  # stage 1 already meets the exact law: keep its split
-        return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, scale_v, owner), True)
     pair = _pairs(n, owner)
     modes = list(modes_of(normal, tangential, velocity(normal, tangential), scale_v, owner))
     for _ in range(ROUNDS):
@@ -309,8 +336,7 @@ def cone_unilateral(W: np.ndarray, u: np.ndarray, owner: np.ndarray, restitution
                 modes[i], changed = ContactMode.SEPARATING, True
         if not changed:
             break
-    v = velocity(normal, tangential)
-    return ConeImpact(normal, tangential, v, modes_of(normal, tangential, v, scale_v, owner), False)
+    return None
 
 
 __all__ = ["POLYGON", "ConeImpact", "cone_impact", "cone_unilateral", "law_residuals", "polygon_directions", "polyhedral_impact"]

@@ -66,6 +66,7 @@ from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.cone import POLYGON, cone_unilateral, modes_of
 from impulse_core.impact import lemke_c
+from impulse_core.impact.nnls import least_distance
 from impulse_core.impact.coulomb import (
     ContactMode, UnilateralSolution, contact_modes, solve_unilateral,
 )
@@ -913,8 +914,8 @@ def _accelerations(pt: _Point, rows: _Rows) -> tuple[np.ndarray, np.ndarray]:
         return a0, np.zeros(0)
     W = rows.G @ minv_ft
     rhs = -(rows.G @ a0 + rows.b)
-    if rows.redundant:  # the least-norm split (np.linalg.solve would return any one, rounding's)
-        return _least_norm(W, rhs, a0, minv_ft)
+    if rows.redundant:  # the least-norm split (np.linalg.solve would return any one, rounding's), pushing
+        return _least_norm(W, rhs, a0, minv_ft, rows.n)
     try:
         lam = np.linalg.solve(W, rhs)
     except np.linalg.LinAlgError:  # redundant rows (e.g. two sticking contacts on one rod)
@@ -926,15 +927,54 @@ def _accelerations(pt: _Point, rows: _Rows) -> tuple[np.ndarray, np.ndarray]:
 #: -HOLD_FORCE force tolerances (:meth:`_Landing.held`; a force witness is located below -0.1).
 HOLD_FORCE = 0.05
 
+#: Events shorter than REPEAT_SPAN (s, times the duration where that is longer than 1 s) that
+#: each give back the mode they stopped (:func:`_same_kind`), more than REPEATS in a row, are a
+#: stall (:meth:`_Landing.stall_message`) as events shorter than 1e-12 s are: the mode fails at
+#: once again each time (random file 30891: two contacts starting to slide from rest, an event
+#: every 4e-12 s, each with two failed slip searches of 0.4 s, for hours).
+REPEAT_SPAN = 1e-9
+REPEATS = 50
+
 #: Contacts closer than this (m) are at one point (:meth:`_Landing.unify`).
 COINCIDENT = 1e-9
 #: Rows whose matrix G M^-1 F^T has a singular value below this times its largest are redundant.
 REDUNDANT = 1e-10
 
 
-def _least_norm(W: np.ndarray, rhs: np.ndarray, a0: np.ndarray, minv_ft: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _same_kind(a: _Mode, b: _Mode) -> bool:
+    """The same contacts closed, the same sliding, the same stops (slip directions aside)."""
+    return bool(np.array_equal(a.closed, b.closed) and np.array_equal(a.sliding, b.sliding)
+                and np.array_equal(a.stop, b.stop))
+
+
+def _least_norm(W: np.ndarray, rhs: np.ndarray, a0: np.ndarray, minv_ft: np.ndarray, pushing: int = 0
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(a0 + M^-1 F^T lambda, lambda) with W lambda = rhs for redundant rows W: the least-norm
+    lambda, or where that pulls on one of the first ``pushing`` rows (the normal rows: contacts'
+    and stops' forces, which Signorini's law keeps >= 0) the least-norm one of the splits that
+    push on all of them (:func:`_pushing_split`), where one exists."""
     lam = np.linalg.lstsq(W, rhs, rcond=REDUNDANT)[0]
+    if pushing and np.min(lam[:pushing]) < 0.0:
+        lam = _pushing_split(W, lam, pushing)
     return a0 + minv_ft @ lam, lam
+
+
+def _pushing_split(W: np.ndarray, lam: np.ndarray, pushing: int) -> np.ndarray:
+    """The least-norm lambda + N z (N an orthonormal basis of W's null space, as
+    :data:`REDUNDANT` ranks it; ``lam`` the least-norm solution, orthogonal to it) whose first
+    ``pushing`` entries are >= 0: the least-distance problem min |z| subject to N_p z >= -lam_p
+    (:func:`impulse_core.impact.nnls.least_distance`); ``lam`` where none exists (then no split of
+    these rows pushes everywhere, and the force witness opens the pulling row). The rows' total
+    force differs between splits where friction slides (F is not G): any of these meets the
+    contact laws, and the least-norm one pulled while Lemke's answer of the same rows, which
+    chose the mode, pushed (random file 30804: a hinged rod's tip at -2e-9 N, its force witness
+    at every 4.5e-10 s)."""
+    _, s, Vt = np.linalg.svd(W)
+    N = Vt[int(np.count_nonzero(s > REDUNDANT * s[0])) :].T
+    if not N.shape[1]:
+        return lam
+    z = least_distance(N[:pushing], -lam[:pushing])
+    return lam if z is None else lam + N @ z
 
 
 def _constrained_solve(W: np.ndarray, rows: _Rows, rhs: np.ndarray, row_rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -2654,7 +2694,7 @@ class _Landing:
         weight = sum(b.mass for b in self.tree.bodies) * self.scene.gravity
         reach = sum(b.length for b in self.tree.bodies)
         cap = 10.0 * (energy_before + weight * (height0 + reach + 10.0 * T * self.scene.speed)) + 1e-6
-        t, stalled = 0.0, 0
+        t, stalled, repeated, again = 0.0, 0, 0, False
         self.record(totals, t, v, t, q, v)
         p0 = self.point(self.q0, totals.events[0].v_minus).momentum[:, 0]
         reference = max(float(np.max(np.abs(p0))), self.mass * self.scene.gravity * T)
@@ -2746,7 +2786,8 @@ class _Landing:
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
-            if stalled > 20:
+            repeated = repeated + 1 if again and tau < REPEAT_SPAN * max(1.0, T) else 0
+            if stalled > 20 or repeated > REPEATS:
                 failure = NumericalError(self.stall_message(q_e, v_e, mode, t))
                 jammed = self.painleve(q_e, v_e, mode)
                 if not jammed.size:
@@ -2755,13 +2796,16 @@ class _Landing:
                     raise _Jams(failure)
                 # events stalled by Painleve's paradox: the impulsive jam, here
                 q, v, mode = self.jam_event(q_e, v_e, mode, t, totals, jammed, failure)
-                stalled = 0
+                stalled = repeated = 0
+                again = False
                 if progress is not None:
                     progress(LandingProgress(index, h, t, T, len(totals.events)))
                 continue
             if len(totals.events) > self.settings.max_events:
                 raise NumericalError(self.budget_message(totals.events, t))
+            before = mode.copy()
             q, v, mode = self.event(q_e, v_e, mode, t, totals, crossed, cornered)
+            again = _same_kind(before, mode)  # the event gave back the mode it stopped
             slid = slid or bool(self.mu) and _any(mode.closed & mode.sliding)
             if progress is not None:
                 progress(LandingProgress(index, h, t, T, len(totals.events)))
@@ -2861,7 +2905,12 @@ class _Landing:
         contact has no consistent force (:meth:`painleve`), else chatter."""
         jammed = self.painleve(q, v, mode)
         if not jammed.size:
-            return f"the landing chatters at t = {t:.6g} s (events without progress)"
+            pt = self.point(q, v)
+            against = np.flatnonzero(self.wrong_slip(pt, v, mode, 0.0)[0]) if self.mu > 0 else []
+            note = "" if not len(against) else (
+                f": contacts {self.contact_labels(against)} start to slide from rest against their own slip "
+                "acceleration in the mode (no slip direction found that it follows)")
+            return f"the landing chatters at t = {t:.6g} s (events without progress{note})"
         return self.painleve_message(t, jammed, f"friction {self.mu:g} makes their rows' effective mass negative")
 
     def painleve_message(self, t: float, contacts: np.ndarray, why: str) -> str:

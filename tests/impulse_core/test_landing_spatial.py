@@ -639,3 +639,68 @@ def test_only_a_slip_slower_than_the_contracts_plastic_speed_is_arrested(scale):
     assert np.all(after[turned & ~slow] > 0.5 * speed[turned & ~slow])  # moved only through the slow ones' arrest
     if not slow.any():
         assert np.array_equal(v1, v)
+
+
+def test_a_redundant_modes_forces_push_where_a_pushing_split_exists():
+    """Random file 30804 (data/redundant_pull_30804.yaml: friction 0.3) at 0.0785 s (the kept
+    state and mode, data/redundant_pull_30804_state.json): four contacts slide, three of them on
+    one line of one rigid body (a welded rod's two ends and a hinged rod's root), so their rows
+    are redundant and the split of their forces is not unique. The least-norm split gave the
+    hinged rod's tip (contact 4) -2.2e-9 N, falling, while Lemke's split of the same rows (which
+    chose the mode) loaded it: its force witness fired every 4.5e-10 s, the same mode came back
+    and the run stopped (the stall). The mode's forces are now the least-norm split of those
+    that push: every normal force >= 0, the rows met, each sliding contact's friction mu f_n
+    against its slip, and the mode holds at its own event."""
+    import json
+
+    from impulse_core.timedomain.landing import _contact_forces, _Mode
+
+    model = _data_model("redundant_pull_30804.yaml")
+    kept = json.loads((Path(__file__).parent / "data" / "redundant_pull_30804_state.json").read_text())
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    run.first_impact()  # the run's chart
+    q, v = np.array(kept["q"]), np.array(kept["v"])
+    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
+                 np.array(kept["core"]))
+    new = run.resolve(q, v, mode)
+    closed = np.flatnonzero(new.closed)
+    assert list(closed) == [0, 1, 3, 4] and new.redundant and new.sliding[closed].all()
+    pt = run.point(q, v)
+    rows, (a, lam) = run.mode_solution(pt, new)
+    assert np.linalg.matrix_rank(rows.G) < rows.n  # redundant rows: the split is not unique
+    fn, ft = _contact_forces(rows, lam, run.mu, run.nc)
+    assert np.all(fn[closed] >= -1e-12 * np.max(fn)) and fn[2] == 0.0  # Signorini: pushing, the open one free
+    assert np.max(np.abs(rows.G @ a + rows.b)) < 1e-9  # the closed rows stay at rest along their normals
+    u = new.slip[closed]
+    assert np.allclose(ft[closed], -run.mu * fn[closed, None] * u, rtol=0, atol=1e-12)  # Coulomb: sliding
+    assert np.all(pt.gap[closed] > -1e-12)
+    w = run.witness(q, v, new)
+    assert np.all(w >= 1.0 - 1e-3), w[w < 1.0]  # the mode holds at its own event: no witness fires
+
+
+def test_events_that_give_back_the_mode_they_stopped_are_a_stall_naming_the_contacts(monkeypatch):
+    """A plank resting flat whose mode choice (patched) makes both contacts slide from rest
+    along +x: friction then accelerates each slip along -x, against the mode's, so the slip
+    witness fires about 1e-10 s after every event, and the event gives the same mode back
+    (random file 30891 did so at 4e-12 s, each event with two slip searches of 0.4 s, for hours:
+    neither the 1e-12 s stall guard nor the event budget ended it within minutes). More than
+    REPEATS such events shorter than REPEAT_SPAN are a stall, and its error names the contacts
+    that slide against their own slip acceleration."""
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain.landing import REPEATS
+
+    plank = Tree((Body("plank", None, 0.6, 3.0, 0.0, contacts=(0.0, 1.0), radius=0.02),))
+    scene = Scene(speed=0.5, restitution=0.0, friction=0.4, gravity=G, duration=0.1)
+    original, events = _Landing.resolve, [0]
+
+    def against(self, q, v, mode, t=0.0):
+        events[0] += 1
+        new = original(self, q, v, mode, t).copy()
+        new.slip[new.closed] = (1.0, 0.0)
+        return new
+
+    monkeypatch.setattr(_Landing, "resolve", against)
+    run = _Landing(plank, scene, (), LandingSettings(), SPATIAL)
+    with pytest.raises(NumericalError, match=r"chatters at t = .* plank\[0\], plank\[1\] start to slide from rest"):
+        run.run(2e-3, until=lambda *_: events[0] > 1000)  # (no impacts: the event budget never ends it)
+    assert events[0] <= REPEATS + 5

@@ -289,6 +289,42 @@ def _law_violation(r, u: np.ndarray, mu: float) -> float:
     return max(out)
 
 
+def test_the_cone_law_is_found_where_the_16_gons_active_set_is_wrong() -> None:
+    """Random landing 30891 at t = 0.0761 s (friction 1, two resting contacts, the contact
+    problem at the acceleration level: W and the free accelerations u as its resolve built them):
+    the two contacts' tangent rows are nearly dependent (W's smallest eigenvalue 9e-8 of 6). The
+    16-gon's LCP slides contact 1 and sticks contact 0; Newton's rounds from it cycle between
+    (stick, slide) and (slide, slide) and meet no law, so the polyhedral answer was returned
+    (``exact`` False), whose slip the landing's mode could not follow: an event every 4.5e-12 s.
+    The law's answer (contact 0 slides at 1.7e-3 m/s^2 on its cone, contact 1 sticks inside it)
+    is found from a finer polygon's answer (FINER), and meets every part of the law."""
+    from impulse_core.impact import cone
+
+    W = np.array([
+        [3.329708965028877, 0.26200041781229944, 0.19303193719583914, 0.09036419792432827, -0.3328934517640359, 0.33015480128422536],
+        [0.26200041781230815, 4.582210295337912, -0.03484402931790501, -0.05547290681472182, 0.3182065168229635, 0.4436889142311729],
+        [0.1930319371958449, -0.03484402931790689, 0.9525278384745904, 0.7967750450818689, -0.6597886886731377, 0.35110655963340226],
+        [0.09036419792433355, -0.055472906814724166, 0.7967750450818675, 0.8837981609500838, 0.3717160477619515, -0.19304272473223014],
+        [-0.3328934517640379, 0.3182065168229571, -0.6597886886731456, 0.37171604776194533, 5.290044840175961, -1.405801493937594],
+        [0.3301548012842282, 0.4436889142311741, 0.35110655963340387, -0.193042724732228, -1.4058014939375902, 2.1246218895379823],
+    ])
+    u = np.array([-23.743707079823334, -47.54399998616358, 1.761180824339612, 3.1545356431289053, 1.4952180665467085, -7.432065507367405])
+    owner, e, mu = np.array([0, 1]), np.zeros(2), np.ones(2)
+    scale_v = float(np.max(np.abs(u)))
+    assert cone._rounds(W, u, owner, e, mu, *cone._polyhedral(W, u, owner, e, mu), scale_v) is None
+    r = cone.cone_unilateral(W, u, owner, e, mu)
+    assert r.exact
+    n, t = r.normal, r.tangential
+    v = u + W @ np.concatenate([n, t[:, 0], t[:, 1]])
+    slip = np.column_stack([v[2:4], v[4:6]])
+    speed = np.linalg.norm(slip, axis=1)
+    assert np.all(n > 1.0) and np.max(np.abs(v[:2])) < 1e-12 * scale_v  # pushing, resting: Signorini
+    assert np.all(np.linalg.norm(t, axis=1) <= mu * n * (1 + 1e-12))  # within the cone
+    assert speed[0] > 1e-3 and speed[1] < 1e-12 * scale_v  # contact 0 slides, contact 1 sticks
+    assert np.allclose(t[0], -mu[0] * n[0] * slip[0] / speed[0], rtol=0, atol=1e-9 * n.max())  # against its slip
+    assert np.linalg.norm(t[1]) < 0.999 * mu[1] * n[1]  # inside its cone
+
+
 def test_the_solvers_own_law_check_flags_friction_along_the_slip() -> None:
     """law_residuals (what decides between the exact and the polyhedral answer) sees a sliding
     impulse that pushes along the slip instead of against it, and a separating contact pulled."""
