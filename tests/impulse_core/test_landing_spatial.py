@@ -512,6 +512,24 @@ def test_a_divergence_through_a_singular_mass_matrix_says_so():
     assert r.momentum_balance < 1e-4
 
 
+def _kept_state(name: str):
+    """data/NAME.yaml's landing at the state kept in data/NAME_state.json, in the run's chart
+    (its first impact taken): (run, the first impact's totals, the kept values with q and v as
+    arrays, the kept mode)."""
+    import json
+
+    from impulse_core.timedomain.landing import _Mode
+
+    model = _data_model(f"{name}.yaml")
+    kept = json.loads((Path(__file__).parent / "data" / f"{name}_state.json").read_text())
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    totals = run.first_impact()[3]  # and the run's chart
+    kept["q"], kept["v"] = np.array(kept["q"]), np.array(kept["v"])
+    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
+                 np.array(kept["core"]))
+    return run, totals, kept, mode
+
+
 def test_resting_contacts_of_one_rigid_body_stick_where_they_can():
     """Random file 20606 (data/redundant_stick_20606.yaml: five contacts with friction 1 on a
     base and its welded rod, one on a hinged rod) at 0.1822 s (the kept state and mode,
@@ -521,17 +539,10 @@ def test_resting_contacts_of_one_rigid_body_stick_where_they_can():
     the run switched slip directions at every event (4000 events at 6e-11 s each, no end in
     240 s). The four contacts now stick (their forces inside the cone, no slip acceleration),
     and the landing ends (10 events; tests/impulse_core/test_landing.py's laws hold on it)."""
-    import json
+    from impulse_core.timedomain.landing import _contact_forces
 
-    from impulse_core.timedomain.landing import _contact_forces, _Mode
-
-    model = _data_model("redundant_stick_20606.yaml")
-    kept = json.loads((Path(__file__).parent / "data" / "redundant_stick_20606_state.json").read_text())
-    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    run.first_impact()  # the run's chart
-    q, v = np.array(kept["q"]), np.array(kept["v"])
-    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
-                 np.array(kept["core"]))
+    run, _, kept, mode = _kept_state("redundant_stick_20606")
+    q, v = kept["q"], kept["v"]
     new = run.resolve(q, v, mode)
     base_contacts = [0, 1, 3, 4]
     assert new.closed.all() and not new.sliding[base_contacts].any() and new.sliding[2]
@@ -550,17 +561,8 @@ def test_a_slow_slip_turned_past_a_right_angle_comes_to_rest():
     the 0.2 s landing ran for minutes). Below PLASTIC_SPEED such a slip now comes to rest at the
     event, as a plastic impact does: after the event their slip is zero, the new mode holds at
     its start (no witness negative), and the momentum changes by the counted impulses."""
-    import json
-
-    from impulse_core.timedomain.landing import _Mode
-
-    model = _data_model("turned_slip_20693.yaml")
-    kept = json.loads((Path(__file__).parent / "data" / "turned_slip_20693_state.json").read_text())
-    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    totals = run.first_impact()[3]  # and the run's chart
-    q, v = np.array(kept["q"]), np.array(kept["v"])
-    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
-                 np.array(kept["core"]))
+    run, totals, kept, mode = _kept_state("turned_slip_20693")
+    q, v = kept["q"], kept["v"]
     before, p0 = totals.impulse.copy(), run.point(q, v).momentum[:, 0]
     q1, v1, new = run.event(q, v, mode, 0.171, totals)
     turned = kept["turned"]
@@ -617,17 +619,8 @@ def test_only_a_slip_slower_than_the_contracts_plastic_speed_is_arrested(scale):
     contract's 1e-4 m/s come to rest at the event (``arrest``), the faster ones keep their slip
     (changed only through the others' arrest: 1.18e-4 -> 0.98e-4 m/s at 3 x), and nothing moves
     when none is that slow."""
-    import json
-
-    from impulse_core.timedomain.landing import _Mode
-
-    model = _data_model("turned_slip_20693.yaml")
-    kept = json.loads((Path(__file__).parent / "data" / "turned_slip_20693_state.json").read_text())
-    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    totals = run.first_impact()[3]
-    q, v = np.array(kept["q"]), scale * np.array(kept["v"])
-    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
-                 np.array(kept["core"]))
+    run, totals, kept, mode = _kept_state("turned_slip_20693")
+    q, v = kept["q"], scale * kept["v"]
     speed = np.linalg.norm(run.point(q, v).slip, axis=1)
     turned = np.zeros(run.nc, bool)
     turned[kept["turned"]] = True
@@ -651,17 +644,10 @@ def test_a_redundant_modes_forces_push_where_a_pushing_split_exists():
     and the run stopped (the stall). The mode's forces are now the least-norm split of those
     that push: every normal force >= 0, the rows met, each sliding contact's friction mu f_n
     against its slip, and the mode holds at its own event."""
-    import json
+    from impulse_core.timedomain.landing import _contact_forces
 
-    from impulse_core.timedomain.landing import _contact_forces, _Mode
-
-    model = _data_model("redundant_pull_30804.yaml")
-    kept = json.loads((Path(__file__).parent / "data" / "redundant_pull_30804_state.json").read_text())
-    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    run.first_impact()  # the run's chart
-    q, v = np.array(kept["q"]), np.array(kept["v"])
-    mode = _Mode(np.array(kept["closed"]), np.array(kept["slip"]), np.array(kept["stop"]), kept["redundant"],
-                 np.array(kept["core"]))
+    run, _, kept, mode = _kept_state("redundant_pull_30804")
+    q, v = kept["q"], kept["v"]
     new = run.resolve(q, v, mode)
     closed = np.flatnonzero(new.closed)
     assert list(closed) == [0, 1, 3, 4] and new.redundant and new.sliding[closed].all()
