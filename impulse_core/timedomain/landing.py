@@ -1088,6 +1088,11 @@ def _stacked(fn: np.ndarray, ft: np.ndarray) -> np.ndarray:
     return np.concatenate([fn, ft.T.ravel()])
 
 
+def _unstacked(stacked: np.ndarray, nc: int, tangents: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_stacked`'s inverse: (normal per contact, n_c x ``tangents`` tangential), as views."""
+    return stacked[:nc], stacked[nc:].reshape(tangents, nc).T
+
+
 def impulse_vector(normal: np.ndarray, fn: np.ndarray, ft: np.ndarray, tangent: np.ndarray | None = None
                    ) -> np.ndarray:
     """The sum over contacts of the ground's impulse vectors (:func:`contact_vectors`; ``tangent``
@@ -1692,8 +1697,7 @@ class _Landing:
         pt = self.point(q1, v1)
         if self.turning:
             return pt.momentum[:, 0] - p0 - self.vectors.sum(axis=1)
-        ft = impulse[self.nc :].reshape(self.dims - 1, self.nc).T
-        return pt.momentum[:, 0] - p0 - impulse_vector(pt.normal, impulse[: self.nc], ft)
+        return pt.momentum[:, 0] - p0 - impulse_vector(pt.normal, *_unstacked(impulse, self.nc, self.dims - 1))
 
     def kinetic(self, q: np.ndarray, v: np.ndarray) -> float:
         """The kinetic energy at (q, v)."""
@@ -1733,8 +1737,7 @@ class _Landing:
         if not self.turning:
             return None
         pt = self.point(q, v)
-        return contact_vectors(pt.normal, pt.tangent, forces[: self.nc],
-                               forces[self.nc :].reshape(self.dims - 1, self.nc).T)
+        return contact_vectors(pt.normal, pt.tangent, *_unstacked(forces, self.nc, self.dims - 1))
 
     # ---- events
 
@@ -2597,16 +2600,16 @@ class _Landing:
         normals and tangents at (q, v)."""
         if not _any(impulses):  # adding zeros leaves every total as it is, to the bit
             return
-        ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
-        totals.normal += impulses[: self.nc]
+        fn, ft = _unstacked(impulses, self.nc, self.dims - 1)
+        totals.normal += fn
         totals.tangential += ft
         if vectors is not None:
             F = vectors
         elif self.sloped:
             pt = self.point(q, v)
-            F = contact_vectors(pt.normal, pt.tangent, impulses[: self.nc], ft)
+            F = contact_vectors(pt.normal, pt.tangent, fn, ft)
         else:
-            F = contact_vectors(*self.flat_ground, impulses[: self.nc], ft)
+            F = contact_vectors(*self.flat_ground, fn, ft)
         totals.impulse += F.sum(axis=1)
         totals.vectors += F
 
@@ -2630,8 +2633,7 @@ class _Landing:
     def segment_vectors(self, normal: np.ndarray, impulses: np.ndarray) -> np.ndarray:
         """Stacked contact impulses (:func:`_stacked`) as world vectors along ``normal`` (n_c x d)
         and its tangents."""
-        ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
-        return contact_vectors(normal, tangent_basis(normal), impulses[: self.nc], ft)
+        return contact_vectors(normal, tangent_basis(normal), *_unstacked(impulses, self.nc, self.dims - 1))
 
     def step_vectors(self, q: np.ndarray, v: np.ndarray, p: np.ndarray) -> np.ndarray | None:
         """On a curved heightfield (:attr:`turning`), the last step's impulse vectors
@@ -2650,10 +2652,10 @@ class _Landing:
             return
         p0 = self.point(q0, v0).momentum.copy()
         pt = self.point(q1, v1)
-        ft = impulses[self.nc :].reshape(self.dims - 1, self.nc).T
-        F = contact_vectors(pt.normal, pt.tangent, impulses[: self.nc], ft) if vectors is None else vectors
+        if vectors is None:
+            vectors = contact_vectors(pt.normal, pt.tangent, *_unstacked(impulses, self.nc, self.dims - 1))
         weight = np.outer(self.weight(dt), self.subtree_mass / self.mass)
-        totals.joint += pt.momentum - p0 - F @ self.in_subtree.T - weight
+        totals.joint += pt.momentum - p0 - vectors @ self.in_subtree.T - weight
 
     def run(self, h: float, progress: Progress | None = None, index: int = 0, until: Until | None = None,
             share: float = 1.0) -> LandingResult:
@@ -3193,7 +3195,9 @@ def split_alike_at_half(result: LandingResult) -> bool:
     DISTINCT_RUNS - 1 of them shorter (random file 50005: runs of 12,439 steps at h and h / 2,
     a third of its landing's time)."""
     times = result.trajectory[0]
-    longer = int(np.count_nonzero(np.diff(times) > 0.5 * result.step * (1.0 + 1e-9))) if times.size > 1 else result.n_steps
+    if times.size < 2:
+        return False
+    longer = int(np.count_nonzero(np.diff(times) > 0.5 * result.step * (1.0 + 1e-9)))
     return result.n_steps + longer < DISTINCT_RUNS * result.n_steps
 
 
