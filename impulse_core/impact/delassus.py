@@ -18,6 +18,7 @@ from enum import Enum
 import casadi as ca
 
 from impulse_core.kinematics import dynamics as dyn
+from impulse_core.kinematics.displacement import placed_symbols, placement_gradient
 from impulse_core.kinematics.spatial import (
     GROUND_NORMAL,
     PLANAR,
@@ -522,7 +523,9 @@ def scenario_impact_function(topology: Topology, space: Space = PLANAR) -> ca.Fu
                        LEAN_OPTIONS)
 
 
-def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g: _LeanGraph) -> tuple[ca.SX, ca.SX]:
+def _adjoint_gradients(
+    topology: Topology, space: Space, p: ca.SX, v_minus: ca.SX, e: ca.SX, g: _LeanGraph
+) -> tuple[ca.SX, ca.SX]:
     """Gradients of ``external_norm`` and ``internal_norm`` w.r.t. ``p`` (n_values x 1 each) by
     the adjoint of the impact equations, not by differentiating through the factorizations.
 
@@ -539,11 +542,13 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
 
     with lambda, dv, a and nu held fixed: derivatives of kinematics only (J x and a^T M dv, one
     forward velocity pass each; a^T M dv by :func:`dyn.kinetic_bilinear`, at the centres of mass
-    without world-frame inertias, and the internal norm's momenta as m v_G: 22 % fewer
-    instructions for spatial case 3 than twist . momentum about the joints), one reverse sweep
-    per norm over a graph without the factorizations. (Both brackets vanish
-    at the solution: the first is the impulse balance, the second J v_plus + e J v_minus, the
-    restitution law.)
+    without world-frame inertias, and the internal norm's momenta as m v_G). The bracket is
+    differentiated w.r.t. the placed tree (:func:`placed_symbols`), and the placed tree w.r.t.
+    the design by rigid displacements of subtrees (:func:`placement_gradient`): one reverse
+    sweep per norm over a graph without the factorizations or the 3 x 3 rotation products, 16 %
+    fewer instructions for spatial case 3 than reverse mode through the forward kinematics.
+    (Both brackets vanish at the solution: the first is the impulse balance, the second
+    J v_plus + e J v_minus, the restitution law.)
     """
     nc, nv = len(topology.active), g.layout.nv
     if nc == 0:  # no impact: both norms are zero whatever the design
@@ -551,29 +556,34 @@ def _adjoint_gradients(topology: Topology, p: ca.SX, v_minus: ca.SX, e: ca.SX, g
     lam, pivots, dv = g.outputs[0], g.outputs[1], g.delta_v
     held = [ca.SX.sym(name, k) for name, k in (("lam", nc), ("dv", nv), ("a", nv), ("nu", nc), ("u", nv))]
     lam_h, dv_h, a_h, nu_h, u_h = held
+    # the plane's rotations are the cos and sin of absolute angles: cheaper through reverse mode
+    placed = placed_symbols(g.kin, p if space.joint_axis is None else ca.SX(0, 1))
+    kin = placed.kin
+    motions = dyn.joint_motions(kin, g.layout, space)
 
-    def velocities(x: ca.SX) -> tuple[tuple[ca.SX, ...], tuple[ca.SX, ...]]:
-        return dyn.body_velocities(topology.parents, g.kin, g.layout, g.motions, x)
+    def velocities(x: ca.SX, tree: Kinematics = kin, S: tuple = motions) -> tuple[tuple[ca.SX, ...], tuple[ca.SX, ...]]:
+        return dyn.body_velocities(topology.parents, tree, g.layout, S, x)
 
     twists_dv, twists_a = velocities(dv_h), velocities(a_h)
-    momenta = [v.mass * w for v, w in zip(g.values, dyn.com_velocities(g.kin, *twists_dv))]
+    momenta = [v.mass * w for v, w in zip(g.values, dyn.com_velocities(kin, *twists_dv))]
     internal_norm = _lean_outputs(topology, contact_bodies(topology), GROUND_NORMAL, momenta, lam_h, pivots)[4]
-    a_M_dv = dyn.kinetic_bilinear(g.kin, g.values, twists_a, twists_dv)
-    psi = lam_h.T @ _normal_velocities(topology, g.kin, *twists_a) - a_M_dv
-    psi = psi - nu_h.T @ _normal_velocities(topology, g.kin, *velocities(u_h))
-    seeds = ca.substitute(
-        ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)), ca.vertcat(lam_h, dv_h), ca.vertcat(lam, dv)
-    )
+    a_M_dv = dyn.kinetic_bilinear(kin, g.values, twists_a, twists_dv)
+    psi = lam_h.T @ _normal_velocities(topology, kin, *twists_a) - a_M_dv
+    psi = psi - nu_h.T @ _normal_velocities(topology, kin, *velocities(u_h))
+    known = ca.vertcat(lam_h, dv_h, placed.symbols)
+    seeds = ca.substitute(ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)), known, ca.vertcat(lam, dv, placed.placed))
 
     def gradient(objective: ca.SX, lam_bar: ca.SX, dv_bar: ca.SX | None) -> ca.SX:
         nu_rhs, z = lam_bar, ca.SX.zeros(nv, 1)
         if dv_bar is not None:
             z = g.solve_mass(dv_bar)
-            nu_rhs = nu_rhs + _normal_velocities(topology, g.kin, *velocities(z))
+            nu_rhs = nu_rhs + _normal_velocities(topology, g.kin, *velocities(z, g.kin, g.motions))
         nu = dyn.solve(g.delassus, nu_rhs)
         a = z - g.contact_response(nu)
-        d = ca.gradient(objective, p)
-        return ca.substitute(d, ca.vertcat(*held), ca.vertcat(lam, dv, a, nu, dv + (1 + e) * v_minus))
+        d = ca.gradient(objective, p) + placement_gradient(topology, g.values, g.kin, placed.adjoint(objective), p)
+        return ca.substitute(
+            d, ca.vertcat(*held, placed.symbols), ca.vertcat(lam, dv, a, nu, dv + (1 + e) * v_minus, placed.placed)
+        )
 
     d_external = gradient(psi, lam / ca.norm_2(lam), None)
     d_internal = gradient(psi + internal_norm, seeds[:nc], seeds[nc:])
@@ -609,7 +619,7 @@ def norms_gradient_function(
     g = _lean_graph(topology, space, p, v_minus, e, algorithm)
     norms = g.outputs[3:5]
     if adjoint:
-        d_external, d_internal = _adjoint_gradients(topology, p, v_minus, e, g)
+        d_external, d_internal = _adjoint_gradients(topology, space, p, v_minus, e, g)
     else:
         d_external, d_internal = (ca.gradient(x, p) for x in norms)
     if columns is not None:
