@@ -18,7 +18,7 @@ from enum import Enum
 import casadi as ca
 
 from impulse_core.kinematics import dynamics as dyn
-from impulse_core.kinematics.displacement import placed_symbols, placement_gradient
+from impulse_core.kinematics.displacement import kinematics_adjoint, placed_symbols, placement_gradient
 from impulse_core.kinematics.spatial import (
     GROUND_NORMAL,
     PLANAR,
@@ -542,11 +542,14 @@ def _adjoint_gradients(
 
     with lambda, dv, a and nu held fixed: derivatives of kinematics only (J x and a^T M dv, one
     forward velocity pass each; a^T M dv by :func:`dyn.kinetic_bilinear`, at the centres of mass
-    without world-frame inertias, and the internal norm's momenta as m v_G). The bracket is
-    differentiated w.r.t. the placed tree (:func:`placed_symbols`), and the placed tree w.r.t.
-    the design by rigid displacements of subtrees (:func:`placement_gradient`): one reverse
-    sweep per norm over a graph without the factorizations or the 3 x 3 rotation products, 16 %
-    fewer instructions for spatial case 3 than reverse mode through the forward kinematics.
+    without world-frame inertias, and the internal norm's momenta as m v_G): one reverse sweep
+    per norm over a graph without the factorizations. In space the sweep stops at the placed
+    tree (:func:`placed_symbols`), which rigid displacements of subtrees take to the design
+    (:func:`placement_gradient`), not reverse mode through the 3 x 3 rotation products: spatial
+    case 3's all-values gradient 18380 -> 15562 instructions. The plane's rotations are the cos
+    and sin of absolute angles, cheaper through reverse mode (case 3: 3346 against 3704).
+    A twist-level form of the sweep (the spatial momenta's and contact wrenches' displacement
+    derivatives, after Carpentier and Mansard) was tried and costs more: 17573.
     (Both brackets vanish at the solution: the first is the impulse balance, the second
     J v_plus + e J v_minus, the restitution law.)
     """
@@ -556,7 +559,6 @@ def _adjoint_gradients(
     lam, pivots, dv = g.outputs[0], g.outputs[1], g.delta_v
     held = [ca.SX.sym(name, k) for name, k in (("lam", nc), ("dv", nv), ("a", nv), ("nu", nc), ("u", nv))]
     lam_h, dv_h, a_h, nu_h, u_h = held
-    # the plane's rotations are the cos and sin of absolute angles: cheaper through reverse mode
     placed = placed_symbols(g.kin, p if space.joint_axis is None else ca.SX(0, 1))
     kin = placed.kin
     motions = dyn.joint_motions(kin, g.layout, space)
@@ -580,7 +582,7 @@ def _adjoint_gradients(
             nu_rhs = nu_rhs + _normal_velocities(topology, g.kin, *velocities(z, g.kin, g.motions))
         nu = dyn.solve(g.delassus, nu_rhs)
         a = z - g.contact_response(nu)
-        d = ca.gradient(objective, p) + placement_gradient(topology, g.values, g.kin, placed.adjoint(objective), p)
+        d = ca.gradient(objective, p) + placement_gradient(topology, g.values, g.kin, kinematics_adjoint(topology, g.kin, placed.adjoint(objective)), p)
         return ca.substitute(
             d, ca.vertcat(*held, placed.symbols), ca.vertcat(lam, dv, a, nu, dv + (1 + e) * v_minus, placed.placed)
         )

@@ -81,16 +81,38 @@ def placed_symbols(kin: Kinematics, p: ca.SX) -> PlacedSymbols:
     return PlacedSymbols(Kinematics(*fields), ca.vertcat(*symbols), ca.vertcat(*placed))
 
 
-def placement_gradient(topology: Topology, values: tuple[BodyValues, ...], kin: Kinematics, bar: Kinematics,
-                       p: ca.SX) -> ca.SX:
+@dataclass(frozen=True)
+class PlacementAdjoint:
+    """An objective's gradient w.r.t. the placed tree, as :func:`placement_gradient` takes it.
+
+    Attributes:
+        force, torque: per body, the wrench (torque about the world origin) whose pairing with
+            a rigid displacement of the body's subtree (a twist about the origin) is the
+            objective's rate of change.
+        axis: per body, the adjoint of its joint axis turned alone (its origin and the subtree
+            held); zero for the base.
+        com, tip: per body, the adjoints of its centre of mass and tip moved alone.
+        contact: per declared contact, the adjoint of its point moved alone.
+    """
+
+    force: tuple[ca.SX, ...]
+    torque: tuple[ca.SX, ...]
+    axis: tuple[ca.SX, ...]
+    com: tuple[ca.SX, ...]
+    tip: tuple[ca.SX, ...]
+    contact: tuple[ca.SX, ...]
+
+
+def placement_gradient(topology: Topology, values: tuple[BodyValues, ...], kin: Kinematics,
+                       adjoint: PlacementAdjoint, p: ca.SX) -> ca.SX:
     """The gradient w.r.t. ``p`` (n_values x 1) of an objective whose gradient w.r.t. the placed
-    tree ``kin`` is ``bar`` (:meth:`PlacedSymbols.adjoint`), through the placement only: add the
-    objective's own gradient w.r.t. ``p`` (mass properties, which place nothing)."""
-    force, torque = _subtree_wrenches(topology, kin, bar)
+    tree ``kin`` is ``adjoint``, through the placement only: add the objective's own gradient
+    w.r.t. ``p`` (mass properties, which place nothing)."""
     pairs: list[tuple[ca.SX | float, ca.SX]] = []
     for b, v in enumerate(values):
-        pairs += _turning_derivatives(topology, values, kin, bar, b, torque[b] - ca.cross(kin.W_p_O[b], force[b]))
-        pairs += _sliding_derivatives(topology, values, kin, bar, force, b)
+        torque = adjoint.torque[b] - ca.cross(kin.W_p_O[b], adjoint.force[b])
+        pairs += _turning_derivatives(topology, values, kin, adjoint.axis[b], b, torque)
+        pairs += _sliding_derivatives(topology, values, kin, adjoint, b)
     pairs = [(x, d) for x, d in pairs if not isinstance(x, float)]
     if not pairs:
         return ca.SX.zeros(p.shape[0], 1)
@@ -102,10 +124,18 @@ def _body_contacts(topology: Topology, b: int) -> list[int]:
     return [c for c, (body, _) in enumerate(topology.declared_contacts) if body == b]
 
 
-def _subtree_wrenches(topology: Topology, kin: Kinematics, bar: Kinematics) -> tuple[list[ca.SX], list[ca.SX]]:
-    """Per body, the force and the torque about the world origin that the adjoints ``bar`` exert
-    on its subtree: a point's adjoint is a force at the point; a direction's (joint axis, rotation
-    column) a torque d x d_bar."""
+def _subtree_sums(topology: Topology, own: list[ca.SX]) -> tuple[ca.SX, ...]:
+    """Per body, the sum of ``own`` over its subtree (one backward pass)."""
+    total = list(own)
+    for b in reversed(range(1, topology.n_bodies)):
+        total[topology.parents[b]] = total[topology.parents[b]] + total[b]
+    return tuple(total)
+
+
+def kinematics_adjoint(topology: Topology, kin: Kinematics, bar: Kinematics) -> PlacementAdjoint:
+    """:class:`PlacementAdjoint` from the gradient ``bar`` w.r.t. each quantity of the placed tree
+    (:meth:`PlacedSymbols.adjoint`): a point's adjoint is a force at the point, a direction's
+    (joint axis, rotation column) a torque d x d_bar."""
     force: list[ca.SX] = []
     torque: list[ca.SX] = []
     for b in range(topology.n_bodies):
@@ -116,20 +146,18 @@ def _subtree_wrenches(topology: Topology, kin: Kinematics, bar: Kinematics) -> t
             directions.append((kin.joint_axis[b], bar.joint_axis[b]))
         force.append(sum((x_bar for _, x_bar in points), ca.SX.zeros(3, 1)))
         torque.append(sum((ca.cross(x, x_bar) for x, x_bar in points + directions), ca.SX.zeros(3, 1)))
-    for b in reversed(range(1, topology.n_bodies)):
-        parent = topology.parents[b]
-        force[parent] = force[parent] + force[b]
-        torque[parent] = torque[parent] + torque[b]
-    return force, torque
+    axis = tuple(ca.SX.zeros(3, 1) if x is None else x for x in bar.joint_axis)
+    return PlacementAdjoint(_subtree_sums(topology, force), _subtree_sums(topology, torque), axis,
+                            tuple(bar.W_p_G), tuple(bar.W_p_T), tuple(bar.W_p_C))
 
 
-def _turning_derivatives(topology: Topology, values: tuple[BodyValues, ...], kin: Kinematics, bar: Kinematics,
+def _turning_derivatives(topology: Topology, values: tuple[BodyValues, ...], kin: Kinematics, a_bar: ca.SX,
                          b: int, torque: ca.SX) -> list[tuple[ca.SX | float, ca.SX]]:
     """(value, derivative) for the values that turn body b's subtree about its joint origin O_b:
     ``angle`` about the joint axis a, ``rpy`` about the parent's frame turned as URDF's
     Rz(yaw) Ry(pitch) Rx(roll), ``axis`` (normalised: only its direction counts), which turns
     the body by R(k, angle)'s differential, while a itself turns with the axis alone. ``torque``:
-    the subtree's, about O_b."""
+    the subtree's, about O_b; ``a_bar``: the adjoint of the axis turned alone."""
     v, parent = values[b], topology.parents[b]
     R_parent = kin.W_R_B[parent] if parent >= 0 else ca.DM.eye(3)
     frame = R_parent @ rpy_rotation(v.rpy)
@@ -145,29 +173,29 @@ def _turning_derivatives(topology: Topology, values: tuple[BodyValues, ...], kin
     ]
     if all(isinstance(x, float) for x in v.axis):
         return pairs
-    a_bar = bar.joint_axis[b] if kin.joint_axis[b] is not None else ca.SX.zeros(3, 1)
     body = torque - ca.cross(a, a_bar)  # what turns with the body, not with the axis
     w = ca.sin(v.angle) * body + (1 - ca.cos(v.angle)) * ca.cross(body, a) + a_bar
     d_axis = frame.T @ (w - a * (a.T @ w)) / ca.norm_2(k)
     return pairs + [(x, d_axis[j]) for j, x in enumerate(v.axis)]
 
 
-def _sliding_derivatives(topology: Topology, values: tuple[BodyValues, ...], kin: Kinematics, bar: Kinematics,
-                         force: list[ca.SX], b: int) -> list[tuple[ca.SX | float, ca.SX]]:
+def _sliding_derivatives(topology: Topology, values: tuple[BodyValues, ...], kin: Kinematics,
+                         adjoint: PlacementAdjoint, b: int) -> list[tuple[ca.SX | float, ca.SX]]:
     """(value, derivative) for the values that move points of body b along its axes: ``at``
     (b's subtree along the parent's x), ``length`` (b's own points and its children's
     subtrees along b's x), ``com``, ``com_offset`` and the contact fractions."""
     v, parent = values[b], topology.parents[b]
     x_axis = kin.W_R_B[b][:, 0]
     contacts = _body_contacts(topology, b)
-    along = v.com * bar.W_p_G[b] + bar.W_p_T[b]
-    along += sum((f * bar.W_p_C[c] for f, c in zip(v.contacts, contacts)), ca.SX.zeros(3, 1))
+    along = v.com * adjoint.com[b] + adjoint.tip[b]
+    along += sum((f * adjoint.contact[c] for f, c in zip(v.contacts, contacts)), ca.SX.zeros(3, 1))
     d_length = x_axis.T @ along
     for child in (c for c in range(topology.n_bodies) if topology.parents[c] == b):
-        d_length += values[child].at * (x_axis.T @ force[child])
-    pairs = [(v.length, d_length), (v.com, v.length * (x_axis.T @ bar.W_p_G[b]))]
-    pairs += [(f, v.length * (x_axis.T @ bar.W_p_C[c])) for f, c in zip(v.contacts, contacts)]
-    pairs += [(x, kin.W_R_B[b][:, j + 1].T @ bar.W_p_G[b]) for j, x in enumerate(v.com_offset)]
+        d_length += values[child].at * (x_axis.T @ adjoint.force[child])
+    pairs = [(v.length, d_length), (v.com, v.length * (x_axis.T @ adjoint.com[b]))]
+    pairs += [(f, v.length * (x_axis.T @ adjoint.contact[c])) for f, c in zip(v.contacts, contacts)]
+    pairs += [(x, kin.W_R_B[b][:, j + 1].T @ adjoint.com[b]) for j, x in enumerate(v.com_offset)]
     if parent >= 0:
-        pairs.append((v.at, values[parent].length * (kin.W_R_B[parent][:, 0].T @ force[b])))
+        pairs.append((v.at, values[parent].length * (kin.W_R_B[parent][:, 0].T @ adjoint.force[b])))
     return pairs
+
