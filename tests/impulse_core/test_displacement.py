@@ -73,7 +73,7 @@ def test_spatial_adjoint_gradient_equals_reverse_mode(algorithm) -> None:
     reverse mode through every factorization and the forward kinematics."""
     rng = np.random.default_rng(5)
     compared = 0
-    for tree in general_trees()[:10]:
+    for tree in general_trees()[:6]:
         topology = tree.topology()
         if not topology.active:
             continue
@@ -86,4 +86,4 @@ def test_spatial_adjoint_gradient_equals_reverse_mode(algorithm) -> None:
             ref = np.array(b[k]).ravel()
             np.testing.assert_allclose(np.array(a[k]).ravel(), ref, rtol=1e-7, atol=1e-9 * np.abs(ref).max(), err_msg=k)
         compared += 1
-    assert compared >= 5
+    assert compared >= 4
