@@ -931,7 +931,10 @@ HOLD_FORCE = 0.05
 #: each give back the mode they stopped (:func:`_same_kind`), more than REPEATS in a row, are a
 #: stall (:meth:`_Landing.stall_message`) as events shorter than 1e-12 s are: the mode fails at
 #: once again each time (random file 30891: two contacts starting to slide from rest, an event
-#: every 4e-12 s, each with two failed slip searches of 0.4 s, for hours).
+#: every 4e-12 s, each with two failed slip searches of 0.4 s, for hours). So are, whatever
+#: their length, such events whose arrest was refused (:attr:`_Landing.refused`: a slow slip
+#: turned that friction cannot stop, the same one each time; 30891 again: an event every 1e-7
+#: s, 7e5 to its end).
 REPEAT_SPAN = 1e-9
 REPEATS = 50
 
@@ -1372,6 +1375,9 @@ class _Landing:
         self.inexact = self.non_unique = 0
         #: the law's answer at the last impact (:meth:`impact`)
         self.last_impact: RigidImpact | None = None
+        #: the contacts whose turned slip the last :meth:`arrest` left sliding (its mode with them
+        #: sticking does not hold); events that repeat so are a stall (:data:`REPEATS`)
+        self.refused = np.zeros(0, int)
         #: None, or a list that each impact appends (q, v, its contacts, its point, the law's answer) to
         self.impact_log: list | None = None
         #: keep the joint impulses of impacts and resting phases (:attr:`_Totals.joint`)
@@ -2268,6 +2274,7 @@ class _Landing:
         tangential on a contact with 1.8 N s of normal impulse (the mode with both sticking
         needs 5e5 N of friction there), pulling in later arrests: the momentum balance cannot
         see it (it sums to zero), but the totals carried it."""
+        self.refused = np.zeros(0, int)  # the turned contacts it leaves sliding (a stall, REPEATS, where that repeats)
         if self.dims == 2 or self.mu <= 0 or not _any(mode.closed & mode.sliding):
             return q, v
         slip = self.point(q, v).slip
@@ -2275,6 +2282,7 @@ class _Landing:
                   & (np.linalg.norm(slip, axis=1) < PLASTIC_SPEED))
         stuck = self.held_arrest(q, v, mode, turned) if _any(turned) else None
         if stuck is None:
+            self.refused = np.flatnonzero(turned)
             return q, v
         q1, v1, p = self.project(q, v, stuck)
         self.add(totals, p, q1, v1)
@@ -2718,6 +2726,7 @@ class _Landing:
         self.inexact = self.non_unique = 0
         self.min_bounce = MIN_BOUNCE * T
         self._jams = (math.nan, 0)
+        self.refused = np.zeros(0, int)
         q, v, mode, totals = self.first_impact()
         slid = bool(self.mu) and _any(mode.closed & mode.sliding)  # a contact slid (a jam may follow)
         self.end_normals = None
@@ -2821,7 +2830,7 @@ class _Landing:
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
-            repeated = repeated + 1 if again and tau < REPEAT_SPAN * max(1.0, T) else 0
+            repeated = repeated + 1 if again and (tau < REPEAT_SPAN * max(1.0, T) or self.refused.size) else 0
             if stalled > 20 or repeated > REPEATS:
                 failure = NumericalError(self.stall_message(q_e, v_e, mode, t))
                 jammed = self.painleve(q_e, v_e, mode)
@@ -2945,6 +2954,9 @@ class _Landing:
             note = "" if not len(against) else (
                 f": contacts {self.contact_labels(against)} start to slide from rest against their own slip "
                 "acceleration in the mode (no slip direction found that it follows)")
+            if not note and self.refused.size:
+                note = (f": the slow slip of contacts {self.contact_labels(self.refused)} turns at each event, and "
+                        "the mode with them sticking does not hold (not arrested)")
             return f"the landing chatters at t = {t:.6g} s (events without progress{note})"
         return self.painleve_message(t, jammed, f"friction {self.mu:g} makes their rows' effective mass negative")
 

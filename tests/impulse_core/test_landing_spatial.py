@@ -616,6 +616,28 @@ def test_an_arrest_of_a_redundant_pair_takes_the_modes_own_split():
     assert np.max(np.abs(change - (totals.impulse - impulse))) < 1e-12 * max(1.0, np.max(np.abs(p0)))
 
 
+def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall():
+    """Random file 30891 (data/refused_30891.yaml: friction 1, three rods on flat ground): at
+    0.0643 s contact 0 (b2[0]) slides at 2e-6 m/s and its slip turns past a right angle every
+    1e-7 s. Arresting it needs the mode with it sticking, which would take 9.4e4 N of friction at
+    it and at contact 2 (a nearly redundant pair; the arrest's projection was a squeeze of 67 N
+    s): it is not arrested, slides on, and each event gives the mode back, 7e5 such events to
+    the landing's end (no end in 400 s). More than REPEATS of them in a row are a stall whatever
+    their length, and the error names the contact (within 20000 steps and events)."""
+    from impulse_core.errors import NumericalError
+
+    model = _data_model("refused_30891.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    calls = [0]
+
+    def until(*_):
+        calls[0] += 1
+        return calls[0] > 20000
+
+    with pytest.raises(NumericalError, match=r"chatters at t = 0\.0642.* slow slip of contacts b2\[0\] turns at each event"):
+        run.run(run.first_step(), until=until)
+
+
 def test_a_starting_slip_that_cycles_is_searched_until_its_acceleration_follows_it(monkeypatch):
     """Random file 30249 (data/random_30249.yaml: friction 0.5): at 0.2126 s a contact on its
     cone's edge starts sliding; turning its slip to its acceleration cycled ((0.20, -0.98), then
