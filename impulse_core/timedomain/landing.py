@@ -931,7 +931,10 @@ HOLD_FORCE = 0.05
 #: each give back the mode they stopped (:func:`_same_kind`), more than REPEATS in a row, are a
 #: stall (:meth:`_Landing.stall_message`) as events shorter than 1e-12 s are: the mode fails at
 #: once again each time (random file 30891: two contacts starting to slide from rest, an event
-#: every 4e-12 s, each with two failed slip searches of 0.4 s, for hours).
+#: every 4e-12 s, each with two failed slip searches of 0.4 s, for hours). So are, whatever
+#: their length, such events whose arrest was refused (:attr:`_Landing.refused`: a slow slip
+#: turned that friction cannot stop, the same one each time; 30891 again: an event every 1e-7
+#: s, 7e5 to its end).
 REPEAT_SPAN = 1e-9
 REPEATS = 50
 
@@ -1372,6 +1375,9 @@ class _Landing:
         self.inexact = self.non_unique = 0
         #: the law's answer at the last impact (:meth:`impact`)
         self.last_impact: RigidImpact | None = None
+        #: the contacts whose turned slip the last :meth:`arrest` left sliding (its mode with them
+        #: sticking does not hold); events that repeat so are a stall (:data:`REPEATS`)
+        self.refused = np.zeros(0, int)
         #: None, or a list that each impact appends (q, v, its contacts, its point, the law's answer) to
         self.impact_log: list | None = None
         #: keep the joint impulses of impacts and resting phases (:attr:`_Totals.joint`)
@@ -2237,37 +2243,65 @@ class _Landing:
         probe = mode.copy()
         probe.slip[starting] = 0.0
         probe.redundant = self.redundant(self.point(q, v), probe)
-        w, _ = self.witness_and_rate(q, v, probe)
+        return probe if self.held_by_its_forces(q, v, probe) else mode
+
+    def held_by_its_forces(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> bool:
+        """Whether ``mode`` holds at (q, v) with its own forces: every force witness (normal
+        forces, cone margins, stop forces) at least one tolerance inside, as :meth:`persists`
+        asks: its contacts push and those sticking have their friction inside the cone."""
+        w, _ = self.witness_and_rate(q, v, mode)
         nc, nv = self.nc, self.nv
         forces = np.concatenate([w[nc : 3 * nc], w[4 * nc + 2 * nv :]])  # normal forces, cone margins, stop forces
-        return probe if bool((forces >= 2.0).all()) else mode
+        return bool((forces >= 2.0).all())
 
     def arrest(self, q: np.ndarray, v: np.ndarray, mode: _Mode, totals: _Totals) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) with the slip of each closed contact whose slip has turned to or past a right
         angle from the direction it slid along (the slip-reversal witness s . d <= 0) at a slip
         speed below :data:`PLASTIC_SPEED` taken to zero, as a plastic impact takes an approach
-        that slow: the mode's projection with those contacts sticking (its impulse, at most
-        PLASTIC_SPEED times their effective mass, counted in the totals). The contact LCP then
-        sticks them or starts them sliding from rest. In the plane a reversal is located at
-        s = 0 and nothing changes; in space a slow slip under a lateral drive turns rather than
-        stops (the regularised direction lags it: the lateral slip settles at the drive times the
-        step), and each right angle was an event: random file 20693 slid at 1e-5 m/s with an
-        event every 1e-5 s, and a contact the LCP started sliding along its old direction kept
-        its turned slip and reversed again at once."""
+        that slow: the mode's projection with those contacts sticking (its impulse counted in
+        the totals), where that mode holds with its own forces (:meth:`held_by_its_forces`, the
+        transition rule :meth:`stick_where_it_can` applies); else the same with each of them
+        alone, and where none holds nothing changes (the contact LCP slides them on). The
+        contact LCP then sticks them or starts them sliding from rest. In the plane a reversal
+        is located at s = 0 and nothing changes; in space a slow slip under a lateral drive
+        turns rather than stops (the regularised direction lags it: the lateral slip settles at
+        the drive times the step), and each right angle was an event: random file 20693 slid at
+        1e-5 m/s with an event every 1e-5 s, and a contact the LCP started sliding along its old
+        direction kept its turned slip and reversed again at once. Where friction cannot hold
+        the arrested contacts, the projection's impulse is no friction's: two resting contacts
+        of a nearly redundant pair (random file 31088: the roots of hinged rods 9.4 cm apart,
+        the sticking rows' G M^-1 G^T of condition 1e7) took the pair's squeeze, 595 N s
+        tangential on a contact with 1.8 N s of normal impulse (the mode with both sticking
+        needs 5e5 N of friction there), pulling in later arrests: the momentum balance cannot
+        see it (it sums to zero), but the totals carried it."""
+        self.refused = np.zeros(0, int)  # the turned contacts it leaves sliding (a stall, REPEATS, where that repeats)
         if self.dims == 2 or self.mu <= 0 or not _any(mode.closed & mode.sliding):
             return q, v
         slip = self.point(q, v).slip
         turned = (mode.closed & mode.sliding & (np.sum(slip * mode.slip, axis=1) <= 0)
                   & (np.linalg.norm(slip, axis=1) < PLASTIC_SPEED))
-        if not _any(turned):
+        stuck = self.held_arrest(q, v, mode, turned) if _any(turned) else None
+        if stuck is None:
+            self.refused = np.flatnonzero(turned)
             return q, v
-        stuck = mode.copy()
-        stuck.slip[turned] = 0.0
-        stuck.redundant = self.redundant(self.point(q, v), stuck)
         q1, v1, p = self.project(q, v, stuck)
         self.add(totals, p, q1, v1)
         self.tally_joints(totals, q, v, q1, v1, p, 0.0, True)
         return q1, v1
+
+    def held_arrest(self, q: np.ndarray, v: np.ndarray, mode: _Mode, turned: np.ndarray) -> _Mode | None:
+        """``mode`` with the ``turned`` contacts sticking where that holds with its own forces
+        (:meth:`held_by_its_forces`), else with the first of them alone whose sticking does, or
+        None (:meth:`arrest`)."""
+        pt = self.point(q, v)
+        k = np.flatnonzero(turned)
+        for each in [k] + ([k[i : i + 1] for i in range(len(k))] if len(k) > 1 else []):
+            stuck = mode.copy()
+            stuck.slip[each] = 0.0
+            stuck.redundant = self.redundant(pt, stuck)
+            if self.held_by_its_forces(q, v, stuck):
+                return stuck
+        return None
 
     def held(self, pt: _Point, mode: _Mode, rows: _Rows, sol: UnilateralSolution, acc_tol: float) -> np.ndarray:
         """Per normal row of ``rows``: a closed contact that the acceleration-level LCP ``sol``
@@ -2428,7 +2462,11 @@ class _Landing:
     def project(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Back onto the mode's constraints: closed gaps and stops, and open contacts below the
         ground, to zero (positions), then the closed rows' velocities to zero; returns (q, v,
-        the projection's impulses [normal, tangential] per contact)."""
+        the projection's impulses [normal, tangential] per contact). A redundant mode's impulses
+        are the split of its forces (:func:`_least_norm`: least-norm on the rows as
+        :data:`REDUNDANT` ranks them, pushing where a split does): solved to rounding, a nearly
+        redundant pair's velocities took its squeeze (random file 31088: an arrest's 1.95e4 N s
+        tangential at two contacts 9.4 cm apart, for slips of 2.5e-6 m/s)."""
         if self.tape is not None:
             self.tape.append(("project", q.copy(), v.copy(), mode.copy()))
         end = self.ended(q, v, mode)
@@ -2446,8 +2484,11 @@ class _Landing:
         if rows is None or not rows.G.shape[0]:
             return q, v, np.zeros(self.dims * self.nc)
         minv_gt = np.linalg.solve(pt.M, rows.G.T)
-        impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
-        v = v + minv_gt @ impulse
+        if rows.redundant:  # the split of its forces (_accelerations): least-norm, pushing where it can
+            v, impulse = _least_norm(rows.G @ minv_gt, -rows.G @ v, v, minv_gt, rows.n)
+        else:
+            impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
+            v = v + minv_gt @ impulse
         return q, v, _stacked(*_contact_forces(rows, impulse, 0.0, self.nc))
 
     def in_place(self, pt: _Point, q: np.ndarray, mode: _Mode) -> bool:
@@ -2685,6 +2726,7 @@ class _Landing:
         self.inexact = self.non_unique = 0
         self.min_bounce = MIN_BOUNCE * T
         self._jams = (math.nan, 0)
+        self.refused = np.zeros(0, int)
         q, v, mode, totals = self.first_impact()
         slid = bool(self.mu) and _any(mode.closed & mode.sliding)  # a contact slid (a jam may follow)
         self.end_normals = None
@@ -2788,7 +2830,7 @@ class _Landing:
             self.record(totals, t, v, t + tau, q_e, v_e)
             t += tau
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
-            repeated = repeated + 1 if again and tau < REPEAT_SPAN * max(1.0, T) else 0
+            repeated = repeated + 1 if again and (tau < REPEAT_SPAN * max(1.0, T) or self.refused.size) else 0
             if stalled > 20 or repeated > REPEATS:
                 failure = NumericalError(self.stall_message(q_e, v_e, mode, t))
                 jammed = self.painleve(q_e, v_e, mode)
@@ -2912,6 +2954,9 @@ class _Landing:
             note = "" if not len(against) else (
                 f": contacts {self.contact_labels(against)} start to slide from rest against their own slip "
                 "acceleration in the mode (no slip direction found that it follows)")
+            if not note and self.refused.size:
+                note = (f": the slow slip of contacts {self.contact_labels(self.refused)} turns at each event, and "
+                        "the mode with them sticking does not hold (not arrested)")
             return f"the landing chatters at t = {t:.6g} s (events without progress{note})"
         return self.painleve_message(t, jammed, f"friction {self.mu:g} makes their rows' effective mass negative")
 

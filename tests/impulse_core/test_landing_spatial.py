@@ -512,16 +512,16 @@ def test_a_divergence_through_a_singular_mass_matrix_says_so():
     assert r.momentum_balance < 1e-4
 
 
-def _kept_state(name: str):
-    """data/NAME.yaml's landing at the state kept in data/NAME_state.json, in the run's chart
-    (its first impact taken): (run, the first impact's totals, the kept values with q and v as
-    arrays, the kept mode)."""
+def _kept_state(name: str, state: str | None = None):
+    """data/NAME.yaml's landing at the state kept in data/NAME_state.json (or STATE_state.json),
+    in the run's chart (its first impact taken): (run, the first impact's totals, the kept values
+    with q and v as arrays, the kept mode)."""
     import json
 
     from impulse_core.timedomain.landing import _Mode
 
     model = _data_model(f"{name}.yaml")
-    kept = json.loads((Path(__file__).parent / "data" / f"{name}_state.json").read_text())
+    kept = json.loads((Path(__file__).parent / "data" / f"{state or name}_state.json").read_text())
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     totals = run.first_impact()[3]  # and the run's chart
     kept["q"], kept["v"] = np.array(kept["q"]), np.array(kept["v"])
@@ -573,15 +573,90 @@ def test_a_slow_slip_turned_past_a_right_angle_comes_to_rest():
     assert np.max(np.abs(change - (totals.impulse - before))) < 1e-12 * max(1.0, np.max(np.abs(p0)))
 
 
+def test_an_arrest_takes_no_squeeze_of_a_nearly_redundant_pair():
+    """Random file 31088 (data/squeeze_31088.yaml: a heightfield, friction 1, six rods) at
+    0.2647 s (the kept state and mode, data/squeeze_31088_state.json): contact 0 (b2[0]) sticks
+    and contact 5 (b4[1]), 9.4 cm away on a rod hinged to it through another, slides at 9e-5 m/s,
+    its slip turned past a right angle. With both sticking the pair's rows are nearly redundant
+    (the mode needs 5e5 N of friction against 25 N and 9 N of normal force), and the arrest's
+    projection took the pair's squeeze: 595 N s tangential at contact 0 against 1.8 N s normal,
+    and later ones pulled; the momentum balance cannot see it (it sums to zero), the totals
+    carried it. Now the arrest's impulse at every contact lies in the friction cone of its
+    normal impulse, which does not pull, and the momentum changes by the counted impulses."""
+    run, totals, kept, mode = _kept_state("squeeze_31088")
+    q, v = kept["q"], kept["v"]
+    normal, tangential, impulse = totals.normal.copy(), totals.tangential.copy(), totals.impulse.copy()
+    p0 = run.point(q, v).momentum[:, 0]
+    q1, v1 = run.arrest(q, v, mode, totals)
+    fn, ft = totals.normal - normal, np.linalg.norm(totals.tangential - tangential, axis=1)
+    assert np.all(fn >= -1e-12) and np.all(ft <= run.mu * fn + 1e-12), (fn, ft)
+    change = run.point(q1, v1).momentum[:, 0] - p0
+    assert np.max(np.abs(change - (totals.impulse - impulse))) < 1e-12 * max(1.0, np.max(np.abs(p0)))
+
+
+def test_an_arrest_of_a_redundant_pair_takes_the_modes_own_split():
+    """Random file 31088 later in the same run (data/squeeze_31088_redundant_state.json): contact
+    5 turned at 2.5e-6 m/s beside contact 0 sticking, and with both sticking the rows are
+    redundant (REDUNDANT): the mode's forces are their least-norm pushing split, which holds, so
+    the arrest is taken. Its projection solved the rows to rounding and took the pair's squeeze:
+    1.95e4 N s tangential at each contact, 84 and 2,103 N s normal. It now takes the mode's own split
+    (least-norm on the redundant rows, pushing): every contact's impulse below the plastic speed
+    times the tree's mass, none pulling, and the momentum changes by the counted impulses."""
+    from impulse_core.timedomain.landing import PLASTIC_SPEED
+
+    run, totals, kept, mode = _kept_state("squeeze_31088", "squeeze_31088_redundant")
+    q, v = kept["q"], kept["v"]
+    normal, tangential, impulse = totals.normal.copy(), totals.tangential.copy(), totals.impulse.copy()
+    p0 = run.point(q, v).momentum[:, 0]
+    q1, v1 = run.arrest(q, v, mode, totals)
+    assert not np.array_equal(v1, v)  # taken
+    fn, ft = totals.normal - normal, np.linalg.norm(totals.tangential - tangential, axis=1)
+    assert np.all(fn >= -1e-12) and np.all(np.hypot(fn, ft) < PLASTIC_SPEED * run.mass), (fn, ft)
+    change = run.point(q1, v1).momentum[:, 0] - p0
+    assert np.max(np.abs(change - (totals.impulse - impulse))) < 1e-12 * max(1.0, np.max(np.abs(p0)))
+
+
+def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall():
+    """Random file 30891 (data/refused_30891.yaml: friction 1, three rods on flat ground): at
+    0.0643 s contact 0 (b2[0]) slides at 2e-6 m/s and its slip turns past a right angle every
+    1e-7 s. Arresting it needs the mode with it sticking, which would take 9.4e4 N of friction at
+    it and at contact 2 (a nearly redundant pair; the arrest's projection was a squeeze of 67 N
+    s): it is not arrested, slides on, and each event gives the mode back, 7e5 such events to
+    the landing's end (no end in 400 s). More than REPEATS of them in a row are a stall whatever
+    their length, and the error names the contact (within 20000 steps and events)."""
+    from impulse_core.errors import NumericalError
+
+    model = _data_model("refused_30891.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    calls = [0]
+
+    def until(*_):
+        calls[0] += 1
+        return calls[0] > 20000
+
+    message = r"chatters at t = 0\.0642.* slow slip of contacts b2\[0\] turns at each event"
+    with pytest.raises(NumericalError, match=message):
+        run.run(run.first_step(), until=until)
+
+
 def test_a_starting_slip_that_cycles_is_searched_until_its_acceleration_follows_it(monkeypatch):
     """Random file 30249 (data/random_30249.yaml: friction 0.5): at 0.2126 s a contact on its
     cone's edge starts sliding; turning its slip to its acceleration cycled ((0.20, -0.98), then
     (-0.93, -0.36), whose acceleration points 122 degrees away) and the run took an event every
     5e-11 s without end. Now every mode choice of the landing leaves each contact that starts
     sliding accelerating along its slip (``wrong_slip`` empty), the search being needed at least
-    once, and the landing ends with its momentum balanced (1e-4)."""
+    once, and the landing ends with its momentum balanced (1e-4). The arrest sticks the turned
+    slips as it did when this was found (``held_arrest`` patched): now a slip that turns at the
+    cone's edge, as this contact's does at 0.2126 s, is not arrested (the mode with it sticking
+    does not hold), slides on and needs no search."""
     model = _data_model("random_30249.yaml")
     searched, original = [0], _Landing.consistent_slip
+
+    def sticking(self, q, v, mode, turned):
+        stuck = mode.copy()
+        stuck.slip[turned] = 0.0
+        stuck.redundant = self.redundant(self.point(q, v), stuck)
+        return stuck
 
     def checked(self, pt, v, mode, acc_tol):
         out = original(self, pt, v, mode, acc_tol)
@@ -595,6 +670,7 @@ def test_a_starting_slip_that_cycles_is_searched_until_its_acceleration_follows_
     search = _Landing.searched_slip
     monkeypatch.setattr(_Landing, "consistent_slip", checked)
     monkeypatch.setattr(_Landing, "searched_slip", counted)
+    monkeypatch.setattr(_Landing, "held_arrest", sticking)
     r = landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     assert searched[0] >= 1 and r.momentum_balance <= 1e-4
 
