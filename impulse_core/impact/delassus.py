@@ -18,7 +18,7 @@ from enum import Enum
 import casadi as ca
 
 from impulse_core.kinematics import dynamics as dyn
-from impulse_core.kinematics.displacement import kinematics_adjoint, placed_symbols, placement_gradient
+from impulse_core.kinematics.displacement import placed_gradient, placed_symbols
 from impulse_core.kinematics.spatial import (
     GROUND_NORMAL,
     PLANAR,
@@ -572,8 +572,8 @@ def _adjoint_gradients(
     a_M_dv = dyn.kinetic_bilinear(kin, g.values, twists_a, twists_dv)
     psi = lam_h.T @ _normal_velocities(topology, kin, *twists_a) - a_M_dv
     psi = psi - nu_h.T @ _normal_velocities(topology, kin, *velocities(u_h))
-    known = ca.vertcat(lam_h, dv_h, placed.symbols)
-    seeds = ca.substitute(ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)), known, ca.vertcat(lam, dv, placed.placed))
+    seeds = ca.substitute(ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)),
+                          ca.vertcat(lam_h, dv_h, placed.symbols), ca.vertcat(lam, dv, placed.placed))
 
     def gradient(objective: ca.SX, lam_bar: ca.SX, dv_bar: ca.SX | None) -> ca.SX:
         nu_rhs, z = lam_bar, ca.SX.zeros(nv, 1)
@@ -582,7 +582,7 @@ def _adjoint_gradients(
             nu_rhs = nu_rhs + _normal_velocities(topology, g.kin, *velocities(z, g.kin, g.motions))
         nu = dyn.solve(g.delassus, nu_rhs)
         a = z - g.contact_response(nu)
-        d = ca.gradient(objective, p) + placement_gradient(topology, g.values, g.kin, kinematics_adjoint(topology, g.kin, placed.adjoint(objective)), p)
+        d = placed_gradient(topology, g.values, g.kin, placed, objective, p)
         return ca.substitute(
             d, ca.vertcat(*held, placed.symbols), ca.vertcat(lam, dv, a, nu, dv + (1 + e) * v_minus, placed.placed)
         )

@@ -10,7 +10,7 @@ rotation column's as a torque). The wrenches are summed over subtrees in one bac
 the duality of motion and force behind Carpentier and Mansard's analytical derivatives of the
 recursive Newton-Euler algorithm (RSS 2018). O(n) 3-vector products per objective, where
 reverse mode through the forward kinematics differentiates every 3 x 3 rotation product
-(:func:`placed_symbols`, :func:`placement_gradient`).
+(:func:`placed_symbols`, :func:`placed_gradient`, :func:`placement_gradient`).
 """
 
 from __future__ import annotations
@@ -117,6 +117,19 @@ def placement_gradient(topology: Topology, values: tuple[BodyValues, ...], kin: 
     if not pairs:
         return ca.SX.zeros(p.shape[0], 1)
     return ca.jacobian(ca.vertcat(*[x for x, _ in pairs]), p).T @ ca.vertcat(*[d for _, d in pairs])
+
+
+def placed_gradient(topology: Topology, values: tuple[BodyValues, ...], kin: Kinematics, placed: PlacedSymbols,
+                    objective: ca.SX, p: ca.SX) -> ca.SX:
+    """The gradient w.r.t. ``p`` of ``objective``, built on ``placed.kin`` (the placed tree
+    ``kin`` as :func:`placed_symbols`): its own gradient w.r.t. ``p`` plus, through the placed
+    tree, :func:`placement_gradient`; in terms of ``placed.symbols`` (substitute
+    ``placed.placed`` for them)."""
+    d = ca.gradient(objective, p)
+    if not placed.symbols.shape[0]:
+        return d
+    bar = placed.adjoint(objective)
+    return d + placement_gradient(topology, values, kin, kinematics_adjoint(topology, kin, bar), p)
 
 
 def _body_contacts(topology: Topology, b: int) -> list[int]:
