@@ -18,7 +18,7 @@ from enum import Enum
 import casadi as ca
 
 from impulse_core.kinematics import dynamics as dyn
-from impulse_core.kinematics.displacement import placed_gradient, placed_symbols
+from impulse_core.kinematics.displacement import PlacedSymbols, placed_gradient, placed_symbols
 from impulse_core.kinematics.spatial import (
     GROUND_NORMAL,
     PLANAR,
@@ -559,7 +559,8 @@ def _adjoint_gradients(
     lam, pivots, dv = g.outputs[0], g.outputs[1], g.delta_v
     held = [ca.SX.sym(name, k) for name, k in (("lam", nc), ("dv", nv), ("a", nv), ("nu", nc), ("u", nv))]
     lam_h, dv_h, a_h, nu_h, u_h = held
-    placed = placed_symbols(g.kin, p if space.joint_axis is None else ca.SX(0, 1))
+    # in space the sweep stops at the placed tree; the plane's cos and sin are cheaper through reverse mode
+    placed = placed_symbols(g.kin, p) if space.joint_axis is None else PlacedSymbols(g.kin, ca.SX(0, 1), ca.SX(0, 1))
     kin = placed.kin
     motions = dyn.joint_motions(kin, g.layout, space)
 
