@@ -2279,8 +2279,8 @@ class _Landing:
         contact whose normal velocity stays zero takes the Delassus matrix's normal-tangent
         coupling (random file 31088: a lone contact's slip of 6.7e-5 m/s, rows of condition 3.9,
         2.6e-4 N s tangential and -1.5e-4 N s normal). Released, that row would leave at 3.9e-5
-        m/s, slower than PLASTIC_SPEED, which the projection after the contact LCP takes back
-        with the same pull (a plastic contact that slow rests); against the mode's normal force
+        m/s, slower than PLASTIC_SPEED, which the projection after the contact LCP would take
+        back with a pull of its own (a plastic contact that slow rests); against the mode's force
         (39 N) it is that force over 4e-6 s of the friction the arrest stands for."""
         self.refused = np.zeros(0, int)  # the turned contacts it leaves sliding (a stall, REPEATS, where that repeats)
         if self.dims == 2 or self.mu <= 0 or not _any(mode.closed & mode.sliding):
