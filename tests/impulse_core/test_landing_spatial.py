@@ -616,6 +616,44 @@ def test_an_arrest_of_a_redundant_pair_takes_the_modes_own_split():
     assert np.max(np.abs(change - (totals.impulse - impulse))) < 1e-12 * max(1.0, np.max(np.abs(p0)))
 
 
+def _stale_arrest(run, totals, kept, mode):
+    """The arrest at ``kept``'s state: (slips before, slips after, normal and tangential impulses
+    per contact, whether it was taken)."""
+    q, v = kept["q"], kept["v"]
+    normal, tangential = totals.normal.copy(), totals.tangential.copy()
+    q1, v1 = run.arrest(q, v, mode, totals)
+    fn, ft = totals.normal - normal, np.linalg.norm(totals.tangential - tangential, axis=1)
+    return run.point(q, v).slip, run.point(q1, v1).slip, fn, ft, v1 is not v
+
+
+@pytest.mark.parametrize("held", [False, True])
+def test_an_arrest_leaves_a_fast_slip_that_the_impacts_mode_calls_sticking_sliding(monkeypatch, held):
+    """Random file 31088 (data/squeeze_31088_stale_state.json, from the run before the squeeze
+    fix): the mode an impact leaves keeps the slip flags of the mode before it, and there it calls
+    contacts 1 and 2 sticking while they slip at 1.2e-2 m/s; contact 0's slip has turned at
+    2.2e-9 m/s. The arrest's probe mode slides those two along their slips (only slips slower
+    than PLASTIC_SPEED are arrested): it holds, the arrest is taken, the two keep their slips,
+    every impulse is below PLASTIC_SPEED times the tree's mass and none pulls by more than a
+    thousandth of that (contact 0: -1.7e-9 N s, the normal-tangent coupling of zeroing its slip,
+    :meth:`_Landing.arrest`). With them sticking the mode did not hold and the arrest was refused;
+    where it held (``held``: the gate patched open, as before the squeeze fix) the projection
+    took their slips to zero, 0.012 N s at each."""
+    from impulse_core.timedomain.landing import PLASTIC_SPEED
+
+    run, totals, kept, mode = _kept_state("squeeze_31088", "squeeze_31088_stale")
+    if held:
+        monkeypatch.setattr(_Landing, "held_by_its_forces", lambda self, q, v, mode: True)
+    fast = kept["fast"]
+    slip, slip1, fn, ft, taken = _stale_arrest(run, totals, kept, mode)
+    assert taken
+    assert np.all(np.linalg.norm(slip[fast], axis=1) > 100 * PLASTIC_SPEED)
+    kept_slip = np.linalg.norm(slip1[fast] - slip[fast], axis=1) / np.linalg.norm(slip[fast], axis=1)
+    assert np.all(kept_slip < 1e-3), kept_slip
+    assert np.linalg.norm(slip1[kept["turned"]]) < 1e-12
+    scale = PLASTIC_SPEED * run.mass  # the arrested slip's impulse scale
+    assert np.all(fn >= -1e-3 * scale) and np.all(np.hypot(fn, ft) < scale), (fn, ft)
+
+
 def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall():
     """Random file 30891 (data/refused_30891.yaml: friction 1, three rods on flat ground): at
     0.0643 s contact 0 (b2[0]) slides at 2e-6 m/s and its slip turns past a right angle every
