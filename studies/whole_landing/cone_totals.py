@@ -11,37 +11,63 @@ section "Sweeps at 49dd60a").
 
 Run: PYTHONPATH=. python studies/whole_landing/cone_totals.py OUT.jsonl FILE...
 """
-import sys, io, json, time, contextlib, glob, os
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import sys
+import time
+
 import numpy as np
+
 import optimizer.evaluation.model_choice as choice
 from optimizer.cli.main import main
-real = choice.landing
-spied = {}
-def spy(*a, **k):
-    r = real(*a, **k); spied["r"] = r; spied["scene"] = a[1]; return r
-choice.landing = spy
-out_path = sys.argv[1]
-files = sys.argv[2:]
-with open(out_path, "a") as out:
-    for f in files:
-        spied.clear()
-        t0 = time.perf_counter()
-        o, e = io.StringIO(), io.StringIO()
-        with contextlib.redirect_stdout(o), contextlib.redirect_stderr(e):
-            try:
-                st = main(["evaluate", f, "--json"])
-            except BaseException as ex:
-                st = f"raised {type(ex).__name__}"
-        rec = {"file": os.path.basename(f), "status": st, "seconds": round(time.perf_counter() - t0, 1)}
-        if "r" in spied:
-            r, sc = spied["r"], spied["scene"]
-            N = np.asarray(r.total_external, float)
-            T = np.asarray(r.total_tangential, float).reshape(len(N), -1)
-            mu = float(sc.friction)
-            flat = sc.terrain.is_flat and (sc.heightfield is None or sc.heightfield.is_flat)
-            tn = np.linalg.norm(T, axis=1)
-            ratio = np.where(N > 1e-9, tn / np.maximum(mu * N, 1e-300), np.where(tn > 1e-9, np.inf, 0.0)) if mu > 0 else tn
-            k = int(np.argmax(ratio))
-            rec.update(mu=mu, flat=bool(flat), worst_ratio=float(ratio[k]), contact=k, N=float(N[k]), T=float(tn[k]),
-                       minN=float(N.min()), sumN=float(N.sum()), maxN=float(N.max()))
-        out.write(json.dumps(rec) + "\n"); out.flush()
+
+
+def cone_record(path: str) -> dict:
+    """One file's record: exit status, seconds and, where a landing ran, its totals against the cone."""
+    spied: dict = {}
+    real = choice.landing
+
+    def spy(*args, **kwargs):  # keep the LandingResult and its scene
+        spied["result"], spied["scene"] = real(*args, **kwargs), args[1]
+        return spied["result"]
+
+    choice.landing = spy
+    t0 = time.perf_counter()
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            status = main(["evaluate", path, "--json"])
+    except BaseException as ex:  # a crash is a record too
+        status = f"raised {type(ex).__name__}"
+    finally:
+        choice.landing = real
+    record = {"file": os.path.basename(path), "status": status, "seconds": round(time.perf_counter() - t0, 1)}
+    if "result" in spied:
+        record.update(_against_the_cone(spied["result"], spied["scene"]))
+    return record
+
+
+def _against_the_cone(result, scene) -> dict:
+    """Per contact |sum T| / (mu sum N) (|sum T| without friction), the worst contact and the normal totals."""
+    N = np.asarray(result.total_external, float)
+    tn = np.linalg.norm(np.asarray(result.total_tangential, float).reshape(len(N), -1), axis=1)
+    mu = float(scene.friction)
+    flat = scene.terrain.is_flat and (scene.heightfield is None or scene.heightfield.is_flat)
+    if mu > 0:
+        ratio = np.where(N > 1e-9, tn / np.maximum(mu * N, 1e-300), np.where(tn > 1e-9, np.inf, 0.0))
+    else:
+        ratio = tn
+    k = int(np.argmax(ratio))
+    return dict(mu=mu, flat=bool(flat), worst_ratio=float(ratio[k]), contact=k, N=float(N[k]), T=float(tn[k]),
+                minN=float(N.min()), sumN=float(N.sum()), maxN=float(N.max()))
+
+
+if __name__ == "__main__":
+    with open(sys.argv[1], "a") as out:
+        for f in sys.argv[2:]:
+            out.write(json.dumps(cone_record(f)) + "\n")
+            out.flush()
