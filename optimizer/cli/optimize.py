@@ -134,6 +134,7 @@ def optimize(
         write_run_file,
         write_study_file,
     )
+    from optimizer.interrupts import interruptible
     from optimizer.search.inner import run_inner
     from optimizer.search.outer import finished_trials, open_study, run_outer
 
@@ -168,12 +169,13 @@ def optimize(
     started = time.perf_counter()
     status = EXIT_OK
     try:
-        if inner:
-            run_inner(study, config, progress)
-        elif workers == 1:
-            run_outer(study, config, config.search.trials, progress)
-        else:
-            run_workers(study, config, run_dir, workers, progress)
+        with interruptible():
+            if inner:
+                run_inner(study, config, progress)
+            elif workers == 1:
+                run_outer(study, config, config.search.trials, progress)
+            else:
+                run_workers(study, config, run_dir, workers, progress)
     except KeyboardInterrupt:
         status = EXIT_INTERRUPTED
     except Exception as e:  # a Ctrl-C that surfaced inside a C extension's call

@@ -69,8 +69,6 @@ in space): :mod:`optimizer.search.landing_inner`.
 from __future__ import annotations
 
 import math
-import signal
-import threading
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -105,7 +103,7 @@ from optimizer.search.compiled import (
     toe_yaws,
     vm_nlp,
 )
-from optimizer.errors import interrupted
+from optimizer.interrupts import check_interrupt, interruptible
 from optimizer.workers import cores, forked_pool
 from optimizer.search.outer import evaluate_design_over_landings, objective_values, record_attrs
 
@@ -225,9 +223,9 @@ def solve(
     try:
         sol = solver(**args)
     except RuntimeError:  # CasADi reports a KeyboardInterrupt raised inside IPOPT as an error
-        _check_interrupt()
+        check_interrupt()
         raise
-    _check_interrupt()
+    check_interrupt()
     success = bool(solver.stats()["success"])
     return Solution(
         np.array(sol["x"]).ravel(),
@@ -345,44 +343,6 @@ def epsilon_sweep(config: StudyConfig, nlp: ShapeNlp, rng: np.random.Generator) 
         if evaluation is not None:
             yield evaluation
             previous = s
-
-
-# --------------------------------------------------------------------------------------------
-# Interrupts: CasADi may swallow a KeyboardInterrupt raised inside a solve
-
-
-_INTERRUPTED = threading.Event()
-
-
-def _check_interrupt() -> None:
-    if _INTERRUPTED.is_set():
-        _INTERRUPTED.clear()
-        raise KeyboardInterrupt
-
-
-@contextmanager
-def interruptible() -> Iterator[None]:
-    """Within: a SIGINT sets a flag (checked after every solve) and raises KeyboardInterrupt,
-    so Ctrl-C stops a search within one solve even where CasADi catches the exception."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def on_sigint(signum: int, frame: object) -> None:
-        _INTERRUPTED.set()
-        raise KeyboardInterrupt
-
-    _INTERRUPTED.clear()
-    previous = signal.signal(signal.SIGINT, on_sigint)
-    try:
-        yield
-    except (SystemError, RuntimeError) as e:  # the KeyboardInterrupt surfaced inside a C call
-        if _INTERRUPTED.is_set() or interrupted(e):
-            raise KeyboardInterrupt from e
-        raise
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        _INTERRUPTED.clear()
 
 
 # --------------------------------------------------------------------------------------------
@@ -621,7 +581,6 @@ __all__ = [
     "build_nlp",
     "epsilon_sweep",
     "infeasible_key",
-    "interruptible",
     "planned_solves",
     "realise",
     "run_inner",

@@ -52,6 +52,7 @@ from optimizer.design_space import (
     symmetric_yaws,
 )
 from optimizer.evaluation.robust import statistics_over_landings_many
+from optimizer.interrupts import check_interrupt, interruptible
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
 
 #: User attributes every recorded trial carries.
@@ -363,6 +364,7 @@ def run_outer(
         asked = ask_batch(study, config, size, done, workers)
         try:
             evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked])
+            check_interrupt()  # a Ctrl-C that CasADi caught while the batch's graph was built
         except BaseException:
             for trial in asked:
                 study._storage.set_trial_user_attr(trial._trial_id, ATTR_INTERRUPTED, True)
@@ -399,7 +401,8 @@ def run_worker(config: StudyConfig, run_dir: str, trials: int, workers: int) -> 
 
     optuna.logging.set_verbosity(logging.WARNING)
     try:
-        return run_outer(open_study(config, storage_url(Path(run_dir), config)), config, trials, None, workers)
+        with interruptible():
+            return run_outer(open_study(config, storage_url(Path(run_dir), config)), config, trials, None, workers)
     except KeyboardInterrupt:
         return 0
 

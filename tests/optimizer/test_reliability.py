@@ -184,7 +184,7 @@ def test_a_ctrl_c_inside_a_c_extension_call_is_an_interrupt():
     NumPy conversion) surfaces as SystemError caused by it: footopt treats it as the Ctrl-C it is
     (exit 130), inside the inner search too; other errors stay errors."""
     from optimizer.errors import interrupted
-    from optimizer.search.inner import interruptible
+    from optimizer.interrupts import interruptible
 
     def surfaced() -> None:
         try:
@@ -201,6 +201,39 @@ def test_a_ctrl_c_inside_a_c_extension_call_is_an_interrupt():
     with pytest.raises(SystemError):
         with interruptible():
             raise SystemError("not an interrupt")
+
+
+def test_a_ctrl_c_that_casadi_swallows_still_stops_the_outer_search(tiny_outer_study, monkeypatch):
+    """A SIGINT whose KeyboardInterrupt is caught on its way (as CasADi's wrapper catches one
+    raised in a NumPy conversion while a graph is built) still stops the outer search after that
+    batch, its trials marked interrupted; nested blocks keep the outermost handler."""
+    import optuna
+    from optuna.trial import TrialState
+
+    import optimizer.search.outer as outer
+    from optimizer.interrupts import check_interrupt, interruptible
+
+    real = outer.evaluate_designs
+
+    def swallowing(config, designs):  # noqa: ANN001, ANN202
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except BaseException:  # noqa: BLE001 - what the C++ wrapper does
+            pass
+        return real(config, designs)
+
+    config = load_study(tiny_outer_study)
+    study = outer.open_study(config, optuna.storages.InMemoryStorage())
+    outer.run_outer(study, config, 8)  # one batch, not interrupted
+    before = signal.getsignal(signal.SIGINT)
+    monkeypatch.setattr(outer, "evaluate_designs", swallowing)
+    with pytest.raises(KeyboardInterrupt), interruptible(), interruptible():
+        outer.run_outer(study, config, 40)
+    states = [t.state for t in study.trials]
+    assert states.count(TrialState.COMPLETE) == 8 and states.count(TrialState.FAIL) == outer.OUTER_BATCH
+    assert all(t.user_attrs.get(outer.ATTR_INTERRUPTED) for t in study.trials if t.state is TrialState.FAIL)
+    assert signal.getsignal(signal.SIGINT) is before
+    check_interrupt()  # the flag ends with the block
 
 
 def test_the_command_line_exits_130_on_a_surfaced_interrupt(monkeypatch, capsys):

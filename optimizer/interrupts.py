@@ -1,0 +1,54 @@
+"""Ctrl-C during a search: CasADi may swallow the KeyboardInterrupt a SIGINT raises.
+
+A KeyboardInterrupt raised inside a Python callback that CasADi's wrapper calls (a NumPy
+conversion while a graph is built, IPOPT's iteration) can be caught there and lost, and the
+search then runs on to its end. Within :func:`interruptible` a SIGINT also sets a flag, which
+:func:`check_interrupt` turns back into the KeyboardInterrupt after each batch or solve.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from optimizer.errors import interrupted
+
+_INTERRUPTED = threading.Event()
+
+
+def _on_sigint(signum: int, frame: object) -> None:
+    _INTERRUPTED.set()
+    raise KeyboardInterrupt
+
+
+def check_interrupt() -> None:
+    """Raise KeyboardInterrupt when a Ctrl-C came within :func:`interruptible`, even one that
+    something caught on its way (it stays raised until the outermost block ends)."""
+    if _INTERRUPTED.is_set():
+        raise KeyboardInterrupt
+
+
+@contextmanager
+def interruptible() -> Iterator[None]:
+    """Within: a SIGINT sets the flag :func:`check_interrupt` reads and raises KeyboardInterrupt,
+    and an error a C extension raised because of it is the KeyboardInterrupt. Nests (the
+    outermost block installs the handler); outside the main thread it only converts errors."""
+    outermost = threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is not _on_sigint
+    if outermost:
+        _INTERRUPTED.clear()
+        previous = signal.signal(signal.SIGINT, _on_sigint)
+    try:
+        yield
+    except (SystemError, RuntimeError) as e:  # the KeyboardInterrupt surfaced inside a C call
+        if _INTERRUPTED.is_set() or interrupted(e):
+            raise KeyboardInterrupt from e
+        raise
+    finally:
+        if outermost:
+            signal.signal(signal.SIGINT, previous)
+            _INTERRUPTED.clear()
+
+
+__all__ = ["check_interrupt", "interruptible"]
