@@ -1,5 +1,5 @@
 """``python -m optimizer``: the ``footopt`` command line."""
 
-from optimizer.cli.main import main
+from optimizer.cli.entry import main
 
 raise SystemExit(main())

@@ -34,6 +34,7 @@ from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_U
 from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
 from optimizer.errors import ConfigError, interrupted
+from optimizer.interrupts import check_interrupt, interruptible
 from impulse_core.timedomain.landing import LandingProgress, LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown, plot_views
@@ -242,7 +243,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as e:  # --help, --version (0) and usage errors (2, message already printed)
         return e.code if isinstance(e.code, int) else EXIT_OK if e.code is None else EXIT_USAGE
     try:
-        return int(args.run(args))
+        with interruptible():
+            return int(args.run(args))
     except KeyboardInterrupt:
         print("footopt: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -527,6 +529,7 @@ class _LandingBar:
             self.bar.close()
 
     def show(self, p: LandingProgress) -> None:
+        check_interrupt()  # after each step and event: a Ctrl-C CasADi swallowed while the landing was built
         if self.bar is None:
             from tqdm import tqdm
 
@@ -557,6 +560,7 @@ class _ScenarioBar:
             self.bar.close()
 
     def show(self, done: int, of: int) -> None:
+        check_interrupt()
         if self.bar is None:
             from tqdm import tqdm
 

@@ -236,6 +236,68 @@ def test_a_ctrl_c_that_casadi_swallows_still_stops_the_outer_search(tiny_outer_s
     check_interrupt()  # the flag ends with the block
 
 
+def test_a_ctrl_c_that_casadi_swallows_while_a_landing_is_built_stops_footopt_evaluate(monkeypatch, capsys):
+    """``footopt evaluate`` of a whole landing: a SIGINT whose KeyboardInterrupt is caught while
+    the landing's functions are built (as CasADi's wrapper may) ends it at its first step (130)."""
+    import impulse_core.timedomain.landing as landing_module
+
+    real = landing_module.landing_function
+    built: list[int] = []
+
+    def swallowing(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except BaseException:  # noqa: BLE001 - what the C++ wrapper does
+            pass
+        built.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(landing_module, "landing_function", swallowing)
+    before = signal.getsignal(signal.SIGINT)
+    assert main(["evaluate", str(REPO / "configs" / "landing_case3.yaml"), "--json"]) == 130
+    out = capsys.readouterr()
+    assert built and out.out == "" and "footopt: interrupted" in out.err
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_a_ctrl_c_while_footopt_loads_is_an_interrupt(monkeypatch, capsys):
+    """The ``footopt`` program loads its command line inside the Ctrl-C guard: an interrupt while
+    modules load (or an ImportError an extension raised because of it) exits 130, one line; other
+    import errors stay errors. The package itself loads nothing heavy (its names come on use)."""
+    import types
+
+    import optimizer
+    from optimizer.cli import entry
+
+    class Interrupting(types.ModuleType):
+        def __getattr__(self, name: str) -> object:
+            raise self.error
+
+    for error, status in ((KeyboardInterrupt(), 130), (ImportError("numpy"), None)):
+        if status is None:
+            error.__context__ = None
+        module = Interrupting("optimizer.cli.main")
+        module.error = error
+        monkeypatch.setitem(sys.modules, "optimizer.cli.main", module)
+        if status is None:
+            with pytest.raises(ImportError):
+                entry.main()
+        else:
+            assert entry.main() == status and capsys.readouterr().err.strip() == "footopt: interrupted"
+    surfaced = ImportError("PyCapsule_Import could not import module \"datetime\"")
+    surfaced.__context__ = KeyboardInterrupt()
+    module = Interrupting("optimizer.cli.main")
+    module.error = surfaced
+    monkeypatch.setitem(sys.modules, "optimizer.cli.main", module)
+    assert entry.main() == 130
+    assert optimizer.load_model_file.__module__ == "optimizer.config.model_file"
+    with pytest.raises(AttributeError):
+        optimizer.no_such_name  # noqa: B018
+    loaded = subprocess.run([sys.executable, "-c", "import sys, optimizer.cli.entry; print(sorted(sys.modules))"],
+                            capture_output=True, text=True, check=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert "matplotlib" not in loaded.stdout and "casadi" not in loaded.stdout
+
+
 def test_the_command_line_exits_130_on_a_surfaced_interrupt(monkeypatch, capsys):
     import optimizer.cli.main as cli
 
