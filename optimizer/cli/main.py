@@ -632,6 +632,7 @@ def _scaling_with_progress(sizes: tuple[int, ...], batch: int, cache: Path | Non
         for n in sizes:
             bar.set_postfix_str(f"{n} bodies")
             rows += scaling_series((n,), batch=batch, cache_dir=cache)
+            check_interrupt()  # a Ctrl-C that CasADi swallowed while this tree's graph was built
             bar.update(1)
     return rows
 
