@@ -654,6 +654,36 @@ def test_an_arrest_leaves_a_fast_slip_that_the_impacts_mode_calls_sticking_slidi
     assert np.all(fn >= -1e-3 * scale) and np.all(np.hypot(fn, ft) < scale), (fn, ft)
 
 
+def test_a_slow_slip_square_to_its_acceleration_stops_and_slides_again_from_rest():
+    """Random file 32113 (data/turning_slip_32113.yaml: friction 0.5, a 25 g rod's tip the only
+    closed contact) at its first refused arrest (data/turning_slip_32113_state.json): the tip
+    slides at 1e-7 m/s and no mode with it sticking holds. Left sliding, its acceleration was
+    square to its slip whichever way it was flagged: the slip turned by a right angle at each
+    event, 1e-8 s apart, until the stall error (exit 1). Its rows are well conditioned and
+    stopping it takes a slight impulse, so the arrest takes it (:meth:`_Landing.slight_arrest`):
+    the slip is zero, every impulse below PLASTIC_SPEED times the tree's mass and no pull beyond
+    a thousandth of that, the momentum changes by the counted impulses, and the mode after slides
+    the tip from rest along a slip its acceleration follows. The landing now ends (estimate 8e-4)."""
+    from impulse_core.timedomain.landing import PLASTIC_SPEED
+
+    run, totals, kept, mode = _kept_state("turning_slip_32113")
+    q, v = kept["q"], kept["v"]
+    normal, tangential, impulse = totals.normal.copy(), totals.tangential.copy(), totals.impulse.copy()
+    p0 = run.point(q, v).momentum[:, 0]
+    assert 0 < np.linalg.norm(run.point(q, v).slip[kept["turned"]]) < PLASTIC_SPEED
+    q1, v1 = run.arrest(q, v, mode, totals)
+    assert v1 is not v and not run.refused.size
+    assert np.linalg.norm(run.point(q1, v1).slip[kept["turned"]]) < 1e-12
+    fn, ft = totals.normal - normal, np.linalg.norm(totals.tangential - tangential, axis=1)
+    scale = PLASTIC_SPEED * run.mass
+    assert np.all(fn >= -1e-3 * scale) and np.all(np.hypot(fn, ft) < scale), (fn, ft)
+    change = run.point(q1, v1).momentum[:, 0] - p0
+    assert np.max(np.abs(change - (totals.impulse - impulse))) < 1e-12 * max(1.0, np.max(np.abs(p0)))
+    q2, v2, after = run.modes_after(q1, v1, mode, 0.2142, totals, v)
+    assert after.closed[kept["turned"]].all() and after.sliding[kept["turned"]].all()
+    assert not run.wrong_slip(run.point(q2, v2), v2, after, 0.0)[0].any()
+
+
 def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall():
     """Random file 30891 (data/refused_30891.yaml: friction 1, three rods on flat ground): at
     0.0643 s contact 0 (b2[0]) slides at 2e-6 m/s and its slip turns past a right angle every
