@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from impulse_core.errors import NumericalError
-from impulse_core.impact.coulomb import ContactMode, scaled_lemke
+from impulse_core.impact.coulomb import ContactMode, scaled_lemke, unloaded_without_friction
 
 #: Sides of the polygon that stands for the cone in stage 1.
 POLYGON = 16
@@ -111,7 +111,7 @@ def _polyhedral(W, u, owner, e, mu, k: int = POLYGON, kernel=None):
     z = scaled_lemke(M, q, np.concatenate([s, np.repeat(s[owner], k), 1.0 / s[owner]]), u, "the polyhedral Coulomb impact LCP",
                      kernel)
     t = G @ z[n : n + m * k]
-    return z[:n], np.column_stack([t[:m], t[m:]])
+    return z[:n], unloaded_without_friction(z[:n], np.column_stack([t[:m], t[m:]]), owner)
 
 
 def law_residuals(

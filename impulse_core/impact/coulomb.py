@@ -214,18 +214,34 @@ def solve_unilateral(
     # the compiled LCP, scaling and first Lemke path (the same numbers); else, or on a ray, Python's
     z = None if kernel is None or not n + m else kernel.unilateral(W, u, owner, restitution, mu, LEMKE_TOL)
     if z is not None:
-        normal, tangential = z[:n], z[n : n + m] - z[n + m : n + 2 * m]
-        velocity = u + W @ np.concatenate([normal, tangential])
-        return UnilateralSolution(normal, tangential, velocity, z[n + 2 * m :])
+        return _solution(z, W, u, owner)
     M, q = unilateral_lcp(W, u, owner, restitution, mu)
     # Diagonal scaling z = D z', w' = D w with D = (s, s, s, 1/s), s_i = 1/sqrt(W_nn,ii): the velocity
     # blocks get a unit diagonal and the cone and slip blocks stay mu and 1, whatever the units.
     s = 1.0 / np.sqrt(np.maximum(np.abs(np.diag(W)[:n]), np.finfo(float).tiny))
     st = s[owner]
     z = scaled_lemke(M, q, np.concatenate([s, st, st, 1.0 / st]), u, "the unilateral LCP", kernel)
-    normal, tangential = z[:n], z[n : n + m] - z[n + m : n + 2 * m]
+    return _solution(z, W, u, owner)
+
+
+def _solution(z: np.ndarray, W: np.ndarray, u: np.ndarray, owner: np.ndarray) -> UnilateralSolution:
+    """The impulses and velocities of the unilateral LCP's answer ``z``."""
+    n, m = len(u) - len(owner), len(owner)
+    normal = z[:n]
+    tangential = unloaded_without_friction(normal, z[n : n + m] - z[n + m : n + 2 * m], owner)
     velocity = u + W @ np.concatenate([normal, tangential])
     return UnilateralSolution(normal, tangential, velocity, z[n + 2 * m :])
+
+
+def unloaded_without_friction(normal: np.ndarray, tangential: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """``tangential`` (per friction row, along its first axis) with the rows of contacts that carry
+    no normal impulse zeroed: Coulomb's law, |t| <= mu n, leaves them none, where Lemke's basic
+    friction variables keep rounding's 1e-17 (random file 32064: a first impact with no normal
+    impulse had 1.6e-17 N s of friction, which the first-impact rung, solving nothing, did not)."""
+    loaded = normal[owner] > 0
+    if loaded.all():
+        return tangential
+    return np.where(loaded.reshape(-1, *[1] * (tangential.ndim - 1)), tangential, 0.0)
 
 
 def coulomb_impact(W: np.ndarray, v_minus: np.ndarray, restitution: float, mu: float) -> CoulombImpact:
@@ -277,5 +293,6 @@ __all__ = [
     "lemke",
     "scaled_lemke",
     "solve_unilateral",
+    "unloaded_without_friction",
     "unilateral_lcp",
 ]

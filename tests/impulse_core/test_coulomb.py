@@ -300,3 +300,30 @@ def test_derivatives_along_the_mode_equal_finite_differences() -> None:
     report("coulomb", f"derivatives along the mode vs central differences: {checked} columns, worst {worst:.1e}, "
            f"modes {sorted(m.value for m in modes)}")  # fmt: skip
     assert checked >= 40 and {ContactMode.STICKING, ContactMode.SLIDING} <= modes
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_a_contact_without_normal_impulse_takes_no_friction(seed: int) -> None:
+    """Coulomb's law, |t| <= mu n: a contact the law leaves without normal impulse (it moves away)
+    has exactly no tangential impulse, in the plane (Lemke's LCP) and in space (the cone's
+    polygon, then Newton), not the 1e-17 that Lemke's basic friction variables can keep."""
+    from impulse_core.impact.cone import cone_unilateral
+    from impulse_core.impact.coulomb import solve_unilateral
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 5))
+    for tangents in (1, 2):
+        A = rng.normal(size=(n * (1 + tangents), n * (1 + tangents)))
+        W = A @ A.T + 0.1 * np.eye(len(A))
+        u = rng.normal(size=len(A))
+        u[: n // 2] = np.abs(u[: n // 2]) + 0.5  # some contacts move away
+        e, mu, owner = np.full(n, 0.5), np.full(n, float(rng.choice([0.3, 1.0]))), np.arange(n)
+        if tangents == 1:
+            sol = solve_unilateral(W, u, owner, e, mu)
+            normal, tangential = sol.normal, sol.tangential[:, None]
+        else:
+            law = cone_unilateral(W, u, owner, e, mu)
+            normal, tangential = law.normal, law.tangential
+        unloaded = normal <= 0
+        assert not np.any(tangential[unloaded]), (tangents, normal, tangential)
+        assert np.all(np.linalg.norm(tangential, axis=1) <= mu * normal + 1e-12)

@@ -137,6 +137,29 @@ def test_first_event_is_the_first_impact(friction):
     assert np.max(np.abs(e.v_plus - first.v_plus)) <= 1e-9 * np.max(np.abs(first.v_plus))
 
 
+def test_a_first_impact_without_normal_impulse_has_no_friction_either():
+    """Random file 32064 (data/separating_first_32064.yaml: friction 0.5, its lowest contact moving
+    up at touchdown): the first-impact rung gives no impulse at all. The landing's first event
+    solved the LCP of its touching contacts and kept Lemke's rounding in the friction variables:
+    1.6e-17 N s of friction at a contact without normal impulse (Coulomb's law allows none) and
+    the internal impulses it made, whose relative difference (MODEL_FORMAT) from the all-zero
+    answer is infinite. Now the lists are the first-impact answer's zeros exactly, and every
+    impact of the run leaves unloaded contacts without friction."""
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(Path(__file__).parent / "data" / "separating_first_32064.yaml")
+    scene = model.scene
+    r = _Landing(model.tree, scene, model.joints, LandingSettings()).run(2e-3)
+    first = evaluate(model.tree, scene, ImpactModel.FRICTION)
+    e = r.events[0]
+    assert e.time == 0.0 and len(r.events) > 1
+    for ours, theirs in ((e.external, first.external), (e.tangential, first.tangential),
+                         (e.internal_magnitude, first.internal_magnitude)):
+        assert not np.any(theirs) and not np.any(ours), ours
+    for event in r.events:
+        assert not np.any(event.tangential[event.external <= 0]), event.time
+
+
 def _random_leg(seed: int) -> tuple[Tree, tuple[JointLaw, ...], Scene]:
     """A thigh, a shank with a sprung, damped knee with stops, and 1-3 sprung toes and a heel."""
     rng = np.random.default_rng(seed)
