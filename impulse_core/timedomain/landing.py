@@ -320,6 +320,7 @@ class LandingResult:
         energy_before: kinetic energy just before the first touchdown (J).
         energy_final: kinetic plus spring energy at T (J).
         gravity_work: work of gravity over [0, T] (J).
+        spring_energy: the springs' energy at touchdown (J; 0 where each is at rest there).
         duration, step: the landing's length and the Runge-Kutta step of this run (s).
         n_steps: accepted steps.
         error_estimate: relative difference from the run at half the step (None: not estimated).
@@ -348,6 +349,7 @@ class LandingResult:
     n_steps: int
     error_estimate: float | None = None
     tolerance: float | None = None
+    spring_energy: float = 0.0
     trajectory: tuple[np.ndarray, np.ndarray] = field(default=(np.zeros(0), np.zeros((0, 0))), repr=False)
     model: str = MODEL_NAME
     integrator: str = RK4
@@ -381,9 +383,11 @@ class LandingResult:
 
     @property
     def energy_absorbed(self) -> float:
-        """Fraction of the energy brought in (kinetic at touchdown + gravity's work) that the
-        impacts, dampers and friction dissipated by T; the rest is kinetic or in the springs."""
-        brought = self.energy_before + self.gravity_work
+        """Fraction of the energy brought in (kinetic at touchdown, the springs' at touchdown and
+        gravity's work) that the impacts, dampers and friction dissipated by T; the rest is kinetic
+        or in the springs. Springs wound at touchdown count: without them a spring unwinding made
+        the fraction negative (-285 for a spring holding 1.8 J against 0.006 J of motion)."""
+        brought = self.energy_before + self.spring_energy + self.gravity_work
         return 1.0 - self.energy_final / brought if brought > 0 else 0.0
 
     # The first event under the names every impact result has (the first-impact answer), so that
@@ -2791,7 +2795,7 @@ class _Landing:
         # against 0.035 J of motion, and a landing without gravity stopped as diverged).
         weight = sum(b.mass for b in self.tree.bodies) * self.scene.gravity
         reach = sum(b.length for b in self.tree.bodies)
-        wound = self.joints.energy(q)
+        wound = self.joints.energy(self.q0)  # the springs at touchdown
         cap = 10.0 * (energy_before + wound + weight * (height0 + reach + 10.0 * T * self.scene.speed)) + 1e-6
         t, stalled, repeated, again = 0.0, 0, 0, False
         self.record(totals, t, v, t, q, v)
@@ -2915,7 +2919,7 @@ class _Landing:
         balance = float(np.max(np.abs(residual))) / reference
         out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
         self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
-        return replace(out, momentum_balance=balance, duration=end)
+        return replace(out, momentum_balance=balance, duration=end, spring_energy=wound)
 
     def budget_message(self, events: list[LandingEvent], t: float) -> str:
         """Why a run passed its impact budget at ``t``: the contact (or stop) that took most of

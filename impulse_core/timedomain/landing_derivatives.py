@@ -92,7 +92,7 @@ event sequence:
 * the speed sets the approach velocity v0 (:func:`~impulse_core.evaluate.pre_impact_velocity`:
   the base origin's [velocity_x, -speed(, velocity_z)] and the angular velocity along the base's
   DOFs, linear in the speed): the sensitivities start with dv0/dspeed, and the energy touchdown
-  brings (``energy_absorbed``'s denominator) is the kinetic energy at v0. The tolerances it
+  brings (``energy_absorbed``'s denominator) is the kinetic energy at v0 and the springs' at q0. The tolerances it
   scales (the slip floor, 1e-9 max(1, speed) m/s) are thresholds of decisions, not differentiated.
 * a row's restitution is the scene's at a contact and its joint's ``stop_restitution`` at a stop,
   0 where the plastic rules zeroed it (approaching slower than
@@ -1075,13 +1075,15 @@ def landing_gradient(
     lowest = int(np.argmin(clearance))
     v0 = pre_impact_velocity(run.topology, scene, run.space)
     dv0 = pre_impact_velocity(run.topology, Scene(speed=1.0), run.space)  # d v0 / d speed (v0 is linear in it)
-    (q0, e_before, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(p, v0)
-    d_e_before, d_height0, d_mass = (_lift(Jo[0], n) for Jo in J[1:])  # 1 x n each
-    d_e_before[0, speed_col] += float((J[1][1] @ dv0)[0])
+    (q0, _, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(p, v0)
+    d_height0, d_mass = (_lift(Jo[0], n) for Jo in J[2:])  # 1 x n each
     # forward sensitivities: each quantity z carries dz/d(theta, scene values) (rows: its entries)
     x = np.concatenate([q0, v0])
     S = np.vstack([_lift(J[0][0], n), np.zeros((nv, n))])
     S[nv:, speed_col] = dv0
+    # energy_absorbed's energy brought at touchdown: kinetic at v0 and the springs' at q0
+    (e_touch, _, _), J_touch = sym.final()(x, p)
+    d_e_touch = _ahead(J_touch[0][0], S, J_touch[0][1])
     totals, S_totals = np.zeros(dims * nc), np.zeros((dims * nc, n))
     # space: the slip directions the mode carries, and the last step's core (:meth:`_Landing.steer`)
     nd = sym.nt * nc
@@ -1183,8 +1185,8 @@ def landing_gradient(
         previous = kind
     (energy, com, angles), J = sym.final()(x, p)
     d_energy, d_com, d_angles = (_ahead(Jo[0], S, Jo[1]) for Jo in J)
-    brought = e_before[0] + float(mass[0]) * scene.gravity * (height0[0] - com[0])
-    d_brought = d_e_before[0] + scene.gravity * (d_mass[0] * (height0[0] - com[0]) + float(mass[0]) * (d_height0[0] - d_com[0]))
+    brought = e_touch[0] + float(mass[0]) * scene.gravity * (height0[0] - com[0])
+    d_brought = d_e_touch[0] + scene.gravity * (d_mass[0] * (height0[0] - com[0]) + float(mass[0]) * (d_height0[0] - d_com[0]))
     absorbed = 1.0 - energy[0] / brought
     d_absorbed = -(d_energy[0] * brought - energy[0] * d_brought) / brought**2
 

@@ -587,7 +587,7 @@ def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
         "total normal impulse over the landing [N s]: "
         + ", ".join(f"{n} {_num(x)}" for n, x in zip(names, r.total_external, strict=True)),
         f"settled (every velocity below 1e-3) {settled}; energy absorbed {100 * r.energy_absorbed:.1f}% of "
-        "the touchdown kinetic energy plus gravity's work",
+        "the touchdown kinetic and spring energy plus gravity's work",
         "final angles [rad]: " + ", ".join(f"{n} {a:.4f}" for n, a in zip(angle_names, r.final_angles, strict=True)),
         "final base origin [m]: " + ", ".join(f"{n} {x:.4f}" for n, x in zip("xyz", r.final_base)),
         f"accuracy: error estimate {estimate} (tolerance {r.tolerance:g}), "

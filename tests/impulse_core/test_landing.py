@@ -166,13 +166,18 @@ def test_a_spring_wound_at_touchdown_may_bring_more_energy_than_the_motion():
     gravity bring and stopped such landings as diverged (random file 32069: 0.94 J in a spring
     against 0.035 J of motion, exit 1 at every step). The springs' energy at touchdown counts
     now: the landing ends, no energy enters (the final energy at most the touchdown's kinetic
-    plus the spring's) and the momentum balances."""
+    plus the spring's), the momentum balances, and ``energy_absorbed`` is a fraction of all the
+    energy brought, the spring's included."""
     tree = Tree((Body("base", None, 0.11, 0.06, 1.75), Body("rod", 0, 0.185, 0.08, 0.7, contacts=(1.0,))))
     spring = JointLaw(stiffness=40.0, rest=1.0)
     r = landing(tree, Scene(speed=0.3, restitution=0.0, gravity=0.0, duration=0.03), (FREE, spring), LandingSettings())
     wound = 0.5 * 40.0 * 0.3**2
     assert r.energy_final > 10.0 * r.energy_before  # what the old cap called a divergence
     assert r.energy_final <= r.energy_before + wound + 1e-9 and r.momentum_balance <= 1e-4
+    # the energy brought counts the wound spring (it was -285 without: 1.8 J unwound against 0.006 J)
+    assert r.spring_energy == pytest.approx(wound, rel=1e-12)
+    assert r.energy_absorbed == pytest.approx(1.0 - r.energy_final / (r.energy_before + wound), rel=1e-12)
+    assert 0.0 <= r.energy_absorbed <= 1.0
 
 
 def _random_leg(seed: int) -> tuple[Tree, tuple[JointLaw, ...], Scene]:
