@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from impulse_core.timedomain.landing_derivatives import sequence_signature, taped_run
+from impulse_core.timedomain.landing_derivatives import sequence_signature
 from optimizer.config.study_config import ConfigError, load_study
 from optimizer.design_space import FootShape, Objective
 from optimizer.search.landing_inner import (
@@ -101,7 +101,7 @@ def test_the_nlp_statistics_are_the_outer_search_evaluation_over_the_landings(tm
         assert realised.objectives.value(o) == pytest.approx(outer.objectives.value(o), rel=1e-6)
 
 
-def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(tmp_path):
+def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(tmp_path, taped_once):
     """Per scenario (each along its own event sequence, unchanged at +-eps), and the statistics
     mean and std (smooth) through the NLP's graph; the nominal-scene statistic would differ."""
     nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}")
@@ -110,7 +110,7 @@ def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(
 
     def sequences(x):
         t, l, scenes = landed.models(x)
-        return [sequence_signature(*taped_run(t, s, l, h, settings)[1:]) for s, h in zip(scenes, nlp.steps, strict=True)]
+        return [sequence_signature(*taped_once(t, s, l, h, settings)[1:]) for s, h in zip(scenes, nlp.steps, strict=True)]
 
     stats, J, _callback = statistic_functions(nlp, landed)  # the callback lives as long as they are called
     dJ = np.asarray(J(x0))

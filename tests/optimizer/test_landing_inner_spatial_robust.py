@@ -16,7 +16,7 @@ import pytest
 
 from impulse_core.kinematics.spatial import SPATIAL
 from impulse_core.timedomain.landing import landing
-from impulse_core.timedomain.landing_derivatives import sequence_signature, taped_run
+from impulse_core.timedomain.landing_derivatives import sequence_signature
 from optimizer.config.study_config import ConfigError, load_study
 from optimizer.design_space import FootShape, Objective, design_model
 from optimizer.search.landing_inner import (
@@ -86,7 +86,7 @@ def test_the_spatial_nlp_scores_each_scenario_and_the_outer_search_statistics(tm
         assert nlp_f[j] == pytest.approx(o.sign * outer.objectives.value(o), rel=1e-9, abs=1e-12), o
 
 
-def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_statistic(tmp_path):
+def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_statistic(tmp_path, taped_once):
     """Per scenario (each along its own spatial event sequence, unchanged at +-eps; a level
     direction and the toe's yaw alone), and the statistics mean and std through the NLP's graph."""
     nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}")
@@ -96,7 +96,7 @@ def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_st
 
     def sequences(x):
         t, l, scenes = landed.models(x)
-        return [sequence_signature(*taped_run(t, s, l, h, settings, SPATIAL)[1:])
+        return [sequence_signature(*taped_once(t, s, l, h, settings, SPATIAL)[1:])
                 for s, h in zip(scenes, nlp.steps, strict=True)]
 
     stats, J, _callback = statistic_functions(nlp, landed)  # the callback lives as long as they are called
