@@ -123,19 +123,20 @@ def test_landing_plot_is_written(tmp_path, capsys):
     assert f"plot: {out}" in capsys.readouterr().out
 
 
-def test_animate_writes_a_gif_of_the_landing(tmp_path, capsys):
-    """--animate: one frame per evenly spaced time, the leg moving between frames; a first-impact
-    result or a wrong suffix is refused naming --animate, exit 2."""
+def test_animate_writes_a_gif_of_the_landing(tmp_path, monkeypatch, capsys):
+    """--animate: one frame per evenly spaced time (5 here), the leg moving between frames; a
+    first-impact result or a wrong suffix is refused naming --animate, exit 2."""
     from PIL import Image, ImageChops
 
-    from optimizer.report.landing_plot import ANIMATION_FRAMES
+    import optimizer.report.landing_plot as landing_plot
 
+    monkeypatch.setattr(landing_plot, "ANIMATION_FRAMES", 5)
     model = _landing_file(tmp_path, friction=0.3, duration=0.02)
     gif = tmp_path / "landing.gif"
     assert main(["evaluate", str(model), "--animate", str(gif)]) == 0
     assert f"animation: {gif}" in capsys.readouterr().out
     with Image.open(gif) as image:
-        assert image.n_frames == ANIMATION_FRAMES
+        assert image.n_frames == 5
         first = image.convert("RGB")
         image.seek(image.n_frames - 1)
         assert ImageChops.difference(first, image.convert("RGB")).getbbox() is not None  # it moved
