@@ -110,7 +110,8 @@ def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(
 
     def sequences(x):
         t, l, scenes = landed.models(x)
-        return [sequence_signature(*taped_once(t, s, l, h, settings)[1:]) for s, h in zip(scenes, nlp.steps, strict=True)]
+        return [sequence_signature(*taped_once(t, s, l, h, settings)[1:])
+                for s, h in zip(scenes, nlp.steps, strict=True)]
 
     stats, J, _callback = statistic_functions(nlp, landed)  # the callback lives as long as they are called
     dJ = np.asarray(J(x0))
