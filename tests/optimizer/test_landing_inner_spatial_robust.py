@@ -53,8 +53,9 @@ def _drawn(config) -> dict[str, np.ndarray]:
 
 
 @pytest.mark.parametrize("statistic", ["{peak_external_norm: max, energy_absorbed: mean}",
-                                       "{peak_external_norm: 'cvar:0.5', energy_absorbed: std}"],
-                         ids=["max_mean", "cvar_std"])
+                                       pytest.param("{peak_external_norm: 'cvar:0.5', energy_absorbed: std}",
+                                                    marks=pytest.mark.slow)],
+                         ids=["max_mean", "cvar_std"])  # cvar, std by default: in the plane (test_landing_inner_robust)
 def test_the_spatial_nlp_scores_each_scenario_and_the_outer_search_statistics(tmp_path, statistic, taped_once):
     nlp = _nlp(tmp_path, statistic)
     cfg = nlp.config
