@@ -65,7 +65,7 @@ class _Terminal(io.StringIO):
 def test_a_landing_shows_its_progress_on_a_terminal_only(tmp_path, capsys, monkeypatch):
     """On a terminal, stderr shows each run of the step halving (its step, t of the duration, the
     impacts) and clears it; elsewhere stderr stays empty; stdout's JSON is the same either way."""
-    path = _landing_file(tmp_path, 0.5, duration=0.02)
+    path = _landing_file(tmp_path, 0.5, duration=0.01)
     plain = _json(capsys, str(path))
     assert capsys.readouterr().err == ""
     terminal = _Terminal()
@@ -74,7 +74,7 @@ def test_a_landing_shows_its_progress_on_a_terminal_only(tmp_path, capsys, monke
     assert json.loads(capsys.readouterr().out) == plain
     shown = terminal.getvalue()
     lines = [line for line in shown.split("\r") if line.strip()]
-    assert lines and all(line.startswith("landing, run ") and " of 0.02 s, " in line and " impacts" in line
+    assert lines and all(line.startswith("landing, run ") and " of 0.01 s, " in line and " impacts" in line
                          for line in lines)
     assert any(f"(step {plain['landing']['step']:.3g} s)" in line for line in lines)  # the last run's step
     assert shown.rstrip("\r").split("\r")[-1].strip() == ""  # the bar is gone
