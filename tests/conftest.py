@@ -217,16 +217,16 @@ def leg() -> Tree:
 # --------------------------------------------------------------------------------------------
 # Slow cases: a test's further parametrizations (``@pytest.mark.slow``), run with ``--slow``
 # --------------------------------------------------------------------------------------------
-def pytest_addoption(parser):
+def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--slow", action="store_true",
                      help="also run the cases marked slow (a test's further parametrizations)")
 
 
-def pytest_configure(config):
+def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "slow: a further case of a test whose first runs by default; run with --slow")
 
 
-def pytest_collection_modifyitems(config, items):
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Without ``--slow`` the cases marked slow are skipped (each test keeps a case by default)."""
     if config.getoption("--slow"):
         return
