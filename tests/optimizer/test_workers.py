@@ -51,9 +51,9 @@ def _check_study(run: Path, config_storage: str | None, target: int, workers: in
 
 def test_two_workers_share_the_journal_file(tmp_path: Path, capsys):
     study = tmp_path / "w.yaml"
-    study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 30"), encoding="utf-8")
+    study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 16"), encoding="utf-8")
     assert main(["optimize", str(study), "--out", str(tmp_path / "run"), "--workers", "2", "--quiet"]) == 0
-    _check_study(tmp_path / "run", None, 30, 2)
+    _check_study(tmp_path / "run", None, 16, 2)
 
 
 @pytest.mark.parametrize("burst_after", [1, 2, 3, 4])
