@@ -215,6 +215,28 @@ def leg() -> Tree:
 
 
 # --------------------------------------------------------------------------------------------
+# Slow cases: a test's further parametrizations (``@pytest.mark.slow``), run with ``--slow``
+# --------------------------------------------------------------------------------------------
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--slow", action="store_true",
+                     help="also run the cases marked slow (a test's further parametrizations)")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "slow: a further case of a test whose first runs by default; run with --slow")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Without ``--slow`` the cases marked slow are skipped (each test keeps a case by default)."""
+    if config.getoption("--slow"):
+        return
+    skip = pytest.mark.skip(reason="slow case: run with --slow")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)
+
+
+# --------------------------------------------------------------------------------------------
 # Report: tests record what they measured; it is printed at the end of the run.
 # --------------------------------------------------------------------------------------------
 REPORT: dict[str, list[str]] = defaultdict(list)

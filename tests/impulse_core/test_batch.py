@@ -68,8 +68,11 @@ def _designs(seed: int, rows: int = 24) -> tuple[Tree, np.ndarray]:
     return tree, P
 
 
-@pytest.mark.parametrize("compiled", PATHS, ids=["compiled", "vm"])
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed, compiled", [
+    pytest.param(0, True, marks=PATHS[0].marks, id="0-compiled"), pytest.param(0, False, id="0-vm"),
+    pytest.param(1, True, marks=[*PATHS[0].marks, pytest.mark.slow], id="1-compiled"),
+    pytest.param(1, False, id="1-vm"),
+])  # seed 1 compiled to C (a second compile) with --slow
 def test_rows_equal_evaluate_where_newton(compiled, seed, tmp_path) -> None:
     tree, P = _designs(seed)
     evaluator = batch_evaluator(tree.topology(), tmp_path if compiled else None, gradient=True)

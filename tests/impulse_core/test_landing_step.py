@@ -144,13 +144,20 @@ def test_c_equals_the_virtual_machine(tmp_path, monkeypatch):
     compiled_step_function.cache_clear()  # the next test's C comes from the default cache
 
 
-@pytest.mark.parametrize("code", [VM_CODE, C_CODE])
-def test_a_landing_runs_alike_on_every_step_code(code):
-    """Case 3 for 0.1 s at a coarse step (impacts, toe bounces, stops, sliding): the compiled
-    steps take the numpy run's decisions (steps, events) and land 1e-10 from it."""
+@pytest.fixture(scope="module")
+def case3_on_numpy() -> tuple:
+    """Case 3 for 0.1 s at a coarse step: (tree, laws, scene) and its landing on the numpy step,
+    the reference of every compiled code (landed once)."""
     tree, laws, scene = _case3()
     scene = replace(scene, duration=0.1)
-    ref = _Landing(tree, scene, laws, LandingSettings(step_code=NUMPY_CODE)).run(2e-3)
+    return (tree, laws, scene), _Landing(tree, scene, laws, LandingSettings(step_code=NUMPY_CODE)).run(2e-3)
+
+
+@pytest.mark.parametrize("code", [VM_CODE, C_CODE])
+def test_a_landing_runs_alike_on_every_step_code(code, case3_on_numpy):
+    """Case 3 for 0.1 s at a coarse step (impacts, toe bounces, stops, sliding): the compiled
+    steps take the numpy run's decisions (steps, events) and land 1e-10 from it."""
+    (tree, laws, scene), ref = case3_on_numpy
     r = _Landing(tree, scene, laws, LandingSettings(step_code=code)).run(2e-3)
     assert (r.n_steps, len(r.events)) == (ref.n_steps, len(ref.events))
     assert landing_difference(r, ref) <= 1e-10

@@ -188,7 +188,8 @@ def _shortened(case: tuple, duration: float) -> tuple:
     return tree, laws, replace(scene, duration=duration)
 
 
-@pytest.mark.parametrize("case", ["leg0", "leg1", "leg3", "case3", "heightfield", "spinning"])
+@pytest.mark.parametrize("case", ["leg0", "leg1", pytest.param("leg3", marks=pytest.mark.slow), "case3", "heightfield",
+                                  "spinning"])
 def test_spatial_landings_run_alike_on_the_compiled_step(case):
     """Whole spatial landings (random splayed legs with friction and stops, spatial case 3 for
     0.05 s with friction, the heightfield file, a base turning beyond the chart: re-centred

@@ -50,7 +50,7 @@ def on_rods(tree: Tree) -> Tree:
 
 
 def trees(rng: np.random.Generator) -> list[Tree]:
-    randoms = [random_tree(rng, int(rng.integers(2, 5)), mass_ratio=5.0, length_range=(0.1, 0.6)) for _ in range(2)]
+    randoms = [random_tree(rng, int(rng.integers(2, 5)), mass_ratio=5.0, length_range=(0.1, 0.6)) for _ in range(1)]
     return [with_offsets(rng, t) for t in [case3(), *randoms]]
 
 

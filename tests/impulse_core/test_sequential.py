@@ -335,8 +335,8 @@ def _chattering_trees():
     return out
 
 
-@pytest.mark.parametrize("mu", [0.0, 0.6])
-def test_chattering_contacts_rest_and_meet_the_laws(monkeypatch, mu):
+@pytest.mark.parametrize("mu", [0.0, pytest.param(0.6, marks=pytest.mark.slow)])  # friction at rest by default:
+def test_chattering_contacts_rest_and_meet_the_laws(monkeypatch, mu):  # test_a_resting_phase_converges_in_the_step
     """Trees whose plastic contact the tree keeps turning into the ground (they chattered before)
     now run: every impact meets Newton's law (plastic) with complementarity and the cone, resting
     contacts push inside it, the momentum balance holds over the sequence, nothing is left

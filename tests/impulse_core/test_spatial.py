@@ -397,7 +397,7 @@ def test_planar_trees_with_friction_read_as_spatial_give_the_planar_answers() ->
     impulses, no lateral friction."""
     rng = np.random.default_rng(SEED + 3)
     compared = 0
-    for _ in range(40):
+    for _ in range(20):
         tree = random_tree(rng, int(rng.integers(1, 8)), p_contact=0.6)
         mu = float(rng.uniform(0.1, 1.5))
         scene = dataclasses.replace(SCENE, velocity_z=0.0, angular_velocity_x=0.0, angular_velocity_y=0.0, friction=mu)
@@ -411,7 +411,7 @@ def test_planar_trees_with_friction_read_as_spatial_give_the_planar_answers() ->
         assert np.abs(spatial.tangential[:, 1]).max() <= 1e-10 * scale
         assert spatial.modes == planar.modes
         compared += 1
-    assert compared >= 20
+    assert compared >= 10
 
 
 # --- extremes --------------------------------------------------------------------------------

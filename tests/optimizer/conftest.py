@@ -136,3 +136,25 @@ def tiny_study(write: Callable[..., Path]) -> Path:
 @pytest.fixture
 def tiny_outer_study(write: Callable[..., Path]) -> Path:
     return write(TINY_OUTER_YAML, "tiny_outer.yaml")
+
+
+@pytest.fixture
+def taped_once(monkeypatch: pytest.MonkeyPatch) -> Callable:
+    """``taped_run`` run once per argument set in the test, the whole-landing NLP's landed values
+    included: a central difference's landings, its event sequences and its statistics read the
+    same runs (a taped run is a function of its arguments)."""
+    import optimizer.search.landing_inner as landing_inner
+    from impulse_core.kinematics.spatial import PLANAR
+    from impulse_core.timedomain.landing import LandingSettings
+    from impulse_core.timedomain.landing_derivatives import taped_run
+
+    runs: dict = {}
+
+    def once(tree, scene, laws, step, settings=LandingSettings(), space=PLANAR):
+        key = (tree, scene, laws, step, settings, space)
+        if key not in runs:
+            runs[key] = taped_run(tree, scene, laws, step, settings, space)
+        return runs[key]
+
+    monkeypatch.setattr(landing_inner, "taped_run", once)
+    return once

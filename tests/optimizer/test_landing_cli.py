@@ -65,7 +65,7 @@ class _Terminal(io.StringIO):
 def test_a_landing_shows_its_progress_on_a_terminal_only(tmp_path, capsys, monkeypatch):
     """On a terminal, stderr shows each run of the step halving (its step, t of the duration, the
     impacts) and clears it; elsewhere stderr stays empty; stdout's JSON is the same either way."""
-    path = _landing_file(tmp_path, 0.5, duration=0.02)
+    path = _landing_file(tmp_path, 0.5, duration=0.01)
     plain = _json(capsys, str(path))
     assert capsys.readouterr().err == ""
     terminal = _Terminal()
@@ -74,7 +74,7 @@ def test_a_landing_shows_its_progress_on_a_terminal_only(tmp_path, capsys, monke
     assert json.loads(capsys.readouterr().out) == plain
     shown = terminal.getvalue()
     lines = [line for line in shown.split("\r") if line.strip()]
-    assert lines and all(line.startswith("landing, run ") and " of 0.02 s, " in line and " impacts" in line
+    assert lines and all(line.startswith("landing, run ") and " of 0.01 s, " in line and " impacts" in line
                          for line in lines)
     assert any(f"(step {plain['landing']['step']:.3g} s)" in line for line in lines)  # the last run's step
     assert shown.rstrip("\r").split("\r")[-1].strip() == ""  # the bar is gone
@@ -123,19 +123,20 @@ def test_landing_plot_is_written(tmp_path, capsys):
     assert f"plot: {out}" in capsys.readouterr().out
 
 
-def test_animate_writes_a_gif_of_the_landing(tmp_path, capsys):
-    """--animate: one frame per evenly spaced time, the leg moving between frames; a first-impact
-    result or a wrong suffix is refused naming --animate, exit 2."""
+def test_animate_writes_a_gif_of_the_landing(tmp_path, monkeypatch, capsys):
+    """--animate: one frame per evenly spaced time (5 here), the leg moving between frames; a
+    first-impact result or a wrong suffix is refused naming --animate, exit 2."""
     from PIL import Image, ImageChops
 
-    from optimizer.report.landing_plot import ANIMATION_FRAMES
+    import optimizer.report.landing_plot as landing_plot
 
+    monkeypatch.setattr(landing_plot, "ANIMATION_FRAMES", 5)
     model = _landing_file(tmp_path, friction=0.3, duration=0.02)
     gif = tmp_path / "landing.gif"
     assert main(["evaluate", str(model), "--animate", str(gif)]) == 0
     assert f"animation: {gif}" in capsys.readouterr().out
     with Image.open(gif) as image:
-        assert image.n_frames == ANIMATION_FRAMES
+        assert image.n_frames == 5
         first = image.convert("RGB")
         image.seek(image.n_frames - 1)
         assert ImageChops.difference(first, image.convert("RGB")).getbbox() is not None  # it moved

@@ -83,7 +83,7 @@ def assert_gradient_along(nlp, x0: np.ndarray, G: np.ndarray, u: np.ndarray, seq
 
 def test_a_few_ipopt_iterations_lower_the_landing_objective(nlp):
     x0 = start_landing(nlp, np.random.default_rng(1))
-    s = solve_landing(nlp, (1.0, 0.0), math.inf, x0, {"ipopt.max_iter": 4})
+    s = solve_landing(nlp, (1.0, 0.0), math.inf, x0, {"ipopt.max_iter": 2})
     f0 = _Landed(nlp).values(x0)[0]
     f1 = _Landed(nlp).values(s.x)[0]
     assert f1 < f0  # as the numeric landing at the solve's step measures it
@@ -92,15 +92,15 @@ def test_a_few_ipopt_iterations_lower_the_landing_objective(nlp):
 
 
 def test_an_inner_whole_landing_study_runs_and_records_its_designs(tmp_path, monkeypatch):
-    """A tiny inner whole-landing study (IPOPT cut to 4 iterations per solve: the realised designs
-    are evaluated and checked by the study's own landing, whatever IPOPT's status)."""
+    """A tiny inner whole-landing study (3 ms, IPOPT cut to 2 iterations per solve: the realised
+    designs are evaluated and checked by the study's own landing, whatever IPOPT's status)."""
     import csv
 
     import optimizer.search.landing_inner as landing_inner
     from optimizer.cli.main import main
 
-    monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 4)
-    study = (TINY_LANDING_YAML.replace("duration: 0.02", "duration: 0.005").replace("toes: [1, 2]", "toes: [1, 1]")
+    monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 2)
+    study = (TINY_LANDING_YAML.replace("duration: 0.02", "duration: 0.003").replace("toes: [1, 2]", "toes: [1, 1]")
              .replace("search: {method: outer, trials: 6, startup_trials: 6, landing_tolerance: 1.0e-2}",
                       "search: {method: inner, inner: {starts: 1, front_points: 0}, landing_tolerance: 1.0e-2}"))
     path = tmp_path / "tiny_inner_landing.yaml"

@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from impulse_core.timedomain.landing_derivatives import sequence_signature, taped_run
+from impulse_core.timedomain.landing_derivatives import sequence_signature
 from optimizer.config.study_config import ConfigError, load_study
 from optimizer.design_space import FootShape, Objective
 from optimizer.search.landing_inner import (
@@ -41,9 +41,9 @@ def robust_yaml(statistic: str, method: str = "inner") -> str:
             .replace("method: outer", f"method: {method}") + LANDINGS + f"statistic: {statistic}\n")
 
 
-def _nlp(tmp_path, statistic: str):
+def _nlp(tmp_path, statistic: str, duration: float = 0.01):
     path = tmp_path / "robust.yaml"
-    path.write_text(robust_yaml(statistic), encoding="utf-8")
+    path.write_text(robust_yaml(statistic).replace("duration: 0.01", f"duration: {duration}"), encoding="utf-8")
     return build_landing_nlp(load_study(path), FootShape(1, 1))
 
 
@@ -101,7 +101,7 @@ def test_the_nlp_statistics_are_the_outer_search_evaluation_over_the_landings(tm
         assert realised.objectives.value(o) == pytest.approx(outer.objectives.value(o), rel=1e-6)
 
 
-def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(tmp_path):
+def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(tmp_path, taped_once):
     """Per scenario (each along its own event sequence, unchanged at +-eps), and the statistics
     mean and std (smooth) through the NLP's graph; the nominal-scene statistic would differ."""
     nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}")
@@ -110,7 +110,8 @@ def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(
 
     def sequences(x):
         t, l, scenes = landed.models(x)
-        return [sequence_signature(*taped_run(t, s, l, h, settings)[1:]) for s, h in zip(scenes, nlp.steps, strict=True)]
+        return [sequence_signature(*taped_once(t, s, l, h, settings)[1:])
+                for s, h in zip(scenes, nlp.steps, strict=True)]
 
     stats, J, _callback = statistic_functions(nlp, landed)  # the callback lives as long as they are called
     dJ = np.asarray(J(x0))
@@ -129,11 +130,11 @@ def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(
 
 
 def test_a_solve_keeps_the_max_epigraph_tight_and_lowers_the_statistic(tmp_path):
-    """A few IPOPT iterations on a max: its level stays above every scenario (one row each), and
-    the realised statistic (the outer evaluation) goes down."""
+    """A few IPOPT iterations on a max (5 ms landings): its level stays above every scenario (one
+    row each), and the realised statistic (the outer evaluation) goes down."""
     from optimizer.search.landing_inner import solve_landing
 
-    nlp = _nlp(tmp_path, "{peak_external_norm: max, energy_absorbed: mean}")
+    nlp = _nlp(tmp_path, "{peak_external_norm: max, energy_absorbed: mean}", duration=0.005)
     x0 = start_landing(nlp, np.random.default_rng(1))
     s = solve_landing(nlp, (1.0, 0.0), math.inf, x0, {"ipopt.max_iter": 3})
     assert s.x.shape == (nlp.n_x,)
@@ -164,7 +165,7 @@ def test_the_inner_search_refuses_what_it_cannot_take_over_whole_landings(tmp_pa
 
 
 def test_a_tiny_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch):
-    """``footopt optimize`` on the tiny study (5 ms, IPOPT cut to 2 iterations): every recorded design,
+    """``footopt optimize`` on the tiny study (3 ms, IPOPT cut to 2 iterations): every recorded design,
     rebuilt from its record, re-evaluates by the outer search's evaluation to its statistics."""
     import optimizer.search.landing_inner as landing_inner
     from optimizer.cli.main import main
@@ -172,7 +173,7 @@ def test_a_tiny_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_p
     from optimizer.search.outer import open_study, recorded_trials
 
     monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 2)
-    text = (robust_yaml("{peak_external_norm: max, energy_absorbed: mean}").replace("duration: 0.01", "duration: 0.005")
+    text = (robust_yaml("{peak_external_norm: max, energy_absorbed: mean}").replace("duration: 0.01", "duration: 0.003")
             .replace("search: {method: inner, trials: 6, startup_trials: 6, landing_tolerance: 1.0e-2}",
                      "search: {method: inner, inner: {starts: 1, front_points: 0}, landing_tolerance: 1.0e-2}"))
     path = tmp_path / "tiny.yaml"

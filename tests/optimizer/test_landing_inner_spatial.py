@@ -83,15 +83,15 @@ def test_the_spatial_nlp_gradient_agrees_with_central_differences(nlp):
 
 
 def test_a_spatial_inner_landing_study_runs_and_its_front_re_evaluates(nlp, tmp_path, monkeypatch):
-    """One objective (one anchor solve), IPOPT cut to 2 iterations: each recorded design's model
-    file, landed again at the study's tolerance, gives the objective its row records."""
+    """One objective (one anchor solve), 3 ms, IPOPT cut to 1 iteration: each recorded design's
+    model file, landed again at the study's tolerance, gives the objective its row records."""
     import optimizer.search.landing_inner as landing_inner
     from optimizer.cli.main import main
 
-    monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 2)
+    monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 1)
     path = tmp_path / "spatial.yaml"
-    path.write_text(SPATIAL_LANDING_YAML.replace("[peak_external_norm, energy_absorbed]", "[energy_absorbed]"),
-                    encoding="utf-8")
+    path.write_text(SPATIAL_LANDING_YAML.replace("[peak_external_norm, energy_absorbed]", "[energy_absorbed]")
+                    .replace("duration: 0.004", "duration: 0.003"), encoding="utf-8")
     assert main(["optimize", str(path), "--out", str(tmp_path / "run"), "--quiet"]) == 0
     rows = list(csv.DictReader((tmp_path / "run" / "pareto.csv").open()))
     assert rows and all(r["method"] == "inner" for r in rows)

@@ -51,9 +51,9 @@ def _check_study(run: Path, config_storage: str | None, target: int, workers: in
 
 def test_two_workers_share_the_journal_file(tmp_path: Path, capsys):
     study = tmp_path / "w.yaml"
-    study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 30"), encoding="utf-8")
+    study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 16"), encoding="utf-8")
     assert main(["optimize", str(study), "--out", str(tmp_path / "run"), "--workers", "2", "--quiet"]) == 0
-    _check_study(tmp_path / "run", None, 30, 2)
+    _check_study(tmp_path / "run", None, 16, 2)
 
 
 @pytest.mark.parametrize("burst_after", [1, 2, 3, 4])
@@ -128,7 +128,7 @@ def test_four_workers_on_postgresql(postgres: str, tmp_path: Path, capsys):
     """4 workers on a real PostgreSQL storage: nothing lost or duplicated, the same front as one
     process on the same trials; the storage's password is nowhere in the output or the run folder."""
     study = tmp_path / "pg.yaml"
-    study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 40"), encoding="utf-8")
+    study.write_text(TINY_OUTER_YAML.replace("trials: 12", "trials: 20"), encoding="utf-8")
     run = tmp_path / "run"
     assert main(["optimize", str(study), "--out", str(run), "--workers", "4", "--storage", postgres]) == 0
     out, err = capsys.readouterr()
@@ -136,5 +136,5 @@ def test_four_workers_on_postgresql(postgres: str, tmp_path: Path, capsys):
     for f in run.rglob("*"):
         if f.is_file():
             assert PASSWORD.encode() not in f.read_bytes(), f
-    _check_study(run, postgres, 40, 4)
+    _check_study(run, postgres, 20, 4)
 
