@@ -139,7 +139,11 @@ def test_animate_writes_a_gif_of_the_landing(tmp_path, monkeypatch, capsys):
         assert image.n_frames == 5
         first = image.convert("RGB")
         image.seek(image.n_frames - 1)
-        assert ImageChops.difference(first, image.convert("RGB")).getbbox() is not None  # it moved
+        width, height = image.size
+        below_title = (0, height // 8, width, height)  # the title's time and impacts change anyway
+        moved = ImageChops.difference(first.crop(below_title), image.convert("RGB").crop(below_title))
+        # the leg moved: not only the GIF palette's dithering (differences of a few levels)
+        assert moved.convert("L").point(lambda x: 255 if x > 60 else 0).getbbox() is not None
     assert main(["evaluate", str(model), "--animate", str(tmp_path / "x.mp4")]) == 2
     assert "--animate" in capsys.readouterr().err
     assert main(["evaluate", str(model), "--model", "lcp", "--animate", str(tmp_path / "y.gif")]) == 2
