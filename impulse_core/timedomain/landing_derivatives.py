@@ -739,9 +739,8 @@ class _Symbolic:
         return self.cache[key]
 
     def touchdown(self, lowest: int, lowest_x: float) -> _Op:
-        """(theta, v0) -> (q0, kinetic energy before at the approach's velocity v0, com height at
-        q0, total mass); the contact ``lowest`` (at x = ``lowest_x`` at theta*) sets the touchdown
-        height."""
+        """theta -> (q0, com height at q0, total mass); the contact ``lowest`` (at x = ``lowest_x``
+        at theta*) sets the touchdown height."""
         key = ("touchdown", lowest)
         if key not in self.cache:
             th = self.th
@@ -756,7 +755,7 @@ class _Symbolic:
             for b in range(1, self.tree.n_bodies):
                 if layout.body_dof[b] is not None:
                     q[layout.body_dof[b]] = self.angle(th, b)
-            v = ca.SX.sym("v0", self.nv)
+            v = ca.SX.zeros(self.nv)  # the posture's points and centre of mass need no velocity
             C = self.fn(q, v, th[: self.n_p], self.gravity)[9]
             x, y = C[0, lowest], C[1, lowest]
             if self.planar:
@@ -767,7 +766,7 @@ class _Symbolic:
             q[1] = TOUCHDOWN_CLEARANCE - (y - ground)
             pt = self.point(q, v, th)
             mass = sum(th[len(self.values) * b + self.values.index("mass")] for b in range(self.tree.n_bodies))
-            self.cache[key] = _Op("touchdown", [th, v], [q, pt["kinetic"], pt["com"], mass])
+            self.cache[key] = _Op("touchdown", [th], [q, pt["com"], mass])
         return self.cache[key]
 
     def final(self) -> _Op:
@@ -1075,8 +1074,8 @@ def landing_gradient(
     lowest = int(np.argmin(clearance))
     v0 = pre_impact_velocity(run.topology, scene, run.space)
     dv0 = pre_impact_velocity(run.topology, Scene(speed=1.0), run.space)  # d v0 / d speed (v0 is linear in it)
-    (q0, _, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(p, v0)
-    d_height0, d_mass = (_lift(Jo[0], n) for Jo in J[2:])  # 1 x n each
+    (q0, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(p)
+    d_height0, d_mass = (_lift(Jo[0], n) for Jo in J[1:])  # 1 x n each
     # forward sensitivities: each quantity z carries dz/d(theta, scene values) (rows: its entries)
     x = np.concatenate([q0, v0])
     S = np.vstack([_lift(J[0][0], n), np.zeros((nv, n))])
