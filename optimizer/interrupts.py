@@ -35,7 +35,8 @@ def interruptible() -> Iterator[None]:
     """Within: a SIGINT sets the flag :func:`check_interrupt` reads and raises KeyboardInterrupt,
     and an error a C extension raised because of it is the KeyboardInterrupt. Nests (the
     outermost block installs the handler); outside the main thread it only converts errors."""
-    outermost = threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is not _on_sigint
+    main = threading.current_thread() is threading.main_thread()
+    outermost = main and signal.getsignal(signal.SIGINT) is not _on_sigint
     if outermost:
         _INTERRUPTED.clear()
         previous = signal.signal(signal.SIGINT, _on_sigint)

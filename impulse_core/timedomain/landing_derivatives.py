@@ -1184,8 +1184,9 @@ def landing_gradient(
         previous = kind
     (energy, com, angles), J = sym.final()(x, p)
     d_energy, d_com, d_angles = (_ahead(Jo[0], S, Jo[1]) for Jo in J)
-    brought = e_touch[0] + float(mass[0]) * scene.gravity * (height0[0] - com[0])
-    d_brought = d_e_touch[0] + scene.gravity * (d_mass[0] * (height0[0] - com[0]) + float(mass[0]) * (d_height0[0] - d_com[0]))
+    fall = height0[0] - com[0]  # the centre of mass's drop over the landing
+    brought = e_touch[0] + float(mass[0]) * scene.gravity * fall
+    d_brought = d_e_touch[0] + scene.gravity * (d_mass[0] * fall + float(mass[0]) * (d_height0[0] - d_com[0]))
     absorbed = 1.0 - energy[0] / brought
     d_absorbed = -(d_energy[0] * brought - energy[0] * d_brought) / brought**2
 
