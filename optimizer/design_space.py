@@ -57,7 +57,7 @@ from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space, values_space
 from impulse_core.model.support import support_margin as hull_margin
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.rods import body_rotation, rotation_z
-from impulse_core.timedomain.landing import LandingResult, LandingSettings, landing
+from impulse_core.timedomain.landing import AUTO_CODE, LandingResult, LandingSettings, landing
 from optimizer.config.model_file import ModelFile
 from impulse_core.model.tree import (
     UNIFORM_COM,
@@ -1166,7 +1166,9 @@ def design_model(leg: Leg | LegChain, design: FootDesign, scene: Scene, limits: 
 
 #: A study's budget for one design's landing: a design that needs more impacts or finer steps
 #: than this is numerically too stiff (e.g. a millimetre rod with a damper) and its trial fails.
-STUDY_LANDING = LandingSettings(max_refinements=4, max_events=1000)
+#: Step code ``auto``: C where the compile cache holds the topology's (a long search builds it,
+#: :mod:`optimizer.search.landing_code`), the same numbers as the virtual machine's.
+STUDY_LANDING = LandingSettings(max_refinements=4, max_events=1000, step_code=AUTO_CODE)
 
 
 def study_landing(tolerance: float) -> LandingSettings:

@@ -17,6 +17,7 @@ import hashlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import tempfile
 from collections.abc import Callable, Iterable
@@ -108,23 +109,39 @@ def store(root: Path, name: str, key: str, build: Callable[[Path], Iterable[str]
     return found
 
 
-def run_compilers(*commands: list[str], niceness: int = 0) -> None:
+def run_compilers(*commands: list[str], niceness: int = 0, jobs: list | None = None) -> None:
     """Run compiler commands at once (one process each, ``niceness`` added to their scheduling
     niceness: builds needed later yield the cores to those needed first) and wait for all;
-    CompileError with the first failing compiler's last lines."""
+    CompileError with the first failing compiler's last lines. ``jobs``: a list the processes are
+    appended to, each in a session of its own, so that whoever started a build in the background
+    can stop it (:func:`stop_compilers`)."""
     nice = shutil.which("nice") if niceness > 0 else None  # a command, not preexec_fn: builds run in threads
     prefix = [nice, "-n", str(niceness)] if nice else []
     try:
-        jobs = [
-            subprocess.Popen([*prefix, *c], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands
+        started = [
+            subprocess.Popen([*prefix, *c], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             start_new_session=jobs is not None) for c in commands
         ]
     except OSError as exc:
         raise CompileError(f"C compiler cannot be run: {exc}") from exc
-    outputs = [job.communicate() for job in jobs]
-    for command, job, (out, err) in zip(commands, jobs, outputs, strict=True):
+    if jobs is not None:
+        jobs.extend(started)
+    outputs = [job.communicate() for job in started]
+    for command, job, (out, err) in zip(commands, started, outputs, strict=True):
         if job.returncode:
             tail = " | ".join((err or out or "").strip().splitlines()[-3:])
             raise CompileError(f"C compiler failed ({command[0]}, exit {job.returncode}): {tail}")
+
+
+def stop_compilers(jobs: list[subprocess.Popen]) -> None:
+    """Kill the compilers :func:`run_compilers` started with ``jobs`` that still run, with the
+    processes they started (cc1, as: each job leads a session of its own)."""
+    for job in jobs:
+        if job.poll() is None:
+            try:
+                os.killpg(job.pid, signal.SIGKILL)
+            except OSError:  # ended meanwhile
+                pass
 
 
 def _digest(path: Path) -> str:
@@ -135,4 +152,4 @@ def _digest(path: Path) -> str:
     return h.hexdigest()
 
 
-__all__ = ["CompileError", "compiler_identity", "entry_folder", "entry_key", "lookup", "run_compilers", "store"]
+__all__ = ["CompileError", "compiler_identity", "entry_folder", "entry_key", "lookup", "run_compilers", "stop_compilers", "store"]

@@ -124,8 +124,9 @@ RK4_STABLE = 2.0
 AUTO_IMPLICIT = 32.0
 #: The code of the integrator's step (:attr:`LandingSettings.step_code`): one CasADi function
 #: compiled to C through the trusted cache (:mod:`impulse_core.timedomain.landing_step`), the same
-#: function on CasADi's virtual machine, or the numpy reference.
-C_CODE, VM_CODE, NUMPY_CODE = "c", "vm", "numpy"
+#: function on CasADi's virtual machine, or the numpy reference; ``auto``: C where the cache
+#: already holds it (nothing is built), else the virtual machine.
+C_CODE, VM_CODE, NUMPY_CODE, AUTO_CODE = "c", "vm", "numpy", "auto"
 #: The default first step (:attr:`LandingSettings.step`): the implicit integrator's is duration /
 #: 200; RK4's is its longest stable step for the joint laws at touchdown (RK4_STABLE /
 #: :func:`joint_law_rate`), at most duration / 100. The step-halving
@@ -224,7 +225,10 @@ class LandingSettings:
             virtual machine (a mode stepped 32 times by its own copy, the mode's rows as
             constants: :class:`~impulse_core.timedomain.landing_step.ModeFunctions`), ``numpy``
             the reference (rows built and solved per stage in numpy; always so for a redundant
-            mode). All agree to rounding.
+            mode), or ``auto``: ``c`` where the compile cache already holds this landing's C (a
+            study builds it in the background, :mod:`optimizer.search.landing_code`), else ``vm``;
+            nothing is built (:attr:`LandingResult.step_code` says which ran). All agree to
+            rounding; c and vm bit for bit in the plane.
         bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
             ``MODEL_FORMAT.md`` asks), or b > 0: after the first impact a rebound that the row's
             free acceleration would end within b steps is plastic (module docstring; case 3's
@@ -362,6 +366,9 @@ class LandingResult:
     #: (frictionless: the smallest-norm non-negative split, as the lcp rung; with friction: the
     #: smallest-norm split the law allows, as the friction rung: :func:`least_norm_law_split`)
     non_unique: int = 0
+    #: the code the run's integrator steps ran on (:attr:`LandingSettings.step_code`; ``auto``
+    #: resolved to c or vm)
+    step_code: str = VM_CODE
 
     @property
     def peak_external_norm(self) -> float:
@@ -1299,17 +1306,19 @@ class _Landing:
         self.planar = space.joint_axis is not None
         ground = scene.terrain if self.planar else spatial_ground(scene)
         self.ground = ground  # the plane's profile, or space's heightfield
-        if settings.step_code == C_CODE:  # the point's dynamics compiled too
+        if settings.step_code not in (C_CODE, VM_CODE, NUMPY_CODE, AUTO_CODE):
+            raise ModelError(f"step_code: {settings.step_code!r} is not one of c, vm, numpy, auto")
+        if settings.step_code in (C_CODE, AUTO_CODE):  # the point's dynamics compiled too
             from impulse_core.timedomain.landing_step import compiled_landing_function  # it builds on this module
 
-            fn = compiled_landing_function(self.topology, ground, space)
+            fn = compiled_landing_function(self.topology, ground, space, build=settings.step_code == C_CODE)
         else:
             fn = landing_function(self.topology, ground, space)
         #: the impacts' and mode choices' LCPs by Lemke's method as C with step code c (the same
         #: numbers; None: Python's, also without a C compiler)
-        self.lemke = lemke_c.compiled_lemke() if settings.step_code == C_CODE else None
+        self.lemke = None
         #: the location's root of a cubic (:func:`_hermite_root`; with step code c as C, the same numbers)
-        self.root = (settings.step_code == C_CODE and lemke_c.hermite_root(_ROOT_SAMPLES)) or _hermite_root
+        self.root = _hermite_root
         #: the design vector; a run's re-centred rotation coordinates change the base's orientation
         #: in the call's copy (:meth:`rechart`), and the next run starts from this one again
         self.design = design_vector(tree, space.body_values)
@@ -1401,6 +1410,11 @@ class _Landing:
         self.tape: list | None = None
         #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
+        #: the code the steps run on: c, vm or numpy (``auto``: c where the compile cache holds it)
+        self.code = NUMPY_CODE if self.fast is None else C_CODE if self.fast.compiled else VM_CODE
+        if self.code == C_CODE:
+            self.lemke = lemke_c.compiled_lemke()
+            self.root = lemke_c.hermite_root(_ROOT_SAMPLES) or _hermite_root
         self._end: tuple[bytes, bytes, object] | None = None
         #: a curved heightfield (turning): the last step's contact impulses as world vectors (d x n_c), each
         #: stage's force along its own point's normal and tangents (:meth:`stage_vectors`)
@@ -1445,14 +1459,12 @@ class _Landing:
     def compiled_step(self, code: str):
         """The compiled step of this landing's integrator (:mod:`impulse_core.timedomain.landing_step`),
         or None where the numpy path integrates (``numpy``)."""
-        if code not in (C_CODE, VM_CODE, NUMPY_CODE):
-            raise ModelError(f"step_code: {code!r} is not one of c, vm, numpy")
         if code == NUMPY_CODE:
             return None
         from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
 
         return CompiledStep(self.topology, self.ground, self.design, self.scene.gravity, self.mu, self.joints,
-                            compiled=code == C_CODE, space=self.space, floor=self.speed_tol, method=self.method)
+                            code=code, space=self.space, floor=self.speed_tol, method=self.method)
 
     def ended(self, q: np.ndarray, v: np.ndarray, mode: _Mode | None = None):
         """The last compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` if it
@@ -3285,6 +3297,7 @@ class _Landing:
             space=self.space.name,
             inexact=self.inexact,
             non_unique=self.non_unique,
+            step_code=self.code,
         )
 
 

@@ -47,16 +47,20 @@ import casadi as ca
 import numpy as np
 
 from impulse_core.compile.cache import default_root
-from impulse_core.compile.codegen import compile_function
+from impulse_core.compile.codegen import cached_function, compile_function
 from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.timedomain.compliant import BufferedFunction
 from impulse_core.timedomain.landing import (
+    AUTO_CODE,
+    C_CODE,
     IMPLICIT,
     RK4,
     ROS2_GAMMA,
+    VM_CODE,
     _Joints,
+    _Landing,
     _Mode,
     _mode_bytes,
     landing_function,
@@ -332,17 +336,55 @@ def compiled_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: 
     """:func:`landing_step_function` and :func:`landing_projection_function` as C, built once
     into (or loaded from) the compile cache (:func:`impulse_core.compile.codegen.compile_function`);
     without a C compiler, a warning and the virtual machine's functions."""
-    step = landing_step_function(topology, terrain, stop_dofs, space, method)
-    projection = landing_projection_function(topology, terrain, stop_dofs, space)
-    return tuple(compile_function(f, default_root(), fallback=True).function for f in (step, projection))
+    return tuple(compile_function(f, default_root(), fallback=True, drivers=False).function
+                 for f in step_functions(topology, terrain, stop_dofs, space, method))
+
+
+def step_functions(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...], space: Space = PLANAR,
+                   method: str = RK4) -> tuple[ca.Function, ca.Function]:
+    """:func:`landing_step_function` and :func:`landing_projection_function` (the virtual machine's)."""
+    return (landing_step_function(topology, terrain, stop_dofs, space, method),
+            landing_projection_function(topology, terrain, stop_dofs, space))
+
+
+def cached_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
+                         space: Space = PLANAR, method: str = RK4) -> tuple[ca.Function, ca.Function] | None:
+    """:func:`compiled_step_function` if the compile cache already holds both libraries, else
+    None (nothing is built: step code ``auto``)."""
+    found = tuple(cached_function(f, default_root(), drivers=False)
+                  for f in step_functions(topology, terrain, stop_dofs, space, method))
+    return None if None in found else found
+
+
+def compiled_landing_function(topology, terrain: Terrain | Heightfield, space: Space = PLANAR,
+                              build: bool = True) -> ca.Function:
+    """:func:`landing.landing_function` (the numpy path's dynamics at a point: every event asks it
+    two or three times) as C through the compile cache, as the step is; the same arithmetic as
+    the virtual machine's (no contraction into fused multiply-adds), so the same numbers. Not
+    ``build``: C only if the cache already holds it, else the virtual machine's function."""
+    if build:
+        return _built_landing_function(topology, terrain, space)
+    f = landing_function(topology, terrain, space)
+    return cached_function(f, default_root(), drivers=False) or f
 
 
 @functools.lru_cache(maxsize=16)
-def compiled_landing_function(topology, terrain: Terrain | Heightfield, space: Space = PLANAR) -> ca.Function:
-    """:func:`landing.landing_function` (the numpy path's dynamics at a point: every event asks it
-    two or three times) as C through the compile cache, as the step is; the same arithmetic as
-    the virtual machine's (no contraction into fused multiply-adds), so the same numbers."""
-    return compile_function(landing_function(topology, terrain, space), default_root(), fallback=True).function
+def _built_landing_function(topology, terrain: Terrain | Heightfield, space: Space) -> ca.Function:
+    return compile_function(landing_function(topology, terrain, space), default_root(), fallback=True,
+                            drivers=False).function
+
+
+def landing_code(run: _Landing) -> tuple[ca.Function, ...]:
+    """The functions that step code c compiles for a landing's run (its integrator's step and
+    projection, the point's dynamics): what a build ahead of its landings makes
+    (:func:`impulse_core.compile.codegen.background_build`, without drivers)."""
+    return (*step_functions(run.topology, run.ground, stop_dofs(run.joints), run.space, run.method),
+            landing_function(run.topology, run.ground, run.space))
+
+
+def stop_dofs(joints: _Joints) -> tuple[int, ...]:
+    """The DOFs with a stop on either side (each has a stop row in the step)."""
+    return tuple(int(j) for j in np.flatnonzero(np.isfinite(joints.lo) | np.isfinite(joints.hi)))
 
 
 #: A mode stepped this many times on the virtual machine gets its own function (:class:`ModeFunctions`):
@@ -441,14 +483,18 @@ class CompiledStep(BufferedFunction):
     ``method``: the integrator (RK4, or IMPLICIT: ROS2)."""
 
     def __init__(self, topology, terrain: Terrain | Heightfield, p: np.ndarray, gravity: float, mu: float,
-                 joints: _Joints, compiled: bool = False, space: Space = PLANAR, floor: float = 0.0,
+                 joints: _Joints, code: str = VM_CODE, space: Space = PLANAR, floor: float = 0.0,
                  method: str = RK4) -> None:
-        self.stop_dofs = tuple(int(j) for j in np.flatnonzero(np.isfinite(joints.lo) | np.isfinite(joints.hi)))
-        if compiled:
+        self.stop_dofs = stop_dofs(joints)
+        vm = step_functions(topology, terrain, self.stop_dofs, space, method)
+        if code == C_CODE:
             step, projection = compiled_step_function(topology, terrain, self.stop_dofs, space, method)
         else:
-            step = landing_step_function(topology, terrain, self.stop_dofs, space, method)
-            projection = landing_projection_function(topology, terrain, self.stop_dofs, space)
+            step, projection = (code == AUTO_CODE and cached_step_function(topology, terrain, self.stop_dofs, space,
+                                                                           method)) or vm
+        #: whether the functions run as C (no compiler: the virtual machine's, also with ``c``)
+        self.compiled = step is not vm[0]
+        compiled = self.compiled
         super().__init__(step)
         self.block, self.spans = self.contiguous()
         self.slices = [slice(a, b) for a, b in self.spans]
@@ -554,5 +600,6 @@ class CompiledStep(BufferedFunction):
         return q1, v1, impulse
 
 
-__all__ = ["CompiledStep", "ModeFunctions", "StepEnd", "compiled_landing_function", "compiled_step_function",
-           "landing_projection_function", "landing_step_function"]
+__all__ = ["CompiledStep", "ModeFunctions", "StepEnd", "cached_step_function", "compiled_landing_function",
+           "compiled_step_function", "landing_code", "landing_projection_function", "landing_step_function",
+           "step_functions"]

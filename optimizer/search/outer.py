@@ -54,6 +54,7 @@ from optimizer.design_space import (
 from optimizer.evaluation.robust import statistics_over_landings_many
 from optimizer.interrupts import check_interrupt, interruptible
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
+from optimizer.search.landing_code import LandingBuilds
 
 #: User attributes every recorded trial carries.
 ATTR_DESIGN, ATTR_OBJECTIVES, ATTR_CONSTRAINTS, ATTR_METHOD = "design", "objectives", "constraints", "method"
@@ -352,6 +353,23 @@ def run_outer(
     """
     if workers == 1:
         mark_interrupted(study)
+    with landing_builds(config, trials) as builds:
+        return _run_batches(study, config, trials, progress, workers, builds)
+
+
+def landing_builds(config: StudyConfig, trials: int) -> LandingBuilds:
+    """The background builds of a search's landings' C (:mod:`optimizer.search.landing_code`):
+    active when it plans enough whole landings per shape (``trials`` designs over its shapes, times
+    its scenarios)."""
+    per_design = 0 if not config.whole_landing else config.landings.count if config.landings else 1
+    return LandingBuilds(trials * per_design / max(1, len(config.space.shapes())))
+
+
+def _run_batches(
+    study: optuna.Study, config: StudyConfig, trials: int, progress: Callable[[int, int], None] | None,
+    workers: int, builds: LandingBuilds,
+) -> int:
+    """:func:`run_outer`'s loop of batches."""
     done, ran = finished_trials(study), 0
     while done < trials:
         size = min(OUTER_BATCH, trials - done)
@@ -363,7 +381,7 @@ def run_outer(
             size = min(OUTER_BATCH, max(1, remaining // workers))
         asked = ask_batch(study, config, size, done, workers)
         try:
-            evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked])
+            evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked], builds)
             check_interrupt()  # a Ctrl-C that CasADi caught while the batch's graph was built
         except BaseException:
             for trial in asked:
@@ -421,13 +439,17 @@ def tell(study: optuna.Study, config: StudyConfig, trial: optuna.Trial, evaluati
     return study.tell(trial, objective_values(config, evaluation.objectives))
 
 
-def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[DesignEvaluation]:
+def evaluate_designs(
+    config: StudyConfig, designs: list[FootDesign], builds: LandingBuilds | None = None
+) -> list[DesignEvaluation]:
     """Every design's objectives and constraint values: the impact of each kind of foot
     (:func:`optimizer.search.compiled.foot_kind`) from its compiled ``VALUE_OUTPUTS`` function,
     one batched C loop per kind, cached on disk; the geometry from :func:`constraint_values`.
     A whole-landing study lands each design in full instead (:func:`evaluate_design_landing`), and
     a study with friction or a spatial design space (splayed toes) solves each design's impact by the
     core's ``evaluate`` (:func:`evaluate_design`; the exact Coulomb law with friction)."""
+    if builds is not None:
+        prepare_landings(builds, config, designs)
     if config.landings is not None:
         return evaluate_designs_over_landings(config, designs)
     if config.whole_landing:
@@ -452,6 +474,17 @@ def evaluate_designs(config: StudyConfig, designs: list[FootDesign]) -> list[Des
         for i, row in zip(rows, values, strict=True):
             out[i] = _evaluation(config, designs[i], dict(zip(VALUE_OUTPUTS, (float(v) for v in row), strict=True)))
     return [e for e in out if e is not None]
+
+
+def prepare_landings(builds: LandingBuilds, config: StudyConfig, designs: list[FootDesign]) -> None:
+    """Start the background builds of the designs' whole landings' C (:class:`LandingBuilds`; over
+    ``landings``, the nominal scene's)."""
+    if not builds.active:
+        return
+    e, settings = config.space.joint_laws.stop_restitution, study_landing(config.search.landing_tolerance)
+    for design in designs:
+        m = design_model(config.leg, design, config.scene, config.limits, e)
+        builds.prepare(m.tree, m.scene, m.joints, settings, m.space)
 
 
 def evaluate_design_over_landings(config: StudyConfig, design: FootDesign) -> DesignEvaluation:
