@@ -12,6 +12,7 @@ the same entry at once never see each other's half-written files.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
@@ -20,7 +21,8 @@ import shutil
 import signal
 import subprocess
 import tempfile
-from collections.abc import Callable, Iterable
+import time
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from impulse_core.errors import FootoptError
@@ -109,6 +111,50 @@ def store(root: Path, name: str, key: str, build: Callable[[Path], Iterable[str]
     return found
 
 
+@contextlib.contextmanager
+def claim(root: Path, name: str, key: str) -> Iterator[bool]:
+    """Whether this process may build the entry (True), or another live process on this machine
+    already does (False: its lock file ``.<folder>.lock`` names that process). A lock whose
+    process has ended is taken over; the lock is removed on leaving. Builds in the background
+    claim first, so that several workers of one study build each library once."""
+    lock = Path(root) / f".{entry_folder(root, name, key).name}.lock"
+    Path(root).mkdir(parents=True, exist_ok=True)
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            if _holder_alive(lock):
+                yield False
+                return
+            lock.unlink(missing_ok=True)  # its process ended: take it over
+            continue
+        with os.fdopen(fd, "w") as f:
+            f.write(str(os.getpid()))
+        try:
+            yield True
+        finally:
+            lock.unlink(missing_ok=True)
+        return
+    yield False
+
+
+def _holder_alive(lock: Path) -> bool:
+    """Whether the process a lock file names still runs (a lock without a number yet: while it is
+    younger than a minute, its process is writing it)."""
+    try:
+        os.kill(int(lock.read_text().strip()), 0)
+    except PermissionError:  # a process of another user
+        return True
+    except ValueError:
+        try:
+            return time.time() - lock.stat().st_mtime < 60.0
+        except OSError:
+            return False
+    except OSError:
+        return False
+    return True
+
+
 def run_compilers(*commands: list[str], niceness: int = 0, jobs: list | None = None) -> None:
     """Run compiler commands at once (one process each, ``niceness`` added to their scheduling
     niceness: builds needed later yield the cores to those needed first) and wait for all;
@@ -152,4 +198,5 @@ def _digest(path: Path) -> str:
     return h.hexdigest()
 
 
-__all__ = ["CompileError", "compiler_identity", "entry_folder", "entry_key", "lookup", "run_compilers", "stop_compilers", "store"]
+__all__ = ["CompileError", "claim", "compiler_identity", "entry_folder", "entry_key", "lookup", "run_compilers",
+           "stop_compilers", "store"]

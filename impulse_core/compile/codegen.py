@@ -27,7 +27,15 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from impulse_core.compile.cache import CompileError, compiler_identity, entry_key, lookup, run_compilers, store
+from impulse_core.compile.cache import (
+    CompileError,
+    claim,
+    compiler_identity,
+    entry_key,
+    lookup,
+    run_compilers,
+    store,
+)
 
 #: Compiler flags; -O3 without -ffast-math keeps IEEE semantics (results equal the VM's to rounding).
 #: -fno-math-errno only drops errno updates, so sqrt becomes one instruction instead of a call
@@ -535,8 +543,17 @@ def background_build(
     if lookup(Path(cache_dir), f.name(), key) is not None:
         return None
     arch = simd_flags()
-    return functools.partial(store, Path(cache_dir), f.name(), key,
+    return functools.partial(_claimed_store, Path(cache_dir), f.name(), key,
                              lambda work: _build(compiler, source, arch, work, niceness, jobs))
+
+
+def _claimed_store(root: Path, name: str, key: str, build: Callable[[Path], list[str]]) -> Path | None:
+    """:func:`store` unless another process builds the entry (:func:`impulse_core.compile.cache.claim`:
+    None) or has stored it meanwhile."""
+    with claim(root, name, key) as mine:
+        if not mine:
+            return None
+        return lookup(root, name, key) or store(root, name, key, build)
 
 
 def generated_source(f: ca.Function, drivers: bool = True) -> str:

@@ -196,3 +196,31 @@ def test_simd_step_loads_its_inputs_first_in_memory_order(tmp_path, n) -> None:
     compiled = compile_function(f, tmp_path)
     for a, b in zip(batch_kernel(compiled, f)(*args), batch_kernel(compiled, f, simd=True)(*args)):
         np.testing.assert_array_equal(b, a)
+
+
+def test_a_claim_lets_one_process_build_an_entry(tmp_path):
+    """:func:`claim`: the first claim holds the entry's lock until it leaves, a second is refused
+    meanwhile and granted after; a lock whose process has ended is taken over, and a lock whose
+    process still runs (this one, written by hand) refuses."""
+    import os
+    import subprocess
+
+    from impulse_core.compile.cache import claim
+
+    key = "ab" * 32
+    with claim(tmp_path, "f", key) as first:
+        assert first
+        with claim(tmp_path, "f", key) as second:
+            assert not second
+    with claim(tmp_path, "f", key) as again:
+        assert again
+    ended = subprocess.Popen(["true"])
+    ended.wait()
+    lock = tmp_path / f".f_{key[:20]}.lock"
+    lock.write_text(str(ended.pid))
+    with claim(tmp_path, "f", key) as taken:
+        assert taken
+    assert not lock.exists()
+    lock.write_text(str(os.getpid()))
+    with claim(tmp_path, "f", key) as held:
+        assert not held

@@ -88,6 +88,33 @@ def test_stopping_kills_a_running_build(tmp_path, monkeypatch):
     assert not [p for p in cache.iterdir()]
 
 
+def test_two_searches_on_one_cache_build_each_library_once(tmp_path, monkeypatch):
+    """Workers of one study (each its own search and builds) share the compile cache: a library
+    one of them is compiling, or has stored, the other skips (``cache.claim``), so the three
+    libraries of a landing are compiled three times in all, not six (a fake compiler that takes
+    a second and writes an empty library)."""
+    cache, calls = tmp_path / "cache", tmp_path / "calls"
+    compiler = tmp_path / "cc"
+    compiler.write_text('#!/bin/sh\nif [ "$1" = "--version" ]; then echo fake 1.0; exit 0; fi\n'
+                        'prev=""; for a in "$@"; do [ "$prev" = "-o" ] && out="$a"; prev="$a"; done\n'
+                        f'echo $$ >> "{calls}"\nsleep 1\n: > "$out"\n')
+    compiler.chmod(0o755)
+    monkeypatch.setattr(codegen, "find_compiler", lambda: str(compiler))
+    tree, laws, scene = _leg()
+    with LandingBuilds(planned=COMPILE_LANDINGS, root=cache) as first, \
+            LandingBuilds(planned=COMPILE_LANDINGS, root=cache) as second:
+        first.prepare(tree, scene, laws, STUDY_LANDING, PLANAR)
+        deadline = time.monotonic() + 30
+        while not calls.exists():
+            assert time.monotonic() < deadline, "the build did not start"
+            time.sleep(0.05)
+        second.prepare(tree, scene, laws, STUDY_LANDING, PLANAR)
+        first.wait()
+        second.wait()
+    assert len(calls.read_text().split()) == 3
+    assert len([p for p in cache.iterdir() if p.is_dir()]) == 3 and not list(cache.glob(".*"))
+
+
 def test_a_search_plans_its_builds_by_landings_per_shape():
     """The outer search builds when trials x scenarios / shapes reaches COMPILE_LANDINGS, and
     never for a first-impact study."""
