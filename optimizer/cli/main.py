@@ -35,7 +35,7 @@ from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
 from optimizer.errors import ConfigError, interrupted
 from optimizer.interrupts import check_interrupt, interruptible
-from impulse_core.timedomain.landing import LandingProgress, LandingSettings
+from impulse_core.timedomain.landing import AUTO_CODE, LandingProgress, LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown, plot_views
 from impulse_core.kinematics.spatial import PLANAR
@@ -480,7 +480,9 @@ def _time_domain_options(
         _error(f"--{name}", str(e).split(":", 1)[-1].strip())
         return None
     refine = tolerance if args.steps_per_period is None else None  # fixed steps when given
-    return compliant, SequentialSettings(gravity=gravity), LandingSettings(tolerance=tolerance), refine
+    # the landing's C where the compile cache holds it (a study's builds; the same numbers), else the VM
+    landing = LandingSettings(tolerance=tolerance, step_code=AUTO_CODE)
+    return compliant, SequentialSettings(gravity=gravity), landing, refine
 
 
 def _evaluate(

@@ -591,8 +591,13 @@ def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
         "final angles [rad]: " + ", ".join(f"{n} {a:.4f}" for n, a in zip(angle_names, r.final_angles, strict=True)),
         "final base origin [m]: " + ", ".join(f"{n} {x:.4f}" for n, x in zip("xyz", r.final_base)),
         f"accuracy: error estimate {estimate} (tolerance {r.tolerance:g}), "
-        + ("Runge-Kutta 4" if r.integrator == "rk4" else "implicit (ROS2, order 2)") + f" step {r.step:.3g} s",
+        + ("Runge-Kutta 4" if r.integrator == "rk4" else "implicit (ROS2, order 2)") + f" step {r.step:.3g} s"
+        + f", steps {STEP_CODE_NAMES.get(r.step_code, r.step_code)}",
     ]
+
+
+#: How the text report names the code a landing's steps ran on (:attr:`LandingResult.step_code`).
+STEP_CODE_NAMES = {"c": "as C from the compile cache", "vm": "on CasADi's virtual machine", "numpy": "in numpy"}
 
 
 def _table(headers: list[str], rows: list[list[str]]) -> list[str]:

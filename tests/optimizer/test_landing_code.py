@@ -16,6 +16,7 @@ from impulse_core.kinematics.spatial import PLANAR
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, Scene, Tree
 from impulse_core.timedomain.landing import AUTO_CODE, LandingResult, landing
+from optimizer.cli.main import main
 from optimizer.config.study_config import load_study
 from optimizer.design_space import STUDY_LANDING
 from optimizer.search.landing_code import COMPILE_LANDINGS, LandingBuilds
@@ -29,6 +30,17 @@ def _leg() -> tuple[Tree, tuple[JointLaw, ...], Scene]:
     return Tree(bodies), laws, Scene(speed=2.0, restitution=0.3, friction=0.5, gravity=9.81, duration=0.03)
 
 
+#: :func:`_leg` as a model file.
+LEG_YAML = """
+scene: {speed: 2.0, restitution: 0.3, friction: 0.5, gravity: 9.81, duration: 0.03}
+model:
+  bodies:
+    - {name: shank, length: 0.5, mass: 1.0, angle: -1.2}
+    - {name: foot, parent: shank, at: 1.0, length: 0.15, mass: 0.2, angle: 1.0, joint: revolute,
+       stiffness: 20.0, damping: 0.2, limits: [0.6, 1.4], contacts: [1.0]}
+"""
+
+
 def _assert_same_bits(a: LandingResult, b: LandingResult) -> None:
     assert (a.n_steps, a.step, a.error_estimate, len(a.events)) == (b.n_steps, b.step, b.error_estimate, len(b.events))
     for x, y in zip(a.events, b.events, strict=True):
@@ -39,7 +51,7 @@ def _assert_same_bits(a: LandingResult, b: LandingResult) -> None:
         assert np.array_equal(getattr(a, key), getattr(b, key)), key
 
 
-def test_a_landing_takes_the_c_a_background_build_stored(tmp_path, monkeypatch):
+def test_a_landing_takes_the_c_a_background_build_stored(tmp_path, monkeypatch, capsys):
     """Step code ``auto`` (the studies'): the virtual machine while the compile cache lacks the
     topology's C, and nothing is built; :class:`LandingBuilds` builds the step, the projection and
     the point's dynamics; the next landing runs on them and gives the same numbers bit for bit
@@ -57,6 +69,10 @@ def test_a_landing_takes_the_c_a_background_build_stored(tmp_path, monkeypatch):
     after = landing(tree, scene, laws, STUDY_LANDING)
     assert after.step_code == "c"
     _assert_same_bits(before, after)
+    model = tmp_path / "leg.yaml"  # footopt evaluate takes it too, and says so
+    model.write_text(LEG_YAML)
+    assert main(["evaluate", str(model)]) == 0
+    assert "steps as C from the compile cache" in capsys.readouterr().out
     for planned in (COMPILE_LANDINGS, COMPILE_LANDINGS - 1):
         with LandingBuilds(planned=planned) as again:
             again.prepare(tree, scene, laws, STUDY_LANDING, PLANAR)
