@@ -508,8 +508,8 @@ def _external(name: str, library: Path) -> ca.Function:
 
 def cached_function(f: ca.Function, cache_dir: Path, drivers: bool = True) -> ca.Function | None:
     """``f`` as C if the cache in ``cache_dir`` already holds its library (built by
-    :func:`compile_function` or :func:`background_build` with the same ``drivers``), else None:
-    nothing is built, and no compiler is None."""
+    :func:`compile_function` or :func:`background_build` with the same ``drivers``), else None
+    (also without a C compiler); nothing is built."""
     compiler = find_compiler()
     if compiler is None:
         return None
