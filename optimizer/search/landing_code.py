@@ -10,9 +10,9 @@ a core the search leaves idle, and yields one it needs); the landings switch to 
 stored. The C is the virtual machine's arithmetic without fused multiply-adds, so a landing gives
 the same numbers on either code (bit for bit in the plane; in space the virtual machine's
 per-mode copies, :class:`~impulse_core.timedomain.landing_step.ModeFunctions`, round a few last
-bits differently: CasADi folds sqrt(x^2 + 0^2), a norm with a row the mode fixes at 0, into |x|,
-which sqrt(x * x) need not equal to the bit; 1e-13 relative on random file 60006, bit for bit on
-three other spatial files). Planar study landings run 1.2-1.8 x faster
+bits differently: the simplifications CasADi makes as it folds a mode's constants, such as
+(x * y) / y into x, need not round as the general function does; 1e-13 relative on random file
+60006, bit for bit on three other spatial files). Planar study landings run 1.2-1.8 x faster
 as C, spatial ones about 2.7 x; a build takes 5-20 s in the plane and up to minutes in space.
 """
 
