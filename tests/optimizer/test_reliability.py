@@ -215,12 +215,12 @@ def test_a_ctrl_c_that_casadi_swallows_still_stops_the_outer_search(tiny_outer_s
 
     real = outer.evaluate_designs
 
-    def swallowing(config, designs):  # noqa: ANN001, ANN202
+    def swallowing(config, designs, *rest):  # noqa: ANN001, ANN002, ANN202
         try:
             signal.raise_signal(signal.SIGINT)
         except BaseException:  # noqa: BLE001 - what the C++ wrapper does
             pass
-        return real(config, designs)
+        return real(config, designs, *rest)
 
     config = load_study(tiny_outer_study)
     study = outer.open_study(config, optuna.storages.InMemoryStorage())
@@ -240,6 +240,7 @@ def test_a_ctrl_c_that_casadi_swallows_while_a_landing_is_built_stops_footopt_ev
     """``footopt evaluate`` of a whole landing: a SIGINT whose KeyboardInterrupt is caught while
     the landing's functions are built (as CasADi's wrapper may) ends it at its first step (130)."""
     import impulse_core.timedomain.landing as landing_module
+    import impulse_core.timedomain.landing_step as landing_step
 
     real = landing_module.landing_function
     built: list[int] = []
@@ -253,6 +254,7 @@ def test_a_ctrl_c_that_casadi_swallows_while_a_landing_is_built_stops_footopt_ev
         return real(*args, **kwargs)
 
     monkeypatch.setattr(landing_module, "landing_function", swallowing)
+    monkeypatch.setattr(landing_step, "landing_function", swallowing)  # step code auto's C or VM function
     before = signal.getsignal(signal.SIGINT)
     assert main(["evaluate", str(REPO / "configs" / "landing_case3.yaml"), "--json"]) == 130
     out = capsys.readouterr()
