@@ -130,13 +130,13 @@ def test_the_gradients_agree_with_central_differences_per_landing_and_statistic(
 
 
 def test_a_solve_keeps_the_max_epigraph_tight_and_lowers_the_statistic(tmp_path):
-    """A few IPOPT iterations on a max (5 ms landings): its level stays above every scenario (one
+    """One IPOPT iteration on a max (3 ms landings): its level stays above every scenario (one
     row each), and the realised statistic (the outer evaluation) goes down."""
     from optimizer.search.landing_inner import solve_landing
 
-    nlp = _nlp(tmp_path, "{peak_external_norm: max, energy_absorbed: mean}", duration=0.005)
+    nlp = _nlp(tmp_path, "{peak_external_norm: max, energy_absorbed: mean}", duration=0.003)
     x0 = start_landing(nlp, np.random.default_rng(1))
-    s = solve_landing(nlp, (1.0, 0.0), math.inf, x0, {"ipopt.max_iter": 3})
+    s = solve_landing(nlp, (1.0, 0.0), math.inf, x0, {"ipopt.max_iter": 1})
     assert s.x.shape == (nlp.n_x,)
     before = _statistics(nlp, x0)[0]
     assert set_steps(nlp, x0)
