@@ -2961,13 +2961,16 @@ class _Landing:
 
     def singular_note(self, q: np.ndarray) -> str:
         """Why a run diverged at ``q`` where its mass matrix is near singular (condition number
-        above SINGULAR_MASS): e.g. rods of zero radius in line, whose common axis carries no
-        inertia, spin up without bound as they pass that posture; else nothing."""
+        above SINGULAR_MASS): e.g. rods of zero radius, each spinning about its own axis, which
+        moves no mass where a hinge lets them (rods in line; random file 32365: a child's axis in
+        the plane of its parent's and the hinge's, 11 degrees apart), spin up without bound as they
+        pass that posture; else nothing."""
         cond = float(np.linalg.cond(self.mass_matrix_at(q)))
         if cond <= SINGULAR_MASS:
             return ""
         return (f": its mass matrix is near singular there (condition number {cond:.1e}: a motion with almost no "
-                "inertia, e.g. rods of zero radius in line spinning about their common axis); give the rods a radius")
+                "inertia, e.g. rods of zero radius spinning about their own axes, where they lie in line or a "
+                "child's axis lies in the plane of its parent's and its hinge's); give the rods a radius")
 
     def jam_note(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> str:
         """Why a run diverged at (q, v) in ``mode`` where a closed sliding contact is pressed

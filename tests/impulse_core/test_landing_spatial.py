@@ -513,6 +513,21 @@ def test_a_divergence_through_a_singular_mass_matrix_says_so():
     assert r.momentum_balance < 1e-4
 
 
+def test_zero_radius_rods_out_of_line_are_named_where_they_spin_about_their_own_axes():
+    """Random file 32365 (data/zero_radius_plane_32365.yaml: two rods of zero radius on a hinge)
+    diverges in flight as its hinge nears 0.2061 rad, where the child's axis lies in the plane of
+    the base's axis and the hinge axis (the rods 11 degrees apart, not in line): both rods can
+    spin about their own axes there, the hinge taking the difference, moving no mass. The note
+    names that posture, not only rods in line."""
+    model = _data_model("zero_radius_plane_32365.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    q = run.q0.copy()
+    q[6] = 0.2061  # the hinge where the child's axis crosses that plane (run.q0: 0.693 rad)
+    assert run.singular_note(run.q0) == ""
+    note = run.singular_note(q)
+    assert "near singular" in note and "plane of its parent's and its hinge's" in note
+
+
 def _kept_state(name: str, state: str | None = None):
     """data/NAME.yaml's landing at the state kept in data/NAME_state.json (or STATE_state.json),
     in the run's chart (its first impact taken): (run, the first impact's totals, the kept values
