@@ -228,7 +228,7 @@ class LandingSettings:
             mode), or ``auto``: ``c`` where the compile cache already holds this landing's C (a
             study builds it in the background, :mod:`optimizer.search.landing_code`), else ``vm``;
             nothing is built (:attr:`LandingResult.step_code` says which ran). All agree to
-            rounding; c and vm bit for bit in the plane.
+            rounding; c and vm bit for bit in the plane on every file tried (optimizer.search.landing_code).
         bounce_steps: 0 (default: every rebound faster than the plastic speed is an event, as
             ``MODEL_FORMAT.md`` asks), or b > 0: after the first impact a rebound that the row's
             free acceleration would end within b steps is plastic (module docstring; case 3's
