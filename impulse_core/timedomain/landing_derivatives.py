@@ -264,17 +264,20 @@ class _Op:
     (flat numpy vectors) and ``jac[i][j]`` = d output i / d input j (dense), from one CasADi call.
     Built once per mode (symbolic in theta), so every design of one structure reuses it."""
 
-    def __init__(self, name: str, inputs: list, outputs: list) -> None:
+    def __init__(self, name: str, inputs: list, outputs: list, wrt: list | None = None) -> None:
+        """``wrt``: per input, the symbols its Jacobian is taken w.r.t. (default the input itself;
+        a leading part of it leaves the rest undifferentiated, as the slip floor of theta)."""
         outputs = [ca.vec(o) for o in outputs]
+        wrt = wrt or inputs
         self.n_out, self.n_in = len(outputs), len(inputs)
         # one Jacobian of every output w.r.t. every input (shared work), split into blocks
-        J = ca.jacobian(ca.vertcat(*outputs), ca.vertcat(*inputs))
+        J = ca.jacobian(ca.vertcat(*outputs), ca.vertcat(*wrt))
         rows = np.cumsum([0] + [o.shape[0] for o in outputs])
-        cols = np.cumsum([0] + [i.shape[0] for i in inputs])
+        cols = np.cumsum([0] + [i.shape[0] for i in wrt])
         jacs = [J[int(rows[a]) : int(rows[a + 1]), int(cols[b]) : int(cols[b + 1])]
                 for a in range(len(outputs)) for b in range(len(inputs))]
         self.f = ca.Function(name, inputs, outputs + jacs)
-        self.shapes = [(o.shape[0], i.shape[0]) for o in outputs for i in inputs]
+        self.shapes = [(o.shape[0], i.shape[0]) for o in outputs for i in wrt]
 
     def __call__(self, *args) -> tuple[list[np.ndarray], list[list[np.ndarray]]]:
         res = self.f(*args)
@@ -299,7 +302,8 @@ class _Symbolic:
     """The landing's operations as CasADi functions of (x = [q; v], theta, ...), built once per
     mode or impact and cached. Their theta is the design values' followed by the friction
     coefficient mu (:attr:`mu`, symbolic like them; whether it is positive, which decides the
-    rows, is built in: :attr:`frictional`). In space the operations of a mode with sliding
+    rows, is built in: :attr:`frictional`) and the run's slip floor (:attr:`floor`, not
+    differentiated). In space the operations of a mode with sliding
     contacts also take d, the slip directions the mode carries (n_c x 2 flattened,
     :attr:`_Mode.slip`), and a step returns its regularisation core (:meth:`_Landing.steer`)."""
 
@@ -317,12 +321,14 @@ class _Symbolic:
         self.n_theta = self.n_p + len(LAW_VALUES) * len(self.dofs)
         self.laws = laws or (FREE,) * tree.n_bodies
         self.frictional, self.gravity = run.mu > 0, run.scene.gravity
-        self.floor = run.speed_tol  # below this slip speed a sliding contact keeps its direction d
         self.S = subtree_incidence(tree)
         self.cache: dict = {}
         self.x = ca.SX.sym("x", 2 * self.nv)
-        self.th = ca.SX.sym("theta", self.n_theta + 1)  # the design values, then mu
-        self.mu = self.th[self.n_theta]
+        # the design values, mu, then the slip floor (below this slip speed a sliding contact keeps
+        # its direction d: the run's speed_tol, a threshold, so not differentiated: :meth:`op`)
+        self.th = ca.SX.sym("theta", self.n_theta + 2)
+        self.mu, self.floor = self.th[self.n_theta], self.th[self.n_theta + 1]
+        self.differentiated = self.th[: self.n_theta + 1]
         self.d = ca.SX.sym("d", self.nt * self.nc)  # space: the carried slip directions
 
     # ---- pieces of theta
@@ -526,6 +532,10 @@ class _Symbolic:
 
     # ---- cached functions
 
+    def op(self, name: str, inputs: list, outputs: list) -> _Op:
+        """An operation whose Jacobian w.r.t. theta leaves out the slip floor."""
+        return _Op(name, inputs, outputs, [self.differentiated if i is self.th else i for i in inputs])
+
     def step(self, mode: _Mode, method: str) -> _Op:
         """(x, theta, h[, d]) -> (x after one step of the mode by the run's integrator, contact
         impulses [fn; ft][, the step's core])."""
@@ -535,7 +545,7 @@ class _Symbolic:
             q, v = self.split(self.x)
             q1, v1, imp, core = self.integrate(q, v, self.th, mode, h, method, self.d)
             outs = [ca.vertcat(q1, v1), imp] + ([] if self.planar else [core])
-            self.cache[key] = _Op("step", self.inputs(self.x, self.th, h), outs)
+            self.cache[key] = self.op("step", self.inputs(self.x, self.th, h), outs)
         return self.cache[key]
 
     def follow(self, mode: _Mode) -> _Op:
@@ -547,7 +557,7 @@ class _Symbolic:
             u = self.directions(self.point(q, v, self.th), mode, self.d, core)
             d = ca.vertcat(*[self.d[self.nt * i : self.nt * (i + 1)] if u[i] is None else ca.vertcat(*u[i])
                              for i in range(self.nc)])
-            self.cache[key] = _Op("follow", [self.x, self.th, self.d, core], [d])
+            self.cache[key] = self.op("follow", [self.x, self.th, self.d, core], [d])
         return self.cache[key]
 
     def new_directions(self, mode: _Mode, kinds: tuple) -> _Op:
@@ -579,7 +589,7 @@ class _Symbolic:
                 step = _solve(ca.jacobian(R, z), R)
                 for n, j in enumerate(idx):
                     d[j] = d[j] - step[n]
-            self.cache[key] = _Op("directions", [self.x, self.th, self.d], [d])
+            self.cache[key] = self.op("directions", [self.x, self.th, self.d], [d])
         return self.cache[key]
 
     def project(self, mode: _Mode, lifted: tuple, beyond: tuple = ()) -> _Op:
@@ -604,7 +614,7 @@ class _Symbolic:
                 impulse = -_solve(G @ minv_gt, G @ v)
                 imp = self.contact_forces(info, impulse, none, 0.0)
                 out = [ca.vertcat(q - dq, v + minv_gt @ impulse), imp]
-            self.cache[key] = _Op("project", [self.x, self.th], out)
+            self.cache[key] = self.op("project", [self.x, self.th], out)
         return self.cache[key]
 
     def position_correction(self, pt, q, th, place: _Mode):
@@ -656,7 +666,7 @@ class _Symbolic:
             q, v = self.split(self.x)
             q1, v1, _, core = self.integrate(q, v, self.th, mode, tau, method, self.d)
             w = self.witness(q1, v1, self.th, mode, index, ft_sign, self.d, core)
-            self.cache[key] = _Op("witness", self.inputs(self.x, self.th, tau), [w])
+            self.cache[key] = self.op("witness", self.inputs(self.x, self.th, tau), [w])
         return self.cache[key]
 
     def impact(self, rows: _Rows, e: np.ndarray, modes: tuple) -> _Op:
@@ -735,7 +745,7 @@ class _Symbolic:
             # the joint impulses as vectors (x, y[, z] rows): their norms are taken where a peak is
             # differentiated, since sqrt at a zero joint impulse would put 0 * inf = NaN in reverse mode
             outs = [v_plus, fn, ca.vertcat(*ft), joint[:, 1:]] + ([] if self.planar else [lam])
-            self.cache[key] = _Op("impact", inputs, outs)
+            self.cache[key] = self.op("impact", inputs, outs)
         return self.cache[key]
 
     def touchdown(self, lowest: int, lowest_x: float) -> _Op:
@@ -766,7 +776,7 @@ class _Symbolic:
             q[1] = TOUCHDOWN_CLEARANCE - (y - ground)
             pt = self.point(q, v, th)
             mass = sum(th[len(self.values) * b + self.values.index("mass")] for b in range(self.tree.n_bodies))
-            self.cache[key] = _Op("touchdown", [th], [q, pt["com"], mass])
+            self.cache[key] = self.op("touchdown", [th], [q, pt["com"], mass])
         return self.cache[key]
 
     def final(self) -> _Op:
@@ -783,7 +793,7 @@ class _Symbolic:
             base = [q[2]] if self.planar else [q[3], q[4], q[5]]
             angles = base + [self.angle(th, b) if layout.body_dof[b] is None else q[layout.body_dof[b]]
                              for b in range(1, self.tree.n_bodies)]
-            self.cache[key] = _Op("final", [self.x, th], [energy, pt["com"], ca.vertcat(*angles)])
+            self.cache[key] = self.op("final", [self.x, th], [energy, pt["com"], ca.vertcat(*angles)])
         return self.cache[key]
 
 
@@ -918,14 +928,15 @@ _SYMBOLIC: dict = {}
 
 def _symbolic(run: _Landing, laws: tuple[JointLaw, ...]) -> _Symbolic:
     """The symbolic operations of a run, shared by every run whose structure is the same (the
-    design values and the friction coefficient are symbols; which rests follow the angle and
-    which joints have stops, the ground, whether there is friction, gravity and the approach are
-    built in): a search that lands many designs of one topology builds each mode's functions,
-    and CasADi their derivatives, once."""
+    design values, the friction coefficient and the slip floor are symbols; which rests follow the
+    angle and which joints have stops, the ground, whether there is friction, gravity and the
+    base's touchdown x and z are built in; the approach velocity is not in the graphs): a search
+    that lands many designs of one topology, or one design in many scenarios, builds each mode's
+    functions, and CasADi their derivatives, once."""
     laws = laws or (FREE,) * run.tree.n_bodies
     scene = run.scene
-    key = (run.topology, run.space, scene.terrain, scene.heightfield, run.mu > 0, scene.gravity, scene.base_x, scene.base_z,
-           scene.velocity, scene.angular_velocity_3d, tuple(law.rest is None for law in laws),
+    key = (run.topology, run.space, scene.terrain, scene.heightfield, run.mu > 0, scene.gravity,
+           scene.base_x, scene.base_z, tuple(law.rest is None for law in laws),
            tuple(law.limits is None for law in laws))
     if key not in _SYMBOLIC:
         if len(_SYMBOLIC) >= 16:
@@ -1054,9 +1065,9 @@ def landing_gradient(
     t1 = time.perf_counter()
     sym = _symbolic(run, laws)
     nc, nv, n_theta, dims = sym.nc, sym.nv, sym.n_theta, sym.dims
-    # the operations' parameters: theta, then mu; the sensitivities' columns: theta, then the
+    # the operations' parameters: theta, mu, the slip floor; the sensitivities' columns: theta, then the
     # scene's values (:func:`scene_names`: mu first, so an operation's parameter columns lead)
-    p = np.append(theta, run.mu)
+    p = np.append(theta, [run.mu, run.speed_tol])
     n = n_theta + len(conditions)
     speed_col, restitution_col = n_theta + SCENE_VALUES.index("speed"), n_theta + SCENE_VALUES.index("restitution")
     stop_col = {j: n_theta + len(SCENE_VALUES) + i for i, (_, j) in enumerate(sym.dofs)}

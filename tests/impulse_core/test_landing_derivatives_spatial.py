@@ -226,3 +226,35 @@ def test_a_landing_whose_base_turned_past_the_chart_is_refused(monkeypatch):
     monkeypatch.setattr(landing_derivatives, "RECHART", 1e-3)
     with pytest.raises(NumericalError, match="re-centred"):
         landing_gradient(tree, replace(scene, duration=0.005), laws, settings, step=STEP, space=SPATIAL)
+
+
+def test_approaches_share_one_structure_and_each_keeps_its_slip_floor():
+    """Landings that differ only in their approach (speed, lateral velocity, spin) share one
+    symbolic structure (the approach is not in its graphs), and the structure's slip floor is each
+    run's own (1e-9 max(1, speed, |v_x|)): a slip of 1e-8 m/s, between two runs' floors, turns a
+    sliding contact's direction to the slip in the slow run's replay and keeps the mode's in the
+    fast one's, as each numeric landing does (:func:`landing.slip_direction`)."""
+    from impulse_core.timedomain.landing import _Landing, _Mode, slip_direction
+    from impulse_core.timedomain.landing_derivatives import _symbolic
+
+    tree, laws, scene, settings = _two_rod_leg()
+    fast = replace(scene, speed=150.0, velocity_x=-0.4, angular_velocity_x=-0.1)
+    slow, quick = (_Landing(tree, s, laws, settings, SPATIAL) for s in (scene, fast))
+    sym = _symbolic(slow, laws)
+    assert _symbolic(quick, laws) is sym
+    assert slow.speed_tol < 1e-8 < quick.speed_tol
+    q = slow.q0
+    v = np.random.default_rng(5).normal(size=slow.nv)
+    slip = slow.point(q, v).slip[0]
+    v *= 1e-8 / np.linalg.norm(slip)  # the contact's slip speed 1e-8 m/s
+    u = slip / np.linalg.norm(slip)
+    d = (u + 1.5 * np.array([-u[1], u[0]])) / np.hypot(1.0, 1.5)  # 56 degrees from the slip
+    mode = _Mode(closed=np.array([True]), slip=d[None, :], stop=np.zeros(slow.nv, int))
+    turned = []
+    for run in (slow, quick):
+        p = np.append(design_theta(tree, laws, SPATIAL), [run.mu, run.speed_tol])
+        (ours,), _ = sym.follow(mode)(np.concatenate([q, v]), p, d, np.zeros(1))
+        theirs = slip_direction(run.point(q, v), d[None, :], np.zeros(1))[0]
+        assert np.max(np.abs(ours - theirs)) <= 1e-12
+        turned.append(np.max(np.abs(ours - d)) > 0.1)
+    assert turned == [True, False]
