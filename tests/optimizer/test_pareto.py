@@ -28,6 +28,17 @@ def test_non_dominated_filters_sorts_and_merges_duplicates():
         assert not dominates(a, b)
 
 
+def test_a_point_tied_in_one_objective_and_worse_in_another_is_dominated():
+    """Pareto dominance is weak in each objective: a design that ties the best in one objective
+    and is worse in the other is off the front (also in three objectives, tied in two)."""
+    assert dominates(np.array([1.0, 5.0]), np.array([1.0, 6.0]))
+    assert not dominates(np.array([1.0, 5.0]), np.array([1.0, 5.0]))
+    values = np.array([[1.0, 6.0], [3.0, 1.0], [1.0, 5.0], [3.0, 2.0], [2.0, 5.0]])
+    assert list(non_dominated(values)) == [2, 1]
+    values = np.array([[1.0, 2.0, 3.0], [1.0, 2.0, 4.0], [0.5, 9.0, 9.0]])
+    assert list(non_dominated(values)) == [2, 0]
+
+
 def test_non_dominated_random_points_are_mutually_non_dominated(rng):
     values = rng.random((200, 3))
     idx = non_dominated(values)
