@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pytest
 
-from impulse_core.impact.laws import ImpactModel
+from impulse_core.impact.laws import ImpactModel, complementarity_impulse
 from impulse_core.evaluate import compiled_model, evaluate
 from impulse_core.model.tree import (
     UNIFORM_COM,
@@ -560,3 +560,28 @@ def test_the_numpy_reference_is_right(n, rng):
     assert np.abs(pn.mass_matrix(tree, pl) - M_pin).max() <= 1e-12 * np.abs(M_pin).max()
     J_pin = P.normal_jacobian(tuple(range(len(tree.contacts)))) @ np.linalg.inv(P.T)
     assert np.allclose(pn.normal_jacobian(tree, pl), J_pin, rtol=0, atol=1e-12 * np.abs(J_pin).max())
+
+
+def test_the_impact_lcp_does_not_pull_where_its_free_answer_pulls_by_a_hair(rng):
+    """The frictionless impact LCP (lambda >= 0, w = A lambda - b >= 0, lambda . w = 0 with
+    A = E^T E, b = E^T f) on seeded problems whose unconstrained answer pulls on one contact by
+    1e-8 to 1e-2 of the largest impulse: that contact takes 0 (no pull accepted as rounding), the
+    law holds to rounding, and the impulses are scipy's NNLS minimiser's."""
+    from scipy.optimize import nnls as scipy_nnls
+
+    for _ in range(60):
+        n = int(rng.integers(2, 7))
+        E = rng.normal(size=(n + int(rng.integers(0, 4)), n)) * rng.uniform(0.1, 10.0, n)
+        free = rng.uniform(0.1, 1.0, n) * rng.choice([1e-3, 1.0, 1e3])
+        pulling = int(rng.integers(n))
+        free[pulling] = -rng.choice([1e-8, 1e-6, 1e-4, 1e-2]) * free.max()
+        f = E @ free
+        lam = complementarity_impulse(E, f)
+        A, b = E.T @ E, E.T @ f
+        w = A @ lam - b
+        size = float(np.abs(b).max())
+        assert lam.min() >= 0.0
+        assert lam[pulling] == 0.0
+        assert w.min() >= -1e-10 * size and abs(lam @ w) <= 1e-10 * size * lam.max()
+        reference = scipy_nnls(E, f)[0]
+        assert np.max(np.abs(lam - reference)) <= 1e-9 * reference.max()
