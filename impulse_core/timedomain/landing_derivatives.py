@@ -260,30 +260,53 @@ def apply_theta(tree: Tree, laws: tuple[JointLaw, ...], theta: np.ndarray, space
 
 
 class _Op:
-    """One operation of the replay with its exact Jacobians: ``op(*args)`` returns its outputs
-    (flat numpy vectors) and ``jac[i][j]`` = d output i / d input j (dense), from one CasADi call.
-    Built once per mode (symbolic in theta), so every design of one structure reuses it."""
+    """One operation of the replay, differentiable two ways. ``op(*args)`` returns its outputs
+    (flat numpy vectors) and ``jac[i][j]`` = d output i / d input j (dense), from one CasADi call;
+    :meth:`along` returns the outputs and their derivatives along m given directions (forward
+    mode: m sweeps, no Jacobian formed). Built once per mode (symbolic in theta), so every design
+    of one structure reuses it; each form is built on its first use."""
 
     def __init__(self, name: str, inputs: list, outputs: list, wrt: list | None = None) -> None:
         """``wrt``: per input, the symbols its Jacobian is taken w.r.t. (default the input itself;
         a leading part of it leaves the rest undifferentiated, as the slip floor of theta)."""
-        outputs = [ca.vec(o) for o in outputs]
-        wrt = wrt or inputs
-        self.n_out, self.n_in = len(outputs), len(inputs)
-        # one Jacobian of every output w.r.t. every input (shared work), split into blocks
-        J = ca.jacobian(ca.vertcat(*outputs), ca.vertcat(*wrt))
-        rows = np.cumsum([0] + [o.shape[0] for o in outputs])
-        cols = np.cumsum([0] + [i.shape[0] for i in wrt])
-        jacs = [J[int(rows[a]) : int(rows[a + 1]), int(cols[b]) : int(cols[b + 1])]
-                for a in range(len(outputs)) for b in range(len(inputs))]
-        self.f = ca.Function(name, inputs, outputs + jacs)
-        self.shapes = [(o.shape[0], i.shape[0]) for o in outputs for i in wrt]
+        self.name, self.inputs, self.outputs = name, inputs, [ca.vec(o) for o in outputs]
+        self.wrt = wrt or inputs
+        self.n_out, self.n_in = len(self.outputs), len(inputs)
+        self.base = ca.Function(name, inputs, self.outputs)
+        self.shapes = [(o.shape[0], i.shape[0]) for o in self.outputs for i in self.wrt]
+        self._jacobians: ca.Function | None = None
+        self._forward: dict[int, ca.Function] = {}
+
+    @property
+    def f(self) -> ca.Function:
+        """The outputs, then one Jacobian of every output w.r.t. every input (shared work) in blocks."""
+        if self._jacobians is None:
+            J = ca.jacobian(ca.vertcat(*self.outputs), ca.vertcat(*self.wrt))
+            rows = np.cumsum([0] + [o.shape[0] for o in self.outputs])
+            cols = np.cumsum([0] + [i.shape[0] for i in self.wrt])
+            jacs = [J[int(rows[a]) : int(rows[a + 1]), int(cols[b]) : int(cols[b + 1])]
+                    for a in range(self.n_out) for b in range(self.n_in)]
+            self._jacobians = ca.Function(self.name, self.inputs, self.outputs + jacs)
+        return self._jacobians
 
     def __call__(self, *args) -> tuple[list[np.ndarray], list[list[np.ndarray]]]:
         res = self.f(*args)
         outs = [np.asarray(r, dtype=float).reshape(-1) for r in res[: self.n_out]]
         jacs = [np.asarray(r, dtype=float).reshape(shape) for r, shape in zip(res[self.n_out :], self.shapes)]
         return outs, [jacs[i * self.n_in : (i + 1) * self.n_in] for i in range(self.n_out)]
+
+    def along(self, args: list, seeds: list[np.ndarray]) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """The outputs at ``args`` and their derivatives along ``seeds`` (per input, an n_in x m
+        matrix of its directions; theta's slip floor row 0): each output's n_out x m."""
+        m = seeds[0].shape[1]
+        if m not in self._forward:
+            self._forward[m] = self.base.forward(m)
+        outs = self.base(*args)
+        outs = outs if isinstance(outs, (list, tuple)) else [outs]
+        res = self._forward[m](*args, *outs, *seeds)
+        res = res if isinstance(res, (list, tuple)) else [res]
+        return ([np.asarray(o, dtype=float).reshape(-1) for o in outs],
+                [np.asarray(r, dtype=float).reshape(o.shape[0], m) for r, o in zip(res, self.outputs)])
 
 
 def _mode_key(mode: _Mode) -> tuple:
@@ -1044,11 +1067,15 @@ def landing_gradient(
     settings: LandingSettings = LandingSettings(),
     step: float | None = None,
     space: Space = PLANAR,
+    directions: np.ndarray | None = None,
 ) -> LandingGradient:
     """The landing's objectives and their exact derivatives w.r.t. theta and the scene's values
     (module docstring) along the event sequence of the run at ``step`` (None: the step
     :func:`landing` reports at ``settings``, which costs that landing first), in the plane or in
-    ``space``.
+    ``space``. With ``directions`` D (rows: theta's, then the scene's values; k columns) only the
+    derivatives along D's columns are carried (forward mode, k sweeps per operation: cheaper than
+    every column where k is small, as for a search's few variables): ``jacobian`` is then
+    d/dz at theta + D z (k entries per output) and ``scene_jacobian`` is empty.
 
     Raises:
         ModelError: as :func:`landing`.
@@ -1068,7 +1095,8 @@ def landing_gradient(
     # the operations' parameters: theta, mu, the slip floor; the sensitivities' columns: theta, then the
     # scene's values (:func:`scene_names`: mu first, so an operation's parameter columns lead)
     p = np.append(theta, [run.mu, run.speed_tol])
-    n = n_theta + len(conditions)
+    n = n_theta + len(conditions) if directions is None else directions.shape[1]
+    ahead = _Sweep(n, None if directions is None else directions[: n_theta + 1])
     speed_col, restitution_col = n_theta + SCENE_VALUES.index("speed"), n_theta + SCENE_VALUES.index("restitution")
     stop_col = {j: n_theta + len(SCENE_VALUES) + i for i, (_, j) in enumerate(sym.dofs)}
 
@@ -1085,15 +1113,17 @@ def landing_gradient(
     lowest = int(np.argmin(clearance))
     v0 = pre_impact_velocity(run.topology, scene, run.space)
     dv0 = pre_impact_velocity(run.topology, Scene(speed=1.0), run.space)  # d v0 / d speed (v0 is linear in it)
-    (q0, height0, mass), J = sym.touchdown(lowest, float(geometry[lowest, 0]))(p)
-    d_height0, d_mass = (_lift(Jo[0], n) for Jo in J[1:])  # 1 x n each
-    # forward sensitivities: each quantity z carries dz/d(theta, scene values) (rows: its entries)
+    (q0, height0, mass), (dq0, d_height0, d_mass) = ahead(sym.touchdown(lowest, float(geometry[lowest, 0])), [p])
+    # forward sensitivities: each quantity z carries dz/d(theta, scene values), or along the
+    # directions (rows: its entries)
     x = np.concatenate([q0, v0])
-    S = np.vstack([_lift(J[0][0], n), np.zeros((nv, n))])
-    S[nv:, speed_col] = dv0
+    S = np.vstack([dq0, np.zeros((nv, n))])
+    if directions is None:
+        S[nv:, speed_col] = dv0
+    else:
+        S[nv:] = np.outer(dv0, directions[speed_col])
     # energy_absorbed's energy brought at touchdown: kinetic at v0 and the springs' at q0
-    (e_touch, _, _), J_touch = sym.final()(x, p)
-    d_e_touch = _ahead(J_touch[0][0], S, J_touch[0][1])
+    (e_touch, _, _), (d_e_touch, _, _) = ahead(sym.final(), [x, p], [S, None])
     totals, S_totals = np.zeros(dims * nc), np.zeros((dims * nc, n))
     # space: the slip directions the mode carries, and the last step's core (:meth:`_Landing.steer`)
     nd = sym.nt * nc
@@ -1105,13 +1135,6 @@ def landing_gradient(
     signature = []
     checked: set = set()
     previous = None
-
-    def chain(J: list, dh: np.ndarray | None = None) -> np.ndarray:
-        """An output's derivative from its Jacobians w.r.t. (x, theta[, h][, d])."""
-        out = _ahead(J[0], S, J[1])
-        if dh is not None:
-            out = out + np.outer(J[2], dh)
-        return out if run.planar else out + J[-1] @ S_d
 
     for entry in tape:
         kind = entry[0]
@@ -1132,7 +1155,7 @@ def landing_gradient(
                 checked.add(_mode_key(mode))
             if not run.planar:
                 _check_directions(mode, d, run.mu > 0)
-            extra = [] if run.planar else [d]
+            extra, extra_seeds = ([], []) if run.planar else ([d], [S_d])
             if kind == "step":
                 _, q, v, mode, h, final = entry
                 h, dh = (T - t, -dt) if final else (h, np.zeros(n))
@@ -1140,37 +1163,38 @@ def landing_gradient(
                 _, q, v, mode, tau, watch = entry
                 index, sign = item[2]
                 op = sym.event_witness(mode, index, sign, run.method)
-                (c,), _ = op(np.concatenate([q, v]), p, tau, *extra)
+                c = float(op.base(np.concatenate([q, v]), p, tau, *extra))
                 (w,), Jw = op(x, p, tau, *extra)
                 rate = float(Jw[0][2][0, 0])
                 if rate == 0 or not math.isfinite(rate):
                     raise NumericalError("an event's witness does not cross (a graze): no derivative of its time")
                 # the event time: where the witness reaches its value at the located tau (one
                 # Newton correction; its derivative is the implicit function theorem's)
-                h = tau - float(w[0] - c[0]) / rate
-                dh = -chain(Jw[0])[0] / rate
-            outs, J = sym.step(mode, run.method)(x, p, h, *extra)
-            S_totals = S_totals + chain(J[1], dh)
+                h = tau - float(w[0] - c) / rate
+                dh = -ahead.jacobians(Jw[0], [S, None, np.zeros((1, n)), *extra_seeds])[0] / rate
+            outs, d_outs = ahead(sym.step(mode, run.method), [x, p, h, *extra], [S, None, dh[None, :], *extra_seeds])
+            S_totals = S_totals + d_outs[1]
             if not run.planar:
-                core, S_core = outs[2], chain(J[2], dh)
-            S = chain(J[0], dh)
+                core, S_core = outs[2], d_outs[2]
+            S = d_outs[0]
             x, totals, t, dt = outs[0], totals + outs[1], t + h, dt + dh
         elif kind == "impact":
             _, q, v, rows, e, sol, plastic = entry
             star = [] if run.planar else [np.concatenate([sol.normal, sol.tangential])]
-            outs, J = sym.impact(rows, e, item[4])(x, p, e, *star)
-            v_plus, fn, ft, joint = outs[:4]
-            if star:  # the run's impulse meets the mode's equations at the run's own state (not its polyhedral answer)
-                lam = np.asarray(sym.impact(rows, e, item[4]).f(np.concatenate([q, v]), p, e, star[0])[4]).ravel()
-                if np.max(np.abs(lam - star[0]), initial=0.0) > 1e-6 * max(np.max(np.abs(star[0])), 1e-300):
-                    raise NumericalError("an impact off the circular cone's exact law (its polyhedral answer): "
-                                         "no derivative")
             # each row's restitution: the scene's (a contact) or its joint's stop restitution, 0
             # where the plastic rules zeroed it (a decision of the sequence)
             de = np.zeros((rows.n, n))
             for r in np.flatnonzero(~plastic):
-                de[r, restitution_col if rows.contact[r] >= 0 else stop_col[int(rows.dof[r])]] = 1.0
-            d_out = [_ahead(Jo[0], S, Jo[1]) + Jo[2] @ de for Jo in J]
+                col = restitution_col if rows.contact[r] >= 0 else stop_col[int(rows.dof[r])]
+                de[r] = directions[col] if directions is not None else np.arange(n) == col
+            star_seeds = [np.zeros((len(star[0]), n))] if star else []  # the run's impulse: a point of evaluation
+            outs, d_out = ahead(sym.impact(rows, e, item[4]), [x, p, e, *star], [S, None, de, *star_seeds])
+            v_plus, fn, ft, joint = outs[:4]
+            if star:  # the run's impulse meets the mode's equations at the run's own state (not its polyhedral answer)
+                lam = np.asarray(sym.impact(rows, e, item[4]).base(np.concatenate([q, v]), p, e, star[0])[4]).ravel()
+                if np.max(np.abs(lam - star[0]), initial=0.0) > 1e-6 * max(np.max(np.abs(star[0])), 1e-300):
+                    raise NumericalError("an impact off the circular cone's exact law (its polyhedral answer): "
+                                         "no derivative")
             x = np.concatenate([x[:nv], v_plus])
             S = np.vstack([S[:nv], d_out[0]])
             totals = totals + np.concatenate([fn, ft])
@@ -1179,22 +1203,18 @@ def landing_gradient(
         elif kind == "project":
             _, q, v, mode = entry
             if not run.planar and previous != "step":  # an event chose this mode: its slip directions
-                d, S_d = _event_directions(sym, run.point(q, v).slip, mode, x, p, d, S, S_d)
+                d, S_d = _event_directions(sym, ahead, run.point(q, v).slip, mode, x, p, d, S, S_d)
             place, _ = run.placement(run.point(q, v), q, mode)
             lifted = tuple(int(i) for i in np.flatnonzero(place.closed & ~mode.closed))
             put_back = np.where(mode.stop == 0, place.stop, 0)
             beyond = tuple(int(b) for b in put_back) if np.any(put_back) else ()
-            (x1, imp), J = sym.project(mode, lifted, beyond)(x, p)
-            S_totals = S_totals + _ahead(J[1][0], S, J[1][1])
-            S = _ahead(J[0][0], S, J[0][1])
+            (x1, imp), (S, d_imp) = ahead(sym.project(mode, lifted, beyond), [x, p], [S, None])
+            S_totals = S_totals + d_imp
             x, totals = x1, totals + imp
             if not run.planar and previous == "step" and np.any(_moving(mode, run.mu > 0)):
-                (d1,), Jf = sym.follow(mode)(x, p, d, core)
-                S_d = _ahead(Jf[0][0], S, Jf[0][1]) + Jf[0][2] @ S_d + Jf[0][3] @ S_core
-                d = d1
+                (d,), (S_d,) = ahead(sym.follow(mode), [x, p, d, core], [S, None, S_d, S_core])
         previous = kind
-    (energy, com, angles), J = sym.final()(x, p)
-    d_energy, d_com, d_angles = (_ahead(Jo[0], S, Jo[1]) for Jo in J)
+    (energy, com, angles), (d_energy, d_com, d_angles) = ahead(sym.final(), [x, p], [S, None])
     fall = height0[0] - com[0]  # the centre of mass's drop over the landing
     brought = e_touch[0] + float(mass[0]) * scene.gravity * fall
     d_brought = d_e_touch[0] + scene.gravity * (d_mass[0] * fall + float(mass[0]) * (d_height0[0] - d_com[0]))
@@ -1230,7 +1250,8 @@ def landing_gradient(
     out = np.concatenate([[peak_ext[0], peak_int[0], peak_max[0], absorbed], totals[:nc], angles])
     jac = np.vstack([peak_ext[1], peak_int[1], peak_max[1], d_absorbed, S_totals[:nc], d_angles])
     if run.mu == 0:  # frictionless: the rows friction would add are not there (module docstring)
-        jac[:, n_theta + SCENE_VALUES.index("friction")] = np.nan
+        friction_col = n_theta + SCENE_VALUES.index("friction")
+        jac[:, friction_col if directions is None else directions[friction_col] != 0] = np.nan
     t2 = time.perf_counter()
     values, jacobian, scene_jacobian = {}, {}, {}
     rows_of = {name: k for k, name in enumerate(SCALARS)}
@@ -1239,7 +1260,8 @@ def landing_gradient(
     for name, k in rows_of.items():
         value = out[k]
         values[name] = float(value) if isinstance(k, int) else value.copy()
-        jacobian[name], scene_jacobian[name] = jac[k, :n_theta].copy(), jac[k, n_theta:].copy()
+        split = n_theta if directions is None else n  # along directions: no scene columns apart
+        jacobian[name], scene_jacobian[name] = jac[k, :split].copy(), jac[k, split:].copy()
     return LandingGradient(
         values=values, jacobian=jacobian, theta=theta, names=design_names(tree, space), sequence=tuple(signature),
         peak_events=peak_events, ties=ties, result=result,
@@ -1248,20 +1270,36 @@ def landing_gradient(
     )
 
 
-def _ahead(Jx: np.ndarray, S: np.ndarray, Jp: np.ndarray) -> np.ndarray:
-    """An output's derivative ``Jx S + Jp``: S the sensitivities of the operation's input x (its
-    columns theta, then the scene's values), ``Jp`` its Jacobian w.r.t. its parameters (theta,
-    then mu: the leading columns)."""
-    out = Jx @ S
-    out[:, : Jp.shape[1]] += Jp
-    return out
+class _Sweep:
+    """How the replay carries sensitivities through an operation: ``sweep(op, args, seeds)``
+    returns the outputs and their derivatives from the seeds (per input, its entries'
+    sensitivities; theta's None: the sweep's own). With ``P`` None every column of theta, mu and
+    the scene's values is carried (n of them; theta's and mu's lead) by the operations'
+    Jacobians; with ``P`` (theta's and mu's rows of the directions, n columns) only the
+    directions, by forward mode."""
 
+    def __init__(self, n: int, P: np.ndarray | None) -> None:
+        self.n = n
+        self.P = None if P is None else np.vstack([P, np.zeros((1, n))])  # the slip floor: not moved
 
-def _lift(Jp: np.ndarray, n: int) -> np.ndarray:
-    """A Jacobian w.r.t. an operation's parameters as ``n`` sensitivity columns (:func:`_ahead`)."""
-    out = np.zeros((Jp.shape[0], n))
-    out[:, : Jp.shape[1]] = Jp
-    return out
+    def __call__(self, op: _Op, args: list, seeds: list | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        seeds = seeds or [None]
+        if self.P is None:
+            outs, J = op(*args)
+            return outs, [self.jacobians(Jo, seeds) for Jo in J]
+        return op.along(args, [self.P if seed is None else seed for seed in seeds])
+
+    def jacobians(self, J: list[np.ndarray], seeds: list) -> np.ndarray:
+        """An output's derivative from its Jacobians w.r.t. the inputs and their ``seeds``, in order."""
+        out = np.zeros((J[0].shape[0], self.n))
+        for Jj, seed in zip(J, seeds, strict=True):
+            if seed is not None:
+                out += Jj @ seed
+            elif self.P is None:  # theta's and mu's columns lead
+                out[:, : Jj.shape[1]] += Jj
+            else:
+                out += Jj @ self.P[: Jj.shape[1]]
+        return out
 
 
 def _check_directions(mode: _Mode, d: np.ndarray, frictional: bool) -> None:
@@ -1274,8 +1312,8 @@ def _check_directions(mode: _Mode, d: np.ndarray, frictional: bool) -> None:
         raise NumericalError(f"a sliding contact's direction differs from the run's by {np.max(gap):.1e}: not replayed")
 
 
-def _event_directions(sym: _Symbolic, slip: np.ndarray, mode: _Mode, x: np.ndarray, p: np.ndarray, d: np.ndarray,
-                      S: np.ndarray, S_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _event_directions(sym: _Symbolic, ahead: _Sweep, slip: np.ndarray, mode: _Mode, x: np.ndarray, p: np.ndarray,
+                      d: np.ndarray, S: np.ndarray, S_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The slip directions (and their derivatives) of a mode that an event chose (space): each
     sliding contact's is the one it carried (the mode persisted), its slip's s / |s| at the event
     (``slip``, the run's at x), or the fixed point of a contact starting to slide
@@ -1298,11 +1336,11 @@ def _event_directions(sym: _Symbolic, slip: np.ndarray, mode: _Mode, x: np.ndarr
         d_in[at], S_in[at] = target[at], 0.0
     if not np.any(moving):
         return d_in, S_in
-    (d_out,), J = sym.new_directions(mode, tuple(kinds))(x, p, d_in)
+    (d_out,), (S_out,) = ahead(sym.new_directions(mode, tuple(kinds)), [x, p, d_in], [S, None, S_in])
     if np.max(np.abs(d_out - target)) > 1e-6:
         raise NumericalError("a contact starting to slide in space whose direction is not the circular cone's "
                              f"(off by {np.max(np.abs(d_out - target)):.1e}): no derivative")
-    return d_out, _ahead(J[0][0], S, J[0][1]) + J[0][2] @ S_in
+    return d_out, S_out
 
 
 def _check_rows(run: _Landing, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:

@@ -76,7 +76,15 @@ from impulse_core.errors import NumericalError
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.tree import Scene
 from impulse_core.timedomain.landing import LandingSettings, landing
-from impulse_core.timedomain.landing_derivatives import LAW_VALUES, _joint_dofs, body_values, landing_gradient, taped_run
+from impulse_core.timedomain.landing_derivatives import (
+    LAW_VALUES,
+    _joint_dofs,
+    body_values,
+    design_names,
+    landing_gradient,
+    scene_names,
+    taped_run,
+)
 from optimizer.config.study_config import StudyConfig
 from optimizer.design_space import (
     JOINT_FAMILIES,
@@ -468,6 +476,13 @@ class _Landed:
             self.nlp.scenes = scenario_scenes(cfg, design)
         return tree, laws, self.nlp.scenes
 
+    def directions(self, x: np.ndarray, tree) -> np.ndarray:
+        """d(theta, scene values)/dx at x: the landings' derivatives are carried along these n_x
+        columns only (the scenes do not move with x)."""
+        names = design_names(tree, self.nlp.space)
+        T = self.nlp.chain_rule(x, tree, names, np.eye(len(names)))
+        return np.vstack([T, np.zeros((len(scene_names(tree, self.nlp.space)), self.nlp.n_x))])
+
     def values(self, x: np.ndarray) -> np.ndarray:
         if self.x_f is not None and np.array_equal(x, self.x_f):
             return self.f
@@ -495,12 +510,13 @@ class _Landed:
         g = np.full((n_o, n_s, self.nlp.n_x), np.nan)
         try:
             tree, laws, scenes = self.models(x)
+            directions = self.directions(x, tree)
             for k, (scene, step) in enumerate(zip(scenes, self.steps(), strict=True)):
                 with np.errstate(all="ignore"):
-                    gr = landing_gradient(tree, scene, laws, settings, step=step, space=self.nlp.space)
+                    gr = landing_gradient(tree, scene, laws, settings, step=step, space=self.nlp.space,
+                                          directions=directions)
                 self.nlp.sequences.add(hash(gr.sequence))
-                d = np.vstack([o.sign * gr.jacobian[o.value] for o in self.objectives])
-                g[:, k, :] = self.nlp.chain_rule(x, tree, gr.names, d)
+                g[:, k, :] = np.vstack([o.sign * gr.jacobian[o.value] for o in self.objectives])
         except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
             g[:] = np.nan
         g = g.reshape(n_o * n_s, self.nlp.n_x)

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from impulse_core.errors import NumericalError
+from impulse_core.kinematics.spatial import PLANAR
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, Scene, Tree
 from impulse_core.timedomain.landing import LandingSettings, landing
@@ -148,6 +149,28 @@ def assert_replay_is_the_landing(g) -> None:
         assert g.values[k] == pytest.approx(getattr(r, k), rel=1e-10, abs=1e-12), k
     assert np.max(np.abs(g.values["total_external"] - r.total_external)) <= 1e-10 * np.max(np.abs(r.total_external))
     assert np.max(np.abs(g.values["final_angles"] - r.final_angles)) <= 1e-10
+
+
+@pytest.mark.parametrize("name", ["stiff", "friction"])
+def test_directions_carry_the_jacobian_along_them(gradients, name):
+    """Forward mode along seeded directions over theta and the scene's values (the replay's
+    operations swept along them, no Jacobian formed) gives the full Jacobian times them."""
+    tree, laws, scene = _case(name)
+    assert_directions_carry_the_jacobian(gradients[name], tree, laws, scene, _settings(name))
+
+
+def assert_directions_carry_the_jacobian(g, tree, laws, scene, settings, space=PLANAR) -> None:
+    """:func:`landing_gradient` along 3 seeded directions is ``g``'s Jacobian (theta's columns,
+    then the scene's; a frictionless scene's friction, NaN, not moved) times them, to 1e-12 of
+    the largest entry; the values are ``g``'s."""
+    full = np.hstack([_jacobian_of(g.jacobian), _jacobian_of(g.scene_jacobian)])
+    D = np.random.default_rng(13).normal(size=(full.shape[1], 3))
+    undefined = np.isnan(full).any(axis=0)
+    D[undefined], full[:, undefined] = 0.0, 0.0
+    along = landing_gradient(tree, scene, laws, settings, step=STEP, space=space, directions=D)
+    expected = full @ D
+    assert np.max(np.abs(_jacobian_of(along.jacobian) - expected)) <= 1e-12 * np.max(np.abs(expected))
+    assert along.sequence == g.sequence and all(np.array_equal(along.values[k], g.values[k]) for k in g.values)
 
 
 @pytest.mark.parametrize("name", CASES)

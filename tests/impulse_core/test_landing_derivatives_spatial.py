@@ -46,6 +46,7 @@ from tests.impulse_core.test_landing_derivatives import (
     STEP,
     _jacobian_of,
     _stop_leg,
+    assert_directions_carry_the_jacobian,
     assert_replay_is_the_landing,
     moved_scene,
 )
@@ -189,6 +190,14 @@ def test_scene_derivatives_agree_with_central_differences(gradients, name, value
     error = np.abs(fd - column) / np.maximum(np.abs(column), 1e-6)
     assert np.all(error <= 1e-4), error
     report("landing-gradient-spatial", f"{name}: d/d {value} vs central differences {np.max(error):.1e}")
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_directions_carry_the_jacobian_along_them(gradients, name):
+    """Forward mode along seeded directions (slip directions and cores swept too) is the full
+    Jacobian times them."""
+    tree, laws, scene, settings = _case(name)
+    assert_directions_carry_the_jacobian(gradients[name], tree, laws, scene, settings, SPATIAL)
 
 
 def test_a_planar_leg_read_as_spatial_gives_the_planar_gradient():
