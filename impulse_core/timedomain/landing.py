@@ -151,6 +151,13 @@ MAX_SPLITS = 14
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
 STEP_BUDGET = 64
+#: ``auto``'s implicit first run is given up for RK4 from its stable step (:func:`landing`, as
+#: where it overruns :data:`STEP_BUDGET`) once it has taken over RK4_PACE_AFTER x duration / h
+#: steps and its mean step is below 1 / RK4_PACE of RK4's stable step: at h x rate >> 1 the
+#: momentum balance splits ROS2's steps to ~0.02 / rate, where RK4 is stable at 2 / rate (random
+#: files 32507, 32700 over their first 30 ms: 5323 and 5326 ROS2 steps against 859 and 492 RK4
+#: steps at its stable step, both within 2e-6 of a reference; ``studies/whole_landing/stiff_speed.md``).
+RK4_PACE, RK4_PACE_AFTER = 2.0, 4.0
 #: Space: beyond this |phi| (rad) the base's rotation coordinates are re-centred on its current
 #: orientation (:meth:`_Landing.rechart`), far inside the chart's good region (singular at
 #: |phi| = 2 pi), so a base may turn any number of times.
@@ -1427,6 +1434,9 @@ class _Landing:
         #: (:meth:`run`), the fraction of its frictionless value below which a pressed sliding
         #: contact's A = n M^-1 (n - mu u t)^T jams at a step's start
         self.jam_watch: float | None = None
+        #: RK4's stable step where this run is ``auto``'s implicit first run (:func:`landing` sets
+        #: it; :data:`RK4_PACE`), else None
+        self.rk4_pace: float | None = None
         gap_tol, nc, nv = settings.gap_tolerance, self.nc, self.nv
         #: the witnesses' tolerances (:meth:`witness_and_rate`): gaps, forces, cone margins, slip,
         #: stop margins (twice), stop forces; and the NaN rates of the force and slip witnesses
@@ -2835,6 +2845,12 @@ class _Landing:
                     f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
                     "balance split its steps: a light rod spinning fast)", reached=t / T,
                 )
+            if (self.rk4_pace is not None and totals.steps > RK4_PACE_AFTER * T / h
+                    and totals.steps * self.rk4_pace > RK4_PACE * t):
+                raise Diverged(  # landing() goes on with RK4 from its stable step
+                    f"the implicit steps averaged {t / totals.steps:.3g} s by t = {t:.6g} s, below half of RK4's "
+                    f"stable step {self.rk4_pace:.3g} s (the momentum balance split them)", reached=t / T,
+                )
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, grown)
             if not (np.isfinite(q1).all() and np.isfinite(v1).all() and self.kinetic(q1, v1) <= cap):
@@ -3340,8 +3356,9 @@ def landing(
     (:func:`landing_difference`); the finer run is returned with that difference as its
     ``error_estimate`` (an unmet tolerance: ``converged`` is False). ``progress`` is told where
     each run is (:class:`LandingProgress`; a run that diverged is followed by one at a shorter step,
-    and an implicit run that ``auto`` chose and whose steps overran their budget by one of RK4 at
-    its stable step, :meth:`_Landing.stable_step`).
+    and an implicit run that ``auto`` chose and whose steps overran their budget, or fell behind
+    RK4's stable step (:data:`RK4_PACE`), by one of RK4 at its stable step,
+    :meth:`_Landing.stable_step`).
 
     Raises:
         ModelError: no ``scene.duration``, or joint laws that do not match the tree.
@@ -3353,9 +3370,12 @@ def landing(
         raise ModelError(f"joints: {len(joints)} joint laws for {tree.n_bodies} bodies")
     run = _Landing(tree, scene, joints, settings, space)
     h = run.first_step()
+    if run.method == IMPLICIT and settings.integrator == AUTO:  # RK4 where ROS2's split steps fall behind it
+        run.rk4_pace = run.stable_step()
     for halvings in range(settings.max_refinements + 1):  # a step too long for the stiffest joint diverges
         try:
             previous = run.run(h, progress, halvings)
+            run.rk4_pace = None
             break
         except Diverged as e:
             if halvings == settings.max_refinements:
