@@ -5,7 +5,11 @@ its step halvings included), the gradient along the reported run's event sequenc
 first design of its structure, building each mode's functions; ``warm``: a second design of the
 same structure, as in a search), their ratio, and the gradient against central differences of
 the numeric landing at the same step along three seeded directions (lengths, masses, angles and
-joint-law values; the event sequence checked unchanged at both ends). All figures come from one
+joint-law values; the event sequence checked unchanged at both ends). ``along 8``: the same
+gradients carried along 8 seeded directions only (``landing_gradient(directions=...)``, forward
+mode, as the whole-landing inner search uses it with its variables), cold (the symbolic
+structures dropped first) and warm, and its largest difference from the full Jacobian times the
+directions (relative to the largest entry). All figures come from one
 run of this script on one machine, so only the ratios travel.
 
     .venv/bin/python studies/landing_gradient/bench.py            # writes results.md beside it
@@ -24,6 +28,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL  # noqa: E402
+from impulse_core.timedomain import landing_derivatives  # noqa: E402
 from impulse_core.timedomain.landing import LandingSettings, landing  # noqa: E402
 from impulse_core.timedomain.landing_derivatives import (  # noqa: E402
     SCALARS,
@@ -53,11 +58,30 @@ def vector(r) -> np.ndarray:
     return np.concatenate([[getattr(r, k) for k in SCALARS], r.total_external, r.final_angles])
 
 
+def along_directions(g, J, tree, laws, tree2, laws2, scene, settings, h, space, searched) -> tuple[tuple, float]:
+    """Cold and warm seconds of the gradient along 8 seeded directions over the searched values
+    (no scene value moved), and its largest difference from ``J`` times them (relative)."""
+    D = np.zeros((len(g.theta) + len(g.scene_theta), 8))
+    D[: len(g.theta)] = np.random.default_rng(5).standard_normal((len(g.theta), 8)) * searched[:, None]
+    landing_derivatives._SYMBOLIC.clear()
+    times = []
+    for t, l in ((tree, laws), (tree2, laws2)):
+        t0 = time.perf_counter()
+        along = landing_gradient(t, scene, l, settings, step=h, space=space, directions=D)
+        times.append(time.perf_counter() - t0)
+        if t is tree:
+            Ja = np.vstack([along.jacobian[k] for k in SCALARS]
+                           + [along.jacobian["total_external"], along.jacobian["final_angles"]])
+    expected = J @ D[: len(g.theta)]
+    return tuple(times), float(np.max(np.abs(Ja - expected)) / np.max(np.abs(expected)))
+
+
 def main() -> None:
     lines = ["| case | events | steps | landing() s | taped run s | gradient cold s | gradient warm s | "
              "warm / landing() | cold / landing() | central FD (2 n runs) / landing() | rel. error vs FD, 3 directions | "
-             "the same, masses and laws only, toes tied |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "the same, masses and laws only, toes tied | along 8: cold s, warm s | along 8 warm / full warm | "
+             "along 8 vs full x D |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, tree, laws, scene, space in cases():
         settings = LandingSettings()
         t0 = time.perf_counter()
@@ -80,6 +104,7 @@ def main() -> None:
         t_warm = time.perf_counter() - t0
         print(name, "landing()", t_landing, "run", t_run, "cold", t_cold, "warm", t_warm, flush=True)
         J = np.vstack([g.jacobian[k] for k in SCALARS] + [g.jacobian["total_external"], g.jacobian["final_angles"]])
+        t_along, along_err = along_directions(g, J, tree, laws, tree2, laws2, scene, settings, h, space, searched)
         rng = np.random.default_rng(0)
         worst, kept = 0.0, []
         for _ in range(3):
@@ -115,7 +140,8 @@ def main() -> None:
         lines.append(
             f"| {name} | {len(g.result.events)} | {g.result.n_steps} | {t_landing:.2f} | {t_run:.2f} | {t_cold:.2f} | "
             f"{t_warm:.2f} | {t_warm / t_landing:.2f} | {t_cold / t_landing:.2f} | {2 * n * t_run / t_landing:.1f} "
-            f"({n} values) | {', '.join(kept)} | {still_err} |"
+            f"({n} values) | {', '.join(kept)} | {still_err} | {t_along[0]:.2f}, {t_along[1]:.2f} | "
+            f"{t_along[1] / t_warm:.2f} | {along_err:.0e} |"
         )
         print(lines[-1], flush=True)
     text = "\n".join(lines)
@@ -135,7 +161,12 @@ def main() -> None:
         "every numbered toe's values moved alike. landing_case3's soles all touch at once (`contacts: all`, level "
         "tips), so its touchdown height, the lowest contact's, has a kink in the lengths and angles that a central "
         "difference straddles; and its three toes are identical, so moving one toe's values alone breaks their "
-        "symmetry and changes how they touch and re-touch: a jump of the objectives, not a derivative.\n\n" + text + "\n"
+        "symmetry and changes how they touch and re-touch: a jump of the objectives, not a derivative. `along 8`: the "
+        "gradient along 8 seeded directions over the searched values only (`landing_gradient(directions=...)`, "
+        "forward mode: what the whole-landing inner search uses where its variables are at most a quarter of "
+        "theta's and the scene's values), cold (the symbolic structures dropped first) and warm, its warm time "
+        "over the full warm gradient's, and its largest difference from the full Jacobian times the directions "
+        "(relative to the largest entry).\n\n" + text + "\n"
     )
 
 
