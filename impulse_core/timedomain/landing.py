@@ -376,6 +376,9 @@ class LandingResult:
     #: the code the run's integrator steps ran on (:attr:`LandingSettings.step_code`; ``auto``
     #: resolved to c or vm)
     step_code: str = VM_CODE
+    #: why ``integrator`` is RK4 where ``auto`` first chose the implicit one (its run's steps
+    #: overran their budget or fell behind RK4's stable step: :func:`landing`), else ""
+    integrator_switch: str = ""
 
     @property
     def peak_external_norm(self) -> float:
@@ -3369,7 +3372,7 @@ def landing(
     if joints and len(joints) != tree.n_bodies:
         raise ModelError(f"joints: {len(joints)} joint laws for {tree.n_bodies} bodies")
     run = _Landing(tree, scene, joints, settings, space)
-    h = run.first_step()
+    h, switch = run.first_step(), ""
     if run.method == IMPLICIT and settings.integrator == AUTO:  # RK4 where ROS2's split steps fall behind it
         run.rk4_pace = run.stable_step()
     for halvings in range(settings.max_refinements + 1):  # a step too long for the stiffest joint diverges
@@ -3382,7 +3385,7 @@ def landing(
                 raise
             if e.reached > 0 and run.method == IMPLICIT and settings.integrator == AUTO:
                 run = _Landing(tree, scene, joints, replace(settings, integrator=RK4), space)
-                h = run.stable_step()
+                h, switch = run.stable_step(), str(e)
                 continue
             h /= retry_factor(e.reached)
     error = math.inf
@@ -3405,7 +3408,7 @@ def landing(
         if not distinct:
             share /= 2.0**run.balance_order
         previous = current
-    return replace(current, error_estimate=error, tolerance=settings.tolerance)
+    return replace(current, error_estimate=error, tolerance=settings.tolerance, integrator_switch=switch)
 
 
 __all__ = [

@@ -593,6 +593,8 @@ def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
         f"accuracy: error estimate {estimate} (tolerance {r.tolerance:g}), "
         + ("Runge-Kutta 4" if r.integrator == "rk4" else "implicit (ROS2, order 2)") + f" step {r.step:.3g} s"
         + f", steps {STEP_CODE_NAMES.get(r.step_code, r.step_code)}",
+        *([f"integrator: Runge-Kutta 4 at its stable step, since the implicit run auto chose first gave way: "
+           f"{r.integrator_switch}"] if r.integrator_switch else []),
     ]
 
 

@@ -713,3 +713,9 @@ def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable
     method, h, rate = runs[1]
     assert method == "rk4" and h == pytest.approx(2.0 / rate, rel=1e-12)
     assert r.integrator == "rk4" and r.converged and r.momentum_balance <= 1e-4
+    assert "momentum balance split" in r.integrator_switch  # why RK4 ran, which the text report says
+    from optimizer.report.text import _landing_lines
+
+    said = [line for line in _landing_lines(model, r) if line.startswith("integrator:")]
+    assert len(said) == 1 and r.integrator_switch in said[0] and "implicit run auto chose first" in said[0]
+    assert not [line for line in _landing_lines(model, replace(r, integrator_switch="")) if "integrator:" in line]
