@@ -299,14 +299,14 @@ class _Op:
         """The outputs at ``args`` and their derivatives along ``seeds`` (per input, an n_in x m
         matrix of its directions; theta's slip floor row 0): each output's n_out x m."""
         m = seeds[0].shape[1]
-        if m not in self._forward:
-            self._forward[m] = self.base.forward(m)
-        outs = self.base(*args)
-        outs = outs if isinstance(outs, (list, tuple)) else [outs]
-        res = self._forward[m](*args, *outs, *seeds)
-        res = res if isinstance(res, (list, tuple)) else [res]
-        return ([np.asarray(o, dtype=float).reshape(-1) for o in outs],
-                [np.asarray(r, dtype=float).reshape(o.shape[0], m) for r, o in zip(res, self.outputs)])
+        if m not in self._forward:  # one function of (inputs, seeds): the outputs, then their sweeps
+            seed = [ca.SX.sym(f"seed{j}", i.shape[0], m) for j, i in enumerate(self.inputs)]
+            swept = self.base.forward(m)(*self.inputs, *self.outputs, *seed)
+            swept = swept if isinstance(swept, (list, tuple)) else [swept]
+            self._forward[m] = ca.Function(f"{self.name}_along", [*self.inputs, *seed], [*self.outputs, *swept])
+        res = self._forward[m](*args, *seeds)
+        return ([np.asarray(o, dtype=float).reshape(-1) for o in res[: self.n_out]],
+                [np.asarray(r, dtype=float).reshape(o.shape[0], m) for r, o in zip(res[self.n_out :], self.outputs)])
 
 
 def _mode_key(mode: _Mode) -> tuple:
