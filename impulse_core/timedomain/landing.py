@@ -147,6 +147,16 @@ MOMENTUM_BALANCE = 2e-5
 DISTINCT_RUNS = 1.1
 #: Halvings of the nominal step for the momentum balance (a step that short is taken as it is).
 MAX_SPLITS = 14
+#: A step's momentum residual at most this many times eps times the largest of its
+#: terms (the momenta at both ends, the contact impulses, the weight's) is rounding's: shorter
+#: steps do not shrink it (random file 32787's run at h / 64, its share of the balance 1 / 4096:
+#: after a 55 g rod's tip stuck, residuals of 6e-16 to 1e-14 N s, up to 3.5 eps times the tree's
+#: 12.5 N s, at h / 2^13 and h / 2^14 alike, above their shares of 9e-16 and 5e-16 N s: the steps
+#: stayed at those lengths, some 1e8 of them for the landing's rest). Such a step is taken and
+#: its successor may double (:meth:`_Landing.balanced_step`); summed over a run's step budget
+#: (STEP_BUDGET per nominal step: 8e5 steps at h / 2^7 from duration / 100) these residuals come
+#: to about 3e-9 of the momenta, far below the balance's own bound (MOMENTUM_BALANCE).
+BALANCE_ROUNDING = 16
 #: Steps (of any length) after which a run is abandoned, per step of the run's nominal length: a
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
@@ -1706,8 +1716,10 @@ class _Landing:
         where the fixed step is too long; the residual is then the step's error, seen in a law
         the motion obeys. So it is for ROS2 at h x rate >> 1: the momentum P(q) v is not linear
         in the state, and the stiff joint motion's error reaches it (a flight's centre-of-mass
-        velocity is off by the residual; studies/whole_landing/spatial_chatter.md). Returns (q,
-        v, contact impulses, the step's length, the next trial's length: :func:`balanced_length`)."""
+        velocity is off by the residual; studies/whole_landing/spatial_chatter.md). A residual
+        within rounding's level (:meth:`balance_rounding`) is taken for none, its step's error
+        unseen below it: the step closes and the next may double. Returns (q, v, contact
+        impulses, the step's length, the next trial's length: :func:`balanced_length`)."""
         p0 = None
         dt, order = trial, 4 if self.method == RK4 else 2
         while True:
@@ -1718,11 +1730,29 @@ class _Landing:
             if end is None and p0 is None:
                 p0 = self.point(q, v).momentum[:, 0].copy()
             balance = end.balance if end is not None else self.momentum_change(p0, q1, v1, impulse)
-            residual, share = float(np.max(np.abs(balance - self.weight(dt)))), rate * dt
+            weight = self.weight(dt)
+            residual, share = float(np.max(np.abs(balance - weight))), rate * dt
             ratio = residual / share if share > 0 else (0.0 if residual <= 0 else math.inf)
+            if ratio > 1.0 / 2.0**order and residual <= self.balance_rounding(q1, v1, end, p0, balance, weight):
+                ratio = 0.0  # rounding's residual: the step's error is below it (BALANCE_ROUNDING)
             if ratio <= 1.0:
                 return q1, v1, impulse, dt, balanced_length(dt, ratio, order)
             dt /= 2.0
+
+    def balance_rounding(self, q1: np.ndarray, v1: np.ndarray, end, p0: np.ndarray | None, balance: np.ndarray,
+                         weight: np.ndarray) -> float:
+        """The rounding level of a step's momentum residual ``balance`` - ``weight`` (the step
+        from a state of momentum ``p0`` to (q1, v1); ``end``: a compiled step's end, which holds
+        both momenta): BALANCE_ROUNDING x eps times the largest of its terms, the
+        momenta at both ends, the contact impulses (p1 - p0 - ``balance``) and the weight's."""
+        if end is not None:
+            p0, p1 = end.momentum0, end.momentum1
+        else:
+            p1 = self.point(q1, v1).momentum[:, 0]
+        applied = p1 - p0 - balance
+        scale = max(float(np.max(np.abs(p0))), float(np.max(np.abs(p1))), float(np.max(np.abs(applied))),
+                    float(np.max(np.abs(weight))))
+        return BALANCE_ROUNDING * float(np.finfo(float).eps) * scale
 
     def momentum_change(self, p0: np.ndarray, q1: np.ndarray, v1: np.ndarray, impulse: np.ndarray) -> np.ndarray:
         """The linear momentum at (q1, v1) minus ``p0`` and the contact ``impulse`` ([normal,

@@ -476,6 +476,33 @@ def test_the_balanced_length_doubles_where_the_order_allows():
     assert balanced_length(1e-3, 0.0, 2) == 2e-3
 
 
+def test_a_momentum_residual_at_roundings_level_does_not_hold_the_steps():
+    """Random file 32787 (data/rounding_balance_32787.yaml: springs of 295 and 90 N m/rad on
+    43 g and 55 g rods) in its run at h / 64 with the balance's share 2^-12 (:func:`landing`
+    after three runs split alike), just after the 0.51 m rod's tip stuck
+    (data/rounding_balance_32787_state.json). Each step's residual there is rounding's, 6e-16 to
+    1e-14 N s of the tree's 12.5 N s at every length, while its share at h / 2^13 is 9e-16 N s:
+    the steps stayed at h / 2^14 (the floor) or twice it, 1e8 to 2e8 of them for the rest (no end
+    in 240 s). Now a residual within BALANCE_ROUNDING x eps of its terms closes the step and the
+    next may double: the steps grow back, and each residual stays within its share or rounding."""
+    run, _, kept, mode = _kept_state("rounding_balance_32787")
+    q, v, trial, rate, floor = kept["q"], kept["v"], kept["trial"], kept["rate"], kept["floor"]
+    lengths, over = [], []
+    for _ in range(30):
+        p0 = run.point(q, v).momentum[:, 0].copy()
+        q, v, impulse, dt, grown = run.balanced_step(q, v, mode, trial, rate, floor)
+        end = run.ended(q, v, mode)
+        balance = end.balance if end is not None else run.momentum_change(p0, q, v, impulse)
+        residual = float(np.max(np.abs(balance - run.weight(dt))))
+        over.append(residual / max(rate * dt, run.balance_rounding(q, v, end, p0, balance, run.weight(dt))))
+        lengths.append(dt)
+        trial = min(kept["h"], grown)
+    report("landing balance rounding", f"32787 stuck tip: 30 steps from {lengths[0]:.3g} s to {lengths[-1]:.3g} s, "
+                                       f"{sum(lengths):.3g} s in all; largest residual / bound {max(over):.3g}")
+    assert max(over) <= 1.0
+    assert lengths[-1] >= 2**8 * floor and sum(lengths) > 1e3 * 30 * floor
+
+
 def _data_model(name: str):
     """A random file kept in tests/impulse_core/data, read as footopt reads it."""
     from optimizer.config.model_file import load_model_file
