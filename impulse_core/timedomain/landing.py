@@ -147,6 +147,11 @@ MOMENTUM_BALANCE = 2e-5
 DISTINCT_RUNS = 1.1
 #: Halvings of the nominal step for the momentum balance (a step that short is taken as it is).
 MAX_SPLITS = 14
+#: The momentum balance the contract's outside checks hold a whole landing to (its
+#: :attr:`LandingResult.momentum_balance`, relative as there): a landing beyond it is reported
+#: with a warning (random file 32843: a tip sliding along a heightfield's crease, each step's
+#: projection across it booked along the other face's normal, 1e-2).
+BALANCE_CHECK = 1e-4
 #: A step's momentum residual at most this many times eps times the largest of its
 #: terms (the momenta at both ends, the contact impulses, the weight's) is rounding's: shorter
 #: steps do not shrink it (random file 32787's run at h / 64, its share of the balance 1 / 4096:
@@ -3443,6 +3448,7 @@ def landing(
 
 __all__ = [
     "AUTO",
+    "BALANCE_CHECK",
     "IMPLICIT",
     "MAX_EVENTS",
     "RK4",

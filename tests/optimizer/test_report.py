@@ -51,3 +51,21 @@ def test_reference_beside_ours(leg_tree: Tree, leg_scene: Scene) -> None:
 def test_record_is_plain_json(leg_tree: Tree, leg_scene: Scene) -> None:
     record = result_record(ModelFile(leg_tree, leg_scene), evaluate(leg_tree, leg_scene), "leg.yaml")
     assert json.loads(json.dumps(record, allow_nan=False)) == record
+
+
+def test_a_landing_off_its_momentum_balance_is_warned_about(leg_tree: Tree, leg_scene: Scene) -> None:
+    """A whole landing whose own momentum balance is beyond the contract's 1e-4 (random file
+    32843 reached 1e-2) is reported with a warning naming the figure; one within it is not."""
+    from impulse_core.timedomain.landing import BALANCE_CHECK, LandingSettings
+    from optimizer.evaluation.model_choice import _whole_landing
+
+    scene = dataclasses.replace(leg_scene, duration=0.004, gravity=9.81)
+    model = ModelFile(leg_tree, scene)
+    landed = _whole_landing(leg_tree, scene, (), LandingSettings(), requested=True)
+    assert landed.result.momentum_balance <= BALANCE_CHECK
+    assert not any("momentum balance" in w for w in warnings(model, landed))
+    off = dataclasses.replace(landed, result=dataclasses.replace(landed.result, momentum_balance=1.2e-2))
+    said = [w for w in warnings(model, off) if "momentum balance" in w]
+    assert len(said) == 1 and "0.012" in said[0]
+    assert "0.012" in format_report(model, off, "leg.yaml")
+    assert "0.012" in " ".join(result_record(model, off, "leg.yaml")["warnings"])
