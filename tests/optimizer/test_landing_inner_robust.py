@@ -64,12 +64,12 @@ def _statistics(nlp, x: np.ndarray) -> np.ndarray:
 
 def landed_gradient(nlp) -> tuple[np.ndarray, _Landed, np.ndarray]:
     """A start x0 (its scenarios' steps set there), the NLP's landings and their gradient at x0
-    (2 objectives x 3 scenarios, finite)."""
+    (2 objectives x each scenario, finite)."""
     x0 = start_landing(nlp, np.random.default_rng(0))
     assert set_steps(nlp, x0)
     landed = _Landed(nlp)
     G = landed.gradient(x0)
-    assert G.shape == (2 * 3, nlp.n_x) and np.all(np.isfinite(G))
+    assert G.shape == (2 * nlp.config.landings.count, nlp.n_x) and np.all(np.isfinite(G))
     return x0, landed, G
 
 

@@ -42,9 +42,10 @@ def spatial_robust_yaml(statistic: str) -> str:
     return SPATIAL_LANDING_YAML + LANDINGS + f"statistic: {statistic}\n"
 
 
-def _nlp(tmp_path, statistic: str):
+def _nlp(tmp_path, statistic: str, duration: float = 0.004, count: int = 3):
     path = tmp_path / "spatial_robust.yaml"
-    path.write_text(spatial_robust_yaml(statistic), encoding="utf-8")
+    path.write_text(spatial_robust_yaml(statistic).replace("duration: 0.004", f"duration: {duration}")
+                    .replace("count: 3", f"count: {count}"), encoding="utf-8")
     return build_landing_nlp(load_study(path), FootShape(1, 1))
 
 
@@ -89,9 +90,12 @@ def test_the_spatial_nlp_scores_each_scenario_and_the_outer_search_statistics(tm
 
 def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_statistic(tmp_path, taped_once):
     """Per scenario (each along its own spatial event sequence, unchanged at +-eps; a level
-    direction and the toe's yaw alone), and the statistics mean and std through the NLP's graph."""
-    nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}")
+    direction and the toe's yaw alone), and the statistics mean and std through the NLP's graph
+    (2 landings of 3 ms, each its own approach in space)."""
+    nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}", duration=0.003, count=2)
     x0, landed, G = landed_gradient(nlp)
+    S = len(nlp.scenes)
+    assert S == 2 and len({(s.speed, s.velocity_x, s.velocity_z, s.angular_velocity_x) for s in nlp.scenes}) == 2
     assert np.max(np.abs(G[:, -1])) > 1e-3 * np.max(np.abs(G))  # the yaw matters
     settings = landing_settings(nlp.config)
 
@@ -104,13 +108,13 @@ def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_st
     dJ = np.asarray(J(x0))
     yaw = np.zeros(nlp.n_x)
     yaw[-1] = 1.0
-    v, eps = landed.values(x0).reshape(2, 3), 1e-6
+    v, eps = landed.values(x0).reshape(2, S), 1e-6
     for u in (_tangent(nlp, x0, np.random.default_rng(3)), yaw):
         assert_gradient_along(nlp, x0, G, u, sequences, eps)
         fd_stat = (np.asarray(stats(x0 + eps * u)).ravel() - np.asarray(stats(x0 - eps * u)).ravel()) / (2 * eps)
         assert np.all(np.abs(fd_stat - dJ @ u) <= 1e-4 * np.maximum(np.abs(dJ @ u), 1e-3)), (fd_stat, dJ @ u)
-        dv = (G @ u).reshape(2, 3)  # std over the scenarios of objective 0, mean of objective 1's
-        assert (dJ @ u)[0] == pytest.approx(np.sum((v[0] - v[0].mean()) * dv[0]) / (3 * np.std(v[0])), rel=1e-9)
+        dv = (G @ u).reshape(2, S)  # std over the scenarios of objective 0, mean of objective 1's
+        assert (dJ @ u)[0] == pytest.approx(np.sum((v[0] - v[0].mean()) * dv[0]) / (S * np.std(v[0])), rel=1e-9)
         assert (dJ @ u)[1] == pytest.approx(dv[1].mean(), rel=1e-9)
 
 
