@@ -96,7 +96,7 @@ design_space:
     toe_inner: {stiffness: [2.0, 10.0], damping: [0.02, 0.2]}
 constraints: {support_margin: 0.005}
 objectives: [peak_external_norm, energy_absorbed]
-search: {method: outer, trials: 4, startup_trials: 4}
+search: {method: outer, trials: 2, startup_trials: 2}
 """
 
 
