@@ -158,3 +158,23 @@ def taped_once(monkeypatch: pytest.MonkeyPatch) -> Callable:
 
     monkeypatch.setattr(landing_inner, "taped_run", once)
     return once
+
+
+@pytest.fixture
+def unsaved_drawings(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run folder's drawings built (every figure made) but not rendered:
+    ``_save`` (plot's, and landing_plot's copy) closes the figure and touches its file. For the
+    study runs whose checks are the recorded designs: the rendering costs seconds and is not the
+    point (the drawings themselves: test_plot, test_optimize_splay's run folder, test_spatial_cli)."""
+    import matplotlib.pyplot as plt
+
+    import optimizer.report.landing_plot as landing_plot
+    import optimizer.report.plot as plot
+
+    def unsaved(fig, path: Path, layout: bool = True) -> Path:
+        plt.close(fig)
+        Path(path).touch()
+        return Path(path)
+
+    monkeypatch.setattr(plot, "_save", unsaved)
+    monkeypatch.setattr(landing_plot, "_save", unsaved)

@@ -167,7 +167,7 @@ def test_the_nlps_gradients_are_central_differences(leg_folder):
     np.testing.assert_allclose(exact_g, fd_g, rtol=1e-6, atol=1e-7 * np.abs(fd_g).max())
 
 
-def test_a_tiny_study_runs_and_its_front_reevaluates(leg_folder, capsys, monkeypatch):
+def test_a_tiny_study_runs_and_its_front_reevaluates(leg_folder, capsys, monkeypatch, unsaved_drawings):
     """``footopt optimize`` with the spatial leg and the inner search, its two shapes swept by two
     forked workers (each unpickles the study: its leg must stay spatial there): every front
     design's model file hangs the foot from the leg's four rods and re-evaluates to its recorded

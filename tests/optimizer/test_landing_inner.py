@@ -91,7 +91,7 @@ def test_a_few_ipopt_iterations_lower_the_landing_objective(nlp):
     assert nlp.gradients >= 2  # the gradient was derived afresh at the iterates
 
 
-def test_an_inner_whole_landing_study_runs_and_records_its_designs(tmp_path, monkeypatch):
+def test_an_inner_whole_landing_study_runs_and_records_its_designs(tmp_path, monkeypatch, unsaved_drawings):
     """A tiny inner whole-landing study (3 ms, IPOPT cut to 1 iteration per solve: the realised
     designs are evaluated and checked by the study's own landing, whatever IPOPT's status)."""
     import csv

@@ -164,7 +164,7 @@ def test_the_inner_search_refuses_what_it_cannot_take_over_whole_landings(tmp_pa
         assert len(err.strip().splitlines()) == 1 and message.strip("^").replace("\\", "").split(":")[0] in err
 
 
-def test_a_tiny_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch):
+def test_a_tiny_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch, unsaved_drawings):
     """``footopt optimize`` on the tiny study (3 ms, 2 landings, IPOPT cut to 1 iteration): every
     recorded design, rebuilt from its record, re-evaluates by the outer search's evaluation to its
     statistics."""

@@ -118,7 +118,8 @@ def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_st
         assert (dJ @ u)[1] == pytest.approx(dv[1].mean(), rel=1e-9)
 
 
-def test_a_tiny_spatial_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch):
+def test_a_tiny_spatial_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch,
+                                                                                   unsaved_drawings):
     """``footopt optimize`` (3 ms, 2 landings, IPOPT cut to 1 iteration): every recorded design,
     rebuilt from its record, re-evaluates by the outer search's evaluation to its statistics; its
     yaw in range."""

@@ -78,7 +78,7 @@ def optimized(folder: Path, study: str, capsys) -> list[tuple[dict, dict, Path]]
 
 
 @pytest.mark.parametrize("method", ["outer", "inner"])
-def test_a_three_rod_imported_leg_runs_a_study_that_reevaluates(tmp_path, capsys, method):
+def test_a_three_rod_imported_leg_runs_a_study_that_reevaluates(tmp_path, capsys, method, unsaved_drawings):
     """Both searches on solo12's shoulder, upper and lower leg (planar): each front design's model
     file gives the recorded objectives again, its leg the file's rods, its foot at the ankle."""
     leg_file = solo_leg(tmp_path)
@@ -276,7 +276,7 @@ def test_the_inner_search_takes_a_spatial_leg_under_a_spatial_design_space_only(
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
 
 
-def test_the_spatial_inner_search_hangs_splayed_toes_on_a_three_rod_leg(tmp_path, capsys):
+def test_the_spatial_inner_search_hangs_splayed_toes_on_a_three_rod_leg(tmp_path, capsys, unsaved_drawings):
     """The inner search's spatial NLP on solo12's three planar rods: the foot starts after the
     leg's rods (not at body 2) and each front design re-evaluates to its recorded objectives."""
     solo_leg(tmp_path)

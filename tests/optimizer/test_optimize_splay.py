@@ -100,7 +100,7 @@ search: {method: outer, trials: 2, startup_trials: 2}
 """
 
 
-def test_a_whole_landing_study_of_splayed_feet_reevaluates_to_its_landings(tmp_path: Path, capsys):
+def test_a_whole_landing_study_of_splayed_feet_reevaluates_to_its_landings(tmp_path: Path, capsys, unsaved_drawings):
     """Splayed feet scored on their whole landings in space (the outer search): each front
     design's spatial model file lands again (``footopt evaluate --json``) to the recorded peak and
     energy absorbed, its joints sprung as the trial asked, its toes splayed (the inner search over
