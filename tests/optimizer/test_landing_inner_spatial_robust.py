@@ -9,6 +9,7 @@ tiny study runs end to end and its records re-evaluate; what changes the tree is
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -120,9 +121,10 @@ def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_st
 
 def test_a_tiny_spatial_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch,
                                                                                    unsaved_drawings):
-    """``footopt optimize`` (3 ms, 2 landings, IPOPT cut to 1 iteration): every recorded design,
-    rebuilt from its record, re-evaluates by the outer search's evaluation to its statistics; its
-    yaw in range."""
+    """``footopt optimize`` (3 ms, 2 landings, IPOPT cut to 1 iteration; the foot's joint laws
+    not searched, fewer variables to carry: searched laws in space are the gradient test's): every
+    recorded design, rebuilt from its record, re-evaluates by the outer search's evaluation to its
+    statistics; its yaw in range."""
     import optimizer.search.landing_inner as landing_inner
     from optimizer.cli.main import main
     from optimizer.results.runs import storage_url
@@ -131,6 +133,8 @@ def test_a_tiny_spatial_inner_study_over_landings_runs_and_its_designs_re_evalua
     monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 1)
     text = spatial_robust_yaml("{peak_external_norm: max}").replace("duration: 0.004", "duration: 0.003").replace(
         "[peak_external_norm, energy_absorbed]", "[peak_external_norm]").replace("count: 3", "count: 2")
+    text = re.sub(r"  joint_laws:\n(    .*\n)+", "", text)
+    assert "joint_laws" not in text and "splay: [0.1, 0.4]" in text
     path = tmp_path / "tiny.yaml"
     path.write_text(text, encoding="utf-8")
     out = tmp_path / "run"
