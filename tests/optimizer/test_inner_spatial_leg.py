@@ -227,4 +227,4 @@ def test_the_spatial_legs_own_springs_dampers_and_stops_act_over_the_landing(tmp
     sprung = landing(tree, scene, laws, settings, SPATIAL)
     free = landing(tree, scene, (FREE,) * 4 + tuple(laws[4:]), settings, SPATIAL)
     assert np.max(np.abs(sprung.final_angles[1:4] - free.final_angles[1:4])) > 1e-3  # 1.1e-2 rad
-    assert assert_the_yaw_derivative(config) == tree
+    assert assert_the_yaw_derivative(config, nlp) == tree  # the same NLP, its yaw derivative

@@ -324,12 +324,13 @@ def test_the_spatial_landing_nlp_turns_toes_about_a_three_rod_legs_foot_angle(tm
     assert len(tree.bodies) == 5 and tree.bodies[4].rpy != (0.0, 0.0, 0.0)
 
 
-def assert_the_yaw_derivative(config: StudyConfig) -> Tree:
-    """The whole-landing NLP of ``config``'s one-toe foot: the last design value's (the toe's
-    yaw) exact derivative of the landed objectives against their central difference; returns
-    the tree at the start. The exact derivative is the NLP's own (its chain rule from x to the
-    landing's values, the landing's forward sweep, the objectives' signs) carried along the yaw's
-    column alone (``landing_gradient(directions=...)``, as ``_Landed.gradient`` carries all n_x)."""
+def assert_the_yaw_derivative(config: StudyConfig, nlp=None) -> Tree:
+    """The whole-landing NLP of ``config``'s one-toe foot (``nlp``: that NLP, built already):
+    the last design value's (the toe's yaw) exact derivative of the landed objectives against
+    their central difference; returns the tree at the start. The exact derivative is the NLP's
+    own (its chain rule from x to the landing's values, the landing's forward sweep, the
+    objectives' signs) carried along the yaw's column alone (``landing_gradient(directions=...)``,
+    as ``_Landed.gradient`` carries all n_x)."""
     from dataclasses import replace
 
     from impulse_core.kinematics.spatial import SPATIAL
@@ -338,7 +339,7 @@ def assert_the_yaw_derivative(config: StudyConfig) -> Tree:
     from optimizer.design_space import STUDY_LANDING, FootShape
     from optimizer.search.landing_inner import _Landed, build_landing_nlp, landing_settings, start_landing
 
-    nlp = build_landing_nlp(config, FootShape(1, 1))
+    nlp = build_landing_nlp(config, FootShape(1, 1)) if nlp is None else nlp
     x0 = start_landing(nlp, np.random.default_rng(0))
     landed = _Landed(nlp)
     tree, laws, scene = landed.model(x0)
