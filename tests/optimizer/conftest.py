@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -158,3 +159,32 @@ def taped_once(monkeypatch: pytest.MonkeyPatch) -> Callable:
 
     monkeypatch.setattr(landing_inner, "taped_run", once)
     return once
+
+
+@contextmanager
+def drawings_unsaved() -> Iterator[None]:
+    """A run folder's drawings built (every figure made) but not rendered: ``_save`` (plot's,
+    and landing_plot's copy) closes the figure and touches its file. For the study runs whose
+    checks are the recorded designs: the rendering costs seconds and is not the point (the
+    drawings themselves: test_plot, test_optimize_splay's run folder, test_spatial_cli)."""
+    import matplotlib.pyplot as plt
+
+    import optimizer.report.landing_plot as landing_plot
+    import optimizer.report.plot as plot
+
+    def unsaved(fig, path: Path, layout: bool = True) -> Path:
+        plt.close(fig)
+        Path(path).touch()
+        return Path(path)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(plot, "_save", unsaved)
+        m.setattr(landing_plot, "_save", unsaved)
+        yield
+
+
+@pytest.fixture
+def unsaved_drawings() -> Iterator[None]:
+    """:func:`drawings_unsaved` for one test."""
+    with drawings_unsaved():
+        yield

@@ -167,7 +167,7 @@ def test_the_nlps_gradients_are_central_differences(leg_folder):
     np.testing.assert_allclose(exact_g, fd_g, rtol=1e-6, atol=1e-7 * np.abs(fd_g).max())
 
 
-def test_a_tiny_study_runs_and_its_front_reevaluates(leg_folder, capsys, monkeypatch):
+def test_a_tiny_study_runs_and_its_front_reevaluates(leg_folder, capsys, monkeypatch, unsaved_drawings):
     """``footopt optimize`` with the spatial leg and the inner search, its two shapes swept by two
     forked workers (each unpickles the study: its leg must stay spatial there): every front
     design's model file hangs the foot from the leg's four rods and re-evaluates to its recorded
@@ -227,4 +227,4 @@ def test_the_spatial_legs_own_springs_dampers_and_stops_act_over_the_landing(tmp
     sprung = landing(tree, scene, laws, settings, SPATIAL)
     free = landing(tree, scene, (FREE,) * 4 + tuple(laws[4:]), settings, SPATIAL)
     assert np.max(np.abs(sprung.final_angles[1:4] - free.final_angles[1:4])) > 1e-3  # 1.1e-2 rad
-    assert assert_the_yaw_derivative(config) == tree
+    assert assert_the_yaw_derivative(config, nlp) == tree  # the same NLP, its yaw derivative

@@ -91,15 +91,15 @@ def test_a_few_ipopt_iterations_lower_the_landing_objective(nlp):
     assert nlp.gradients >= 2  # the gradient was derived afresh at the iterates
 
 
-def test_an_inner_whole_landing_study_runs_and_records_its_designs(tmp_path, monkeypatch):
-    """A tiny inner whole-landing study (3 ms, IPOPT cut to 2 iterations per solve: the realised
+def test_an_inner_whole_landing_study_runs_and_records_its_designs(tmp_path, monkeypatch, unsaved_drawings):
+    """A tiny inner whole-landing study (3 ms, IPOPT cut to 1 iteration per solve: the realised
     designs are evaluated and checked by the study's own landing, whatever IPOPT's status)."""
     import csv
 
     import optimizer.search.landing_inner as landing_inner
     from optimizer.cli.main import main
 
-    monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 2)
+    monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 1)
     study = (TINY_LANDING_YAML.replace("duration: 0.02", "duration: 0.003").replace("toes: [1, 2]", "toes: [1, 1]")
              .replace("search: {method: outer, trials: 6, startup_trials: 6, landing_tolerance: 1.0e-2}",
                       "search: {method: inner, inner: {starts: 1, front_points: 0}, landing_tolerance: 1.0e-2}"))

@@ -64,12 +64,12 @@ def _statistics(nlp, x: np.ndarray) -> np.ndarray:
 
 def landed_gradient(nlp) -> tuple[np.ndarray, _Landed, np.ndarray]:
     """A start x0 (its scenarios' steps set there), the NLP's landings and their gradient at x0
-    (2 objectives x 3 scenarios, finite)."""
+    (2 objectives x each scenario, finite)."""
     x0 = start_landing(nlp, np.random.default_rng(0))
     assert set_steps(nlp, x0)
     landed = _Landed(nlp)
     G = landed.gradient(x0)
-    assert G.shape == (2 * 3, nlp.n_x) and np.all(np.isfinite(G))
+    assert G.shape == (2 * nlp.config.landings.count, nlp.n_x) and np.all(np.isfinite(G))
     return x0, landed, G
 
 
@@ -164,7 +164,7 @@ def test_the_inner_search_refuses_what_it_cannot_take_over_whole_landings(tmp_pa
         assert len(err.strip().splitlines()) == 1 and message.strip("^").replace("\\", "").split(":")[0] in err
 
 
-def test_a_tiny_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch):
+def test_a_tiny_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch, unsaved_drawings):
     """``footopt optimize`` on the tiny study (3 ms, 2 landings, IPOPT cut to 1 iteration): every
     recorded design, rebuilt from its record, re-evaluates by the outer search's evaluation to its
     statistics."""

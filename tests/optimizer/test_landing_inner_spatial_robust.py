@@ -9,6 +9,7 @@ tiny study runs end to end and its records re-evaluate; what changes the tree is
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -42,9 +43,10 @@ def spatial_robust_yaml(statistic: str) -> str:
     return SPATIAL_LANDING_YAML + LANDINGS + f"statistic: {statistic}\n"
 
 
-def _nlp(tmp_path, statistic: str):
+def _nlp(tmp_path, statistic: str, duration: float = 0.004, count: int = 3):
     path = tmp_path / "spatial_robust.yaml"
-    path.write_text(spatial_robust_yaml(statistic), encoding="utf-8")
+    path.write_text(spatial_robust_yaml(statistic).replace("duration: 0.004", f"duration: {duration}")
+                    .replace("count: 3", f"count: {count}"), encoding="utf-8")
     return build_landing_nlp(load_study(path), FootShape(1, 1))
 
 
@@ -89,9 +91,12 @@ def test_the_spatial_nlp_scores_each_scenario_and_the_outer_search_statistics(tm
 
 def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_statistic(tmp_path, taped_once):
     """Per scenario (each along its own spatial event sequence, unchanged at +-eps; a level
-    direction and the toe's yaw alone), and the statistics mean and std through the NLP's graph."""
-    nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}")
+    direction and the toe's yaw alone), and the statistics mean and std through the NLP's graph
+    (2 landings of 3 ms, each its own approach in space)."""
+    nlp = _nlp(tmp_path, "{peak_external_norm: std, energy_absorbed: mean}", duration=0.003, count=2)
     x0, landed, G = landed_gradient(nlp)
+    S = len(nlp.scenes)
+    assert S == 2 and len({(s.speed, s.velocity_x, s.velocity_z, s.angular_velocity_x) for s in nlp.scenes}) == 2
     assert np.max(np.abs(G[:, -1])) > 1e-3 * np.max(np.abs(G))  # the yaw matters
     settings = landing_settings(nlp.config)
 
@@ -104,20 +109,22 @@ def test_the_spatial_gradients_agree_with_central_differences_per_landing_and_st
     dJ = np.asarray(J(x0))
     yaw = np.zeros(nlp.n_x)
     yaw[-1] = 1.0
-    v, eps = landed.values(x0).reshape(2, 3), 1e-6
+    v, eps = landed.values(x0).reshape(2, S), 1e-6
     for u in (_tangent(nlp, x0, np.random.default_rng(3)), yaw):
         assert_gradient_along(nlp, x0, G, u, sequences, eps)
         fd_stat = (np.asarray(stats(x0 + eps * u)).ravel() - np.asarray(stats(x0 - eps * u)).ravel()) / (2 * eps)
         assert np.all(np.abs(fd_stat - dJ @ u) <= 1e-4 * np.maximum(np.abs(dJ @ u), 1e-3)), (fd_stat, dJ @ u)
-        dv = (G @ u).reshape(2, 3)  # std over the scenarios of objective 0, mean of objective 1's
-        assert (dJ @ u)[0] == pytest.approx(np.sum((v[0] - v[0].mean()) * dv[0]) / (3 * np.std(v[0])), rel=1e-9)
+        dv = (G @ u).reshape(2, S)  # std over the scenarios of objective 0, mean of objective 1's
+        assert (dJ @ u)[0] == pytest.approx(np.sum((v[0] - v[0].mean()) * dv[0]) / (S * np.std(v[0])), rel=1e-9)
         assert (dJ @ u)[1] == pytest.approx(dv[1].mean(), rel=1e-9)
 
 
-def test_a_tiny_spatial_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch):
-    """``footopt optimize`` (3 ms, 2 landings, IPOPT cut to 1 iteration): every recorded design,
-    rebuilt from its record, re-evaluates by the outer search's evaluation to its statistics; its
-    yaw in range."""
+def test_a_tiny_spatial_inner_study_over_landings_runs_and_its_designs_re_evaluate(tmp_path, monkeypatch,
+                                                                                   unsaved_drawings):
+    """``footopt optimize`` (3 ms, 2 landings, IPOPT cut to 1 iteration; the foot's joint laws
+    not searched, fewer variables to carry: searched laws in space are the gradient test's): every
+    recorded design, rebuilt from its record, re-evaluates by the outer search's evaluation to its
+    statistics; its yaw in range."""
     import optimizer.search.landing_inner as landing_inner
     from optimizer.cli.main import main
     from optimizer.results.runs import storage_url
@@ -126,6 +133,8 @@ def test_a_tiny_spatial_inner_study_over_landings_runs_and_its_designs_re_evalua
     monkeypatch.setitem(landing_inner.LANDING_IPOPT, "ipopt.max_iter", 1)
     text = spatial_robust_yaml("{peak_external_norm: max}").replace("duration: 0.004", "duration: 0.003").replace(
         "[peak_external_norm, energy_absorbed]", "[peak_external_norm]").replace("count: 3", "count: 2")
+    text = re.sub(r"  joint_laws:\n(    .*\n)+", "", text)
+    assert "joint_laws" not in text and "splay: [0.1, 0.4]" in text
     path = tmp_path / "tiny.yaml"
     path.write_text(text, encoding="utf-8")
     out = tmp_path / "run"

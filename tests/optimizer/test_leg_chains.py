@@ -78,7 +78,7 @@ def optimized(folder: Path, study: str, capsys) -> list[tuple[dict, dict, Path]]
 
 
 @pytest.mark.parametrize("method", ["outer", "inner"])
-def test_a_three_rod_imported_leg_runs_a_study_that_reevaluates(tmp_path, capsys, method):
+def test_a_three_rod_imported_leg_runs_a_study_that_reevaluates(tmp_path, capsys, method, unsaved_drawings):
     """Both searches on solo12's shoulder, upper and lower leg (planar): each front design's model
     file gives the recorded objectives again, its leg the file's rods, its foot at the ankle."""
     leg_file = solo_leg(tmp_path)
@@ -276,7 +276,7 @@ def test_the_inner_search_takes_a_spatial_leg_under_a_spatial_design_space_only(
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
 
 
-def test_the_spatial_inner_search_hangs_splayed_toes_on_a_three_rod_leg(tmp_path, capsys):
+def test_the_spatial_inner_search_hangs_splayed_toes_on_a_three_rod_leg(tmp_path, capsys, unsaved_drawings):
     """The inner search's spatial NLP on solo12's three planar rods: the foot starts after the
     leg's rods (not at body 2) and each front design re-evaluates to its recorded objectives."""
     solo_leg(tmp_path)
@@ -324,25 +324,31 @@ def test_the_spatial_landing_nlp_turns_toes_about_a_three_rod_legs_foot_angle(tm
     assert len(tree.bodies) == 5 and tree.bodies[4].rpy != (0.0, 0.0, 0.0)
 
 
-def assert_the_yaw_derivative(config: StudyConfig) -> Tree:
-    """The whole-landing NLP of ``config``'s one-toe foot: the last design value's (the toe's
-    yaw) exact derivative of the landed objectives against their central difference; returns
-    the tree at the start."""
+def assert_the_yaw_derivative(config: StudyConfig, nlp=None) -> Tree:
+    """The whole-landing NLP of ``config``'s one-toe foot (``nlp``: that NLP, built already):
+    the last design value's (the toe's yaw) exact derivative of the landed objectives against
+    their central difference; returns the tree at the start. The exact derivative is the NLP's
+    own (its chain rule from x to the landing's values, the landing's forward sweep, the
+    objectives' signs) carried along the yaw's column alone (``landing_gradient(directions=...)``,
+    as ``_Landed.gradient`` carries all n_x)."""
     from dataclasses import replace
 
     from impulse_core.kinematics.spatial import SPATIAL
     from impulse_core.timedomain.landing import landing
+    from impulse_core.timedomain.landing_derivatives import landing_gradient
     from optimizer.design_space import STUDY_LANDING, FootShape
-    from optimizer.search.landing_inner import _Landed, build_landing_nlp, start_landing
+    from optimizer.search.landing_inner import _Landed, build_landing_nlp, landing_settings, start_landing
 
-    nlp = build_landing_nlp(config, FootShape(1, 1))
+    nlp = build_landing_nlp(config, FootShape(1, 1)) if nlp is None else nlp
     x0 = start_landing(nlp, np.random.default_rng(0))
     landed = _Landed(nlp)
     tree, laws, scene = landed.model(x0)
     nlp.step = landing(tree, scene, laws, replace(STUDY_LANDING, tolerance=1e-2), SPATIAL).step
     yaw = np.zeros(nlp.n_x)
     yaw[-1] = 1.0
-    exact = landed.gradient(x0) @ yaw
+    gr = landing_gradient(tree, scene, laws, landing_settings(nlp.config), step=nlp.step, space=nlp.space,
+                          directions=landed.directions(x0, tree) @ yaw[:, None])
+    exact = np.array([o.sign * gr.jacobian[o.value][0] for o in landed.objectives])
     fd = (_Landed(nlp).values(x0 + 1e-6 * yaw) - _Landed(nlp).values(x0 - 1e-6 * yaw)) / 2e-6
     assert np.abs(exact).max() > 1e-4
     np.testing.assert_allclose(exact, fd, rtol=1e-5, atol=1e-9)

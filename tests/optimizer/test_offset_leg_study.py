@@ -19,6 +19,7 @@ from optimizer.config.model_file import format_model_file, load_model_file
 from optimizer.config.study_config import load_study
 from optimizer.imports.leg import import_leg
 from optimizer.imports.read import read_description
+from tests.optimizer.conftest import drawings_unsaved
 from tests.optimizer.imports.peers import robot_file
 
 GO1 = "go1_description/urdf/go1.urdf"
@@ -52,7 +53,8 @@ def _optimized_and_reevaluated(folder: Path, capsys) -> list[tuple[dict, dict, s
     """``footopt optimize folder/s.yaml``, then ``footopt evaluate --json`` on its front's model
     files: (front row, evaluated record, model file) per design."""
     out = folder / "run"
-    assert main(["optimize", str(folder / "s.yaml"), "--out", str(out), "--quiet"]) == 0
+    with drawings_unsaved():  # the callers read the front's model files, not its drawings
+        assert main(["optimize", str(folder / "s.yaml"), "--out", str(out), "--quiet"]) == 0
     rows = list(csv.DictReader((out / "pareto.csv").open(encoding="utf-8")))
     assert rows
     capsys.readouterr()

@@ -131,7 +131,7 @@ def test_bad_study_yaml_exit_2_one_line_with_path(tmp_path: Path, capsys):
     assert not (tmp_path / "out").exists()
 
 
-def test_run_directory_is_never_clobbered(tmp_path: Path, capsys):
+def test_run_directory_is_never_clobbered(tmp_path: Path, capsys, unsaved_drawings):
     study = tmp_path / "tiny.yaml"
     study.write_text(TINY_STUDY_YAML, encoding="utf-8")
     out = tmp_path / "out"

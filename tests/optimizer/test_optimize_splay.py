@@ -96,11 +96,11 @@ design_space:
     toe_inner: {stiffness: [2.0, 10.0], damping: [0.02, 0.2]}
 constraints: {support_margin: 0.005}
 objectives: [peak_external_norm, energy_absorbed]
-search: {method: outer, trials: 4, startup_trials: 4}
+search: {method: outer, trials: 2, startup_trials: 2}
 """
 
 
-def test_a_whole_landing_study_of_splayed_feet_reevaluates_to_its_landings(tmp_path: Path, capsys):
+def test_a_whole_landing_study_of_splayed_feet_reevaluates_to_its_landings(tmp_path: Path, capsys, unsaved_drawings):
     """Splayed feet scored on their whole landings in space (the outer search): each front
     design's spatial model file lands again (``footopt evaluate --json``) to the recorded peak and
     energy absorbed, its joints sprung as the trial asked, its toes splayed (the inner search over
