@@ -57,7 +57,7 @@ from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space, values_space
 from impulse_core.model.support import support_margin as hull_margin
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.rods import body_rotation, rotation_z
-from impulse_core.timedomain.landing import AUTO_CODE, LandingResult, LandingSettings, landing
+from impulse_core.timedomain.landing import AUTO_CODE, BALANCE_CHECK, LandingResult, LandingSettings, landing
 from optimizer.config.model_file import ModelFile
 from impulse_core.model.tree import (
     UNIFORM_COM,
@@ -1203,7 +1203,9 @@ def evaluate_design_landing(
 
     The scene is that of the design's model file (:func:`landing_scene`), so that ``footopt
     evaluate --tolerance tolerance`` on it gives the same figures. A landing that fails
-    numerically gives no objectives. ``energy_gain`` is the largest gain of any impact.
+    numerically, or whose own momentum balance ends beyond the contract's
+    (:data:`~impulse_core.timedomain.landing.BALANCE_CHECK`: its totals miss impulse), gives no
+    objectives. ``energy_gain`` is the largest gain of any impact.
     """
     tree = foot_tree(leg, design)
     laws = foot_joint_laws(leg, design, stop_restitution)
@@ -1214,7 +1216,7 @@ def evaluate_design_landing(
     except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
         return DesignEvaluation(design, None, geometric)
     objectives = landing_objectives(result)
-    if not all(math.isfinite(v) for _, v in objectives.items()):
+    if not (all(math.isfinite(v) for _, v in objectives.items()) and result.momentum_balance <= BALANCE_CHECK):
         return DesignEvaluation(design, None, geometric)
     gain = max(e.energy_after - e.energy_before for e in result.events)
     return DesignEvaluation(design, objectives, replace(geometric, energy_gain=float(gain)))

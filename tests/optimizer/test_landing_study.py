@@ -125,3 +125,30 @@ def test_footopt_evaluate_reproduces_the_front(tiny_run: Path, capsys):
         assert out["landing"]["peak_external_norm"] == pytest.approx(float(row["peak_external_norm"]), rel=1e-12)
         assert out["landing"]["peak_internal_norm"] == pytest.approx(float(row["peak_internal_norm"]), rel=1e-12)
         assert out["landing"]["energy_absorbed"] == pytest.approx(float(row["energy_absorbed"]), rel=1e-12)
+
+
+def test_a_design_whose_landing_breaks_its_momentum_balance_is_not_scored(monkeypatch, tmp_path):
+    """A study's landing whose own momentum balance ends beyond the contract's 1e-4 (its totals
+    miss impulse: random file 32843, 1e-2) gives the design no objectives, as a failed landing;
+    the same landing within it is scored."""
+    import dataclasses
+
+    import optimizer.design_space as design_space
+    from optimizer.design_space import evaluate_design_landing
+
+    study = tmp_path / "tiny_landing.yaml"
+    study.write_text(TINY_LANDING_YAML, encoding="utf-8")
+    config = load_study(study)
+    design = design_from(config.leg, ((-0.6,), (0.9,)), ((0.2,), (0.3,)), config.limits)
+    laws = {"heel_root": FamilyLaw(5.0, 0.2, 0.4), "heel_inner": FamilyLaw(), "toe_root": FamilyLaw(5.0, 0.2, 0.4),
+            "toe_inner": FamilyLaw()}
+    design = with_joint_laws(design, laws)
+
+    def evaluated():
+        return evaluate_design_landing(config.leg, design, config.scene, config.limits, 0.0, 1e-2)
+
+    assert evaluated().objectives is not None
+    real = design_space.landing
+    monkeypatch.setattr(design_space, "landing",
+                        lambda *a, **k: dataclasses.replace(real(*a, **k), momentum_balance=1.2e-2))
+    assert evaluated().objectives is None
