@@ -1196,6 +1196,15 @@ def landing_objectives(result: LandingResult) -> Objectives:
     )
 
 
+def scored_landing(result: LandingResult) -> Objectives | None:
+    """:func:`landing_objectives`, or None where a value is not finite or the landing's own
+    momentum balance ends beyond the contract's (:data:`~impulse_core.timedomain.landing.BALANCE_CHECK`:
+    its totals miss impulse)."""
+    found = landing_objectives(result)
+    finite = all(math.isfinite(v) for _, v in found.items())
+    return found if finite and result.momentum_balance <= BALANCE_CHECK else None
+
+
 def evaluate_design_landing(
     leg: Leg | LegChain, design: FootDesign, scene: Scene, limits: FootLimits, stop_restitution: float, tolerance: float
 ) -> DesignEvaluation:
@@ -1203,9 +1212,7 @@ def evaluate_design_landing(
 
     The scene is that of the design's model file (:func:`landing_scene`), so that ``footopt
     evaluate --tolerance tolerance`` on it gives the same figures. A landing that fails
-    numerically, or whose own momentum balance ends beyond the contract's
-    (:data:`~impulse_core.timedomain.landing.BALANCE_CHECK`: its totals miss impulse), gives no
-    objectives. ``energy_gain`` is the largest gain of any impact.
+    numerically, or that :func:`scored_landing` refuses, gives no objectives. ``energy_gain`` is the largest gain of any impact.
     """
     tree = foot_tree(leg, design)
     laws = foot_joint_laws(leg, design, stop_restitution)
@@ -1215,8 +1222,8 @@ def evaluate_design_landing(
             result = landing(tree, landing_scene(scene, limits), laws, study_landing(tolerance), foot_space(leg, design))
     except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
         return DesignEvaluation(design, None, geometric)
-    objectives = landing_objectives(result)
-    if not (all(math.isfinite(v) for _, v in objectives.items()) and result.momentum_balance <= BALANCE_CHECK):
+    objectives = scored_landing(result)
+    if objectives is None:
         return DesignEvaluation(design, None, geometric)
     gain = max(e.energy_after - e.energy_before for e in result.events)
     return DesignEvaluation(design, objectives, replace(geometric, energy_gain=float(gain)))
@@ -1256,6 +1263,7 @@ __all__ = [
     "evaluate_design",
     "evaluate_design_landing",
     "landing_objectives",
+    "scored_landing",
     "foot_geometry",
     "foot_joint_laws",
     "foot_space",

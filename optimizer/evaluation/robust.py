@@ -20,7 +20,7 @@ import numpy as np
 from impulse_core.errors import NumericalError
 from impulse_core.timedomain.landing import LandingResult, LandingSettings
 from optimizer.config.model_file import ModelFile
-from optimizer.design_space import Objective, Objectives, landing_objectives, objectives
+from optimizer.design_space import Objective, Objectives, objectives, scored_landing
 from optimizer.evaluation.batched import FIRST_IMPACT, first_impact_values, first_impact_values_many
 from optimizer.evaluation.model_choice import evaluate_landing
 from optimizer.evaluation.scenarios import Landings, model_data, overrides, scenario_model
@@ -54,7 +54,9 @@ def scenario_objectives(model: ModelFile, whole: LandingSettings | None = None) 
         except (np.linalg.LinAlgError, NumericalError):
             return None
     inner = getattr(result, "result", None)
-    found = landing_objectives(inner) if isinstance(inner, LandingResult) else objectives(result, model.space)
+    if isinstance(inner, LandingResult):
+        return scored_landing(inner)
+    found = objectives(result, model.space)
     return found if all(math.isfinite(v) for _, v in found.items()) else None
 
 

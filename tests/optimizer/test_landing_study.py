@@ -134,7 +134,9 @@ def test_a_design_whose_landing_breaks_its_momentum_balance_is_not_scored(monkey
     import dataclasses
 
     import optimizer.design_space as design_space
-    from optimizer.design_space import evaluate_design_landing
+    import optimizer.evaluation.model_choice as model_choice
+    from optimizer.design_space import design_model, evaluate_design_landing
+    from optimizer.evaluation.robust import scenario_objectives
 
     study = tmp_path / "tiny_landing.yaml"
     study.write_text(TINY_LANDING_YAML, encoding="utf-8")
@@ -147,8 +149,10 @@ def test_a_design_whose_landing_breaks_its_momentum_balance_is_not_scored(monkey
     def evaluated():
         return evaluate_design_landing(config.leg, design, config.scene, config.limits, 0.0, 1e-2)
 
-    assert evaluated().objectives is not None
-    real = design_space.landing
-    monkeypatch.setattr(design_space, "landing",
-                        lambda *a, **k: dataclasses.replace(real(*a, **k), momentum_balance=1.2e-2))
-    assert evaluated().objectives is None
+    model = design_model(config.leg, design, config.scene, config.limits)
+    assert evaluated().objectives is not None and scenario_objectives(model) is not None
+    for module in (design_space, model_choice):  # a study's landing, and a robust study's scenario
+        real = module.landing
+        monkeypatch.setattr(module, "landing",
+                            lambda *a, real=real, **k: dataclasses.replace(real(*a, **k), momentum_balance=1.2e-2))
+    assert evaluated().objectives is None and scenario_objectives(model) is None
