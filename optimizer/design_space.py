@@ -1212,7 +1212,8 @@ def evaluate_design_landing(
 
     The scene is that of the design's model file (:func:`landing_scene`), so that ``footopt
     evaluate --tolerance tolerance`` on it gives the same figures. A landing that fails
-    numerically, or that :func:`scored_landing` refuses, gives no objectives. ``energy_gain`` is the largest gain of any impact.
+    numerically, or that :func:`scored_landing` refuses, gives no objectives. ``energy_gain`` is
+    the largest gain of any impact.
     """
     tree = foot_tree(leg, design)
     laws = foot_joint_laws(leg, design, stop_restitution)

@@ -480,8 +480,8 @@ class _Landed:
         """d(theta, scene values)/dx at x, along whose n_x columns the landings' derivatives are
         carried (forward mode; the scenes do not move with x) where there are at most a quarter as
         many as theta's and the scene's values; else None (every column, then the chain rule).
-        The sweep's cost per column, measured (``studies/landing_gradient/``): at 8 of 47-107
-        columns 0.6-0.9 x the full sweep's, at 16 of 47-60 0.95-1.25 x."""
+        The sweep's cost, measured (``studies/landing_gradient/results.md``): at 8 of 47-107
+        columns 0.53-0.82 x the full sweep's, at 16 of 47-60 0.85-1.07 x."""
         names = design_names(tree, self.nlp.space)
         n = len(names) + len(scene_names(tree, self.nlp.space))
         if 4 * self.nlp.n_x > n:
