@@ -1379,6 +1379,9 @@ class _Landing:
             if self.turning else None
         #: the contact normals at the last accepted step's end (None: after an event or a crossing)
         self.end_normals: np.ndarray | None = None
+        #: the point (q, v) whose rows the last :meth:`project` took its velocity projection on,
+        #: where its impulses act (:meth:`add`)
+        self.projected_at: tuple[np.ndarray, np.ndarray] | None = None
         #: per breakpoint of the plane's terrain, its left and right pieces' outward normals
         #: (K x 2 x 2; the rays beyond the ends are flat), and whether it is a valley's (concave:
         #: the slope rises across it), where a contact can rest held by both; None: flat or space
@@ -1430,7 +1433,9 @@ class _Landing:
         #: final), ("event_step", q, v, mode, tau, watch), ("vertex_step", q, v, mode, tau, crossed:
         #: a step to a resting contact passing a terrain breakpoint, :meth:`vertex_crossing`; the
         #: replay refuses it), ("impact", q, v, rows, e, sol, plastic:
-        #: the rows whose restitution the plastic rules zeroed) and ("project", q, v, mode); q, v
+        #: the rows whose restitution the plastic rules zeroed) and ("project", q, v, mode), that
+        #: followed by ("crease_project",) where its correction carried a resting contact across a
+        #: heightfield's grid line (its rows then the next cell's; the replay refuses it); q, v
         #: are the operation's inputs.
         self.tape: list | None = None
         #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
@@ -2362,7 +2367,7 @@ class _Landing:
             self.refused = np.flatnonzero(turned)
             return q, v
         q1, v1, p = taken
-        self.add(totals, p, q1, v1)
+        self.add(totals, p, *self.projected_at)
         self.tally_joints(totals, q, v, q1, v1, p, 0.0, True)
         return q1, v1
 
@@ -2588,14 +2593,21 @@ class _Landing:
         end = self.ended(q, v, mode)
         own = (end is not None and not _any(~mode.closed & (end.gap < 0))
                and not _any((mode.stop == 0) & ((q > self.joints.hi) | (q < self.joints.lo))))
+        self.projected_at = (q, v)
         if own:  # a compiled step's end whose placement is the mode's own: the compiled projection
             projected = self.fast.project(q, v, mode)
-            if projected is not None:
+            if projected is not None and not self.carried_across(q, v, projected[0], mode):
                 return projected
         pt = self.point(q, v)
         if self.in_place(pt, q, mode):  # what placement() and the velocity rows would find: nothing to do
             return q.copy(), v, np.zeros(self.dims * self.nc)
-        q = q - self.placement(pt, q, mode)[1]
+        corrected = q - self.placement(pt, q, mode)[1]
+        if self.carried_across(q, v, corrected, mode):  # the rows of the cell it now rests on
+            pt = self.point(corrected, v)
+            self.projected_at = (corrected, v)
+            if self.tape is not None:
+                self.tape.append(("crease_project",))
+        q = corrected
         rows = self.mode_solution(pt, mode, solve=False)[0] if _rests(mode) else None
         if rows is None or not rows.G.shape[0]:
             return q, v, np.zeros(self.dims * self.nc)
@@ -2606,6 +2618,14 @@ class _Landing:
             impulse = -np.linalg.lstsq(rows.G @ minv_gt, rows.G @ v, rcond=None)[0]
             v = v + minv_gt @ impulse
         return q, v, _stacked(*_contact_forces(rows, impulse, 0.0, self.nc))
+
+    def carried_across(self, q: np.ndarray, v: np.ndarray, corrected: np.ndarray, mode: _Mode) -> bool:
+        """Whether the position correction from q to ``corrected`` carries a closed contact into
+        another heightfield cell (across a crease)."""
+        if self.grid is None or not _any(mode.closed):
+            return False
+        k0 = self.pieces(q, v)
+        return bool(_any(mode.closed & (self.pieces(corrected, v) != k0)))
 
     def in_place(self, pt: _Point, q: np.ndarray, mode: _Mode) -> bool:
         """Whether :meth:`project` has nothing to do at (q, ``pt``): no rows in the mode, no open
@@ -2736,7 +2756,7 @@ class _Landing:
         self.add_impact(totals, event, q, v, v_plus)
         q, v_plus, mode = self.resolve_or_jam(q, v_plus, mode, 0.0, totals)
         q1, v1, impulse = self.project(q, v_plus, mode)
-        self.add(totals, impulse, q1, v1)
+        self.add(totals, impulse, *self.projected_at)
         self.tally_joints(totals, q, v_plus, q1, v1, impulse, 0.0, _any(mode.closed))
         return q1, v1, mode, totals
 
@@ -2920,7 +2940,7 @@ class _Landing:
                 q, v, p = self.project(q1, v1, mode)
                 self.follow_slip(q, v, mode)
                 self.vectors = step_vectors
-                vectors = self.step_vectors(q, v, p)
+                vectors = self.step_vectors(*self.projected_at, p)
                 if segments is not None and vectors is None:
                     vectors = self.segment_vectors(segments, impulse + p)
                 self.add(totals, impulse + p, q, v, vectors)
@@ -3244,7 +3264,7 @@ class _Landing:
         if self.valleys is not None:
             self.seat(mode)
         q1, v1, p = self.project(q, v, mode)
-        self.add(totals, p, q1, v1)
+        self.add(totals, p, *self.projected_at)
         self.tally_joints(totals, q, v, q1, v1, p, 0.0, _any(mode.closed))
         self.record(totals, t, v_before, t, q1, v1)
         return q1, v1, mode

@@ -1145,6 +1145,9 @@ def landing_gradient(
             where = "a grid line of scene.heightfield" if run.grid is not None else "a breakpoint of scene.terrain"
             raise NumericalError(f"a resting contact passed {where} (an event where the ground's normal jumps), "
                                  "which the derivatives' replay does not follow")
+        if kind == "crease_project":
+            raise NumericalError("a projection carried a resting contact across a grid line of scene.heightfield "
+                                 "(onto the next cell's rows), which the derivatives' replay does not follow")
         item = _signature(entry, run)
         if item is not None:
             signature.append(item)

@@ -267,3 +267,32 @@ def test_approaches_share_one_structure_and_each_keeps_its_slip_floor():
         assert np.max(np.abs(ours - theirs)) <= 1e-12
         turned.append(np.max(np.abs(ours - d)) > 0.1)
     assert turned == [True, False]
+
+
+def test_a_projection_carried_across_a_crease_is_marked_and_refused(monkeypatch):
+    """A projection whose position correction carries a resting contact across a heightfield's
+    grid line takes the next cell's rows (``_Landing.project``), which the replay's projection
+    (the rows where the step ended) does not follow: the run marks each such projection on its
+    tape, and the derivatives are refused where one is, with a NumericalError saying so."""
+    from pathlib import Path
+
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain import landing_derivatives
+    from impulse_core.timedomain.landing_derivatives import taped_run
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file(Path(__file__).parent / "data" / "crease_valley_puck.yaml")
+    scene = replace(m.scene, duration=0.01)  # before the puck's first crossing
+    kept = landing_derivatives.taped_run
+    result, tape, run = kept(m.tree, scene, m.joints, 2.5e-4, space=m.space)
+    assert "crease_project" not in [entry[0] for entry in tape]
+    landing_gradient(m.tree, scene, m.joints, step=2.5e-4, space=m.space)  # replayed
+
+    def marked(*args, **kwargs):  # the same run, one of its projections marked as carried across
+        result, tape, run = kept(*args, **kwargs)
+        at = [entry[0] for entry in tape].index("project", len(tape) // 2)
+        return result, tape[: at + 1] + [("crease_project",)] + tape[at + 1 :], run
+
+    monkeypatch.setattr(landing_derivatives, "taped_run", marked)
+    with pytest.raises(NumericalError, match="across a grid line of scene.heightfield"):
+        landing_gradient(m.tree, scene, m.joints, step=2.5e-4, space=m.space)

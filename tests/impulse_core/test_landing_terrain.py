@@ -403,3 +403,35 @@ def test_a_contact_sliding_across_a_heightfield_crease_meets_the_slope_by_its_la
     ratios = [b.external[0] / a.external[0] for a, b in zip(crease, crease[1:-1])]
     assert len(ratios) >= 5 and np.allclose(ratios, e, rtol=1e-4)
     assert r.momentum_balance <= 1e-8
+
+
+def test_a_projection_that_carries_a_contact_across_a_crease_acts_on_the_cell_it_places_it_on():
+    """data/crease_valley_puck.yaml: a frictionless puck at restitution 0.9 slides along a
+    heightfield's valley crease (cells of slope 1 in 4 either side), held there by gravity. Each
+    step runs on one cell and ends in the other's ground, and the position projection after it
+    carries the contact across the crease. The projection's velocity rows are those of the cell
+    it places the contact on, so that afterwards the contact neither approaches nor leaves that
+    cell (the unilateral row at rest), and its impulse is booked along those rows: the momentum
+    balances to rounding. Before (random file 32843), the rows were the other cell's: the contact
+    left each projection approaching its new cell at up to 0.25 m/s, ending the next step 1e-4 m
+    into it, and the impulse was booked along the new cell's normal while it had acted along the
+    old one's: this file's balance 6.9e-4, 32843's 1.2e-2."""
+    model = _model("crease_valley_puck.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    speeds, carried = [], []
+    project = run.project
+
+    def watched(q, v, mode):
+        q1, v1, p = project(q, v, mode)
+        pt = run.point(q1, v1)
+        speeds.append(float(np.max(np.abs(pt.vn(v1)[mode.closed]), initial=0.0)))
+        carried.append(bool(np.any(mode.closed & (run.pieces(q, v) != run.pieces(q1, v1)))))
+        return q1, v1, p
+
+    run.project = watched
+    r = run.run(2.5e-4)
+    assert sum(carried) >= 10, sum(carried)  # the crossings this file is about
+    assert max(speeds) <= 1e-9
+    assert r.momentum_balance <= 1e-10
+    assert r.v_final[0] == pytest.approx(2.0, rel=1e-12)  # no slope along the crease: v_x is kept
+    assert abs(run.point(r.q_final, r.v_final).contacts[0, 2]) <= 1e-3  # still in the crease
