@@ -22,6 +22,11 @@ contact down on the slope.
   (frictionless and at friction 0.1): at x = 0, velocity 0, settled; the weight is the two rows'
   forces summed along their own normals; the energy leaves at events only. A corner whose row
   would pull is released, and so is one that an impact sends up a slope.
+- data/crease_valley_puck.yaml (hand-made, spatial): a puck held by gravity in a heightfield's
+  valley crease at restitution 0.9, where the position projections after the steps carry it
+  across the crease: each such projection takes the rows of the cell it places the contact on
+  (the contact leaves it at rest on that cell) and its impulse is booked along them (the
+  momentum balance to rounding; random file 32843).
 """
 
 from __future__ import annotations
