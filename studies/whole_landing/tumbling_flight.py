@@ -137,7 +137,8 @@ def main(argv=None) -> int:
     u /= np.linalg.norm(u)
     E0 = energy(start(), q, v, g)
     ref, (q1, v1) = dop853(run, t0, q, v, T, samples)
-    print(f"flight from t = {t0:.6g} s to {T:.6g} s; DOP853 energy {E0:.9f} J, drift {energy(run, q1, v1, g) - E0:.2g} J")
+    drift = energy(run, q1, v1, g) - E0
+    print(f"flight from t = {t0:.6g} s to {T:.6g} s; DOP853 energy {E0:.9f} J, drift {drift:.2g} J")
     kicked, _ = dop853(start(), t0, q, v + KICK * np.linalg.norm(v) * u, T, samples)
     mj = {f: mujoco_flight(model, start(), t0, q, v, samples, f) for f in args.floors}
     if args.floors:
@@ -146,7 +147,8 @@ def main(argv=None) -> int:
     head = "t (s)     kick: posture  velocity" + "".join(f"  mj({f:g})-DOP" for f in args.floors)
     print(head + ("  mj kick" if args.floors else ""))
     for i, s in enumerate(samples):
-        line = (f"{s:.4f}  {np.linalg.norm((kicked - ref)[i, :14]):13.3e}  {np.linalg.norm((kicked - ref)[i, 14:]):8.3e}"
+        apart = kicked[i] - ref[i]
+        line = (f"{s:.4f}  {np.linalg.norm(apart[:14]):13.3e}  {np.linalg.norm(apart[14:]):8.3e}"
                 + "".join(f"  {np.linalg.norm(mj[f][i] - ref[i, :14]):12.3e}" for f in args.floors))
         if args.floors:
             line += f"  {np.linalg.norm(mj_kicked[i] - mj[args.floors[-1]][i]):8.3e}"
