@@ -147,6 +147,18 @@ MOMENTUM_BALANCE = 2e-5
 DISTINCT_RUNS = 1.1
 #: Halvings of the nominal step for the momentum balance (a step that short is taken as it is).
 MAX_SPLITS = 14
+#: The step halving stops early where its runs end in postures that do not approach each other
+#: (:func:`runs_apart`): two successive differences of the final angles of at least this
+#: (relative, :func:`landing_differences`: a tenth of the largest angle), the later not shrunk by
+#: the steps' ratio (what first order would give at least), while the runs' peak and total
+#: impulses agree to IMPULSES_AGREE times it. Random file 32924: a tumbling flight of 0.21 s
+#: after the impacts whose state a 1e-10 kick moves by 1e-2 rad at its end (Lyapunov-like rate
+#: ~90 1/s); runs at h, h / 4, h / 16 and h / 64 ended 1.61, 0.90 and 1.7 apart, their impulses
+#: within 1.3e-3, and each halving cost twice the last (``studies/whole_landing/spatial_chatter.md``).
+POSTURE_SPREAD = 0.1
+#: The impulses' difference, as a fraction of the final angles', below which the runs' impacts
+#: agree while their postures do not (:func:`runs_apart`).
+IMPULSES_AGREE = 0.01
 #: The momentum balance the contract's outside checks hold a whole landing to (its
 #: :attr:`LandingResult.momentum_balance`, relative as there): a landing beyond it is reported
 #: with a warning (random file 32843: a tip sliding along a heightfield's crease, each step's
@@ -394,6 +406,13 @@ class LandingResult:
     #: why ``integrator`` is RK4 where ``auto`` first chose the implicit one (its run's steps
     #: overran their budget or fell behind RK4's stable step: :func:`landing`), else ""
     integrator_switch: str = ""
+    #: the step halving's comparisons of distinct runs, in order (:func:`landing`): (the coarser
+    #: run's step, the finer's, and their differences of the peak impulses, the total external
+    #: impulses and the final angles, :func:`landing_differences`)
+    halving: tuple[tuple[float, float, float, float, float], ...] = ()
+    #: the step halving stopped because its runs' final angles did not approach each other while
+    #: their impulses agreed (:func:`runs_apart`): ``error_estimate`` is the final angles'
+    runs_apart: bool = False
 
     @property
     def peak_external_norm(self) -> float:
@@ -3395,14 +3414,37 @@ def split_alike_at_half(result: LandingResult) -> bool:
     return result.n_steps + longer < DISTINCT_RUNS * result.n_steps
 
 
+def landing_differences(a: LandingResult, b: LandingResult) -> tuple[float, float, float]:
+    """Relative differences (``MODEL_FORMAT.md``: max |a_i - b_i| / max |b_i|) of the peak
+    impulses, of the total external impulses and of the final angles, each list on its own."""
+    return (
+        relative_difference([([a.peak_external_norm, a.peak_internal_norm],
+                              [b.peak_external_norm, b.peak_internal_norm])]),
+        relative_difference([(a.total_external, b.total_external)]),
+        relative_difference([(a.final_angles, b.final_angles)]),
+    )
+
+
 def landing_difference(a: LandingResult, b: LandingResult) -> float:
     """Relative difference (``MODEL_FORMAT.md``: max |a_i - b_i| / max |b_i| per list, the
     largest over the lists) of the peak impulses, total external impulses and final angles."""
-    return relative_difference([
-        ([a.peak_external_norm, a.peak_internal_norm], [b.peak_external_norm, b.peak_internal_norm]),
-        (a.total_external, b.total_external),
-        (a.final_angles, b.final_angles),
-    ])
+    return max(landing_differences(a, b))
+
+
+def runs_apart(halving: tuple[tuple[float, float, float, float, float], ...] | list) -> bool:
+    """Whether the step halving's runs end in postures that do not approach each other
+    (``halving``: :attr:`LandingResult.halving`): in its last two comparisons the final angles
+    differ by at least POSTURE_SPREAD, the later difference is more than the earlier times the
+    ratio of their finer steps (a first-order error would shrink at least so), and the later pair's
+    peak and total impulses differ by at most IMPULSES_AGREE times their final angles. The motion
+    after the impacts then amplifies the step's error beyond what halving removes (random file
+    32924: a tumbling flight, a 1e-10 kick grown to 1e-2 rad in 0.21 s), and each halving costs
+    twice the last; the impacts' own convergence is not what is missing."""
+    if len(halving) < 2:
+        return False
+    (_, h0, _, _, angles0), (_, h1, peaks, totals, angles1) = halving[-2:]
+    return (min(angles0, angles1) >= POSTURE_SPREAD and angles1 > angles0 * h1 / h0
+            and max(peaks, totals) <= IMPULSES_AGREE * angles1)
 
 
 def landing(
@@ -3412,11 +3454,13 @@ def landing(
     """The whole landing of ``tree`` (module docstring; in ``space``), to ``settings.tolerance``: the step is
     halved from ``settings.step`` until two successive runs differ by at most the tolerance
     (:func:`landing_difference`); the finer run is returned with that difference as its
-    ``error_estimate`` (an unmet tolerance: ``converged`` is False). ``progress`` is told where
-    each run is (:class:`LandingProgress`; a run that diverged is followed by one at a shorter step,
-    and an implicit run that ``auto`` chose and whose steps overran their budget, or fell behind
-    RK4's stable step (:data:`RK4_PACE`), by one of RK4 at its stable step,
-    :meth:`_Landing.stable_step`).
+    ``error_estimate`` (an unmet tolerance: ``converged`` is False). The halving stops early, unmet,
+    where its runs' final angles do not approach each other while their impulses agree
+    (:func:`runs_apart`; ``runs_apart`` is then True; ``halving`` holds every comparison).
+    ``progress`` is told where each run is (:class:`LandingProgress`; a run that diverged is
+    followed by one at a shorter step, and an implicit run that ``auto`` chose and whose steps
+    overran their budget, or fell behind RK4's stable step (:data:`RK4_PACE`), by one of RK4 at its
+    stable step, :meth:`_Landing.stable_step`).
 
     Raises:
         ModelError: no ``scene.duration``, or joint laws that do not match the tree.
@@ -3443,7 +3487,7 @@ def landing(
                 h, switch = run.stable_step(), str(e)
                 continue
             h /= retry_factor(e.reached)
-    error = math.inf
+    error, halving, apart = math.inf, [], False
     current, share = previous, 1.0
     for k in range(settings.max_refinements):
         h /= 2.0
@@ -3460,10 +3504,16 @@ def landing(
         error = landing_difference(current, previous) if distinct else math.inf
         if error <= settings.tolerance:
             break
-        if not distinct:
+        if distinct:
+            halving.append((previous.step, current.step, *landing_differences(current, previous)))
+            apart = runs_apart(halving)
+            if apart:  # the postures do not approach each other: no further halving would converge them
+                break
+        else:
             share /= 2.0**run.balance_order
         previous = current
-    return replace(current, error_estimate=error, tolerance=settings.tolerance, integrator_switch=switch)
+    return replace(current, error_estimate=error, tolerance=settings.tolerance, integrator_switch=switch,
+                   halving=tuple(halving), runs_apart=apart)
 
 
 __all__ = [
@@ -3485,6 +3535,10 @@ __all__ = [
     "LandingSettings",
     "landing",
     "landing_difference",
+    "landing_differences",
+    "runs_apart",
+    "POSTURE_SPREAD",
+    "IMPULSES_AGREE",
     "split_alike_at_half",
     "retry_factor",
     "joint_law_rate",

@@ -118,10 +118,11 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help=f"--model landing (or auto with scene.duration): the error the landing must meet, relative, in its "
         f"peak impulses, total contact impulses and final angles (default {LandingSettings().tolerance:g}); the step "
-        "is halved until two runs agree to it, and the JSON reports the estimate as error_estimate; --model "
-        "compliant: the same for its external and internal impulses, by adaptive Dormand-Prince 5(4) steps between "
-        "located contact switches, their local tolerance refined until two runs agree (unless --steps-per-period fixes "
-        "semi-implicit Euler steps)",
+        "is halved until two runs agree to it (or, with a warning, until its runs' final angles are seen not to "
+        "approach each other while their impulses agree), and the JSON reports the estimate as error_estimate; "
+        "--model compliant: the same for its external and internal impulses, by adaptive Dormand-Prince 5(4) steps "
+        "between located contact switches, their local tolerance refined until two runs agree (unless "
+        "--steps-per-period fixes semi-implicit Euler steps)",
     )
     p.add_argument(
         "--plot",

@@ -145,7 +145,9 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
     if never:
         out.append(f"contacts {', '.join(never)} never touch the ground during the landing")
     r = result.result
-    if isinstance(r, LandingResult) and not r.converged:
+    if isinstance(r, LandingResult) and r.runs_apart:
+        out.append(_runs_apart_warning(r))
+    elif isinstance(r, LandingResult) and not r.converged:
         out.append(
             f"the landing did not converge to its tolerance: error estimate {r.error_estimate:.3g} > "
             f"{r.tolerance:g} at a Runge-Kutta step of {r.step:.3g} s (the contacts may chatter; the answer is "
@@ -192,6 +194,24 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
         out.append(f"the sequential run stopped at its time limit ({r.end:.3g} s) with a contact still resting or "
                    "approaching the ground: its impulses are counted up to then")
     return out
+
+
+def _runs_apart_warning(r: LandingResult) -> str:
+    """Why the step halving of a whole landing stopped unmet (:func:`runs_apart`): its runs'
+    final angles did not approach each other while their impulses agreed; each comparison's
+    figures."""
+    last = r.halving[-2:]
+    angles = ", then ".join(f"{a:.3g} (steps {hc:.3g} and {hf:.3g} s)" for hc, hf, _, _, a in last)
+    peaks = " and ".join(f"{p:.2g}" for _, _, p, _, _ in last)
+    totals = " and ".join(f"{t:.2g}" for _, _, _, t, _ in last)
+    return (
+        f"the landing's final angles did not converge, and the step halving stopped: successive runs ended "
+        f"{angles} apart (relative; tolerance {r.tolerance:g}), not approaching each other as the step shrinks, "
+        f"while their peak impulses differed by {peaks} and their total impulses by {totals}. The motion after "
+        "the impacts (a tumbling flight, say) amplifies any small difference beyond what a shorter step removes. "
+        "The answer is the finest run: its impulses hold to those differences; its final angles, base position "
+        "and velocity are one possible outcome, not a converged one"
+    )
 
 
 def _friction_hop(model: ModelFile, result: ImpactResult) -> dict[int, float]:

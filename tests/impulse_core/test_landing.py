@@ -719,3 +719,56 @@ def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable
     said = [line for line in _landing_lines(model, r) if line.startswith("integrator:")]
     assert len(said) == 1 and r.integrator_switch in said[0] and "implicit run auto chose first" in said[0]
     assert not [line for line in _landing_lines(model, replace(r, integrator_switch="")) if "integrator:" in line]
+
+
+# The step halving's runs ending apart (runs_apart): 32924's comparisons, (coarser step, finer step,
+# peak impulses, total impulses, final angles), and variations that must not stop it.
+_APART = ((6.52e-4, 1.63e-4, 7.3e-4, 2.7e-4, 1.61), (1.63e-4, 4.08e-5, 1.26e-3, 4.7e-4, 0.897))
+
+
+@pytest.mark.parametrize("halving, apart", [
+    (_APART, True),
+    (_APART[:1], False),  # one comparison shows no trend
+    ((_APART[0], (1.63e-4, 4.08e-5, 1.26e-3, 4.7e-4, 0.39)), False),  # shrunk as the step (1/4): approaching
+    ((_APART[0], (1.63e-4, 8.15e-5, 1.26e-3, 4.7e-4, 0.9)), True),  # a halving (1/2) that did not halve it
+    ((_APART[0], (1.63e-4, 4.08e-5, 1.26e-3, 2e-2, 0.897)), False),  # the totals disagree too
+    ((_APART[0], (1.63e-4, 4.08e-5, 2e-2, 4.7e-4, 0.897)), False),  # the peaks disagree too
+    (((6.52e-4, 1.63e-4, 7.3e-4, 2.7e-4, 0.09), _APART[1]), False),  # the earlier pair ended close
+    ((_APART[0], (1.63e-4, 4.08e-5, 1.26e-4, 4.7e-5, 0.09)), False),  # the later pair ended close
+])
+def test_runs_apart_asks_for_postures_that_do_not_approach_while_the_impulses_agree(halving, apart):
+    """:func:`runs_apart`: two successive final-angle differences of at least POSTURE_SPREAD, the
+    later above the earlier times the steps' ratio, the later pair's impulses within
+    IMPULSES_AGREE of it (random file 32924's runs at h, h / 4, h / 16 stop there)."""
+    assert landing_module.runs_apart(halving) is apart
+
+
+def test_a_halving_whose_runs_end_apart_stops_with_them(monkeypatch):
+    """Runs whose final angles end 1.61, 0.9, ... apart (random file 32924's tumbling flight)
+    while their impulses agree to 1e-4: the halving stops after its third run, unmet, the
+    estimate the final angles' difference, both comparisons kept; runs whose angles approach
+    each other at first order (0.4, then 0.15) go on to the tolerance."""
+    tree, laws, scene = _random_leg(1)
+    base = landing(tree, scene, laws, LandingSettings(tolerance=1e-2, integrator="rk4"))
+
+    def fake_runs(moves):
+        runs, asked = iter(moves), []
+
+        def fake(self, h, *args, share=1.0):
+            n, moved, scale = next(runs)
+            asked.append(h)
+            times = np.arange(n + 1) * h  # steps of h each: the run at h / 2 would not be split alike
+            return replace(base, n_steps=n, step=h, total_external=base.total_external * (1 + moved),
+                           final_angles=base.final_angles * scale, trajectory=(times, np.zeros((n + 1, 0))))
+        return fake, asked
+
+    fake, asked = fake_runs([(1000, 0.0, 1.0), (2000, 1e-4, -0.61), (4000, 0.0, -1.159), (8000, 1e-4, 1.0)])
+    monkeypatch.setattr(_Landing, "run", fake)
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-3, integrator="rk4"))
+    assert r.runs_apart and not r.converged and len(asked) == 3 and r.n_steps == 4000
+    assert [c[:2] for c in r.halving] == [(asked[0], asked[1]), (asked[1], asked[2])]
+    assert [c[-1] for c in r.halving] == pytest.approx([1.61, 0.9]) and r.error_estimate == r.halving[-1][-1]
+    fake, asked = fake_runs([(1000, 0.0, 1.0), (2000, 1e-4, 1.4), (4000, 0.0, 1.61), (8000, 1e-4, 1.61 * (1 + 1e-4))])
+    monkeypatch.setattr(_Landing, "run", fake)
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-3, integrator="rk4"))
+    assert not r.runs_apart and r.converged and len(asked) == 4 and len(r.halving) == 2

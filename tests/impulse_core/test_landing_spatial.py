@@ -877,3 +877,25 @@ def test_events_that_give_back_the_mode_they_stopped_are_a_stall_naming_the_cont
     with pytest.raises(NumericalError, match=r"chatters at t = .* plank\[0\], plank\[1\] start to slide from rest"):
         run.run(2e-3, until=lambda *_: events[0] > 1000)  # (no impacts: the event budget never ends it)
     assert events[0] <= REPEATS + 5
+
+
+@pytest.mark.parametrize("duration", [0.035, pytest.param(None, marks=pytest.mark.slow)])
+def test_a_tumbling_flight_after_the_impacts_stops_the_halving_unmet(duration):
+    """Random file 32924 (data/tumbling_32924.yaml: a 0.31 kg base and two rods of radius 0 on
+    springs, mu 0.3, e 0.25, a spinning approach): five impacts by 0.029 s, then a tumbling flight
+    of 0.21 s whose end a 1e-10 change of its starting velocity moves by 1e-2 rad. Cut at 0.035 s
+    the halving converges (runs at h and h / 4, 5.7e-4; the default case, ~8 s); the whole
+    landing's runs at h, h / 4 and h / 16 end 1.61, then 0.90 apart in their final angles with
+    their impulses within 1.3e-3, and the halving stops there, unmet (slow: ~90 s of CPU; it went
+    on halving, each run twice the last, before :func:`runs_apart`)."""
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(Path(__file__).resolve().parent / "data" / "tumbling_32924.yaml")
+    scene = model.scene if duration is None else replace(model.scene, duration=duration)
+    r = landing(model.tree, scene, model.joints, LandingSettings(), model.space)
+    if duration is not None:
+        assert r.converged and not r.runs_apart
+        return
+    assert r.runs_apart and not r.converged and len(r.halving) == 2 and len(r.events) == 5
+    (_, _, _, _, first), (_, _, peaks, totals, last) = r.halving
+    assert min(first, last) > 0.5 and max(peaks, totals) < 2e-3 and r.error_estimate == last
