@@ -71,7 +71,7 @@ from impulse_core.impact.coulomb import (
     ContactMode, UnilateralSolution, contact_modes, solve_unilateral,
 )
 from impulse_core.impact.laws import least_norm_law_split, least_norm_split, redundant, share_among_twins, twin_groups
-from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
+from impulse_core.kinematics.spatial import AXIAL_GYRATION_FLOOR, PLANAR, Space, dof_layout, values_space
 from impulse_core.model.heightfield import Heightfield, is_twisted
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.rods import rotation_rpy
@@ -174,6 +174,16 @@ BALANCE_CHECK = 1e-4
 #: (STEP_BUDGET per nominal step: 8e5 steps at h / 2^7 from duration / 100) these residuals come
 #: to about 3e-9 of the momenta, far below the balance's own bound (MOMENTUM_BALANCE).
 BALANCE_ROUNDING = 16
+#: Space: a direction of the mass matrix whose eigenvalue is at most this times the number of
+#: velocities times the rods' axial floors (sum of mass x (AXIAL_GYRATION_FLOOR x length)^2) is
+#: a motion that moves no mass (a rod of radius 0 spinning about its own axis): only the floor
+#: gives it inertia, so rounding in an impact or a step (eps x the torques, over 1e-14 of the
+#: rod's inertia) drives its velocity, which no law sets. :meth:`_Landing.project` holds it at 0
+#: (random file 33016, a lone rod of radius 0 at e = 1: that spin's rate at T was 15, 12 and 4.9
+#: rad/s at h / 4, h / 8, h / 16, its turn with it, so the halving never converged). A unit
+#: velocity's floor part is at most the number of velocities times their sum, so a direction
+#: with real inertia this small would need inertias 1e-13 apart.
+MASSLESS = 4.0
 #: Steps (of any length) after which a run is abandoned, per step of the run's nominal length: a
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
@@ -1382,6 +1392,9 @@ class _Landing:
         self.mu, self.e = scene.friction, scene.restitution
         self.in_subtree = subtree_incidence(tree)
         self.mass = sum(b.mass for b in tree.bodies)
+        #: space: the mass matrix's eigenvalue below which a direction moves no mass (:data:`MASSLESS`)
+        self.massless = None if self.planar else MASSLESS * self.nv * sum(
+            b.mass * (AXIAL_GYRATION_FLOOR * b.length) ** 2 for b in tree.bodies)
         self.subtree_mass = subtree_masses(tree)
         self.sloped = not ground.is_flat
         #: a curved ground whose normal turns under a sliding contact within a step (a sloped
@@ -2600,6 +2613,33 @@ class _Landing:
         return mode
 
     def project(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Back onto the mode's constraints (:meth:`placed`), and in space no velocity along a
+        motion that moves no mass (:meth:`unspun`); returns (q, v, the projection's impulses
+        [normal, tangential] per contact)."""
+        q1, v1, p = self.placed(q, v, mode)
+        return q1, self.unspun(q1, v1), p
+
+    def unspun(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``v`` without its part along the mass matrix's massless directions at q (:data:`MASSLESS`:
+        a rod of radius 0 spinning about its own axis); ``v`` itself where there is none. The part
+        removed carries kinetic energy and momentum at the floor's level (1e-14 of the rod's)."""
+        if self.massless is None:
+            return v
+        M = self.point(q, v).M
+        try:  # every eigenvalue above the bound (the common case): nothing moves without mass
+            np.linalg.cholesky(M - self.massless * np.eye(self.nv))
+            return v
+        except np.linalg.LinAlgError:
+            pass
+        w, V = np.linalg.eigh(M)
+        n = V[:, w <= self.massless]
+        if not n.shape[1]:
+            return v
+        if self.tape is not None:
+            self.tape.append(("unspun",))
+        return v - n @ (n.T @ v)
+
+    def placed(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Back onto the mode's constraints: closed gaps and stops, and open contacts below the
         ground, to zero (positions), then the closed rows' velocities to zero; returns (q, v,
         the projection's impulses [normal, tangential] per contact). A redundant mode's impulses

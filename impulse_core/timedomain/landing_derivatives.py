@@ -1145,6 +1145,9 @@ def landing_gradient(
             where = "a grid line of scene.heightfield" if run.grid is not None else "a breakpoint of scene.terrain"
             raise NumericalError(f"a resting contact passed {where} (an event where the ground's normal jumps), "
                                  "which the derivatives' replay does not follow")
+        if kind == "unspun":
+            raise NumericalError("a rod of radius 0 spun about its own axis, a motion that moves no mass, whose "
+                                 "velocity the landing holds at 0 (MODEL_FORMAT: radius): the replay does not follow")
         if kind == "crease_project":
             raise NumericalError("a projection carried a resting contact across a grid line of scene.heightfield "
                                  "(onto the next cell's rows), which the derivatives' replay does not follow")

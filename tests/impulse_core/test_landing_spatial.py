@@ -899,3 +899,40 @@ def test_a_tumbling_flight_after_the_impacts_stops_the_halving_unmet(duration):
     assert r.runs_apart and not r.converged and len(r.halving) == 2 and len(r.events) == 5
     (_, _, _, _, first), (_, _, peaks, totals, last) = r.halving
     assert min(first, last) > 0.5 and max(peaks, totals) < 2e-3 and r.error_estimate == last
+
+
+def _lone_rod(radius: float = 0.0) -> tuple[Tree, Scene]:
+    """Random file 33016: a lone rod (the base, no joint) landing on its tip at e = 1, mu 0.5, cut
+    to 0.15 s (two impacts): at radius 0 nothing but the core's axial floor (1e-14 of its inertia
+    across) gives its spin about its own axis any inertia."""
+    rod = Body("rod", None, 0.0744988, 0.93267, -2.72775, rpy=(-0.194306, 0.283336, 0.0), contacts=(1.0,),
+               radius=radius)
+    return Tree((rod,)), Scene(speed=2.94541, restitution=1.0, friction=0.5, gravity=G, duration=0.15)
+
+
+def test_a_rod_of_radius_0_does_not_spin_about_its_own_axis_and_its_landing_converges():
+    """The spin of a rod of radius 0 about its own axis moves no mass: its velocity, which only
+    rounding in the impacts and steps would drive (eps x the torques over the floor's inertia), is
+    held at 0 (``MASSLESS``), so runs at two steps end in the same turn (random file 33016: before,
+    that spin's rate at T differed by 10 rad/s between runs, its turn by 2 pi, and the halving
+    never converged: 1.6 apart at 0.15 s) and ``landing()`` converges. A rod with a radius has no
+    such motion: nothing is removed. The derivatives' replay refuses the landing that held it."""
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain.landing_derivatives import landing_gradient
+
+    tree, scene = _lone_rod()
+    runs = [_Landing(tree, scene, (), LandingSettings(), SPATIAL) for _ in range(2)]
+    for run in runs:
+        run.tape = []
+    coarse, fine = (run.run(h) for run, h in zip(runs, (1e-3, 5e-4)))
+    assert len(coarse.events) == len(fine.events) == 2
+    np.testing.assert_allclose(coarse.final_angles, fine.final_angles, atol=1e-3)
+    assert any(entry[0] == "unspun" for entry in runs[1].tape)
+    r = landing(tree, scene, (), LandingSettings(), SPATIAL)
+    assert r.converged and r.error_estimate <= 1e-3 and not r.runs_apart
+    with pytest.raises(NumericalError, match="radius 0 spun about its own axis"):
+        landing_gradient(tree, scene, (), LandingSettings(), step=1e-3, space=SPATIAL)
+    wide = _Landing(*_lone_rod(0.01), (), LandingSettings(), SPATIAL)
+    wide.tape = []
+    wide.run(1e-3)
+    assert wide.tape and not any(entry[0] == "unspun" for entry in wide.tape)
