@@ -512,9 +512,16 @@ class LandingResult:
         return tuple(int(i) for i in np.flatnonzero(np.isfinite(self.touchdown_time)))
 
     @property
+    def gaining_events(self) -> tuple[LandingEvent, ...]:
+        """The impacts that raised the kinetic energy: none without friction or at e = 0; with
+        friction and a restitution near 1 a contact that sticks or reverses its slip can (Kane's
+        paradox of Newton's restitution with Coulomb friction; random file 33016 at e = 1)."""
+        return tuple(e for e in self.events if e.energy_after > e.energy_before * (1 + 1e-9) + 1e-12)
+
+    @property
     def energy_gained(self) -> bool:
-        """True when some impact raised the kinetic energy (the law forbids it)."""
-        return any(e.energy_after > e.energy_before * (1 + 1e-9) + 1e-12 for e in self.events)
+        """True when some impact raised the kinetic energy (:attr:`gaining_events`)."""
+        return bool(self.gaining_events)
 
     @property
     def converged(self) -> bool:

@@ -138,6 +138,18 @@ def _rigid_warnings(model: ModelFile, result: ImpactResult) -> list[str]:
     return out
 
 
+def _gain_warning(r: LandingResult) -> str:
+    """The landing's impacts that raised the kinetic energy, the largest gain named."""
+    gains = r.gaining_events
+    top = max(gains, key=lambda e: e.energy_after - e.energy_before)
+    return (
+        f"{len(gains)} impact{'s' if len(gains) != 1 else ''} of the landing raised the kinetic energy, the most at "
+        f"t = {top.time:.6g} s, from {top.energy_before:.6g} J to {top.energy_after:.6g} J: Newton's restitution "
+        "with Coulomb friction can, where a contact sticks or reverses its slip at a restitution near 1 (Kane's "
+        "paradox); the law is the contract's, the energy is not conserved by it"
+    )
+
+
 def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[str]:
     names = contact_names(model.tree)
     out = []
@@ -159,6 +171,8 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
             f"{BALANCE_CHECK:g}): its total impulses miss part of what moved the model (a contact sliding along a "
             "heightfield's crease, whose projections are not booked as impulses, is one known cause)"
         )
+    if isinstance(r, LandingResult) and r.energy_gained:
+        out.append(_gain_warning(r))
     if isinstance(r, LandingResult) and r.non_unique:
         shown = "the smallest-norm non-negative split" if model.scene.friction == 0 else "the smallest-norm split the friction law allows"
         out.append(

@@ -92,3 +92,29 @@ def test_a_landing_whose_runs_end_apart_says_which_figures_did_not_converge(leg_
     assert set(result_record(model, apart, "leg.yaml")) == set(result_record(model, landed, "leg.yaml"))
     unmet = dataclasses.replace(landed, result=dataclasses.replace(landed.result, error_estimate=0.897))
     assert [w for w in warnings(model, unmet) if "converge" in w][0].startswith("the landing did not converge")
+
+
+def test_a_landing_whose_impacts_gain_energy_says_when_and_how_much() -> None:
+    """Random file 33016: a lone rod landing on its tip at e = 1, mu 0.5. Its second impact sticks
+    the tip and raises the kinetic energy (Newton's restitution with Coulomb friction can: Kane's
+    paradox), which the report names with its time and energies; frictionless, the same landing's
+    impacts keep the energy (e = 1: to 1e-9) and nothing is said."""
+    from impulse_core.kinematics.spatial import SPATIAL
+    from impulse_core.timedomain.landing import LandingSettings
+    from optimizer.evaluation.model_choice import _whole_landing
+
+    rod = Tree((Body("rod", None, 0.0744988, 0.93267, -2.72775, rpy=(-0.194306, 0.283336, 0.0), contacts=(1.0,),
+                     radius=0.01),))
+    scene = Scene(speed=2.94541, restitution=1.0, friction=0.5, gravity=9.81, duration=0.05)
+    landed = _whole_landing(rod, scene, (), LandingSettings(), requested=True, space=SPATIAL)
+    gains = landed.result.gaining_events
+    assert len(gains) == 1 and gains[0].energy_after > 1.1 * gains[0].energy_before
+    model = ModelFile(rod, scene, space=SPATIAL)
+    said = [w for w in warnings(model, landed) if "raised the kinetic energy" in w]
+    assert len(said) == 1 and f"t = {gains[0].time:.6g} s" in said[0] and f"{gains[0].energy_after:.6g} J" in said[0]
+    assert said[0] in result_record(model, landed, "rod.yaml")["warnings"]
+    smooth = dataclasses.replace(scene, friction=0.0)
+    kept = _whole_landing(rod, smooth, (), LandingSettings(), requested=True, space=SPATIAL)
+    assert len(kept.result.events) >= 2 and not kept.result.gaining_events
+    assert all(abs(e.energy_after - e.energy_before) <= 1e-9 * e.energy_before for e in kept.result.events)
+    assert not any("raised the kinetic energy" in w for w in warnings(ModelFile(rod, smooth, space=SPATIAL), kept))
