@@ -936,3 +936,30 @@ def test_a_rod_of_radius_0_does_not_spin_about_its_own_axis_and_its_landing_conv
     wide.tape = []
     wide.run(1e-3)
     assert wide.tape and not any(entry[0] == "unspun" for entry in wide.tape)
+
+
+def test_an_impact_that_gains_energy_is_newtons_and_coulombs_law():
+    """Random file 33016's second impact (the lone rod with a radius of 1 cm, e = 1, mu 0.5) raises
+    the kinetic energy, and that is the law's (Kane's paradox), hand-checked at the tip: the tip
+    sticks (tangential velocity after 0), its normal velocity reverses whole (e = 1), the friction
+    impulse is inside the cone, and the energy gained is half the tangential impulse times the slip
+    before (the normal part's work vanishes at e = 1): positive, friction pushing along the slip."""
+    from scipy.spatial.transform import Rotation
+
+    tree, scene = _lone_rod(0.01)
+    r = _Landing(tree, replace(scene, duration=0.05), (), LandingSettings(), SPATIAL).run(1e-3)
+    gained = r.gaining_events
+    assert len(gained) == 1
+    ev = gained[0]
+    times, states = r.trajectory
+    q = states[int(np.argmin(np.abs(times - ev.time)))]
+    rod = tree.bodies[0]
+    axis = (Rotation.from_rotvec(q[3:6]).as_matrix() @ rotation_rpy(rod.rpy) @ rotation_rpy((0.0, 0.0, rod.angle)))[:, 0]
+    before, after = (v[:3] + np.cross(v[3:6], rod.length * axis) for v in (ev.v_minus, ev.v_plus))
+    assert after[1] == pytest.approx(-before[1], rel=1e-9) and before[1] < 0
+    np.testing.assert_allclose(after[[0, 2]], 0.0, atol=1e-9 * abs(before[1]))
+    p_t = ev.tangential[0]
+    assert np.hypot(*p_t) < 0.5 * ev.external[0]
+    work = 0.5 * float(p_t @ before[[0, 2]])
+    assert work > 0.1 * ev.energy_before
+    assert ev.energy_after - ev.energy_before == pytest.approx(work, rel=1e-9)
