@@ -97,6 +97,11 @@ from impulse_core.timedomain.compliant import (
     world_velocity,
 )
 
+try:  # np.count_nonzero's C function (its wrapper calls it with the array alone: _any)
+    from numpy._core.multiarray import count_nonzero as _count_nonzero
+except ImportError:  # numpy < 2
+    _count_nonzero = np.count_nonzero
+
 MODEL_NAME = "landing"
 #: An impact approaching slower than this (m/s at a contact, rad/s at a stop) is plastic.
 PLASTIC_SPEED = 1e-4
@@ -721,6 +726,12 @@ class _Mode:
         return self.corner >= 0
 
     @property
+    def has_corner(self) -> bool:
+        """Whether some contact rests in a valley corner (``cornered.any()``, in Python ints: the
+        step loop asks it a few times a step)."""
+        return max(self.corner.tolist(), default=-1) >= 0
+
+    @property
     def sliding(self) -> np.ndarray:
         """Per contact: whether it slides."""
         return (self.slip != 0).any(axis=1)
@@ -846,9 +857,12 @@ def _with_corners(rows: _Rows, pt: _Point, contacts: np.ndarray, cornered: np.nd
 
 def _mode_bytes(mode: _Mode) -> bytes:
     """What of a mode a compiled step depends on, as bytes (:meth:`_Landing.ended`; a mode with a
-    corner, which no compiled step takes, also names its corners)."""
-    key = mode.closed.tobytes() + mode.slip.tobytes() + mode.stop.tobytes() + bytes([mode.redundant])
-    return key + mode.corner.tobytes() if _any(mode.cornered) else key
+    corner, which no compiled step takes, also names its corners). The corners are always in the
+    key: within one landing its arrays keep their lengths and a corner-free mode's are all -1, so
+    two keys are equal exactly where they were with the corners named only where some contact has
+    one (two reductions cheaper; the key is asked about nine times a step)."""
+    return b"".join((mode.closed.tobytes(), mode.slip.tobytes(), mode.stop.tobytes(), bytes([mode.redundant]),
+                     mode.corner.tobytes()))
 
 
 def _solve_rows(
@@ -956,8 +970,19 @@ def impact_modes(pt: _Point, v: np.ndarray, v_plus: np.ndarray, contacts: np.nda
 
 
 def _any(x: np.ndarray) -> bool:
-    """Whether some entry of ``x`` is nonzero (True, or NaN): ``x.any()``, cheaper on a few entries."""
-    return np.count_nonzero(x) != 0
+    """Whether some entry of ``x`` is nonzero (True, or NaN): ``x.any()``, cheaper on a few entries
+    (numpy's own ``count_nonzero`` without its Python wrapper, which only passes an array on)."""
+    return _count_nonzero(x) != 0
+
+
+def _finite(x: np.ndarray) -> bool:
+    """``np.isfinite(x).all()``, without the method's wrapper (a few times a step)."""
+    return _count_nonzero(np.isfinite(x)) == x.size
+
+
+def _largest(x: np.ndarray) -> np.floating:
+    """``np.max(x)``: the same reduction over every entry (NaN propagating), without its wrapper."""
+    return np.maximum.reduce(x, axis=None)
 
 
 def _rests(mode: _Mode) -> bool:
@@ -968,7 +993,7 @@ def _rests(mode: _Mode) -> bool:
 def _mode_rows(pt: _Point, mode: _Mode, mu: float, valleys: np.ndarray | None = None) -> _Rows:
     """The mode's rows at ``pt``; ``valleys``: per breakpoint of the plane's terrain its two
     segments' normals (:attr:`_Landing.valleys`), for the mode's contacts resting in a corner."""
-    if valleys is not None and _any(mode.cornered):
+    if valleys is not None and mode.has_corner:
         cornered = np.flatnonzero(mode.closed & mode.cornered)
         contacts = np.flatnonzero(mode.closed & ~mode.cornered)
         rows = _rows(pt, contacts, mode.slip, mode.stop, mu, pt.M.shape[0], mode.core,
@@ -1666,7 +1691,7 @@ class _Landing:
     def step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the landing's integrator: (q, v, contact impulses [normal, tangential])."""
         self.steer(q, v, mode, h)
-        end = None if self.fast is None or _any(mode.cornered) else self.fast.step(q, v, h, mode)
+        end = None if self.fast is None or mode.has_corner else self.fast.step(q, v, h, mode)
         if end is not None:
             self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
             self.vectors = end.vectors.copy() if self.turning else None
@@ -1773,14 +1798,14 @@ class _Landing:
         dt, order = trial, 4 if self.method == RK4 else 2
         while True:
             q1, v1, impulse = self.step(q, v, mode, dt)
-            if dt <= floor or not (np.isfinite(q1).all() and np.isfinite(v1).all()):
+            if dt <= floor or not (_finite(q1) and _finite(v1)):
                 return q1, v1, impulse, dt, 2.0 * dt
             end = self.ended(q1, v1, mode)
             if end is None and p0 is None:
                 p0 = self.point(q, v).momentum[:, 0].copy()
             balance = end.balance if end is not None else self.momentum_change(p0, q1, v1, impulse)
             weight = self.weight(dt)
-            residual, share = float(np.max(np.abs(balance - weight))), rate * dt
+            residual, share = float(_largest(np.abs(balance - weight))), rate * dt
             ratio = residual / share if share > 0 else (0.0 if residual <= 0 else math.inf)
             if ratio > 1.0 / 2.0**order and residual <= self.balance_rounding(q1, v1, end, p0, balance, weight):
                 ratio = 0.0  # rounding's residual: the step's error is below it (BALANCE_ROUNDING)
@@ -1799,8 +1824,8 @@ class _Landing:
         else:
             p1 = self.point(q1, v1).momentum[:, 0]
         applied = p1 - p0 - balance
-        scale = max(float(np.max(np.abs(p0))), float(np.max(np.abs(p1))), float(np.max(np.abs(applied))),
-                    float(np.max(np.abs(weight))))
+        scale = max(float(_largest(np.abs(p0))), float(_largest(np.abs(p1))), float(_largest(np.abs(applied))),
+                    float(_largest(np.abs(weight))))
         return BALANCE_ROUNDING * float(np.finfo(float).eps) * scale
 
     def momentum_change(self, p0: np.ndarray, q1: np.ndarray, v1: np.ndarray, impulse: np.ndarray) -> np.ndarray:
@@ -1906,8 +1931,8 @@ class _Landing:
         """Per witness of :meth:`witness_and_rate`, whether the mode leaves it unwatched (inf):
         gaps of closed contacts, forces of open ones, cone margins but of sticking contacts, slip
         but of sliding ones, stop margins of joints on a stop, stop forces of free joints."""
-        key = mode.closed.tobytes() + (mode.slip != 0).tobytes() + mode.stop.tobytes()
-        key = key + mode.corner.tobytes() if _any(mode.cornered) else key
+        # the corners always in the key, as in _mode_bytes (all -1 in a corner-free mode)
+        key = b"".join((mode.closed.tobytes(), (mode.slip != 0).tobytes(), mode.stop.tobytes(), mode.corner.tobytes()))
         mask = self._unwatched.get(key)
         if mask is None:
             closed, friction, free = mode.closed, self.mu > 0, mode.stop == 0
@@ -1936,11 +1961,22 @@ class _Landing:
         dips = (g < -tol) & ~mode.closed
         if _any(self.joints.stopped):
             x = h00 * q0 + h10 * v0 * h + h01 * q1 + h11 * v1 * h
-            past = ((x > self.joints.hi + tol) | (x < self.joints.lo - tol)) & (mode.stop == 0)
-            dips = np.hstack([dips, past])
+            lo, hi = self.graze_bounds
+            past = ((x > hi) | (x < lo)) & (mode.stop == 0)
+            dips = np.concatenate([dips, past], axis=1)  # np.hstack's concatenation of 2-D arrays
         if not _any(dips):
             return None
         return float(s[np.argmax(dips.any(axis=1)), 0])
+
+    @property
+    def graze_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The stops widened by the gap tolerance, (lo - tol, hi + tol), that :meth:`grazing` asks of
+        every step: kept for the joint arrays and tolerance they were made of (both fixed for a landing)."""
+        joints, tol = self.joints, self.settings.gap_tolerance
+        kept = self.__dict__.get("_graze_bounds")
+        if kept is None or kept[0] is not joints or kept[1] != tol:
+            kept = self._graze_bounds = (joints, tol, (joints.lo - tol, joints.hi + tol))
+        return kept[2]
 
     def pieces(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Per contact, the piece of the ground below it: in the plane, the number of breakpoints
@@ -1981,7 +2017,7 @@ class _Landing:
         n1 = end.normal if end is not None else self.point(q1, v1).normal
         n0, self.end_normals = self.end_normals, n1
         n0 = n0 if n0 is not None else self.point(q, v).normal
-        if not _any(mode.closed & (np.max(np.abs(n1 - n0), axis=1) > 1e-12)):
+        if not _any(mode.closed & (np.maximum.reduce(np.abs(n1 - n0), axis=1) > 1e-12)):
             return None
         self.end_normals = None
         k0 = self.pieces(q, v)
@@ -2198,7 +2234,7 @@ class _Landing:
                      ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
         """``contacts`` split into those with one row each and ``mode``'s resting in a corner,
         with their segments' normals (:func:`_rows`' ``corners``; None: none)."""
-        if not _any(mode.cornered):
+        if not mode.has_corner:
             return contacts, None
         held = mode.cornered[contacts] & mode.closed[contacts]
         cornered = contacts[held]
@@ -2868,7 +2904,7 @@ class _Landing:
         the projection after it keeps every contact on its segment (no valley corner): the
         normals at the projected point, bit for bit (each segment's is a constant), without the
         numpy point :meth:`add` would evaluate there; else None."""
-        if not (self.planar and self.sloped) or self.any_seated or _any(mode.cornered):
+        if not (self.planar and self.sloped) or self.any_seated or mode.has_corner:
             return None
         end = self.ended(q, v, mode)
         return None if end is None else end.normal
@@ -2977,7 +3013,7 @@ class _Landing:
                 )
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, grown)
-            if not (np.isfinite(q1).all() and np.isfinite(v1).all() and self.kinetic(q1, v1) <= cap):
+            if not (_finite(q1) and _finite(v1) and self.kinetic(q1, v1) <= cap):
                 failure = Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s){self.singular_note(q)}"
                                    f"{self.jam_note(q, v, mode)}")
                 if self.jam_watch is not None or not slid:
@@ -3007,10 +3043,11 @@ class _Landing:
                 self.follow_slip(q, v, mode)
                 self.vectors = step_vectors
                 vectors = self.step_vectors(*self.projected_at, p)
+                applied = impulse + p  # read only below
                 if segments is not None and vectors is None:
-                    vectors = self.segment_vectors(segments, impulse + p)
-                self.add(totals, impulse + p, q, v, vectors)
-                self.tally_joints(totals, q0, v0, q, v, impulse + p, dt, _any(mode.closed), vectors)
+                    vectors = self.segment_vectors(segments, applied)
+                self.add(totals, applied, q, v, vectors)
+                self.tally_joints(totals, q0, v0, q, v, applied, dt, _any(mode.closed), vectors)
                 self.record(totals, t, v0, t + dt, q, v)
                 t += dt
                 totals.steps += 1
@@ -3406,7 +3443,7 @@ class _Landing:
         totals.chart_q = q1.copy()
         totals.times.append(t1)
         totals.states.append(self.reported(q1))
-        if np.max(np.abs(v1)) >= SETTLE_SPEED:
+        if _largest(np.abs(v1)) >= SETTLE_SPEED:
             totals.moving_until = math.nan  # still moving at t1
         elif math.isnan(totals.moving_until):
             a0, a1 = np.abs(v0), np.abs(v1)

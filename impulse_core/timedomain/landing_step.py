@@ -62,6 +62,7 @@ from impulse_core.timedomain.landing import (
     _Joints,
     _Landing,
     _Mode,
+    _any,
     _mode_bytes,
     landing_function,
 )
@@ -594,8 +595,9 @@ class CompiledStep(BufferedFunction):
         dq, v1, impulse = (r.copy() for r in self.projection.flat)
         q1 = q - dq
         free = mode.stop == 0
-        carried = np.any(free & ((q1 > self.hi_all) | (q1 < self.lo_all)))
-        if carried or not np.isfinite(dq.sum() + v1.sum()):
+        carried = _any(free & ((q1 > self.hi_all) | (q1 < self.lo_all)))
+        total = np.add.reduce  # ndarray.sum's reduction, without its wrapper
+        if carried or not np.isfinite(total(dq) + total(v1)):
             return None
         return q1, v1, impulse
 

@@ -772,3 +772,18 @@ def test_a_halving_whose_runs_end_apart_stops_with_them(monkeypatch):
     monkeypatch.setattr(_Landing, "run", fake)
     r = landing(tree, scene, laws, LandingSettings(tolerance=1e-3, integrator="rk4"))
     assert not r.runs_apart and r.converged and len(asked) == 4 and len(r.halving) == 2
+
+
+def test_grazing_sees_the_stops_of_the_joints_it_has_now():
+    """:meth:`_Landing.grazing` keeps the stops widened by the gap tolerance (asked every step) for
+    the joint arrays they were made of: with other joints, their stops are the ones watched."""
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file("configs/landing_case3.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(step_code="numpy"))
+    q, v, mode = run.q0, np.zeros(run.nv), run.flight()
+    assert run.joints.stopped.any()
+    assert run.grazing(q, v, q, v, mode, 1e-3) is None  # at rest within its stops
+    # a stop moved below the joint: a free joint held past it over the whole step
+    run.joints = replace(run.joints, hi=np.where(run.joints.stopped, q - 0.01, run.joints.hi))
+    assert run.grazing(q, v, q, v, mode, 1e-3) == 1.0 / 16.0  # the first sample past it
