@@ -168,8 +168,8 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
     if isinstance(r, LandingResult) and not r.momentum_balance <= BALANCE_CHECK:
         out.append(
             f"the landing's momentum balance closes only to {r.momentum_balance:.2g} of its momentum (above "
-            f"{BALANCE_CHECK:g}): its total impulses miss part of what moved the model (a contact sliding along a "
-            "heightfield's crease, whose projections are not booked as impulses, is one known cause)"
+            f"{BALANCE_CHECK:g}): its total impulses miss part of what moved the model (position corrections that "
+            "move momentum with no impulse, as a contact chattering in a heightfield's crease, are one known cause)"
         )
     if isinstance(r, LandingResult) and r.energy_gained:
         out.append(_gain_warning(r))
