@@ -35,7 +35,7 @@ Each model is measured against itself: footopt's rigid impacts and MuJoCo's soft
 different models of the landing (footopt's first-impact agreement with MuJoCo is in
 ``tests/optimizer/test_mujoco.py``; the settled posture of hidden legs in ``tests/impulse_core``).
 
-Run: python studies/whole_landing/speed.py [--stiffness K ...]  (writes speed.md next to this file)
+Run: python studies/whole_landing/speed.py [--stiffness K ...]  (writes speed.md next to this file, keeping its dated notes)
 """
 
 from __future__ import annotations
@@ -240,8 +240,17 @@ def main() -> None:
         "",
     ]
     text = "\n".join(lines)
-    (HERE / "speed.md").write_text(text, encoding="utf-8")
+    (HERE / "speed.md").write_text(text + kept_notes(HERE / "speed.md"), encoding="utf-8")
     print(text)
+
+
+def kept_notes(path: Path) -> str:
+    """The dated notes below the table (from the first line starting "Rerun "), which a rerun keeps."""
+    if not path.exists():
+        return ""
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    start = next((i for i, line in enumerate(lines) if line.startswith("Rerun ")), len(lines))
+    return "".join(lines[start:])
 
 
 if __name__ == "__main__":
