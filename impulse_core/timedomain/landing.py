@@ -3586,11 +3586,12 @@ def landing(
         # most of them, DISTINCT_RUNS) are one run: their difference says little, the halving goes
         # on, the next run asking the balance for a smaller share (balance_order)
         distinct = current.n_steps >= DISTINCT_RUNS * previous.n_steps
-        error = landing_difference(current, previous) if distinct else math.inf
+        differences = landing_differences(current, previous) if distinct else None
+        error = math.inf if differences is None else max(differences)  # landing_difference, once
         if error <= settings.tolerance:
             break
-        if distinct:
-            halving.append((previous.step, current.step, *landing_differences(current, previous)))
+        if differences is not None:
+            halving.append((previous.step, current.step, *differences))
             apart = runs_apart(halving)
             if apart:  # the postures do not approach each other: no further halving would converge them
                 break
