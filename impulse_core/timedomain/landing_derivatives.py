@@ -126,7 +126,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from impulse_core.errors import NumericalError
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.coulomb import LEMKE_TOL
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
@@ -135,6 +135,7 @@ from impulse_core.model.tree import Scene, Tree, design_vector, value_names
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, ground_expression, spatial_ground, subtree_incidence
 from impulse_core.timedomain.landing import (
     IMPLICIT,
+    RADAU,
     RECHART,
     ROS2_GAMMA,
     LandingResult,
@@ -1054,6 +1055,8 @@ def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
               ) -> tuple[LandingResult, list, _Landing]:
     """One numeric landing at the fixed Runge-Kutta ``step`` (in ``space``) with its tape."""
     run = _Landing(tree, scene, laws, settings, space)
+    if run.method == RADAU:
+        raise ModelError("integrator: the derivatives replay RK4 and ROS2 steps, not Radau IIA's (radau)")
     run.tape = []
     result = run.run(step)
     tape, run.tape = run.tape, None  # the run may be kept (a cached structure): not its tape
