@@ -1793,7 +1793,8 @@ class _Landing:
             self.vectors = 0.5 * h * (self.stage_vectors(q, v, f1 + f3) + v2_vectors)
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
-    def radau_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def radau_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the two-stage Radau IIA method (:data:`RADAU_A`) on y' = (v, a(q, v)) in the
         fixed mode (a: the mode's accelerations, its rows' forces solved at each stage as the
         derivative does): stages Y_i = y + Z_i with Z = h A F(Y), the end Y_2. Simplified Newton
