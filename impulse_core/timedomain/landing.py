@@ -214,8 +214,8 @@ RK4_PACE, RK4_PACE_AFTER = 2.0, 4.0
 #: first step (``radau``, :meth:`_Landing.radau_step`) rather than RK4 from its stable step: a
 #: stiffly accurate method whose steps the momentum balance splits only in the transients after
 #: impacts, where ROS2's it splits throughout. Its steps cost ~10 x RK4's (numpy, Newton), so it
-#: pays only where RK4's stable step is far shorter: random files 33096 (h x rate 632) and 33053
-#: (297) landed 4.5 x and 3.8 x faster so, 32700 (44.7) 1.4 x slower, the same events
+#: pays only where RK4's stable step is far shorter: random files 33096 (h x rate 632), 33053
+#: (297) and 32015 (625) landed 4.5 x, 3.8 x and 6.2 x faster so, 32700 (44.7) 1.4 x slower
 #: (``studies/whole_landing/stiff_speed.md``, 2026-11-27).
 AUTO_RADAU = 100.0
 #: Space: beyond this |phi| (rad) the base's rotation coordinates are re-centred on its current
