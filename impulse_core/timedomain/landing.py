@@ -1487,7 +1487,7 @@ class _Landing:
         weight = self.mass * max(scene.gravity, 1.0)
         self.force_tol = 1e-9 * weight
         self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
-        #: The integrator between events (RK4, IMPLICIT or RADAU), one for every step length of the landing.
+        #: The integrator between events (RK4, IMPLICIT or RADAU), one for every step length.
         self.method = settings.integrator
         #: the joint laws' fastest rate at touchdown (1/s, :func:`joint_law_rate`)
         self.rate = joint_law_rate(self.mass_matrix_at(self.q0), self.joints.damping, self.joints.stiffness)
@@ -1800,7 +1800,7 @@ class _Landing:
         derivative does): stages Y_i = y + Z_i with Z = h A F(Y), the end Y_2. Simplified Newton
         iterations with the matrix I - h A x J, J the stiff part of the Jacobian at the step's
         start: the joint springs and dampers through the mode's constrained inverse mass
-        (a' = -Pi M^-1 (K q' + D v'), Pi M^-1 = M^-1 - M^-1 F^T (G M^-1 F^T)^-1 G M^-1). Unlike
+        (da/dq = -Pi M^-1 K, da/dv = -Pi M^-1 D, Pi M^-1 = M^-1 - M^-1 F^T (G M^-1 F^T)^-1 G M^-1). Unlike
         ROS2 it is stiffly accurate: at h x rate >> 1 a damped joint's motion keeps third order in
         the slow part (ROS2's error there is what splits its steps by the momentum balance). The
         contact impulses are h sum_i b_i (the stage's row forces). Non-converged iterations
@@ -1847,7 +1847,8 @@ class _Landing:
 
     @property
     def balance_order(self) -> int:
-        """The order in the step of a step's momentum residual per unit time (RK4 4, ROS2 2).
+        """The order in the step of a step's momentum residual per unit time (RK4 4, Radau IIA 3,
+        ROS2 2).
         Where two runs of the step halving were split alike by the balance, the next run asks its
         steps for a share of the balance smaller by 2 to this power (:func:`landing`), so that
         the steps the balance splits are halved with the rest: with the share fixed they stayed
