@@ -93,6 +93,10 @@ def test_radau_lands_the_first_9_ms_as_rk4_does_in_far_fewer_steps() -> None:
     assert max(abs(x.time - y.time) for x, y in zip(a.events, b.events)) < 1e-9
     assert landing_difference(a, b) < 1e-6
     assert b.n_steps * 6 < a.n_steps  # 198 against 1456
+    from optimizer.report.text import _landing_lines
+
+    said = [line for line in _landing_lines(model, replace(b, tolerance=1e-3)) if line.startswith("accuracy:")]
+    assert len(said) == 1 and "Radau IIA (order 3)" in said[0]  # the text report names it
 
 
 class _Enough(Exception):
