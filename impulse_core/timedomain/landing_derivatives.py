@@ -121,7 +121,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -137,6 +137,7 @@ from impulse_core.timedomain.landing import (
     IMPLICIT,
     RADAU,
     RECHART,
+    RK4,
     ROS2_GAMMA,
     LandingResult,
     LandingSettings,
@@ -1050,6 +1051,17 @@ def _crossing(run: _Landing, q, v, mode: _Mode, tau: float, watch: np.ndarray) -
     return i, sign
 
 
+def replayed_step(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings,
+                  space: Space = PLANAR) -> float:
+    """The step whose run the derivatives replay: :func:`landing`'s, or where that landing went on
+    with Radau IIA (``auto`` on a stiff landing: its steps are not replayed), the step of the same
+    landing on RK4 (as ``auto`` went on before Radau IIA was one of its integrators)."""
+    result = landing(tree, scene, laws, settings, space)
+    if result.integrator != RADAU:
+        return result.step
+    return landing(tree, scene, laws, replace(settings, integrator=RK4), space).step
+
+
 def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
               settings: LandingSettings = LandingSettings(), space: Space = PLANAR
               ) -> tuple[LandingResult, list, _Landing]:
@@ -1090,7 +1102,7 @@ def landing_gradient(
     theta = design_theta(tree, laws, space)
     conditions = scene_theta(tree, scene, laws, space)
     if step is None:
-        step = landing(tree, scene, laws, settings, space).step
+        step = replayed_step(tree, scene, laws, settings, space)
     result, tape, run = taped_run(tree, scene, laws, step, settings, space)
     t1 = time.perf_counter()
     sym = _symbolic(run, laws)

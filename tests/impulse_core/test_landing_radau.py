@@ -124,3 +124,24 @@ def test_autos_implicit_run_gives_way_to_radau_from_its_first_step(monkeypatch) 
     with pytest.raises(_Enough):
         landing(model.tree, model.scene, model.joints, LandingSettings(), model.space, progress)
     assert runs == [(IMPLICIT, h), (RADAU, h)]
+
+
+def test_derivatives_replay_the_rk4_landing_where_the_landing_went_on_with_radau(monkeypatch) -> None:
+    """The derivatives do not replay Radau IIA's steps: where ``landing()`` ended on it, their step
+    is that of the same landing on RK4 (``replayed_step``), elsewhere ``landing()``'s own."""
+    from impulse_core.timedomain import landing_derivatives
+
+    asked, result = [], []
+
+    def fake(tree, scene, laws, settings, space):
+        asked.append(settings.integrator)
+        return replace(result[0], integrator=RK4, step=2e-5) if settings.integrator == RK4 else result[0]
+
+    monkeypatch.setattr(landing_derivatives, "landing", fake)
+    model, _ = _run("auto")
+    for ended, want, calls in ((RADAU, 2e-5, ["auto", RK4]), (IMPLICIT, 1e-3, ["auto"]), (RK4, 1e-3, ["auto"])):
+        result[:] = [landing_derivatives.LandingResult((), np.zeros(1), np.zeros(1), None, np.zeros(1), np.zeros(1),
+                                                       np.zeros(1), 0.0, 0.0, 0.0, 1.0, 1e-3, 1, integrator=ended)]
+        asked.clear()
+        step = landing_derivatives.replayed_step(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+        assert step == want and asked == calls
