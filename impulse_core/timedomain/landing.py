@@ -198,6 +198,10 @@ BALANCE_ROUNDING = 16
 #: velocity's floor part is at most the number of velocities times their sum, so a direction
 #: with real inertia this small would need inertias 1e-13 apart.
 MASSLESS = 4.0
+#: A massless direction moves a contact where the contact's velocity along it (per unit of the
+#: direction) exceeds this times the longest rod (:meth:`_Landing.refuse_massless_contacts`; a rod
+#: of radius 0 spinning about its own axis moves its contacts by rounding, ~1e-16 x its length).
+MASSLESS_REACH = 1e-6
 #: Steps (of any length) after which a run is abandoned, per step of the run's nominal length: a
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
@@ -1555,6 +1559,7 @@ class _Landing:
         up = np.tile(np.eye(self.dims)[1], (self.nc, 1))
         #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
         self.flat_ground = (up, tangent_basis(up))
+        self.refuse_massless_contacts(tree)
 
     def first_step(self) -> float:
         """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
@@ -2747,19 +2752,48 @@ class _Landing:
         removed carries kinetic energy and momentum at the floor's level (1e-14 of the rod's)."""
         if self.massless is None:
             return v
-        M = self.point(q, v).M
-        try:  # every eigenvalue above the bound (the common case): nothing moves without mass
-            np.linalg.cholesky(M - self.massless * np.eye(self.nv))
-            return v
-        except np.linalg.LinAlgError:
-            pass
-        w, V = np.linalg.eigh(M)
-        n = V[:, w <= self.massless]
-        if not n.shape[1]:
+        n = self.massless_directions(self.point(q, v).M)
+        if n is None:
             return v
         if self.tape is not None:
             self.tape.append(("unspun",))
         return v - n @ (n.T @ v)
+
+    def massless_directions(self, M: np.ndarray) -> np.ndarray | None:
+        """The unit eigenvectors of ``M`` (columns) whose eigenvalue is at most :attr:`massless`, or
+        None where there is none (or in the plane)."""
+        if self.massless is None:
+            return None
+        try:  # every eigenvalue above the bound (the common case): nothing moves without mass
+            np.linalg.cholesky(M - self.massless * np.eye(self.nv))
+            return None
+        except np.linalg.LinAlgError:
+            pass
+        w, V = np.linalg.eigh(M)
+        n = V[:, w <= self.massless]
+        return n if n.shape[1] else None
+
+    def refuse_massless_contacts(self, tree: Tree) -> None:
+        """Refuse (ModelError) a landing in which a massless direction of the mass matrix at
+        touchdown (:data:`MASSLESS`) moves a contact: a rod of radius 0 whose centre of mass is off
+        its axis (``com_offset``, no ``inertia_tensor``) turns about the axis through its centre of
+        mass with nothing but the core's floor as inertia (1e-14 of its own), and that turn moves
+        its contacts, so the landing would follow the floor, not the model: random file 60145
+        chattered, its planar reading in space diverged. A rod of radius 0 spinning about its own
+        axis moves no contact and is held still instead (:meth:`unspun`)."""
+        n = self.massless_directions(self.mass_matrix_at(self.q0))
+        if n is None:
+            return
+        pt = self.point(self.q0, np.zeros(self.nv))
+        moved = np.vstack([pt.Jn, pt.Jt.reshape(-1, self.nv)]) @ n
+        if np.max(np.abs(moved)) <= MASSLESS_REACH * max(b.length for b in tree.bodies):
+            return
+        off = [i for i, b in enumerate(tree.bodies) if b.radius == 0.0 and not any(b.tensor) and any(b.com_offset)]
+        field = f"model.bodies[{off[0]}].com_offset" if off else "model.bodies"
+        raise ModelError(
+            f"{field}: the whole landing needs inertia wherever a contact moves, but a rod of radius 0 with its "
+            "centre of mass off its axis has none about the axis through that centre (only the core's floor, 1e-14 "
+            "of its own) and that turn moves its contacts; give the rod a radius or an inertia_tensor")
 
     def placed(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Back onto the mode's constraints: closed gaps and stops, and open contacts below the
