@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-
+import io
 import json
+import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,18 @@ PLANAR_CASE = REPO / "configs" / "paper_case3.yaml"
 
 
 def _footopt(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "optimizer", *args], capture_output=True, text=True, cwd=REPO)
+    """``footopt ARGS`` from the repository, in this process (the command line's ``main``, which
+    ``python -m optimizer`` runs, as test_reliability.py does): its exit status, stdout and stderr."""
+    from optimizer.cli.main import main
+
+    out, err, here = io.StringIO(), io.StringIO(), os.getcwd()
+    os.chdir(REPO)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(list(args))
+    finally:
+        os.chdir(here)
+    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def _json(*args: str) -> dict:
