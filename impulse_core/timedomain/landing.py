@@ -1803,12 +1803,17 @@ class _Landing:
     def radau_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float, splits: int = RADAU_SPLITS
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A Radau IIA step of length h (:meth:`radau_once`), or where its Newton iterations do not
-        converge (a transient after an impact, whose Coriolis terms its Jacobian lacks), two of
-        h / 2, each split so again, at most ``splits`` times (then NaN: :meth:`balanced_step` halves
-        the step). The event location's trial steps come here too (random file 60147: a trial's NaN
-        reached the witnesses' least squares, which failed)."""
+        converge, two of h / 2, each split so again, at most ``splits`` times (then NaN:
+        :meth:`balanced_step` halves the step), down to RK4's stable step, where an RK4 step takes
+        the piece. Random file 60147: the iterations failed on steps that crossed the point where
+        a sliding contact's slip stops (the fixed mode's dynamics turn there), and an event
+        location's trial step, NaN, reached the witnesses' least squares, which failed."""
         q1, v1, impulse = self.radau_once(q, v, mode, h)
-        if splits == 0 or (_finite(q1) and _finite(v1)):
+        if _finite(q1) and _finite(v1):
+            return q1, v1, impulse
+        if h <= self.stable_step():  # RK4 is stable here: a piece across the mode's end (60147: a slip stopping)
+            return self.rk4_step(q, v, mode, h)
+        if splits == 0:
             return q1, v1, impulse
         qa, va, pa = self.radau_step(q, v, mode, 0.5 * h, splits - 1)
         if not (_finite(qa) and _finite(va)):

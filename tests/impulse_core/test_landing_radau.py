@@ -149,10 +149,10 @@ def test_derivatives_replay_the_rk4_landing_where_the_landing_went_on_with_radau
 
 def test_a_radau_step_whose_iterations_fail_is_split_in_two(monkeypatch) -> None:
     """Where Radau IIA's Newton iterations do not converge over h (faked here beyond h / 4), the
-    step is two of h / 2, split so again: here four of h / 4 in a row, their impulses summed, so
-    that event location's trial steps never see NaN (random file 60147's reached the witnesses'
-    least squares, which failed); beyond RADAU_SPLITS halvings the step is NaN, for
-    ``balanced_step`` to halve."""
+    step is two of h / 2, split so again: here four of h / 4 in a row, their impulses summed;
+    beyond RADAU_SPLITS halvings the step is NaN, for ``balanced_step`` to halve; a piece as short
+    as RK4's stable step is an RK4 step (random file 60147: steps across a slip's stop failed, and
+    an event location's trial step, NaN, reached the witnesses' least squares, which failed)."""
     model, run = _run(RK4, VM_CODE)
     q, v, mode = _resting_state(run, 2e-3)
     _, radau = _run(RADAU)
@@ -173,3 +173,13 @@ def test_a_radau_step_whose_iterations_fail_is_split_in_two(monkeypatch) -> None
     q1, v1, p1 = radau.radau_step(q, v, mode, h)
     np.testing.assert_array_equal(np.concatenate([q1, v1, p1]), np.concatenate([*quarters, impulse]))
     assert not np.isfinite(radau.radau_step(q, v, mode, h, splits=1)[0]).any()
+    short = 0.99 * radau.stable_step()  # failing at every length: RK4 takes a piece it is stable on
+    monkeypatch.setattr(_Landing, "radau_once", lambda self, q, v, mode, step: failing(self, q, v, mode, h))
+    np.testing.assert_array_equal(np.concatenate(radau.radau_step(q, v, mode, short)),
+                                  np.concatenate(radau.rk4_step(q, v, mode, short)))
+    pieces, impulses = (q, v), []
+    for _ in range(4):  # 4 x short: split twice, down to RK4's stable step
+        *pieces, p = radau.rk4_step(*pieces, mode, short)
+        impulses.append(p)
+    np.testing.assert_array_equal(np.concatenate(radau.radau_step(q, v, mode, 4.0 * short)),
+                                  np.concatenate([*pieces, (impulses[0] + impulses[1]) + (impulses[2] + impulses[3])]))
