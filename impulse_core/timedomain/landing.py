@@ -116,7 +116,7 @@ SETTLE_SPEED = 1e-3
 #: Events after which the landing is abandoned (a chattering contact).
 MAX_EVENTS = 20000
 #: The integrators between events (:attr:`LandingSettings.integrator`).
-RK4, IMPLICIT, AUTO = "rk4", "implicit", "auto"
+RK4, IMPLICIT, RADAU, AUTO = "rk4", "implicit", "radau", "auto"
 #: RK4's stable step times the joint laws' fastest rate at touchdown (:func:`joint_law_rate`):
 #: classical RK4 is stable on the negative real axis up to 2.785 (a damper's mode) and on the
 #: imaginary axis up to 2.828 (a spring's). With a given step, ``auto`` takes the implicit
@@ -140,6 +140,14 @@ C_CODE, VM_CODE, NUMPY_CODE, AUTO_CODE = "c", "vm", "numpy", "auto"
 FIRST_STEPS = (1.0 / 200.0, 1.0 / 100.0)
 #: ROS2's gamma (Verwer, Spee, Blom and Hundsdorfer 1999): L-stable with the exact Jacobian.
 ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
+#: The two-stage Radau IIA collocation method (Hairer and Wanner, Solving ODEs II, IV.5): order 3,
+#: stage order 2, L-stable and stiffly accurate (the step's end is its last stage).
+RADAU_A = np.array([[5.0 / 12.0, -1.0 / 12.0], [3.0 / 4.0, 1.0 / 4.0]])
+RADAU_B = RADAU_A[1].copy()
+#: Its simplified Newton iterations per step at most, and their end: the last correction at most
+#: RADAU_TOL times 1 + |y| in every component of the state (a step whose iterations do not get
+#: there is halved, :meth:`_Landing.balanced_step`).
+RADAU_ITERATIONS, RADAU_TOL = 12, 1e-12
 #: The momentum balance over a landing (the change of the linear momentum minus the contact
 #: impulses and the weight's) that the steps keep below this fraction of the touchdown momentum:
 #: each step is halved until its own residual is below its share (its length over the duration).
@@ -190,6 +198,10 @@ BALANCE_ROUNDING = 16
 #: velocity's floor part is at most the number of velocities times their sum, so a direction
 #: with real inertia this small would need inertias 1e-13 apart.
 MASSLESS = 4.0
+#: A massless direction moves a contact where the contact's velocity along it (per unit of the
+#: direction) exceeds this times the longest rod (:meth:`_Landing.refuse_massless_contacts`; a rod
+#: of radius 0 spinning about its own axis moves its contacts by rounding, ~1e-16 x its length).
+MASSLESS_REACH = 1e-6
 #: Steps (of any length) after which a run is abandoned, per step of the run's nominal length: a
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
@@ -201,6 +213,15 @@ STEP_BUDGET = 64
 #: files 32507, 32700 over their first 30 ms: 5323 and 5326 ROS2 steps against 859 and 492 RK4
 #: steps at its stable step, both within 2e-6 of a reference; ``studies/whole_landing/stiff_speed.md``).
 RK4_PACE, RK4_PACE_AFTER = 2.0, 4.0
+#: Where ``auto``'s implicit run gives way (:data:`RK4_PACE`, :data:`STEP_BUDGET`) and its first
+#: step times the joint laws' rate exceeds this, the landing goes on with Radau IIA from that
+#: first step (``radau``, :meth:`_Landing.radau_step`) rather than RK4 from its stable step: a
+#: stiffly accurate method whose steps the momentum balance splits only in the transients after
+#: impacts, where ROS2's it splits throughout. Its steps cost ~10 x RK4's (numpy, Newton), so it
+#: pays only where RK4's stable step is far shorter: random files 33096 (h x rate 632), 33053
+#: (297) and 32015 (625) landed 4.5 x, 3.8 x and 6.2 x faster so, 32700 (44.7) 1.4 x slower
+#: (``studies/whole_landing/stiff_speed.md``, 2026-11-27).
+AUTO_RADAU = 100.0
 #: Space: beyond this |phi| (rad) the base's rotation coordinates are re-centred on its current
 #: orientation (:meth:`_Landing.rechart`), far inside the chart's good region (singular at
 #: |phi| = 2 pi), so a base may turn any number of times.
@@ -263,7 +284,10 @@ class LandingSettings:
             dampers in its matrix: stable for any damper on any rod) or ``auto``: RK4 from its
             stable step unless that is over 16 x shorter than duration / 200
             (:data:`AUTO_IMPLICIT`; with a given step, unless that step is beyond RK4's
-            stability, :data:`RK4_STABLE`), then implicit. One landing keeps one integrator at every step
+            stability, :data:`RK4_STABLE`), then implicit; ``radau``: the two-stage Radau IIA
+            method (order 3, stiffly accurate, Newton iterations in numpy whatever ``step_code``:
+            :meth:`_Landing.radau_step`), which ``auto`` takes where its implicit run gave way on a
+            stiff landing (:data:`AUTO_RADAU`). One landing keeps one integrator at every step
             length, so that the step-halving estimate compares like with like.
         step_code: the steps of either integrator (plane and space) by one CasADi function of
             the mode (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
@@ -379,7 +403,7 @@ class LandingResult:
         n_steps: accepted steps.
         error_estimate: relative difference from the run at half the step (None: not estimated).
         trajectory: (time, q) at every step end and event, for plots.
-        integrator: ``rk4`` or ``implicit``, the integrator between events
+        integrator: ``rk4``, ``implicit`` or ``radau``, the integrator between events
             (:attr:`LandingSettings.integrator`).
         space: ``planar`` or ``spatial``.
         momentum_balance: the run's momentum balance residual (the change of the linear
@@ -419,8 +443,8 @@ class LandingResult:
     #: the code the run's integrator steps ran on (:attr:`LandingSettings.step_code`; ``auto``
     #: resolved to c or vm)
     step_code: str = VM_CODE
-    #: why ``integrator`` is RK4 where ``auto`` first chose the implicit one (its run's steps
-    #: overran their budget or fell behind RK4's stable step: :func:`landing`), else ""
+    #: why ``integrator`` is RK4 or Radau IIA where ``auto`` first chose the implicit one (its run's
+    #: steps overran their budget or fell behind RK4's stable step: :func:`landing`), else ""
     integrator_switch: str = ""
     #: the step halving's comparisons of distinct runs, in order (:func:`landing`): (the coarser
     #: run's step, the finer's, and their differences of the peak impulses, the total external
@@ -1467,7 +1491,7 @@ class _Landing:
         weight = self.mass * max(scene.gravity, 1.0)
         self.force_tol = 1e-9 * weight
         self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
-        #: The integrator between events (RK4 or IMPLICIT), one for every step length of the landing.
+        #: The integrator between events (RK4, IMPLICIT or RADAU), one for every step length.
         self.method = settings.integrator
         #: the joint laws' fastest rate at touchdown (1/s, :func:`joint_law_rate`)
         self.rate = joint_law_rate(self.mass_matrix_at(self.q0), self.joints.damping, self.joints.stiffness)
@@ -1475,8 +1499,8 @@ class _Landing:
             h0, limit = ((settings.step, RK4_STABLE) if settings.step
                          else ((scene.duration or 0.0) * FIRST_STEPS[0], AUTO_IMPLICIT))
             self.method = IMPLICIT if h0 * self.rate > limit else RK4
-        if self.method not in (RK4, IMPLICIT):
-            raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, auto")
+        if self.method not in (RK4, IMPLICIT, RADAU):
+            raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, radau, auto")
         #: circular-cone solves of the current run that fell back to the polyhedral answer
         self.inexact = self.non_unique = 0
         #: the law's answer at the last impact (:meth:`impact`)
@@ -1535,13 +1559,14 @@ class _Landing:
         up = np.tile(np.eye(self.dims)[1], (self.nc, 1))
         #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
         self.flat_ground = (up, tangent_basis(up))
+        self.refuse_massless_contacts(tree)
 
     def first_step(self) -> float:
         """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
         integrator's duration / 200 and RK4's :meth:`stable_step`."""
         if self.settings.step:
             return self.settings.step
-        if self.method == IMPLICIT:
+        if self.method in (IMPLICIT, RADAU):
             return FIRST_STEPS[0] * float(self.scene.duration)
         return self.stable_step()
 
@@ -1557,7 +1582,7 @@ class _Landing:
     def compiled_step(self, code: str):
         """The compiled step of this landing's integrator (:mod:`impulse_core.timedomain.landing_step`),
         or None where the numpy path integrates (``numpy``)."""
-        if code == NUMPY_CODE:
+        if code == NUMPY_CODE or self.method == RADAU:
             return None
         from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
 
@@ -1697,6 +1722,8 @@ class _Landing:
             self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
             self.vectors = end.vectors.copy() if self.turning else None
             return end.q.copy(), end.v.copy(), end.impulse.copy()
+        if self.method == RADAU:
+            return self.radau_step(q, v, mode, h)
         return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
 
     def steer(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> None:
@@ -1771,16 +1798,69 @@ class _Landing:
             self.vectors = 0.5 * h * (self.stage_vectors(q, v, f1 + f3) + v2_vectors)
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
+    def radau_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One step of the two-stage Radau IIA method (:data:`RADAU_A`) on y' = (v, a(q, v)) in the
+        fixed mode (a: the mode's accelerations, its rows' forces solved at each stage as the
+        derivative does): stages Y_i = y + Z_i with Z = h A F(Y), the end Y_2. Simplified Newton
+        iterations with the matrix I - h A x J, J the stiff part of the Jacobian at the step's
+        start: the joint springs and dampers through the mode's constrained inverse mass
+        (da/dq = -Pi M^-1 K, da/dv = -Pi M^-1 D, Pi M^-1 = M^-1 - M^-1 F^T (G M^-1 F^T)^-1 G M^-1). Unlike
+        ROS2 it is stiffly accurate: at h x rate >> 1 a damped joint's motion keeps third order in
+        the slow part (ROS2's error there is what splits its steps by the momentum balance). The
+        contact impulses are h sum_i b_i (the stage's row forces). Non-converged iterations
+        return NaN (the step is halved)."""
+        nv = self.nv
+        pt = self.point(q, v)
+        C = np.linalg.inv(pt.M)
+        if _rests(mode):
+            rows = _mode_rows(pt, mode, self.mu, self.valleys)
+            if rows.G.shape[0]:
+                X = C @ rows.F.T
+                C = C - X @ np.linalg.lstsq(rows.G @ X, rows.G @ C, rcond=None)[0]
+        n = 2 * nv
+        J = np.zeros((n, n))
+        J[:nv, nv:] = np.eye(nv)
+        J[nv:, :nv] = -C * self.joints.stiffness[None, :]
+        J[nv:, nv:] = -C * self.joints.damping[None, :]
+        E = np.eye(2 * n) - h * np.kron(RADAU_A, J)
+        y0 = np.concatenate([q, v])
+        scale = RADAU_TOL * (1.0 + np.abs(y0))
+        Z = np.zeros((2, n))
+        last = math.inf
+        for _ in range(RADAU_ITERATIONS):
+            stages = [self.derivative(y0[:nv] + Z[i, :nv], y0[nv:] + Z[i, nv:], mode) for i in range(2)]
+            Fs = np.array([np.concatenate([y0[nv:] + Z[i, nv:], stages[i][0]]) for i in range(2)])
+            dZ = np.linalg.solve(E, (h * (RADAU_A @ Fs) - Z).ravel()).reshape(2, n)
+            Z += dZ
+            size = float(np.max(np.abs(dZ) / scale))
+            if size <= 1.0:
+                break
+            if not size < last:  # not contracting
+                nan = np.full(nv, np.nan)
+                return nan, nan, np.full_like(stages[0][1], np.nan)
+            last = size
+        else:
+            nan = np.full(nv, np.nan)
+            return nan, nan, np.full_like(stages[0][1], np.nan)
+        if self.turning:
+            self.vectors = h * sum(RADAU_B[i] * self.stage_vectors(y0[:nv] + Z[i, :nv] - dZ[i, :nv],
+                                                                   y0[nv:] + Z[i, nv:] - dZ[i, nv:], stages[i][1])
+                                   for i in range(2))
+        y1 = y0 + Z[1]
+        return y1[:nv], y1[nv:], h * (RADAU_B[0] * stages[0][1] + RADAU_B[1] * stages[1][1])
+
     @property
     def balance_order(self) -> int:
-        """The order in the step of a step's momentum residual per unit time (RK4 4, ROS2 2).
+        """The order in the step of a step's momentum residual per unit time (RK4 4, Radau IIA 3,
+        ROS2 2).
         Where two runs of the step halving were split alike by the balance, the next run asks its
         steps for a share of the balance smaller by 2 to this power (:func:`landing`), so that
         the steps the balance splits are halved with the rest: with the share fixed they stayed
         as long (random file 30730's runs at h / 2 to h / 64 took the same 33,917 steps, and
         their differences said nothing). Only there: shrunk at every halving from then on, the
         share of random file 30649 reached rounding's level by h / 64 (over 300 s instead of 63 s)."""
-        return 4 if self.method == RK4 else 2
+        return 4 if self.method == RK4 else 3 if self.method == RADAU else 2
 
     def balanced_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: float, rate: float, floor: float
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
@@ -1796,9 +1876,12 @@ class _Landing:
         unseen below it: the step closes and the next may double. Returns (q, v, contact
         impulses, the step's length, the next trial's length: :func:`balanced_length`)."""
         p0 = None
-        dt, order = trial, 4 if self.method == RK4 else 2
+        dt, order = trial, self.balance_order
         while True:
             q1, v1, impulse = self.step(q, v, mode, dt)
+            if dt > floor and self.method == RADAU and not (_finite(q1) and _finite(v1)):
+                dt /= 2.0  # its Newton iterations did not converge (radau_step)
+                continue
             if dt <= floor or not (_finite(q1) and _finite(v1)):
                 return q1, v1, impulse, dt, 2.0 * dt
             end = self.ended(q1, v1, mode)
@@ -2669,19 +2752,48 @@ class _Landing:
         removed carries kinetic energy and momentum at the floor's level (1e-14 of the rod's)."""
         if self.massless is None:
             return v
-        M = self.point(q, v).M
-        try:  # every eigenvalue above the bound (the common case): nothing moves without mass
-            np.linalg.cholesky(M - self.massless * np.eye(self.nv))
-            return v
-        except np.linalg.LinAlgError:
-            pass
-        w, V = np.linalg.eigh(M)
-        n = V[:, w <= self.massless]
-        if not n.shape[1]:
+        n = self.massless_directions(self.point(q, v).M)
+        if n is None:
             return v
         if self.tape is not None:
             self.tape.append(("unspun",))
         return v - n @ (n.T @ v)
+
+    def massless_directions(self, M: np.ndarray) -> np.ndarray | None:
+        """The unit eigenvectors of ``M`` (columns) whose eigenvalue is at most :attr:`massless`, or
+        None where there is none (or in the plane)."""
+        if self.massless is None:
+            return None
+        try:  # every eigenvalue above the bound (the common case): nothing moves without mass
+            np.linalg.cholesky(M - self.massless * np.eye(self.nv))
+            return None
+        except np.linalg.LinAlgError:
+            pass
+        w, V = np.linalg.eigh(M)
+        n = V[:, w <= self.massless]
+        return n if n.shape[1] else None
+
+    def refuse_massless_contacts(self, tree: Tree) -> None:
+        """Refuse (ModelError) a landing in which a massless direction of the mass matrix at
+        touchdown (:data:`MASSLESS`) moves a contact: a rod of radius 0 whose centre of mass is off
+        its axis (``com_offset``, no ``inertia_tensor``) turns about the axis through its centre of
+        mass with nothing but the core's floor as inertia (1e-14 of its own), and that turn moves
+        its contacts, so the landing would follow the floor, not the model: random file 60145
+        chattered, its planar reading in space diverged. A rod of radius 0 spinning about its own
+        axis moves no contact and is held still instead (:meth:`unspun`)."""
+        n = self.massless_directions(self.mass_matrix_at(self.q0))
+        if n is None:
+            return
+        pt = self.point(self.q0, np.zeros(self.nv))
+        moved = np.vstack([pt.Jn, pt.Jt.reshape(-1, self.nv)]) @ n
+        if np.max(np.abs(moved)) <= MASSLESS_REACH * max(b.length for b in tree.bodies):
+            return
+        off = [i for i, b in enumerate(tree.bodies) if b.radius == 0.0 and not any(b.tensor) and any(b.com_offset)]
+        field = f"model.bodies[{off[0]}].com_offset" if off else "model.bodies"
+        raise ModelError(
+            f"{field}: the whole landing needs inertia wherever a contact moves, but a rod of radius 0 with its "
+            "centre of mass off its axis has none about the axis through that centre (only the core's floor, 1e-14 "
+            "of its own) and that turn moves its contacts; give the rod a radius or an inertia_tensor")
 
     def placed(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Back onto the mode's constraints: closed gaps and stops, and open contacts below the
@@ -3545,7 +3657,8 @@ def landing(
     ``progress`` is told where each run is (:class:`LandingProgress`; a run that diverged is
     followed by one at a shorter step, and an implicit run that ``auto`` chose and whose steps
     overran their budget, or fell behind RK4's stable step (:data:`RK4_PACE`), by one of RK4 at its
-    stable step, :meth:`_Landing.stable_step`).
+    stable step, :meth:`_Landing.stable_step`, or where the first step is over AUTO_RADAU / rate,
+    by one of Radau IIA from that first step, :data:`AUTO_RADAU`).
 
     Raises:
         ModelError: no ``scene.duration``, or joint laws that do not match the tree.
@@ -3568,8 +3681,9 @@ def landing(
             if halvings == settings.max_refinements:
                 raise
             if e.reached > 0 and run.method == IMPLICIT and settings.integrator == AUTO:
-                run = _Landing(tree, scene, joints, replace(settings, integrator=RK4), space)
-                h, switch = run.stable_step(), str(e)
+                stiff = run.first_step() * run.rate > AUTO_RADAU  # Radau IIA from ROS2's first step, else RK4
+                run = _Landing(tree, scene, joints, replace(settings, integrator=RADAU if stiff else RK4), space)
+                h, switch = run.first_step() if stiff else run.stable_step(), str(e)
                 continue
             h /= retry_factor(e.reached)
     error, halving, apart = math.inf, [], False

@@ -121,12 +121,12 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
 
-from impulse_core.errors import NumericalError
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.impact.coulomb import LEMKE_TOL
 from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_space
@@ -135,7 +135,9 @@ from impulse_core.model.tree import Scene, Tree, design_vector, value_names
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, ground_expression, spatial_ground, subtree_incidence
 from impulse_core.timedomain.landing import (
     IMPLICIT,
+    RADAU,
     RECHART,
+    RK4,
     ROS2_GAMMA,
     LandingResult,
     LandingSettings,
@@ -1049,11 +1051,24 @@ def _crossing(run: _Landing, q, v, mode: _Mode, tau: float, watch: np.ndarray) -
     return i, sign
 
 
+def replayed_step(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings,
+                  space: Space = PLANAR) -> float:
+    """The step whose run the derivatives replay: :func:`landing`'s, or where that landing went on
+    with Radau IIA (``auto`` on a stiff landing: its steps are not replayed), the step of the same
+    landing on RK4 (as ``auto`` went on before Radau IIA was one of its integrators)."""
+    result = landing(tree, scene, laws, settings, space)
+    if result.integrator != RADAU:
+        return result.step
+    return landing(tree, scene, laws, replace(settings, integrator=RK4), space).step
+
+
 def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
               settings: LandingSettings = LandingSettings(), space: Space = PLANAR
               ) -> tuple[LandingResult, list, _Landing]:
     """One numeric landing at the fixed Runge-Kutta ``step`` (in ``space``) with its tape."""
     run = _Landing(tree, scene, laws, settings, space)
+    if run.method == RADAU:
+        raise ModelError("integrator: the derivatives replay RK4 and ROS2 steps, not Radau IIA's (radau)")
     run.tape = []
     result = run.run(step)
     tape, run.tape = run.tape, None  # the run may be kept (a cached structure): not its tape
@@ -1087,7 +1102,7 @@ def landing_gradient(
     theta = design_theta(tree, laws, space)
     conditions = scene_theta(tree, scene, laws, space)
     if step is None:
-        step = landing(tree, scene, laws, settings, space).step
+        step = replayed_step(tree, scene, laws, settings, space)
     result, tape, run = taped_run(tree, scene, laws, step, settings, space)
     t1 = time.perf_counter()
     sym = _symbolic(run, laws)

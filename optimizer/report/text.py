@@ -631,9 +631,11 @@ def _landing_lines(model: ModelFile, r: LandingResult) -> list[str]:
         "final angles [rad]: " + ", ".join(f"{n} {a:.4f}" for n, a in zip(angle_names, r.final_angles, strict=True)),
         "final base origin [m]: " + ", ".join(f"{n} {x:.4f}" for n, x in zip("xyz", r.final_base)),
         f"accuracy: error estimate {estimate} (tolerance {r.tolerance:g}), "
-        + ("Runge-Kutta 4" if r.integrator == "rk4" else "implicit (ROS2, order 2)") + f" step {r.step:.3g} s"
+        + {"rk4": "Runge-Kutta 4", "radau": "Radau IIA (order 3)"}.get(r.integrator, "implicit (ROS2, order 2)")
+        + f" step {r.step:.3g} s"
         + f", steps {STEP_CODE_NAMES.get(r.step_code, r.step_code)}",
-        *([f"integrator: Runge-Kutta 4 at its stable step, since the implicit run auto chose first gave way: "
+        *([("integrator: Radau IIA from the first step" if r.integrator == "radau" else
+            "integrator: Runge-Kutta 4 at its stable step") + ", since the implicit run auto chose first gave way: "
            f"{r.integrator_switch}"] if r.integrator_switch else []),
     ]
 

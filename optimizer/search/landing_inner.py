@@ -75,13 +75,14 @@ import numpy as np
 from impulse_core.errors import NumericalError
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.tree import Scene
-from impulse_core.timedomain.landing import LandingSettings, landing
+from impulse_core.timedomain.landing import LandingSettings
 from impulse_core.timedomain.landing_derivatives import (
     LAW_VALUES,
     _joint_dofs,
     body_values,
     design_names,
     landing_gradient,
+    replayed_step,
     scene_names,
     taped_run,
 )
@@ -700,13 +701,14 @@ def start_landing(nlp: LandingNlp, rng: np.random.Generator) -> np.ndarray | Non
 
 def set_steps(nlp: LandingNlp, x0: np.ndarray) -> bool:
     """Fix the solve's Runge-Kutta steps: each scored landing's step as ``landing()`` reports it
-    at x0 with the evaluation's settings (:func:`landing_settings`); False when one fails."""
+    at x0 with the evaluation's settings (:func:`landing_settings`; on Radau IIA, its RK4 landing's:
+    :func:`replayed_step`); False when one fails."""
     landed = _Landed(nlp)
     tree, laws, scenes = landed.models(x0)
     settings = landing_settings(nlp.config)
     try:
         with np.errstate(all="ignore"):
-            steps = tuple(landing(tree, scene, laws, settings, nlp.space).step for scene in scenes)
+            steps = tuple(replayed_step(tree, scene, laws, settings, nlp.space) for scene in scenes)
     except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
         return False
     nlp.step, nlp.steps = steps[0], steps

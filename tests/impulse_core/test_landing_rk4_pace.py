@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from impulse_core.timedomain.landing import IMPLICIT, LandingProgress, LandingSettings, _Landing, landing
+from impulse_core.timedomain.landing import AUTO_RADAU, IMPLICIT, LandingProgress, LandingSettings, _Landing, \
+    landing
 from optimizer.config.model_file import load_model_file
 
 DATA = Path(__file__).parent / "data"
@@ -29,6 +30,7 @@ def test_autos_implicit_run_gives_way_to_rk4_once_its_steps_fall_behind_rk4s_sta
     model, run = _model_and_run(settings)
     assert run.method == IMPLICIT  # auto: duration / 200 x rate over AUTO_IMPLICIT
     h, stable = run.first_step(), run.stable_step()
+    assert h * run.rate < AUTO_RADAU  # 44.7: RK4 follows, not Radau IIA (its landing took 1.4 x RK4's time)
     implicit_times: list[float] = []
 
     def progress(p: LandingProgress) -> None:

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from impulse_core.errors import ModelError
 from impulse_core.evaluate import evaluate
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import SPATIAL
@@ -963,3 +964,19 @@ def test_an_impact_that_gains_energy_is_newtons_and_coulombs_law():
     work = 0.5 * float(p_t @ before[[0, 2]])
     assert work > 0.1 * ev.energy_before
     assert ev.energy_after - ev.energy_before == pytest.approx(work, rel=1e-9)
+
+
+def test_a_rod_of_radius_0_with_its_centre_of_mass_off_its_axis_is_refused_by_the_landing():
+    """Random file 60145: a lone rod of radius 0 whose centre of mass is off its axis turns about
+    the axis through that centre with only the core's floor as inertia, and the turn moves its
+    contact (W_nn 3.6e12), so the landing would follow the floor: it chattered (exit 1 after 17 s),
+    and with the offset in the plane, read as spatial, diverged. The landing refuses it at once,
+    naming the field; with a radius, or with the offset on the axis (33016's rod: its spin moves no
+    contact), it goes on."""
+    rod = Body("b0", None, 0.0976535, 0.104383, 2.67899, contacts=(1.0,), com_offset=(0.0274305, 0.00668402))
+    scene = Scene(speed=3.89731, restitution=0.459858, friction=0.5, gravity=G, duration=0.141701)
+    for offset in ((0.0274305, 0.00668402), (0.0274305, 0.0)):
+        with pytest.raises(ModelError, match=r"^model\.bodies\[0\]\.com_offset: .*give the rod a radius"):
+            _Landing(Tree((replace(rod, com_offset=offset),)), scene, (), LandingSettings(), SPATIAL)
+    _Landing(Tree((replace(rod, radius=0.005),)), scene, (), LandingSettings(), SPATIAL)
+    _Landing(*_lone_rod(), (), LandingSettings(), SPATIAL)

@@ -249,12 +249,15 @@ def test_friction_at_each_touchdown_meets_the_laws(monkeypatch, space):
     complementarity, Coulomb's cone (sliding: on its edge against the slip) and balances
     momentum; resting contacts push inside the cone; over the whole sequence the impulse vectors
     equal the change of the tree's momentum (no gravity), the totals include the events' sums
-    (resting phases add to them), and no contact is left approaching."""
+    (resting phases add to them), and no contact is left approaching. Scenes 0 (sticking,
+    elastic), 2 (sticking and sliding, plastic), 3 (sliding, elastic) and 5 (resting) are landed."""
     rng = np.random.default_rng(20261126)
     seen = _spied_events(monkeypatch)
     stuck = slid = events = repeated = rested = 0
     for k in range(6):
         tree, scene, kw = _random_scene(rng, k, space)
+        if k in (1, 4):  # drawn, so the later scenes stay the same; not landed: the kinds of 3 and 0
+            continue
         for v in seen.values():
             v.clear()
         seq = sequential_impacts(tree, scene, **kw)

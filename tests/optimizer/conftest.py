@@ -161,6 +161,17 @@ def taped_once(monkeypatch: pytest.MonkeyPatch) -> Callable:
     return once
 
 
+@pytest.fixture
+def quick_timings(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``footopt bench``'s timings (:func:`optimizer.analysis.bench._median_us`) cut to one call
+    after the warm-up: its tests check what it computes and reports, not its times (the default:
+    five samples of about 0.04 s each, per path and round)."""
+    import optimizer.analysis.bench as bench
+
+    timed = bench._median_us
+    monkeypatch.setattr(bench, "_median_us", lambda fn, calls=None, repeats=5, sample_s=0.04: timed(fn, 1, 1))
+
+
 @contextmanager
 def drawings_unsaved() -> Iterator[None]:
     """A run folder's drawings built (every figure made) but not rendered: ``_save`` (plot's,

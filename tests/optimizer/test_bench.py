@@ -15,6 +15,8 @@ from impulse_core.model.tree import Body, Tree, design_vector
 from optimizer.analysis.bench import SCALING_SCENE, scaled_tree, speed_report
 from optimizer.cli.main import main
 
+pytestmark = pytest.mark.usefixtures("quick_timings")  # one call per timing: the times are not tested
+
 #: The keys the issue asks for at the top level of ``footopt bench speed --json``.
 SPEED_KEYS = ("us_per_design_batched", "pinocchio_us_per_call", "ratio", "gradient_ratio")
 

@@ -269,10 +269,12 @@ def _run(*args: str) -> subprocess.CompletedProcess[str]:
     ("edit", "start"),
     [
         ([("mass: 0.3", "mass: -1")], "model.bodies[2].mass: must be a finite number > 0, got -1.0"),
-        ([("  restitution: 0.5", "  restitution: [0.5")], "YAML syntax error at line"),
-        ([("length: 0.25", "lenght: 0.25")], "model.bodies[2].lenght: unknown key"),
-        ([("parent: thigh", "parent: foot")], "model.bodies[1].parent: the parents form a cycle"),
-        ([("restitution: 0.5", "restitution: 0.5\n  friction: -0.3")], "scene.friction: must be >= 0"),
+        *(pytest.param(*case, marks=pytest.mark.slow) for case in [  # each message in-process: BAD_FILES
+            ([("  restitution: 0.5", "  restitution: [0.5")], "YAML syntax error at line"),
+            ([("length: 0.25", "lenght: 0.25")], "model.bodies[2].lenght: unknown key"),
+            ([("parent: thigh", "parent: foot")], "model.bodies[1].parent: the parents form a cycle"),
+            ([("restitution: 0.5", "restitution: 0.5\n  friction: -0.3")], "scene.friction: must be >= 0"),
+        ]),
     ],
     ids=["mass", "syntax", "typo", "cycle", "friction"],
 )

@@ -183,6 +183,7 @@ def test_a_tiny_study_runs_and_its_front_reevaluates(leg_folder, capsys, monkeyp
         assert len(rec["joints"]) == 3 + 1 + int(row["toes"])
 
 
+@pytest.mark.slow  # the same derivative on the same leg, its joints sprung: the next test's (by default)
 def test_the_whole_landing_nlp_differentiates_the_spatial_leg(leg_folder):
     """The whole-landing inner search with the spatial leg: the toe's yaw derivative (chained
     through its root's rpy on the leg's last rod) is the central difference of the landed
@@ -201,7 +202,8 @@ def test_the_spatial_legs_own_springs_dampers_and_stops_act_over_the_landing(tmp
     touchdown angle) on each of its three joints, written into its model file: the whole-landing
     NLP's landed model carries them on the leg's joints, they change the landing (against the
     same model with the leg's joints free), and the toe yaw's exact derivative is still the
-    central difference of the landed objectives."""
+    central difference of the landed objectives (the toe chained through its root's rpy on the
+    leg's last rod: the derivative the free leg's test checks with ``--slow``)."""
     import yaml
 
     from impulse_core.kinematics.spatial import SPATIAL
@@ -228,3 +230,4 @@ def test_the_spatial_legs_own_springs_dampers_and_stops_act_over_the_landing(tmp
     free = landing(tree, scene, (FREE,) * 4 + tuple(laws[4:]), settings, SPATIAL)
     assert np.max(np.abs(sprung.final_angles[1:4] - free.final_angles[1:4])) > 1e-3  # 1.1e-2 rad
     assert assert_the_yaw_derivative(config, nlp) == tree  # the same NLP, its yaw derivative
+    assert len(tree.bodies) == 6 and tree.bodies[5].parent == 3  # the toe hangs from the leg's last rod

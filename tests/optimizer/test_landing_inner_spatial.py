@@ -55,6 +55,7 @@ def nlp(tmp_path_factory):
     return build_landing_nlp(load_study(path), FootShape(1, 1))
 
 
+@pytest.mark.slow  # by default the same check over 2 landings: test_landing_inner_spatial_robust's gradients test
 def test_the_spatial_nlp_gradient_agrees_with_central_differences(nlp):
     """Along a level direction (all variables) and along the toe's yaw alone, the event sequence
     unchanged at both ends."""

@@ -104,7 +104,7 @@ def _three_rod_leg_design(spatial: bool):
 
 
 @pytest.mark.parametrize("spatial", [False, True], ids=["planar", "splayed"])
-def test_bench_columns_follow_the_files_leg(spatial: bool, tmp_path: Path, capsys) -> None:
+def test_bench_columns_follow_the_files_leg(spatial: bool, tmp_path: Path, capsys, quick_timings) -> None:
     """``footopt bench FILE`` on a design whose leg has three rods: the gradient is taken w.r.t.
     the values a search varies on that leg (the two-rod assumption took the shank for the heel,
     the heel for a toe root and lost the toes' splay), and the output says which; a tree that is

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-
+import io
 import json
+import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,18 @@ PLANAR_CASE = REPO / "configs" / "paper_case3.yaml"
 
 
 def _footopt(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "optimizer", *args], capture_output=True, text=True, cwd=REPO)
+    """``footopt ARGS`` from the repository, in this process (the command line's ``main``, which
+    ``python -m optimizer`` runs, as test_reliability.py does): its exit status, stdout and stderr."""
+    from optimizer.cli.main import main
+
+    out, err, here = io.StringIO(), io.StringIO(), os.getcwd()
+    os.chdir(REPO)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(list(args))
+    finally:
+        os.chdir(here)
+    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def _json(*args: str) -> dict:
@@ -217,12 +229,13 @@ def test_mjcf_export_refuses_a_rod_no_rigid_body_has_but_evaluate_takes_it(tmp_p
     assert _json(str(bad))["external_norm"] > 0
 
 
-def test_bench_times_a_spatial_file_beside_pinocchio(tmp_path: Path) -> None:
+def test_bench_times_a_spatial_file_beside_pinocchio(capsys, quick_timings) -> None:
     """footopt bench on a spatial model: the batched paths equal single calls and the full model,
-    and Pinocchio (free-flyer) is timed beside them."""
-    proc = _footopt("bench", str(EXAMPLE), "--json", "--batch", "64", "--no-compile")  # the VM: no C compile here
-    assert proc.returncode == 0, proc.stderr
-    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    and Pinocchio (free-flyer) is timed beside them (in this process, one call per timing)."""
+    from optimizer.cli.main import main
+
+    assert main(["bench", str(EXAMPLE), "--json", "--batch", "64", "--no-compile"]) == 0  # the VM: no C compile here
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert report["batched_equals_single"] and report["lean_equals_full"]
     assert report["n_dof"] == 6 + 8 and report["pinocchio_us_per_call"] > 0
     assert report["gradient_equals_autodiff"] and report["gradient_equals_full"]

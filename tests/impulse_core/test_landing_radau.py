@@ -1,0 +1,147 @@
+"""The two-stage Radau IIA step (``integrator="radau"``, :meth:`_Landing.radau_step`) on random file
+33096, a 22 g, 7 cm rod on a 7.0 N m s/rad damper (h x rate 632 at duration / 200): stiffly
+accurate where ROS2 is not, so its long steps keep the momentum balance
+(``studies/whole_landing/stiff_speed.md``, 2026-11-27, branch ``stiff38``)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from impulse_core.timedomain.landing import (AUTO_RADAU, IMPLICIT, MOMENTUM_BALANCE, NUMPY_CODE, RADAU, RK4,
+                                             VM_CODE, LandingProgress, LandingSettings, _Landing, _unstacked,
+                                             impulse_vector, landing, landing_difference)
+from optimizer.config.model_file import load_model_file
+
+DATA = Path(__file__).parent / "data"
+
+
+def _run(integrator: str, code: str = NUMPY_CODE, duration: float | None = None):
+    model = load_model_file(DATA / "stiff_rod_33096.yaml")
+    scene = model.scene if duration is None else replace(model.scene, duration=duration)
+    settings = LandingSettings(integrator=integrator, step_code=code)
+    return model, _Landing(model.tree, scene, model.joints, settings, model.space)
+
+
+def _resting_state(run: _Landing, after: float):
+    """The RK4 run's (q, v, mode) at its first step's end past ``after`` (the rod's tip resting)."""
+    reached, seen = [0.0], []
+
+    def progress(p) -> None:
+        reached[0] = p.t
+
+    def until(q, v, mode, totals) -> bool:
+        if reached[0] > after:
+            seen.append((q.copy(), v.copy(), mode.copy()))
+            return True
+        return False
+
+    run.run(run.stable_step(), progress, until=until)
+    return seen[0]
+
+
+def _balance(run: _Landing, q, v, q1, v1, impulse, h) -> float:
+    """The step's momentum residual (N s, the weight's impulse included)."""
+    p0 = run.point(q, v).momentum[:, 0].copy()
+    pt = run.point(q1, v1)
+    applied = impulse_vector(pt.normal, *_unstacked(impulse, run.nc, run.dims - 1))
+    return float(np.max(np.abs(pt.momentum[:, 0] - p0 - applied - run.weight(h))))
+
+
+def test_radau_keeps_a_stiff_resting_step_accurate_where_ros2_does_not() -> None:
+    """A step of 128 / rate (0.43 ms) from a resting state 2 ms after touchdown, against RK4 at
+    0.1 / rate: Radau IIA's end within 1e-7 rad and its momentum residual within the landing's
+    share for the step; ROS2's end 2e-5 rad off (its error, not the momentum map's, the same
+    with the exact Jacobian), its residual hundreds of shares (what split its steps)."""
+    model, ref = _run(RK4, VM_CODE)
+    q, v, mode = _resting_state(ref, 2e-3)
+    assert mode.closed.any()
+    h = 128.0 / ref.rate
+    n = 1280
+    qr, vr = q, v
+    for _ in range(n):
+        qr, vr, _ = ref.step(qr, vr, mode, h / n)
+    _, radau = _run(RADAU)
+    _, ros2 = _run(IMPLICIT)
+    T = float(model.scene.duration)
+    p_touch = ref.mass * float(np.max(np.abs(model.scene.velocity)))  # the touchdown momentum
+    share = MOMENTUM_BALANCE * max(p_touch, ref.mass * model.scene.gravity * T) / T * h
+    q1, v1, impulse = radau.radau_step(q, v, mode, h)
+    assert np.max(np.abs(q1 - qr)) < 1e-7 and np.max(np.abs(v1 - vr)) < 1e-5
+    assert _balance(radau, q, v, q1, v1, impulse, h) < 0.5 * share
+    q2, v2, impulse2 = ros2.implicit_step(q, v, mode, h)
+    assert np.max(np.abs(q2 - qr)) > 1e-6
+    assert _balance(ros2, q, v, q2, v2, impulse2, h) > 10.0 * share
+
+
+def test_radau_lands_the_first_9_ms_as_rk4_does_in_far_fewer_steps() -> None:
+    """Cut to 9 ms (the rate of the balance per second the full file's; the cut's shorter
+    MIN_BOUNCE lets 24 impacts through): Radau IIA at duration / 200 of the full file takes the
+    same impacts as RK4 at its stable step, at the same times (within 1e-9 s) and within 1e-6 of
+    its answer (1.4e-7), in under a sixth of its steps (the balance splits Radau's steps after
+    the impacts only)."""
+    model, _ = _run(RK4)
+    T, cut = float(model.scene.duration), 0.009
+    _, rk4 = _run(RK4, VM_CODE, cut)
+    _, radau = _run(RADAU, NUMPY_CODE, cut)
+    a = rk4.run(rk4.stable_step(), share=cut / T)
+    b = radau.run(T / 200.0, share=cut / T)
+    assert len(a.events) == len(b.events) == 24
+    assert max(abs(x.time - y.time) for x, y in zip(a.events, b.events)) < 1e-9
+    assert landing_difference(a, b) < 1e-6
+    assert b.n_steps * 6 < a.n_steps  # 198 against 1456
+    from optimizer.report.text import _landing_lines
+
+    said = [line for line in _landing_lines(model, replace(b, tolerance=1e-3)) if line.startswith("accuracy:")]
+    assert len(said) == 1 and "Radau IIA (order 3)" in said[0]  # the text report names it
+
+
+class _Enough(Exception):
+    """Raised from the progress callback: the test has seen what it looks for."""
+
+
+def test_autos_implicit_run_gives_way_to_radau_from_its_first_step(monkeypatch) -> None:
+    """``auto`` takes ROS2 (h x rate 632); the momentum balance splits its steps, it gives way
+    (RK4_PACE) at t = 1.6 ms, and the landing goes on with Radau IIA from the same first step
+    (h x rate over AUTO_RADAU), not RK4 from its stable step (63.5 s against 14.0 s whole)."""
+    model, run = _run("auto", VM_CODE)
+    h = run.first_step()
+    assert run.method == IMPLICIT and h * run.rate > AUTO_RADAU
+    runs, original = [], _Landing.run
+
+    def watched(self, step, *args, **kwargs):
+        runs.append((self.method, step))
+        return original(self, step, *args, **kwargs)
+
+    def progress(p: LandingProgress) -> None:
+        if p.run > 0:
+            raise _Enough
+
+    monkeypatch.setattr(_Landing, "run", watched)
+    with pytest.raises(_Enough):
+        landing(model.tree, model.scene, model.joints, LandingSettings(), model.space, progress)
+    assert runs == [(IMPLICIT, h), (RADAU, h)]
+
+
+def test_derivatives_replay_the_rk4_landing_where_the_landing_went_on_with_radau(monkeypatch) -> None:
+    """The derivatives do not replay Radau IIA's steps: where ``landing()`` ended on it, their step
+    is that of the same landing on RK4 (``replayed_step``), elsewhere ``landing()``'s own."""
+    from impulse_core.timedomain import landing_derivatives
+
+    asked, result = [], []
+
+    def fake(tree, scene, laws, settings, space):
+        asked.append(settings.integrator)
+        return replace(result[0], integrator=RK4, step=2e-5) if settings.integrator == RK4 else result[0]
+
+    monkeypatch.setattr(landing_derivatives, "landing", fake)
+    model, _ = _run("auto")
+    for ended, want, calls in ((RADAU, 2e-5, ["auto", RK4]), (IMPLICIT, 1e-3, ["auto"]), (RK4, 1e-3, ["auto"])):
+        result[:] = [landing_derivatives.LandingResult((), np.zeros(1), np.zeros(1), None, np.zeros(1), np.zeros(1),
+                                                       np.zeros(1), 0.0, 0.0, 0.0, 1.0, 1e-3, 1, integrator=ended)]
+        asked.clear()
+        step = landing_derivatives.replayed_step(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+        assert step == want and asked == calls
