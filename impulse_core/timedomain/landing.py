@@ -148,6 +148,8 @@ RADAU_B = RADAU_A[1].copy()
 #: RADAU_TOL times 1 + |y| in every component of the state (a step whose iterations do not get
 #: there is halved, :meth:`_Landing.balanced_step`).
 RADAU_ITERATIONS, RADAU_TOL = 12, 1e-12
+#: Times a Radau IIA step whose iterations do not converge is split in two (:meth:`_Landing.radau_step`).
+RADAU_SPLITS = 4
 #: The momentum balance over a landing (the change of the linear momentum minus the contact
 #: impulses and the weight's) that the steps keep below this fraction of the touchdown momentum:
 #: each step is halved until its own residual is below its share (its length over the duration).
@@ -1798,7 +1800,26 @@ class _Landing:
             self.vectors = 0.5 * h * (self.stage_vectors(q, v, f1 + f3) + v2_vectors)
         return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3)
 
-    def radau_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
+    def radau_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float, splits: int = RADAU_SPLITS
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A Radau IIA step of length h (:meth:`radau_once`), or where its Newton iterations do not
+        converge (a transient after an impact, whose Coriolis terms its Jacobian lacks), two of
+        h / 2, each split so again, at most ``splits`` times (then NaN: :meth:`balanced_step` halves
+        the step). The event location's trial steps come here too (random file 60147: a trial's NaN
+        reached the witnesses' least squares, which failed)."""
+        q1, v1, impulse = self.radau_once(q, v, mode, h)
+        if splits == 0 or (_finite(q1) and _finite(v1)):
+            return q1, v1, impulse
+        qa, va, pa = self.radau_step(q, v, mode, 0.5 * h, splits - 1)
+        if not (_finite(qa) and _finite(va)):
+            return qa, va, pa
+        first = self.vectors
+        qb, vb, pb = self.radau_step(qa, va, mode, 0.5 * h, splits - 1)
+        if self.turning:
+            self.vectors = first + self.vectors
+        return qb, vb, pa + pb
+
+    def radau_once(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the two-stage Radau IIA method (:data:`RADAU_A`) on y' = (v, a(q, v)) in the
         fixed mode (a: the mode's accelerations, its rows' forces solved at each stage as the
@@ -1809,7 +1830,7 @@ class _Landing:
         ROS2 it is stiffly accurate: at h x rate >> 1 a damped joint's motion keeps third order in
         the slow part (ROS2's error there is what splits its steps by the momentum balance). The
         contact impulses are h sum_i b_i (the stage's row forces). Non-converged iterations
-        return NaN (the step is halved)."""
+        return NaN (:meth:`radau_step` splits the step)."""
         nv = self.nv
         pt = self.point(q, v)
         C = np.linalg.inv(pt.M)

@@ -145,3 +145,31 @@ def test_derivatives_replay_the_rk4_landing_where_the_landing_went_on_with_radau
         asked.clear()
         step = landing_derivatives.replayed_step(model.tree, model.scene, model.joints, LandingSettings(), model.space)
         assert step == want and asked == calls
+
+
+def test_a_radau_step_whose_iterations_fail_is_split_in_two(monkeypatch) -> None:
+    """Where Radau IIA's Newton iterations do not converge over h (faked here beyond h / 4), the
+    step is two of h / 2, split so again: here four of h / 4 in a row, their impulses summed, so
+    that event location's trial steps never see NaN (random file 60147's reached the witnesses'
+    least squares, which failed); beyond RADAU_SPLITS halvings the step is NaN, for
+    ``balanced_step`` to halve."""
+    model, run = _run(RK4, VM_CODE)
+    q, v, mode = _resting_state(run, 2e-3)
+    _, radau = _run(RADAU)
+    h = 64.0 / radau.rate
+    once = _Landing.radau_once
+
+    def failing(self, q, v, mode, step):
+        if step > 0.3 * h:
+            return np.full_like(q, np.nan), np.full_like(v, np.nan), np.full(2 * self.nc, np.nan)
+        return once(self, q, v, mode, step)
+
+    quarters, impulses = (q, v), []
+    for _ in range(4):
+        *quarters, p = radau.radau_once(*quarters, mode, h / 4)
+        impulses.append(p)
+    impulse = (impulses[0] + impulses[1]) + (impulses[2] + impulses[3])  # the halves' sums
+    monkeypatch.setattr(_Landing, "radau_once", failing)
+    q1, v1, p1 = radau.radau_step(q, v, mode, h)
+    np.testing.assert_array_equal(np.concatenate([q1, v1, p1]), np.concatenate([*quarters, impulse]))
+    assert not np.isfinite(radau.radau_step(q, v, mode, h, splits=1)[0]).any()

@@ -81,7 +81,7 @@ def test_per_scenario_impacts_are_footopt_evaluates(tmp_path):
         design = design_at(nlp, x)
         model = design_model(config.leg, design, config.scene, config.limits)
         rows = evaluate_over_landings(model, config.landings, config.statistic_of).rows
-        if any(r.objectives is None for r in rows) or np.min(out["external"]) < 0:
+        if any(r.objectives is None for r in rows) or np.min(np.array(out["external"])) < 0:
             continue  # a contact pulls: not the Newton answer the NLP keeps feasible
         for key in ("external_norm", "internal_norm", "energy_after"):
             ours = np.array(out[key]).ravel()
