@@ -29,7 +29,7 @@ outside checks check:
 - the wall time of the worker (the landing and the first impact; startup included).
 
 Run: python studies/whole_landing/random_landings.py --seeds 30000 30100 [--limit 60]
-     [--spatial 0.5] [--terrain 0.3] [--heightfield 0.3] [--out DIR]
+     [--spatial 0.5] [--terrain 0.3] [--heightfield 0.3] [--axis 0] [--inertia 0] [--offset 0] [--tensor 0] [--out DIR]
 Prints one line per seed and a Markdown summary; keeps every file and a ``results.jsonl`` in DIR.
 """
 
@@ -82,6 +82,12 @@ class Options:
     radius: float = 0.8  # spatial: a body has a radius (else 0)
     splay: float = 0.6  # spatial: a non-base body has a splayed rpy
     duration: tuple[float, float] = (0.02, 0.5)  # log-uniform
+    # Drawn from a second stream (:func:`_rigid_extras`), so a seed's file is the same as before
+    # these options existed wherever they are 0 (their default):
+    axis: float = 0.0  # spatial: a revolute joint turns about a random axis (else z)
+    inertia: float = 0.0  # a body has `gyration` or `inertia` (else a uniform rod's)
+    offset: float = 0.0  # a body's centre of mass is off its axis (`com_offset`)
+    tensor: float = 0.0  # spatial: a body has a full `inertia_tensor` (instead of the above)
 
 
 def _r(x: float) -> float:
@@ -138,10 +144,50 @@ def random_model(seed: int, options: Options = Options()) -> dict[str, Any]:
     if not any("contacts" in b for b in bodies):
         bodies[-1]["contacts"] = [1.0]
     scene = _scene(rng, spatial, options)
+    _rigid_extras(np.random.default_rng([seed, 1]), bodies, spatial, options)
     model: dict[str, Any] = {"bodies": bodies}
     if spatial:
         model = {"space": "spatial", **model}
     return {"scene": scene, "model": model, "notes": f"random_landings.py seed {seed}"}
+
+
+def _rigid_extras(rng: np.random.Generator, bodies: list[dict[str, Any]], spatial: bool, options: Options) -> None:
+    """Joint axes, inertias, centres of mass off the axis and full tensors (MODEL_FORMAT's
+    "Spatial models" and "Bodies"), each with its option's probability, added to ``bodies``."""
+    for b in bodies:
+        u = rng.random(5)
+        if spatial and "parent" in b and b.get("joint") != "fixed" and u[0] < options.axis:
+            b["axis"] = [_r(x) for x in _unit_vector(rng)]
+        length, mass = b["length"], b["mass"]
+        if spatial and u[1] < options.tensor:
+            b.pop("radius", None)
+            b["inertia_tensor"] = _inertia_tensor(rng, mass, length)
+        elif u[2] < options.inertia:
+            if u[3] < 0.5:
+                b["gyration"] = _r(rng.uniform(0.1, 0.6))
+            else:
+                b["inertia"] = _r(mass * length**2 * rng.uniform(0.005, 0.3))
+        if u[4] < options.offset:
+            dy = _r(length * rng.uniform(-0.3, 0.3))
+            b["com_offset"] = [dy, _r(length * rng.uniform(-0.3, 0.3)) if spatial else 0.0]
+
+
+def _unit_vector(rng: np.random.Generator) -> np.ndarray:
+    """A principal axis (half the time) or a random direction."""
+    if rng.random() < 0.5:
+        return np.eye(3)[int(rng.integers(0, 3))] * (1 if rng.random() < 0.5 else -1)
+    x = rng.standard_normal(3)
+    return x / np.linalg.norm(x)
+
+
+def _inertia_tensor(rng: np.random.Generator, mass: float, length: float) -> list[float]:
+    """[ixx, iyy, izz, ixy, ixz, iyz] of a random solid box about its centre of mass, turned at
+    random (a rigid body's: positive definite, each principal moment below the others' sum)."""
+    a, b, c = length * rng.uniform(0.05, 1.0, 3)
+    principal = np.diag(mass / 12 * np.array([b * b + c * c, a * a + c * c, a * a + b * b]))
+    q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    t = q @ principal @ q.T
+    return [_r(x) for x in (t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2])]
 
 
 def _contacts(rng: np.random.Generator) -> list[float]:
@@ -439,6 +485,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--spatial", type=float, default=Options.spatial, help="probability of a spatial model")
     p.add_argument("--terrain", type=float, default=Options.terrain, help="planar: probability of a terrain")
     p.add_argument("--heightfield", type=float, default=Options.heightfield, help="spatial: probability of a heightfield")
+    p.add_argument("--axis", type=float, default=Options.axis, help="spatial: probability of a random joint axis")
+    p.add_argument("--inertia", type=float, default=Options.inertia, help="probability of a gyration or inertia")
+    p.add_argument("--offset", type=float, default=Options.offset, help="probability of a com_offset")
+    p.add_argument("--tensor", type=float, default=Options.tensor, help="spatial: probability of an inertia_tensor")
     p.add_argument("--out", type=Path, default=Path("/tmp/random_landings"), help="folder for the files and results.jsonl")
     p.add_argument("--report", action="store_true", help="only print the summary of DIR's results.jsonl")
     args = p.parse_args(argv)
@@ -447,7 +497,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = [json.loads(ln) for ln in (args.out / "results.jsonl").read_text().splitlines() if ln.strip()]
         print(summary([Outcome(**{k: v for k, v in r.items() if k in fields}) for r in rows]))
         return 0
-    options = Options(spatial=args.spatial, terrain=args.terrain, heightfield=args.heightfield)
+    options = Options(spatial=args.spatial, terrain=args.terrain, heightfield=args.heightfield, axis=args.axis,
+                      inertia=args.inertia, offset=args.offset, tensor=args.tensor)
     args.out.mkdir(parents=True, exist_ok=True)
     outcomes = []
     with open(args.out / "results.jsonl", "a") as log:
