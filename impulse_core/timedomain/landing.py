@@ -1496,7 +1496,8 @@ class _Landing:
         #: The integrator between events (RK4, IMPLICIT or RADAU), one for every step length.
         self.method = settings.integrator
         #: the joint laws' fastest rate at touchdown (1/s, :func:`joint_law_rate`)
-        self.rate = joint_law_rate(self.mass_matrix_at(self.q0), self.joints.damping, self.joints.stiffness)
+        M0 = self.mass_matrix_at(self.q0)
+        self.rate = joint_law_rate(M0, self.joints.damping, self.joints.stiffness)
         if self.method == AUTO:
             h0, limit = ((settings.step, RK4_STABLE) if settings.step
                          else ((scene.duration or 0.0) * FIRST_STEPS[0], AUTO_IMPLICIT))
@@ -1561,7 +1562,7 @@ class _Landing:
         up = np.tile(np.eye(self.dims)[1], (self.nc, 1))
         #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
         self.flat_ground = (up, tangent_basis(up))
-        self.refuse_massless_contacts(tree)
+        self.refuse_massless_contacts(tree, M0)
 
     def first_step(self) -> float:
         """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
@@ -2799,15 +2800,15 @@ class _Landing:
         n = V[:, w <= self.massless]
         return n if n.shape[1] else None
 
-    def refuse_massless_contacts(self, tree: Tree) -> None:
+    def refuse_massless_contacts(self, tree: Tree, M0: np.ndarray) -> None:
         """Refuse (ModelError) a landing in which a massless direction of the mass matrix at
-        touchdown (:data:`MASSLESS`) moves a contact: a rod of radius 0 whose centre of mass is off
+        touchdown (``M0``, :data:`MASSLESS`) moves a contact: a rod of radius 0 whose centre of mass is off
         its axis (``com_offset``, no ``inertia_tensor``) turns about the axis through its centre of
         mass with nothing but the core's floor as inertia (1e-14 of its own), and that turn moves
         its contacts, so the landing would follow the floor, not the model: random file 60145
         chattered, its planar reading in space diverged. A rod of radius 0 spinning about its own
         axis moves no contact and is held still instead (:meth:`unspun`)."""
-        n = self.massless_directions(self.mass_matrix_at(self.q0))
+        n = self.massless_directions(M0)
         if n is None:
             return
         pt = self.point(self.q0, np.zeros(self.nv))
