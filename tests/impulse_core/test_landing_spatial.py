@@ -927,7 +927,9 @@ def test_a_rod_of_radius_0_does_not_spin_about_its_own_axis_and_its_landing_conv
         run.tape = []
     coarse, fine = (run.run(h) for run, h in zip(runs, (1e-3, 5e-4)))
     assert len(coarse.events) == len(fine.events) == 2
-    np.testing.assert_allclose(coarse.final_angles, fine.final_angles, atol=1e-3)
+    # rounding still moves the turn at T by up to ~2e-3 (the floor's spin before it is held: AVX-512
+    # and AVX2 kernels of OpenBLAS end 1.5e-3 and 1.8e-4 apart); before the hold, 2 pi
+    np.testing.assert_allclose(coarse.final_angles, fine.final_angles, atol=5e-3)
     assert any(entry[0] == "unspun" for entry in runs[1].tape)
     r = landing(tree, scene, (), LandingSettings(), SPATIAL)
     assert r.converged and r.error_estimate <= 1e-3 and not r.runs_apart

@@ -116,7 +116,7 @@ def test_a_puck_flies_off_the_ledge_and_bounces_in_the_valley():
     # the energy leaves at the events only (no resting force works on a frictionless puck)
     lost = sum(ev.energy_before - ev.energy_after for ev in r.events[1:])
     assert r.energy_final - r.gravity_work == pytest.approx(r.events[0].energy_after - lost, rel=1e-6)
-    assert min(p.min() for p in pulls) >= 0.0
+    assert min(p.min() for p in pulls) >= -1e-15  # no pull but rounding's (-1.5e-17 N s on AVX-512's kernels)
 
 
 def test_a_contact_sliding_off_a_breakpoint_is_not_pulled_down():
