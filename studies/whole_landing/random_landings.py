@@ -50,6 +50,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 REPO = Path(__file__).resolve().parents[2]
 #: The contract's bounds.
@@ -243,8 +244,6 @@ def ground_kind(data: dict[str, Any]) -> str:
 
 def write_model(data: dict[str, Any], path: Path) -> None:
     """The file as YAML."""
-    import yaml
-
     path.write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120))
 
 
@@ -424,6 +423,12 @@ def run_seed(seed: int, options: Options, out: Path, limit: float) -> Outcome:
     data = random_model(seed, options)
     path = out / f"{seed}.yaml"
     write_model(data, path)
+    return run_file(seed, data, path, out, limit)
+
+
+def run_file(seed: int, data: dict[str, Any], path: Path, out: Path, limit: float) -> Outcome:
+    """Land the model file ``path`` (its contents ``data``) in a worker within ``limit`` s and
+    check it (the worker's side file in ``out``)."""
     space = data["model"].get("space", "planar")
     friction = float(data["scene"]["friction"])
     first_model = "friction" if friction > 0 else "lcp"
@@ -491,6 +496,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tensor", type=float, default=Options.tensor, help="spatial: probability of an inertia_tensor")
     p.add_argument("--out", type=Path, default=Path("/tmp/random_landings"), help="folder for the files and results.jsonl")
     p.add_argument("--report", action="store_true", help="only print the summary of DIR's results.jsonl")
+    p.add_argument("--files", type=Path, nargs="+", help="check these model files (e.g. random_failures/) instead of seeds")
     args = p.parse_args(argv)
     if args.report:
         fields = set(Outcome.__dataclass_fields__)
@@ -502,8 +508,12 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     outcomes = []
     with open(args.out / "results.jsonl", "a") as log:
-        for seed in range(*args.seeds):
-            o = run_seed(seed, options, args.out, args.limit)
+        for job in args.files or range(*args.seeds):
+            if isinstance(job, Path):
+                seed = int(job.stem) if job.stem.isdigit() else -1
+                o = run_file(seed, yaml.safe_load(job.read_text()), job.resolve(), args.out, args.limit)
+            else:
+                o = run_seed(job, options, args.out, args.limit)
             outcomes.append(o)
             print(o.line(), flush=True)
             log.write(json.dumps({**o.__dict__, "verdict": o.verdict}) + "\n")

@@ -5,6 +5,7 @@ wrong first event, a wrong momentum balance and bad exits (doctored JSON and a d
 from __future__ import annotations
 
 import copy
+import json
 import importlib.util
 import sys
 from dataclasses import replace
@@ -113,3 +114,18 @@ def test_the_momentum_balance_is_derived_from_the_result_and_flags_a_doctored_on
     assert np.max(np.abs(result.total_tangential)) > 1e-3  # it slides: friction acts
     frictionless = rl.momentum_balance(*args, result=replace(result, total_tangential=0 * result.total_tangential))
     assert frictionless["balance"] > 1e-3
+
+
+def test_files_are_checked_as_seeds_are(tmp_path):
+    """``--files``: a model file already written (a kept failure) is landed and checked as a seed's
+    is, under its name's number."""
+    seed = 3
+    path = tmp_path / f"{seed}.yaml"
+    rl.write_model(rl.random_model(seed), path)
+    out = tmp_path / "out"
+    assert rl.main(["--files", str(path), "--out", str(out), "--limit", "120"]) == 0
+    by_file = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    (tmp_path / "seed").mkdir()
+    again = rl.run_seed(seed, rl.Options(), tmp_path / "seed", 120.0)
+    assert [r["seed"] for r in by_file] == [seed] and by_file[0]["verdict"] == again.verdict == "ok"
+    assert by_file[0]["events"] == again.events and by_file[0]["balance"] == pytest.approx(again.balance, rel=1e-12)
