@@ -455,6 +455,9 @@ class LandingResult:
     #: the step halving stopped because its runs' final angles did not approach each other while
     #: their impulses agreed (:func:`runs_apart`): ``error_estimate`` is the final angles'
     runs_apart: bool = False
+    #: the times at which events stalled with no Painleve jam to explain them and the run crossed
+    #: a span of them by Moreau-Jean steps (:meth:`_Landing.bridge`), with each span (s)
+    bridges: tuple[tuple[float, float], ...] = ()
 
     @property
     def peak_external_norm(self) -> float:
@@ -1060,6 +1063,11 @@ HOLD_FORCE = 0.05
 #: turned that friction cannot stop, the same one each time; 30891 again: an event every 1e-7
 #: s, 7e5 to its end).
 REPEAT_SPAN = 1e-9
+#: Events stalled without a Painleve jam: the run crosses BRIDGE x its step by BRIDGE_STEPS
+#: Moreau-Jean steps (:meth:`_Landing.bridge`), at most MAX_BRIDGES times a run.
+BRIDGE = 1.0 / 8.0
+BRIDGE_STEPS = 8
+MAX_BRIDGES = 64
 REPEATS = 50
 
 #: Contacts closer than this (m) are at one point (:meth:`_Landing.unify`).
@@ -1506,6 +1514,8 @@ class _Landing:
             raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, radau, auto")
         #: circular-cone solves of the current run that fell back to the polyhedral answer
         self.inexact = self.non_unique = 0
+        #: the current run's Moreau-Jean bridges across stalled events: (start, span) (:meth:`bridge`)
+        self.bridges: list[tuple[float, float]] = []
         #: the law's answer at the last impact (:meth:`impact`)
         self.last_impact: RigidImpact | None = None
         #: the contacts whose turned slip the last :meth:`arrest` left sliding (its mode with them
@@ -3102,6 +3112,7 @@ class _Landing:
         (:data:`MOMENTUM_BALANCE`; :func:`landing`'s finer runs)."""
         T = float(self.scene.duration)
         self.inexact = self.non_unique = 0
+        self.bridges = []
         self.min_bounce = MIN_BOUNCE * T
         self._jams = (math.nan, 0)
         self.refused = np.zeros(0, int)
@@ -3119,7 +3130,7 @@ class _Landing:
         reach = sum(b.length for b in self.tree.bodies)
         wound = self.joints.energy(self.q0)  # the springs at touchdown
         cap = 10.0 * (energy_before + wound + weight * (height0 + reach + 10.0 * T * self.scene.speed)) + 1e-6
-        t, stalled, repeated, again = 0.0, 0, 0, False
+        t, stalled, repeated, again, bridged = 0.0, 0, 0, False, 0
         self.record(totals, t, v, t, q, v)
         p0 = self.point(self.q0, totals.events[0].v_minus).momentum[:, 0]
         reference = max(float(np.max(np.abs(p0))), self.mass * self.scene.gravity * T)
@@ -3223,7 +3234,15 @@ class _Landing:
                 failure = NumericalError(self.stall_message(q_e, v_e, mode, t))
                 jammed = self.painleve(q_e, v_e, mode)
                 if not jammed.size:
-                    raise failure
+                    if bridged >= MAX_BRIDGES:
+                        raise failure
+                    q, v, mode, t = self.bridge(q_e, v_e, mode, t, totals, min(h * BRIDGE, T - t))
+                    bridged += 1
+                    stalled = repeated = 0
+                    again = False
+                    if progress is not None:
+                        progress(LandingProgress(index, h, t, T, len(totals.events)))
+                    continue
                 if self.jam_watch is None:
                     raise _Jams(failure)
                 # events stalled by Painleve's paradox: the impulsive jam, here
@@ -3248,7 +3267,7 @@ class _Landing:
         balance = float(np.max(np.abs(residual))) / reference
         out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
         self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
-        return replace(out, momentum_balance=balance, duration=end, spring_energy=wound)
+        return replace(out, momentum_balance=balance, duration=end, spring_energy=wound, bridges=tuple(self.bridges))
 
     def budget_message(self, events: list[LandingEvent], t: float) -> str:
         """Why a run passed its impact budget at ``t``: the contact (or stop) that took most of
@@ -3489,6 +3508,49 @@ class _Landing:
         self.add_impact(totals, event, q, v, v_plus)
         q1, v1 = self.arrest(q, v_plus, new, totals)
         return q1, v1, new
+
+    def bridge(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals, span: float
+               ) -> tuple[np.ndarray, np.ndarray, _Mode, float]:
+        """Events stalled where no Painleve jam explains it (a start of slip, or a stick-slip
+        cycle among nearly redundant contacts, that the modes do not resolve): the landing crosses
+        ``span`` by :data:`BRIDGE_STEPS` Moreau-Jean steps (:meth:`bridge_step`), whose impulses
+        are the contacts' (continuous: no events), then takes the modes at the end
+        (:meth:`modes_after`). First order in the step, as the step halving's estimate sees.
+        Returns (q, v, mode, t) after."""
+        if self.tape is not None:
+            self.tape.append(("bridge", q.copy(), v.copy(), mode.copy(), span))
+        dt, v_before, closed = span / BRIDGE_STEPS, v, mode.closed
+        for _ in range(BRIDGE_STEPS):
+            q1, v1, impulses, closed = self.bridge_step(q, v, mode, closed, dt)
+            self.add(totals, impulses, q, v)
+            self.tally_joints(totals, q, v, q1, v1, impulses, dt, True)
+            self.record(totals, t, v, t + dt, q1, v1)
+            q, v, t = q1, v1, t + dt
+            totals.steps += 1
+        after = self.flight()
+        after.closed[:] = closed
+        after.stop[:] = self.stops_touching(q, mode)
+        q, v, mode = self.modes_after(q, v, after, t, totals, v_before)
+        self.bridges.append((t - span, span))
+        return q, v, mode, t
+
+    def bridge_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, closed: np.ndarray, dt: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """One Moreau-Jean step (Moreau 1988, Jean 1999; Siconos's ``MoreauJeanOSI`` at theta =
+        1): the free velocity v + dt M^-1 f, then the rigid law with e = 0 and exact Coulomb
+        friction (:func:`rigid_impact`; every row sticking, so the law picks stick or slip) over
+        the contacts ``closed`` or whose gap the free velocity closes within the step, and the
+        stops reached (``mode``'s or within the step); then q + dt v+. Returns (q, v, the law's
+        impulses [normal, tangential] per contact, the contacts that took a normal impulse)."""
+        pt = self.point(q, v)
+        v_free = v + dt * np.linalg.solve(pt.M, pt.f)
+        reach = closed | (pt.gap + dt * np.minimum(pt.vn(v_free), 0.0) <= self.settings.gap_tolerance)
+        plain, corners = self.corner_split(mode, np.flatnonzero(reach))
+        rows = _rows(pt, plain, self.no_slip(), self.stops_touching(q + dt * v_free, mode), self.mu, self.nv,
+                     corners=corners)
+        law = rigid_impact(pt, v_free, rows, np.zeros(rows.n), self.mu, self.lemke)
+        self.inexact += not law.exact
+        return q + dt * law.v_plus, law.v_plus, _stacked(law.normal, law.tangential), law.normal > 0
 
     def jam_event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                   jammed: np.ndarray, failure: NumericalError) -> tuple[np.ndarray, np.ndarray, _Mode]:

@@ -1096,7 +1096,7 @@ def landing_gradient(
         ModelError: as :func:`landing`.
         NumericalError: as :func:`landing`; or redundant rows in some mode, or (space) an impact
             off the circular cone's exact law or a slip direction the replay does not reproduce
-            (not differentiable).
+            (not differentiable), or a Moreau-Jean bridge across stalled events (:meth:`_Landing.bridge`).
     """
     t0 = time.perf_counter()
     theta = design_theta(tree, laws, space)
@@ -1163,6 +1163,10 @@ def landing_gradient(
         if kind == "unspun":
             raise NumericalError("a rod of radius 0 spun about its own axis, a motion that moves no mass, whose "
                                  "velocity the landing holds at 0 (MODEL_FORMAT: radius): the replay does not follow")
+        if kind == "bridge":
+            raise NumericalError("events stalled where no mode held and the landing crossed them by Moreau-Jean "
+                                 "steps (a start of slip the modes do not resolve), which the derivatives' replay "
+                                 "does not follow")
         if kind == "crease_project":
             raise NumericalError("a projection carried a resting contact across a grid line of scene.heightfield "
                                  "(onto the next cell's rows), which the derivatives' replay does not follow")

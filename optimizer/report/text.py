@@ -179,6 +179,13 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
             f"{r.non_unique} impact{'s' if r.non_unique != 1 else ''} of the landing had redundant rows: the velocities "
             f"after are unique, the split of the impulse is not; {shown} is shown"
         )
+    if isinstance(r, LandingResult) and r.bridges:
+        at = ", ".join(f"{t:.6g} s" for t, _ in r.bridges)
+        out.append(
+            f"events stalled where no contact mode held (a start of slip the modes do not resolve) at t = {at}: the "
+            f"landing crossed {sum(span for _, span in r.bridges):.3g} s there by Moreau-Jean time steps (first order, "
+            "within the error estimate; no derivatives along this landing)"
+        )
     if isinstance(r, LandingResult) and r.inexact:
         out.append(
             f"{r.inexact} impacts or contact-mode choices of the landing did not meet the exact circular-cone friction "

@@ -728,24 +728,31 @@ def test_a_slow_slip_square_to_its_acceleration_stops_and_slides_again_from_rest
     assert not run.wrong_slip(run.point(q2, v2), v2, after, 0.0)[0].any()
 
 
-def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall():
+def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall(monkeypatch):
     """Random file 30891 (data/refused_30891.yaml: friction 1, three rods on flat ground): at
     0.0643 s contact 0 (b2[0]) slides at 2e-6 m/s and its slip turns past a right angle every
     1e-7 s. Arresting it needs the mode with it sticking, which would take 9.4e4 N of friction at
     it and at contact 2 (a nearly redundant pair; the arrest's projection was a squeeze of 67 N
     s): it is not arrested, slides on, and each event gives the mode back, 7e5 such events to
     the landing's end (no end in 400 s). More than REPEATS of them in a row are a stall whatever
-    their length, and the error names the contact (within 20000 steps and events)."""
+    their length: the run crosses it by a Moreau-Jean bridge (``_Landing.bridge``) and goes on;
+    with no bridge left (MAX_BRIDGES) the error names the contact (within 20000 steps and events)."""
+    import impulse_core.timedomain.landing as landing_module
     from impulse_core.errors import NumericalError
 
     model = _data_model("refused_30891.yaml")
-    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     calls = [0]
 
     def until(*_):
         calls[0] += 1
         return calls[0] > 20000
 
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    r = run.run(run.first_step(), until=lambda *a: until() or run.bridges)
+    assert run.bridges and 0.0642 < run.bridges[0][0] < 0.0643 and r.duration > run.bridges[0][0]
+    calls[0] = 0
+    monkeypatch.setattr(landing_module, "MAX_BRIDGES", 0)
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     message = r"chatters at t = 0\.0642.* slow slip of contacts b2\[0\] turns at each event"
     with pytest.raises(NumericalError, match=message):
         run.run(run.first_step(), until=until)
@@ -858,10 +865,14 @@ def test_events_that_give_back_the_mode_they_stopped_are_a_stall_naming_the_cont
     witness fires about 1e-10 s after every event, and the event gives the same mode back
     (random file 30891 did so at 4e-12 s, each event with two slip searches of 0.4 s, for hours:
     neither the 1e-12 s stall guard nor the event budget ended it within minutes). More than
-    REPEATS such events shorter than REPEAT_SPAN are a stall, and its error names the contacts
-    that slide against their own slip acceleration."""
+    REPEATS such events shorter than REPEAT_SPAN are a stall; with no Moreau-Jean bridge left to
+    cross it (MAX_BRIDGES 0 here: the patched mode choice would stall after each), its error names
+    the contacts that slide against their own slip acceleration."""
+    import impulse_core.timedomain.landing as landing_module
     from impulse_core.errors import NumericalError
     from impulse_core.timedomain.landing import REPEATS
+
+    monkeypatch.setattr(landing_module, "MAX_BRIDGES", 0)
 
     plank = Tree((Body("plank", None, 0.6, 3.0, 0.0, contacts=(0.0, 1.0), radius=0.02),))
     scene = Scene(speed=0.5, restitution=0.0, friction=0.4, gravity=G, duration=0.1)

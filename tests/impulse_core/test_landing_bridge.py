@@ -1,0 +1,150 @@
+"""The landing's Moreau-Jean bridge (``_Landing.bridge``): events that stall where no Painleve jam
+explains them are crossed by velocity-level time steps.
+
+- By hand: a uniform plank lying on flat ground on its two ends, sliding at V along x. Each
+  Moreau-Jean step of length dt takes the free velocity (V, -g dt, 0) to the rigid law with e = 0
+  and Coulomb friction mu: the normal impulse m g dt (half at each end, by the plank's symmetry)
+  stops the fall; the slip goes on where V > mu g dt, so the friction impulse is -mu m g dt and
+  the velocity after is (V - mu g dt, 0, 0) exactly; where V <= mu g dt the plank sticks: (0, 0, 0),
+  the friction impulse -m V. Over a span s of n steps: V - mu g s, the position x0 + dt sum of
+  the velocities after each step, and the totals' impulses m g s and -mu m g s. In space the
+  same plank read as spatial, sliding along z as well: the slip's direction is kept.
+- Random file 60337 (data/stall_60337.yaml, planar, friction 1: b5's two contacts 0.35 mm apart
+  and two others cycled between modes at one instant, 5.7e-15 s an event) ended with exit 1 ("the
+  landing chatters"); it now lands through a bridge, meeting the contract's checks.
+- The derivatives' replay does not follow a bridge: it says so.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import impulse_core.timedomain.landing_derivatives as derivatives
+from impulse_core.errors import NumericalError
+from impulse_core.evaluate import evaluate
+from impulse_core.impact.laws import ImpactModel
+from impulse_core.kinematics.spatial import PLANAR, SPATIAL
+from impulse_core.model.joints import FREE
+from impulse_core.model.tree import Body, Scene, Tree
+from impulse_core.timedomain.landing import BRIDGE_STEPS, LandingSettings, _Landing, _Mode, _Totals, landing
+from optimizer.config.model_file import load_model_file
+from optimizer.evaluation.model_choice import TimeDomainResult
+from optimizer.report.text import warnings
+
+G = 9.81
+MU = 0.4
+MASS = 2.0
+DATA = Path(__file__).parent / "data"
+
+
+def _plank(space) -> _Landing:
+    """A uniform 2 kg, 1 m plank lying along x on its two ends (flat ground)."""
+    extra = {} if space is PLANAR else {"radius": 0.01, "gyration": math.sqrt(1.0 / 12.0)}
+    plank = Body("plank", None, 1.0, MASS, 0.0, contacts=(0.0, 1.0), **extra)
+    scene = Scene(speed=1.0, restitution=0.5, friction=MU, gravity=G, duration=0.1)  # the bridge: e = 0
+    return _Landing(Tree((plank,)), scene, (FREE,), LandingSettings(), space)
+
+
+def _resting(run: _Landing, slip: np.ndarray) -> tuple[np.ndarray, np.ndarray, _Mode]:
+    """(q, v, mode) with the plank on the ground translating at ``slip`` (x; space: x, z)."""
+    q, v = run.q0.copy(), np.zeros(run.nv)
+    v[0] = slip[0]
+    if len(slip) > 1:
+        v[2] = slip[1]
+    mode = run.flight()
+    mode.closed[:] = True
+    return q, v, mode
+
+
+def _translation(run: _Landing, v: np.ndarray) -> np.ndarray:
+    """The plank's velocity along the ground (x; space: x, z)."""
+    return v[[0]] if run.planar else v[[0, 2]]
+
+
+@pytest.mark.parametrize("space", [PLANAR, SPATIAL], ids=["planar", "spatial"])
+@pytest.mark.parametrize("speed", [0.3, 1e-4], ids=["slides", "sticks"])
+def test_a_bridge_step_is_moreau_jeans_by_hand(space, speed):
+    run = _plank(space)
+    direction = np.array([1.0]) if space is PLANAR else np.array([0.6, 0.8])
+    q, v, mode = _resting(run, speed * direction)
+    dt = 1e-3
+    q1, v1, impulses, closed = run.bridge_step(q, v, mode, mode.closed, dt)
+    fn, ft = impulses[: run.nc], impulses[run.nc :].reshape(run.dims - 1, run.nc).T
+    assert closed.tolist() == [True, True]
+    assert fn == pytest.approx([MASS * G * dt / 2] * 2, rel=1e-12)
+    slides = speed > MU * G * dt
+    after = (speed - MU * G * dt) * direction if slides else np.zeros_like(direction)
+    assert _translation(run, v1) == pytest.approx(after, abs=1e-13)
+    rest = np.delete(v1, [0] if space is PLANAR else [0, 2])
+    assert np.max(np.abs(rest)) < 1e-13  # no fall, no turn
+    friction = -(MU * MASS * G * dt if slides else MASS * speed) * direction
+    assert ft.sum(axis=0) == pytest.approx(friction, rel=1e-10, abs=1e-15)
+    if slides:  # Coulomb at each end: on the cone's edge, against the slip
+        for k in range(2):
+            assert ft[k] == pytest.approx(-MU * fn[k] * direction, rel=1e-10)
+    assert q1 == pytest.approx(q + dt * v1, abs=1e-15)
+
+
+@pytest.mark.parametrize("space", [PLANAR, SPATIAL], ids=["planar", "spatial"])
+def test_a_bridge_crosses_its_span_and_counts_its_impulses(space):
+    run = _plank(space)
+    direction = np.array([1.0]) if space is PLANAR else np.array([0.6, 0.8])
+    speed, span = 0.5, 0.02
+    q, v, mode = _resting(run, speed * direction)
+    totals = _Totals(np.zeros(run.nc), np.zeros((run.nc, run.dims - 1)))
+    totals.impulse, totals.vectors = np.zeros(run.dims), np.zeros((run.dims, run.nc))
+    q1, v1, mode1, t1 = run.bridge(q, v, mode, 0.1, totals, span)
+    dt = span / BRIDGE_STEPS
+    assert t1 == pytest.approx(0.1 + span, rel=1e-15)
+    assert _translation(run, v1) == pytest.approx((speed - MU * G * span) * direction, rel=1e-12)
+    travelled = dt * sum(speed - MU * G * dt * k for k in range(1, BRIDGE_STEPS + 1))
+    assert _translation(run, q1 - q) == pytest.approx(travelled * direction, rel=1e-12)
+    assert totals.normal.sum() == pytest.approx(MASS * G * span, rel=1e-12)
+    assert totals.tangential.sum(axis=0) == pytest.approx(-MU * MASS * G * span * direction, rel=1e-10)
+    assert totals.impulse[1] == pytest.approx(MASS * G * span, rel=1e-12)  # the world sum (y: up)
+    assert totals.steps == BRIDGE_STEPS
+    assert run.bridges == [(pytest.approx(0.1), span)]
+    assert mode1.closed.tolist() == [True, True]  # the modes after: both ends resting, sliding along v
+    assert mode1.slip[0] == pytest.approx(direction, rel=1e-9)
+
+
+def test_a_stalled_random_landing_lands_through_a_bridge():
+    model = load_model_file(DATA / "stall_60337.yaml")
+    tree, scene, settings = model.tree, model.scene, LandingSettings()
+    r = landing(tree, scene, model.joints, settings)
+    assert r.bridges, "the file's events stall in its run at h/2 (5.7e-15 s an event)"
+    assert r.error_estimate is not None and r.error_estimate <= settings.tolerance
+    run = _Landing(tree, scene, model.joints, settings)
+    mass = sum(b.mass for b in tree.bodies)
+    p0 = run.point(run.q0, r.events[0].v_minus).momentum[:, 0]
+    p1 = run.point(r.q_final, r.v_final).momentum[:, 0]
+    impulse = np.array([r.total_tangential.sum(), r.total_external.sum() - mass * G * scene.duration])
+    reference = max(np.max(np.abs(p0)), mass * G * scene.duration)
+    assert np.max(np.abs(p1 - p0 - impulse)) / reference < 1e-5
+    assert r.momentum_balance == pytest.approx(np.max(np.abs(p1 - p0 - impulse)) / reference, rel=1e-6, abs=1e-13)
+    for e in r.events:  # the impacts' laws (pushing, inside the cone, no energy gained)
+        assert np.all(e.external >= 0)
+        assert np.all(np.abs(e.tangential) <= scene.friction * e.external * (1 + 1e-9) + 1e-12)
+        assert e.energy_after <= e.energy_before * (1 + 1e-9) + 1e-12
+    first = evaluate(tree, scene, ImpactModel.FRICTION)  # the contract's first event: the first-impact answer
+    assert np.max(np.abs(r.events[0].external - first.external)) <= 1e-9 * np.max(np.abs(first.external))
+    said = warnings(model, TimeDomainResult("landing", "", r, r.events[0].v_minus, settings))
+    assert any(w.startswith("events stalled") and f"t = {r.bridges[0][0]:.6g} s" in w for w in said)
+
+
+def test_the_derivatives_replay_refuses_a_bridge(monkeypatch):
+    run = _plank(PLANAR)
+    q, v, mode = _resting(run, np.array([0.5]))
+    real = derivatives.taped_run
+
+    def taped(*args, **kwargs):
+        result, tape, landed = real(*args, **kwargs)
+        return result, [("bridge", q, v, mode, 1e-3), *tape], landed
+
+    monkeypatch.setattr(derivatives, "taped_run", taped)
+    with pytest.raises(NumericalError, match="Moreau-Jean"):
+        derivatives.landing_gradient(run.tree, run.scene, (FREE,), LandingSettings(), step=0.01)
