@@ -511,29 +511,22 @@ def _lean_graph(
 
 
 def lean_impact_function(
-    topology: Topology,
-    space: Space = PLANAR,
-    algorithm: LeanAlgorithm = LeanAlgorithm.AUTO,
-    rods: bool = False,
-    commuted: bool = True,
+    topology: Topology, space: Space = PLANAR, algorithm: LeanAlgorithm = LeanAlgorithm.AUTO, rods: bool = False
 ) -> ca.Function:
     """The hot path of the optimiser and the benchmark: same inputs as :func:`impact_function`
     and the subset ``LEAN_OUTPUTS`` of its outputs (same names, same values to rounding), by the
     tree-structured algorithms of ``algorithm`` (:class:`LeanAlgorithm`), with common
     subexpression elimination. ``rods``: the variant for designs whose mass-property values are
-    all zero (:func:`_rods_folded`; ``impact_lean_rods``). ``commuted`` (default): rebuilt by
-    :func:`commuted_cse` (the same outputs bit for bit; spatial case 3 5699 -> 5252
-    instructions, planar case 3 1288 -> 1280); False: CasADi's CSE only (the reference)."""
+    all zero (:func:`_rods_folded`; ``impact_lean_rods``)."""
     nv = dof_layout(topology, space).nv
     p = ca.SX.sym("p", n_values(topology, space))
     v_minus = ca.SX.sym("v_minus", nv)
     e = ca.SX.sym("restitution")
     outs = _rods_folded(topology, space, p, _lean_graph(topology, space, p, v_minus, e, algorithm).outputs, rods)
-    f = ca.Function(
+    return ca.Function(
         "impact_lean_rods" if rods else "impact_lean", [p, v_minus, e], outs, list(IMPACT_INPUTS),
         list(LEAN_OUTPUTS), LEAN_OPTIONS,
     )
-    return commuted_cse(f) if commuted else f
 
 
 def _rods_folded(topology: Topology, space: Space, p: ca.SX, outs, rods: bool) -> list[ca.SX]:

@@ -22,10 +22,9 @@ from impulse_core.impact.delassus import (
     mass_matrix_function,
     norms_gradient_function,
 )
-from impulse_core.kinematics.spatial import PLANAR, SPATIAL, dof_layout, forward_kinematics, unpack_values
-from impulse_core.model.tree import SPATIAL_BODY_VALUES, design_vector
+from impulse_core.kinematics.spatial import dof_layout, forward_kinematics, unpack_values
+from impulse_core.model.tree import design_vector
 from tests.conftest import contact_independence, random_tree
-from tests.impulse_core.test_spatial import spatial_trees
 
 
 def _trees(seed: int, count: int, **options):
@@ -112,7 +111,7 @@ def test_commuted_cse_merges_commuted_operands_and_keeps_the_outputs_bit_for_bit
     rng = np.random.default_rng(5)
     for tree in _trees(9, 4):
         topology = tree.topology()
-        lean = lean_impact_function(topology, commuted=False)
+        lean = lean_impact_function(topology)
         rebuilt = commuted_cse(lean)
         assert rebuilt.n_instructions() <= lean.n_instructions() and rebuilt.name_out() == lean.name_out()
         assert commuted_cse(lean).serialize() == rebuilt.serialize()
@@ -121,32 +120,3 @@ def test_commuted_cse_merges_commuted_operands_and_keeps_the_outputs_bit_for_bit
             args = (p, approach_velocity(topology, 2.5) + rng.normal(size=dof_layout(topology).nv), 0.7)
             for a, b in zip(lean(*args), rebuilt(*args)):
                 assert np.array_equal(np.array(a), np.array(b))
-
-
-@pytest.mark.parametrize("space", ["planar", "spatial"])
-def test_the_lean_function_is_rebuilt_by_commuted_cse_with_the_same_bits(space: str) -> None:
-    """The default lean function is CasADi's (``commuted=False``) rebuilt by ``commuted_cse``: the
-    same outputs bit for bit on jittered designs of random planar trees (both algorithms) and of
-    spatial rod trees (general and rods variants), never more instructions, fewer in space."""
-    rng = np.random.default_rng(11)
-    if space == "planar":
-        algorithms = (LeanAlgorithm.COMPOSITE, LeanAlgorithm.ARTICULATED)
-        cases = [(t, PLANAR, a, False) for t in _trees(13, 3) for a in algorithms]
-    else:
-        cases = [(t, SPATIAL, LeanAlgorithm.AUTO, r) for t in spatial_trees()[:3] for r in (False, True)]
-    fewer = 0
-    for tree, sp, algorithm, rods in cases:
-        topology = tree.topology()
-        old = lean_impact_function(topology, sp, algorithm, rods=rods, commuted=False)
-        new = lean_impact_function(topology, sp, algorithm, rods=rods)
-        assert new.serialize() == commuted_cse(old).serialize() and new.name_out() == old.name_out()
-        assert new.n_instructions() <= old.n_instructions()
-        fewer += new.n_instructions() < old.n_instructions()
-        p0 = design_vector(tree, SPATIAL_BODY_VALUES) if sp is SPATIAL else design_vector(tree)
-        nv = dof_layout(topology, sp).nv
-        for _ in range(3):
-            p = p0 * (1 + 0.05 * rng.standard_normal(p0.size))
-            args = (p, approach_velocity(topology, 2.5, sp) + rng.normal(size=nv), 0.7)
-            for a, b in zip(old(*args), new(*args)):
-                assert np.array_equal(np.array(a), np.array(b))
-    assert space == "planar" or fewer == len(cases)
