@@ -587,15 +587,10 @@ def _adjoint_gradients(
     per norm over a graph without the factorizations. In space the sweep stops at the placed
     tree (:func:`placed_symbols`), which rigid displacements of subtrees take to the design
     (:func:`placement_gradient`), not reverse mode through the 3 x 3 rotation products: spatial
-    case 3's all-values gradient 18380 -> 15562 instructions; 14672 (2026-11-27) with the roll
-    turned about the frame's x column and the graphs the sweeps differentiate, then the whole
-    function, rebuilt by :func:`commuted_cse` (the lean evaluation 5699: 2.57 x). The plane's
-    rotations are the cos and sin of absolute angles, cheaper through reverse mode (case 3: 3346
-    against 3704; 3316 with the whole function rebuilt). A twist-level form of the sweep (the
-    spatial momenta's and contact wrenches' displacement derivatives, after Carpentier and
-    Mansard) was tried and costs more: 17573; so did, on 2026-11-27, only its a^T M dv term at
-    the twist level (the subtree momenta's wrenches, torques about each joint: 16010 against
-    15431) and a^T M dv as a^T (M dv) from dv's subtree momenta (16632 against 15562).
+    case 3's all-values gradient 18380 -> 15562 instructions. The plane's rotations are the cos
+    and sin of absolute angles, cheaper through reverse mode (case 3: 3346 against 3704).
+    A twist-level form of the sweep (the spatial momenta's and contact wrenches' displacement
+    derivatives, after Carpentier and Mansard) was tried and costs more: 17573.
     (Both brackets vanish at the solution: the first is the impulse balance, the second
     J v_plus + e J v_minus, the restitution law.)
     """
@@ -619,10 +614,6 @@ def _adjoint_gradients(
     a_M_dv = dyn.kinetic_bilinear(kin, g.values, twists_a, twists_dv)
     psi = lam_h.T @ _normal_velocities(topology, kin, *twists_a) - a_M_dv
     psi = psi - nu_h.T @ _normal_velocities(topology, kin, *velocities(u_h))
-    if space.joint_axis is None:  # in space, commuted pairs merged before the sweeps (not in the plane: 3316 -> 3502)
-        free = [*held, placed.symbols, p]
-        internal_norm, psi = (commuted_cse(ca.Function("objective", free, [x], LEAN_OPTIONS)).call(free)[0]
-                              for x in (internal_norm, psi))
     seeds = ca.substitute(ca.gradient(internal_norm, ca.vertcat(lam_h, dv_h)),
                           ca.vertcat(lam_h, dv_h, placed.symbols), ca.vertcat(lam, dv, placed.placed))
 
