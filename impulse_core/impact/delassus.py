@@ -257,47 +257,6 @@ LEAN_OUTPUTS = ("external", "delassus_pivots", "internal_magnitude", "external_n
 GRADIENT_OUTPUTS = LEAN_OUTPUTS[3:] + ("d_external_norm", "d_internal_norm")
 #: CasADi options of the hot-path functions: common subexpression elimination.
 LEAN_OPTIONS = {"cse": True}
-#: The two-operand SX operations, and those whose operands commute.
-_BINARY = frozenset((ca.OP_ADD, ca.OP_SUB, ca.OP_MUL, ca.OP_DIV))
-_COMMUTATIVE = frozenset((ca.OP_ADD, ca.OP_MUL))
-
-
-def commuted_cse(f: ca.Function) -> ca.Function:
-    """``f`` (an SX function) rebuilt from its instructions with the operands of every sum and
-    product in one order (the order their values are first formed in), so that a value reverse
-    mode formed as y x beside the forward pass's x y is computed once; then CasADi's common
-    subexpression elimination, which merges only operands in the same order. Same outputs bit
-    for bit (IEEE sums and products commute); the same function from the same ``f``."""
-    ins = [ca.SX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
-    outs: list[list[ca.SX]] = [[ca.SX(0)] * f.nnz_out(i) for i in range(f.n_out())]
-    work: dict[int, ca.SX] = {}
-    made: dict[tuple[int, ...], ca.SX] = {}
-    number: dict[int, int] = {}  # node -> when first formed; every node stays in ``work`` or ``made``
-    keep: list[ca.SX] = []  # ... or here, so that no node's hash is reused by a new one
-
-    def formed(x: ca.SX) -> ca.SX:
-        keep.append(x)
-        number.setdefault(x.element_hash(), len(number))
-        return x
-
-    for k in range(f.n_instructions()):
-        op, i, o = f.instruction_id(k), f.instruction_input(k), f.instruction_output(k)
-        if op == ca.OP_OUTPUT:
-            outs[o[0]][o[1]] = work[i[0]]
-        elif op == ca.OP_INPUT:
-            work[o[0]] = formed(ins[i[0]].nz[i[1]])
-        elif op == ca.OP_CONST:
-            work[o[0]] = formed(ca.SX(f.instruction_constant(k)))
-        else:
-            args = [work[j] for j in (i[:2] if op in _BINARY else i[:1])]
-            if op in _COMMUTATIVE:
-                args.sort(key=lambda a: number[a.element_hash()])
-            key = (op, *(a.element_hash() for a in args))
-            if key not in made:
-                made[key] = formed(ca.SX.binary(op, *args) if op in _BINARY else ca.SX.unary(op, args[0]))
-            work[o[0]] = made[key]
-    rebuilt = [ca.SX(f.sparsity_out(j), ca.vertcat(*nz) if nz else ca.SX(0, 1)) for j, nz in enumerate(outs)]
-    return ca.Function(f.name(), ins, rebuilt, f.name_in(), f.name_out(), LEAN_OPTIONS)
 
 
 @dataclass(frozen=True)
@@ -587,10 +546,15 @@ def _adjoint_gradients(
     per norm over a graph without the factorizations. In space the sweep stops at the placed
     tree (:func:`placed_symbols`), which rigid displacements of subtrees take to the design
     (:func:`placement_gradient`), not reverse mode through the 3 x 3 rotation products: spatial
-    case 3's all-values gradient 18380 -> 15562 instructions. The plane's rotations are the cos
-    and sin of absolute angles, cheaper through reverse mode (case 3: 3346 against 3704).
-    A twist-level form of the sweep (the spatial momenta's and contact wrenches' displacement
-    derivatives, after Carpentier and Mansard) was tried and costs more: 17573.
+    case 3's all-values gradient 18380 -> 15562 instructions; 15442 with the roll turned about
+    the frame's x column. The plane's rotations are the cos and sin of absolute angles, cheaper
+    through reverse mode (case 3: 3346 against 3704). A twist-level form of the sweep (the
+    spatial momenta's and contact wrenches' displacement derivatives, after Carpentier and
+    Mansard) was tried and costs more: 17573; so did only its a^T M dv term at the twist level
+    (16010 against 15431) and a^T M dv as a^T (M dv) (16632 against 15562). Tried and dropped
+    (2026-11-27, branch grad15): the graphs rebuilt with every sum's and product's operands in
+    one order before CSE (15442 -> 14672, outputs bit for bit): no time gained (paired, 0.95-1.02
+    on the SIMD and C loops), 0.25-0.3 s more to build each gradient.
     (Both brackets vanish at the solution: the first is the impulse balance, the second
     J v_plus + e J v_minus, the restitution law.)
     """
@@ -648,8 +612,7 @@ def norms_gradient_function(
 
     With ``adjoint`` (default) by the adjoint of the impact equations (:func:`_adjoint_gradients`:
     the factorizations are not differentiated); otherwise by CasADi's reverse-mode algorithmic
-    differentiation of the whole graph (the independent check of the first); the adjoint's
-    graph is rebuilt by :func:`commuted_cse` (same outputs bit for bit). ``rods``: the
+    differentiation of the whole graph (the independent check of the first). ``rods``: the
     variant for designs whose mass-property values are all zero (``norms_gradient_rods``,
     :func:`_rods_folded` after differentiating: every entry of the gradients kept). ``columns``:
     the gradients w.r.t. these entries of the design vector only (1 x len(columns) each, in
@@ -669,7 +632,7 @@ def norms_gradient_function(
         d_external, d_internal = (ca.gradient(x, p) for x in norms)
     if columns is not None:
         d_external, d_internal = d_external[list(columns)], d_internal[list(columns)]
-    f = ca.Function(
+    return ca.Function(
         "norms_gradient" + ("" if columns is None else "_columns") + ("_rods" if rods else ""),
         [p, v_minus, e],
         _rods_folded(topology, space, p, [*norms, d_external.T, d_internal.T], rods),
@@ -677,7 +640,6 @@ def norms_gradient_function(
         list(GRADIENT_OUTPUTS),
         LEAN_OPTIONS,
     )
-    return commuted_cse(f) if adjoint else f
 
 
 def _mul_l(f: dyn.LTDL, v: ca.SX) -> ca.SX:

@@ -1,8 +1,7 @@
 """The optimiser's hot path (``lean_impact_function``) computes what the full model computes,
 by either tree algorithm, on seeded random trees (fixed joints, several contacts per body, chains)
 and on extreme values; so do its adjoint gradients (``norms_gradient_function``) against
-CasADi's reverse mode of the same graph; the composite mass matrix equals the sum of J^T M J;
-``commuted_cse`` merges commuted sums and products and leaves every output the same bit for bit."""
+CasADi's reverse mode of the same graph; the composite mass matrix equals the sum of J^T M J."""
 
 from __future__ import annotations
 
@@ -16,7 +15,6 @@ from impulse_core.impact.delassus import (
     GRADIENT_OUTPUTS,
     LEAN_OUTPUTS,
     LeanAlgorithm,
-    commuted_cse,
     impact_function,
     lean_impact_function,
     mass_matrix_function,
@@ -96,27 +94,3 @@ def test_composite_mass_matrix_equals_jacobian_sum() -> None:
         crba = ca.Function("m", [p], [dyn.composite_mass_matrix(topology.parents, kin, layout, values)])
         ref = np.array(mass_matrix_function(topology)(design_vector(tree))[0])
         np.testing.assert_allclose(np.array(crba(design_vector(tree))), ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
-
-
-def test_commuted_cse_merges_commuted_operands_and_keeps_the_outputs_bit_for_bit() -> None:
-    """y x beside x y (CasADi's own pass keeps both) is formed once, a sum likewise; a difference
-    keeps its order; the lean functions of random trees give the same bits with fewer or as many
-    instructions, and the rebuilt function is the same function each time (the cache key)."""
-    x, y = ca.SX.sym("x"), ca.SX.sym("y")
-    f = ca.Function("f", [x, y], [ca.sin(x * y) + ca.cos(y * x), (x + y) * (y - x), (y + x) / (x - y)], {"cse": True})
-    g = commuted_cse(f)
-    assert g.n_instructions() == f.n_instructions() - 2
-    for args in ((0.3, -1.7), (2.5, 1e-3)):
-        assert [float(a) for a in f(*args)] == [float(b) for b in g(*args)]
-    rng = np.random.default_rng(5)
-    for tree in _trees(9, 4):
-        topology = tree.topology()
-        lean = lean_impact_function(topology)
-        rebuilt = commuted_cse(lean)
-        assert rebuilt.n_instructions() <= lean.n_instructions() and rebuilt.name_out() == lean.name_out()
-        assert commuted_cse(lean).serialize() == rebuilt.serialize()
-        for _ in range(3):
-            p = design_vector(tree) * (1 + 0.05 * rng.standard_normal(topology.n_values))
-            args = (p, approach_velocity(topology, 2.5) + rng.normal(size=dof_layout(topology).nv), 0.7)
-            for a, b in zip(lean(*args), rebuilt(*args)):
-                assert np.array_equal(np.array(a), np.array(b))
