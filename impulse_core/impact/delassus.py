@@ -546,10 +546,15 @@ def _adjoint_gradients(
     per norm over a graph without the factorizations. In space the sweep stops at the placed
     tree (:func:`placed_symbols`), which rigid displacements of subtrees take to the design
     (:func:`placement_gradient`), not reverse mode through the 3 x 3 rotation products: spatial
-    case 3's all-values gradient 18380 -> 15562 instructions. The plane's rotations are the cos
-    and sin of absolute angles, cheaper through reverse mode (case 3: 3346 against 3704).
-    A twist-level form of the sweep (the spatial momenta's and contact wrenches' displacement
-    derivatives, after Carpentier and Mansard) was tried and costs more: 17573.
+    case 3's all-values gradient 18380 -> 15562 instructions; 15442 with the roll turned about
+    the frame's x column. The plane's rotations are the cos and sin of absolute angles, cheaper
+    through reverse mode (case 3: 3346 against 3704). A twist-level form of the sweep (the
+    spatial momenta's and contact wrenches' displacement derivatives, after Carpentier and
+    Mansard) was tried and costs more: 17573; so did only its a^T M dv term at the twist level
+    (16010 against 15431) and a^T M dv as a^T (M dv) (16632 against 15562). Tried and dropped
+    (2026-11-27, branch grad15): the graphs rebuilt with every sum's and product's operands in
+    one order before CSE (15442 -> 14672, outputs bit for bit): no time gained (paired, 0.95-1.02
+    on the SIMD and C loops), 0.25-0.3 s more to build each gradient.
     (Both brackets vanish at the solution: the first is the impulse balance, the second
     J v_plus + e J v_minus, the restitution law.)
     """

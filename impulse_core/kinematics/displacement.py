@@ -168,9 +168,11 @@ def _turning_derivatives(topology: Topology, values: tuple[BodyValues, ...], kin
                          b: int, torque: ca.SX) -> list[tuple[ca.SX | float, ca.SX]]:
     """(value, derivative) for the values that turn body b's subtree about its joint origin O_b:
     ``angle`` about the joint axis a, ``rpy`` about the parent's frame turned as URDF's
-    Rz(yaw) Ry(pitch) Rx(roll), ``axis`` (normalised: only its direction counts), which turns
-    the body by R(k, angle)'s differential, while a itself turns with the axis alone. ``torque``:
-    the subtree's, about O_b; ``a_bar``: the adjoint of the axis turned alone."""
+    Rz(yaw) Ry(pitch) Rx(roll) (roll about R_parent Rz Ry e_x, the x column of the frame the
+    forward kinematics forms, since Rx e_x = e_x), ``axis`` (normalised: only its direction
+    counts), which turns the body by R(k, angle)'s differential, while a itself turns with the
+    axis alone. ``torque``: the subtree's, about O_b; ``a_bar``: the adjoint of the axis turned
+    alone."""
     v, parent = values[b], topology.parents[b]
     R_parent = kin.W_R_B[parent] if parent >= 0 else ca.DM.eye(3)
     frame = R_parent @ rpy_rotation(v.rpy)
@@ -180,7 +182,7 @@ def _turning_derivatives(topology: Topology, values: tuple[BodyValues, ...], kin
     R_yaw = axis_rotation((0.0, 0.0, 1.0), yaw)
     pairs = [
         (v.angle, a.T @ torque),
-        (roll, (R_parent @ R_yaw @ axis_rotation((0.0, 1.0, 0.0), pitch)[:, 0]).T @ torque),
+        (roll, frame[:, 0].T @ torque),
         (pitch, (R_parent @ R_yaw[:, 1]).T @ torque),
         (yaw, R_parent[:, 2].T @ torque),
     ]
