@@ -1573,7 +1573,6 @@ class _Landing:
         #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
         self.flat_ground = (up, tangent_basis(up))
         self.refuse_massless_contacts(tree, M0)
-        self.refuse_massless_springs(tree, M0)
 
     def first_step(self) -> float:
         """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
@@ -2832,30 +2831,6 @@ class _Landing:
             f"{field}: the whole landing needs inertia wherever a contact moves, but a rod of radius 0 with its "
             "centre of mass off its axis has none about the axis through that centre (only the core's floor, 1e-14 "
             "of its own) and that turn moves its contacts; give the rod a radius or an inertia_tensor")
-
-    def refuse_massless_springs(self, tree: Tree, M0: np.ndarray) -> None:
-        """Refuse (ModelError) a landing in which a joint spring or damper acts along a massless
-        direction of the mass matrix at touchdown (``M0``): a rod of radius 0 whose own axis is a
-        sprung joint's, or lies along the axes of a chain of such joints (random file 60443: b1
-        turning about its own axis, b2's parallel joint turning back). Nothing holds that motion
-        but the spring against the core's floor of inertia (the joint laws' rate 4.6e16 1/s), so
-        the landing diverged after 45 s; :meth:`unspun` holds only free spins still."""
-        n = self.massless_directions(M0)
-        if n is None:
-            return
-        moved = np.max(np.abs(n), axis=1) > MASSLESS_REACH
-        driven = moved & ((self.joints.stiffness > 0) | (self.joints.damping > 0))
-        if not _any(driven):
-            return
-        sprung = [self.joints.dof_body[j] for j in np.flatnonzero(driven)]
-        bodies = sorted({self.joints.dof_body[j] for j in np.flatnonzero(moved)})
-        bare = [b for b in bodies if tree.bodies[b].radius == 0.0 and not any(tree.bodies[b].tensor)]
-        names = ", ".join(tree.bodies[b].name for b in sprung)
-        field = f"model.bodies[{bare[0]}].radius" if bare else f"model.bodies[{sprung[0]}]"
-        raise ModelError(
-            f"{field}: the whole landing needs inertia wherever a joint spring or damper acts, but a rod of radius 0 "
-            f"turning about its own axis moves no mass and turns the sprung or damped joints of {names}; give the rod "
-            "a radius or an inertia_tensor")
 
     def placed(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Back onto the mode's constraints: closed gaps and stops, and open contacts below the

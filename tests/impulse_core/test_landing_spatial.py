@@ -979,25 +979,6 @@ def test_an_impact_that_gains_energy_is_newtons_and_coulombs_law():
     assert ev.energy_after - ev.energy_before == pytest.approx(work, rel=1e-9)
 
 
-def test_a_spring_along_a_massless_direction_is_refused_by_the_landing():
-    """Random file 60443: a rod of radius 0 (b1) turning about its own axis, its child's joint
-    parallel turning back, moves no mass, and the two joints' springs and dampers act along that
-    motion: the joint laws' rate was 4.6e16 1/s and the landing diverged after 45 s. The landing
-    refuses it at once, naming the rod's radius; here a rod of radius 0 on a joint about its own
-    axis: sprung or damped, refused; free (held still by ``unspun``) or with a radius, it goes on.
-    The first-impact models take it."""
-    base = Body("base", None, 0.3, 1.0, -0.5, contacts=(0.0,), radius=0.02)
-    spun = Body("spun", 0, 0.2, 0.3, 0.4, axis=(1.0, 0.0, 0.0), contacts=(1.0,))
-    scene = Scene(speed=1.0, restitution=0.3, friction=0.5, gravity=G, duration=0.05)
-    for law in (JointLaw(stiffness=5.0), JointLaw(damping=0.2)):
-        with pytest.raises(ModelError, match=r"^model\.bodies\[1\]\.radius: .*joints of spun; give the rod a radius"):
-            _Landing(Tree((base, spun)), scene, (FREE, law), LandingSettings(), SPATIAL)
-    _Landing(Tree((base, spun)), scene, (FREE, FREE), LandingSettings(), SPATIAL)
-    wide = Tree((base, replace(spun, radius=0.01)))
-    _Landing(wide, scene, (FREE, JointLaw(stiffness=5.0)), LandingSettings(), SPATIAL)
-    assert evaluate(Tree((base, spun)), scene, ImpactModel.FRICTION, SPATIAL).external_norm > 0
-
-
 def test_a_rod_of_radius_0_with_its_centre_of_mass_off_its_axis_is_refused_by_the_landing():
     """Random file 60145: a lone rod of radius 0 whose centre of mass is off its axis turns about
     the axis through that centre with only the core's floor as inertia, and the turn moves its
