@@ -1012,6 +1012,14 @@ def _largest(x: np.ndarray) -> np.floating:
     return np.maximum.reduce(x, axis=None)
 
 
+def _newton_verdict(size: float, last: float) -> int:
+    """Radau IIA's simplified Newton iterations after a correction of ``size`` (RADAU_TOL (1 + |y|)
+    units) following one of ``last``: 1 converged, -1 not contracting (NaN fails too), 0 go on."""
+    if size <= 1.0:
+        return 1
+    return 0 if size < last else -1
+
+
 def _rests(mode: _Mode) -> bool:
     """Some contact is closed or some joint rests on a stop (the mode has rows)."""
     return bool(_any(mode.closed) or _any(mode.stop))
@@ -1585,7 +1593,7 @@ class _Landing:
     def compiled_step(self, code: str):
         """The compiled step of this landing's integrator (:mod:`impulse_core.timedomain.landing_step`),
         or None where the numpy path integrates (``numpy``)."""
-        if code == NUMPY_CODE or self.method == RADAU:
+        if code == NUMPY_CODE:
             return None
         from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
 
@@ -1720,14 +1728,24 @@ class _Landing:
     def step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the landing's integrator: (q, v, contact impulses [normal, tangential])."""
         self.steer(q, v, mode, h)
-        end = None if self.fast is None or mode.has_corner else self.fast.step(q, v, h, mode)
-        if end is not None:
-            self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
-            self.vectors = end.vectors.copy() if self.turning else None
-            return end.q.copy(), end.v.copy(), end.impulse.copy()
         if self.method == RADAU:
             return self.radau_step(q, v, mode, h)
+        end = self.compiled(q, v, mode, h)
+        if end is not None:
+            return self.kept(end, mode)
         return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
+
+    def compiled(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float):
+        """The compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd`, or None
+        where the numpy path answers (no compiled step, a valley's corner, a redundant mode, a
+        non-finite result)."""
+        return None if self.fast is None or mode.has_corner else self.fast.step(q, v, h, mode)
+
+    def kept(self, end, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A compiled step's (q, v, contact impulses), its end kept for :meth:`ended`."""
+        self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
+        self.vectors = end.vectors.copy() if self.turning else None
+        return end.q.copy(), end.v.copy(), end.impulse.copy()
 
     def steer(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> None:
         """Set ``mode.core`` for a step of length h from (q, v) (space, sliding contacts). A
@@ -1823,10 +1841,31 @@ class _Landing:
         qb, vb, pb = self.radau_step(qa, va, mode, 0.5 * h, splits - 1)
         if self.turning:
             self.vectors = first + self.vectors
+        self._end = None  # the last piece's end is not the step's (its balance, its start)
         return qb, vb, pa + pb
 
     def radau_once(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One step of the two-stage Radau IIA method: the compiled step's RADAU_UNROLLED Newton
+        iterations (:func:`~impulse_core.timedomain.landing_step._radau`), taken where they
+        converged, NaN where they stopped contracting, gone on with from their Z in numpy where
+        neither (:meth:`radau_newton`, which also answers where the compiled step does not)."""
+        end = self.compiled(q, v, mode, h)
+        if end is None:
+            return self.radau_newton(q, v, mode, h)
+        verdict, last = 0, math.inf
+        for size in end.newton:
+            verdict, last = _newton_verdict(float(size), last), float(size)
+            if verdict:
+                break
+        if verdict > 0:
+            return self.kept(end, mode)
+        if verdict < 0:
+            return self.failed_step()
+        return self.radau_newton(q, v, mode, h, end.z.copy(), last, len(end.newton))
+
+    def radau_newton(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float, Z: np.ndarray | None = None,
+                     last: float = math.inf, done: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the two-stage Radau IIA method (:data:`RADAU_A`) on y' = (v, a(q, v)) in the
         fixed mode (a: the mode's accelerations, its rows' forces solved at each stage as the
         derivative does): stages Y_i = y + Z_i with Z = h A F(Y), the end Y_2. Simplified Newton
@@ -1836,7 +1875,8 @@ class _Landing:
         ROS2 it is stiffly accurate: at h x rate >> 1 a damped joint's motion keeps third order in
         the slow part (ROS2's error there is what splits its steps by the momentum balance). The
         contact impulses are h sum_i b_i (the stage's row forces). Non-converged iterations
-        return NaN (:meth:`radau_step` splits the step)."""
+        return NaN (:meth:`radau_step` splits the step). In numpy (the reference), from ``Z`` (2 x
+        2 n_v; None: 0) after ``done`` iterations whose last correction's size was ``last``."""
         nv = self.nv
         pt = self.point(q, v)
         C = np.linalg.inv(pt.M)
@@ -1853,29 +1893,31 @@ class _Landing:
         E = np.eye(2 * n) - h * np.kron(RADAU_A, J)
         y0 = np.concatenate([q, v])
         scale = RADAU_TOL * (1.0 + np.abs(y0))
-        Z = np.zeros((2, n))
-        last = math.inf
-        for _ in range(RADAU_ITERATIONS):
+        Z = np.zeros((2, n)) if Z is None else Z
+        for _ in range(RADAU_ITERATIONS - done):
             stages = [self.derivative(y0[:nv] + Z[i, :nv], y0[nv:] + Z[i, nv:], mode) for i in range(2)]
             Fs = np.array([np.concatenate([y0[nv:] + Z[i, nv:], stages[i][0]]) for i in range(2)])
             dZ = np.linalg.solve(E, (h * (RADAU_A @ Fs) - Z).ravel()).reshape(2, n)
             Z += dZ
             size = float(np.max(np.abs(dZ) / scale))
-            if size <= 1.0:
+            verdict, last = _newton_verdict(size, last), size
+            if verdict > 0:
                 break
-            if not size < last:  # not contracting
-                nan = np.full(nv, np.nan)
-                return nan, nan, np.full_like(stages[0][1], np.nan)
-            last = size
+            if verdict < 0:
+                return self.failed_step()
         else:
-            nan = np.full(nv, np.nan)
-            return nan, nan, np.full_like(stages[0][1], np.nan)
+            return self.failed_step()
         if self.turning:
             self.vectors = h * sum(RADAU_B[i] * self.stage_vectors(y0[:nv] + Z[i, :nv] - dZ[i, :nv],
                                                                    y0[nv:] + Z[i, nv:] - dZ[i, nv:], stages[i][1])
                                    for i in range(2))
         y1 = y0 + Z[1]
         return y1[:nv], y1[nv:], h * (RADAU_B[0] * stages[0][1] + RADAU_B[1] * stages[1][1])
+
+    def failed_step(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A Radau IIA step whose Newton iterations did not converge: (q, v, contact impulses) NaN."""
+        nan = np.full(self.nv, np.nan)
+        return nan, nan.copy(), np.full(self.dims * self.nc, np.nan)
 
     @property
     def balance_order(self) -> int:
