@@ -1735,11 +1735,11 @@ class _Landing:
             return self.kept(end, mode)
         return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
 
-    def compiled(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float):
-        """The compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd`, or None
-        where the numpy path answers (no compiled step, a valley's corner, a redundant mode, a
-        non-finite result)."""
-        return None if self.fast is None or mode.has_corner else self.fast.step(q, v, h, mode)
+    def compiled(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float, z0: np.ndarray | None = None):
+        """The compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` (Radau IIA:
+        from the stages' ``z0``), or None where the numpy path answers (no compiled step, a
+        valley's corner, a redundant mode, a non-finite result)."""
+        return None if self.fast is None or mode.has_corner else self.fast.step(q, v, h, mode, z0)
 
     def kept(self, end, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A compiled step's (q, v, contact impulses), its end kept for :meth:`ended`."""
@@ -1846,26 +1846,24 @@ class _Landing:
 
     def radau_once(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One step of the two-stage Radau IIA method: the compiled step's RADAU_UNROLLED Newton
-        iterations (:func:`~impulse_core.timedomain.landing_step._radau`), taken where they
-        converged, NaN where they stopped contracting, gone on with from their Z in numpy where
-        neither (:meth:`radau_newton`, which also answers where the compiled step does not)."""
-        end = self.compiled(q, v, mode, h)
-        if end is None:
-            return self.radau_newton(q, v, mode, h)
-        verdict, last = 0, math.inf
-        for size in end.newton:
-            verdict, last = _newton_verdict(float(size), last), float(size)
-            if verdict:
-                break
-        if verdict > 0:
-            return self.kept(end, mode)
-        if verdict < 0:
-            return self.failed_step()
-        return self.radau_newton(q, v, mode, h, end.z.copy(), last, len(end.newton))
+        """One step of the two-stage Radau IIA method: the compiled step's Newton iterations
+        (:func:`~impulse_core.timedomain.landing_step._radau`, RADAU_UNROLLED a call, each call
+        from the last one's Z) to their convergence, NaN where they stop contracting or do not
+        converge within RADAU_ITERATIONS; :meth:`radau_newton` where the compiled step does not answer."""
+        Z, last, done = None, math.inf, 0
+        while done < RADAU_ITERATIONS:
+            end = self.compiled(q, v, mode, h, Z)
+            if end is None:
+                return self.radau_newton(q, v, mode, h)
+            for size in end.newton:
+                verdict, last = _newton_verdict(float(size), last), float(size)
+                if verdict:
+                    return self.kept(end, mode) if verdict > 0 else self.failed_step()
+            Z, done = end.z, done + len(end.newton)
+        return self.failed_step()
 
-    def radau_newton(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float, Z: np.ndarray | None = None,
-                     last: float = math.inf, done: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def radau_newton(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the two-stage Radau IIA method (:data:`RADAU_A`) on y' = (v, a(q, v)) in the
         fixed mode (a: the mode's accelerations, its rows' forces solved at each stage as the
         derivative does): stages Y_i = y + Z_i with Z = h A F(Y), the end Y_2. Simplified Newton
@@ -1875,8 +1873,8 @@ class _Landing:
         ROS2 it is stiffly accurate: at h x rate >> 1 a damped joint's motion keeps third order in
         the slow part (ROS2's error there is what splits its steps by the momentum balance). The
         contact impulses are h sum_i b_i (the stage's row forces). Non-converged iterations
-        return NaN (:meth:`radau_step` splits the step). In numpy (the reference), from ``Z`` (2 x
-        2 n_v; None: 0) after ``done`` iterations whose last correction's size was ``last``."""
+        return NaN (:meth:`radau_step` splits the step). In numpy: the reference, and the step
+        where the compiled one does not answer (:meth:`radau_once`)."""
         nv = self.nv
         pt = self.point(q, v)
         C = np.linalg.inv(pt.M)
@@ -1893,8 +1891,8 @@ class _Landing:
         E = np.eye(2 * n) - h * np.kron(RADAU_A, J)
         y0 = np.concatenate([q, v])
         scale = RADAU_TOL * (1.0 + np.abs(y0))
-        Z = np.zeros((2, n)) if Z is None else Z
-        for _ in range(RADAU_ITERATIONS - done):
+        Z, last = np.zeros((2, n)), math.inf
+        for _ in range(RADAU_ITERATIONS):
             stages = [self.derivative(y0[:nv] + Z[i, :nv], y0[nv:] + Z[i, nv:], mode) for i in range(2)]
             Fs = np.array([np.concatenate([y0[nv:] + Z[i, nv:], stages[i][0]]) for i in range(2)])
             dZ = np.linalg.solve(E, (h * (RADAU_A @ Fs) - Z).ravel()).reshape(2, n)

@@ -82,12 +82,14 @@ STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floo
                "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
                 "stop_force", "normal", "kinetic", "balance", "vectors")
-#: The Radau IIA step's further outputs (:func:`_radau`): its Newton corrections' sizes, its stages' Z.
-RADAU_OUTPUTS = ("newton", "z")
-#: Simplified Newton iterations unrolled in the compiled Radau IIA step (:func:`_radau`): random files
-#: 33096, 33053 and 32700 converge in 3 to 4, 4 to 6 and 6 to 12 (RADAU_TOL); a step not converged by
-#: then goes on from its Z in numpy (:meth:`landing._Landing.radau_newton`).
-RADAU_UNROLLED = 5
+#: The Radau IIA step's further input and outputs (:func:`_radau`): its stages' Z before and after
+#: its Newton iterations, and their corrections' sizes.
+RADAU_INPUTS, RADAU_OUTPUTS = ("z0",), ("newton", "z")
+#: Simplified Newton iterations unrolled in the compiled Radau IIA step (:func:`_radau`), a divisor of
+#: landing.RADAU_ITERATIONS: random files 33096, 33053 and 32700 converge in 3 to 4, 4 to 6 and 6 to 12
+#: (RADAU_TOL); a step not converged by then goes on from its Z in another call
+#: (:meth:`landing._Landing.radau_once`).
+RADAU_UNROLLED = 4
 #: CasADi options of the step and projection. Not common subexpression elimination: it makes
 #: spatial case 3's step 11 % shorter (216861 -> 192431 instructions, ~15 % faster on the virtual
 #: machine) but its graph's build 3.0 s instead of 0.2 s, more than a short landing takes.
@@ -244,31 +246,26 @@ def _ros2(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tu
     return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3), vectors
 
 
-def _radau(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict
-           ) -> tuple[ca.SX, ...]:
-    """RADAU_UNROLLED simplified Newton iterations of the two-stage Radau IIA step from Z = 0
-    (:meth:`landing._Landing.radau_newton`, whose docstring derives it): (q1, v1, impulses, their
-    vectors by stage as :func:`_rk4`'s, each iteration's correction size max |dZ| / (RADAU_TOL (1 +
-    |y|)), the stages' Z as rows [Z_1; Z_2] of (q, v)). The Newton matrix I - h A x J, J = [[0, I],
-    [-C K, -C D]] (C the mode's constrained inverse mass at the start), is eliminated over the
-    stages' q parts: (I + h A x C D + h^2 A^2 x C K) dv = r_v - h (A x C K) r_q, dq = r_q + h (A x I) dv,
-    its matrix factored once; the first iteration's stages are the start's."""
-    nv, nc, ns = q.shape[0], start["Jn"].shape[0], len(stop_dofs)
-    G, F, b, u = _masked_rows(start, x, stop_dofs)
-    solve = _masked_solver(start["M"], G, F, x.active)
-    a0, lam0 = solve(start["f"], -b)
-    C = solve(ca.SX.eye(nv), ca.SX.zeros(G.shape[0], nv))[0]
+def _radau(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict,
+           z0: ca.SX) -> tuple[ca.SX, ...]:
+    """RADAU_UNROLLED simplified Newton iterations of the two-stage Radau IIA step from its stages'
+    ``z0`` = [Z_1; Z_2] (each Z_i over (q, v); :meth:`landing._Landing.radau_newton`, whose
+    docstring derives it): (q1, v1, impulses, their vectors by stage as :func:`_rk4`'s, each
+    iteration's correction size max |dZ| / (RADAU_TOL (1 + |y|)), the stages' Z after them). The
+    Newton matrix I - h A x J, J = [[0, I], [-C K, -C D]] (C the mode's constrained inverse mass at
+    the start), is eliminated over the stages' q parts: (I + h A x C D + h^2 A^2 x C K) dv = r_v -
+    h (A x C K) r_q, dq = r_q + h (A x I) dv, its matrix factored once."""
+    nv = q.shape[0]
+    G, F, _, _ = _masked_rows(start, x, stop_dofs)
+    C = _masked_solver(start["M"], G, F, x.active)(ca.SX.eye(nv), ca.SX.zeros(G.shape[0], nv))[0]
     CK, CD = C @ ca.diag(x.stiffness), C @ ca.diag(x.damping)
     A, A2 = RADAU_A, RADAU_A @ RADAU_A
     newton = _factor(ca.vertcat(*[ca.horzcat(*[float(i == k) * ca.SX.eye(nv) + h * A[i, k] * CD + h * h * A2[i, k] * CK
                                                for k in range(2)]) for i in range(2)]))
-    y0 = ca.vertcat(q, v)
-    scale = RADAU_TOL * (1.0 + ca.fabs(y0))
-    first = (v, a0, _stacked(*_row_forces(lam0, u, x, nc, ns)[:2]), start)
-    Z, sizes = [ca.SX.zeros(2 * nv), ca.SX.zeros(2 * nv)], []
-    for k in range(RADAU_UNROLLED):
-        stages = [first] * 2 if k == 0 else [(v + z[nv:], *_derivative(fn, q + z[:nv], v + z[nv:], x, stop_dofs))
-                                             for z in Z]
+    scale = RADAU_TOL * (1.0 + ca.fabs(ca.vertcat(q, v)))
+    Z, sizes = [z0[: 2 * nv], z0[2 * nv :]], []
+    for _ in range(RADAU_UNROLLED):
+        stages = [(v + z[nv:], *_derivative(fn, q + z[:nv], v + z[nv:], x, stop_dofs)) for z in Z]
         r = [h * (A[i, 0] * ca.vertcat(stages[0][0], stages[0][1]) + A[i, 1] * ca.vertcat(stages[1][0], stages[1][1]))
              - Z[i] for i in range(2)]
         rhs = [r[i][nv:] - h * CK @ (A[i, 0] * r[0][:nv] + A[i, 1] * r[1][:nv]) for i in range(2)]
@@ -280,7 +277,7 @@ def _radau(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: t
     impulse = h * (RADAU_B[0] * stages[0][2] + RADAU_B[1] * stages[1][2])
     vectors = h * (RADAU_B[0] * _force_vectors(stages[0][3], stages[0][2])
                    + RADAU_B[1] * _force_vectors(stages[1][3], stages[1][2]))
-    return q + Z[1][:nv], v + Z[1][nv:], impulse, vectors, ca.vertcat(*sizes), ca.horzcat(*Z).T
+    return q + Z[1][:nv], v + Z[1][nv:], impulse, vectors, ca.vertcat(*sizes), ca.vertcat(*Z)
 
 
 def _force_vectors(pt: dict, forces: ca.SX) -> ca.SX:
@@ -323,8 +320,9 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
         ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity"),
     )
     integrate, name = _INTEGRATORS[method]
+    extra = [ca.SX.sym("z0", 4 * nv)] if method == RADAU else []
     start = _point(fn, q, v, x)
-    q1, v1, impulse, vectors, *newton = integrate(fn, q, v, h, x, stop_dofs, start)  # Radau IIA: RADAU_OUTPUTS
+    q1, v1, impulse, vectors, *newton = integrate(fn, q, v, h, x, stop_dofs, start, *extra)  # Radau: RADAU_OUTPUTS
     end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
     if not isinstance(terrain, Heightfield) or terrain.is_flat:  # normals that turn only at events
@@ -335,9 +333,9 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
             end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1, end["normal"], end["kinetic"],
             end["momentum"] - start["momentum"] - applied, vectors, *newton]
     inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
-              x.gravity]
-    names = STEP_OUTPUTS + (RADAU_OUTPUTS if newton else ())
-    return ca.Function(name, inputs, outs, list(STEP_INPUTS), list(names), OPTIONS)
+              x.gravity, *extra]
+    names = STEP_INPUTS + (RADAU_INPUTS if extra else ()), STEP_OUTPUTS + (RADAU_OUTPUTS if extra else ())
+    return ca.Function(name, inputs, outs, list(names[0]), list(names[1]), OPTIONS)
 
 
 def _masked_correction(M: ca.SX, G: ca.SX, active: ca.SX, residual: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -573,7 +571,10 @@ class CompiledStep(BufferedFunction):
         self.mu, self.nv = mu, len(joints.stiffness)
         self._numbers: dict[bytes, tuple | None] = {}  # see numbers()
 
-    def step(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode) -> StepEnd | None:
+    def step(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode, z0: np.ndarray | None = None
+             ) -> StepEnd | None:
+        """The step from (q, v) in ``mode`` (Radau IIA: its iterations from the stages' ``z0``, 2 x
+        2 n_v; None: 0), or None where the numpy path answers."""
         numbers = self.numbers(mode)
         if numbers is None:
             return None
@@ -581,6 +582,8 @@ class CompiledStep(BufferedFunction):
         a[0][:], a[1][:], a[2][0] = q, v, h
         a[3][:], a[5][:], a[4][:] = numbers
         a[6][:] = mode.core
+        if len(a) > len(STEP_INPUTS):
+            a[len(STEP_INPUTS)][:] = 0.0 if z0 is None else z0.ravel()
         self.modes.evaluator(_rows_key(numbers))()
         block = self.block.copy()  # every output at once, as views of one copy
         o = [block[s] for s in self.slices]
@@ -593,7 +596,7 @@ class CompiledStep(BufferedFunction):
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9].reshape(shape, order="F"), o[10],
                        o[11].reshape(shape, order="F"), stop_force, o[13].reshape(self.out[13].shape, order="F").T,
                        float(o[14][0]), o[15], o[16].reshape(self.out[16].shape, order="F"),
-                       *(o[17], o[18].reshape(self.out[18].shape, order="F")) if len(o) > 17 else ())
+                       *(o[17], o[18].reshape(2, -1)) if len(o) > 17 else ())
 
     def set_design(self, p: np.ndarray) -> None:
         """Evaluate with the design vector ``p`` from now on (space: a re-centred base's rotation

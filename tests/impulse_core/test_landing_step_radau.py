@@ -1,7 +1,7 @@
 """The landing's compiled Radau IIA step (impulse_core.timedomain.landing_step, ``method="radau"``:
-RADAU_UNROLLED simplified Newton iterations in one CasADi function) equals the numpy step
-(landing._Landing.radau_newton) in every kind of mode, plane and space; a step its iterations do
-not finish goes on from its Z in numpy; a split step keeps no compiled end; and a stiff landing
+RADAU_UNROLLED simplified Newton iterations in one CasADi function, called again from its Z until
+they converge) equals the numpy step (landing._Landing.radau_newton) in every kind of mode, plane
+and space; a split step keeps no compiled end; and a stiff landing
 runs alike on the compiled and the numpy step (``studies/whole_landing/stiff_speed.md``, branch
 ``radauc``)."""
 
@@ -42,42 +42,41 @@ def _unrolled(end) -> int:
 
 
 def _compare(fast: _Landing, ref: _Landing, q, v, mode, h: float, tol: float) -> int | None:
-    """The compiled step against numpy's from (q, v) in ``mode``: its first RADAU_UNROLLED
-    iterations' Z against numpy's after as many, the landing's step (compiled, or gone on in
-    numpy) against numpy's whole step, its end's figures where the compiled step answered; the
-    compiled verdict, or None where the mode is numpy's (redundant)."""
+    """The landing's step on the compiled code (its calls chained) against numpy's from (q, v) in
+    ``mode``: NaN alike, else the state to ``tol``, the impulses to 10 ``tol`` (a call's
+    iterations go on past numpy's converged one: 7e-12 seen), its end's witnesses and balance;
+    its first call's verdict (1 converged, 0 gone on in another call, -1 not contracting), or None
+    where the mode is numpy's (redundant)."""
     end = fast.compiled(q, v, mode, h)
     if end is None:
         return None
-    verdict = _unrolled(end)
     a = mode.copy()
     q1, v1, impulse = fast.step(q, v, a, h)
     rq, rv, rimpulse = ref.step(q, v, mode.copy(), h)
-    assert np.isfinite(rq).all() == (verdict >= 0)
-    if verdict < 0:
-        assert not np.isfinite(q1).any()
-        return verdict
-    assert _rel(q1, rq) <= tol and _rel(v1, rv) <= tol and _rel(impulse, rimpulse) <= tol
-    assert (fast.ended(q1, v1, a) is not None) == (verdict > 0)  # gone on in numpy: no compiled end
-    if verdict > 0:
-        if fast.dims == 3:
-            _compare_ends(fast, ref, q, v, q1, v1, a, tol)
-        p0 = ref.point(q, v).momentum[:, 0]
-        scale = max(np.max(np.abs(p0)), np.max(np.abs(end.momentum1)), np.max(np.abs(impulse)))
-        assert np.max(np.abs(end.balance - ref.momentum_change(p0, q1, v1, impulse))) <= tol * scale
-        w, r = fast.witness_and_rate(q1, v1, a)
-        rw, rr = ref.witness_and_rate(q1, v1, a)
-        finite = np.isfinite(rw)
-        assert np.array_equal(finite, np.isfinite(w)) and _rel(w[finite], rw[finite]) <= tol
-    return verdict
+    assert np.isfinite(q1).all() == np.isfinite(rq).all()
+    if not np.isfinite(rq).all():
+        return -1
+    assert _rel(q1, rq) <= tol and _rel(v1, rv) <= tol and _rel(impulse, rimpulse) <= 10.0 * tol
+    last = fast.ended(q1, v1, a)
+    assert last is not None
+    if fast.dims == 3:
+        _compare_ends(fast, ref, q, v, q1, v1, a, tol)
+    p0 = ref.point(q, v).momentum[:, 0]
+    scale = max(np.max(np.abs(p0)), np.max(np.abs(last.momentum1)), np.max(np.abs(impulse)))
+    assert np.max(np.abs(last.balance - ref.momentum_change(p0, q1, v1, impulse))) <= 10.0 * tol * scale
+    w, r = fast.witness_and_rate(q1, v1, a)
+    rw, rr = ref.witness_and_rate(q1, v1, a)
+    finite = np.isfinite(rw)
+    assert np.array_equal(finite, np.isfinite(w)) and _rel(w[finite], rw[finite]) <= tol
+    return _unrolled(end)
 
 
 def test_the_compiled_radau_step_equals_the_numpy_step():
     """Random (q, v) near touchdown in random modes (flight, closed sticking or sliding either way,
     on either stop) at steps up to 2 ms, on a random leg and the light tip (a 2 cm, 20 g damped
     rod: h x rate up to 2e3): the compiled step's state, impulses, end's witnesses and momentum
-    balance equal numpy's to 1e-12, where its iterations converged and where they went on in
-    numpy; a redundant mode is numpy's."""
+    balance equal numpy's to 1e-12 (impulses 1e-11), where its first call's iterations converged
+    and where they went on in another; a redundant mode is numpy's."""
     verdicts, kinds = [], set()
     for leg, (tree, laws, scene) in enumerate((list(_legs())[4], _light_tip_leg())):
         fast, ref = _pair(tree, laws, scene)
@@ -120,7 +119,8 @@ def test_the_compiled_spatial_radau_step_equals_the_numpy_step():
 def test_the_compiled_iterations_converge_on_a_stiff_resting_step():
     """33096's rod resting 2 ms after touchdown, steps of 2 to 512 / rate: the compiled Newton
     iterations contract (the matrix's stages right: each correction above the tolerance over 10 x
-    smaller than the last) and converge within RADAU_UNROLLED up to 128 / rate, their end numpy's to 1e-12."""
+    smaller than the last), converge within one call at 2 / rate, and the step's end is numpy's to
+    1e-12 (impulses 1e-11: the call's iterations go on past numpy's converged one)."""
     _, ref = _run(RK4, VM_CODE)
     q, v, mode = _resting_state(ref, 2e-3)
     _, fast = _run(RADAU, VM_CODE)
@@ -130,10 +130,10 @@ def test_the_compiled_iterations_converge_on_a_stiff_resting_step():
         end = fast.compiled(q, v, mode, h)
         above = end.newton[:-1] > 1.0
         assert np.all(end.newton[1:][above] < 0.1 * end.newton[:-1][above])
-        assert _unrolled(end) == (1 if ratio <= 128.0 else 0)
+        assert _unrolled(end) == (1 if ratio <= 2.0 else 0)
         rq, rv, rimpulse = numpy.radau_newton(q, v, mode, h)
         q1, v1, impulse = fast.radau_once(q, v, mode, h)
-        assert _rel(q1, rq) <= 1e-12 and _rel(v1, rv) <= 1e-12 and _rel(impulse, rimpulse) <= 1e-12
+        assert _rel(q1, rq) <= 1e-12 and _rel(v1, rv) <= 1e-12 and _rel(impulse, rimpulse) <= 1e-11
 
 
 def test_a_split_compiled_step_keeps_no_compiled_end(monkeypatch):
