@@ -88,8 +88,9 @@ RADAU_INPUTS, RADAU_OUTPUTS = ("z0",), ("newton", "z")
 #: Simplified Newton iterations unrolled in the compiled Radau IIA step (:func:`_radau`), a divisor of
 #: landing.RADAU_ITERATIONS: random files 33096, 33053 and 32700 converge in 3 to 4, 4 to 6 and 6 to 12
 #: (RADAU_TOL); a step not converged by then goes on from its Z in another call
-#: (:meth:`landing._Landing.radau_once`).
-RADAU_UNROLLED = 4
+#: (:meth:`landing._Landing.radau_once`). 33053's first 30 ms took 1.57 s at 6, 1.91 s at 4 (33491's
+#: 3.4 s at either).
+RADAU_UNROLLED = 6
 #: CasADi options of the step and projection. Not common subexpression elimination: it makes
 #: spatial case 3's step 11 % shorter (216861 -> 192431 instructions, ~15 % faster on the virtual
 #: machine) but its graph's build 3.0 s instead of 0.2 s, more than a short landing takes.
