@@ -219,10 +219,13 @@ RK4_PACE, RK4_PACE_AFTER = 2.0, 4.0
 #: step times the joint laws' rate exceeds this, the landing goes on with Radau IIA from that
 #: first step (``radau``, :meth:`_Landing.radau_step`) rather than RK4 from its stable step: a
 #: stiffly accurate method whose steps the momentum balance splits only in the transients after
-#: impacts, where ROS2's it splits throughout. Its steps cost ~10 x RK4's (numpy, Newton), so it
-#: pays only where RK4's stable step is far shorter: random files 33096 (h x rate 632), 33053
-#: (297) and 32015 (625) landed 4.5 x, 3.8 x and 6.2 x faster so, 32700 (44.7) 1.4 x slower
-#: (``studies/whole_landing/stiff_speed.md``, 2026-11-27).
+#: impacts, where ROS2's it splits throughout. Random files 33096 (h x rate 632), 33053 (297) and
+#: 32015 (625) landed 4.5 x, 3.8 x and 6.2 x faster so on numpy's step, 32700 (44.7) 1.4 x slower
+#: (``studies/whole_landing/stiff_speed.md``, 2026-11-27). Its compiled step (one or two calls of
+#: 6 Newton iterations, ``landing_step._radau``) made them 3.5 x, 1.8 x and 1.6 x faster again, but
+#: below 100 the files disagree: 32507 (76) lands 6.8 x faster than on RK4 within its estimate,
+#: 33491 (66) 2.3 x faster but 1.9e-3 from RK4's answer (beyond both estimates), 60113 (88) does
+#: not converge (estimate 0.25 after 51,225 steps), 32700 (44.7) is 1.6 x slower: it stays 100.
 AUTO_RADAU = 100.0
 #: Space: beyond this |phi| (rad) the base's rotation coordinates are re-centred on its current
 #: orientation (:meth:`_Landing.rechart`), far inside the chart's good region (singular at
@@ -287,11 +290,11 @@ class LandingSettings:
             stable step unless that is over 16 x shorter than duration / 200
             (:data:`AUTO_IMPLICIT`; with a given step, unless that step is beyond RK4's
             stability, :data:`RK4_STABLE`), then implicit; ``radau``: the two-stage Radau IIA
-            method (order 3, stiffly accurate, Newton iterations in numpy whatever ``step_code``:
-            :meth:`_Landing.radau_step`), which ``auto`` takes where its implicit run gave way on a
+            method (order 3, stiffly accurate, simplified Newton iterations, compiled as the
+            others' steps are: :meth:`_Landing.radau_step`), which ``auto`` takes where its implicit run gave way on a
             stiff landing (:data:`AUTO_RADAU`). One landing keeps one integrator at every step
             length, so that the step-halving estimate compares like with like.
-        step_code: the steps of either integrator (plane and space) by one CasADi function of
+        step_code: the steps of any integrator (plane and space) by one CasADi function of
             the mode (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
             and a missing compiler falls back to ``vm`` with a warning; the events' dynamics at a

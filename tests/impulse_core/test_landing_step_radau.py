@@ -120,8 +120,8 @@ def test_the_compiled_iterations_converge_on_a_stiff_resting_step():
     """33096's rod resting 2 ms after touchdown, steps of 2 to 512 / rate: the compiled Newton
     iterations contract (the matrix's stages right: each correction above the tolerance over 10 x
     smaller than the last), converge within one call up to 128 / rate, and get to 3.9 tolerances
-    at 512 (with A in place of A^2 in the matrix's spring term: 103), and the step's end is numpy's to 1e-12 (impulses 1e-11: the call's iterations go on past
-    numpy's converged one)."""
+    at 512 (with A in place of A^2 in the matrix's spring term: 103), and the step's end is
+    numpy's to 1e-12 (impulses 1e-11: the call's iterations go on past numpy's converged one)."""
     _, ref = _run(RK4, VM_CODE)
     q, v, mode = _resting_state(ref, 2e-3)
     _, fast = _run(RADAU, VM_CODE)
