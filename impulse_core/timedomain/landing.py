@@ -224,7 +224,7 @@ RK4_PACE, RK4_PACE_AFTER = 2.0, 4.0
 #: (``studies/whole_landing/stiff_speed.md``, 2026-11-27). Its compiled step (one or two calls of
 #: 6 Newton iterations, ``landing_step._radau``) made them 3.5 x, 1.8 x and 1.6 x faster again, but
 #: below 100 the files disagree: 32507 (76) lands 6.8 x faster than on RK4 within its estimate,
-#: 33491 (66) 2.3 x faster but 1.9e-3 from RK4's answer (beyond both estimates), 60113 (88) 1.5 x
+#: 33491 (66) 2.3 x faster but 1.9e-3 from RK4's answer (beyond both estimates), 60113 (88) 1.3 x
 #: faster but unconverged (estimate 0.25, RK4's 6.7e-4), 32700 (44.7) 1.6 x slower: it stays 100.
 AUTO_RADAU = 100.0
 #: Space: beyond this |phi| (rad) the base's rotation coordinates are re-centred on its current
