@@ -219,10 +219,13 @@ RK4_PACE, RK4_PACE_AFTER = 2.0, 4.0
 #: step times the joint laws' rate exceeds this, the landing goes on with Radau IIA from that
 #: first step (``radau``, :meth:`_Landing.radau_step`) rather than RK4 from its stable step: a
 #: stiffly accurate method whose steps the momentum balance splits only in the transients after
-#: impacts, where ROS2's it splits throughout. Its steps cost ~10 x RK4's (numpy, Newton), so it
-#: pays only where RK4's stable step is far shorter: random files 33096 (h x rate 632), 33053
-#: (297) and 32015 (625) landed 4.5 x, 3.8 x and 6.2 x faster so, 32700 (44.7) 1.4 x slower
-#: (``studies/whole_landing/stiff_speed.md``, 2026-11-27).
+#: impacts, where ROS2's it splits throughout. Random files 33096 (h x rate 632), 33053 (297) and
+#: 32015 (625) landed 4.5 x, 3.8 x and 6.2 x faster so on numpy's step, 32700 (44.7) 1.4 x slower
+#: (``studies/whole_landing/stiff_speed.md``, 2026-11-27). Its compiled step (one or two calls of
+#: 6 Newton iterations, ``landing_step._radau``) made them 3.5 x, 1.8 x and 1.6 x faster again, but
+#: below 100 the files disagree: 32507 (76) lands 6.8 x faster than on RK4 within its estimate,
+#: 33491 (66) 2.3 x faster but 1.9e-3 from RK4's answer (beyond both estimates), 60113 (88) 1.3 x
+#: faster but unconverged (estimate 0.25, RK4's 6.7e-4), 32700 (44.7) 1.6 x slower: it stays 100.
 AUTO_RADAU = 100.0
 #: Space: beyond this |phi| (rad) the base's rotation coordinates are re-centred on its current
 #: orientation (:meth:`_Landing.rechart`), far inside the chart's good region (singular at
@@ -287,11 +290,11 @@ class LandingSettings:
             stable step unless that is over 16 x shorter than duration / 200
             (:data:`AUTO_IMPLICIT`; with a given step, unless that step is beyond RK4's
             stability, :data:`RK4_STABLE`), then implicit; ``radau``: the two-stage Radau IIA
-            method (order 3, stiffly accurate, Newton iterations in numpy whatever ``step_code``:
-            :meth:`_Landing.radau_step`), which ``auto`` takes where its implicit run gave way on a
+            method (order 3, stiffly accurate, simplified Newton iterations, compiled as the
+            others' steps are: :meth:`_Landing.radau_step`), which ``auto`` takes where its implicit run gave way on a
             stiff landing (:data:`AUTO_RADAU`). One landing keeps one integrator at every step
             length, so that the step-halving estimate compares like with like.
-        step_code: the steps of either integrator (plane and space) by one CasADi function of
+        step_code: the steps of any integrator (plane and space) by one CasADi function of
             the mode (:mod:`impulse_core.timedomain.landing_step`): ``c`` compiled to C through the
             compile cache (~20 x the virtual machine's speed; a first build takes tens of seconds,
             and a missing compiler falls back to ``vm`` with a warning; the events' dynamics at a
@@ -1015,6 +1018,14 @@ def _largest(x: np.ndarray) -> np.floating:
     return np.maximum.reduce(x, axis=None)
 
 
+def _newton_verdict(size: float, last: float) -> int:
+    """Radau IIA's simplified Newton iterations after a correction of ``size`` (RADAU_TOL (1 + |y|)
+    units) following one of ``last``: 1 converged, -1 not contracting (NaN fails too), 0 go on."""
+    if size <= 1.0:
+        return 1
+    return 0 if size < last else -1
+
+
 def _rests(mode: _Mode) -> bool:
     """Some contact is closed or some joint rests on a stop (the mode has rows)."""
     return bool(_any(mode.closed) or _any(mode.stop))
@@ -1595,7 +1606,7 @@ class _Landing:
     def compiled_step(self, code: str):
         """The compiled step of this landing's integrator (:mod:`impulse_core.timedomain.landing_step`),
         or None where the numpy path integrates (``numpy``)."""
-        if code == NUMPY_CODE or self.method == RADAU:
+        if code == NUMPY_CODE:
             return None
         from impulse_core.timedomain.landing_step import CompiledStep  # it builds on this module
 
@@ -1730,14 +1741,24 @@ class _Landing:
     def step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the landing's integrator: (q, v, contact impulses [normal, tangential])."""
         self.steer(q, v, mode, h)
-        end = None if self.fast is None or mode.has_corner else self.fast.step(q, v, h, mode)
-        if end is not None:
-            self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
-            self.vectors = end.vectors.copy() if self.turning else None
-            return end.q.copy(), end.v.copy(), end.impulse.copy()
         if self.method == RADAU:
             return self.radau_step(q, v, mode, h)
+        end = self.compiled(q, v, mode, h)
+        if end is not None:
+            return self.kept(end, mode)
         return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
+
+    def compiled(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float, z0: np.ndarray | None = None):
+        """The compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` (Radau IIA:
+        from the stages' ``z0``), or None where the numpy path answers (no compiled step, a
+        valley's corner, a redundant mode, a non-finite result)."""
+        return None if self.fast is None or mode.has_corner else self.fast.step(q, v, h, mode, z0)
+
+    def kept(self, end, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A compiled step's (q, v, contact impulses), its end kept for :meth:`ended`."""
+        self._end = (end.q.tobytes() + end.v.tobytes(), _mode_bytes(mode), end)
+        self.vectors = end.vectors.copy() if self.turning else None
+        return end.q.copy(), end.v.copy(), end.impulse.copy()
 
     def steer(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float) -> None:
         """Set ``mode.core`` for a step of length h from (q, v) (space, sliding contacts). A
@@ -1833,10 +1854,29 @@ class _Landing:
         qb, vb, pb = self.radau_step(qa, va, mode, 0.5 * h, splits - 1)
         if self.turning:
             self.vectors = first + self.vectors
+        self._end = None  # the last piece's end is not the step's (its balance, its start)
         return qb, vb, pa + pb
 
     def radau_once(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One step of the two-stage Radau IIA method: the compiled step's Newton iterations
+        (:func:`~impulse_core.timedomain.landing_step._radau`, RADAU_UNROLLED a call, each call
+        from the last one's Z) to their convergence, NaN where they stop contracting or do not
+        converge within RADAU_ITERATIONS; :meth:`radau_newton` where the compiled step does not answer."""
+        Z, last, done = None, math.inf, 0
+        while done < RADAU_ITERATIONS:
+            end = self.compiled(q, v, mode, h, Z)
+            if end is None:
+                return self.radau_newton(q, v, mode, h)
+            for size in end.newton:
+                verdict, last = _newton_verdict(float(size), last), float(size)
+                if verdict:
+                    return self.kept(end, mode) if verdict > 0 else self.failed_step()
+            Z, done = end.z, done + len(end.newton)
+        return self.failed_step()
+
+    def radau_newton(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One step of the two-stage Radau IIA method (:data:`RADAU_A`) on y' = (v, a(q, v)) in the
         fixed mode (a: the mode's accelerations, its rows' forces solved at each stage as the
         derivative does): stages Y_i = y + Z_i with Z = h A F(Y), the end Y_2. Simplified Newton
@@ -1846,7 +1886,8 @@ class _Landing:
         ROS2 it is stiffly accurate: at h x rate >> 1 a damped joint's motion keeps third order in
         the slow part (ROS2's error there is what splits its steps by the momentum balance). The
         contact impulses are h sum_i b_i (the stage's row forces). Non-converged iterations
-        return NaN (:meth:`radau_step` splits the step)."""
+        return NaN (:meth:`radau_step` splits the step). In numpy: the reference, and the step
+        where the compiled one does not answer (:meth:`radau_once`)."""
         nv = self.nv
         pt = self.point(q, v)
         C = np.linalg.inv(pt.M)
@@ -1863,29 +1904,31 @@ class _Landing:
         E = np.eye(2 * n) - h * np.kron(RADAU_A, J)
         y0 = np.concatenate([q, v])
         scale = RADAU_TOL * (1.0 + np.abs(y0))
-        Z = np.zeros((2, n))
-        last = math.inf
+        Z, last = np.zeros((2, n)), math.inf
         for _ in range(RADAU_ITERATIONS):
             stages = [self.derivative(y0[:nv] + Z[i, :nv], y0[nv:] + Z[i, nv:], mode) for i in range(2)]
             Fs = np.array([np.concatenate([y0[nv:] + Z[i, nv:], stages[i][0]]) for i in range(2)])
             dZ = np.linalg.solve(E, (h * (RADAU_A @ Fs) - Z).ravel()).reshape(2, n)
             Z += dZ
             size = float(np.max(np.abs(dZ) / scale))
-            if size <= 1.0:
+            verdict, last = _newton_verdict(size, last), size
+            if verdict > 0:
                 break
-            if not size < last:  # not contracting
-                nan = np.full(nv, np.nan)
-                return nan, nan, np.full_like(stages[0][1], np.nan)
-            last = size
+            if verdict < 0:
+                return self.failed_step()
         else:
-            nan = np.full(nv, np.nan)
-            return nan, nan, np.full_like(stages[0][1], np.nan)
+            return self.failed_step()
         if self.turning:
             self.vectors = h * sum(RADAU_B[i] * self.stage_vectors(y0[:nv] + Z[i, :nv] - dZ[i, :nv],
                                                                    y0[nv:] + Z[i, nv:] - dZ[i, nv:], stages[i][1])
                                    for i in range(2))
         y1 = y0 + Z[1]
         return y1[:nv], y1[nv:], h * (RADAU_B[0] * stages[0][1] + RADAU_B[1] * stages[1][1])
+
+    def failed_step(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A Radau IIA step whose Newton iterations did not converge: (q, v, contact impulses) NaN."""
+        nan = np.full(self.nv, np.nan)
+        return nan, nan.copy(), np.full(self.dims * self.nc, np.nan)
 
     @property
     def balance_order(self) -> int:

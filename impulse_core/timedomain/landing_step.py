@@ -1,5 +1,5 @@
-"""The landing's integrator steps (Runge-Kutta 4 and ROS2) and projection as compiled CasADi
-functions (plane and space).
+"""The landing's integrator steps (Runge-Kutta 4, ROS2 and Radau IIA) and projection as compiled
+CasADi functions (plane and space).
 
 :meth:`impulse_core.timedomain.landing._Landing.rk4_step` (and ``implicit_step``, ROS2) builds
 each stage's rows and solves them in numpy, which costs ~10 x the dynamics call. Here one SX graph
@@ -56,6 +56,10 @@ from impulse_core.timedomain.landing import (
     AUTO_CODE,
     C_CODE,
     IMPLICIT,
+    RADAU,
+    RADAU_A,
+    RADAU_B,
+    RADAU_TOL,
     RK4,
     ROS2_GAMMA,
     VM_CODE,
@@ -78,6 +82,15 @@ STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floo
                "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
                 "stop_force", "normal", "kinetic", "balance", "vectors")
+#: The Radau IIA step's further input and outputs (:func:`_radau`): its stages' Z before and after
+#: its Newton iterations, and their corrections' sizes.
+RADAU_INPUTS, RADAU_OUTPUTS = ("z0",), ("newton", "z")
+#: Simplified Newton iterations unrolled in the compiled Radau IIA step (:func:`_radau`), a divisor of
+#: landing.RADAU_ITERATIONS: random files 33096, 33053 and 32700 converge in 3 to 4, 4 to 6 and 6 to 12
+#: (RADAU_TOL); a step not converged by then goes on from its Z in another call
+#: (:meth:`landing._Landing.radau_once`). 33053's first 30 ms took 1.57 s at 6, 1.91 s at 4 (33491's
+#: 3.4 s at either).
+RADAU_UNROLLED = 6
 #: CasADi options of the step and projection. Not common subexpression elimination: it makes
 #: spatial case 3's step 11 % shorter (216861 -> 192431 instructions, ~15 % faster on the virtual
 #: machine) but its graph's build 3.0 s instead of 0.2 s, more than a short landing takes.
@@ -234,6 +247,40 @@ def _ros2(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tu
     return q + 0.5 * h * (3.0 * k1q + k2q), v + 0.5 * h * (3.0 * k1v + k2v), 0.5 * h * (f1 + f2 + f3), vectors
 
 
+def _radau(fn: ca.Function, q: ca.SX, v: ca.SX, h: ca.SX, x: _Args, stop_dofs: tuple[int, ...], start: dict,
+           z0: ca.SX) -> tuple[ca.SX, ...]:
+    """RADAU_UNROLLED simplified Newton iterations of the two-stage Radau IIA step from its stages'
+    ``z0`` = [Z_1; Z_2] (each Z_i over (q, v); :meth:`landing._Landing.radau_newton`, whose
+    docstring derives it): (q1, v1, impulses, their vectors by stage as :func:`_rk4`'s, each
+    iteration's correction size max |dZ| / (RADAU_TOL (1 + |y|)), the stages' Z after them). The
+    Newton matrix I - h A x J, J = [[0, I], [-C K, -C D]] (C the mode's constrained inverse mass at
+    the start), is eliminated over the stages' q parts: (I + h A x C D + h^2 A^2 x C K) dv = r_v -
+    h (A x C K) r_q, dq = r_q + h (A x I) dv, its matrix factored once."""
+    nv = q.shape[0]
+    G, F, _, _ = _masked_rows(start, x, stop_dofs)
+    C = _masked_solver(start["M"], G, F, x.active)(ca.SX.eye(nv), ca.SX.zeros(G.shape[0], nv))[0]
+    CK, CD = C @ ca.diag(x.stiffness), C @ ca.diag(x.damping)
+    A, A2 = RADAU_A, RADAU_A @ RADAU_A
+    newton = _factor(ca.vertcat(*[ca.horzcat(*[float(i == k) * ca.SX.eye(nv) + h * A[i, k] * CD + h * h * A2[i, k] * CK
+                                               for k in range(2)]) for i in range(2)]))
+    scale = RADAU_TOL * (1.0 + ca.fabs(ca.vertcat(q, v)))
+    Z, sizes = [z0[: 2 * nv], z0[2 * nv :]], []
+    for _ in range(RADAU_UNROLLED):
+        stages = [(v + z[nv:], *_derivative(fn, q + z[:nv], v + z[nv:], x, stop_dofs)) for z in Z]
+        r = [h * (A[i, 0] * ca.vertcat(stages[0][0], stages[0][1]) + A[i, 1] * ca.vertcat(stages[1][0], stages[1][1]))
+             - Z[i] for i in range(2)]
+        rhs = [r[i][nv:] - h * CK @ (A[i, 0] * r[0][:nv] + A[i, 1] * r[1][:nv]) for i in range(2)]
+        dv = _substitute(newton, ca.vertcat(*rhs))
+        dv = [dv[:nv], dv[nv:]]
+        dZ = [ca.vertcat(r[i][:nv] + h * (A[i, 0] * dv[0] + A[i, 1] * dv[1]), dv[i]) for i in range(2)]
+        Z = [Z[i] + dZ[i] for i in range(2)]
+        sizes.append(ca.mmax(ca.vertcat(*[ca.fabs(d) / scale for d in dZ])))
+    impulse = h * (RADAU_B[0] * stages[0][2] + RADAU_B[1] * stages[1][2])
+    vectors = h * (RADAU_B[0] * _force_vectors(stages[0][3], stages[0][2])
+                   + RADAU_B[1] * _force_vectors(stages[1][3], stages[1][2]))
+    return q + Z[1][:nv], v + Z[1][nv:], impulse, vectors, ca.vertcat(*sizes), ca.vertcat(*Z)
+
+
 def _force_vectors(pt: dict, forces: ca.SX) -> ca.SX:
     """Each contact's vector (d x n_c, world frame) of ``forces`` ([normal; each tangent's] per
     contact) along the point's normals and tangents (:func:`landing.contact_vectors`)."""
@@ -250,18 +297,20 @@ def _impulse_vector(pt: dict, impulse: ca.SX) -> ca.SX:
     return sum(d @ impulse[k * nc : (k + 1) * nc] for k, d in enumerate(directions))
 
 
-#: Each integrator's step (:data:`landing.RK4`, :data:`landing.IMPLICIT`) and its function's name.
-_INTEGRATORS = {RK4: (_rk4, "landing_step"), IMPLICIT: (_ros2, "landing_implicit_step")}
+#: Each integrator's step (:data:`landing.RK4`, :data:`landing.IMPLICIT`, :data:`landing.RADAU`) and its
+#: function's name.
+_INTEGRATORS = {RK4: (_rk4, "landing_step"), IMPLICIT: (_ros2, "landing_implicit_step"),
+                RADAU: (_radau, "landing_radau_step")}
 
 
 @functools.lru_cache(maxsize=16)
 def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: tuple[int, ...],
                           space: Space = PLANAR, method: str = RK4) -> ca.Function:
-    """One step of the landing's integrator ``method`` (classical RK4, or ROS2: ``implicit``) in
-    a mode given as numbers (module docstring), and its end point's figures
-    (:data:`STEP_OUTPUTS`); ``stop_dofs``: the DOFs with stops; ``space``: the plane,
-    PLANAR_OFFSET (centres of mass off the rods: the design vector's layout) or space
-    (``terrain`` a heightfield)."""
+    """One step of the landing's integrator ``method`` (classical RK4, ROS2: ``implicit``, or Radau
+    IIA: ``radau``, with its Newton iterations' :data:`RADAU_OUTPUTS`) in a mode given as numbers
+    (module docstring), and its end point's figures (:data:`STEP_OUTPUTS`); ``stop_dofs``: the
+    DOFs with stops; ``space``: the plane, PLANAR_OFFSET (centres of mass off the rods: the design
+    vector's layout) or space (``terrain`` a heightfield)."""
     fn = landing_function(topology, terrain, space)
     nv, nc, ns, nt = fn.size1_in(0), fn.size1_out(0), len(stop_dofs), _tangents_of(fn)
     q, v, h = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("h")
@@ -272,8 +321,9 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
         ca.SX.sym("p", fn.size1_in(2)), ca.SX.sym("gravity"),
     )
     integrate, name = _INTEGRATORS[method]
+    extra = [ca.SX.sym("z0", 4 * nv)] if method == RADAU else []
     start = _point(fn, q, v, x)
-    q1, v1, impulse, vectors = integrate(fn, q, v, h, x, stop_dofs, start)
+    q1, v1, impulse, vectors, *newton = integrate(fn, q, v, h, x, stop_dofs, start, *extra)  # Radau: RADAU_OUTPUTS
     end = _point(fn, q1, v1, x)
     _, fn1, ft1, stop1 = _masked_forces(end, x, stop_dofs)
     if not isinstance(terrain, Heightfield) or terrain.is_flat:  # normals that turn only at events
@@ -282,10 +332,11 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
         applied = ca.sum2(vectors)
     outs = [q1, v1, impulse, start["momentum"], end["momentum"], start["gap"], start["Jn"] @ v, end["gap"],
             end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1, end["normal"], end["kinetic"],
-            end["momentum"] - start["momentum"] - applied, vectors]
+            end["momentum"] - start["momentum"] - applied, vectors, *newton]
     inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
-              x.gravity]
-    return ca.Function(name, inputs, outs, list(STEP_INPUTS), list(STEP_OUTPUTS), OPTIONS)
+              x.gravity, *extra]
+    names = STEP_INPUTS + (RADAU_INPUTS if extra else ()), STEP_OUTPUTS + (RADAU_OUTPUTS if extra else ())
+    return ca.Function(name, inputs, outs, list(names[0]), list(names[1]), OPTIONS)
 
 
 def _masked_correction(M: ca.SX, G: ca.SX, active: ca.SX, residual: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -472,6 +523,9 @@ class StepEnd:
     balance: np.ndarray
     #: the step's impulses per contact as world vectors, d x n_c (a sloped heightfield: by stage)
     vectors: np.ndarray
+    #: Radau IIA: each unrolled Newton iteration's correction size (:func:`_radau`), and the stages' Z (2 x 2 n_v)
+    newton: np.ndarray | None = None
+    z: np.ndarray | None = None
 
 
 class CompiledStep(BufferedFunction):
@@ -481,7 +535,7 @@ class CompiledStep(BufferedFunction):
     (:func:`impulse_core.compile.codegen.compile_function`; no compiler: the virtual machine);
     ``terrain``: the plane's profile or space's heightfield; ``floor``: the slip speed below which
     a sliding contact keeps its mode's direction (space, :func:`landing.slip_direction`);
-    ``method``: the integrator (RK4, or IMPLICIT: ROS2)."""
+    ``method``: the integrator (RK4, IMPLICIT: ROS2, or RADAU: Radau IIA)."""
 
     def __init__(self, topology, terrain: Terrain | Heightfield, p: np.ndarray, gravity: float, mu: float,
                  joints: _Joints, code: str = VM_CODE, space: Space = PLANAR, floor: float = 0.0,
@@ -518,7 +572,10 @@ class CompiledStep(BufferedFunction):
         self.mu, self.nv = mu, len(joints.stiffness)
         self._numbers: dict[bytes, tuple | None] = {}  # see numbers()
 
-    def step(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode) -> StepEnd | None:
+    def step(self, q: np.ndarray, v: np.ndarray, h: float, mode: _Mode, z0: np.ndarray | None = None
+             ) -> StepEnd | None:
+        """The step from (q, v) in ``mode`` (Radau IIA: its iterations from the stages' ``z0``, 2 x
+        2 n_v; None: 0), or None where the numpy path answers."""
         numbers = self.numbers(mode)
         if numbers is None:
             return None
@@ -526,6 +583,8 @@ class CompiledStep(BufferedFunction):
         a[0][:], a[1][:], a[2][0] = q, v, h
         a[3][:], a[5][:], a[4][:] = numbers
         a[6][:] = mode.core
+        if len(a) > len(STEP_INPUTS):
+            a[len(STEP_INPUTS)][:] = 0.0 if z0 is None else z0.ravel()
         self.modes.evaluator(_rows_key(numbers))()
         block = self.block.copy()  # every output at once, as views of one copy
         o = [block[s] for s in self.slices]
@@ -537,7 +596,8 @@ class CompiledStep(BufferedFunction):
         shape = (self.nc, self.nt)
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9].reshape(shape, order="F"), o[10],
                        o[11].reshape(shape, order="F"), stop_force, o[13].reshape(self.out[13].shape, order="F").T,
-                       float(o[14][0]), o[15], o[16].reshape(self.out[16].shape, order="F"))
+                       float(o[14][0]), o[15], o[16].reshape(self.out[16].shape, order="F"),
+                       *(o[17], o[18].reshape(2, -1)) if len(o) > 17 else ())
 
     def set_design(self, p: np.ndarray) -> None:
         """Evaluate with the design vector ``p`` from now on (space: a re-centred base's rotation
