@@ -17,8 +17,7 @@ from impulse_core.timedomain.landing import IMPLICIT, NUMPY_CODE, RK4, VM_CODE, 
 from tests.impulse_core.test_landing import _light_tip_leg
 from tests.impulse_core.test_landing_spatial import _splayed_leg
 from tests.impulse_core.test_landing_step import _case3, _legs, _random_mode, _rel, compare_step
-from tests.impulse_core.test_landing_step_spatial import _compare_ends, _tolerance
-from tests.impulse_core.test_landing_step_spatial import _random_mode as _random_spatial_mode
+from tests.impulse_core.test_landing_step_spatial import _compare_ends, _random_state, _tolerance
 
 
 def _pair(tree, laws, scene, space=None) -> tuple[_Landing, _Landing]:
@@ -78,13 +77,7 @@ def test_the_compiled_spatial_implicit_step_equals_the_numpy_step(leg):
     rng = np.random.default_rng(leg)
     kinds = set()
     for k in range(10):
-        q = fast.q0 + 0.02 * rng.standard_normal(fast.nv)
-        v = rng.standard_normal(fast.nv) * (0.05 if k % 2 else 1.0)
-        pt = ref.point(q, v)
-        mode, h = _random_spatial_mode(rng, fast, pt.slip), float(rng.uniform(1e-4, 2e-3))
-        if k == 0:
-            mode.closed[:], mode.slip[:] = False, 0.0
-        mode.redundant = ref.redundant(pt, mode)
+        q, v, pt, mode, h = _random_state(rng, fast, ref, k, 2e-3)
         mode.core[:] = rng.uniform(0.0, 2.0, fast.nc) * np.linalg.norm(pt.slip, axis=1)
         tol = _tolerance(ref, q, v, mode)
         end = fast.fast.step(q, v, h, mode)  # at the given cores

@@ -18,8 +18,7 @@ from tests.impulse_core.test_landing_radau import _resting_state, _run
 from tests.impulse_core.test_landing_spatial import _splayed_leg
 from tests.impulse_core.test_landing_step import _legs, _random_mode, _rel
 from tests.impulse_core.test_landing_step_implicit import _kinds
-from tests.impulse_core.test_landing_step_spatial import _compare_ends, _tolerance
-from tests.impulse_core.test_landing_step_spatial import _random_mode as _random_spatial_mode
+from tests.impulse_core.test_landing_step_spatial import _compare_ends, _random_state, _tolerance
 
 
 def _pair(tree, laws, scene, space=PLANAR) -> tuple[_Landing, _Landing]:
@@ -104,13 +103,10 @@ def test_the_compiled_spatial_radau_step_equals_the_numpy_step():
     rng = np.random.default_rng(1)
     kinds = set()
     for k in range(6):
-        q = fast.q0 + 0.02 * rng.standard_normal(fast.nv)
-        v = rng.standard_normal(fast.nv) * (0.05 if k % 2 else 1.0)
-        pt = ref.point(q, v)
-        mode, h = _random_spatial_mode(rng, fast, pt.slip), float(rng.uniform(1e-4, 1e-3))
+        q, v, pt, mode, h = _random_state(rng, fast, ref, k, 1e-3)
         if k == 0:
-            mode.closed[:], mode.slip[:], mode.stop[:] = False, 0.0, 0
-        mode.redundant = ref.redundant(pt, mode)
+            mode.stop[:] = 0
+            mode.redundant = ref.redundant(pt, mode)
         if _compare(fast, ref, q, v, mode, h, _tolerance(ref, q, v, mode)) in (0, 1):
             kinds |= _kinds(fast, mode)
     assert kinds >= {"flight", "sticking", "sliding"}

@@ -58,6 +58,21 @@ def _random_mode(rng: np.random.Generator, run: _Landing, slip: np.ndarray) -> _
     return _Mode(closed, np.where(sliding[:, None], d, 0.0), stop)
 
 
+def _random_state(rng: np.random.Generator, fast: _Landing, ref: _Landing, k: int, h_max: float
+                  ) -> tuple[np.ndarray, np.ndarray, object, _Mode, float]:
+    """Case k of a random spatial step: (q, v) near touchdown (slow at odd k), the point at them,
+    a random mode (:func:`_random_mode`; flight at k = 0, its stops kept) with its redundancy, and
+    a step length in [1e-4, h_max]."""
+    q = fast.q0 + 0.02 * rng.standard_normal(fast.nv)
+    v = rng.standard_normal(fast.nv) * (0.05 if k % 2 else 1.0)
+    pt = ref.point(q, v)
+    mode, h = _random_mode(rng, fast, pt.slip), float(rng.uniform(1e-4, h_max))
+    if k == 0:
+        mode.closed[:], mode.slip[:] = False, 0.0
+    mode.redundant = ref.redundant(pt, mode)
+    return q, v, pt, mode, h
+
+
 def _tolerance(ref: _Landing, q: np.ndarray, v: np.ndarray, mode: _Mode) -> float:
     """1e-12, or rounding's 1e-16 times the condition number of the mode's Delassus matrix at
     (q, v) where that is larger (all contacts of a splayed leg sticking: 3e7 seen, the two paths'
