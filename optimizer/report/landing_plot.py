@@ -71,6 +71,9 @@ def _draw_impulses(ax, tree: Tree, result: LandingResult, title: str) -> None:  
         ax.plot(times[shown], values[shown], "o", ms=3, label=name)
     ax.plot(times, [e.external_norm for e in result.events], "k_", ms=8, label="external_norm")
     ax.plot(times, [e.internal_norm for e in result.events], "x", color="#27ae60", ms=4, label="internal_norm")
+    for k, (start, span) in enumerate(result.bridges):  # stalled events crossed by Moreau-Jean steps
+        ax.axvspan(1e3 * start, 1e3 * (start + span), color="#f39c12", alpha=0.3,
+                   label="Moreau-Jean bridge" if k == 0 else None)
     ax.set_yscale("symlog", linthresh=1e-4)
     ax.set_xlabel("time after the first touchdown [ms]")
     ax.set_ylabel("impulse [N s]")

@@ -164,3 +164,28 @@ def test_tolerance_refines_the_compliant_rung(capsys):
     assert any("did not meet its tolerance" in w for w in unmet["warnings"])
     assert main(["evaluate", "--model", "compliant", "--tolerance", "1e-3", "--steps-per-period", "240", path]) == 2
     assert "--tolerance" in capsys.readouterr().err
+
+
+def test_the_landing_plot_shades_each_moreau_jean_bridge():
+    """A landing's stalled events crossed by Moreau-Jean steps (``LandingResult.bridges``) show as
+    shaded spans over their times on the impulse plot, one legend entry for all."""
+    from dataclasses import replace
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from impulse_core.timedomain.landing import LandingSettings, landing
+    from optimizer.config.model_file import load_model_file
+    from optimizer.report.landing_plot import _draw_impulses
+
+    model = load_model_file(REPO / "configs" / "landing_case3.yaml")
+    scene = replace(model.scene, duration=0.004)
+    r = replace(landing(model.tree, scene, model.joints, LandingSettings()), bridges=((1e-3, 2e-4), (3e-3, 1e-4)))
+    fig, ax = plt.subplots()
+    _draw_impulses(ax, model.tree, r, "case 3")
+    spans = [(p.get_x(), p.get_x() + p.get_width()) for p in ax.patches]
+    plt.close(fig)
+    assert spans == [pytest.approx((1.0, 1.2)), pytest.approx((3.0, 3.1))]
+    assert [t.get_text() for t in ax.get_legend().get_texts()].count("Moreau-Jean bridge") == 1
