@@ -1144,8 +1144,15 @@ def _constrained_solve(W: np.ndarray, rows: _Rows, rhs: np.ndarray, row_rhs: np.
 def joint_law_rate(M: np.ndarray, damping: np.ndarray, stiffness: np.ndarray) -> float:
     """The joint laws' fastest rate (1/s) at a mass matrix M: the largest eigenvalue of M^-1 D (a
     damper's decay rate) or square root of that of M^-1 K (a spring's angular frequency), D and K
-    the diagonal damping and stiffness per DOF. Constraints only lower it (interlacing)."""
-    L = np.linalg.cholesky(M)
+    the diagonal damping and stiffness per DOF. Constraints only lower it (interlacing). Where a
+    massless direction's eigenvalue rounds below 0 (rods of radius 0 turning about their own axes
+    with nothing but the core's floor as inertia: random file 60603, where the Cholesky factor
+    failed), M's factor is taken from its eigenvalues floored at eps x the largest."""
+    try:
+        L = np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(M)
+        L = V * np.sqrt(np.maximum(w, np.finfo(float).eps * w[-1]))  # L L^T = M, floored
     rates = [0.0]
     for d, root in ((damping, False), (stiffness, True)):
         if (d > 0).any():

@@ -198,3 +198,27 @@ def test_an_impact_budget_passed_names_the_contact_or_stop_and_an_elastic_one():
     with pytest.raises(NumericalError, match=r"took \d+ of the last 21$"):  # e < 1: no advice
         inelastic = (FREE, replace(laws[1], stop_restitution=0.99))
         _Landing(leg, replace(scene, restitution=0.0), inelastic, LandingSettings(max_events=20), PLANAR).run(1e-3)
+
+
+def test_the_joint_laws_rate_is_the_generalized_eigenvalue_and_survives_a_massless_direction():
+    """joint_law_rate: the largest eigenvalue of M^-1 D, or the square root of M^-1 K's
+    (scipy's generalized symmetric eigenproblem as the reference, a random 4 x 4 M). Where a
+    massless direction's eigenvalue rounds below 0 (random file 60603: the Cholesky factor
+    failed, exit 1 "Matrix is not positive definite"), the rate is that of M with the eigenvalue
+    floored at eps x the largest: huge, finite."""
+    import scipy.linalg
+
+    from impulse_core.timedomain.landing import joint_law_rate
+
+    rng = np.random.default_rng(3)
+    R = np.linalg.qr(rng.standard_normal((4, 4)))[0]
+    damping, stiffness = np.array([0.0, 0.5, 0.2, 1.0]), np.array([3.0, 0.0, 7.0, 1.0])
+    M = R @ np.diag([2.0, 1.0, 0.3, 0.05]) @ R.T
+    top_d = scipy.linalg.eigh(np.diag(damping), M, eigvals_only=True)[-1]
+    top_k = scipy.linalg.eigh(np.diag(stiffness), M, eigvals_only=True)[-1]
+    assert joint_law_rate(M, damping, stiffness) == pytest.approx(max(top_d, np.sqrt(top_k)), rel=1e-9)
+    massless = R @ np.diag([2.0, 1.0, 0.3, -1e-13]) @ R.T  # below 0: the floor, eps x 2, sets the rate
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.cholesky(massless)
+    rate = joint_law_rate(massless, damping, stiffness)
+    assert np.isfinite(rate) and rate > 1e12
