@@ -496,7 +496,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tensor", type=float, default=Options.tensor, help="spatial: probability of an inertia_tensor")
     p.add_argument("--out", type=Path, default=Path("/tmp/random_landings"), help="folder for the files and results.jsonl")
     p.add_argument("--report", action="store_true", help="only print the summary of DIR's results.jsonl")
-    p.add_argument("--files", type=Path, nargs="+", help="check these model files (e.g. random_failures/) instead of seeds")
+    p.add_argument("--files", type=Path, nargs="+",
+                   help="check these model files (e.g. random_failures/) instead of seeds")
     args = p.parse_args(argv)
     if args.report:
         fields = set(Outcome.__dataclass_fields__)
