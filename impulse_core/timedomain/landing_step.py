@@ -374,10 +374,14 @@ def landing_projection_function(topology, terrain: Terrain | Heightfield, stop_d
     margin = ca.vertcat(*[-place_stop[r] * (q[j] - limit[r]) for r, j in enumerate(stop_dofs)]) if ns else ca.SX(0, 1)
     dq, _ = _masked_correction(pt["M"], ca.vertcat(pt["Jn"], _stop_rows(place_stop, stop_dofs, nv)), place,
                                ca.vertcat(pt["gap"], margin))
+    # the linear momentum the correction would move at fixed v, given back through the base's
+    # translation (:meth:`landing._Landing.momentum_kept`)
+    dp = pt["momentum"] - fn(q - dq, v, p, gravity)[7][:, 0]
+    kept = v + ca.vertcat(dp / pt["M"][0, 0], ca.SX.zeros(nv - dp.shape[0]))
     G = ca.vertcat(pt["Jn"], _stop_rows(stop, stop_dofs, nv), *pt["Jt"])
-    dv, lam = _masked_correction(pt["M"], G, active, -(G @ v))
+    dv, lam = _masked_correction(pt["M"], G, active, -(G @ kept))
     return ca.Function("landing_projection", [q, v, place, place_stop, limit, active, stop, p, gravity],
-                       [dq, v + dv, ca.vertcat(lam[:nc], lam[nc + ns :])],
+                       [dq, kept + dv, ca.vertcat(lam[:nc], lam[nc + ns :])],
                        ["q", "v", "place", "place_stop", "limit", "active", "stop", "p", "gravity"],
                        ["dq", "v1", "impulse"], OPTIONS)
 
