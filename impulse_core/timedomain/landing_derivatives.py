@@ -630,6 +630,10 @@ class _Symbolic:
             if beyond:  # free joints past a stop, put back onto it
                 place.stop = np.where(place.stop == 0, np.array(beyond, int), place.stop)
             dq = self.position_correction(pt, q, th, place)
+            # the momentum the correction would move, given back through the base's translation
+            # (:meth:`landing._Landing.momentum_kept`)
+            dp = pt["momentum"][:, 0] - self.point(q - dq, v, th)["momentum"][:, 0]
+            v = v + ca.vertcat(dp / pt["M"][0, 0], ca.SX.zeros(self.nv - dp.shape[0]))
             none = [None] * self.nc
             G, _, _, info = self.rows(pt, np.flatnonzero(mode.closed), mode.sliding, mode.stop, none)
             if G.shape[0] == 0:

@@ -9,9 +9,10 @@ explains them are crossed by velocity-level time steps.
   the friction impulse -m V. Over a span s of n steps: V - mu g s, the position x0 + dt sum of
   the velocities after each step, and the totals' impulses m g s and -mu m g s. In space the
   same plank read as spatial, sliding along z as well: the slip's direction is kept.
-- Random file 60337 (data/stall_60337.yaml, planar, friction 1: b5's two contacts 0.35 mm apart
-  and two others cycled between modes at one instant, 5.7e-15 s an event) ended with exit 1 ("the
-  landing chatters"); it now lands through a bridge, meeting the contract's checks.
+- Random files 60337 (planar, friction 1: b5's two contacts 0.35 mm apart and two others cycled
+  between modes at one instant, 5.7e-15 s an event), 60147 and 30891 (spatial) ended with exit 1
+  ("the landing chatters"); they land through a bridge, meeting the contract's checks. (60337 no
+  longer stalls once the position corrections keep the momentum; 30891's run is the test here.)
 - The derivatives' replay does not follow a bridge: it says so.
 """
 
@@ -112,25 +113,25 @@ def test_a_bridge_crosses_its_span_and_counts_its_impulses(space):
     assert mode1.slip[0] == pytest.approx(direction, rel=1e-9)
 
 
-def test_a_stalled_random_landing_lands_through_a_bridge():
-    model = load_model_file(DATA / "stall_60337.yaml")
+def test_a_stalled_random_landing_goes_on_through_a_bridge():
+    """Random file 30891 (data/refused_30891.yaml, spatial, friction 1): its events stall at
+    0.0642 s (a slow slip turning at each event, no Painleve jam); the run crosses them by a bridge
+    and goes on, its momentum balanced, its impacts lawful, its first event the first-impact answer,
+    the report naming the bridge (cut 2 ms after it)."""
+    model = load_model_file(DATA / "refused_30891.yaml")
     tree, scene, settings = model.tree, model.scene, LandingSettings()
-    r = landing(tree, scene, model.joints, settings)
-    assert r.bridges, "the file's events stall in its run at h/2 (5.7e-15 s an event)"
-    assert r.error_estimate is not None and r.error_estimate <= settings.tolerance
-    run = _Landing(tree, scene, model.joints, settings)
-    mass = sum(b.mass for b in tree.bodies)
-    p0 = run.point(run.q0, r.events[0].v_minus).momentum[:, 0]
-    p1 = run.point(r.q_final, r.v_final).momentum[:, 0]
-    impulse = np.array([r.total_tangential.sum(), r.total_external.sum() - mass * G * scene.duration])
-    reference = max(np.max(np.abs(p0)), mass * G * scene.duration)
-    assert np.max(np.abs(p1 - p0 - impulse)) / reference < 1e-5
-    assert r.momentum_balance == pytest.approx(np.max(np.abs(p1 - p0 - impulse)) / reference, rel=1e-6, abs=1e-13)
+    run = _Landing(tree, scene, model.joints, settings, model.space)
+    r = run.run(run.first_step(), until=lambda q, v, mode, totals: bool(run.bridges)
+                and totals.times[-1] > run.bridges[0][0] + run.bridges[0][1] + 2e-3)
+    assert r.bridges and 0.0642 < r.bridges[0][0] < 0.0643 and r.duration > r.bridges[0][0] + 2e-3
+    # the bridge's steps are first order in the momentum where the velocity jumps ((A(q1) - A(q)) dv
+    # a step): 1.5e-4 of the touchdown momentum over this cut run's 8 bridges, 1.1e-5 over the landing
+    assert r.momentum_balance < 1e-3
     for e in r.events:  # the impacts' laws (pushing, inside the cone, no energy gained)
-        assert np.all(e.external >= 0)
-        assert np.all(np.abs(e.tangential) <= scene.friction * e.external * (1 + 1e-9) + 1e-12)
+        assert np.all(e.external >= -1e-12 * np.max(np.abs(e.external)))
+        assert np.all(np.linalg.norm(e.tangential, axis=1) <= scene.friction * e.external * (1 + 1e-9) + 1e-12)
         assert e.energy_after <= e.energy_before * (1 + 1e-9) + 1e-12
-    first = evaluate(tree, scene, ImpactModel.FRICTION)  # the contract's first event: the first-impact answer
+    first = evaluate(tree, scene, ImpactModel.FRICTION, model.space)  # the contract's first event
     assert np.max(np.abs(r.events[0].external - first.external)) <= 1e-9 * np.max(np.abs(first.external))
     said = warnings(model, TimeDomainResult("landing", "", r, r.events[0].v_minus, settings))
     assert any(w.startswith("events stalled") and f"t = {r.bridges[0][0]:.6g} s" in w for w in said)
