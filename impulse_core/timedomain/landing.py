@@ -2929,10 +2929,10 @@ class _Landing:
         counts what its rows take as impulses): a position correction moves no momentum. Without
         it random file 60624's corrections (348, a tip resting and sliding across a heightfield)
         moved 1.1e-4 of its momentum with no impulse, above the contract's balance of 1e-4."""
-        M = self.point(q, v).M
-        dp = self.point(q, v).momentum[:, 0] - self.point(corrected, v).momentum[:, 0]
+        here = self.point(q, v)
+        mass, p = here.M[0, 0], here.momentum[:, 0]  # M's corner: the whole mass (the base's translation)
         out = v.copy()
-        out[: self.dims] += dp / M[0, 0]  # the base's translation: M's corner is the whole mass
+        out[: self.dims] += (p - self.point(corrected, v).momentum[:, 0]) / mass
         return out
 
     def carried_across(self, q: np.ndarray, v: np.ndarray, corrected: np.ndarray, mode: _Mode) -> bool:
@@ -3583,7 +3583,7 @@ class _Landing:
         Returns (q, v, mode, t) after."""
         if self.tape is not None:
             self.tape.append(("bridge", q.copy(), v.copy(), mode.copy(), span))
-        dt, v_before, closed = span / BRIDGE_STEPS, v, mode.closed
+        start, dt, v_before, closed = t, span / BRIDGE_STEPS, v, mode.closed
         for _ in range(BRIDGE_STEPS):
             q1, v1, impulses, closed = self.bridge_step(q, v, mode, closed, dt)
             self.add(totals, impulses, q, v)
@@ -3595,7 +3595,7 @@ class _Landing:
         after.closed[:] = closed
         after.stop[:] = self.stops_touching(q, mode)
         q, v, mode = self.modes_after(q, v, after, t, totals, v_before)
-        self.bridges.append((t - span, span))
+        self.bridges.append((start, span))
         return q, v, mode, t
 
     def bridge_step(self, q: np.ndarray, v: np.ndarray, mode: _Mode, closed: np.ndarray, dt: float
