@@ -150,6 +150,9 @@ RADAU_B = RADAU_A[1].copy()
 RADAU_ITERATIONS, RADAU_TOL = 12, 1e-12
 #: Times a Radau IIA step whose iterations do not converge is split in two (:meth:`_Landing.radau_step`).
 RADAU_SPLITS = 4
+#: An event location's trial step (:meth:`_Landing.trial`): Radau IIA's pieces split at most this
+#: many times (2^32 pieces: in practice until RK4's stable step takes them).
+TRIAL_SPLITS = 32
 #: The momentum balance over a landing (the change of the linear momentum minus the contact
 #: impulses and the weight's) that the steps keep below this fraction of the touchdown momentum:
 #: each step is halved until its own residual is below its share (its length over the duration).
@@ -1753,7 +1756,11 @@ class _Landing:
         end = self.compiled(q, v, mode, h)
         if end is not None:
             return self.kept(end, mode)
-        return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
+        try:
+            return self.implicit_step(q, v, mode, h) if self.method == IMPLICIT else self.rk4_step(q, v, mode, h)
+        except np.linalg.LinAlgError:  # a stage far off the motion (random file 60690: |v| ~ 1e21 within
+            # one step): the step blew up, which the run reports as such and landing() shortens
+            return np.full_like(q, np.nan), np.full_like(v, np.nan), np.full(self.nc * self.dims, np.nan)
 
     def compiled(self, q: np.ndarray, v: np.ndarray, mode: _Mode, h: float, z0: np.ndarray | None = None):
         """The compiled step's :class:`~impulse_core.timedomain.landing_step.StepEnd` (Radau IIA:
@@ -2284,8 +2291,16 @@ class _Landing:
         return None
 
     def trial(self, q: np.ndarray, v: np.ndarray, mode: _Mode, tau: float) -> _Trial:
-        """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates."""
+        """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates.
+        A trial's length is where it looks, so it is not halved as :meth:`balanced_step` halves a
+        step: Radau IIA's pieces are split down to RK4's stable step (random file 60779: its trial
+        at 0.98 ms stayed NaN after RADAU_SPLITS); a trial that blows up otherwise is the run's
+        divergence (:class:`Diverged`, which :func:`landing` shortens), not its witnesses' failure."""
         q1, v1, impulse = self.step(q, v, mode, tau)
+        if self.method == RADAU and not (_finite(q1) and _finite(v1)):
+            q1, v1, impulse = self.radau_step(q, v, mode, tau, splits=TRIAL_SPLITS)
+        if not (_finite(q1) and _finite(v1)):
+            raise Diverged(f"the landing diverged locating an event (a trial step of {tau:.3g} s)")
         w, r = self.witness_and_rate(q1, v1, mode)
         return _Trial(tau, q1, v1, impulse, self._end, w, r, self.vectors)
 
