@@ -461,8 +461,9 @@ class LandingResult:
     #: the step halving stopped because its runs' final angles did not approach each other while
     #: their impulses agreed (:func:`runs_apart`): ``error_estimate`` is the final angles'
     runs_apart: bool = False
-    #: the times at which events stalled with no Painleve jam to explain them and the run crossed
-    #: a span of them by Moreau-Jean steps (:meth:`_Landing.bridge`), with each span (s)
+    #: the times at which events stalled with no Painleve jam to explain them (or with one that
+    #: did not end the slip) and the run crossed a span of them by Moreau-Jean steps
+    #: (:meth:`_Landing.bridge`), with each span (s)
     bridges: tuple[tuple[float, float], ...] = ()
 
     @property
@@ -3224,7 +3225,8 @@ class _Landing:
                 if jammed.size:
                     failure = NumericalError(self.painleve_message(
                         t, jammed, f"friction {self.mu:g} takes their rows' effective mass to 0"))
-                    q, v, mode = self.jam_event(q, v, mode, t, totals, jammed, failure)
+                    q, v, mode, t, bridged = self.jam_or_bridge(q, v, mode, t, totals, jammed, failure,
+                                                                min(h * BRIDGE, T - t), bridged)
                     if progress is not None:
                         progress(LandingProgress(index, h, t, T, len(totals.events)))
                     continue
@@ -3246,6 +3248,13 @@ class _Landing:
             if not (_finite(q1) and _finite(v1) and self.kinetic(q1, v1) <= cap):
                 failure = Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s){self.singular_note(q)}"
                                    f"{self.jam_note(q, v, mode)}")
+                if self._jams[1] and bridged < MAX_BRIDGES and _any(mode.closed & mode.sliding):
+                    # a run that has met Painleve's paradox (a jam taken or tried), a step sliding into
+                    # it again (its force without bound): a bridge from the step's start (random file
+                    # 60690 at h / 8, after two jams); elsewhere a divergence is a step too long
+                    q, v, mode, t = self.bridge(q, v, mode, t, totals, min(h * BRIDGE, T - t))
+                    bridged += 1
+                    continue
                 if self.jam_watch is not None or not slid:
                     raise failure
                 # a sliding contact may have run into Painleve's paradox (its force -B / A without
@@ -3325,7 +3334,8 @@ class _Landing:
                 if self.jam_watch is None:
                     raise _Jams(failure)
                 # events stalled by Painleve's paradox: the impulsive jam, here
-                q, v, mode = self.jam_event(q_e, v_e, mode, t, totals, jammed, failure)
+                q, v, mode, t, bridged = self.jam_or_bridge(q_e, v_e, mode, t, totals, jammed, failure,
+                                                            min(h * BRIDGE, T - t), bridged)
                 stalled = repeated = 0
                 again = False
                 if progress is not None:
@@ -3629,7 +3639,23 @@ class _Landing:
                      corners=corners)
         law = rigid_impact(pt, v_free, rows, np.zeros(rows.n), self.mu, self.lemke)
         self.inexact += not law.exact
-        return q + dt * law.v_plus, law.v_plus, _stacked(law.normal, law.tangential), law.normal > 0
+        impulses, q1 = _stacked(law.normal, law.tangential), q + dt * law.v_plus
+        return q1, self.balance_kept(pt, q1, law.v_plus, impulses, dt), impulses, law.normal > 0
+
+    def balance_kept(self, pt: _Point, q1: np.ndarray, v1: np.ndarray, impulses: np.ndarray, dt: float
+                     ) -> np.ndarray:
+        """``v1`` with the base's translation velocity shifted so that the linear momentum at (q1, v1)
+        is the momentum at ``pt`` plus the weight's impulse over ``dt`` and the contact ``impulses``
+        (stacked, along ``pt``'s directions): a Moreau-Jean step's momentum at its end. Its velocity
+        after is taken at q1, while its forces were at q: across a velocity jump the step changed
+        the momentum by dt times the jump in the Coriolis terms, first order in dt (random file
+        60690: a bridge took a tumbling rod from 35 to 26 rad/s, the landing's balance 1.1e-4)."""
+        fn, ft = _unstacked(impulses, self.nc, self.dims - 1)
+        F = contact_vectors(pt.normal, pt.tangent, fn, ft) if self.sloped else contact_vectors(*self.flat_ground, fn, ft)
+        target = pt.momentum[:, 0] + self.weight(dt) + F.sum(axis=1)
+        out = v1.copy()
+        out[: self.dims] += (target - self.point(q1, v1).momentum[:, 0]) / pt.M[0, 0]
+        return out
 
     def jam_event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                   jammed: np.ndarray, failure: NumericalError) -> tuple[np.ndarray, np.ndarray, _Mode]:
@@ -3638,6 +3664,21 @@ class _Landing:
         :meth:`event`): the state and mode after."""
         q1, v1, new = self.take_jam(q, v, mode, t, totals, jammed, failure)
         return self.modes_after(q1, v1, new, t, totals, v, jammed=True)
+
+    def jam_or_bridge(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
+                      jammed: np.ndarray, failure: NumericalError, span: float, bridged: int
+                      ) -> tuple[np.ndarray, np.ndarray, _Mode, float, int]:
+        """:meth:`jam_event`, or where the jam cannot be taken (it raises ``failure``: its slide does
+        not stop the slip, or it came back at one instant) a bridge across ``span`` (:meth:`bridge`;
+        ``bridged`` so far, at most MAX_BRIDGES): Moreau-Jean's velocity-level law has a solution
+        where the acceleration-level one has none (Stewart 1998). Random file 60690: a rod's tip
+        at friction 0.3, whose jam stopped ending its slip at t = 0.1777 s. (q, v, mode, t, bridged)."""
+        try:
+            return (*self.jam_event(q, v, mode, t, totals, jammed, failure), t, bridged)
+        except NumericalError as unjammed:
+            if unjammed is not failure or bridged >= MAX_BRIDGES:
+                raise
+        return (*self.bridge(q, v, mode, t, totals, span), bridged + 1)
 
     def modes_after(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                     v_before: np.ndarray, jammed: bool = False) -> tuple[np.ndarray, np.ndarray, _Mode]:

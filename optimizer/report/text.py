@@ -182,7 +182,8 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
     if isinstance(r, LandingResult) and r.bridges:
         at = ", ".join(f"{t:.6g} s" for t, _ in r.bridges)
         out.append(
-            f"events stalled where no contact mode held (a start of slip the modes do not resolve) at t = {at}: the "
+            f"events stalled where no contact mode held (a start of slip the modes do not resolve, or Painleve's "
+            f"paradox that a jam did not end) at t = {at}: the "
             f"landing crossed {sum(span for _, span in r.bridges):.3g} s there by Moreau-Jean time steps (first order, "
             "within the error estimate; no derivatives along this landing)"
         )

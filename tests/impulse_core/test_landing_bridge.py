@@ -151,3 +151,42 @@ def test_the_derivatives_replay_refuses_a_bridge(monkeypatch):
     monkeypatch.setattr(derivatives, "taped_run", taped)
     with pytest.raises(NumericalError, match="Moreau-Jean"):
         derivatives.landing_gradient(run.tree, run.scene, (FREE,), LandingSettings(), step=0.01)
+
+
+@pytest.mark.parametrize("space", [PLANAR, SPATIAL], ids=["planar", "spatial"])
+def test_a_bridge_step_keeps_the_linear_momentum_across_a_velocity_jump(space):
+    """A tumbling plank 2 mm above the ground whose far end strikes it within one Moreau-Jean step:
+    the momentum at the step's end is the start's plus the weight's and the contact's impulses, to
+    rounding (``balance_kept``). Taking the velocity after at q + dt v+ while the forces were at q
+    changes it by dt times the jump in the Coriolis terms (first order: random file 60690's
+    balance 1.1e-4 through two bridges)."""
+    run = _plank(space)
+    q, v, mode = run.q0.copy(), np.zeros(run.nv), run.flight()
+    q[1] += 2e-3
+    v[1], v[2 if space is PLANAR else 5] = -1.0, -5.0  # the far end falls at 6 m/s, the near one at 1 m/s
+    dt = 1e-3
+    q1, v1, impulses, closed = run.bridge_step(q, v, mode, mode.closed, dt)
+    assert closed.tolist() == [False, True] and impulses[1] > 0.1  # the far end struck
+    totals = _Totals(np.zeros(run.nc), np.zeros((run.nc, run.dims - 1)))
+    totals.impulse, totals.vectors = np.zeros(run.dims), np.zeros((run.dims, run.nc))
+    run.add(totals, impulses, q, v)
+    change = run.point(q1, v1).momentum[:, 0] - run.point(q, v).momentum[:, 0]
+    assert np.max(np.abs(change - run.weight(dt) - totals.impulse)) <= 1e-14 * MASS * 6.0
+    shift = v1 - (q1 - q) / dt  # q1 = q + dt v+; v1 = v+ shifted along the base's translation alone
+    assert np.max(np.abs(shift[run.dims:])) <= 1e-9 and 0 < np.max(np.abs(shift)) <= 1e-2
+
+
+@pytest.mark.parametrize("divisor, start", [(400, 0.17765), (800, 0.17458)], ids=["jam_fails", "diverges_after_jams"])
+def test_painleves_paradox_that_a_jam_cannot_end_is_bridged(divisor, start):
+    """Random file 60690 (data/singular_stage_60690.yaml: a light rod on its tip, friction 0.3):
+    at T / 400 the jam at t = 0.1777 s no longer stops the tip's slip (`take_jam` raised its
+    Painleve error, exit 1); at T / 800 a step sliding into the paradox right after two jams
+    diverged. Each run now crosses there by a bridge and goes on, its momentum balanced (cut
+    at the bridge's end)."""
+    model = load_model_file(DATA / "singular_stage_60690.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    with np.errstate(all="ignore"):
+        r = run.run(model.scene.duration / divisor, until=lambda q, v, mode, totals: bool(run.bridges))
+    assert len(r.bridges) == 1 and r.bridges[0][0] == pytest.approx(start, abs=1e-5)
+    assert run._jams[1] >= 1  # the run had met the paradox
+    assert r.momentum_balance <= 1e-5
