@@ -218,12 +218,13 @@ class SpatialInertia:
     I_P: ca.SX
 
     def shifted(self, d: ca.SX) -> SpatialInertia:
-        """The same inertia about P - d (parallel-axis theorem with r -> r + d)."""
+        """The same inertia about P - d (parallel-axis theorem with r -> r + d); each symmetric
+        pair of I_Q formed once (the same values: a sum's and a product's operands swapped)."""
         E = ca.DM.eye(3)
         h = self.h + self.mass * d
         dh = d @ self.h.T
         I_Q = self.I_P + (2 * (d.T @ self.h) + self.mass * (d.T @ d)) * E - (dh + dh.T + self.mass * (d @ d.T))
-        return SpatialInertia(self.mass, h, I_Q)
+        return SpatialInertia(self.mass, h, _symmetric(I_Q))
 
     def __add__(self, other: SpatialInertia) -> SpatialInertia:
         return SpatialInertia(self.mass + other.mass, self.h + other.h, self.I_P + other.I_P)
