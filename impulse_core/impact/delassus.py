@@ -333,7 +333,7 @@ def _lean_graph_articulated(topology: Topology, space: Space, p: ca.SX, v_minus:
     kin = forward_kinematics(topology, values, space)
     layout = dof_layout(topology, space)
     motions = dyn.joint_motions(kin, layout, space)
-    inertias = dyn.body_inertias(kin, values)
+    inertias = dyn.lean_body_inertias(kin, values)
     art = dyn.articulated_bodies(topology.parents, kin, layout, inertias, space)
     bodies = contact_bodies(topology)
     n = GROUND_NORMAL
@@ -399,8 +399,8 @@ def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: c
     kin = forward_kinematics(topology, values, space)
     layout = dof_layout(topology, space)
     S = dyn.joint_motions(kin, layout, space)
-    inertias = dyn.body_inertias(kin, values)
-    M = dyn.composite_mass_matrix(topology.parents, kin, layout, values, space)
+    inertias = dyn.lean_body_inertias(kin, values)
+    M = dyn.composite_mass_matrix(topology.parents, kin, layout, values, space, inertias)
     f = dyn.ltdl(M, layout.dof_parent)
     bodies = contact_bodies(topology)
     n = GROUND_NORMAL

@@ -303,6 +303,43 @@ def body_inertias(kin: Kinematics, values: tuple[BodyValues, ...]) -> tuple[Spat
     return tuple(out)
 
 
+def lean_body_inertias(kin: Kinematics, values: tuple[BodyValues, ...]) -> tuple[SpatialInertia, ...]:
+    """:func:`body_inertias` to rounding, in fewer operations: with r the rod's axis (``W_R_B[:, 0]``),
+    s = com * length and o the centre of mass's offset off the rod (G - O = s r + o), the
+    parallel-axis theorem with |r| = 1 gives
+    I_O = (I + m s^2) E + (I_axial - I - m s^2) r r^T + m ((2 s r.o + o.o) E - s (r o^T + o r^T) - o o^T)
+    + R T R^T: for a rod (o and T folded to 0) two scalars times E and r r^T, each symmetric entry
+    formed once, and no other column of the rod's rotation. Rounds otherwise than
+    :func:`body_inertias` (whose rod part is I (R_1 R_1^T + R_2 R_2^T) + I_axial r r^T shifted by
+    d d^T): the hot path's (:func:`impulse_core.impact.delassus.lean_impact_function`); the full
+    model keeps :func:`body_inertias`."""
+    out = []
+    for v, R in zip(values, kin.W_R_B):
+        r = R[:, 0]
+        s = v.com * v.length
+        o = com_offset(R, v)
+        m_s2 = v.mass * s**2
+        alpha, beta = v.inertia + m_s2, v.axial_inertia - v.inertia - m_s2
+        c = v.mass * (2 * s * (r.T @ o) + o.T @ o)
+        I_O = ca.SX(3, 3)
+        for i in range(3):
+            for j in range(i, 3):
+                offset = v.mass * (s * (r[i] * o[j] + o[i] * r[j]) + o[i] * o[j])
+                I_O[i, j] = beta * (r[i] * r[j]) - offset + (alpha + c if i == j else 0)
+                I_O[j, i] = I_O[i, j]
+        out.append(SpatialInertia(v.mass, v.mass * (r * s + o), _with_tensor(I_O, R, v)))
+    return tuple(out)
+
+
+def com_offset(R: ca.SX, v: BodyValues) -> ca.SX:
+    """The centre of mass's offset off the rod, world frame: ``com_offset`` along the body frame's
+    y and z (zero for a rod)."""
+    if v.is_rod:
+        return ca.SX.zeros(3, 1)
+    dy, dz = v.com_offset
+    return R[:, 1] * dy + R[:, 2] * dz
+
+
 def composite_inertias(
     parents: tuple[int, ...], kin: Kinematics, inertias: tuple[SpatialInertia, ...]
 ) -> tuple[SpatialInertia, ...]:
@@ -321,13 +358,15 @@ def composite_mass_matrix(
     layout: DofLayout,
     values: tuple[BodyValues, ...],
     space: Space = PLANAR,
+    inertias: tuple[SpatialInertia, ...] | None = None,
 ) -> ca.SX:
     """Joint-space mass matrix by the composite-rigid-body algorithm (RBDA alg. 6.2): for DOF j
     of body b, F_j = Ic_b S_j (momentum of b's subtree moving with DOF j, about O_b), and
     M_ij = S_i^T F_j for i = j and every ancestor DOF i. Equals :func:`mass_matrix`; only the
-    entries the tree's sparsity allows are formed (the rest are structural zeros)."""
+    entries the tree's sparsity allows are formed (the rest are structural zeros). ``inertias``:
+    the bodies' (default :func:`body_inertias`)."""
     S = joint_motions(kin, layout, space)
-    Ic = composite_inertias(parents, kin, body_inertias(kin, values))
+    Ic = composite_inertias(parents, kin, body_inertias(kin, values) if inertias is None else inertias)
     M = ca.SX(layout.nv, layout.nv)
     for j in range(layout.nv):
         b = layout.dof_body[j]
