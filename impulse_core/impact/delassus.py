@@ -401,7 +401,7 @@ def _lean_graph_composite(topology: Topology, space: Space, p: ca.SX, v_minus: c
     S = dyn.joint_motions(kin, layout, space)
     inertias = dyn.lean_body_inertias(kin, values)
     M = dyn.composite_mass_matrix(topology.parents, kin, layout, values, space, inertias)
-    f = dyn.ltdl(M, layout.dof_parent)
+    f = dyn.ltdl(M, layout.dof_parent, reciprocals=True)
     bodies = contact_bodies(topology)
     n = GROUND_NORMAL
     nc = len(topology.active)

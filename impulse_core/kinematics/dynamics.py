@@ -56,11 +56,13 @@ def mass_matrix(jac: BodyJacobians, values: tuple[BodyValues, ...]) -> ca.SX:
 @dataclass(frozen=True)
 class LTDL:
     """M = L^T D L with L unit lower triangular, stored sparsely: ``L[(k, i)]`` for each
-    ancestor i of k; ``D`` the diagonal; ``parent`` the expanded parent array."""
+    ancestor i of k; ``D`` the diagonal; ``parent`` the expanded parent array; ``D_inv`` the
+    reciprocals of ``D`` where the factor divides once per pivot (:func:`ltdl`), else None."""
 
     L: dict[tuple[int, int], ca.SX]
     D: tuple[ca.SX, ...]
     parent: tuple[int, ...]
+    D_inv: tuple[ca.SX, ...] | None = None
 
     def ancestors(self, k: int):
         i = self.parent[k]
@@ -69,10 +71,17 @@ class LTDL:
             i = self.parent[i]
 
 
-def ltdl(M: ca.SX, parent: tuple[int, ...]) -> LTDL:
+def reciprocal(x: ca.SX) -> ca.SX:
+    """1 / x bit for bit (2 / (x + x): both scalings by 2 exact), as a node CasADi keeps in a
+    product (it rewrites y * (1 / x) as y / x)."""
+    return 2 / (x + x)
+
+
+def ltdl(M: ca.SX, parent: tuple[int, ...], reciprocals: bool = False) -> LTDL:
     """Factor a symmetric positive definite M whose sparsity follows ``parent`` (RBDA alg. 6.3).
 
-    A dense matrix is the special case ``parent = (-1, 0, 1, ..., n-2)``.
+    A dense matrix is the special case ``parent = (-1, 0, 1, ..., n-2)``. With ``reciprocals``,
+    one division per pivot: the multipliers and :func:`solve_d` multiply by its reciprocal.
     """
     n = M.shape[0]
     H: dict[tuple[int, int], ca.SX] = {}
@@ -87,16 +96,19 @@ def ltdl(M: ca.SX, parent: tuple[int, ...]) -> LTDL:
         H[(k, k)] = M[k, k]
         for i in anc(k):
             H[(k, i)] = M[k, i]
+    inv: dict[int, ca.SX] = {}
     for k in reversed(range(n)):
+        if reciprocals:
+            inv[k] = reciprocal(H[(k, k)])
         for i in anc(k):
-            a = H[(k, i)] / H[(k, k)]
+            a = H[(k, i)] * inv[k] if reciprocals else H[(k, i)] / H[(k, k)]
             H[(i, i)] = H[(i, i)] - a * H[(k, i)]
             for j in anc(i):
                 H[(i, j)] = H[(i, j)] - a * H[(k, j)]
             H[(k, i)] = a
     D = tuple(H[(k, k)] for k in range(n))
     L = {(k, i): H[(k, i)] for k in range(n) for i in anc(k)}
-    return LTDL(L, D, tuple(parent))
+    return LTDL(L, D, tuple(parent), tuple(inv[k] for k in range(n)) if reciprocals else None)
 
 
 def dense_parent(n: int) -> tuple[int, ...]:
@@ -124,6 +136,8 @@ def solve_l(f: LTDL, W: ca.SX) -> ca.SX:
 
 def solve_d(f: LTDL, W: ca.SX) -> ca.SX:
     """D^-1 W."""
+    if f.D_inv is not None:
+        return ca.vertcat(*[W[k, :] * f.D_inv[k] for k in range(W.shape[0])])
     return ca.vertcat(*[W[k, :] / f.D[k] for k in range(W.shape[0])])
 
 
