@@ -118,6 +118,9 @@ def batch_driver(f: ca.Function) -> str:
 _SIMD_PRELUDE = r"""
 #include <math.h>
 #include <string.h>
+#if defined(__AVX__)
+#include <immintrin.h>
+#endif
 typedef double footopt_vd __attribute__((vector_size(8 * FOOTOPT_LANES)));
 typedef long long footopt_vi __attribute__((vector_size(8 * FOOTOPT_LANES)));
 
@@ -125,6 +128,18 @@ static inline footopt_vd footopt_sqrt(footopt_vd x) {
   footopt_vd r;
   for (int l = 0; l < FOOTOPT_LANES; ++l) r[l] = sqrt(x[l]);
   return r;
+}
+
+/* 1 when every lane of a comparison's mask is set: one movemask with AVX (a loop over the lanes
+   compiles to a dozen shuffles; spatial case 3's evaluation 3-5 % faster), else lane by lane. */
+static inline int footopt_all(footopt_vi m) {
+#if defined(__AVX__) && FOOTOPT_LANES == 4
+  return _mm256_movemask_pd((__m256d)m) == 15;
+#else
+  int all = 1;
+  for (int l = 0; l < FOOTOPT_LANES; ++l) all &= m[l] != 0;
+  return all;
+#endif
 }
 
 static inline footopt_vd footopt_fabs(footopt_vd x) { return (footopt_vd)((footopt_vi)x & 0x7fffffffffffffffLL); }
@@ -136,18 +151,12 @@ static inline footopt_vd footopt_fabs(footopt_vd x) { return (footopt_vd)((footo
    [-pi/4, pi/4], then the quadrant. libm itself where any lane has |x| > 1e5 (or is not finite).
    Where every lane is +-0 (a model's rpy mostly are), sin x = x and cos x = 1 exactly, as libm's. */
 static inline void footopt_sincos(footopt_vd x, footopt_vd* s_out, footopt_vd* c_out) {
-  footopt_vi small = footopt_fabs(x) <= 1e5 + (footopt_vd){0};  /* false for nan */
-  footopt_vi zero = x == (footopt_vd){0};  /* +0 and -0 */
-  int all_small = 1, all_zero = 1;
-  for (int l = 0; l < FOOTOPT_LANES; ++l) {
-    all_small &= small[l] != 0;
-    all_zero &= zero[l] != 0;
-  }
-  if (all_zero) {
+  if (footopt_all(x == (footopt_vd){0})) {  /* +0 and -0 */
     *s_out = x;
     *c_out = (footopt_vd){0} + 1.0;
     return;
   }
+  int all_small = footopt_all(footopt_fabs(x) <= 1e5 + (footopt_vd){0});  /* false for nan */
   if (!all_small) {
     for (int l = 0; l < FOOTOPT_LANES; ++l) {
       (*s_out)[l] = sin(x[l]);
