@@ -56,11 +56,13 @@ def mass_matrix(jac: BodyJacobians, values: tuple[BodyValues, ...]) -> ca.SX:
 @dataclass(frozen=True)
 class LTDL:
     """M = L^T D L with L unit lower triangular, stored sparsely: ``L[(k, i)]`` for each
-    ancestor i of k; ``D`` the diagonal; ``parent`` the expanded parent array."""
+    ancestor i of k; ``D`` the diagonal; ``parent`` the expanded parent array; ``D_inv`` the
+    reciprocals of ``D`` where the factor divides once per pivot (:func:`ltdl`), else None."""
 
     L: dict[tuple[int, int], ca.SX]
     D: tuple[ca.SX, ...]
     parent: tuple[int, ...]
+    D_inv: tuple[ca.SX, ...] | None = None
 
     def ancestors(self, k: int):
         i = self.parent[k]
@@ -69,10 +71,17 @@ class LTDL:
             i = self.parent[i]
 
 
-def ltdl(M: ca.SX, parent: tuple[int, ...]) -> LTDL:
+def reciprocal(x: ca.SX) -> ca.SX:
+    """1 / x bit for bit (2 / (x + x): both scalings by 2 exact), as a node CasADi keeps in a
+    product (it rewrites y * (1 / x) as y / x)."""
+    return 2 / (x + x)
+
+
+def ltdl(M: ca.SX, parent: tuple[int, ...], reciprocals: bool = False) -> LTDL:
     """Factor a symmetric positive definite M whose sparsity follows ``parent`` (RBDA alg. 6.3).
 
-    A dense matrix is the special case ``parent = (-1, 0, 1, ..., n-2)``.
+    A dense matrix is the special case ``parent = (-1, 0, 1, ..., n-2)``. With ``reciprocals``,
+    one division per pivot: the multipliers and :func:`solve_d` multiply by its reciprocal.
     """
     n = M.shape[0]
     H: dict[tuple[int, int], ca.SX] = {}
@@ -87,16 +96,19 @@ def ltdl(M: ca.SX, parent: tuple[int, ...]) -> LTDL:
         H[(k, k)] = M[k, k]
         for i in anc(k):
             H[(k, i)] = M[k, i]
+    inv: dict[int, ca.SX] = {}
     for k in reversed(range(n)):
+        if reciprocals:
+            inv[k] = reciprocal(H[(k, k)])
         for i in anc(k):
-            a = H[(k, i)] / H[(k, k)]
+            a = H[(k, i)] * inv[k] if reciprocals else H[(k, i)] / H[(k, k)]
             H[(i, i)] = H[(i, i)] - a * H[(k, i)]
             for j in anc(i):
                 H[(i, j)] = H[(i, j)] - a * H[(k, j)]
             H[(k, i)] = a
     D = tuple(H[(k, k)] for k in range(n))
     L = {(k, i): H[(k, i)] for k in range(n) for i in anc(k)}
-    return LTDL(L, D, tuple(parent))
+    return LTDL(L, D, tuple(parent), tuple(inv[k] for k in range(n)) if reciprocals else None)
 
 
 def dense_parent(n: int) -> tuple[int, ...]:
@@ -124,6 +136,8 @@ def solve_l(f: LTDL, W: ca.SX) -> ca.SX:
 
 def solve_d(f: LTDL, W: ca.SX) -> ca.SX:
     """D^-1 W."""
+    if f.D_inv is not None:
+        return ca.vertcat(*[W[k, :] * f.D_inv[k] for k in range(W.shape[0])])
     return ca.vertcat(*[W[k, :] / f.D[k] for k in range(W.shape[0])])
 
 
@@ -218,12 +232,13 @@ class SpatialInertia:
     I_P: ca.SX
 
     def shifted(self, d: ca.SX) -> SpatialInertia:
-        """The same inertia about P - d (parallel-axis theorem with r -> r + d)."""
+        """The same inertia about P - d (parallel-axis theorem with r -> r + d); each symmetric
+        pair of I_Q formed once (the same values: a sum's and a product's operands swapped)."""
         E = ca.DM.eye(3)
         h = self.h + self.mass * d
         dh = d @ self.h.T
         I_Q = self.I_P + (2 * (d.T @ self.h) + self.mass * (d.T @ d)) * E - (dh + dh.T + self.mass * (d @ d.T))
-        return SpatialInertia(self.mass, h, I_Q)
+        return SpatialInertia(self.mass, h, _symmetric(I_Q))
 
     def __add__(self, other: SpatialInertia) -> SpatialInertia:
         return SpatialInertia(self.mass + other.mass, self.h + other.h, self.I_P + other.I_P)
@@ -302,6 +317,43 @@ def body_inertias(kin: Kinematics, values: tuple[BodyValues, ...]) -> tuple[Spat
     return tuple(out)
 
 
+def lean_body_inertias(kin: Kinematics, values: tuple[BodyValues, ...]) -> tuple[SpatialInertia, ...]:
+    """:func:`body_inertias` to rounding, in fewer operations: with r the rod's axis (``W_R_B[:, 0]``),
+    s = com * length and o the centre of mass's offset off the rod (G - O = s r + o), the
+    parallel-axis theorem with |r| = 1 gives
+    I_O = (I + m s^2) E + (I_axial - I - m s^2) r r^T + m ((2 s r.o + o.o) E - s (r o^T + o r^T) - o o^T)
+    + R T R^T: for a rod (o and T folded to 0) two scalars times E and r r^T, each symmetric entry
+    formed once, and no other column of the rod's rotation. Rounds otherwise than
+    :func:`body_inertias` (whose rod part is I (R_1 R_1^T + R_2 R_2^T) + I_axial r r^T shifted by
+    d d^T): the hot path's (:func:`impulse_core.impact.delassus.lean_impact_function`); the full
+    model keeps :func:`body_inertias`."""
+    out = []
+    for v, R in zip(values, kin.W_R_B):
+        r = R[:, 0]
+        s = v.com * v.length
+        o = com_offset(R, v)
+        m_s2 = v.mass * s**2
+        alpha, beta = v.inertia + m_s2, v.axial_inertia - v.inertia - m_s2
+        c = v.mass * (2 * s * (r.T @ o) + o.T @ o)
+        I_O = ca.SX(3, 3)
+        for i in range(3):
+            for j in range(i, 3):
+                offset = v.mass * (s * (r[i] * o[j] + o[i] * r[j]) + o[i] * o[j])
+                I_O[i, j] = beta * (r[i] * r[j]) - offset + (alpha + c if i == j else 0)
+                I_O[j, i] = I_O[i, j]
+        out.append(SpatialInertia(v.mass, v.mass * (r * s + o), _with_tensor(I_O, R, v)))
+    return tuple(out)
+
+
+def com_offset(R: ca.SX, v: BodyValues) -> ca.SX:
+    """The centre of mass's offset off the rod, world frame: ``com_offset`` along the body frame's
+    y and z (zero for a rod)."""
+    if v.is_rod:
+        return ca.SX.zeros(3, 1)
+    dy, dz = v.com_offset
+    return R[:, 1] * dy + R[:, 2] * dz
+
+
 def composite_inertias(
     parents: tuple[int, ...], kin: Kinematics, inertias: tuple[SpatialInertia, ...]
 ) -> tuple[SpatialInertia, ...]:
@@ -320,13 +372,15 @@ def composite_mass_matrix(
     layout: DofLayout,
     values: tuple[BodyValues, ...],
     space: Space = PLANAR,
+    inertias: tuple[SpatialInertia, ...] | None = None,
 ) -> ca.SX:
     """Joint-space mass matrix by the composite-rigid-body algorithm (RBDA alg. 6.2): for DOF j
     of body b, F_j = Ic_b S_j (momentum of b's subtree moving with DOF j, about O_b), and
     M_ij = S_i^T F_j for i = j and every ancestor DOF i. Equals :func:`mass_matrix`; only the
-    entries the tree's sparsity allows are formed (the rest are structural zeros)."""
+    entries the tree's sparsity allows are formed (the rest are structural zeros). ``inertias``:
+    the bodies' (default :func:`body_inertias`)."""
     S = joint_motions(kin, layout, space)
-    Ic = composite_inertias(parents, kin, body_inertias(kin, values))
+    Ic = composite_inertias(parents, kin, body_inertias(kin, values) if inertias is None else inertias)
     M = ca.SX(layout.nv, layout.nv)
     for j in range(layout.nv):
         b = layout.dof_body[j]

@@ -162,6 +162,22 @@ def test_simd_sin_cos_within_ulps_of_libm(tmp_path) -> None:
 
 
 @needs_compiler
+def test_simd_sin_cos_of_zero_lanes_are_exact(tmp_path) -> None:
+    """A step whose lanes are all +0 or -0 (rpy values at 0) gives sin x = x (its sign kept) and
+    cos x = 1, as libm; a step with one lane off zero takes the kernel, and equals libm there
+    (steps of four: designs 0-3 and 12-13 all zero, the last step's spare lanes repeat design 13)."""
+    x = ca.SX.sym("x")
+    f = ca.Function("trig_zero", [x], [ca.sin(x), ca.cos(x)])
+    kernel = batch_kernel(compile_function(f, tmp_path), f, simd=True)
+    X = np.array([0.0, -0.0, 0.0, -0.0, 0.0, 0.0, 0.0, 1e-300, -0.0, 0.0, 0.5, 0.0, -0.0, 0.0])
+    s, c = kernel(X[:, None])
+    np.testing.assert_array_equal(s.ravel(), np.sin(X))
+    zero_steps = [0, 1, 2, 3, 12, 13]
+    np.testing.assert_array_equal(np.signbit(s.ravel()[zero_steps]), np.signbit(X[zero_steps]))
+    np.testing.assert_array_equal(c.ravel(), np.cos(X))
+
+
+@needs_compiler
 def test_simd_driver_only_for_the_operations_it_knows(tmp_path) -> None:
     """A function with an operation the SIMD driver does not write (exp) compiles without it:
     the C loop works, the SIMD kernel is None; so is it on the VM path."""
