@@ -2946,9 +2946,13 @@ class _Landing:
         it random file 60624's corrections (348, a tip resting and sliding across a heightfield)
         moved 1.1e-4 of its momentum with no impulse, above the contract's balance of 1e-4."""
         here = self.point(q, v)
-        mass, p = here.M[0, 0], here.momentum[:, 0]  # M's corner: the whole mass (the base's translation)
+        return self.with_momentum(corrected, v, here.momentum[:, 0], here.M[0, 0])
+
+    def with_momentum(self, q: np.ndarray, v: np.ndarray, p: np.ndarray, mass: float) -> np.ndarray:
+        """``v`` with the base's translation velocity shifted so that the linear momentum at (q, v)
+        is ``p`` (``mass``: M's corner, the whole mass)."""
         out = v.copy()
-        out[: self.dims] += (p - self.point(corrected, v).momentum[:, 0]) / mass
+        out[: self.dims] += (p - self.point(q, v).momentum[:, 0]) / mass
         return out
 
     def carried_across(self, q: np.ndarray, v: np.ndarray, corrected: np.ndarray, mode: _Mode) -> bool:
@@ -3112,15 +3116,16 @@ class _Landing:
         fn, ft = _unstacked(impulses, self.nc, self.dims - 1)
         totals.normal += fn
         totals.tangential += ft
-        if vectors is not None:
-            F = vectors
-        elif self.sloped:
-            pt = self.point(q, v)
-            F = contact_vectors(pt.normal, pt.tangent, fn, ft)
-        else:
-            F = contact_vectors(*self.flat_ground, fn, ft)
+        F = vectors if vectors is not None else self.world_vectors(fn, ft, self.point(q, v) if self.sloped else None)
         totals.impulse += F.sum(axis=1)
         totals.vectors += F
+
+    def world_vectors(self, fn: np.ndarray, ft: np.ndarray, pt: _Point | None) -> np.ndarray:
+        """Contact impulses (normal ``fn``, tangential ``ft`` per contact) as world vectors (d x n_c),
+        along ``pt``'s normals and tangents on sloped ground, else the flat ground's."""
+        if self.sloped:
+            return contact_vectors(pt.normal, pt.tangent, fn, ft)
+        return contact_vectors(*self.flat_ground, fn, ft)
 
     def add_impact(self, totals: _Totals, event: LandingEvent, q: np.ndarray, v: np.ndarray, v_plus: np.ndarray
                    ) -> None:
@@ -3650,12 +3655,8 @@ class _Landing:
         after is taken at q1, while its forces were at q: across a velocity jump the step changed
         the momentum by dt times the jump in the Coriolis terms, first order in dt (random file
         60690: a bridge took a tumbling rod from 35 to 26 rad/s, the landing's balance 1.1e-4)."""
-        fn, ft = _unstacked(impulses, self.nc, self.dims - 1)
-        F = contact_vectors(pt.normal, pt.tangent, fn, ft) if self.sloped else contact_vectors(*self.flat_ground, fn, ft)
-        target = pt.momentum[:, 0] + self.weight(dt) + F.sum(axis=1)
-        out = v1.copy()
-        out[: self.dims] += (target - self.point(q1, v1).momentum[:, 0]) / pt.M[0, 0]
-        return out
+        applied = self.world_vectors(*_unstacked(impulses, self.nc, self.dims - 1), pt).sum(axis=1)
+        return self.with_momentum(q1, v1, pt.momentum[:, 0] + self.weight(dt) + applied, pt.M[0, 0])
 
     def jam_event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                   jammed: np.ndarray, failure: NumericalError) -> tuple[np.ndarray, np.ndarray, _Mode]:
