@@ -2913,7 +2913,8 @@ class _Landing:
         balance along it: the small radius's swing keeps their energy at a rate without bound, and
         the landing at radius 0 is no limit of it. A damper along the direction makes the limit a
         relaxation to the balance (random file 60443, which lands); springs at their balance stay
-        there."""
+        there as r -> 0, the rod's spin following (60603 with b1's rest at its angle: 3 mm and 1 mm
+        end 1e-5 apart), and are taken, though such a run at radius 0 still diverges."""
         n = self.massless_directions(M0)
         if n is None:
             return
