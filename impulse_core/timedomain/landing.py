@@ -2933,12 +2933,13 @@ class _Landing:
         j = int(np.argmax(wound))
         b = self.joints.dof_body[j]
         energy = 0.5 * float(swing @ (stiffness * swing))
+        rods = ", ".join(body.name for body in tree.bodies if body.radius == 0.0 and not any(body.tensor))
         raise ModelError(
             f"model.bodies[{b}].stiffness: {tree.bodies[b].name}'s spring acts along a motion without inertia (a rod "
             "of radius 0 spinning about its own axis, a joint turning back, nothing else moving) with no damper on "
             f"it, and starts {wound[j]:.3g} rad from its balance along it ({energy:.3g} J): with a radius r the spin "
             "swings about that balance ever faster as r -> 0 (~ 1 / r), keeping that energy, so the angles along it at "
-            "T have no limit at radius 0; give the rod a radius or damp the joint")
+            f"T have no limit at radius 0; give the rod a radius (the rods of radius 0: {rods}) or damp the joint")
 
     def placed(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Back onto the mode's constraints: closed gaps and stops, and open contacts below the

@@ -242,7 +242,8 @@ def test_an_undamped_spring_wound_along_a_massless_direction_is_refused():
         return _Landing(tree, model.scene, joints, LandingSettings(), model.space)
 
     with pytest.raises(ModelError, match=r"^model\.bodies\[1\]\.stiffness: b1's spring .* starts 0\.176 rad from "
-                       r"its balance along it \(0\.0996 J\).* give the rod a radius or damp the joint$"):
+                       r"its balance along it \(0\.0996 J\).* give the rod a radius \(the rods of radius 0: b0\) "
+                       r"or damp the joint$"):
         build()
     for law in (replace(joints[1], damping=0.05), replace(joints[1], rest=tree.bodies[1].angle)):
         build(joints=joints[:1] + (law,) + joints[2:])
