@@ -207,6 +207,13 @@ MASSLESS = 4.0
 #: direction) exceeds this times the longest rod (:meth:`_Landing.refuse_massless_contacts`; a rod
 #: of radius 0 spinning about its own axis moves its contacts by rounding, ~1e-16 x its length).
 MASSLESS_REACH = 1e-6
+#: Space: springs along a massless direction with no damper on it (:meth:`_Landing.refuse_swinging_springs`)
+#: may start at most this far (rad, a joint's angle) from their balance along it. With a rod's radius r
+#: the direction has inertia ~ r^2 and such springs swing it about their balance at a rate ~ 1 / r,
+#: undamped and keeping their energy, so the angles along it at T have no limit as r -> 0 (random file
+#: 60603: b1's spring 0.18 rad from its balance, 0.1 J; its joint ended at 1.151 rad with b0 of radius
+#: 3 mm, 1.412 with 1 mm, the rest of the landing alike to 1e-4). Wound by rounding only, the swing is nil.
+MASSLESS_SWING = 1e-6
 #: Steps (of any length) after which a run is abandoned, per step of the run's nominal length: a
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
@@ -1595,6 +1602,7 @@ class _Landing:
         #: flat ground's normals and tangents at every contact (:func:`tangent_basis`)
         self.flat_ground = (up, tangent_basis(up))
         self.refuse_massless_contacts(tree, M0)
+        self.refuse_swinging_springs(tree, M0)
 
     def first_step(self) -> float:
         """:attr:`LandingSettings.step`, or by default (:data:`FIRST_STEPS`) the implicit
@@ -2897,6 +2905,41 @@ class _Landing:
             f"{field}: the whole landing needs inertia wherever a contact moves, but a rod of radius 0 with its "
             "centre of mass off its axis has none about the axis through that centre (only the core's floor, 1e-14 "
             "of its own) and that turn moves its contacts; give the rod a radius or an inertia_tensor")
+
+    def refuse_swinging_springs(self, tree: Tree, M0: np.ndarray) -> None:
+        """Refuse (ModelError) a landing whose springs act along a massless direction of the mass
+        matrix at touchdown (``M0``: a rod of radius 0 spinning about its own axis, a joint turning
+        back) with no damper on it, wound at touchdown more than :data:`MASSLESS_SWING` from their
+        balance along it: the small radius's swing keeps their energy at a rate without bound, and
+        the landing at radius 0 is no limit of it. A damper along the direction makes the limit a
+        relaxation to the balance (random file 60443, which lands); springs at their balance stay
+        there as r -> 0, the rod's spin following (60603 with b1's rest at its angle: 3 mm and 1 mm
+        end 1e-5 apart), and are taken, though such a run at radius 0 still diverges."""
+        n = self.massless_directions(M0)
+        if n is None:
+            return
+        stiffness, damping = self.joints.stiffness, self.joints.damping
+        damped = (damping > 0.0) & np.any(np.abs(n) > MASSLESS_REACH, axis=1)
+        if np.any(damped):  # the combinations of the directions that no damper moves
+            _, s, vt = np.linalg.svd(n[damped], full_matrices=True)
+            n = n @ vt[int(np.sum(s > MASSLESS_REACH)):].T
+            if n.shape[1] == 0:
+                return
+        torque = n.T @ (-stiffness * (self.q0 - self.joints.rest))  # the springs' along the directions
+        swing = n @ np.linalg.lstsq(n.T @ (stiffness[:, None] * n), torque, rcond=None)[0]
+        wound = np.abs(swing) * (stiffness > 0.0)
+        if float(np.max(wound)) <= MASSLESS_SWING:
+            return
+        j = int(np.argmax(wound))
+        b = self.joints.dof_body[j]
+        energy = 0.5 * float(swing @ (stiffness * swing))
+        rods = ", ".join(body.name for body in tree.bodies if body.radius == 0.0 and not any(body.tensor))
+        raise ModelError(
+            f"model.bodies[{b}].stiffness: {tree.bodies[b].name}'s spring acts along a motion without inertia (a rod "
+            "of radius 0 spinning about its own axis, a joint turning back, nothing else moving) with no damper on "
+            f"it, and starts {wound[j]:.3g} rad from its balance along it ({energy:.3g} J): with a radius r the spin "
+            "swings about that balance ever faster as r -> 0 (~ 1 / r), keeping that energy, so the angles along it at "
+            f"T have no limit at radius 0; give the rod a radius (the rods of radius 0: {rods}) or damp the joint")
 
     def placed(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Back onto the mode's constraints: closed gaps and stops, and open contacts below the

@@ -224,6 +224,32 @@ def test_the_joint_laws_rate_is_the_generalized_eigenvalue_and_survives_a_massle
     assert np.isfinite(rate) and rate > 1e12
 
 
+def test_an_undamped_spring_wound_along_a_massless_direction_is_refused():
+    """Random file 60603 (data/swinging_60603.yaml): the base b0 is a rod of radius 0 and b1's joint
+    turns about b0's axis, its spring (no damper) 0.18 rad from its rest. b0 spinning with b1's
+    joint turning back moves no mass, and with a radius r the spring swings that spin at a rate
+    ~ 1 / r, keeping its 0.1 J: b1's angle at T was 1.151 rad at r = 3 mm, 1.412 at 1 mm, the rest
+    of the landing alike to 1e-4. At radius 0 the landing is no such limit (it diverged after 15 s,
+    Radau IIA's Newton iterations failing from h down to 1e-10 s): refused at once, naming the
+    joint. With a damper on it, its spring at its balance, or a radius, the leg is taken."""
+    from impulse_core.errors import ModelError
+    from optimizer.config.model_file import load_model_file
+
+    model = load_model_file(Path(__file__).resolve().parent / "data" / "swinging_60603.yaml")
+    tree, joints = model.tree, model.joints
+
+    def build(tree: Tree = tree, joints: tuple[JointLaw, ...] = joints) -> _Landing:
+        return _Landing(tree, model.scene, joints, LandingSettings(), model.space)
+
+    with pytest.raises(ModelError, match=r"^model\.bodies\[1\]\.stiffness: b1's spring .* starts 0\.176 rad from "
+                       r"its balance along it \(0\.0996 J\).* give the rod a radius \(the rods of radius 0: b0\) "
+                       r"or damp the joint$"):
+        build()
+    for law in (replace(joints[1], damping=0.05), replace(joints[1], rest=tree.bodies[1].angle)):
+        build(joints=joints[:1] + (law,) + joints[2:])
+    build(Tree((replace(tree.bodies[0], radius=1e-3),) + tuple(tree.bodies[1:])))
+
+
 @pytest.mark.parametrize("space", ["planar", "spatial"])
 def test_a_position_correction_moves_no_momentum(space):
     """The projection after a step or event corrects positions at fixed generalized velocity, which
