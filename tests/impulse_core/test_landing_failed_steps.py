@@ -8,6 +8,8 @@
   after RADAU_SPLITS (its Newton iterations did not converge), and the witnesses' least squares
   on NaN failed ("SVD did not converge"). A trial's length is where it looks, so its pieces are now
   split down to RK4's stable step; a trial that blows up is the run's divergence.
+- Random file 61227 (a light rod's tip, friction 0.3): a run that diverges after Painleve's
+  paradox says so, and the remedy.
 """
 
 from __future__ import annotations
@@ -71,3 +73,15 @@ def test_a_trial_that_blows_up_is_the_runs_divergence(monkeypatch):
     monkeypatch.setattr(run, "step", lambda q, v, mode, h: (q * np.nan, v * np.nan, np.zeros(run.nc * run.dims)))
     with pytest.raises(Diverged, match="locating an event"):
         run.trial(q, v, mode.copy(), 1e-4)
+
+
+def test_a_divergence_after_painleves_paradox_says_so():
+    """Random file 61227 (a light rod's tip, friction 0.3): its run at T / 800 diverges 1.9 ms after
+    an impulsive jam, in a mode no jam note explains; the error names the paradox met before and
+    the remedy (it said "the landing diverged" alone)."""
+    model = load_model_file(DATA / "paradox_diverged_61227.yaml")
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    said = "after Painleve's paradox at t = 0.06.*lower the friction"
+    with np.errstate(all="ignore"), pytest.raises(Diverged, match=said):
+        run.run(model.scene.duration / 800.0)
+    assert run._jams[1] >= 1
