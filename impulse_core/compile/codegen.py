@@ -230,7 +230,8 @@ def simd_driver(f: ca.Function, lanes: int = SIMD_LANES) -> str | None:
     evaluation alike within the noise).
     Arithmetic, sqrt and fabs are IEEE operations lane by lane, so they round as the scalar code does; sin and cos come from a vector kernel within 1 ulp of
     libm's for |x| <= 10 (2 ulp up to 1e5; libm itself beyond), one call for the sin and cos of
-    one value, and none where every lane's value is zero (sin and cos exact, as libm's). ``<name>_simd_lanes()`` returns ``lanes``. None when ``f`` is not an SX function
+    one value, and none where every lane's value is zero (sin and cos exact, as libm's).
+    ``<name>_simd_lanes()`` returns ``lanes``. None when ``f`` is not an SX function
     or uses an operation outside +, -, *, /, 1/x, negation, square, fabs, sqrt, sin and cos."""
     if not f.is_a("SXFunction"):
         return None

@@ -3296,12 +3296,12 @@ class _Landing:
             if not (_finite(q1) and _finite(v1) and self.kinetic(q1, v1) <= cap):
                 failure = Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s){self.singular_note(q)}"
                                    f"{self.jam_note(q, v, mode) or self.paradox_note()}")
-                if self._jams[1] and bridged < MAX_BRIDGES and _any(mode.closed & mode.sliding):
+                if self._jams[1] and _any(mode.closed & mode.sliding):
                     # a run that has met Painleve's paradox (a jam taken or tried), a step sliding into
                     # it again (its force without bound): a bridge from the step's start (random file
                     # 60690 at h / 8, after two jams); elsewhere a divergence is a step too long
-                    q, v, mode, t = self.bridge(q, v, mode, t, totals, min(h * BRIDGE, T - t))
-                    bridged += 1
+                    q, v, mode, t, bridged = self.bridge_within(q, v, mode, t, totals, min(h * BRIDGE, T - t),
+                                                                bridged, failure)
                     continue
                 if self.jam_watch is not None or not slid:
                     raise failure
@@ -3370,10 +3370,8 @@ class _Landing:
                 failure = NumericalError(self.stall_message(q_e, v_e, mode, t))
                 jammed = self.painleve(q_e, v_e, mode)
                 if not jammed.size:
-                    if bridged >= MAX_BRIDGES:
-                        raise failure
-                    q, v, mode, t = self.bridge(q_e, v_e, mode, t, totals, min(h * BRIDGE, T - t))
-                    bridged += 1
+                    q, v, mode, t, bridged = self.bridge_within(q_e, v_e, mode, t, totals, min(h * BRIDGE, T - t),
+                                                                bridged, failure)
                     stalled = repeated = 0
                     again = False
                     if progress is not None:
@@ -3729,8 +3727,16 @@ class _Landing:
         try:
             return (*self.jam_event(q, v, mode, t, totals, jammed, failure), t, bridged)
         except NumericalError as unjammed:
-            if unjammed is not failure or bridged >= MAX_BRIDGES:
+            if unjammed is not failure:
                 raise
+        return self.bridge_within(q, v, mode, t, totals, span, bridged, failure)
+
+    def bridge_within(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals, span: float,
+                      bridged: int, failure: NumericalError) -> tuple[np.ndarray, np.ndarray, _Mode, float, int]:
+        """A bridge across ``span`` (:meth:`bridge`) as the run's next, (q, v, mode, t, bridged + 1);
+        raises ``failure`` where the run has taken MAX_BRIDGES already."""
+        if bridged >= MAX_BRIDGES:
+            raise failure
         return (*self.bridge(q, v, mode, t, totals, span), bridged + 1)
 
     def modes_after(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
