@@ -3912,6 +3912,27 @@ def runs_apart(halving: tuple[tuple[float, float, float, float, float], ...] | l
             and max(peaks, totals) <= IMPULSES_AGREE * angles1)
 
 
+#: The step halving stops early, unmet, where each of its last STALL_HALVINGS comparisons left the
+#: runs' difference above STALL_FRACTION of the comparison before them (:func:`halving_stalled`).
+STALL_FRACTION = 0.5
+STALL_HALVINGS = 3
+
+
+def halving_stalled(halving: tuple[tuple[float, float, float, float, float], ...] | list) -> bool:
+    """Whether the step halving has stalled (``halving``: :attr:`LandingResult.halving`): each of its
+    last STALL_HALVINGS comparisons left the runs' difference (the largest of the three lists) above
+    STALL_FRACTION of the comparison before them. A landing whose error is first order in the step
+    divides it by eight over three halvings; one that has not halved it is not converging at a rate
+    worth the cost, since each halving costs twice the last (random file 60838: the split of a load
+    between two contacts 0.66 mm apart changes with the step). Two such halvings are not enough:
+    random file 60045's differences rose from 3.6e-3 to 7.0e-3 and 7.5e-3 as its event sequence
+    changed with the step, then fell to 1.1e-3 and met the tolerance."""
+    if len(halving) <= STALL_HALVINGS:
+        return False
+    before, *last = (max(c[2:]) for c in halving[-STALL_HALVINGS - 1:])
+    return min(last) > STALL_FRACTION * before
+
+
 def landing(
     tree: Tree, scene: Scene, joints: tuple[JointLaw, ...] = (), settings: LandingSettings = LandingSettings(),
     space: Space = PLANAR, progress: Progress | None = None,
@@ -3921,7 +3942,8 @@ def landing(
     (:func:`landing_difference`); the finer run is returned with that difference as its
     ``error_estimate`` (an unmet tolerance: ``converged`` is False). The halving stops early, unmet,
     where its runs' final angles do not approach each other while their impulses agree
-    (:func:`runs_apart`; ``runs_apart`` is then True; ``halving`` holds every comparison).
+    (:func:`runs_apart`; ``runs_apart`` is then True; ``halving`` holds every comparison), or
+    where its last three halvings did not halve the runs' difference (:func:`halving_stalled`).
     ``progress`` is told where each run is (:class:`LandingProgress`; a run that diverged is
     followed by one at a shorter step, and an implicit run that ``auto`` chose and whose steps
     overran their budget, or fell behind RK4's stable step (:data:`RK4_PACE`), by one of RK4 at its
@@ -3975,7 +3997,7 @@ def landing(
         if differences is not None:
             halving.append((previous.step, current.step, *differences))
             apart = runs_apart(halving)
-            if apart:  # the postures do not approach each other: no further halving would converge them
+            if apart or halving_stalled(halving):  # no further halving would converge them at its cost
                 break
         else:
             share /= 2.0**run.balance_order
@@ -4005,6 +4027,9 @@ __all__ = [
     "landing_difference",
     "landing_differences",
     "runs_apart",
+    "halving_stalled",
+    "STALL_FRACTION",
+    "STALL_HALVINGS",
     "POSTURE_SPREAD",
     "IMPULSES_AGREE",
     "split_alike_at_half",

@@ -20,7 +20,7 @@ from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
 from impulse_core.model.terrain import FLAT
 from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import CompliantResult, CompliantStatus, ContactLaw
-from impulse_core.timedomain.landing import BALANCE_CHECK, LandingResult
+from impulse_core.timedomain.landing import STALL_HALVINGS, BALANCE_CHECK, LandingResult, halving_stalled
 from impulse_core.timedomain.sequential import SequentialResult
 from optimizer.config.model_file import ModelFile
 from optimizer.evaluation.model_choice import TimeDomainResult
@@ -159,6 +159,8 @@ def _time_domain_warnings(model: ModelFile, result: TimeDomainResult) -> list[st
     r = result.result
     if isinstance(r, LandingResult) and r.runs_apart:
         out.append(_runs_apart_warning(r))
+    elif isinstance(r, LandingResult) and not r.converged and halving_stalled(r.halving):
+        out.append(_stalled_warning(r))
     elif isinstance(r, LandingResult) and not r.converged:
         out.append(
             f"the landing did not converge to its tolerance: error estimate {r.error_estimate:.3g} > "
@@ -233,6 +235,19 @@ def _runs_apart_warning(r: LandingResult) -> str:
         "the impacts (a tumbling flight, say) amplifies any small difference beyond what a shorter step removes. "
         "The answer is the finest run: its impulses hold to those differences; its final angles, base position "
         "and velocity are one possible outcome, not a converged one"
+    )
+
+
+def _stalled_warning(r: LandingResult) -> str:
+    """Why the step halving of a whole landing stopped unmet (:func:`halving_stalled`): the runs'
+    differences of its last comparisons, which the last STALL_HALVINGS halvings did not halve."""
+    shown = ", then ".join(f"{max(c[2:]):.2g} (steps {c[0]:.3g} and {c[1]:.3g} s)"
+                           for c in r.halving[-STALL_HALVINGS - 1:])
+    return (
+        f"the landing did not converge to its tolerance {r.tolerance:g}, and the step halving stopped: successive "
+        f"runs differed by {shown} (relative), not halving over the last {STALL_HALVINGS} halvings, each of which "
+        "costs twice the one before (which contact takes a load, or lands first, changes with the step). The answer "
+        f"is the finest run, uncertain to about {r.error_estimate:.2g}"
     )
 
 

@@ -774,6 +774,68 @@ def test_a_halving_whose_runs_end_apart_stops_with_them(monkeypatch):
     assert not r.runs_apart and r.converged and len(asked) == 4 and len(r.halving) == 2
 
 
+# The step halving's stall (halving_stalled): random file 60838's comparisons (coarser step, finer step,
+# peak impulses, total impulses, final angles) as its runs at h, h / 4, ..., h / 64 gave them (its runs on to
+# h / 256 differed by 2.0e-3 and 9.6e-3 more, 1131 s in all), and 60045's, whose next run met the tolerance.
+_STALLED = ((7.62e-5, 1.9e-5, 0.0, 3.17e-3, 1.39e-2), (1.9e-5, 9.52e-6, 0.0, 2.32e-3, 8.02e-4),
+            (9.52e-6, 4.76e-6, 0.0, 1.03e-2, 8.08e-4), (4.76e-6, 2.38e-6, 0.0, 7.43e-3, 6.45e-4),
+            (2.38e-6, 1.19e-6, 0.0, 5.01e-3, 2.03e-4))
+_WANDERED = ((4.81e-4, 2.4e-4, 0.0, 3.56e-3, 8.67e-4), (2.4e-4, 1.2e-4, 0.0, 6.98e-3, 4.26e-3),
+             (1.2e-4, 6.01e-5, 0.0, 7.51e-3, 3.74e-3), (6.01e-5, 3.01e-5, 0.0, 1.1e-3, 5.69e-4))
+
+
+def _moved(comparison, difference):
+    return comparison[:3] + (difference, comparison[4])
+
+
+@pytest.mark.parametrize("halving, stalled", [
+    (_STALLED, True),  # 2.32e-3, then 1.03e-2, 7.43e-3 and 5.01e-3: not halved in three halvings
+    (_STALLED[:4], False),  # 1.39e-2, then 2.32e-3: fell six-fold
+    (_STALLED[:3], False),  # three comparisons: two halvings do not judge
+    (_WANDERED, False),  # 3.56e-3, then 6.98e-3, 7.51e-3 and 1.1e-3: halved at the last (60045)
+    (_WANDERED[:3], False),  # rose twice: not judged yet (60045 went on to meet the tolerance)
+    (_STALLED[:4] + (_moved(_STALLED[4], 1.1e-3),), False),  # the last one halved
+    (_STALLED[:4] + (_moved(_STALLED[4], 1.2e-3),), True),  # just above half
+    (_STALLED[:2] + (_moved(_STALLED[2], 1.1e-3),) + _STALLED[3:], False),  # the first of the three halved
+    (_STALLED[:4] + (_moved(_STALLED[4], 0.0)[:4] + (1.2e-3,),), True),  # the final angles' difference counts
+])
+def test_halving_stalled_asks_three_halvings_that_did_not_halve_the_difference(halving, stalled):
+    """:func:`halving_stalled`: the largest of each comparison's three differences, the last three
+    all above STALL_FRACTION of the one before them (random file 60838 stops, 60045 goes on)."""
+    assert landing_module.halving_stalled(halving) is stalled
+
+
+def test_a_stalled_halving_stops_with_the_finest_run(monkeypatch):
+    """Runs whose totals differ by 1e-2, then 5.9e-3, 7.0e-3, 5.9e-3 from the run before: the
+    halving stops after its fifth run, unmet, the estimate the last difference; runs whose
+    differences halve at each halving (1e-2, 5e-3, 2.5e-3, ...) go on to the tolerance."""
+    tree, laws, scene = _random_leg(1)
+    base = landing(tree, scene, laws, LandingSettings(tolerance=1e-2, integrator="rk4"))
+
+    def fake_runs(totals):
+        runs, asked = iter(totals), []
+
+        def fake(self, h, *args, share=1.0):
+            n, moved = next(runs)
+            asked.append(h)
+            times = np.arange(n + 1) * h  # steps of h each: the run at h / 2 would not be split alike
+            return replace(base, n_steps=n, step=h, total_external=base.total_external * (1 + moved),
+                           trajectory=(times, np.zeros((n + 1, 0))))
+        return fake, asked
+
+    fake, asked = fake_runs([(1000, 0.0), (2000, 1e-2), (4000, 4e-3), (8000, 1.1e-2), (16000, 5e-3), (32000, 0.0)])
+    monkeypatch.setattr(_Landing, "run", fake)
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-4, integrator="rk4"))
+    assert not r.converged and not r.runs_apart and len(asked) == 5 and r.n_steps == 16000
+    assert [max(c[2:]) for c in r.halving] == pytest.approx([1e-2, 6e-3 / 1.01, 7e-3 / 1.004, 6e-3 / 1.011],
+                                                            rel=1e-9)
+    assert r.error_estimate == max(r.halving[-1][2:])
+    fake, asked = fake_runs([(1000 * 2**k, 1e-2 * (1 - 0.5**k)) for k in range(8)])
+    monkeypatch.setattr(_Landing, "run", fake)
+    r = landing(tree, scene, laws, LandingSettings(tolerance=1e-4, integrator="rk4"))
+    assert r.converged and len(asked) == 8 and len(r.halving) == 6
+
+
 def test_grazing_sees_the_stops_of_the_joints_it_has_now():
     """:meth:`_Landing.grazing` keeps the stops widened by the gap tolerance (asked every step) for
     the joint arrays they were made of: with other joints, their stops are the ones watched."""
