@@ -3912,25 +3912,34 @@ def runs_apart(halving: tuple[tuple[float, float, float, float, float], ...] | l
             and max(peaks, totals) <= IMPULSES_AGREE * angles1)
 
 
-#: The step halving stops early, unmet, where each of its last STALL_HALVINGS comparisons left the
-#: runs' difference above STALL_FRACTION of the comparison before them (:func:`halving_stalled`).
+#: The step halving stops early, unmet, where a step STALL_STEPS times shorter left the runs'
+#: difference above STALL_FRACTION of what it was (:func:`stall_start`).
 STALL_FRACTION = 0.5
-STALL_HALVINGS = 3
+STALL_STEPS = 8.0
+
+
+def stall_start(halving: tuple[tuple[float, float, float, float, float], ...] | list) -> int | None:
+    """Where the step halving stalled (``halving``: :attr:`LandingResult.halving`): the index of the
+    last comparison whose finer step is at least STALL_STEPS times the last comparison's, where every
+    comparison after it left the runs' difference (the largest of the three lists) above
+    STALL_FRACTION of its; else None. An error of first order in the step falls eight-fold over
+    three halvings; one that has not halved is not converging at a rate worth the cost, since each
+    halving costs twice the last (random file 60838: the split of a load between two contacts
+    0.66 mm apart changes with the step; 61004, whose runs are four times apart, differed by 0.13,
+    0.079 and 0.14 in their peaks). Fewer halvings do not judge: random file 60045's differences
+    rose from 3.6e-3 to 7.0e-3 and 7.5e-3 as its event sequence changed with the step, then fell
+    to 1.1e-3, and its next run met the tolerance."""
+    last = halving[-1][1] if halving else math.nan
+    for j in range(len(halving) - 2, -1, -1):
+        if halving[j][1] >= STALL_STEPS * last * (1.0 - 1e-9):
+            before = max(halving[j][2:])
+            return j if min(max(c[2:]) for c in halving[j + 1:]) > STALL_FRACTION * before else None
+    return None
 
 
 def halving_stalled(halving: tuple[tuple[float, float, float, float, float], ...] | list) -> bool:
-    """Whether the step halving has stalled (``halving``: :attr:`LandingResult.halving`): each of its
-    last STALL_HALVINGS comparisons left the runs' difference (the largest of the three lists) above
-    STALL_FRACTION of the comparison before them. A landing whose error is first order in the step
-    divides it by eight over three halvings; one that has not halved it is not converging at a rate
-    worth the cost, since each halving costs twice the last (random file 60838: the split of a load
-    between two contacts 0.66 mm apart changes with the step). Two such halvings are not enough:
-    random file 60045's differences rose from 3.6e-3 to 7.0e-3 and 7.5e-3 as its event sequence
-    changed with the step, then fell to 1.1e-3 and met the tolerance."""
-    if len(halving) <= STALL_HALVINGS:
-        return False
-    before, *last = (max(c[2:]) for c in halving[-STALL_HALVINGS - 1:])
-    return min(last) > STALL_FRACTION * before
+    """Whether the step halving stalled (:func:`stall_start`)."""
+    return stall_start(halving) is not None
 
 
 def landing(
@@ -3943,7 +3952,7 @@ def landing(
     ``error_estimate`` (an unmet tolerance: ``converged`` is False). The halving stops early, unmet,
     where its runs' final angles do not approach each other while their impulses agree
     (:func:`runs_apart`; ``runs_apart`` is then True; ``halving`` holds every comparison), or
-    where its last three halvings did not halve the runs' difference (:func:`halving_stalled`).
+    where a step eight times shorter did not halve the runs' difference (:func:`halving_stalled`).
     ``progress`` is told where each run is (:class:`LandingProgress`; a run that diverged is
     followed by one at a shorter step, and an implicit run that ``auto`` chose and whose steps
     overran their budget, or fell behind RK4's stable step (:data:`RK4_PACE`), by one of RK4 at its
@@ -4029,7 +4038,8 @@ __all__ = [
     "runs_apart",
     "halving_stalled",
     "STALL_FRACTION",
-    "STALL_HALVINGS",
+    "STALL_STEPS",
+    "stall_start",
     "POSTURE_SPREAD",
     "IMPULSES_AGREE",
     "split_alike_at_half",

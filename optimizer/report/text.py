@@ -20,7 +20,7 @@ from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
 from impulse_core.model.terrain import FLAT
 from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import CompliantResult, CompliantStatus, ContactLaw
-from impulse_core.timedomain.landing import STALL_HALVINGS, BALANCE_CHECK, LandingResult, halving_stalled
+from impulse_core.timedomain.landing import BALANCE_CHECK, LandingResult, halving_stalled, stall_start
 from impulse_core.timedomain.sequential import SequentialResult
 from optimizer.config.model_file import ModelFile
 from optimizer.evaluation.model_choice import TimeDomainResult
@@ -239,15 +239,15 @@ def _runs_apart_warning(r: LandingResult) -> str:
 
 
 def _stalled_warning(r: LandingResult) -> str:
-    """Why the step halving of a whole landing stopped unmet (:func:`halving_stalled`): the runs'
-    differences of its last comparisons, which the last STALL_HALVINGS halvings did not halve."""
-    shown = ", then ".join(f"{max(c[2:]):.2g} (steps {c[0]:.3g} and {c[1]:.3g} s)"
-                           for c in r.halving[-STALL_HALVINGS - 1:])
+    """Why the step halving of a whole landing stopped unmet (:func:`stall_start`): the runs'
+    differences from the comparison it measured the stall from, none of them below half of it."""
+    since = r.halving[stall_start(r.halving):]
+    shown = ", then ".join(f"{max(c[2:]):.2g} (steps {c[0]:.3g} and {c[1]:.3g} s)" for c in since)
     return (
         f"the landing did not converge to its tolerance {r.tolerance:g}, and the step halving stopped: successive "
-        f"runs differed by {shown} (relative), not halving over the last {STALL_HALVINGS} halvings, each of which "
-        "costs twice the one before (which contact takes a load, or lands first, changes with the step). The answer "
-        f"is the finest run, uncertain to about {r.error_estimate:.2g}"
+        f"runs differed by {shown} (relative), not halving as the step shrank {since[0][1] / since[-1][1]:.3g}-fold, "
+        "each halving costing twice the one before (which contact takes a load, or lands first, changes with the "
+        f"step). The answer is the finest run, uncertain to about {r.error_estimate:.2g}"
     )
 
 

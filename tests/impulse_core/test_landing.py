@@ -774,35 +774,46 @@ def test_a_halving_whose_runs_end_apart_stops_with_them(monkeypatch):
     assert not r.runs_apart and r.converged and len(asked) == 4 and len(r.halving) == 2
 
 
-# The step halving's stall (halving_stalled): random file 60838's comparisons (coarser step, finer step,
-# peak impulses, total impulses, final angles) as its runs at h, h / 4, ..., h / 64 gave them (its runs on to
+# The step halving's stall (stall_start): random file 60838's comparisons (coarser step, finer step, peak
+# impulses, total impulses, final angles) as its runs at h, h / 4, ..., h / 64 gave them (its runs on to
 # h / 256 differed by 2.0e-3 and 9.6e-3 more, 1131 s in all), and 60045's, whose next run met the tolerance.
-_STALLED = ((7.62e-5, 1.9e-5, 0.0, 3.17e-3, 1.39e-2), (1.9e-5, 9.52e-6, 0.0, 2.32e-3, 8.02e-4),
-            (9.52e-6, 4.76e-6, 0.0, 1.03e-2, 8.08e-4), (4.76e-6, 2.38e-6, 0.0, 7.43e-3, 6.45e-4),
-            (2.38e-6, 1.19e-6, 0.0, 5.01e-3, 2.03e-4))
-_WANDERED = ((4.81e-4, 2.4e-4, 0.0, 3.56e-3, 8.67e-4), (2.4e-4, 1.2e-4, 0.0, 6.98e-3, 4.26e-3),
-             (1.2e-4, 6.01e-5, 0.0, 7.51e-3, 3.74e-3), (6.01e-5, 3.01e-5, 0.0, 1.1e-3, 5.69e-4))
+def _comparisons(h, ratios, differences):
+    steps = [h / r for r in (1,) + ratios]
+    return tuple((c, f, *d) for c, f, d in zip(steps, steps[1:], differences))
+
+
+_STALLED = _comparisons(7.62e-5, (4, 8, 16, 32, 64), ((0.0, 3.17e-3, 1.39e-2), (0.0, 2.32e-3, 8.02e-4),
+                        (0.0, 1.03e-2, 8.08e-4), (0.0, 7.43e-3, 6.45e-4), (0.0, 5.01e-3, 2.03e-4)))
+_WANDERED = _comparisons(4.81e-4, (2, 4, 8, 16), ((0.0, 3.56e-3, 8.67e-4), (0.0, 6.98e-3, 4.26e-3),
+                         (0.0, 7.51e-3, 3.74e-3), (0.0, 1.1e-3, 5.69e-4)))
+# runs four times apart (the momentum balance split the run at h / 2 alike), differing by 0.13, 0.079, 0.14
+_FOURFOLD = _comparisons(1.71e-3, (4, 16, 64), ((0.13, 1e-3, 1e-3), (0.079, 1e-3, 1e-3), (0.14, 1e-3, 1e-3)))
 
 
 def _moved(comparison, difference):
     return comparison[:3] + (difference, comparison[4])
 
 
-@pytest.mark.parametrize("halving, stalled", [
-    (_STALLED, True),  # 2.32e-3, then 1.03e-2, 7.43e-3 and 5.01e-3: not halved in three halvings
-    (_STALLED[:4], False),  # 1.39e-2, then 2.32e-3: fell six-fold
-    (_STALLED[:3], False),  # three comparisons: two halvings do not judge
-    (_WANDERED, False),  # 3.56e-3, then 6.98e-3, 7.51e-3 and 1.1e-3: halved at the last (60045)
-    (_WANDERED[:3], False),  # rose twice: not judged yet (60045 went on to meet the tolerance)
-    (_STALLED[:4] + (_moved(_STALLED[4], 1.1e-3),), False),  # the last one halved
-    (_STALLED[:4] + (_moved(_STALLED[4], 1.2e-3),), True),  # just above half
-    (_STALLED[:2] + (_moved(_STALLED[2], 1.1e-3),) + _STALLED[3:], False),  # the first of the three halved
-    (_STALLED[:4] + (_moved(_STALLED[4], 0.0)[:4] + (1.2e-3,),), True),  # the final angles' difference counts
+@pytest.mark.parametrize("halving, start", [
+    (_STALLED, 1),  # 2.32e-3, then 1.03e-2, 7.43e-3 and 5.01e-3 as the step shrank eight-fold
+    (_STALLED[:4], None),  # 1.39e-2, then 2.32e-3: fell six-fold
+    (_STALLED[:3], None),  # a step four times shorter does not judge
+    (_WANDERED, None),  # 3.56e-3, then 6.98e-3, 7.51e-3 and 1.1e-3: halved at the last (60045)
+    (_WANDERED[:3], None),  # rose twice: not judged yet (60045 went on to meet the tolerance)
+    (_STALLED[:4] + (_moved(_STALLED[4], 1.1e-3),), None),  # the last one halved
+    (_STALLED[:4] + (_moved(_STALLED[4], 1.2e-3),), 1),  # just above half
+    (_STALLED[:2] + (_moved(_STALLED[2], 1.1e-3),) + _STALLED[3:], None),  # the first after it halved
+    (_STALLED[:4] + (_STALLED[4][:4] + (1.2e-3,),), 1),  # the final angles' difference counts
+    (_FOURFOLD, 0),  # 0.13, then 0.079 and 0.14 as the step shrank sixteen-fold
+    (_FOURFOLD[:2], None),  # four-fold only
+    (_FOURFOLD[:2] + (_FOURFOLD[2][:2] + (0.06, 1e-3, 1e-3),), None),  # halved at the last
 ])
-def test_halving_stalled_asks_three_halvings_that_did_not_halve_the_difference(halving, stalled):
-    """:func:`halving_stalled`: the largest of each comparison's three differences, the last three
-    all above STALL_FRACTION of the one before them (random file 60838 stops, 60045 goes on)."""
-    assert landing_module.halving_stalled(halving) is stalled
+def test_stall_start_asks_a_step_eight_times_shorter_that_did_not_halve_the_difference(halving, start):
+    """:func:`stall_start`: the last comparison whose finer step is at least STALL_STEPS times the
+    last one's, every later one's largest difference above STALL_FRACTION of its (random file
+    60838 stops, 60045 goes on)."""
+    assert landing_module.stall_start(halving) == start
+    assert landing_module.halving_stalled(halving) is (start is not None)
 
 
 def test_a_stalled_halving_stops_with_the_finest_run(monkeypatch):

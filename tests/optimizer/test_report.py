@@ -95,26 +95,28 @@ def test_a_landing_whose_runs_end_apart_says_which_figures_did_not_converge(leg_
 
 
 def test_a_landing_whose_halving_stalled_says_so_with_its_differences(leg_tree: Tree, leg_scene: Scene) -> None:
-    """A whole landing whose step halving stopped because three halvings did not halve the runs'
-    difference (random file 60838's figures: 2.3e-3, then 1.0e-2, 7.4e-3 and 5.0e-3) is reported
-    with one warning naming the four comparisons and the estimate, not the generic unmet one."""
+    """A whole landing whose step halving stopped because a step eight times shorter did not halve
+    the runs' difference (random file 60838's figures: 2.3e-3, then 1.0e-2, 7.4e-3 and 5.0e-3) is
+    reported with one warning naming those comparisons and the estimate, not the generic one."""
     from impulse_core.timedomain.landing import LandingSettings
     from optimizer.evaluation.model_choice import _whole_landing
 
     scene = dataclasses.replace(leg_scene, duration=0.004, gravity=9.81)
     model = ModelFile(leg_tree, scene)
     landed = _whole_landing(leg_tree, scene, (), LandingSettings(), requested=True)
-    halving = ((7.62e-5, 1.9e-5, 0.0, 3.17e-3, 1.39e-2), (1.9e-5, 9.52e-6, 0.0, 2.32e-3, 8.02e-4),
-               (9.52e-6, 4.76e-6, 0.0, 1.03e-2, 8.08e-4), (4.76e-6, 2.38e-6, 0.0, 7.43e-3, 6.45e-4),
-               (2.38e-6, 1.19e-6, 0.0, 5.01e-3, 2.03e-4))
+    h = 7.62e-5
+    halving = ((h, h / 4, 0.0, 3.17e-3, 1.39e-2), (h / 4, h / 8, 0.0, 2.32e-3, 8.02e-4),
+               (h / 8, h / 16, 0.0, 1.03e-2, 8.08e-4), (h / 16, h / 32, 0.0, 7.43e-3, 6.45e-4),
+               (h / 32, h / 64, 0.0, 5.01e-3, 2.03e-4))
     stalled = dataclasses.replace(landed, result=dataclasses.replace(
         landed.result, error_estimate=5.01e-3, halving=halving))
     said = [w for w in warnings(model, stalled) if "converge" in w]
     assert len(said) == 1 and "step halving stopped" in said[0] and "0.014" not in said[0]
-    assert all(x in said[0] for x in ("0.0023", "0.01 ", "0.0074", "0.005 ", "1.19e-06", "uncertain to about 0.005"))
+    assert all(x in said[0] for x in ("0.0023", "0.01 ", "0.0074", "0.005 ", "1.19e-06", "uncertain to about 0.005",
+                                      "shrank 8-fold"))
     assert said[0] in result_record(model, stalled, "leg.yaml")["warnings"]
     halved = dataclasses.replace(landed, result=dataclasses.replace(
-        landed.result, error_estimate=1.1e-3, halving=halving[:4] + ((2.38e-6, 1.19e-6, 0.0, 1.1e-3, 2.03e-4),)))
+        landed.result, error_estimate=1.1e-3, halving=halving[:4] + ((h / 32, h / 64, 0.0, 1.1e-3, 2.03e-4),)))
     assert [w for w in warnings(model, halved) if "converge" in w][0].startswith("the landing did not converge to its "
                                                                                  "tolerance: error")
 
