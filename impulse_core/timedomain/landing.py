@@ -3925,8 +3925,8 @@ def stall_start(halving: tuple[tuple[float, float, float, float, float], ...] | 
     STALL_FRACTION of its; else None. An error of first order in the step falls eight-fold over
     three halvings; one that has not halved is not converging at a rate worth the cost, since each
     halving costs twice the last (random file 60838: the split of a load between two contacts
-    0.66 mm apart changes with the step; 61004, whose runs are four times apart, differed by 0.13,
-    0.079 and 0.14 in their peaks). Fewer halvings do not judge: random file 60045's differences
+    0.66 mm apart changes with the step; 61004, whose runs are mostly four times apart, by 0.137,
+    3.7e-3, 1.0e-2, 7.5e-3). Fewer halvings do not judge: random file 60045's differences
     rose from 3.6e-3 to 7.0e-3 and 7.5e-3 as its event sequence changed with the step, then fell
     to 1.1e-3, and its next run met the tolerance."""
     last = halving[-1][1] if halving else math.nan

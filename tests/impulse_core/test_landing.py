@@ -786,8 +786,9 @@ _STALLED = _comparisons(7.62e-5, (4, 8, 16, 32, 64), ((0.0, 3.17e-3, 1.39e-2), (
                         (0.0, 1.03e-2, 8.08e-4), (0.0, 7.43e-3, 6.45e-4), (0.0, 5.01e-3, 2.03e-4)))
 _WANDERED = _comparisons(4.81e-4, (2, 4, 8, 16), ((0.0, 3.56e-3, 8.67e-4), (0.0, 6.98e-3, 4.26e-3),
                          (0.0, 7.51e-3, 3.74e-3), (0.0, 1.1e-3, 5.69e-4)))
-# runs four times apart (the momentum balance split the run at h / 2 alike), differing by 0.13, 0.079, 0.14
-_FOURFOLD = _comparisons(1.71e-3, (4, 16, 64), ((0.13, 1e-3, 1e-3), (0.079, 1e-3, 1e-3), (0.14, 1e-3, 1e-3)))
+# random file 61004's: runs mostly four times apart (the momentum balance split those at h / 2, h / 8, h / 32 alike)
+_FOURFOLD = _comparisons(1.71e-3, (4, 16, 64, 128), ((0.134, 0.0785, 0.137), (3.29e-6, 1.91e-3, 3.66e-3),
+                         (2.61e-7, 5.21e-3, 1.02e-2), (1.17e-8, 2.6e-3, 7.48e-3)))
 
 
 def _moved(comparison, difference):
@@ -804,9 +805,9 @@ def _moved(comparison, difference):
     (_STALLED[:4] + (_moved(_STALLED[4], 1.2e-3),), 1),  # just above half
     (_STALLED[:2] + (_moved(_STALLED[2], 1.1e-3),) + _STALLED[3:], None),  # the first after it halved
     (_STALLED[:4] + (_STALLED[4][:4] + (1.2e-3,),), 1),  # the final angles' difference counts
-    (_FOURFOLD, 0),  # 0.13, then 0.079 and 0.14 as the step shrank sixteen-fold
-    (_FOURFOLD[:2], None),  # four-fold only
-    (_FOURFOLD[:2] + (_FOURFOLD[2][:2] + (0.06, 1e-3, 1e-3),), None),  # halved at the last
+    (_FOURFOLD, 1),  # 3.66e-3, then 1.02e-2 and 7.48e-3 as the step shrank eight-fold in two comparisons
+    (_FOURFOLD[:3], None),  # 0.137, then 3.66e-3 and 1.02e-2: fell 37-fold
+    (_FOURFOLD[:3] + (_FOURFOLD[3][:3] + (1e-3, 1.8e-3),), None),  # halved at the last
 ])
 def test_stall_start_asks_a_step_eight_times_shorter_that_did_not_halve_the_difference(halving, start):
     """:func:`stall_start`: the last comparison whose finer step is at least STALL_STEPS times the
