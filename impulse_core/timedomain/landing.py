@@ -256,7 +256,8 @@ __all__ = [
 ]
 
 #: The engine's names (:mod:`impulse_core.timedomain.events`), imported from here by the tests, studies
-#: and the optimizer as they were before it had its own package.
+#: and the optimizer as they were before it had its own package (a test that patches one patches the
+#: module under events/ that reads it: patching it here changes landing() alone).
 __all__ += [
     "_accelerations", "_along", "_any", "_constrained_solve", "_contact_forces", "_corner_forces",
     "_corner_row_forces", "_corner_rows", "_corner_side", "_count_nonzero", "_finite", "_followed_slip",

@@ -313,6 +313,48 @@ class _Location:
         self._end = kept_end  # as unlocated: the step's end is the compiled step's again
         return None
 
+    def step_events(self, q: np.ndarray, v: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode, dt: float,
+                    impulse: np.ndarray, step_vectors: np.ndarray | None
+                    ) -> tuple[_Trial | None, tuple[_Trial, np.ndarray, np.ndarray] | None]:
+        """What ended ``mode`` within the step of length ``dt`` from (q, v) to (q1, v1) (contact
+        ``impulse``, ``step_vectors``): a witness below zero at its end or within it (a graze, as a
+        trial step), else a closed contact crossing a terrain breakpoint or heightfield crease
+        (:meth:`vertex_crossing`), else nothing: (graze, crossing), None where none."""
+        w, r = self.witness_and_rate(q1, v1, mode)
+        all_hold = np.count_nonzero(w >= 0) == w.size  # (w >= 0).all()
+        graze = None if all_hold else _Trial(dt, q1, v1, impulse, self._end, w, r, step_vectors)
+        if graze is None:
+            fraction = self.grazing(q, v, q1, v1, mode, dt)
+            graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
+            graze = graze if graze is not None and _any(graze.w < 0) else None
+        crossing = None
+        if graze is None and (self.vertices is not None or self.grid is not None) and _any(mode.closed):
+            crossing = self.vertex_crossing(q, v, q1, v1, mode, dt)
+        return graze, crossing
+
+    def event_location(self, q: np.ndarray, v: np.ndarray, mode: _Mode, graze: _Trial | None,
+                       crossing: tuple[_Trial, np.ndarray, np.ndarray] | None
+                       ) -> tuple[_Trial, np.ndarray | None, np.ndarray | None]:
+        """The step from (q, v) to the event :meth:`step_events` found (``graze`` or ``crossing``),
+        recorded on the tape: (that step, and a crossing's crossed contacts and corners, else None)."""
+        if crossing is not None:  # a closed contact passed a terrain vertex (located just past it)
+            located, crossed, cornered = crossing
+            if self.tape is not None:
+                self.tape.append(("vertex_step", q.copy(), v.copy(), mode.copy(), located.tau,
+                                  crossed | (cornered >= 0)))
+            return located, crossed, cornered
+        watch = graze.w < 0
+        located = self.locate(q, v, mode, graze, watch)
+        for _ in range(8):  # a witness that crossed earlier and came back by the step's end
+            missed = (located.w < 0) & ~watch
+            if not _any(missed):
+                break
+            watch = located.w < 0
+            located = self.locate(q, v, mode, located, watch)
+        if self.tape is not None:
+            self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), located.tau, watch))
+        return located, None, None
+
     def trial(self, q: np.ndarray, v: np.ndarray, mode: _Mode, tau: float) -> _Trial:
         """A step of length ``tau`` from (q, v) in ``mode`` and its end's witnesses and rates.
         A trial's length is where it looks, so it is not halved as :meth:`balanced_step` halves a

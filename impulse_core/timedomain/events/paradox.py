@@ -8,7 +8,7 @@ import numpy as np
 
 from impulse_core.errors import NumericalError
 from impulse_core.timedomain.compliant import joint_impulses, world_velocity
-from impulse_core.timedomain.events.settings import PLASTIC_SPEED
+from impulse_core.timedomain.events.settings import PLASTIC_SPEED, _Jams
 from impulse_core.timedomain.events.results import LandingEvent
 from impulse_core.timedomain.events.point import _Point, _along, _any
 from impulse_core.timedomain.events.rows import _Mode, _rows
@@ -301,6 +301,33 @@ class _Paradox:
         :meth:`event`): the state and mode after."""
         q1, v1, new = self.take_jam(q, v, mode, t, totals, jammed, failure)
         return self.modes_after(q1, v1, new, t, totals, v, jammed=True)
+
+    def watched_jam(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals, span: float,
+                    bridged: int) -> tuple[np.ndarray, np.ndarray, _Mode, float, int] | None:
+        """At a step's start in a run that watches for jams (:attr:`jam_watch`): where a pressed sliding
+        contact's A fell below the watch, the state, mode, time and bridges after its jam (or a bridge of
+        ``span``, :meth:`jam_or_bridge`); else None."""
+        jammed, ratio = self.near_jam(q, v, mode, self.jam_watch)
+        jammed = jammed[ratio > 0.0]  # A falling to 0 while pressed (A < 0 pressed: a choice, B > 0)
+        if not jammed.size:
+            return None
+        failure = NumericalError(self.painleve_message(
+            t, jammed, f"friction {self.mu:g} takes their rows' effective mass to 0"))
+        return self.jam_or_bridge(q, v, mode, t, totals, jammed, failure, span, bridged)
+
+    def unstall(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals, span: float,
+                bridged: int) -> tuple[np.ndarray, np.ndarray, _Mode, float, int]:
+        """Events stalled at (q, v, ``t``): the state, mode, time and bridges after a bridge of ``span``
+        (:meth:`bridge_within`), or after an impulsive jam where Painleve's paradox stalled them
+        (:meth:`jam_or_bridge`; :class:`_Jams` where the run does not yet jam)."""
+        failure = NumericalError(self.stall_message(q, v, mode, t))
+        jammed = self.painleve(q, v, mode)
+        if not jammed.size:
+            return self.bridge_within(q, v, mode, t, totals, span, bridged, failure)
+        if self.jam_watch is None:
+            raise _Jams(failure)
+        # events stalled by Painleve's paradox: the impulsive jam, here
+        return self.jam_or_bridge(q, v, mode, t, totals, jammed, failure, span, bridged)
 
     def jam_or_bridge(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                       jammed: np.ndarray, failure: NumericalError, span: float, bridged: int

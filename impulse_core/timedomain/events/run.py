@@ -13,8 +13,10 @@ import numpy as np
 from impulse_core.errors import ModelError, NumericalError
 from impulse_core.impact import lemke_c
 from impulse_core.kinematics.spatial import AXIAL_GYRATION_FLOOR, PLANAR, Space, dof_layout, values_space
+from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.joints import JointLaw
-from impulse_core.model.terrain import slope_normal, _segment_normals as terrain_normals
+from impulse_core.model.terrain import Terrain, slope_normal
+from impulse_core.model.terrain import _segment_normals as terrain_normals
 from impulse_core.model.tree import Scene, Tree, design_vector
 from impulse_core.timedomain.compliant import (
     BufferedCall, _check_chart, _require_known, spatial_ground, subtree_incidence, subtree_masses,
@@ -34,7 +36,7 @@ from impulse_core.timedomain.events.impact_law import RigidImpact
 from impulse_core.timedomain.events.tally import _Tally, _Totals
 from impulse_core.timedomain.events.dynamics import _Dynamics
 from impulse_core.timedomain.events.stepping import _Stepping
-from impulse_core.timedomain.events.location import _ROOT_SAMPLES, _Location, _Trial, _hermite_root
+from impulse_core.timedomain.events.location import _ROOT_SAMPLES, _Location, _hermite_root
 from impulse_core.timedomain.events.impacts import _Impacts
 from impulse_core.timedomain.events.choice import _ModeChoice
 from impulse_core.timedomain.events.placement import _Placement
@@ -55,14 +57,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.planar = space.joint_axis is not None
         ground = scene.terrain if self.planar else spatial_ground(scene)
         self.ground = ground  # the plane's profile, or space's heightfield
-        if settings.step_code not in (C_CODE, VM_CODE, NUMPY_CODE, AUTO_CODE):
-            raise ModelError(f"step_code: {settings.step_code!r} is not one of c, vm, numpy, auto")
-        if settings.step_code in (C_CODE, AUTO_CODE):  # the point's dynamics compiled too
-            from impulse_core.timedomain.landing_step import compiled_landing_function  # it builds on this module
-
-            fn = compiled_landing_function(self.topology, ground, space, build=settings.step_code == C_CODE)
-        else:
-            fn = landing_function(self.topology, ground, space)
+        fn = self.point_function(ground, space)
         #: the impacts' and mode choices' LCPs by Lemke's method as C with step code c (the same
         #: numbers; None: Python's, also without a C compiler)
         self.lemke = None
@@ -91,55 +86,17 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.massless = None if self.planar else MASSLESS * self.nv * sum(
             b.mass * (AXIAL_GYRATION_FLOOR * b.length) ** 2 for b in tree.bodies)
         self.subtree_mass = subtree_masses(tree)
-        self.sloped = not ground.is_flat
-        #: a curved ground whose normal turns under a sliding contact within a step (a sloped
-        #: heightfield; a plane's terrain turns it only at its breakpoints, whose crossings are
-        #: events): a step's impulse is then its stages' forces along their own directions
-        self.turning = self.sloped and not self.planar
-        #: the plane's terrain breakpoints (x, m) where a sloped profile's normal jumps; None: flat
-        #: or space (:meth:`vertex_crossing`)
-        self.vertices = np.asarray(scene.terrain.x, dtype=float) if self.planar and self.sloped else None
-        #: space's sloped heightfield: its x and z grid lines, where the bilinear ground's normal
-        #: jumps (a crease), so that a contact sliding across one is an event as a plane's
-        #: breakpoint is (:meth:`pieces`); None: flat or the plane
-        self.grid = (np.asarray(ground.x, dtype=float), np.asarray(ground.z, dtype=float)) \
-            if self.turning else None
+        self.set_ground(ground)
         #: the contact normals at the last accepted step's end (None: after an event or a crossing)
         self.end_normals: np.ndarray | None = None
         #: the point (q, v) whose rows the last :meth:`project` took its velocity projection on,
         #: where its impulses act (:meth:`add`)
         self.projected_at: tuple[np.ndarray, np.ndarray] | None = None
-        #: per breakpoint of the plane's terrain, its left and right pieces' outward normals
-        #: (K x 2 x 2; the rays beyond the ends are flat), and whether it is a valley's (concave:
-        #: the slope rises across it), where a contact can rest held by both; None: flat or space
-        self.valleys: np.ndarray | None = None
-        self.concave: np.ndarray | None = None
-        if self.vertices is not None:
-            up = np.array([[0.0, 1.0]])
-            pieces = np.vstack([up, terrain_normals(scene.terrain), up])
-            self.valleys = np.stack([pieces[:-1], pieces[1:]], axis=1)
-            left, right = self.valleys[:, 0], self.valleys[:, 1]
-            self.concave = left[:, 0] * right[:, 1] - left[:, 1] * right[:, 0] > 1e-12  # the normal turns anticlockwise
-        #: per contact, the valley breakpoint where the run's current mode holds it in the corner
-        #: (-1: none); there the point's normal and tangent are the breakpoint's (the mean of its
-        #: segments' normals, :func:`impulse_core.model.terrain.slope_normal`), whatever rounding
-        #: places it on, so that its impulses sum in one frame (:meth:`seat`)
-        self.seated = np.full(self.nc, -1)
-        self.seat_frames = None if self.vertices is None else slope_normal(scene.terrain, self.vertices)
         weight = self.mass * max(scene.gravity, 1.0)
         self.force_tol = 1e-9 * weight
         self.speed_tol = 1e-9 * max(1.0, scene.speed, abs(scene.velocity_x))
-        #: The integrator between events (RK4, IMPLICIT or RADAU), one for every step length.
-        self.method = settings.integrator
-        #: the joint laws' fastest rate at touchdown (1/s, :func:`joint_law_rate`)
         M0 = self.mass_matrix_at(self.q0)
-        self.rate = joint_law_rate(M0, self.joints.damping, self.joints.stiffness)
-        if self.method == AUTO:
-            h0, limit = ((settings.step, RK4_STABLE) if settings.step
-                         else ((scene.duration or 0.0) * FIRST_STEPS[0], AUTO_IMPLICIT))
-            self.method = IMPLICIT if h0 * self.rate > limit else RK4
-        if self.method not in (RK4, IMPLICIT, RADAU):
-            raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, radau, auto")
+        self.choose_integrator(M0)
         #: circular-cone solves of the current run that fell back to the polyhedral answer
         self.inexact = self.non_unique = 0
         #: the current run's Moreau-Jean bridges across stalled events: (start, span) (:meth:`bridge`)
@@ -203,6 +160,70 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.refuse_massless_contacts(tree, M0)
         self.refuse_swinging_springs(tree, M0)
 
+    def point_function(self, ground: Terrain | Heightfield, space: Space):
+        """The dynamics at a point (:func:`landing_function`) on ``ground`` in ``space``: compiled to C with
+        step code c (or auto), else on CasADi's virtual machine."""
+        settings = self.settings
+        if settings.step_code not in (C_CODE, VM_CODE, NUMPY_CODE, AUTO_CODE):
+            raise ModelError(f"step_code: {settings.step_code!r} is not one of c, vm, numpy, auto")
+        if settings.step_code in (C_CODE, AUTO_CODE):  # the point's dynamics compiled too
+            from impulse_core.timedomain.landing_step import compiled_landing_function  # it builds on this module
+
+            fn = compiled_landing_function(self.topology, ground, space, build=settings.step_code == C_CODE)
+        else:
+            fn = landing_function(self.topology, ground, space)
+        return fn
+
+    def set_ground(self, ground: Terrain | Heightfield) -> None:
+        """The ground's figures the run reads: sloped or turning, the plane's terrain breakpoints and
+        valleys, space's heightfield grid lines, and the contacts seated in valley corners."""
+        scene = self.scene
+        self.sloped = not ground.is_flat
+        #: a curved ground whose normal turns under a sliding contact within a step (a sloped
+        #: heightfield; a plane's terrain turns it only at its breakpoints, whose crossings are
+        #: events): a step's impulse is then its stages' forces along their own directions
+        self.turning = self.sloped and not self.planar
+        #: the plane's terrain breakpoints (x, m) where a sloped profile's normal jumps; None: flat
+        #: or space (:meth:`vertex_crossing`)
+        self.vertices = np.asarray(scene.terrain.x, dtype=float) if self.planar and self.sloped else None
+        #: space's sloped heightfield: its x and z grid lines, where the bilinear ground's normal
+        #: jumps (a crease), so that a contact sliding across one is an event as a plane's
+        #: breakpoint is (:meth:`pieces`); None: flat or the plane
+        self.grid = (np.asarray(ground.x, dtype=float), np.asarray(ground.z, dtype=float)) \
+            if self.turning else None
+        #: per breakpoint of the plane's terrain, its left and right pieces' outward normals
+        #: (K x 2 x 2; the rays beyond the ends are flat), and whether it is a valley's (concave:
+        #: the slope rises across it), where a contact can rest held by both; None: flat or space
+        self.valleys: np.ndarray | None = None
+        self.concave: np.ndarray | None = None
+        if self.vertices is not None:
+            up = np.array([[0.0, 1.0]])
+            pieces = np.vstack([up, terrain_normals(scene.terrain), up])
+            self.valleys = np.stack([pieces[:-1], pieces[1:]], axis=1)
+            left, right = self.valleys[:, 0], self.valleys[:, 1]
+            self.concave = left[:, 0] * right[:, 1] - left[:, 1] * right[:, 0] > 1e-12  # the normal turns anticlockwise
+        #: per contact, the valley breakpoint where the run's current mode holds it in the corner
+        #: (-1: none); there the point's normal and tangent are the breakpoint's (the mean of its
+        #: segments' normals, :func:`impulse_core.model.terrain.slope_normal`), whatever rounding
+        #: places it on, so that its impulses sum in one frame (:meth:`seat`)
+        self.seated = np.full(self.nc, -1)
+        self.seat_frames = None if self.vertices is None else slope_normal(scene.terrain, self.vertices)
+
+    def choose_integrator(self, M0: np.ndarray) -> None:
+        """The integrator between events (:attr:`LandingSettings.integrator`; ``auto`` by the joint laws'
+        fastest rate at touchdown, from the mass matrix ``M0`` there)."""
+        settings, scene = self.settings, self.scene
+        #: The integrator between events (RK4, IMPLICIT or RADAU), one for every step length.
+        self.method = settings.integrator
+        #: the joint laws' fastest rate at touchdown (1/s, :func:`joint_law_rate`)
+        self.rate = joint_law_rate(M0, self.joints.damping, self.joints.stiffness)
+        if self.method == AUTO:
+            h0, limit = ((settings.step, RK4_STABLE) if settings.step
+                         else ((scene.duration or 0.0) * FIRST_STEPS[0], AUTO_IMPLICIT))
+            self.method = IMPLICIT if h0 * self.rate > limit else RK4
+        if self.method not in (RK4, IMPLICIT, RADAU):
+            raise ModelError(f"integrator: {settings.integrator!r} is not one of rk4, implicit, radau, auto")
+
     def run(self, h: float, progress: Progress | None = None, index: int = 0, until: Until | None = None,
             share: float = 1.0) -> LandingResult:
         """The landing at Runge-Kutta step ``h`` (:meth:`run_once`). Where a run stops with
@@ -239,14 +260,8 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.min_bounce = max(MIN_BOUNCE * T, self.settings.bounce_steps * h)
         energy_before = totals.events[0].energy_before
         height0 = self.point(self.q0, v).com_height
-        # No energy enters (passive joints, a fixed ground): the kinetic energy stays below what
-        # touchdown, the springs wound at touchdown and gravity bring; far above it, the step is
-        # too long for a stiff joint (random file 32069: a spring 0.21 rad from rest held 0.94 J
-        # against 0.035 J of motion, and a landing without gravity stopped as diverged).
-        weight = sum(b.mass for b in self.tree.bodies) * self.scene.gravity
-        reach = sum(b.length for b in self.tree.bodies)
         wound = self.joints.energy(self.q0)  # the springs at touchdown
-        cap = 10.0 * (energy_before + wound + weight * (height0 + reach + 10.0 * T * self.scene.speed)) + 1e-6
+        cap = self.energy_cap(energy_before, wound, height0)
         t, stalled, repeated, again, bridged = 0.0, 0, 0, False, 0
         self.record(totals, t, v, t, q, v)
         p0 = self.point(self.q0, totals.events[0].v_minus).momentum[:, 0]
@@ -257,96 +272,32 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
             if not self.planar and float(np.linalg.norm(q[3:6])) > RECHART:
                 q, v = self.rechart(q, v, totals)
             if self.jam_watch is not None and _any(mode.closed & mode.sliding):
-                jammed, ratio = self.near_jam(q, v, mode, self.jam_watch)
-                jammed = jammed[ratio > 0.0]  # A falling to 0 while pressed (A < 0 pressed: a choice, B > 0)
-                if jammed.size:
-                    failure = NumericalError(self.painleve_message(
-                        t, jammed, f"friction {self.mu:g} takes their rows' effective mass to 0"))
-                    q, v, mode, t, bridged = self.jam_or_bridge(q, v, mode, t, totals, jammed, failure,
-                                                                min(h * BRIDGE, T - t), bridged)
+                jammed = self.watched_jam(q, v, mode, t, totals, min(h * BRIDGE, T - t), bridged)
+                if jammed is not None:
+                    q, v, mode, t, bridged = jammed
                     if progress is not None:
                         progress(LandingProgress(index, h, t, T, len(totals.events)))
                     continue
             q1, v1, impulse, dt, grown = self.balanced_step(q, v, mode, min(trial, T - t), rate, h / 2.0**MAX_SPLITS)
             step_vectors = self.vectors  # a curved heightfield (trial steps below replace self.vectors)
-            if totals.steps > STEP_BUDGET * T / h:
-                raise Diverged(  # landing() shortens the step (retry_factor)
-                    f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
-                    "balance split its steps: a light rod spinning fast)", reached=t / T,
-                )
-            if (self.rk4_pace is not None and totals.steps > RK4_PACE_AFTER * T / h
-                    and totals.steps * self.rk4_pace > RK4_PACE * t):
-                raise Diverged(  # landing() goes on with RK4 from its stable step
-                    f"the implicit steps averaged {t / totals.steps:.3g} s by t = {t:.6g} s, below half of RK4's "
-                    f"stable step {self.rk4_pace:.3g} s (the momentum balance split them)", reached=t / T,
-                )
+            self.check_budget(totals.steps, t, h)
             final = dt == T - t and dt < trial  # shortened to end at T, not split
             trial = trial if final else min(h, grown)
             if not (_finite(q1) and _finite(v1) and self.kinetic(q1, v1) <= cap):
-                failure = Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s){self.singular_note(q)}"
-                                   f"{self.jam_note(q, v, mode) or self.paradox_note()}")
-                if self._jams[1] and _any(mode.closed & mode.sliding):
-                    # a run that has met Painleve's paradox (a jam taken or tried), a step sliding into
-                    # it again (its force without bound): a bridge from the step's start (random file
-                    # 60690 at h / 8, after two jams); elsewhere a divergence is a step too long
-                    q, v, mode, t, bridged = self.bridge_within(q, v, mode, t, totals, min(h * BRIDGE, T - t),
-                                                                bridged, failure)
-                    continue
-                if self.jam_watch is not None or not slid:
-                    raise failure
-                # a sliding contact may have run into Painleve's paradox (its force -B / A without
-                # bound as A falls to 0: the steps before the divergence are already off)
-                raise _Jams(failure)
+                q, v, mode, t, bridged = self.diverged(q, v, mode, t, h, totals, bridged, slid)
+                continue
             _check_chart(q1, self.space, t + dt)
-            w, r = self.witness_and_rate(q1, v1, mode)
-            all_hold = np.count_nonzero(w >= 0) == w.size  # (w >= 0).all()
-            graze = None if all_hold else _Trial(dt, q1, v1, impulse, self._end, w, r, step_vectors)
-            if graze is None:
-                fraction = self.grazing(q, v, q1, v1, mode, dt)
-                graze = None if fraction is None else self.trial(q, v, mode, fraction * dt)
-                graze = graze if graze is not None and _any(graze.w < 0) else None
-            crossing = None
-            if graze is None and (self.vertices is not None or self.grid is not None) and _any(mode.closed):
-                crossing = self.vertex_crossing(q, v, q1, v1, mode, dt)
+            graze, crossing = self.step_events(q, v, q1, v1, mode, dt, impulse, step_vectors)
             if graze is not None or crossing is not None:
                 self.end_normals = None
             if graze is None and crossing is None:
-                if self.tape is not None:
-                    self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
-                q0, v0 = q, v
-                segments = self.segment_normals(q1, v1, mode)
-                q, v, p = self.project(q1, v1, mode)
-                self.follow_slip(q, v, mode)
-                self.vectors = step_vectors
-                vectors = self.step_vectors(*self.projected_at, p)
-                applied = impulse + p  # read only below
-                if segments is not None and vectors is None:
-                    vectors = self.segment_vectors(segments, applied)
-                self.add(totals, applied, q, v, vectors)
-                self.tally_joints(totals, q0, v0, q, v, applied, dt, _any(mode.closed), vectors)
-                self.record(totals, t, v0, t + dt, q, v)
+                q, v = self.accept_step(q, v, q1, v1, mode, impulse, step_vectors, totals, t, dt, final)
                 t += dt
                 totals.steps += 1
                 if progress is not None:
                     progress(LandingProgress(index, h, t, T, len(totals.events)))
                 continue
-            if crossing is not None:  # a closed contact passed a terrain vertex (located just past it)
-                located, crossed, cornered = crossing
-                if self.tape is not None:
-                    self.tape.append(("vertex_step", q.copy(), v.copy(), mode.copy(), located.tau,
-                                      crossed | (cornered >= 0)))
-            else:
-                crossed = cornered = None
-                watch = graze.w < 0
-                located = self.locate(q, v, mode, graze, watch)
-                for _ in range(8):  # a witness that crossed earlier and came back by the step's end
-                    missed = (located.w < 0) & ~watch
-                    if not _any(missed):
-                        break
-                    watch = located.w < 0
-                    located = self.locate(q, v, mode, located, watch)
-                if self.tape is not None:
-                    self.tape.append(("event_step", q.copy(), v.copy(), mode.copy(), located.tau, watch))
+            located, crossed, cornered = self.event_location(q, v, mode, graze, crossing)
             tau = located.tau
             q_e, v_e, impulse = self.take(q, v, mode, located)
             self.add(totals, impulse, q_e, v_e, self.vectors)
@@ -356,21 +307,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
             stalled = stalled + 1 if tau < 1e-12 * max(1.0, T) else 0
             repeated = repeated + 1 if again and (tau < REPEAT_SPAN * max(1.0, T) or self.refused.size) else 0
             if stalled > 20 or repeated > REPEATS:
-                failure = NumericalError(self.stall_message(q_e, v_e, mode, t))
-                jammed = self.painleve(q_e, v_e, mode)
-                if not jammed.size:
-                    q, v, mode, t, bridged = self.bridge_within(q_e, v_e, mode, t, totals, min(h * BRIDGE, T - t),
-                                                                bridged, failure)
-                    stalled = repeated = 0
-                    again = False
-                    if progress is not None:
-                        progress(LandingProgress(index, h, t, T, len(totals.events)))
-                    continue
-                if self.jam_watch is None:
-                    raise _Jams(failure)
-                # events stalled by Painleve's paradox: the impulsive jam, here
-                q, v, mode, t, bridged = self.jam_or_bridge(q_e, v_e, mode, t, totals, jammed, failure,
-                                                            min(h * BRIDGE, T - t), bridged)
+                q, v, mode, t, bridged = self.unstall(q_e, v_e, mode, t, totals, min(h * BRIDGE, T - t), bridged)
                 stalled = repeated = 0
                 again = False
                 if progress is not None:
@@ -392,6 +329,75 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
         self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
         return replace(out, momentum_balance=balance, duration=end, spring_energy=wound, bridges=tuple(self.bridges))
+
+    def energy_cap(self, energy_before: float, wound: float, height0: float) -> float:
+        """The kinetic energy beyond which a run has diverged (:meth:`run_once`), from the energy before
+        touchdown, the springs ``wound`` at touchdown and the centre of mass's height ``height0`` there."""
+        T = float(self.scene.duration)
+        # No energy enters (passive joints, a fixed ground): the kinetic energy stays below what
+        # touchdown, the springs wound at touchdown and gravity bring; far above it, the step is
+        # too long for a stiff joint (random file 32069: a spring 0.21 rad from rest held 0.94 J
+        # against 0.035 J of motion, and a landing without gravity stopped as diverged).
+        weight = sum(b.mass for b in self.tree.bodies) * self.scene.gravity
+        reach = sum(b.length for b in self.tree.bodies)
+        return 10.0 * (energy_before + wound + weight * (height0 + reach + 10.0 * T * self.scene.speed)) + 1e-6
+
+    def check_budget(self, steps: int, t: float, h: float) -> None:
+        """Raise Diverged where a run at step ``h`` has taken more than its budget of ``steps`` by ``t``
+        (:data:`STEP_BUDGET`), or, as ``auto``'s implicit first run, fallen behind RK4's stable step
+        (:data:`RK4_PACE`)."""
+        T = float(self.scene.duration)
+        if steps > STEP_BUDGET * T / h:
+            raise Diverged(  # landing() shortens the step (retry_factor)
+                f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
+                "balance split its steps: a light rod spinning fast)", reached=t / T,
+            )
+        if (self.rk4_pace is not None and steps > RK4_PACE_AFTER * T / h
+                and steps * self.rk4_pace > RK4_PACE * t):
+            raise Diverged(  # landing() goes on with RK4 from its stable step
+                f"the implicit steps averaged {t / steps:.3g} s by t = {t:.6g} s, below half of RK4's "
+                f"stable step {self.rk4_pace:.3g} s (the momentum balance split them)", reached=t / T,
+            )
+
+    def diverged(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, h: float, totals: _Totals,
+                 bridged: int, slid: bool) -> tuple[np.ndarray, np.ndarray, _Mode, float, int]:
+        """A step from (q, v) at ``t`` that diverged: a bridge from its start where the run has met
+        Painleve's paradox (:meth:`bridge_within`: the state, mode, time and bridges after it), else
+        Diverged, or :class:`_Jams` where a contact slid (``slid``) and the run does not yet jam."""
+        T = float(self.scene.duration)
+        failure = Diverged(f"the landing diverged at t = {t:.4g} s (step {h:.3g} s){self.singular_note(q)}"
+                           f"{self.jam_note(q, v, mode) or self.paradox_note()}")
+        if self._jams[1] and _any(mode.closed & mode.sliding):
+            # a run that has met Painleve's paradox (a jam taken or tried), a step sliding into
+            # it again (its force without bound): a bridge from the step's start (random file
+            # 60690 at h / 8, after two jams); elsewhere a divergence is a step too long
+            return self.bridge_within(q, v, mode, t, totals, min(h * BRIDGE, T - t), bridged, failure)
+        if self.jam_watch is not None or not slid:
+            raise failure
+        # a sliding contact may have run into Painleve's paradox (its force -B / A without
+        # bound as A falls to 0: the steps before the divergence are already off)
+        raise _Jams(failure)
+
+    def accept_step(self, q: np.ndarray, v: np.ndarray, q1: np.ndarray, v1: np.ndarray, mode: _Mode,
+                    impulse: np.ndarray, step_vectors: np.ndarray | None, totals: _Totals, t: float, dt: float,
+                    final: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Take a step from (q, v) at ``t`` to (q1, v1) in which no event happened: projected back onto the
+        mode's constraints, its impulses (``impulse``, ``step_vectors``) counted and recorded; the state after."""
+        if self.tape is not None:
+            self.tape.append(("step", q.copy(), v.copy(), mode.copy(), dt, final))
+        q0, v0 = q, v
+        segments = self.segment_normals(q1, v1, mode)
+        q, v, p = self.project(q1, v1, mode)
+        self.follow_slip(q, v, mode)
+        self.vectors = step_vectors
+        vectors = self.step_vectors(*self.projected_at, p)
+        applied = impulse + p  # read only below
+        if segments is not None and vectors is None:
+            vectors = self.segment_vectors(segments, applied)
+        self.add(totals, applied, q, v, vectors)
+        self.tally_joints(totals, q0, v0, q, v, applied, dt, _any(mode.closed), vectors)
+        self.record(totals, t, v0, t + dt, q, v)
+        return q, v
 
     def modes_after(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                     v_before: np.ndarray, jammed: bool = False) -> tuple[np.ndarray, np.ndarray, _Mode]:
