@@ -78,8 +78,6 @@ def _hermite_root(g0: float, d0: float, g1: float, d1: float) -> float:
 class _Location:
     """Where a step's mode stops holding: witnesses, crossings and their location."""
 
-    # ---- events
-
     def witness(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> np.ndarray:
         """Values that stay >= 0 while the mode holds (scaled to tolerances of 1): open gaps,
         normal and cone margins of closed contacts, slip of sliding ones, joint-stop margins."""

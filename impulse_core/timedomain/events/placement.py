@@ -229,8 +229,6 @@ class _Placement:
         minv_gt = np.linalg.solve(pt.M, G.T)
         return minv_gt @ np.linalg.lstsq(G @ minv_gt, residual, rcond=None)[0]
 
-    # ---- the run
-
     # ---- the base's rotation coordinates (space)
 
     def base_rotation(self) -> np.ndarray:
