@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+import impulse_core.timedomain.events.run as events_run  # the run loop: where the patched budgets are read
 import impulse_core.timedomain.landing as landing_module
 from impulse_core.evaluate import evaluate
 from impulse_core.impact.laws import ImpactModel
@@ -371,7 +372,7 @@ def test_a_light_damped_rod_lands_with_the_implicit_integrator(monkeypatch):
     split = landing(tree, scene, laws, rk4)
     assert split.integrator == "rk4" and split.converged
     assert landing_difference(split, reference) <= STUDY_BUDGET.tolerance
-    monkeypatch.setattr(landing_module, "MAX_SPLITS", 0)
+    monkeypatch.setattr(events_run, "MAX_SPLITS", 0)
     with pytest.raises(Diverged, match="at t = 0 s"):
         landing(tree, scene, laws, rk4)
     r = landing(tree, scene, laws, STUDY_BUDGET)
@@ -518,7 +519,7 @@ def test_a_landing_whose_steps_split_without_end_is_abandoned(monkeypatch):
     """Trial 25's spinning toes make the momentum balance split steps (2.2 x the nominal count):
     with a budget of 1.5 x the run gives up with a one-line reason instead of running on."""
     tree, laws, scene = _trial25()
-    monkeypatch.setattr(landing_module, "STEP_BUDGET", 1.5)
+    monkeypatch.setattr(events_run, "STEP_BUDGET", 1.5)
     with pytest.raises(NumericalError, match="steps by t = .*momentum balance split its steps"):
         _Landing(tree, scene, laws, LandingSettings()).run(4.6875e-5)
 
@@ -695,7 +696,7 @@ def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable
     from optimizer.config.model_file import load_model_file
 
     model = load_model_file(Path(__file__).parent / "data" / "random_30039.yaml")
-    monkeypatch.setattr(landing_module, "AUTO_IMPLICIT", landing_module.RK4_STABLE)
+    monkeypatch.setattr(events_run, "AUTO_IMPLICIT", landing_module.RK4_STABLE)
     runs, overran, original = [], [], _Landing.run
 
     def watched(self, h, *args, **kwargs):

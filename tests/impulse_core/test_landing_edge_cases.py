@@ -13,7 +13,7 @@ import pytest
 
 from impulse_core.evaluate import evaluate
 from impulse_core.impact.laws import ImpactModel
-import impulse_core.timedomain.landing as landing_module
+import impulse_core.timedomain.events.run as events_run
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, ContactSelection, JointKind, Scene, Tree
@@ -110,7 +110,7 @@ def test_a_run_that_overruns_its_step_budget_is_retried_at_half_the_step(monkeyp
     laws = (FREE, JointLaw(stiffness=134.8, damping=0.02406, limits=(-0.1484, -0.04115)))
     scene = Scene(speed=1.9218, restitution=1.0, gravity=9.81, duration=0.2)
     first = _Landing(tree, scene, laws, LandingSettings(), PLANAR).first_step()
-    monkeypatch.setattr(landing_module, "STEP_BUDGET", 1.0)
+    monkeypatch.setattr(events_run, "STEP_BUDGET", 1.0)  # where the run loop reads it
     r = landing(tree, scene, laws, LandingSettings(), PLANAR)
     assert r.step <= first / 4 and r.n_steps <= r.duration / r.step
 

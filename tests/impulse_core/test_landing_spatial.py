@@ -416,7 +416,7 @@ def test_re_centring_the_rotation_coordinates_moves_nothing(monkeypatch):
     totals and velocities closer than the default run is to itself at half the step (measured
     1.4e-6 against 5.4e-6 at 2 ms; 7e-8 at 1 ms, the O(h^4) ratio; a re-centring that left the
     rates phi' for the angular velocity S(phi) phi' moves them by 1e-1)."""
-    from impulse_core.timedomain import landing as module
+    from impulse_core.timedomain.events import run as module  # the run loop re-centres
 
     tree, laws, scene = _splayed_leg(1, friction=0.4, restitution=0.7)
     scene = replace(scene, angular_velocity_x=15.0, duration=0.12)
@@ -737,7 +737,7 @@ def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall(
     the landing's end (no end in 400 s). More than REPEATS of them in a row are a stall whatever
     their length: the run crosses it by a Moreau-Jean bridge (``_Landing.bridge``) and goes on;
     with no bridge left (MAX_BRIDGES) the error names the contact (within 20000 steps and events)."""
-    import impulse_core.timedomain.landing as landing_module
+    import impulse_core.timedomain.events.paradox as paradox_module  # where the bridges are counted
     from impulse_core.errors import NumericalError
 
     model = _data_model("refused_30891.yaml")
@@ -751,7 +751,7 @@ def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall(
     r = run.run(run.first_step(), until=lambda *a: until() or run.bridges)
     assert run.bridges and 0.0642 < run.bridges[0][0] < 0.0643 and r.duration > run.bridges[0][0]
     calls[0] = 0
-    monkeypatch.setattr(landing_module, "MAX_BRIDGES", 0)
+    monkeypatch.setattr(paradox_module, "MAX_BRIDGES", 0)
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     message = r"chatters at t = 0\.0642.* slow slip of contacts b2\[0\] turns at each event"
     with pytest.raises(NumericalError, match=message):
@@ -868,11 +868,11 @@ def test_events_that_give_back_the_mode_they_stopped_are_a_stall_naming_the_cont
     REPEATS such events shorter than REPEAT_SPAN are a stall; with no Moreau-Jean bridge left to
     cross it (MAX_BRIDGES 0 here: the patched mode choice would stall after each), its error names
     the contacts that slide against their own slip acceleration."""
-    import impulse_core.timedomain.landing as landing_module
+    import impulse_core.timedomain.events.paradox as paradox_module  # where the bridges are counted
     from impulse_core.errors import NumericalError
     from impulse_core.timedomain.landing import REPEATS
 
-    monkeypatch.setattr(landing_module, "MAX_BRIDGES", 0)
+    monkeypatch.setattr(paradox_module, "MAX_BRIDGES", 0)
 
     plank = Tree((Body("plank", None, 0.6, 3.0, 0.0, contacts=(0.0, 1.0), radius=0.02),))
     scene = Scene(speed=0.5, restitution=0.0, friction=0.4, gravity=G, duration=0.1)

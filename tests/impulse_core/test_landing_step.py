@@ -194,6 +194,7 @@ def test_auto_takes_rk4_from_its_stable_step_up_to_its_threshold(monkeypatch):
     sides of a threshold moved to its own h x rate, and the light-tipped leg over the study's 0.15 s (about 200)."""
     from pathlib import Path
 
+    import impulse_core.timedomain.events.run as events_run
     import impulse_core.timedomain.landing as landing_module
     from optimizer.config.model_file import load_model_file
     from tests.impulse_core.test_landing import _light_tip_leg
@@ -205,7 +206,7 @@ def test_auto_takes_rk4_from_its_stable_step_up_to_its_threshold(monkeypatch):
     x = T / 200 * run.rate
     assert 2.0 < x < landing_module.AUTO_IMPLICIT == 32.0
     for threshold, method, step in ((x * (1 + 1e-9), "rk4", 2.0 / run.rate), (x * (1 - 1e-9), "implicit", T / 200)):
-        monkeypatch.setattr(landing_module, "AUTO_IMPLICIT", threshold)
+        monkeypatch.setattr(events_run, "AUTO_IMPLICIT", threshold)  # where _Landing reads it
         r = _Landing(m.tree, m.scene, m.joints, LandingSettings(), m.space)
         assert (r.method, r.first_step()) == (method, pytest.approx(step, rel=1e-12))
     monkeypatch.undo()

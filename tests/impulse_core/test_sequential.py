@@ -127,6 +127,7 @@ def _spied_events(monkeypatch) -> dict:
     step's contact impulses (``_Landing.tally_joints`` of a step with closed contacts: mu, normal
     and tangential impulses per contact) and the state the run ends in (``_Landing.result``)."""
     from impulse_core.timedomain import landing as module
+    from impulse_core.timedomain.events import impacts as impacts_module, paradox as paradox_module
     from impulse_core.timedomain.landing import _Landing
 
     seen: dict = {"impacts": [], "laws": [], "rest": [], "end": []}
@@ -153,7 +154,8 @@ def _spied_events(monkeypatch) -> dict:
         return result(self, totals, q, v, *args)
 
     monkeypatch.setattr(_Landing, "impact", spy_impact)
-    monkeypatch.setattr(module, "rigid_impact", spy_law)
+    for law_user in (impacts_module, paradox_module):  # the impacts, and the jams and bridges
+        monkeypatch.setattr(law_user, "rigid_impact", spy_law)
     monkeypatch.setattr(_Landing, "tally_joints", spy_tally)
     monkeypatch.setattr(_Landing, "result", spy_result)
     return seen

@@ -239,10 +239,10 @@ def test_a_ctrl_c_that_casadi_swallows_still_stops_the_outer_search(tiny_outer_s
 def test_a_ctrl_c_that_casadi_swallows_while_a_landing_is_built_stops_footopt_evaluate(monkeypatch, capsys):
     """``footopt evaluate`` of a whole landing: a SIGINT whose KeyboardInterrupt is caught while
     the landing's functions are built (as CasADi's wrapper may) ends it at its first step (130)."""
-    import impulse_core.timedomain.landing as landing_module
+    import impulse_core.timedomain.events.run as events_run
     import impulse_core.timedomain.landing_step as landing_step
 
-    real = landing_module.landing_function
+    real = events_run.landing_function
     built: list[int] = []
 
     def swallowing(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
@@ -253,7 +253,7 @@ def test_a_ctrl_c_that_casadi_swallows_while_a_landing_is_built_stops_footopt_ev
         built.append(1)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(landing_module, "landing_function", swallowing)
+    monkeypatch.setattr(events_run, "landing_function", swallowing)  # _Landing builds the point's function
     monkeypatch.setattr(landing_step, "landing_function", swallowing)  # step code auto's C or VM function
     before = signal.getsignal(signal.SIGINT)
     assert main(["evaluate", str(REPO / "configs" / "landing_case3.yaml"), "--json"]) == 130
