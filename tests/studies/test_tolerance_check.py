@@ -1,0 +1,43 @@
+"""``studies/whole_landing/tolerance_check.py``: a random landing against its finer references
+meets its tolerance (seed 70001: one touchdown, a tenth of a second), and the summary counts
+what the rows say (doctored rows: an error above the tolerance, an unjudged reference)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "studies" / "whole_landing" / "tolerance_check.py"
+
+
+def _module():
+    spec = importlib.util.spec_from_file_location("tolerance_check", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("tolerance_check", module)  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return sys.modules["tolerance_check"]
+
+
+def test_a_random_landing_meets_its_tolerance_against_finer_runs(tmp_path: Path) -> None:
+    tc = _module()
+    row = tc.check(70001, 60.0, tmp_path)
+    assert row.note == "" and row.judged and row.events >= 1
+    assert 0 <= row.error <= tc.TOLERANCE and row.spread <= row.error + 1e-12
+    assert row.error <= max(10 * row.estimate, 1e-6)  # the estimate is of the error's size here
+
+
+@pytest.mark.parametrize("error, spread, met, judged", [
+    (5e-4, 1e-6, 2, 2),  # within the tolerance
+    (2e-3, 1e-6, 1, 2),  # over it: counted as not met
+    (5e-4, 5e-4, 1, 1),  # a reference not converged to a tenth of the tolerance: not judged
+])
+def test_the_summary_counts_what_its_rows_say(error: float, spread: float, met: int, judged: int) -> None:
+    tc = _module()
+    good = tc.Row(1, "planar flat mu 0", "rk4", 3, 1e-4, 5e-5, 1e-9, 0.1)
+    summary = tc.report([good, replace(good, seed=2, error=error, spread=spread)], (1, 3), 10.0)
+    assert f"Within the tolerance: **{met} of {judged}**" in summary
+    assert f"{judged} of 2 files" in summary
