@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 import pytest
@@ -744,6 +745,21 @@ def test_runs_apart_asks_for_postures_that_do_not_approach_while_the_impulses_ag
     assert landing_module.runs_apart(halving) is apart
 
 
+def _fake_runs(base: LandingResult, moves: list[tuple]) -> tuple:
+    """A stand-in for :meth:`_Landing.run` whose k-th run is ``base`` with moves[k] = (steps, m[, s]):
+    that many steps of h each (so the run at h / 2 would not be split alike), its total external
+    impulses times 1 + m and its final angles times s; and the list of the steps it was asked for."""
+    runs, asked = iter(moves), []
+
+    def fake(self, h, *args, share=1.0):
+        n, moved, scale = (*next(runs), 1.0)[:3]
+        asked.append(h)
+        times = np.arange(n + 1) * h
+        return replace(base, n_steps=n, step=h, total_external=base.total_external * (1 + moved),
+                       final_angles=base.final_angles * scale, trajectory=(times, np.zeros((n + 1, 0))))
+    return fake, asked
+
+
 def test_a_halving_whose_runs_end_apart_stops_with_them(monkeypatch):
     """Runs whose final angles end 1.61, 0.9, ... apart (random file 32924's tumbling flight)
     while their impulses agree to 1e-4: the halving stops after its third run, unmet, the
@@ -751,18 +767,7 @@ def test_a_halving_whose_runs_end_apart_stops_with_them(monkeypatch):
     each other at first order (0.4, then 0.15) go on to the tolerance."""
     tree, laws, scene = _random_leg(1)
     base = landing(tree, scene, laws, LandingSettings(tolerance=1e-2, integrator="rk4"))
-
-    def fake_runs(moves):
-        runs, asked = iter(moves), []
-
-        def fake(self, h, *args, share=1.0):
-            n, moved, scale = next(runs)
-            asked.append(h)
-            times = np.arange(n + 1) * h  # steps of h each: the run at h / 2 would not be split alike
-            return replace(base, n_steps=n, step=h, total_external=base.total_external * (1 + moved),
-                           final_angles=base.final_angles * scale, trajectory=(times, np.zeros((n + 1, 0))))
-        return fake, asked
-
+    fake_runs = partial(_fake_runs, base)
     fake, asked = fake_runs([(1000, 0.0, 1.0), (2000, 1e-4, -0.61), (4000, 0.0, -1.159), (8000, 1e-4, 1.0)])
     monkeypatch.setattr(_Landing, "run", fake)
     r = landing(tree, scene, laws, LandingSettings(tolerance=1e-3, integrator="rk4"))
@@ -824,18 +829,7 @@ def test_a_stalled_halving_stops_with_the_finest_run(monkeypatch):
     differences halve at each halving (1e-2, 5e-3, 2.5e-3, ...) go on to the tolerance."""
     tree, laws, scene = _random_leg(1)
     base = landing(tree, scene, laws, LandingSettings(tolerance=1e-2, integrator="rk4"))
-
-    def fake_runs(totals):
-        runs, asked = iter(totals), []
-
-        def fake(self, h, *args, share=1.0):
-            n, moved = next(runs)
-            asked.append(h)
-            times = np.arange(n + 1) * h  # steps of h each: the run at h / 2 would not be split alike
-            return replace(base, n_steps=n, step=h, total_external=base.total_external * (1 + moved),
-                           trajectory=(times, np.zeros((n + 1, 0))))
-        return fake, asked
-
+    fake_runs = partial(_fake_runs, base)
     fake, asked = fake_runs([(1000, 0.0), (2000, 1e-2), (4000, 4e-3), (8000, 1.1e-2), (16000, 5e-3), (32000, 0.0)])
     monkeypatch.setattr(_Landing, "run", fake)
     r = landing(tree, scene, laws, LandingSettings(tolerance=1e-4, integrator="rk4"))

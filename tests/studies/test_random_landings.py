@@ -6,10 +6,7 @@ from __future__ import annotations
 
 import copy
 import json
-import importlib.util
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,15 +14,11 @@ import pytest
 from impulse_core.kinematics.spatial import SPATIAL
 from optimizer.config.model_file import load_model_file
 
-SCRIPT = Path(__file__).resolve().parents[2] / "studies" / "whole_landing" / "random_landings.py"
+from tests.studies.scripts import study_module
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("random_landings", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("random_landings", module)  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return sys.modules["random_landings"]
+    return study_module("random_landings")
 
 
 rl = _module()

@@ -4,22 +4,16 @@ what the rows say (doctored rows: an error above the tolerance, an unjudged refe
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "studies" / "whole_landing" / "tolerance_check.py"
+from tests.studies.scripts import study_module
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("tolerance_check", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("tolerance_check", module)  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return sys.modules["tolerance_check"]
+    return study_module("tolerance_check")
 
 
 def test_a_random_landing_meets_its_tolerance_against_finer_runs(tmp_path: Path) -> None:
