@@ -64,3 +64,18 @@ def test_without_friction_the_impact_is_the_frictionless_lcp_and_takes_no_tangen
         f = -(1 + e) * np.linalg.solve(E.T, u[:n])  # E^T f = -(1 + e) u_n
         expected = complementarity_impulse(E, f)
         assert np.allclose(r.normal, expected, rtol=0, atol=1e-10 * max(1.0, np.abs(expected).max()))
+
+
+@pytest.mark.parametrize("light", [1e-8, 1e-5])
+def test_a_lightly_loaded_contact_is_not_separating_in_the_plane_or_in_space(light: float) -> None:
+    """Two independent contacts (W = I), one approaching at 1 m/s and one at ``light`` m/s, e = 0,
+    no slip: the second takes an impulse ``light`` times the first's and sticks; it is loaded,
+    not separating, down to the modes' threshold (1e-9 of the largest normal impulse)."""
+    from impulse_core.impact.cone import cone_impact
+
+    planar = coulomb_impact(np.eye(4), np.array([-1.0, -light, 0.0, 0.0]), 0.0, MU)
+    assert planar.normal == pytest.approx([1.0, light], rel=1e-12)
+    assert planar.modes == (ContactMode.STICKING, ContactMode.STICKING)
+    spatial = cone_impact(np.eye(6), np.array([-1.0, -light, 0.0, 0.0, 0.0, 0.0]), 0.0, MU)
+    assert spatial.exact and spatial.normal == pytest.approx([1.0, light], rel=1e-12)
+    assert spatial.modes == (ContactMode.STICKING, ContactMode.STICKING)
