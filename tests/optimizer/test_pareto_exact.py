@@ -41,7 +41,8 @@ def test_non_dominated_is_the_exact_pairwise_filter(dims: int) -> None:
         values = rng.integers(0, 4, size=(int(rng.integers(1, 12)), dims)).astype(float)
         keep = non_dominated(values)
         for i in range(len(values)):
-            dominated = any(np.all(values[j] <= values[i]) and np.any(values[j] < values[i]) for j in range(len(values)))
+            dominated = any(np.all(values[j] <= values[i]) and np.any(values[j] < values[i])
+                            for j in range(len(values)))
             first_copy = not any(np.array_equal(values[j], values[i]) for j in range(i))
             assert (i in keep) == (not dominated and first_copy), (values, keep, i)
         assert [tuple(values[k]) for k in keep] == sorted(tuple(values[k]) for k in keep)
