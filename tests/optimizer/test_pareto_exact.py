@@ -3,7 +3,7 @@ hypervolume is a count of unit cells, and non-domination a comparison of every p
 
 A cell [c, c + 1) (c integer, componentwise) lies in the dominated region exactly when some point
 p has p <= c in every objective and c + 1 <= reference: the hypervolume is the number of such
-cells. Random small fronts in two to four objectives, with ties and duplicates.
+cells. Random small fronts in one to four objectives, with ties and duplicates.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ def _cells(points: np.ndarray, reference: np.ndarray) -> int:
     return sum(1 for c in itertools.product(*ranges) if np.any(np.all(points <= np.array(c), axis=1)))
 
 
-@pytest.mark.parametrize("dims", [2, 3, 4])
+@pytest.mark.parametrize("dims", [1, 2, 3, 4])
 def test_hypervolume_is_the_count_of_dominated_cells(dims: int) -> None:
     rng = np.random.default_rng(40 + dims)
     for _ in range(25):
