@@ -168,6 +168,21 @@ def test_the_joint_torques_are_the_flat_rung_s():
         np.testing.assert_allclose(a.v_plus, b.v_plus, atol=1e-9 * max(1.0, np.max(np.abs(b.v_minus))))
 
 
+def test_the_first_instant_never_pulls_and_names_its_separating_contacts():
+    """The lcp and friction rungs' impulses are >= 0: ``pulling`` is empty, also where a contact
+    that takes part is left without impulse (then ``separating``, its impulse 0)."""
+    rng = np.random.default_rng(SEED + 4)
+    separated = 0
+    for tree, scene, a in _planar_cases(rng, 8):
+        scene = dataclasses.replace(scene, selection=ContactSelection.ALL, friction=0.4, terrain=slope_terrain(a))
+        for model in (ImpactModel.LCP, ImpactModel.FRICTION):
+            r = first_instant(tree, scene, model)
+            assert r.pulling == () and np.all(r.external >= 0.0)
+            assert all(r.external[i] <= 1e-12 * np.max(r.external) for i in r.separating)
+            separated += len(r.separating)
+    assert separated >= 2
+
+
 def test_the_spatial_joint_torques_are_the_flat_rung_s():
     """In space, with friction (both tangents, [t_x, t_z], in the torques' impulse vectors): on
     flat ground the first instant's torque impulses, joint forces and v_plus are the flat rung's."""
