@@ -48,3 +48,26 @@ def test_every_incomplete_batched_row_is_evaluated_one_by_one(monkeypatch: pytes
     assert keys == FIRST_IMPACT and sorted(evaluated) == [1.0, 3.0]
     assert np.all(table[[1, 3]] == np.array([[101.0], [103.0]]))
     assert np.array_equal(table[[0, 2, 4]], batched[[0, 2, 4]])
+
+
+@pytest.mark.parametrize("bad", [np.inf, np.nan])
+def test_a_scenario_with_a_non_finite_objective_failed(monkeypatch: pytest.MonkeyPatch, bad: float) -> None:
+    """One non-finite figure (a diverged evaluation) fails the whole scenario (None), as a
+    numerical error does; all finite, the objectives are returned."""
+    from types import SimpleNamespace
+
+    from impulse_core.errors import NumericalError
+
+    model = SimpleNamespace(tree=None, scene=None, joints=(), space=None)
+    figures = [1.0, 2.0, 3.0, 4.0, 5.0]
+    monkeypatch.setattr(robust, "evaluate_landing", lambda *args, **kwargs: SimpleNamespace())
+    monkeypatch.setattr(robust, "objectives", lambda result, space: Objectives(*figures))
+    assert robust.scenario_objectives(model) == Objectives(*figures)
+    figures[3] = bad
+    assert robust.scenario_objectives(model) is None
+
+    def diverged(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise NumericalError("diverged")
+
+    monkeypatch.setattr(robust, "evaluate_landing", diverged)
+    assert robust.scenario_objectives(model) is None
