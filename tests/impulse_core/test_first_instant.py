@@ -168,6 +168,38 @@ def test_the_joint_torques_are_the_flat_rung_s():
         np.testing.assert_allclose(a.v_plus, b.v_plus, atol=1e-9 * max(1.0, np.max(np.abs(b.v_minus))))
 
 
+def test_the_first_instant_never_pulls_and_names_its_separating_contacts():
+    """The lcp and friction rungs' impulses are >= 0: ``pulling`` is empty, also where a contact
+    that takes part is left without impulse (then ``separating``, its impulse 0)."""
+    rng = np.random.default_rng(SEED + 4)
+    separated = 0
+    for tree, scene, a in _planar_cases(rng, 8):
+        scene = dataclasses.replace(scene, selection=ContactSelection.ALL, friction=0.4, terrain=slope_terrain(a))
+        for model in (ImpactModel.LCP, ImpactModel.FRICTION):
+            r = first_instant(tree, scene, model)
+            assert r.pulling == () and np.all(r.external >= 0.0)
+            assert all(r.external[i] <= 1e-12 * np.max(r.external) for i in r.separating)
+            separated += len(r.separating)
+    assert separated >= 2
+
+
+def test_the_spatial_joint_torques_are_the_flat_rung_s():
+    """In space, with friction (both tangents, [t_x, t_z], in the torques' impulse vectors): on
+    flat ground the first instant's torque impulses, joint forces and v_plus are the flat rung's."""
+    rng = np.random.default_rng(SEED + 3)
+    for tree in random_spatial_trees(rng, 4):
+        scene = Scene(speed=float(rng.uniform(1.0, 3.0)), velocity_x=float(rng.uniform(-0.6, 0.6)),
+                      velocity_z=float(rng.uniform(-0.6, 0.6)), angular_velocity_x=float(rng.uniform(-1, 1)),
+                      restitution=0.3, friction=0.4, selection=ContactSelection.ALL)
+        a = first_instant(tree, scene, ImpactModel.FRICTION, SPATIAL)
+        b = evaluate(tree, scene, ImpactModel.FRICTION, SPATIAL)
+        scale = float(np.max(b.external))
+        assert np.abs(b.tangential).max() > 1e-3 * scale  # friction acts in these cases
+        np.testing.assert_allclose(a.internal, b.internal, rtol=0, atol=1e-9 * scale)
+        np.testing.assert_allclose(a.internal_torque, b.internal_torque, rtol=0, atol=1e-9 * scale)
+        np.testing.assert_allclose(a.v_plus, b.v_plus, rtol=0, atol=1e-9 * max(1.0, np.max(np.abs(b.v_minus))))
+
+
 @pytest.mark.parametrize("model", [ImpactModel.LCP, ImpactModel.FRICTION])
 def test_redundant_contacts_on_a_slope_split_as_on_flat_ground(model: ImpactModel):
     """A plank lying on the slope on three contacts (one rigid body: redundant rows): the lcp
