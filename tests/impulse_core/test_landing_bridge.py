@@ -32,7 +32,7 @@ from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Body, Scene, Tree
-from impulse_core.timedomain.landing import BRIDGE_STEPS, LandingSettings, _Landing, _Mode, _Totals
+from impulse_core.timedomain.landing import BRIDGE_STEPS, LandingSettings, _Landing, _Mode, _Totals, landing
 from optimizer.config.model_file import load_model_file
 from optimizer.evaluation.model_choice import TimeDomainResult
 from optimizer.report.text import warnings
@@ -190,3 +190,17 @@ def test_painleves_paradox_that_a_jam_cannot_end_is_bridged(divisor, start):
     assert len(r.bridges) == 1 and r.bridges[0][0] == pytest.approx(start, abs=1e-5)
     assert run._jams[1] >= 1  # the run had met the paradox
     assert r.momentum_balance <= 1e-5
+
+
+def test_a_paradox_that_outlasts_a_jam_is_bridged_from_after_it():
+    """Random file 61645 (data/unjammed_61645.yaml: a lone 79 g rod on a heightfield, friction 1):
+    its run at h / 2 jams the tip at t = 0.367424 s, and the mode after that jam slides in the
+    paradox again, where a second jam at that instant cannot be taken (exit 1 before). The run now
+    keeps the jam (its event and impulse) and crosses from the state after it by a bridge; the
+    landing converges (two runs) with its momentum balanced, the jam the last event."""
+    model = load_model_file(DATA / "unjammed_61645.yaml")
+    r = landing(model.tree, model.scene, model.joints, LandingSettings(), space=model.space)
+    jams = [e for e in r.events if e.jam]
+    assert r.converged and len(jams) == 1 and jams[0] is r.events[-1]
+    assert len(r.bridges) == 1 and r.bridges[0][0] == jams[0].time == pytest.approx(0.367424, abs=1e-6)
+    assert r.momentum_balance <= 1e-6

@@ -8,7 +8,7 @@ import numpy as np
 
 from impulse_core.errors import NumericalError
 from impulse_core.timedomain.compliant import joint_impulses, world_velocity
-from impulse_core.timedomain.events.settings import PLASTIC_SPEED, _Jams
+from impulse_core.timedomain.events.settings import PLASTIC_SPEED, _Jams, _Unjammed
 from impulse_core.timedomain.events.results import LandingEvent
 from impulse_core.timedomain.events.point import _Point, _along, _any
 from impulse_core.timedomain.events.rows import _Mode, _rows
@@ -339,6 +339,8 @@ class _Paradox:
         at friction 0.3, whose jam stopped ending its slip at t = 0.1777 s. (q, v, mode, t, bridged)."""
         try:
             return (*self.jam_event(q, v, mode, t, totals, jammed, failure), t, bridged)
+        except _Unjammed as after:  # a jam taken, the next one not: the bridge starts after the first
+            return self.bridge_within(after.q, after.v, after.mode, t, totals, span, bridged, after.failure)
         except NumericalError as unjammed:
             if unjammed is not failure:
                 raise

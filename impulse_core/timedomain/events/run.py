@@ -25,7 +25,8 @@ from impulse_core.timedomain.compliant import (
 from impulse_core.timedomain.events.settings import (
     AUTO, AUTO_CODE, AUTO_IMPLICIT, C_CODE, FIRST_STEPS, IMPLICIT, MASSLESS, MAX_SPLITS, MIN_BOUNCE,
     MOMENTUM_BALANCE, NUMPY_CODE, RADAU, RECHART, REPEAT_SPAN, REPEATS, RK4, RK4_PACE, RK4_PACE_AFTER, RK4_STABLE,
-    STEP_BUDGET, VM_CODE, Diverged, _Jams, LandingProgress, LandingSettings, PainleveParadox, Progress, Until,
+    STEP_BUDGET, VM_CODE, Diverged, _Jams, _Unjammed, LandingProgress, LandingSettings, PainleveParadox, Progress,
+    Until,
 )
 from impulse_core.timedomain.events.results import LandingResult
 from impulse_core.timedomain.events.point import (
@@ -435,7 +436,13 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
             again = self.painleve(q, v, new) if jammed else np.zeros(0, int)
             if not again.size:
                 return q, v, new
-            q, v, mode = self.take_jam(q, v, new, t, totals, again, NumericalError(self.stall_message(q, v, new, t)))
+            failure = NumericalError(self.stall_message(q, v, new, t))
+            try:
+                q, v, mode = self.take_jam(q, v, new, t, totals, again, failure)
+            except NumericalError as unjammed:
+                if unjammed is not failure:
+                    raise
+                raise _Unjammed(failure, q, v, new) from None
 
     def event(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
               crossed: np.ndarray | None = None, cornered: np.ndarray | None = None

@@ -183,6 +183,16 @@ class _Jams(Exception):
         self.failure = failure
 
 
+class _Unjammed(NumericalError):
+    """A jam taken, and the paradox still there after it, whose next jam cannot be taken
+    (:meth:`_Landing.resolve_or_jam`): ``failure``'s message, and the state and mode after the jam
+    taken, from which :meth:`_Landing.jam_or_bridge` bridges (uncaught, it is ``failure``)."""
+
+    def __init__(self, failure: NumericalError, q, v, mode) -> None:
+        super().__init__(str(failure))
+        self.failure, self.q, self.v, self.mode = failure, q, v, mode
+
+
 class PainleveParadox(NumericalError):
     """The contact problem at the acceleration level has no solution at an event (Painleve's
     paradox: a pressed sliding contact whose row's effective inverse mass with friction is
