@@ -25,7 +25,8 @@ from impulse_core.impact.coulomb import ContactMode
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.tree import Scene, Tree
-from impulse_core.timedomain.landing import NUMPY_CODE, LandingSettings, _Landing, contact_impulses, impact_modes
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import NUMPY_CODE, LandingSettings, contact_impulses, impact_modes
 
 #: What the result's ``reason`` says ran.
 REASON = "first instant on uneven ground: contacts touching at t = 0 along their local normals"

@@ -64,40 +64,16 @@ from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.joints import JointLaw
 from impulse_core.model.tree import Scene, Tree
 from impulse_core.timedomain.compliant import relative_difference
-from impulse_core.timedomain.events.settings import (
-    AUTO, AUTO_CODE, AUTO_IMPLICIT, AUTO_RADAU, BALANCE_CHECK, BALANCE_ROUNDING, C_CODE, DISTINCT_RUNS, FIRST_STEPS,
-    IMPLICIT, IMPULSES_AGREE, MASSLESS, MASSLESS_REACH, MASSLESS_SWING, MAX_EVENTS, MAX_SPLITS, MIN_BOUNCE,
-    MODEL_NAME, MOMENTUM_BALANCE, NUMPY_CODE, PLASTIC_SPEED, POSTURE_SPREAD, RADAU, RADAU_A, RADAU_B,
-    RADAU_ITERATIONS, RADAU_SPLITS, RADAU_TOL, RECHART, REPEAT_SPAN, REPEATS, RK4, RK4_PACE, RK4_PACE_AFTER,
-    RK4_STABLE, ROS2_GAMMA, SETTLE_SPEED, SLIP_SCAN, STEP_BUDGET, TRIAL_SPLITS, VM_CODE, Diverged, _Jams,
-    LandingProgress, LandingSettings, PainleveParadox, Progress, Until, retry_factor,
-)
+from impulse_core.timedomain.events.forces import contact_impulses
+from impulse_core.timedomain.events.impact_law import RigidImpact, impact_modes, rigid_impact
+from impulse_core.timedomain.events.point import joint_law_rate, landing_function
 from impulse_core.timedomain.events.results import LandingEvent, LandingResult
-from impulse_core.timedomain.events.point import (
-    LANDING_OUTPUTS, _Joints, _Point, _along, _any, _count_nonzero, _finite, joint_arrays, joint_law_rate,
-    landing_function, _largest, tangent_basis, turning_ground_bias,
-)
-from impulse_core.timedomain.events.rows import (
-    _Mode, _Rows, _corner_rows, _mode_bytes, _mode_rows, _rests, _rows, _same_kind, slip_direction, _with_corners,
-)
-from impulse_core.timedomain.events.forces import (
-    REDUNDANT, _accelerations, _constrained_solve, _contact_forces, contact_impulses, contact_vectors,
-    _corner_forces, _corner_row_forces, _corner_side, impulse_vector, _least_norm, _pushing_split, _solve_rows,
-    _stacked, _unstacked,
-)
-from impulse_core.timedomain.events.impact_law import RigidImpact, impact_modes, _law_split, rigid_impact
-from impulse_core.timedomain.events.tally import _Totals
-from impulse_core.timedomain.events.stepping import balanced_length, _newton_verdict
-from impulse_core.timedomain.events.location import (
-    FORCE_DEPTH, _GRAZE_BASIS, _GRAZE_SAMPLES, LOCATE_DEPTH, _ROOT_SAMPLES, _Trial, _hermite_root, location_offsets,
-)
-from impulse_core.timedomain.events.choice import COINCIDENT, HOLD_FORCE, _followed_slip, _unit
-from impulse_core.timedomain.events.paradox import (
-    BRIDGE, BRIDGE_STEPS, JAM_INSTANT, JAM_NOTE, JAM_REPEATS, JAM_SLIDE_STEPS, JAM_WATCH, MAX_BRIDGES,
-    darboux_keller_slide,
-)
-from impulse_core.timedomain.events.messages import SINGULAR_MASS
 from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import (
+    AUTO, AUTO_CODE, AUTO_IMPLICIT, AUTO_RADAU, BALANCE_CHECK, C_CODE, DISTINCT_RUNS, IMPLICIT, IMPULSES_AGREE,
+    MAX_EVENTS, MIN_BOUNCE, MODEL_NAME, NUMPY_CODE, PLASTIC_SPEED, POSTURE_SPREAD, RADAU, RK4, RK4_STABLE,
+    SETTLE_SPEED, VM_CODE, Diverged, LandingProgress, LandingSettings, PainleveParadox, Progress, retry_factor,
+)
 
 
 # --------------------------------------------------------------------------------------------
@@ -288,24 +264,14 @@ __all__ = [
     "contact_impulses",
     "impact_modes",
     "rigid_impact",
+    "Diverged",
+    "PainleveParadox",
+    # what LandingSettings is told (its integrator and step_code) and landing()'s progress callback
+    "RADAU",
+    "AUTO_CODE",
+    "C_CODE",
+    "NUMPY_CODE",
+    "VM_CODE",
+    "Progress",
 ]
 
-#: The engine's names (:mod:`impulse_core.timedomain.events`), imported from here by the tests, studies
-#: and the optimizer as they were before it had its own package (a test that patches one patches the
-#: module under events/ that reads it: patching it here changes landing() alone).
-__all__ += [
-    "_accelerations", "_along", "_any", "_constrained_solve", "_contact_forces", "_corner_forces",
-    "_corner_row_forces", "_corner_rows", "_corner_side", "_count_nonzero", "_finite", "_followed_slip",
-    "_GRAZE_BASIS", "_GRAZE_SAMPLES", "_hermite_root", "_Jams", "_Joints", "_Landing", "_largest", "_law_split",
-    "_least_norm", "_Mode", "_mode_bytes", "_mode_rows", "_newton_verdict", "_Point", "_pushing_split", "_rests",
-    "_ROOT_SAMPLES", "_Rows", "_rows", "_same_kind", "_solve_rows", "_stacked", "_Totals", "_Trial", "_unit",
-    "_unstacked", "_with_corners", "AUTO_CODE", "AUTO_RADAU", "BALANCE_ROUNDING", "balanced_length", "BRIDGE",
-    "BRIDGE_STEPS", "C_CODE", "COINCIDENT", "contact_vectors", "darboux_keller_slide", "Diverged", "FIRST_STEPS",
-    "FORCE_DEPTH", "HOLD_FORCE", "impulse_vector", "JAM_INSTANT", "JAM_NOTE", "JAM_REPEATS", "JAM_SLIDE_STEPS",
-    "JAM_WATCH", "joint_arrays", "LANDING_OUTPUTS", "LOCATE_DEPTH", "location_offsets", "MASSLESS",
-    "MASSLESS_REACH", "MASSLESS_SWING", "MAX_BRIDGES", "MAX_SPLITS", "MOMENTUM_BALANCE", "NUMPY_CODE",
-    "PainleveParadox", "Progress", "RADAU", "RADAU_A", "RADAU_B", "RADAU_ITERATIONS", "RADAU_SPLITS", "RADAU_TOL",
-    "RECHART", "REDUNDANT", "REPEAT_SPAN", "REPEATS", "RK4_PACE", "RK4_PACE_AFTER", "ROS2_GAMMA", "SINGULAR_MASS",
-    "slip_direction", "SLIP_SCAN", "STEP_BUDGET", "tangent_basis", "TRIAL_SPLITS", "turning_ground_bias", "Until",
-    "VM_CODE",
-]

@@ -133,19 +133,11 @@ from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout, values_sp
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Scene, Tree, design_vector, value_names
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, ground_expression, spatial_ground, subtree_incidence
+from impulse_core.timedomain.events.rows import _Mode, _Rows
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import RECHART, ROS2_GAMMA
 from impulse_core.timedomain.landing import (
-    IMPLICIT,
-    RADAU,
-    RECHART,
-    RK4,
-    ROS2_GAMMA,
-    LandingResult,
-    LandingSettings,
-    _Landing,
-    _Mode,
-    _Rows,
-    landing,
-    landing_function,
+    IMPLICIT, RADAU, RK4, LandingResult, LandingSettings, landing, landing_function,
 )
 
 #: Events whose peak values lie within this relative distance of the maximum tie.
@@ -1374,7 +1366,7 @@ def _event_directions(sym: _Symbolic, ahead: _Sweep, slip: np.ndarray, mode: _Mo
 
 def _check_rows(run: _Landing, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:
     """Refuse a mode whose rows are redundant (the force split is not unique: no derivative)."""
-    from impulse_core.timedomain.landing import _mode_rows
+    from impulse_core.timedomain.events.rows import _mode_rows
 
     pt = run.point(q, v)
     rows = _mode_rows(pt, mode, run.mu)

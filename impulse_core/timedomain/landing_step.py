@@ -52,24 +52,11 @@ from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.timedomain.compliant import BufferedFunction
-from impulse_core.timedomain.landing import (
-    AUTO_CODE,
-    C_CODE,
-    IMPLICIT,
-    RADAU,
-    RADAU_A,
-    RADAU_B,
-    RADAU_TOL,
-    RK4,
-    ROS2_GAMMA,
-    VM_CODE,
-    _Joints,
-    _Landing,
-    _Mode,
-    _any,
-    _mode_bytes,
-    landing_function,
-)
+from impulse_core.timedomain.events.point import _Joints, _any
+from impulse_core.timedomain.events.rows import _Mode, _mode_bytes
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import RADAU_A, RADAU_B, RADAU_TOL, ROS2_GAMMA
+from impulse_core.timedomain.landing import AUTO_CODE, C_CODE, IMPLICIT, RADAU, RK4, VM_CODE, landing_function
 from impulse_core.timedomain.landing_derivatives import (
     _factor,
     _solve,

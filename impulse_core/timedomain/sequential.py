@@ -39,7 +39,10 @@ from impulse_core.model.tree import ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import joint_impulses, landing_ground, touchdown_order
 
 if TYPE_CHECKING:
-    from impulse_core.timedomain.landing import LandingResult, _Landing, _Mode, _Totals
+    from impulse_core.timedomain.events.rows import _Mode
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.events.tally import _Totals
+    from impulse_core.timedomain.landing import LandingResult
 
 MODEL_NAME = "newton-sequential on terrain (LCP at each touchdown, resting contacts, RK4 between events)"
 #: With friction: the exact Newton-Coulomb law at each touchdown.
@@ -162,7 +165,8 @@ def _sequential_landing(
     to ``max_time``, no joint laws, the first impact over the lowest contacts (within
     ``contact_tolerance``), one RK4 run at ``flight_step``, keeping joint impulses and impacts.
     Imported here: the landing needs scipy, which importing this module does not (``test_imports``)."""
-    from impulse_core.timedomain.landing import NUMPY_CODE, RK4, LandingSettings, _Landing
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import NUMPY_CODE, RK4, LandingSettings
 
     ground, x, z = landing_ground(scene, terrain, base_x, space)
     on = (replace(scene, terrain=ground, base_x=x) if space.joint_axis is not None

@@ -149,7 +149,7 @@ def mujoco_tangential(mj, space: Space) -> np.ndarray:  # type: ignore[no-untype
     """MuJoCo's impulse on each contact along footopt's ground tangents (:func:`tangent_basis`) at
     the ground normal where it first touched (up where it never did): n_c in the plane, n_c x 2 in
     space."""
-    from impulse_core.timedomain.landing import tangent_basis
+    from impulse_core.timedomain.events.point import tangent_basis
 
     d = mj.external_vector.shape[1]
     normal = np.zeros((len(mj.external), d))

@@ -33,7 +33,8 @@ from impulse_core.errors import FootoptError
 from impulse_core.kinematics.spatial import Space
 from impulse_core.model.joints import JointLaw
 from impulse_core.model.tree import Scene, Tree
-from impulse_core.timedomain.landing import VM_CODE, LandingSettings, _Landing
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import VM_CODE, LandingSettings
 
 #: A search that plans at least this many landings per shape builds their C: a planar shape's
 #: three libraries take 8-18 s of CPU and save 20-40 % of each 1.5-2.4 s landing after them

@@ -12,7 +12,8 @@ import time
 from dataclasses import replace
 import numpy as np
 from impulse_core.kinematics.spatial import SPATIAL
-from impulse_core.timedomain.landing import _Landing, LandingSettings, landing_difference
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import LandingSettings, landing_difference
 from optimizer.config.model_file import load_model_file
 from tests.impulse_core.test_landing_spatial import _splayed_leg
 

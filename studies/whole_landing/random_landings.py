@@ -351,7 +351,8 @@ def momentum_balance(tree: Any, scene: Any, joints: Any = (), settings: Any = No
     total_external}."""
     from impulse_core.kinematics.spatial import PLANAR
     from impulse_core.timedomain.compliant import chart_rates
-    from impulse_core.timedomain.landing import LandingSettings, _Landing
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import LandingSettings
 
     space = PLANAR if space is None else space
     run = _Landing(tree, scene, tuple(joints), settings or LandingSettings(), space)

@@ -257,7 +257,7 @@ def compare_resting(seed: int, settings: tuple[MujocoSettings, ...]) -> dict:
     several answers or none)."""
     import mujoco
 
-    from impulse_core.timedomain.landing import _Landing
+    from impulse_core.timedomain.events.run import _Landing
 
     tree, laws, scene = random_leg(seed, True)
     scene = replace(scene, speed=RESTING_SPEED, duration=1.0)

@@ -54,15 +54,8 @@ import numpy as np
 
 from impulse_core.kinematics.spatial import dof_layout
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, CompliantSettings, ContactLaw
-from impulse_core.timedomain.landing import (
-    C_CODE,
-    NUMPY_CODE,
-    VM_CODE,
-    LandingSettings,
-    _Landing,
-    landing,
-    landing_difference,
-)
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import C_CODE, NUMPY_CODE, VM_CODE, LandingSettings, landing, landing_difference
 from impulse_core.timedomain.compliant import relative_difference
 from optimizer.config.model_file import load_model_file
 from optimizer.results.export import to_mjcf

@@ -33,7 +33,8 @@ sys.path.insert(0, str(HERE))
 
 import random_landings as rl  # noqa: E402
 
-from impulse_core.timedomain.landing import LandingSettings, _Landing, landing, landing_difference  # noqa: E402
+from impulse_core.timedomain.events.run import _Landing  # noqa: E402
+from impulse_core.timedomain.landing import LandingSettings, landing, landing_difference  # noqa: E402
 from optimizer.config.model_file import load_model_file  # noqa: E402
 
 TOLERANCE = 1e-3

@@ -22,8 +22,10 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from impulse_core.timedomain import landing as L
 from impulse_core.timedomain.compliant import chart_rates, chart_rotation, world_velocity
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import RECHART
+from impulse_core.timedomain.landing import VM_CODE, LandingSettings
 from optimizer.config.model_file import load_model_file
 
 FILE = Path(__file__).resolve().parent / "random_failures" / "32924.yaml"
@@ -32,7 +34,7 @@ KICK = 1e-10
 
 def after_impacts(model, events: int = 5):
     """A run at the landing's first step until its ``events``-th impact: (run, t, q, chart rates v)."""
-    run = L._Landing(model.tree, model.scene, model.joints, L.LandingSettings(step_code=L.VM_CODE), model.space)
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(step_code=VM_CODE), model.space)
     r = run.run(run.first_step(), until=lambda q, v, mode, totals: len(totals.events) >= events)
     q, v = r.q_final.copy(), r.v_final.copy()  # the rotation since touchdown, world velocities
     v[3:6] = np.linalg.solve(chart_rates(q[3:6]), v[3:6])
@@ -62,7 +64,7 @@ def dop853(run, t0, q, v, t_end, samples, rtol=1e-13, atol=1e-15):
             return np.concatenate([y[nq:], run.derivative(y[:nq], y[nq:], flight)[0]])
 
         def chart(_t, y):
-            return np.linalg.norm(y[3:6]) - L.RECHART
+            return np.linalg.norm(y[3:6]) - RECHART
         chart.terminal, chart.direction = True, 1
         sol = solve_ivp(rhs, (t, t_end), y, method="DOP853", rtol=rtol, atol=atol, events=chart, dense_output=True)
         while samples and samples[0] <= sol.t[-1]:

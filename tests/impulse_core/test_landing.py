@@ -33,16 +33,11 @@ from impulse_core.impact.laws import ImpactModel
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.errors import NumericalError
 from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
+from impulse_core.timedomain.events.location import LOCATE_DEPTH
+from impulse_core.timedomain.events.rows import _Mode
+from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.landing import (
-    LOCATE_DEPTH,
-    MIN_BOUNCE,
-    Diverged,
-    LandingResult,
-    LandingSettings,
-    _Landing,
-    _Mode,
-    landing,
-    landing_difference,
+    MIN_BOUNCE, Diverged, LandingResult, LandingSettings, landing, landing_difference,
 )
 
 G = 9.81

@@ -32,7 +32,11 @@ from impulse_core.impact.laws import ImpactModel
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Body, Scene, Tree
-from impulse_core.timedomain.landing import BRIDGE_STEPS, LandingSettings, _Landing, _Mode, _Totals, landing
+from impulse_core.timedomain.events.paradox import BRIDGE_STEPS
+from impulse_core.timedomain.events.rows import _Mode
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.tally import _Totals
+from impulse_core.timedomain.landing import LandingSettings, landing
 from optimizer.config.model_file import load_model_file
 from optimizer.evaluation.model_choice import TimeDomainResult
 from optimizer.report.text import warnings

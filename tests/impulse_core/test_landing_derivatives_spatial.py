@@ -243,7 +243,8 @@ def test_approaches_share_one_structure_and_each_keeps_its_slip_floor():
     run's own (1e-9 max(1, speed, |v_x|)): a slip of 1e-8 m/s, between two runs' floors, turns a
     sliding contact's direction to the slip in the slow run's replay and keeps the mode's in the
     fast one's, as each numeric landing does (:func:`landing.slip_direction`)."""
-    from impulse_core.timedomain.landing import _Landing, _Mode, slip_direction
+    from impulse_core.timedomain.events.rows import _Mode, slip_direction
+    from impulse_core.timedomain.events.run import _Landing
     from impulse_core.timedomain.landing_derivatives import _symbolic
 
     tree, laws, scene, settings = _two_rod_leg()

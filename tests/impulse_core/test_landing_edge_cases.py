@@ -17,7 +17,8 @@ import impulse_core.timedomain.events.run as events_run
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.tree import Body, ContactSelection, JointKind, Scene, Tree
-from impulse_core.timedomain.landing import LandingSettings, _Landing, landing
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import LandingSettings, landing
 
 SETTINGS = LandingSettings(step=1e-3)
 
@@ -260,7 +261,8 @@ def test_a_position_correction_moves_no_momentum(space):
     momentum after equals the momentum before to rounding, where the correction alone moves it by
     1e-5 or more; with resting contacts (gaps of 1e-6 m off), the compiled projection gives numpy's
     answer (random leg, random velocity)."""
-    from impulse_core.timedomain.landing import NUMPY_CODE, VM_CODE, LandingSettings, _Landing
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import NUMPY_CODE, VM_CODE, LandingSettings
     from tests.impulse_core.test_landing import _random_leg
     from tests.impulse_core.test_landing_spatial import _splayed_leg
 

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from impulse_core.timedomain.landing import _ROOT_SAMPLES, _hermite_root
+from impulse_core.timedomain.events.location import _ROOT_SAMPLES, _hermite_root
 
 
 def _reference_root(g0: float, d0: float, g1: float, d1: float) -> float:
@@ -89,7 +89,8 @@ def test_the_event_shortcuts_change_no_result(monkeypatch):
     """Landings whose events take the shortcuts (no rows to resolve after a bounce: the flight
     mode; nothing to project) equal, bit for bit, the same landings through the contact LCP and
     the placement every time (events, impulses, final state)."""
-    from impulse_core.timedomain.landing import VM_CODE, LandingSettings, _Landing
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import VM_CODE, LandingSettings
 
     for tree, scene, laws, space, h in _cases():
         settings = LandingSettings(step_code=VM_CODE, integrator="rk4")
@@ -109,7 +110,8 @@ def test_a_joint_pressed_onto_its_stop_in_flight_is_resolved_by_the_lcp(monkeypa
     from impulse_core.kinematics.spatial import PLANAR
     from impulse_core.model.joints import FREE, JointLaw
     from impulse_core.model.tree import Body, Scene, Tree
-    from impulse_core.timedomain.landing import LandingSettings, _Landing
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import LandingSettings
 
     tree = Tree((Body("b0", None, 0.2, 1.0, -0.1, contacts=(0.0,)), Body("b1", 0, 0.3, 2.0, -0.06)))
     for rest, side in ((0.0, 1), (-0.1, 0)):
@@ -146,7 +148,7 @@ def test_redundancy_from_the_singular_values_alone_is_the_null_spaces():
 def test_components_along_directions_add_as_numpys_sum():
     """:func:`_along` (every point of the landing projects its Jacobians on the normals and
     tangents) adds the components in numpy's order: equal bit for bit to the broadcast sum."""
-    from impulse_core.timedomain.landing import _along
+    from impulse_core.timedomain.events.point import _along
 
     rng = np.random.default_rng(5)
     for k in range(200):
@@ -163,7 +165,8 @@ def test_the_compiled_point_is_the_virtual_machines_bit_for_bit():
     through the compile cache: the same numbers bit for bit as CasADi's virtual machine, in the
     plane (case 3) and in space (a splayed leg), at random states."""
     from impulse_core.kinematics.spatial import PLANAR, SPATIAL
-    from impulse_core.timedomain.landing import C_CODE, NUMPY_CODE, LandingSettings, _Landing
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import C_CODE, NUMPY_CODE, LandingSettings
     from optimizer.config.model_file import load_model_file
     from tests.impulse_core.test_landing_spatial import _splayed_leg
 
@@ -185,7 +188,8 @@ def test_adding_zero_impulses_leaves_the_totals_as_they_are():
     """:meth:`_Landing.add` skips an impulse that is 0 everywhere (a flight's step, a projection
     without rows): the totals stay as adding it would leave them, to the bit (sums of +0 never
     make -0); a tangential impulse alone is added."""
-    from impulse_core.timedomain.landing import NUMPY_CODE, LandingSettings, _Landing
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import NUMPY_CODE, LandingSettings
     from optimizer.config.model_file import load_model_file
 
     m = load_model_file("configs/landing_case3.yaml")
@@ -215,9 +219,10 @@ def test_a_points_figures_are_alongs_bit_for_bit():
     from dataclasses import fields
 
     from optimizer.config.model_file import load_model_file
-    from impulse_core.timedomain.landing import (
-        NUMPY_CODE, LandingSettings, _along, _Landing, _Mode, _Point, _mode_rows, tangent_basis,
-    )
+    from impulse_core.timedomain.events.point import _Point, _along, tangent_basis
+    from impulse_core.timedomain.events.rows import _Mode, _mode_rows
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import NUMPY_CODE, LandingSettings
 
     m = load_model_file("configs/landing_case3.yaml")
     run = _Landing(m.tree, m.scene, m.joints, LandingSettings(step_code=NUMPY_CODE))

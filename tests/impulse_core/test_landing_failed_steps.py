@@ -19,7 +19,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from impulse_core.timedomain.landing import NUMPY_CODE, RADAU, RADAU_SPLITS, RK4, Diverged, LandingSettings, _Landing
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import RADAU_SPLITS
+from impulse_core.timedomain.landing import NUMPY_CODE, RADAU, RK4, Diverged, LandingSettings
 from optimizer.config.model_file import load_model_file
 from tests.impulse_core.test_landing import _light_tip_leg
 from tests.impulse_core.test_landing_radau import _resting_state

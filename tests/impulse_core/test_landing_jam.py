@@ -29,7 +29,10 @@ import pytest
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Body, Scene, Tree
-from impulse_core.timedomain.landing import LandingSettings, _Landing, _Mode, darboux_keller_slide
+from impulse_core.timedomain.events.paradox import darboux_keller_slide
+from impulse_core.timedomain.events.rows import _Mode
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import LandingSettings
 from tests.impulse_core.test_landing_spatial import _assert_event_laws, _momentum_error, _rates
 
 G = 9.81

@@ -11,9 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from impulse_core.timedomain.landing import (AUTO_RADAU, IMPLICIT, MOMENTUM_BALANCE, NUMPY_CODE, RADAU, RK4,
-                                             VM_CODE, LandingProgress, LandingSettings, _Landing, _unstacked,
-                                             impulse_vector, landing, landing_difference)
+from impulse_core.timedomain.events.forces import _unstacked, impulse_vector
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import AUTO_RADAU, MOMENTUM_BALANCE
+from impulse_core.timedomain.landing import (
+    IMPLICIT, NUMPY_CODE, RADAU, RK4, VM_CODE, LandingProgress, LandingSettings, landing, landing_difference,
+)
 from optimizer.config.model_file import load_model_file
 
 DATA = Path(__file__).parent / "data"

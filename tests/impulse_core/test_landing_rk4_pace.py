@@ -9,8 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from impulse_core.timedomain.landing import AUTO_RADAU, IMPLICIT, LandingProgress, LandingSettings, _Landing, \
-    landing
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import AUTO_RADAU
+from impulse_core.timedomain.landing import IMPLICIT, LandingProgress, LandingSettings, landing
 from optimizer.config.model_file import load_model_file
 
 DATA = Path(__file__).parent / "data"

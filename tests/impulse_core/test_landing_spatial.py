@@ -28,15 +28,10 @@ from impulse_core.model.joints import FREE, JointLaw
 from impulse_core.model.rods import rotation_rpy
 from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import chart_rates
-from impulse_core.timedomain.landing import (
-    SETTLE_SPEED,
-    LandingResult,
-    LandingSettings,
-    _followed_slip,
-    _Landing,
-    balanced_length,
-    landing,
-)
+from impulse_core.timedomain.events.choice import _followed_slip
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.stepping import balanced_length
+from impulse_core.timedomain.landing import SETTLE_SPEED, LandingResult, LandingSettings, landing
 from tests.conftest import report
 from tests.impulse_core.test_compliant_spatial import rpy_of
 from tests.impulse_core.test_landing import G, _random_leg
@@ -562,7 +557,7 @@ def _kept_state(name: str, state: str | None = None):
     with q and v as arrays, the kept mode)."""
     import json
 
-    from impulse_core.timedomain.landing import _Mode
+    from impulse_core.timedomain.events.rows import _Mode
 
     model = _data_model(f"{name}.yaml")
     kept = json.loads((Path(__file__).parent / "data" / f"{state or name}_state.json").read_text())
@@ -583,7 +578,7 @@ def test_resting_contacts_of_one_rigid_body_stick_where_they_can():
     the run switched slip directions at every event (4000 events at 6e-11 s each, no end in
     240 s). The four contacts now stick (their forces inside the cone, no slip acceleration),
     and the landing ends (10 events; tests/impulse_core/test_landing.py's laws hold on it)."""
-    from impulse_core.timedomain.landing import _contact_forces
+    from impulse_core.timedomain.events.forces import _contact_forces
 
     run, _, kept, mode = _kept_state("redundant_stick_20606")
     q, v = kept["q"], kept["v"]
@@ -839,7 +834,7 @@ def test_a_redundant_modes_forces_push_where_a_pushing_split_exists():
     and the run stopped (the stall). The mode's forces are now the least-norm split of those
     that push: every normal force >= 0, the rows met, each sliding contact's friction mu f_n
     against its slip, and the mode holds at its own event."""
-    from impulse_core.timedomain.landing import _contact_forces
+    from impulse_core.timedomain.events.forces import _contact_forces
 
     run, _, kept, mode = _kept_state("redundant_pull_30804")
     q, v = kept["q"], kept["v"]
@@ -870,7 +865,7 @@ def test_events_that_give_back_the_mode_they_stopped_are_a_stall_naming_the_cont
     the contacts that slide against their own slip acceleration."""
     import impulse_core.timedomain.events.paradox as paradox_module  # where the bridges are counted
     from impulse_core.errors import NumericalError
-    from impulse_core.timedomain.landing import REPEATS
+    from impulse_core.timedomain.events.settings import REPEATS
 
     monkeypatch.setattr(paradox_module, "MAX_BRIDGES", 0)
 

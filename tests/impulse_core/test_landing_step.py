@@ -11,16 +11,10 @@ import pytest
 
 from impulse_core.model.terrain import Terrain
 from impulse_core.model.tree import Tree
-from impulse_core.timedomain.landing import (
-    C_CODE,
-    NUMPY_CODE,
-    VM_CODE,
-    LandingSettings,
-    _Landing,
-    _Mode,
-    landing_difference,
-    location_offsets,
-)
+from impulse_core.timedomain.events.location import location_offsets
+from impulse_core.timedomain.events.rows import _Mode
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import C_CODE, NUMPY_CODE, VM_CODE, LandingSettings, landing_difference
 from impulse_core.timedomain.landing_step import (
     compiled_step_function,
     landing_projection_function,
@@ -267,7 +261,8 @@ def test_an_event_takes_the_step_that_located_it(code, monkeypatch):
 def test_a_modes_solution_is_kept_per_point():
     """_Landing.mode_solution keeps the rows and forces of the modes asked at the last point:
     equal to fresh ones for every mode there, and fresh again at a new point."""
-    from impulse_core.timedomain.landing import _accelerations, _mode_rows
+    from impulse_core.timedomain.events.forces import _accelerations
+    from impulse_core.timedomain.events.rows import _mode_rows
 
     tree, laws, scene = _case3()
     run = _Landing(tree, scene, laws, LandingSettings(step_code=VM_CODE))
@@ -287,7 +282,7 @@ def test_along_and_the_unilateral_lcp_as_written_out():
     """The shortcuts of _along (one direction: no sum) and of unilateral_lcp's matrix (filled in
     place) equal their written-out forms: the per-contact sum and the block matrix of the law."""
     from impulse_core.impact.coulomb import unilateral_lcp
-    from impulse_core.timedomain.landing import _along
+    from impulse_core.timedomain.events.point import _along
 
     rng = np.random.default_rng(2)
     for shape in [(4, 1), (4, 1, 5), (0, 1, 5), (4, 2), (4, 2, 5), (4, 3, 5)]:

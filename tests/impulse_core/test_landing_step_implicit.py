@@ -12,8 +12,8 @@ import pytest
 
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.timedomain import landing_step
-from impulse_core.timedomain.landing import IMPLICIT, NUMPY_CODE, RK4, VM_CODE, LandingSettings, _Landing, \
-    landing_difference
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import IMPLICIT, NUMPY_CODE, RK4, VM_CODE, LandingSettings, landing_difference
 from tests.impulse_core.test_landing import _light_tip_leg
 from tests.impulse_core.test_landing_spatial import _splayed_leg
 from tests.impulse_core.test_landing_step import _case3, _legs, _random_mode, _rel, compare_step

@@ -11,8 +11,9 @@ import numpy as np
 
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.timedomain import landing_step
-from impulse_core.timedomain.landing import NUMPY_CODE, RADAU, RK4, VM_CODE, LandingSettings, _Landing, \
-    _newton_verdict, landing_difference
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.stepping import _newton_verdict
+from impulse_core.timedomain.landing import NUMPY_CODE, RADAU, RK4, VM_CODE, LandingSettings, landing_difference
 from tests.impulse_core.test_landing import _light_tip_leg
 from tests.impulse_core.test_landing_radau import _resting_state, _run
 from tests.impulse_core.test_landing_spatial import _splayed_leg

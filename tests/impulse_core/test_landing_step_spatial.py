@@ -12,17 +12,9 @@ import numpy as np
 import pytest
 
 from impulse_core.kinematics.spatial import SPATIAL
-from impulse_core.timedomain.landing import (
-    C_CODE,
-    NUMPY_CODE,
-    VM_CODE,
-    LandingSettings,
-    _Landing,
-    _Mode,
-    _mode_rows,
-    landing,
-    landing_difference,
-)
+from impulse_core.timedomain.events.rows import _Mode, _mode_rows
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import C_CODE, NUMPY_CODE, VM_CODE, LandingSettings, landing, landing_difference
 from tests.impulse_core.test_landing_spatial import _spinning_pair, _splayed_leg
 from tests.impulse_core.test_landing_step import _rel
 

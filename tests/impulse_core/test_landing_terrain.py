@@ -40,7 +40,8 @@ import pytest
 
 from impulse_core.impact.laws import ImpactModel
 from impulse_core.timedomain.first_instant import first_instant
-from impulse_core.timedomain.landing import LandingSettings, _Landing, landing
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.landing import LandingSettings, landing
 
 DATA = Path(__file__).resolve().parent / "data"
 G = 9.81

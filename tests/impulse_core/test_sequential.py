@@ -128,7 +128,7 @@ def _spied_events(monkeypatch) -> dict:
     and tangential impulses per contact) and the state the run ends in (``_Landing.result``)."""
     from impulse_core.timedomain import landing as module
     from impulse_core.timedomain.events import impacts as impacts_module, paradox as paradox_module
-    from impulse_core.timedomain.landing import _Landing
+    from impulse_core.timedomain.events.run import _Landing
 
     seen: dict = {"impacts": [], "laws": [], "rest": [], "end": []}
     impact, law, tally, result = _Landing.impact, module.rigid_impact, _Landing.tally_joints, _Landing.result

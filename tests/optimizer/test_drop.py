@@ -226,7 +226,7 @@ def test_mujoco_tangential_impulses_lie_along_footopt_s_ground_tangents(d):
     from types import SimpleNamespace
 
     from impulse_core.kinematics.spatial import PLANAR, SPATIAL
-    from impulse_core.timedomain.landing import tangent_basis
+    from impulse_core.timedomain.events.point import tangent_basis
     from optimizer.cli.drop import mujoco_tangential
 
     rng = np.random.default_rng(d)

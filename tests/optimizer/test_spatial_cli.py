@@ -169,7 +169,8 @@ def test_the_drawn_posture_puts_the_contacts_where_the_landing_has_them(spatial:
     base's rotation vector and moved to its origin) puts each contact body's tip where the
     landing's own dynamics put the contact, along the whole trajectory (1e-12 m)."""
     from impulse_core.kinematics.spatial import PLANAR
-    from impulse_core.timedomain.landing import LandingSettings, _Landing
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.landing import LandingSettings
     from optimizer.report.landing_plot import posture
 
     path = EXAMPLE if spatial else REPO / "configs" / "landing_case3.yaml"
