@@ -17,7 +17,7 @@ do (the matrix-vector products, clips at 0) stays in numpy.
 
 :func:`compiled_lemke` builds (or loads) the library; ``lemke``, ``solve_unilateral`` and
 ``cone_unilateral`` run on it when given it as their ``kernel`` (the numbers are the same either
-way): a landing with ``step_code`` c does (:class:`impulse_core.timedomain.landing._Landing`), and
+way): a landing with ``step_code`` c does (:class:`impulse_core.timedomain.events.run._Landing`), and
 locates its events with :func:`hermite_root`. Without a C compiler the Python code stays in place.
 """
 
@@ -339,7 +339,7 @@ class Lemke:
 
 
 def hermite_root(samples: np.ndarray):
-    """:func:`impulse_core.timedomain.landing._hermite_root` on ``samples`` as the compiled
+    """:func:`impulse_core.timedomain.events.location._hermite_root` on ``samples`` as the compiled
     library's (the same arithmetic, the same root bit for bit), or None without a C compiler."""
     functions = kernel()
     if functions is None:

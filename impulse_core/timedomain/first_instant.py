@@ -7,9 +7,9 @@ that gap (``contacts: all``: every declared one). Each pushes along its local gr
 the landing's impact law (:func:`impulse_core.timedomain.landing.rigid_impact`): Newton's
 restitution with the frictionless complementarity law (``lcp``) or exact Coulomb friction on the
 impulses (``friction``; the plane's LCP by Lemke's method, in space the circular cone). This is
-the whole landing's first event (its :meth:`~impulse_core.timedomain.landing._Landing.touchdown`)
+the whole landing's first event (its :meth:`~impulse_core.timedomain.events.run._Landing.touchdown`)
 without what acts over time (gravity, joint laws), and on flat ground the flat rungs' answer.
-``tangential`` is along each contact's ground tangent (:func:`~impulse_core.timedomain.landing.tangent_basis`:
+``tangential`` is along each contact's ground tangent (:func:`~impulse_core.timedomain.events.point.tangent_basis`:
 in space [t_x, t_z]).
 """
 

@@ -1,14 +1,14 @@
 """The landing's integrator steps (Runge-Kutta 4, ROS2 and Radau IIA) and projection as compiled
 CasADi functions (plane and space).
 
-:meth:`impulse_core.timedomain.landing._Landing.rk4_step` (and ``implicit_step``, ROS2) builds
+:meth:`impulse_core.timedomain.events.run._Landing.rk4_step` (and ``implicit_step``, ROS2) builds
 each stage's rows and solves them in numpy, which costs ~10 x the dynamics call. Here one SX graph
 per integrator, topology, terrain and set of joints with stops holds the whole step for every
 mode: every possible row is present (each contact's normal row, each stop's row, then each
 contact's row of each tangent in turn) and the mode enters as numbers. A row is active
 (``active`` = 1) or not (0): an inactive row is replaced by an identity row with a zero
 right-hand side, so its multiplier is 0 and the active rows' system is the mode's
-(:func:`impulse_core.timedomain.landing._accelerations`, and ROS2's ``_constrained_solve`` with
+(:func:`impulse_core.timedomain.events.forces._accelerations`, and ROS2's ``_constrained_solve`` with
 W = M + g h D + g^2 h^2 K for M) exactly. Its Delassus matrix and the mass matrix are solved by
 Gaussian elimination without pivoting (``landing_derivatives._solve``): the mass matrix is
 positive definite, the masked Delassus matrix block diagonal in the active and inactive rows, the

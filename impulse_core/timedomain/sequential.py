@@ -1,7 +1,7 @@
 """Rigid impacts in sequence on a terrain, with resting contacts: the stiff limit of the compliant
 rung when contacts touch down at different times or stay pressed.
 
-It is the whole landing (:class:`impulse_core.timedomain.landing._Landing`) without what the
+It is the whole landing (:class:`impulse_core.timedomain.events.run._Landing`) without what the
 first-impact models ignore: no joint springs, dampers or stops, gravity only as
 ``SequentialSettings.gravity`` (default 0), one run at the fixed RK4 step ``flight_step`` (no
 step halving). Between events the tree flies freely, or moves with resting contacts as rigid

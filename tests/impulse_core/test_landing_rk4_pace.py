@@ -1,5 +1,5 @@
 """``auto``'s implicit first run gives way to RK4 where the momentum balance splits its steps below
-RK4's stable step (:data:`impulse_core.timedomain.landing.RK4_PACE`; random file 32700, a 74 g rod
+RK4's stable step (:data:`impulse_core.timedomain.events.settings.RK4_PACE`; random file 32700, a 74 g rod
 hinged by a damper of 2 N m s: ``studies/whole_landing/stiff_speed.md``)."""
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """The event-driven rigid landing engine behind :func:`impulse_core.timedomain.landing.landing`
-(that module's docstring describes the method; it re-exports every name here).
+(that module's docstring describes the method; it re-exports the public names a user needs:
+its ``__all__``).
 
 The data flow, lowest module first:
 
