@@ -247,12 +247,13 @@ def main() -> None:
 
 
 def kept_notes(path: Path) -> str:
-    """The dated notes below the table (from the first line starting "Rerun "), which a rerun keeps."""
+    """The notes below the table (from its first "## " heading: where the cost lies, the reruns' ratios and
+    dated notes), which a rerun keeps; a rerun's own note goes at the end of "Reruns, oldest first"."""
     if not path.exists():
         return ""
     lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
-    start = next((i for i, line in enumerate(lines) if line.startswith("Rerun ")), len(lines))
-    return "".join(lines[start:])
+    start = next((i for i, line in enumerate(lines) if line.startswith("## ")), len(lines))
+    return "".join(["\n"] + lines[start:]) if start < len(lines) else ""
 
 
 if __name__ == "__main__":
