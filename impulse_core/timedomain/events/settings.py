@@ -75,6 +75,15 @@ MOMENTUM_BALANCE = 2e-5
 DISTINCT_RUNS = 1.1
 #: Halvings of the nominal step for the momentum balance (a step that short is taken as it is).
 MAX_SPLITS = 14
+#: Halvings of the nominal step for a slow sliding contact in space (:meth:`_Landing.slip_length`):
+#: a step whose regularisation core (:meth:`_Landing.steer`, proportional to the step) would
+#: exceed a sliding contact's slip speed is halved down to h / 2^SLIP_SPLITS, below which the
+#: regularised direction takes over. Random file 61600 (a 32 g rod sliding at 0.13 to 2.8 m/s
+#: after touchdown, core 4 to 8 m/s at h = 1.1e-4 s): with the direction regularised on every
+#: step, the core's first-order error made the runs' differences fall at first order (8.4e-2
+#: ... 4.1e-4 down to h / 128, 655 s); split (up to 2^8 at h), its runs at h and h / 2 differ
+#: by 9e-8.
+SLIP_SPLITS = 10
 #: The step halving stops early where its runs end in postures that do not approach each other
 #: (:func:`runs_apart`): two successive differences of the final angles of at least this
 #: (relative, :func:`landing_differences`: a tenth of the largest angle), the later not shrunk by
