@@ -25,8 +25,8 @@ from impulse_core.timedomain.compliant import (
 from impulse_core.timedomain.events.settings import (
     AUTO, AUTO_CODE, AUTO_IMPLICIT, C_CODE, FIRST_STEPS, IMPLICIT, MASSLESS, MAX_SPLITS, MIN_BOUNCE,
     MOMENTUM_BALANCE, NUMPY_CODE, RADAU, RECHART, REPEAT_SPAN, REPEATS, RK4, RK4_PACE, RK4_PACE_AFTER, RK4_STABLE,
-    SLIP_SPLITS, STEP_BUDGET, VM_CODE, Diverged, _Jams, _Unjammed, LandingProgress, LandingSettings, PainleveParadox,
-    Progress, Until,
+    SLIP_BUDGET, SLIP_SPLITS, STEP_BUDGET, VM_CODE, Diverged, _Jams, _Unjammed, LandingProgress, LandingSettings,
+    PainleveParadox, Progress, Until,
 )
 from impulse_core.timedomain.events.results import LandingResult
 from impulse_core.timedomain.events.point import (
@@ -279,7 +279,9 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
                     if progress is not None:
                         progress(LandingProgress(index, h, t, T, len(totals.events)))
                     continue
-            length = self.slip_length(q, v, mode, min(trial, T - t), h / 2.0**SLIP_SPLITS)
+            # a slow turning slip splits the step (slip_length) within SLIP_BUDGET steps per step h
+            least = h / 2.0**SLIP_SPLITS if totals.steps <= SLIP_BUDGET * T / h else math.inf
+            length = self.slip_length(q, v, mode, min(trial, T - t), least)
             q1, v1, impulse, dt, grown = self.balanced_step(q, v, mode, length, rate, h / 2.0**MAX_SPLITS)
             step_vectors = self.vectors  # a curved heightfield (trial steps below replace self.vectors)
             self.check_budget(totals.steps, t, h)

@@ -84,6 +84,15 @@ MAX_SPLITS = 14
 #: ... 4.1e-4 down to h / 128, 655 s); split (up to 2^8 at h), its runs at h and h / 2 differ
 #: by 9e-8.
 SLIP_SPLITS = 10
+#: A slow slip is split (:data:`SLIP_SPLITS`) only where it turns: its acceleration across its
+#: line above this fraction of its acceleration. The regularised direction of a slip that keeps
+#: its line is s / |s| exactly, and a planar leg read in space lands on the plane's steps.
+SLIP_TURN = 1e-6
+#: Steps per step of the run's nominal length after which a run no longer splits slow slips
+#: (:data:`SLIP_SPLITS`; a quarter of :data:`STEP_BUDGET`): a slip slower than its split steps
+#: can follow for long (random file 30891: 2e-6 m/s, turning past a right angle every 1e-7 s,
+#: a stall that the run bridges) is regularised as before, and its run stays within budget.
+SLIP_BUDGET = 16
 #: The step halving stops early where its runs end in postures that do not approach each other
 #: (:func:`runs_apart`): two successive differences of the final angles of at least this
 #: (relative, :func:`landing_differences`: a tenth of the largest angle), the later not shrunk by
