@@ -30,6 +30,7 @@ from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import chart_rates
 from impulse_core.timedomain.events.choice import _followed_slip
 from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import SLIP_SPLITS
 from impulse_core.timedomain.events.stepping import balanced_length
 from impulse_core.timedomain.landing import SETTLE_SPEED, LandingResult, LandingSettings, landing
 from tests.conftest import report
@@ -731,11 +732,7 @@ def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall(
     s): it is not arrested, slides on, and each event gives the mode back, 7e5 such events to
     the landing's end (no end in 400 s). More than REPEATS of them in a row are a stall whatever
     their length: the run crosses it by a Moreau-Jean bridge (``_Landing.bridge``) and goes on;
-    with no bridge left (MAX_BRIDGES) the error names the contact (within 20000 steps and events).
-    At h / 2 (first bridge at 0.064286 s; h / 4: 0.064275): at h, whose steps now split contact 2's
-    slowing slip to its stop (``_Landing.slip_length``), contact 0's slip of 1.2e-6 m/s after it
-    stepped on regularised to 0.0646 s before its events stalled (0.064279 s at h, h / 2 and h / 4
-    with every slow slip regularised)."""
+    with no bridge left (MAX_BRIDGES) the error names the contact (within 20000 steps and events)."""
     import impulse_core.timedomain.events.paradox as paradox_module  # where the bridges are counted
     from impulse_core.errors import NumericalError
 
@@ -747,15 +744,14 @@ def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall(
         return calls[0] > 20000
 
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    h = run.first_step() / 2.0
-    r = run.run(h, until=lambda *a: until() or run.bridges)
+    r = run.run(run.first_step(), until=lambda *a: until() or run.bridges)
     assert run.bridges and 0.0642 < run.bridges[0][0] < 0.0643 and r.duration > run.bridges[0][0]
     calls[0] = 0
     monkeypatch.setattr(paradox_module, "MAX_BRIDGES", 0)
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     message = r"chatters at t = 0\.0642.* slow slip of contacts b2\[0\] turns at each event"
     with pytest.raises(NumericalError, match=message):
-        run.run(h, until=until)
+        run.run(run.first_step(), until=until)
 
 
 def test_a_starting_slip_that_cycles_is_searched_until_its_acceleration_follows_it(monkeypatch):
@@ -1000,14 +996,14 @@ def test_a_slow_slip_splits_its_steps_so_that_the_runs_converge_at_rk4s_order():
     slides after touchdown at 0.13 to 2.8 m/s, where the step's regularisation core h mu f_n w
     (:meth:`_Landing.steer`) was 4 to 8 m/s at its first step: with the direction regularised on
     every step, the core's first-order error made the whole landing's runs converge at first
-    order (8.4e-2 ... 4.1e-4 down to h / 128, 655 s). Such a step is halved instead
-    (:meth:`_Landing.slip_length`): over the first 3 ms of sliding, runs at h and h / 4 agree
+    order (8.4e-2 ... 4.1e-4 down to h / 128, 655 s). Asked (``LandingSettings.slip_splits``), such a
+    step is halved instead (:meth:`_Landing.slip_length`): over the first 3 ms of sliding, runs at h and h / 4 agree
     within 1e-6 of the largest velocity (measured 7.5e-8; with the direction regularised on every
     step, 1.07 of 20.3 rad/s), and the whole landing (8.8 s) converges at its first halving
     (estimate 9.1e-8)."""
     model = _data_model("slow_slip_61600.yaml")
     scene = replace(model.scene, duration=0.003)
-    run = _Landing(model.tree, scene, model.joints, LandingSettings(), model.space)
+    run = _Landing(model.tree, scene, model.joints, LandingSettings(slip_splits=SLIP_SPLITS), model.space)
     h = run.first_step()
     coarse, fine = run.run(h), run.run(h / 4.0)
     assert [e.kind for e in fine.events] == ["touchdown"]

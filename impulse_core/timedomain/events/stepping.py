@@ -111,8 +111,10 @@ class _Stepping:
         beyond 1 / rate amplifies it instead (a slow-slipping loaded toe turned the foot out of
         its plane within two steps). core = h mu f_n w caps that rate at 1 / h (RK4 is stable to
         2.8 / h): the direction is exact s / |s| above |s| = core and regularised below it; core
-        shrinks with the step, so the landing's step halving converges to the exact law. The
-        plane (one tangent) is untouched."""
+        shrinks with the step, so the landing's step halving converges to the exact law, at first
+        order where the law is regularised: :meth:`slip_length` splits a turning slip's step
+        instead where that reaches the exact law (:attr:`LandingSettings.slip_splits`). The plane
+        (one tangent) is untouched."""
         if self.dims == 2 or self.mu <= 0 or not (mode.closed & mode.sliding).any():
             return
         mode.core[:] = 0.0
@@ -135,11 +137,12 @@ class _Stepping:
         holds at the step's start. The core is proportional to the step, and so is the
         regularisation's error: on every step of a slow slip (random file 61600, :data:`SLIP_SPLITS`)
         the runs of the step halving converged at first order; split, the step holds RK4's order,
-        and the regularisation acts only on a slip that even a step of ``least`` (h / 2^SLIP_SPLITS)
-        would regularise: that step is not split (a slip about to stop, or crawling: random file
-        30891's at 2e-6 m/s, turning past a right angle every 1e-7 s). A slip that keeps its line (its
-        acceleration across it below SLIP_TURN of the acceleration, a planar motion read in space)
-        is not split: the regularised direction is then s / |s| exactly."""
+        and the regularisation acts only on a slip that even a step of ``least`` (h / 2^k,
+        :attr:`LandingSettings.slip_splits`) would regularise: that step is not split (a slip
+        about to stop, or crawling: random file 30891's at 2e-6 m/s, turning past a right angle
+        every 1e-7 s). A slip that keeps its line (its acceleration across it below SLIP_TURN of
+        the acceleration, a planar motion read in space) is not split: the regularised direction
+        is then s / |s| exactly."""
         if self.dims == 2 or self.mu <= 0 or not (mode.closed & mode.sliding).any() or trial <= least:
             return trial
         self.steer(q, v, mode, trial)
