@@ -1011,3 +1011,17 @@ def test_a_slow_slip_splits_its_steps_so_that_the_runs_converge_at_rk4s_order():
     scale = float(np.max(np.abs(fine.v_final)))
     assert float(np.max(np.abs(coarse.v_final - fine.v_final))) <= 1e-6 * scale
     assert float(np.max(np.abs(coarse.q_final - fine.q_final))) <= 1e-7
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_a_planar_slip_read_in_space_is_not_split(seed):
+    """A planar leg read as spatial slides in its plane: its slip keeps its line, where the
+    regularised direction is s / |s| exactly, so ``slip_splits`` splits none of its steps
+    (``SLIP_TURN``): the run is the one without it, to the bit (split, leg 0's final angles
+    moved by 4e-10 of the plane's, beyond what reading the plane in space may change)."""
+    tree, laws, scene = _random_leg(seed)
+    plain = _Landing(tree, scene, laws, LandingSettings(), SPATIAL).run(STEP)
+    asked = _Landing(tree, scene, laws, LandingSettings(slip_splits=SLIP_SPLITS), SPATIAL).run(STEP)
+    assert asked.n_steps == plain.n_steps
+    assert np.array_equal(asked.final_angles, plain.final_angles)
+    assert np.array_equal(asked.total_external, plain.total_external)
