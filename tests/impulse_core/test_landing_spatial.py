@@ -30,6 +30,7 @@ from impulse_core.model.tree import Body, ContactSelection, Scene, Tree
 from impulse_core.timedomain.compliant import chart_rates
 from impulse_core.timedomain.events.choice import _followed_slip
 from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import SLIP_SPLITS
 from impulse_core.timedomain.events.stepping import balanced_length
 from impulse_core.timedomain.landing import SETTLE_SPEED, LandingResult, LandingSettings, landing
 from tests.conftest import report
@@ -988,3 +989,39 @@ def test_a_rod_of_radius_0_with_its_centre_of_mass_off_its_axis_is_refused_by_th
             _Landing(Tree((replace(rod, com_offset=offset),)), scene, (), LandingSettings(), SPATIAL)
     _Landing(Tree((replace(rod, radius=0.005),)), scene, (), LandingSettings(), SPATIAL)
     _Landing(*_lone_rod(), (), LandingSettings(), SPATIAL)
+
+
+def test_a_slow_slip_splits_its_steps_so_that_the_runs_converge_at_rk4s_order():
+    """Random file 61600 (data/slow_slip_61600.yaml: a 32 g base rod under a 1.7 kg rod, mu 0.5)
+    slides after touchdown at 0.13 to 2.8 m/s, where the step's regularisation core h mu f_n w
+    (:meth:`_Landing.steer`) was 4 to 8 m/s at its first step: with the direction regularised on
+    every step, the core's first-order error made the whole landing's runs converge at first
+    order (8.4e-2 ... 4.1e-4 down to h / 128, 655 s). Asked (``LandingSettings.slip_splits``), such a
+    step is halved instead (:meth:`_Landing.slip_length`): over the first 3 ms of sliding, runs at h and h / 4 agree
+    within 1e-6 of the largest velocity (measured 7.5e-8; with the direction regularised on every
+    step, 1.07 of 20.3 rad/s), and the whole landing (8.8 s) converges at its first halving
+    (estimate 9.1e-8)."""
+    model = _data_model("slow_slip_61600.yaml")
+    scene = replace(model.scene, duration=0.003)
+    run = _Landing(model.tree, scene, model.joints, LandingSettings(slip_splits=SLIP_SPLITS), model.space)
+    h = run.first_step()
+    coarse, fine = run.run(h), run.run(h / 4.0)
+    assert [e.kind for e in fine.events] == ["touchdown"]
+    assert fine.n_steps > 200  # split below h / 4 where the slip is slow
+    scale = float(np.max(np.abs(fine.v_final)))
+    assert float(np.max(np.abs(coarse.v_final - fine.v_final))) <= 1e-6 * scale
+    assert float(np.max(np.abs(coarse.q_final - fine.q_final))) <= 1e-7
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_a_planar_slip_read_in_space_is_not_split(seed):
+    """A planar leg read as spatial slides in its plane: its slip keeps its line, where the
+    regularised direction is s / |s| exactly, so ``slip_splits`` splits none of its steps
+    (``SLIP_TURN``): the run is the one without it, to the bit (split, leg 0's final angles
+    moved by 4e-10 of the plane's, beyond what reading the plane in space may change)."""
+    tree, laws, scene = _random_leg(seed)
+    plain = _Landing(tree, scene, laws, LandingSettings(), SPATIAL).run(STEP)
+    asked = _Landing(tree, scene, laws, LandingSettings(slip_splits=SLIP_SPLITS), SPATIAL).run(STEP)
+    assert asked.n_steps == plain.n_steps
+    assert np.array_equal(asked.final_angles, plain.final_angles)
+    assert np.array_equal(asked.total_external, plain.total_external)

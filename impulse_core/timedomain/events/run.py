@@ -25,8 +25,8 @@ from impulse_core.timedomain.compliant import (
 from impulse_core.timedomain.events.settings import (
     AUTO, AUTO_CODE, AUTO_IMPLICIT, C_CODE, FIRST_STEPS, IMPLICIT, MASSLESS, MAX_SPLITS, MIN_BOUNCE,
     MOMENTUM_BALANCE, NUMPY_CODE, RADAU, RECHART, REPEAT_SPAN, REPEATS, RK4, RK4_PACE, RK4_PACE_AFTER, RK4_STABLE,
-    STEP_BUDGET, VM_CODE, Diverged, _Jams, _Unjammed, LandingProgress, LandingSettings, PainleveParadox, Progress,
-    Until,
+    SLIP_BUDGET, STEP_BUDGET, VM_CODE, Diverged, _Jams, _Unjammed, LandingProgress, LandingSettings,
+    PainleveParadox, Progress, Until,
 )
 from impulse_core.timedomain.events.results import LandingResult
 from impulse_core.timedomain.events.point import (
@@ -269,6 +269,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         reference = max(float(np.max(np.abs(p0))), self.mass * self.scene.gravity * T)
         rate = share * MOMENTUM_BALANCE * reference / T  # the steps' momentum residual per second
         trial = h  # the next step's length: h, or h / 2^k after the momentum balance split a step
+        splits = self.settings.slip_splits
         while t < T * (1 - 1e-12) and not (until is not None and until(q, v, mode, totals)):
             if not self.planar and float(np.linalg.norm(q[3:6])) > RECHART:
                 q, v = self.rechart(q, v, totals)
@@ -279,7 +280,10 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
                     if progress is not None:
                         progress(LandingProgress(index, h, t, T, len(totals.events)))
                     continue
-            q1, v1, impulse, dt, grown = self.balanced_step(q, v, mode, min(trial, T - t), rate, h / 2.0**MAX_SPLITS)
+            # a slow turning slip splits the step where asked (slip_length), within SLIP_BUDGET steps per step h
+            least = h / 2.0**splits if splits and totals.steps <= SLIP_BUDGET * T / h else math.inf
+            length = self.slip_length(q, v, mode, min(trial, T - t), least)
+            q1, v1, impulse, dt, grown = self.balanced_step(q, v, mode, length, rate, h / 2.0**MAX_SPLITS)
             step_vectors = self.vectors  # a curved heightfield (trial steps below replace self.vectors)
             self.check_budget(totals.steps, t, h)
             final = dt == T - t and dt < trial  # shortened to end at T, not split

@@ -10,7 +10,7 @@ import numpy as np
 
 from impulse_core.timedomain.events.settings import (
     BALANCE_ROUNDING, FIRST_STEPS, IMPLICIT, NUMPY_CODE, RADAU, RADAU_A, RADAU_B, RADAU_ITERATIONS, RADAU_SPLITS,
-    RADAU_TOL, RK4, RK4_STABLE, ROS2_GAMMA,
+    RADAU_TOL, RK4, RK4_STABLE, ROS2_GAMMA, SLIP_TURN,
 )
 from impulse_core.timedomain.events.point import _finite, _largest
 from impulse_core.timedomain.events.rows import _Mode, _mode_bytes, _mode_rows, _rests, slip_direction
@@ -111,8 +111,10 @@ class _Stepping:
         beyond 1 / rate amplifies it instead (a slow-slipping loaded toe turned the foot out of
         its plane within two steps). core = h mu f_n w caps that rate at 1 / h (RK4 is stable to
         2.8 / h): the direction is exact s / |s| above |s| = core and regularised below it; core
-        shrinks with the step, so the landing's step halving converges to the exact law. The
-        plane (one tangent) is untouched."""
+        shrinks with the step, so the landing's step halving converges to the exact law, at first
+        order where the law is regularised: :meth:`slip_length` splits a turning slip's step
+        instead where that reaches the exact law (:attr:`LandingSettings.slip_splits`). The plane
+        (one tangent) is untouched."""
         if self.dims == 2 or self.mu <= 0 or not (mode.closed & mode.sliding).any():
             return
         mode.core[:] = 0.0
@@ -127,6 +129,42 @@ class _Stepping:
             self._steering = (pt, key, moving, np.maximum(forces[moving], 0.0), w)
         _, _, moving, pushing, w = self._steering
         mode.core[moving] = h * self.mu * pushing * w
+
+    def slip_length(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: float, least: float) -> float:
+        """The length of a step from (q, v) in ``mode`` at most ``trial``: halved, not below ``least``,
+        while a sliding contact in space whose slip turns would have its direction regularised
+        (:meth:`steer`'s core h mu f_n w above its slip speed |s|): the exact law s / |s| then
+        holds at the step's start. The core is proportional to the step, and so is the
+        regularisation's error: on every step of a slow slip (random file 61600, :data:`SLIP_SPLITS`)
+        the runs of the step halving converged at first order; split, the step holds RK4's order,
+        and the regularisation acts only on a slip that even a step of ``least`` (h / 2^k,
+        :attr:`LandingSettings.slip_splits`) would regularise: that step is not split (a slip
+        about to stop, or crawling: random file 30891's at 2e-6 m/s, turning past a right angle
+        every 1e-7 s). A slip that keeps its line (its acceleration across it below SLIP_TURN of
+        the acceleration, a planar motion read in space) is not split: the regularised direction
+        is then s / |s| exactly."""
+        if self.dims == 2 or self.mu <= 0 or not (mode.closed & mode.sliding).any() or trial <= least:
+            return trial
+        self.steer(q, v, mode, trial)
+        _, _, moving, pushing, w = self._steering
+        pt = self.point(q, v)
+        s = pt.slip[moving]
+        speed = np.linalg.norm(s, axis=1)
+        along = (np.sum(s * mode.slip[moving], axis=1) > 0) & (speed > pt.slip_floor)  # as slip_direction
+        stiffness = np.where(along, self.mu * pushing * w, 0.0)  # the core per unit step
+        if not np.any(trial * stiffness > speed):
+            return trial
+        a, _ = self.derivative(q, v, mode)
+        rate = np.einsum("ckn,n->ck", pt.Jt[moving], a) + pt.bt[moving]  # the slip's acceleration
+        unit = s / np.where(speed > 0, speed, 1.0)[:, None]
+        across = rate - np.sum(rate * unit, axis=1, keepdims=True) * unit
+        turning = np.linalg.norm(across, axis=1) > SLIP_TURN * np.linalg.norm(rate, axis=1)
+        stiffness = np.where(turning, stiffness, 0.0)
+        if np.any(least * stiffness > speed):  # no split reaches the exact law (30891: a slip of 2e-6 m/s)
+            return trial
+        while trial > least and np.any(trial * stiffness > speed):
+            trial /= 2.0
+        return max(trial, least)
 
     def follow_slip(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> None:
         """In space, after a step: each sliding contact's mode direction d becomes its friction's
