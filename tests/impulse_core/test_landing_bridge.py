@@ -208,3 +208,21 @@ def test_a_paradox_that_outlasts_a_jam_is_bridged_from_after_it():
     assert r.converged and len(jams) == 1 and jams[0] is r.events[-1]
     assert len(r.bridges) == 1 and r.bridges[0][0] == jams[0].time == pytest.approx(0.367424, abs=1e-6)
     assert r.momentum_balance <= 1e-6
+
+
+def test_a_bridge_that_blows_up_stops_the_run_as_its_divergence(monkeypatch):
+    """Random file 32113 (data/turning_slip_32113.yaml, the whole 0.3 s): its first run diverges
+    after a slide, and the bridge from that step's start blows up too (its rotation coordinates
+    overflowed the chart, an OverflowError that reached the CLI as an internal error). The run
+    now stops with the divergence, which :func:`landing` answers with a shorter step: the first
+    run raises Diverged, and the landing lands."""
+    from impulse_core.timedomain.events.settings import Diverged
+
+    m = load_model_file(DATA / "turning_slip_32113.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(), space=m.space)
+    tried = []
+    real = _Landing.bridge
+    monkeypatch.setattr(_Landing, "bridge", lambda self, *a: tried.append(a[3]) or real(self, *a))
+    with pytest.raises(Diverged, match="diverged"):
+        run.run(run.first_step())
+    assert tried and not run.bridges  # the bridge was tried, and blew up

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 
 from impulse_core.errors import NumericalError
-from impulse_core.timedomain.compliant import joint_impulses, world_velocity
+from impulse_core.timedomain.compliant import CHART_LIMIT, joint_impulses, world_velocity
 from impulse_core.timedomain.events.settings import PLASTIC_SPEED, _Jams, _Unjammed
 from impulse_core.timedomain.events.results import LandingEvent
-from impulse_core.timedomain.events.point import _Point, _along, _any
+from impulse_core.timedomain.events.point import _Point, _along, _any, _finite
 from impulse_core.timedomain.events.rows import _Mode, _rows
 from impulse_core.timedomain.events.forces import contact_impulses, _stacked, _unstacked
 from impulse_core.timedomain.events.impact_law import rigid_impact
@@ -103,6 +103,10 @@ def darboux_keller_slide(W: np.ndarray, slip: np.ndarray, mu: float) -> tuple[fl
 BRIDGE = 1.0 / 8.0
 BRIDGE_STEPS = 8
 MAX_BRIDGES = 64
+
+
+class _BridgeBlewUp(Exception):
+    """A bridge's Moreau-Jean step left finite numbers or the base's chart (:meth:`_Paradox.bridge`)."""
 
 
 class _Paradox:
@@ -246,12 +250,15 @@ class _Paradox:
         ``span`` by :data:`BRIDGE_STEPS` Moreau-Jean steps (:meth:`bridge_step`), whose impulses
         are the contacts' (continuous: no events), then takes the modes at the end
         (:meth:`modes_after`). First order in the step, as the step halving's estimate sees.
-        Returns (q, v, mode, t) after."""
+        Returns (q, v, mode, t) after; raises :class:`_BridgeBlewUp` where a step's state is not
+        finite or turns the base beyond the rotation coordinates' chart."""
         if self.tape is not None:
             self.tape.append(("bridge", q.copy(), v.copy(), mode.copy(), span))
         start, dt, v_before, closed = t, span / BRIDGE_STEPS, v, mode.closed
         for _ in range(BRIDGE_STEPS):
             q1, v1, impulses, closed = self.bridge_step(q, v, mode, closed, dt)
+            if not (_finite(q1) and _finite(v1)) or (not self.planar and float(np.linalg.norm(q1[3:6])) > CHART_LIMIT):
+                raise _BridgeBlewUp()
             self.add(totals, impulses, q, v)
             self.tally_joints(totals, q, v, q1, v1, impulses, dt, True)
             self.record(totals, t, v, t + dt, q1, v1)
@@ -352,4 +359,7 @@ class _Paradox:
         raises ``failure`` where the run has taken MAX_BRIDGES already."""
         if bridged >= MAX_BRIDGES:
             raise failure
-        return (*self.bridge(q, v, mode, t, totals, span), bridged + 1)
+        try:
+            return (*self.bridge(q, v, mode, t, totals, span), bridged + 1)
+        except _BridgeBlewUp:  # random file 32113 at its first step: the run stops as without the bridge
+            raise failure from None
