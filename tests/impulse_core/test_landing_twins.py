@@ -75,3 +75,18 @@ def test_identical_toes_land_as_one_toe_of_twice_the_mass():
     assert np.max(np.abs(np.array(tangential) - one.total_tangential)) <= 1e-9 * np.max(one.total_external)
     assert np.max(np.abs(twins.final_base - one.final_base)) <= 1e-9
     assert twins.momentum_balance <= 1e-6
+
+
+def test_three_identical_toes_land_as_one_toe_of_three_times_the_mass():
+    """configs/landing_case3.yaml (three identical toes, 441 events in 0.3 s) at its reported step
+    against one toe of three times the mass, stiffness and damping."""
+    m = load_model_file("configs/landing_case3.yaml")
+    settings = replace(study_landing(1e-3), integrator="rk4")
+    step = 0.001333873624308736  # landing()'s at the default tolerance
+    three = _Landing(m.tree, m.scene, m.joints, settings).run(step)
+    tree, laws = _one_toe(m.tree, m.joints, 3)
+    one = _Landing(tree, m.scene, laws, settings).run(step)
+    assert len(three.events) == len(one.events)
+    assert np.max(np.abs(three.final_angles[:5] - one.final_angles)) <= 1e-12
+    external = [three.total_external[0], three.total_external[1:].sum()]
+    assert np.max(np.abs(np.array(external) - one.total_external)) <= 1e-12 * np.max(one.total_external)
