@@ -36,6 +36,10 @@ Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
   slip stops, then the impact law at e = 0), reported as a "touchdown" event with ``jam`` set;
   only once a run has stopped on the paradox (:meth:`_Landing.run`), so that other landings are
   unchanged to the bit.
+* Identical toes (twins: sibling subtrees equal in everything but their names, with equal joint
+  laws) move alike in the exact landing; after every event their angles and velocities are set
+  to their mean (:meth:`_Landing.twinned`), so that rounding does not part them (in the plane n
+  of them then land as one toe of n times the mass, stiffness and damping).
 
 The error of a run at step h is estimated by comparing with the run at h / 2; the step is halved
 until that estimate meets ``tolerance`` (:func:`landing`).

@@ -136,6 +136,7 @@ from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, ground_expres
 from impulse_core.timedomain.events.rows import _Mode, _Rows
 from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.events.settings import RECHART, ROS2_GAMMA
+from impulse_core.timedomain.events.twins import symmetrized
 from impulse_core.timedomain.landing import (
     IMPLICIT, RADAU, RK4, LandingResult, LandingSettings, landing, landing_function,
 )
@@ -1221,6 +1222,10 @@ def landing_gradient(
             totals = totals + np.concatenate([fn, ft])
             S_totals = S_totals + np.vstack([d_out[1], d_out[2]])
             events.append((fn, d_out[1], joint, d_out[3]))
+        elif kind == "twins":  # identical toes set to their mean: a rounding's correction, the sensitivities
+            # kept (a design direction may part the twins)
+            groups = entry[1]
+            x = np.concatenate([symmetrized(x[:nv], groups), symmetrized(x[nv:], groups)])
         elif kind == "project":
             _, q, v, mode = entry
             if not run.planar and previous != "step":  # an event chose this mode: its slip directions

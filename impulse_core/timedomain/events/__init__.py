@@ -9,6 +9,7 @@ The data flow, lowest module first:
 * :mod:`.point`: the dynamics at (q, v), one CasADi call, and the joint laws as arrays;
 * :mod:`.rows`, :mod:`.forces`, :mod:`.impact_law`: a contact mode's constraint rows, its
   forces and accelerations (the mode LCP's pieces), and the impact law over those rows;
+* :mod:`.twins`: identical sibling subtrees (identical toes), which the run holds alike;
 * the run, :class:`.run._Landing`, composed of one mixin per concern: :mod:`.tally` (what a run
   accumulates), :mod:`.dynamics` (the point and the mode's forces along a run), :mod:`.stepping`
   (the integrators between events), :mod:`.location` (when an event happens), :mod:`.impacts`

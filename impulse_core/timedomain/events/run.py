@@ -43,6 +43,7 @@ from impulse_core.timedomain.events.choice import _ModeChoice
 from impulse_core.timedomain.events.placement import _Placement
 from impulse_core.timedomain.events.paradox import BRIDGE, JAM_WATCH, _Paradox
 from impulse_core.timedomain.events.messages import _Messages
+from impulse_core.timedomain.events.twins import symmetrized, twin_groups
 
 
 class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placement, _Paradox, _Messages, _Tally):
@@ -77,6 +78,8 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.q0 = touchdown_configuration(tree, ground, scene.base_x, space=space, base_z=base_z)
         self.joints = joint_arrays(tree, laws, self.q0, space)
         self.layout = dof_layout(self.topology, space)
+        #: the DOFs of each group of identical sibling subtrees (:func:`twin_groups`; :meth:`twinned`)
+        self.twins = twin_groups(tree, self.joints, self.layout)
         self.nc, self.nv = len(tree.contacts), len(self.q0)
         #: the rows of a point's position: 2 in the plane, 3 in space
         self.dims = 2 if self.planar else 3
@@ -123,8 +126,9 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         #: replay refuses it), ("impact", q, v, rows, e, sol, plastic:
         #: the rows whose restitution the plastic rules zeroed) and ("project", q, v, mode), that
         #: followed by ("crease_project",) where its correction carried a resting contact across a
-        #: heightfield's grid line (its rows then the next cell's; the replay refuses it); q, v
-        #: are the operation's inputs.
+        #: heightfield's grid line (its rows then the next cell's; the replay refuses it), and
+        #: ("twins", groups) where :meth:`twinned` set identical toes to their mean; q, v are the
+        #: operation's inputs.
         self.tape: list | None = None
         #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
@@ -409,6 +413,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         """After an event at ``t`` (the velocities ``v_before`` it): the modes
         (:meth:`resolve_or_jam`, ``jammed`` after a jam; a valley's corners seated), the
         projection onto them, counted in ``totals``, and the record: (q, v, mode) after."""
+        q, v = self.twinned(q, v)
         q, v, mode = self.resolve_or_jam(q, v, mode, t, totals, jammed)
         if self.valleys is not None:
             self.seat(mode)
@@ -417,6 +422,22 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.tally_joints(totals, q, v, q1, v1, p, 0.0, _any(mode.closed))
         self.record(totals, t, v_before, t, q1, v1)
         return q1, v1, mode
+
+    def twinned(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) with each group of twins (:attr:`twins`: identical toes on one parent) at the mean
+        of their angles and velocities where they differ (taped as ("twins", groups)). The exact
+        landing keeps twins identical; rounding parts them, and where their contacts rest on one
+        point with the toes near straight, the rows that pin both tips are nearly redundant: the
+        parting grows, and the mode's forces turn it into a squeeze of the twins against each other.
+        Trial 38 of the landing study: two toes whose distal joints were 2e-4 rad from straight,
+        apart by 3e-8 rad and 3e-5 rad/s at t = 0.107 s, the sticking pair's rows of condition 5e7,
+        whose forces were 5.2 N and -4.3 N of friction on 9.8 N and 11.4 N (toe1 outside its cone)
+        where the twins' mean state gives both 0.46 N on 10.6 N; no mode held, one toe slid and the
+        other flipped its slip at every event, and the run stopped on the chatter."""
+        q1, v1 = symmetrized(q, self.twins), symmetrized(v, self.twins)
+        if self.tape is not None and (q1 is not q or v1 is not v):
+            self.tape.append(("twins", self.twins))
+        return q1, v1
 
     def resolve_or_jam(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                        jammed: bool = False) -> tuple[np.ndarray, np.ndarray, _Mode]:
