@@ -1098,11 +1098,13 @@ class DesignEvaluation:
         design: the foot.
         objectives: None when the impact solve failed numerically.
         constraints: the constraint values (impact-dependent ones 0 when it failed).
+        failure: why there are no objectives, in one line ("" when there are).
     """
 
     design: FootDesign
     objectives: Objectives | None
     constraints: ConstraintValues
+    failure: str = ""
 
     @property
     def feasible(self) -> bool:
@@ -1130,10 +1132,10 @@ def evaluate_design(leg: Leg | LegChain, design: FootDesign, scene: Scene, limit
         with np.errstate(all="ignore"):
             result = evaluate(tree, scene_all, space=space)
             newton = newton_impulses(tree, scene_all, space)
-    except (ArithmeticError, np.linalg.LinAlgError, NumericalError):
-        return DesignEvaluation(design, None, constraint_values(leg, design, limits))
+    except (ArithmeticError, np.linalg.LinAlgError, NumericalError) as error:
+        return DesignEvaluation(design, None, constraint_values(leg, design, limits), failure_line(error))
     if not (np.all(np.isfinite(newton)) and np.isfinite(result.external_norm) and np.isfinite(result.internal_norm)):
-        return DesignEvaluation(design, None, constraint_values(leg, design, limits))
+        return DesignEvaluation(design, None, constraint_values(leg, design, limits), NOT_FINITE)
     values = constraint_values(leg, design, limits, result)
     # Newton's law (paper eq. 11) must not make a contact pull; the core would then switch to
     # the complementarity answer (the contact separates): a foot whose intended contact does not
@@ -1196,6 +1198,23 @@ def landing_objectives(result: LandingResult) -> Objectives:
     )
 
 
+#: Why a design has no objectives where a figure of its impact or landing is not finite.
+NOT_FINITE = "a figure of the impact is not finite"
+
+
+def failure_line(error: BaseException) -> str:
+    """An error's first line, as a failed design's reason (:attr:`DesignEvaluation.failure`)."""
+    text = str(error).strip()
+    return (text.splitlines()[0] if text else type(error).__name__)[:300]
+
+
+def unscored_why(result: LandingResult) -> str:
+    """Why :func:`scored_landing` refuses ``result``: its momentum balance, or a figure not finite."""
+    if result.momentum_balance > BALANCE_CHECK:
+        return f"the landing's momentum balance {result.momentum_balance:.1e} is beyond {BALANCE_CHECK:g}"
+    return NOT_FINITE.replace("impact", "landing")
+
+
 def scored_landing(result: LandingResult) -> Objectives | None:
     """:func:`landing_objectives`, or None where a value is not finite or the landing's own
     momentum balance ends beyond the contract's (:data:`~impulse_core.timedomain.landing.BALANCE_CHECK`:
@@ -1221,17 +1240,20 @@ def evaluate_design_landing(
     try:
         with np.errstate(all="ignore"):
             result = landing(tree, landing_scene(scene, limits), laws, study_landing(tolerance), foot_space(leg, design))
-    except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError):
-        return DesignEvaluation(design, None, geometric)
+    except (NumericalError, ArithmeticError, np.linalg.LinAlgError, ValueError) as error:
+        return DesignEvaluation(design, None, geometric, failure_line(error))
     objectives = scored_landing(result)
     if objectives is None:
-        return DesignEvaluation(design, None, geometric)
+        return DesignEvaluation(design, None, geometric, unscored_why(result))
     gain = max(e.energy_after - e.energy_before for e in result.events)
     return DesignEvaluation(design, objectives, replace(geometric, energy_gain=float(gain)))
 
 
 __all__ = [
     "FEASIBILITY_TOL",
+    "NOT_FINITE",
+    "failure_line",
+    "unscored_why",
     "ConstraintValues",
     "SupportConstraintValues",
     "constraint_record",

@@ -136,7 +136,7 @@ def optimize(
     )
     from optimizer.interrupts import interruptible
     from optimizer.search.inner import run_inner
-    from optimizer.search.outer import finished_trials, open_study, run_outer
+    from optimizer.search.outer import failed_designs, finished_trials, open_study, run_outer
 
     optuna.logging.set_verbosity(logging.WARNING)
     try:
@@ -186,15 +186,19 @@ def optimize(
         bar.close()
     wall = time.perf_counter() - started
     points = export_front(run_dir, config, study)
+    failed = failed_designs(study)
     write_run_file(
         run_dir,
         config,
         finished_trials=finished_trials(study),
         trials_this_run=finished_trials(study) - already,
         pareto_designs=len(points),
+        failed_designs=[{"trial": n, "failure": why} for n, why in failed],
         wall_time_s=round(wall, 3),
         interrupted=status == EXIT_INTERRUPTED,
     )
+    if failed:
+        print(failed_warning(failed, finished_trials(study)), file=sys.stderr)
     if status == EXIT_INTERRUPTED:
         resume = resume or f"footopt optimize {shlex.quote(str(config.source))} --out {shlex.quote(str(run_dir))}"
         print(f"footopt: interrupted; the finished trials are kept. Resume: {resume}", file=sys.stderr)
@@ -206,6 +210,14 @@ def optimize(
         print(format_front(config, points), end="")
     print(f"{plural(len(points), 'Pareto design')} in {run_dir} ({wall:.1f} s)")
     return EXIT_OK
+
+
+def failed_warning(failed: list[tuple[int, str]], trials: int, shown: int = 3) -> str:
+    """One line on the designs that failed (no objectives, left out of the front): how many, and the
+    first ``shown`` trials with why (all in run.json's ``failed_designs``)."""
+    listed = "; ".join(f"trial {n}: {why}" for n, why in failed[:shown])
+    more = f"; {len(failed) - shown} more in run.json" if len(failed) > shown else ""
+    return f"footopt: warning: {len(failed)} of {trials} designs failed and are left out of the front: {listed}{more}"
 
 
 def _storage_errors() -> type[Exception]:

@@ -40,6 +40,7 @@ from optimizer.design_space import (
     Objectives,
     Segment,
     JOINT_FAMILIES,
+    NOT_FINITE,
     SplayMode,
     ToeSymmetry,
     constraint_record,
@@ -60,6 +61,8 @@ from optimizer.search.landing_code import LandingBuilds
 ATTR_DESIGN, ATTR_OBJECTIVES, ATTR_CONSTRAINTS, ATTR_METHOD = "design", "objectives", "constraints", "method"
 #: Set on a trial found RUNNING when a study resumes (its process was killed).
 ATTR_INTERRUPTED = "interrupted"
+#: Set on a FAIL trial whose design failed: why, in one line (:attr:`DesignEvaluation.failure`).
+ATTR_FAILURE = "failure"
 
 
 # --------------------------------------------------------------------------------------------
@@ -431,6 +434,7 @@ def tell(study: optuna.Study, config: StudyConfig, trial: optuna.Trial, evaluati
     (the constraint values are still recorded)."""
     if evaluation.objectives is None:
         trial.set_user_attr(ATTR_CONSTRAINTS, dict(evaluation.constraints.items()))
+        trial.set_user_attr(ATTR_FAILURE, evaluation.failure or "failed numerically")
         return study.tell(trial, state=TrialState.FAIL)
     for key, value in record_attrs(evaluation, "outer").items():
         trial.set_user_attr(key, value)
@@ -501,14 +505,16 @@ def evaluate_designs_over_landings(config: StudyConfig, designs: list[FootDesign
     models = [design_model(config.leg, d, config.scene, config.limits, e) for d in designs]
     found = statistics_over_landings_many(models, config.landings, config.statistic_of,
                                           study_landing(config.search.landing_tolerance))
-    return [DesignEvaluation(d, s, constraint_values(config.leg, d, config.limits)) for d, s in zip(designs, found, strict=True)]
+    return [DesignEvaluation(d, s, constraint_values(config.leg, d, config.limits),
+                             "" if s is not None else "a landing of the study's landings failed")
+            for d, s in zip(designs, found, strict=True)]
 
 
 def _evaluation(config: StudyConfig, design: FootDesign, values: dict[str, float]) -> DesignEvaluation:
     """A design's evaluation from its compiled ``VALUE_OUTPUTS`` (None objectives if not finite)."""
     geometric = constraint_values(config.leg, design, config.limits)
     if not all(math.isfinite(v) for v in values.values()):
-        return DesignEvaluation(design, None, geometric)
+        return DesignEvaluation(design, None, geometric, NOT_FINITE)
     constraints = replace(
         geometric, pulling=-values["min_external"], energy_gain=values["energy_after"] - values["energy_before"]
     )
@@ -539,12 +545,22 @@ def recorded_trials(study: optuna.Study) -> Iterator[RecordedTrial]:
             yield r
 
 
+def failed_designs(study: optuna.Study) -> list[tuple[int, str]]:
+    """The trials whose designs failed (FAIL, not interrupted), in trial order, each with why
+    (:data:`ATTR_FAILURE`; studies recorded before it say only that they failed)."""
+    return [(t.number, str(t.user_attrs.get(ATTR_FAILURE, "failed numerically")))
+            for t in study.get_trials(deepcopy=False, states=(TrialState.FAIL,))
+            if not t.user_attrs.get(ATTR_INTERRUPTED)]
+
+
 def is_finite_values(values: list[float]) -> bool:
     return all(math.isfinite(v) for v in values)
 
 
 __all__ = [
+    "ATTR_FAILURE",
     "RecordedTrial",
+    "failed_designs",
     "design_from_record",
     "design_record",
     "evaluate_designs",

@@ -156,3 +156,55 @@ def test_a_design_whose_landing_breaks_its_momentum_balance_is_not_scored(monkey
         monkeypatch.setattr(module, "landing",
                             lambda *a, real=real, **k: dataclasses.replace(real(*a, **k), momentum_balance=1.2e-2))
     assert evaluated().objectives is None and scenario_objectives(model) is None
+
+
+def test_a_failed_design_says_why(monkeypatch, tmp_path, capsys):
+    """A design whose landing fails keeps why (a FAIL trial's ``failure``): the run's warning line
+    names the trial and the landing's own message, and run.json lists every failed design."""
+    import optimizer.design_space as design_space
+    import optimizer.search.outer as outer
+    from impulse_core.errors import NumericalError
+
+    real = outer.evaluate_design_landing
+    calls = []
+
+    def every_third_fails(*args, **kwargs):
+        calls.append(1)
+        if len(calls) % 3 == 1:
+            with monkeypatch.context() as m:
+                m.setattr(design_space, "landing", lambda *a, **k: (_ for _ in ()).throw(
+                    NumericalError("the landing chatters at t = 0.1 s (a planted failure)\nsecond line")))
+                return real(*args, **kwargs)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(outer, "evaluate_design_landing", every_third_fails)
+    study = tmp_path / "tiny_landing.yaml"
+    study.write_text(TINY_LANDING_YAML, encoding="utf-8")
+    out = tmp_path / "run"
+    assert main(["optimize", str(study), "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    run = json.loads((out / "run.json").read_text(encoding="utf-8"))
+    failed = run["failed_designs"]
+    assert [f["trial"] for f in failed] == [0, 3]
+    assert all(f["failure"] == "the landing chatters at t = 0.1 s (a planted failure)" for f in failed)
+    assert "2 of 6 designs failed" in err and "trial 0: the landing chatters at t = 0.1 s" in err
+    assert "second line" not in err
+
+
+def test_an_unscored_landing_says_why(monkeypatch, tmp_path):
+    """A landing that :func:`scored_landing` refuses names its momentum balance."""
+    import dataclasses
+
+    import optimizer.design_space as design_space
+    from optimizer.design_space import evaluate_design_landing
+
+    study = tmp_path / "tiny_landing.yaml"
+    study.write_text(TINY_LANDING_YAML, encoding="utf-8")
+    config = load_study(study)
+    design = design_from(config.leg, ((-0.6,), (0.9,)), ((0.2,), (0.3,)), config.limits)
+    real = design_space.landing
+    monkeypatch.setattr(design_space, "landing",
+                        lambda *a, **k: dataclasses.replace(real(*a, **k), momentum_balance=1.2e-2))
+    found = evaluate_design_landing(config.leg, design, config.scene, config.limits, 0.0, 1e-2)
+    assert found.objectives is None
+    assert found.failure == "the landing's momentum balance 1.2e-02 is beyond 0.0001"
