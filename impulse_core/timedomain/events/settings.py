@@ -66,13 +66,13 @@ TRIAL_SPLITS = 32
 #: The momentum balance over a landing (the change of the linear momentum minus the contact
 #: impulses and the weight's) that the steps keep below this fraction of the touchdown momentum:
 #: each step is halved until its own residual is below its share (its length over the duration),
-#: at tolerances up to BALANCE_TOLERANCE (below it the budget shrinks with the tolerance).
+#: at tolerances of BALANCE_TOLERANCE and above (below it the budget shrinks with the tolerance).
 MOMENTUM_BALANCE = 2e-5
 #: The tolerance MOMENTUM_BALANCE is set for (the default ``--tolerance``): a landing asked a
 #: finer tolerance gives its steps a share of the budget smaller in proportion (:func:`balance_share`),
 #: as runs at h and h / 2 split alike by one budget agree while both sit off the limit by its
-#: error (random file 70037 at 1e-3: estimate 1e-7, error 3.2e-5, above a tolerance of 1e-5;
-#: ``studies/whole_landing/tolerance_check_1e-05.md``).
+#: error (random file 70037 with this budget, at tolerances 1e-3 and 1e-5 alike: estimate 1e-7,
+#: error 3.2e-5, above the latter; ``studies/whole_landing/tolerance_check_1e-05.md``).
 BALANCE_TOLERANCE = 1e-3
 #: Two successive runs of the step-halving estimate count as two only where the finer took at
 #: least this many times the coarser's steps: where the momentum balance splits most steps alike
@@ -295,6 +295,7 @@ def balance_share(tolerance: float) -> float:
     """The share of the momentum balance's budget (:data:`MOMENTUM_BALANCE`) that :func:`landing`'s
     first run asks of its steps at ``tolerance``: 1 up to :data:`BALANCE_TOLERANCE` (the default
     tolerance, its landings unchanged to the bit), tolerance / BALANCE_TOLERANCE below it, so that
-    the error the budget leaves (up to 1.6 x the budget, random file 70037; unseen by the step
-    halving where it splits the runs' steps alike) stays the same fraction of the tolerance."""
+    the error the budget leaves (random file 70037: 1.6 x the budget; unseen by the step halving
+    where it splits the runs' steps alike) stays the same fraction of the tolerance. Each run of
+    the halving starts from it (and shrinks it after runs split alike, :func:`landing`)."""
     return min(1.0, tolerance / BALANCE_TOLERANCE)
