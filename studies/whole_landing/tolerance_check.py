@@ -6,22 +6,33 @@ difference from the limit of the same model as the discretisation is refined). T
 the claim on random landings (``random_landings.random_model``: planar and spatial trees, terrains,
 heightfields, friction, springs, stops):
 
-- each file is landed at the default tolerance (1e-3, the default settings, step code vm);
+- each file is landed at ``--tolerance`` (default 1e-3; the default settings, step code vm);
 - its reference is the same model (same integrator, same settings) run once at an eighth of the
   returned run's step, and again at a sixteenth: the "true" error is the relative difference
   (``landing_difference``: peaks, totals, final angles) of the returned run from the reference at
-  h / 16, and the reference's own spread is its difference from the one at h / 8;
+  h / 16, and the reference's own spread is its difference from the one at h / 8. The references
+  ask the momentum balance for a share of its budget of min(1, tolerance / 1e-3) at h / 8 and
+  smaller by 2^p at h / 16 (p: the integrator's ``balance_order``, RK4 4): runs split alike by
+  one budget would agree while both sat off the limit by its error, runs at two budgets differ
+  by it (tolerance_check.md, 1e-3, was measured before this, both references at the full budget);
 - a file is counted where both references ran and the reference's spread is below a tenth of the
   tolerance (else the reference is not converged enough to judge; listed as such).
 
+``--compare`` also lands each file with the momentum balance's budget fixed at its default
+whatever the tolerance (``landing.balance_share`` held at 1: main before issue #13's budget
+followed the tolerance) against the same references, and reports both with their CPU seconds.
+
 Run: python studies/whole_landing/tolerance_check.py --seeds 70000 70040 [--limit 20]
-(writes tolerance_check.md next to this file; ``--limit``: seconds for the returned landing, a
-file whose landing takes longer is skipped, since its references cost 24 x its finest run).
+[--tolerance 1e-5] [--compare] (writes tolerance_check.md next to this file, or
+tolerance_check_<tolerance>.md for another tolerance; ``--limit``: seconds for the returned
+landing, a file whose landing takes longer is skipped, since its references cost 24 x its finest
+run at least; ``--reference-limit``: seconds for its references, else not judged).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import time
@@ -33,11 +44,15 @@ sys.path.insert(0, str(HERE))
 
 import random_landings as rl  # noqa: E402
 
+import impulse_core.timedomain.landing as landing_module  # noqa: E402
 from impulse_core.timedomain.events.run import _Landing  # noqa: E402
 from impulse_core.timedomain.landing import LandingSettings, landing, landing_difference  # noqa: E402
 from optimizer.config.model_file import load_model_file  # noqa: E402
 
 TOLERANCE = 1e-3
+#: The tolerance the momentum balance's default budget was set for (the references' shares scale
+#: with the tolerance below it).
+BUDGET_TOLERANCE = 1e-3
 
 
 class _Timeout(Exception):
@@ -59,68 +74,150 @@ class Row:
     spread: float = float("nan")
     seconds: float = float("nan")
     note: str = ""
+    tolerance: float = TOLERANCE
+    # --compare: the same file landed with the budget fixed at its default (main before #13)
+    fixed_estimate: float = float("nan")
+    fixed_error: float = float("nan")
+    fixed_seconds: float = float("nan")
 
     @property
     def judged(self) -> bool:
-        return self.spread <= 0.1 * TOLERANCE
+        return self.spread <= 0.1 * self.tolerance
 
-    def line(self) -> str:
+    @property
+    def compared(self) -> bool:
+        return not math.isnan(self.fixed_seconds)
+
+    def line(self, compare: bool = False) -> str:
         ratio = self.error / self.estimate if self.estimate > 0 else float("nan")
+        fixed = ""
+        if compare:
+            fixed_ratio = self.fixed_error / self.fixed_estimate if self.fixed_estimate > 0 else float("nan")
+            fixed = (f" {self.fixed_estimate:.2g} | {self.fixed_error:.2g} | {fixed_ratio:.2g} | "
+                     f"{self.fixed_seconds:.1f} |")
         return (f"| {self.seed} | {self.kind} | {self.integrator} | {self.events} | {self.estimate:.2g} | "
-                f"{self.error:.2g} | {ratio:.2g} | {self.spread:.2g} | {self.seconds:.1f} | {self.note} |")
+                f"{self.error:.2g} | {ratio:.2g} | {self.spread:.2g} | {self.seconds:.1f} |{fixed} {self.note} |")
 
 
-def check(seed: int, limit: float, folder: Path) -> Row:
-    """Land random file ``seed`` at the default tolerance and against its two finer references."""
+def _timed(limit: float, run):
+    """``run()`` and its CPU seconds; raises _Timeout after ``limit`` seconds (wall clock)."""
+    start = time.process_time()
+    signal.alarm(max(1, int(limit)))
+    try:
+        result = run()
+    finally:
+        signal.alarm(0)
+    return result, time.process_time() - start
+
+
+def _fixed_budget(tolerance: float) -> float:
+    """The momentum balance's share whatever the tolerance (main before issue #13)."""
+    return 1.0
+
+
+def check(seed: int, limit: float, folder: Path, tolerance: float = TOLERANCE, compare: bool = False,
+          reference_limit: float | None = None) -> Row:
+    """Land random file ``seed`` at ``tolerance`` and against its two finer references (``compare``:
+    also with the budget fixed, against the same references; ``reference_limit``: seconds for
+    the references, by default 20 x ``limit``)."""
     data = rl.random_model(seed, rl.Options())
     path = folder / f"{seed}.yaml"
     rl.write_model(data, path)
     m = load_model_file(path)
     kind = f"{m.space.name} {rl.ground_kind(data)} mu {m.scene.friction:g}"
-    settings = LandingSettings(tolerance=TOLERANCE, step_code="vm")
-    start = time.process_time()
-    signal.alarm(int(limit))
+    settings = LandingSettings(tolerance=tolerance, step_code="vm")
+    row = Row(seed, kind, tolerance=tolerance)
+
+    def land():
+        return landing(m.tree, m.scene, m.joints, settings, space=m.space)
+
     try:
-        r = landing(m.tree, m.scene, m.joints, settings, space=m.space)
+        r, seconds = _timed(limit, land)
     except _Timeout:
-        return Row(seed, kind, note=f"landing over {limit:g} s: skipped")
+        return replace(row, note=f"landing over {limit:g} s: skipped")
     except Exception as e:  # a numerical failure: the random sweeps' business, not this study's
-        return Row(seed, kind, note=f"{type(e).__name__}: skipped")
-    finally:
-        signal.alarm(0)
-    seconds = time.process_time() - start
-    fixed = replace(settings, integrator=r.integrator)
+        return replace(row, note=f"{type(e).__name__}: skipped")
+    row = replace(row, integrator=r.integrator, events=len(r.events), estimate=r.error_estimate, seconds=seconds,
+                  note="" if r.converged else "unmet")
+    finest, fixed_run = r.step, None
+    if compare:
+        kept = landing_module.balance_share
+        landing_module.balance_share = _fixed_budget
+        try:
+            fixed_run, fixed_seconds = _timed(limit, land)
+        except _Timeout:
+            return replace(row, note=f"fixed budget: landing over {limit:g} s")
+        except Exception as e:
+            return replace(row, note=f"fixed budget: {type(e).__name__}")
+        finally:
+            landing_module.balance_share = kept
+        row = replace(row, fixed_estimate=fixed_run.error_estimate, fixed_seconds=fixed_seconds)
+        finest = min(finest, fixed_run.step)
+    same = replace(settings, integrator=r.integrator)
+    scale = min(1.0, tolerance / BUDGET_TOLERANCE)
+
+    def references():
+        order = _Landing(m.tree, m.scene, m.joints, same, m.space).balance_order
+        return tuple(_Landing(m.tree, m.scene, m.joints, same, m.space).run(finest / d, share=scale / 2.0**(k * order))
+                     for k, d in ((0, 8), (1, 16)))
+
     try:
-        eighth = _Landing(m.tree, m.scene, m.joints, fixed, m.space).run(r.step / 8)
-        sixteenth = _Landing(m.tree, m.scene, m.joints, fixed, m.space).run(r.step / 16)
+        (eighth, sixteenth), _ = _timed(reference_limit or 20 * limit, references)
+    except _Timeout:
+        return replace(row, note=f"reference over {reference_limit or 20 * limit:g} s")
     except Exception as e:
-        return Row(seed, kind, r.integrator, len(r.events), r.error_estimate, seconds=seconds,
-                   note=f"reference: {type(e).__name__}")
-    return Row(seed, kind, r.integrator, len(r.events), r.error_estimate, landing_difference(r, sixteenth),
-               landing_difference(eighth, sixteenth), seconds, "" if r.converged else "unmet")
+        return replace(row, note=f"reference: {type(e).__name__}")
+    row = replace(row, error=landing_difference(r, sixteenth), spread=landing_difference(eighth, sixteenth))
+    if fixed_run is not None:
+        row = replace(row, fixed_error=landing_difference(fixed_run, sixteenth))
+    return row
 
 
-def report(rows: list[Row], seeds: tuple[int, int], limit: float) -> str:
-    judged = [r for r in rows if r.judged]
-    met = [r for r in judged if r.error <= TOLERANCE]
-    under = [r for r in judged if r.error > r.estimate]
-    worst = max(judged, key=lambda r: r.error / max(r.estimate, 1e-300), default=None)
+def _summary(judged: list[Row], tolerance: float, error: str, estimate: str, seconds: str) -> str:
+    """Met, the error above its estimate, the worst ratio and the CPU seconds of one landing's
+    figures (the Row fields named)."""
+    met = [r for r in judged if getattr(r, error) <= tolerance]
+    under = [r for r in judged if getattr(r, error) > getattr(r, estimate)]
+    worst = max(judged, key=lambda r: getattr(r, error) / max(getattr(r, estimate), 1e-300), default=None)
+    text = (f"Within the tolerance: **{len(met)} of {len(judged)}**. The error above its estimate: {len(under)} of "
+            f"{len(judged)}")
+    if worst is not None and getattr(worst, estimate) > 0:
+        text += (f"; the largest ratio error / estimate {getattr(worst, error) / getattr(worst, estimate):.2g} "
+                 f"(seed {worst.seed})")
+    largest = max(judged, key=lambda r: getattr(r, error), default=None)
+    if largest is not None:
+        text += f"; the largest error {getattr(largest, error):.2g} (seed {largest.seed})"
+    return text + f". CPU: {sum(getattr(r, seconds) for r in judged):.1f} s for the {len(judged)} landings."
+
+
+def report(rows: list[Row], seeds: tuple[int, int], limit: float, tolerance: float = TOLERANCE,
+           compare: bool = False, reference_limit: float | None = None) -> str:
+    judged = [r for r in rows if r.judged and (r.compared or not compare)]
+    command = f"--seeds {seeds[0]} {seeds[1]} --limit {limit:g}"
+    command += "" if reference_limit is None else f" --reference-limit {reference_limit:g}"
+    command += "" if tolerance == TOLERANCE else f" --tolerance {tolerance:g}"
+    command += " --compare" if compare else ""
+    fixed_head = (" fixed budget: estimate | error | error / estimate | landing CPU s |" if compare else "")
     lines = [
         "# Does a whole landing meet its tolerance? Random landings against finer runs",
         "",
-        f"`python studies/whole_landing/tolerance_check.py --seeds {seeds[0]} {seeds[1]} --limit {limit:g}`; "
-        "what is measured: the script's docstring. Tolerance 1e-3, default settings.",
+        f"`python studies/whole_landing/tolerance_check.py {command}`; "
+        f"what is measured: the script's docstring. Tolerance {tolerance:g}, default settings.",
         "",
         "| seed | model | integrator | events | estimate | error (vs h/16) | error / estimate | reference spread "
-        "(h/8 vs h/16) | landing CPU s | note |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-        *[r.line() for r in rows],
+        f"(h/8 vs h/16) | landing CPU s |{fixed_head} note |",
+        "|---|---|---|---|---|---|---|---|---|" + ("---|---|---|---|" if compare else "") + "---|",
+        *[r.line(compare) for r in rows],
         "",
-        f"Judged (references converged to a tenth of the tolerance): {len(judged)} of {len(rows)} files. "
-        f"Within the tolerance: **{len(met)} of {len(judged)}**. The error above its estimate: {len(under)} of "
-        f"{len(judged)}" + (f"; the largest ratio error / estimate {worst.error / worst.estimate:.2g} (seed "
-                            f"{worst.seed})." if worst is not None and worst.estimate > 0 else "."),
+        f"Judged (references converged to a tenth of the tolerance{', both landings ran' if compare else ''}): "
+        f"{len(judged)} of {len(rows)} files. " + _summary(judged, tolerance, "error", "estimate", "seconds"),
     ]
+    if compare:
+        fixed_seconds = sum(r.fixed_seconds for r in judged)
+        ratio = sum(r.seconds for r in judged) / fixed_seconds if fixed_seconds > 0 else float("nan")
+        lines += ["", "With the budget fixed (main before issue #13): "
+                  + _summary(judged, tolerance, "fixed_error", "fixed_estimate", "fixed_seconds")
+                  + f" CPU of the landings, budget following the tolerance / fixed: {ratio:.2f}."]
     return "\n".join(lines) + "\n"
 
 
@@ -128,15 +225,23 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, nargs=2, default=(70000, 70040), metavar=("FIRST", "END"))
     p.add_argument("--limit", type=float, default=20.0, help="seconds for a file's landing (else skipped)")
+    p.add_argument("--reference-limit", type=float, default=None,
+                   help="seconds for a file's two references (default 20 x --limit; else not judged)")
+    p.add_argument("--tolerance", type=float, default=TOLERANCE, help="the landings' tolerance (default 1e-3)")
+    p.add_argument("--compare", action="store_true", help="also land each file with the budget fixed (main)")
     p.add_argument("--folder", type=Path, default=Path("/tmp/tolerance_check"), help="where the files go")
+    p.add_argument("--output", type=Path, default=None,
+                   help="the table (default tolerance_check.md here, tolerance_check_<tolerance>.md for another)")
     args = p.parse_args(argv)
     args.folder.mkdir(parents=True, exist_ok=True)
     signal.signal(signal.SIGALRM, _alarm)
     rows = []
     for seed in range(*args.seeds):
-        rows.append(check(seed, args.limit, args.folder))
-        print(rows[-1].line(), flush=True)
-    (HERE / "tolerance_check.md").write_text(report(rows, tuple(args.seeds), args.limit))
+        rows.append(check(seed, args.limit, args.folder, args.tolerance, args.compare, args.reference_limit))
+        print(rows[-1].line(args.compare), flush=True)
+    name = "tolerance_check.md" if args.tolerance == TOLERANCE else f"tolerance_check_{args.tolerance:g}.md"
+    output = args.output or HERE / name
+    output.write_text(report(rows, tuple(args.seeds), args.limit, args.tolerance, args.compare, args.reference_limit))
     return 0
 
 
