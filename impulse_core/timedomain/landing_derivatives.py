@@ -135,7 +135,7 @@ from impulse_core.model.tree import Scene, Tree, design_vector, value_names
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, ground_expression, spatial_ground, subtree_incidence
 from impulse_core.timedomain.events.rows import _Mode, _Rows
 from impulse_core.timedomain.events.run import _Landing
-from impulse_core.timedomain.events.settings import RECHART, ROS2_GAMMA
+from impulse_core.timedomain.events.settings import RECHART, ROS2_GAMMA, balance_share
 from impulse_core.timedomain.events.twins import symmetrized
 from impulse_core.timedomain.landing import (
     IMPLICIT, RADAU, RK4, LandingResult, LandingSettings, landing, landing_function,
@@ -1062,12 +1062,14 @@ def replayed_step(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings
 def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
               settings: LandingSettings = LandingSettings(), space: Space = PLANAR
               ) -> tuple[LandingResult, list, _Landing]:
-    """One numeric landing at the fixed Runge-Kutta ``step`` (in ``space``) with its tape."""
+    """One numeric landing at the fixed Runge-Kutta ``step`` (in ``space``) with its tape; its steps keep
+    the momentum balance within the share :func:`landing` gives its first run at ``settings.tolerance``
+    (:func:`balance_share`)."""
     run = _Landing(tree, scene, laws, settings, space)
     if run.method == RADAU:
         raise ModelError("integrator: the derivatives replay RK4 and ROS2 steps, not Radau IIA's (radau)")
     run.tape = []
-    result = run.run(step)
+    result = run.run(step, share=balance_share(settings.tolerance))
     tape, run.tape = run.tape, None  # the run may be kept (a cached structure): not its tape
     return result, tape, run
 

@@ -308,3 +308,28 @@ def test_one_structure_serves_every_positive_friction():
     other = replace(scene, friction=0.98)
     assert _symbolic(taped_run(tree, scene, laws, STEP)[2], laws) is _symbolic(taped_run(tree, other, laws, STEP)[2], laws)
     assert_replay_is_the_landing(landing_gradient(tree, other, laws, step=STEP))
+
+
+def test_the_taped_run_keeps_the_balance_share_of_its_tolerance():
+    """The derivatives' run (:func:`taped_run`) asks its steps the momentum balance's share that
+    :func:`landing` gives its first run at the settings' tolerance (:func:`balance_share`): random
+    file 70000 (spatial; its steps split by the balance) at tolerance 1e-5 is the run at share
+    1e-2 to the bit, not the one at the default's share, whose steps split otherwise."""
+    import pickle
+    from pathlib import Path
+
+    from impulse_core.timedomain.events.run import _Landing
+    from impulse_core.timedomain.events.settings import balance_share
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file(Path(__file__).parent / "data" / "random_70000.yaml")
+    settings, h = LandingSettings(tolerance=1e-5), 2e-3
+    taped, _, _ = taped_run(m.tree, m.scene, m.joints, h, settings, m.space)
+
+    def run(share: float):
+        return _Landing(m.tree, m.scene, m.joints, settings, m.space).run(h, share=share)
+
+    assert balance_share(1e-5) == pytest.approx(1e-2)
+    same, default = run(balance_share(1e-5)), run(1.0)
+    assert pickle.dumps(taped) == pickle.dumps(same)
+    assert taped.n_steps != default.n_steps
