@@ -1048,28 +1048,35 @@ def _crossing(run: _Landing, q, v, mode: _Mode, tau: float, watch: np.ndarray) -
     return i, sign
 
 
-def replayed_step(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings,
-                  space: Space = PLANAR) -> float:
-    """The step whose run the derivatives replay: :func:`landing`'s, or where that landing went on
-    with Radau IIA (``auto`` on a stiff landing: its steps are not replayed), the step of the same
-    landing on RK4 (as ``auto`` went on before Radau IIA was one of its integrators)."""
+def replayed_landing(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings,
+                     space: Space = PLANAR) -> LandingResult:
+    """The landing whose run the derivatives replay (its step and momentum-balance share):
+    :func:`landing`'s, or where that landing went on with Radau IIA (``auto`` on a stiff landing:
+    its steps are not replayed), the same landing on RK4 (as ``auto`` went on before Radau IIA
+    was one of its integrators)."""
     result = landing(tree, scene, laws, settings, space)
     if result.integrator != RADAU:
-        return result.step
-    return landing(tree, scene, laws, replace(settings, integrator=RK4), space).step
+        return result
+    return landing(tree, scene, laws, replace(settings, integrator=RK4), space)
+
+
+def replayed_step(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings: LandingSettings,
+                  space: Space = PLANAR) -> float:
+    """The step of :func:`replayed_landing`."""
+    return replayed_landing(tree, scene, laws, settings, space).step
 
 
 def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
-              settings: LandingSettings = LandingSettings(), space: Space = PLANAR
+              settings: LandingSettings = LandingSettings(), space: Space = PLANAR, share: float | None = None
               ) -> tuple[LandingResult, list, _Landing]:
     """One numeric landing at the fixed Runge-Kutta ``step`` (in ``space``) with its tape; its steps keep
-    the momentum balance within the share :func:`landing` gives its first run at ``settings.tolerance``
-    (:func:`balance_share`)."""
+    the momentum balance within ``share`` of its budget (None: the share :func:`landing` gives its
+    first run at ``settings.tolerance``, :func:`balance_share`; a landing's own: its ``share``)."""
     run = _Landing(tree, scene, laws, settings, space)
     if run.method == RADAU:
         raise ModelError("integrator: the derivatives replay RK4 and ROS2 steps, not Radau IIA's (radau)")
     run.tape = []
-    result = run.run(step, share=balance_share(settings.tolerance))
+    result = run.run(step, share=balance_share(settings.tolerance) if share is None else share)
     tape, run.tape = run.tape, None  # the run may be kept (a cached structure): not its tape
     return result, tape, run
 
@@ -1082,6 +1089,7 @@ def landing_gradient(
     step: float | None = None,
     space: Space = PLANAR,
     directions: np.ndarray | None = None,
+    share: float | None = None,
 ) -> LandingGradient:
     """The landing's objectives and their exact derivatives w.r.t. theta and the scene's values
     (module docstring) along the event sequence of the run at ``step`` (None: the step
@@ -1089,7 +1097,8 @@ def landing_gradient(
     ``space``. With ``directions`` D (rows: theta's, then the scene's values; k columns) only the
     derivatives along D's columns are carried (forward mode, k sweeps per operation: cheaper than
     every column where k is small, as for a search's few variables): ``jacobian`` is then
-    d/dz at theta + D z (k entries per output) and ``scene_jacobian`` is empty.
+    d/dz at theta + D z (k entries per output) and ``scene_jacobian`` is empty. ``share``: the
+    momentum balance's share of the run (:func:`taped_run`; with ``step`` None, the landing's).
 
     Raises:
         ModelError: as :func:`landing`.
@@ -1101,8 +1110,9 @@ def landing_gradient(
     theta = design_theta(tree, laws, space)
     conditions = scene_theta(tree, scene, laws, space)
     if step is None:
-        step = replayed_step(tree, scene, laws, settings, space)
-    result, tape, run = taped_run(tree, scene, laws, step, settings, space)
+        replayed = replayed_landing(tree, scene, laws, settings, space)
+        step, share = replayed.step, replayed.share
+    result, tape, run = taped_run(tree, scene, laws, step, settings, space, share)
     t1 = time.perf_counter()
     sym = _symbolic(run, laws)
     nc, nv, n_theta, dims = sym.nc, sym.nv, sym.n_theta, sym.dims

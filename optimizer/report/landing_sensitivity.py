@@ -66,7 +66,8 @@ def landing_sensitivity(model: ModelFile, result: TimeDomainResult) -> LandingGr
     if not isinstance(r, LandingResult):
         raise TypeError("landing_sensitivity: not a whole landing")
     settings = result.settings if isinstance(result.settings, LandingSettings) else LandingSettings()
-    g = landing_gradient(model.tree, model.scene, model.joints, settings, step=r.step, space=model.space)
+    g = landing_gradient(model.tree, model.scene, model.joints, settings, step=r.step, space=model.space,
+                         share=r.share)
     same = len(g.result.events) == len(r.events) and g.result.n_steps == r.n_steps and all(
         math.isclose(g.values[k], getattr(r, k), rel_tol=1e-9, abs_tol=1e-300) for k in SCALARS)
     if not same:

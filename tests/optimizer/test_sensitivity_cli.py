@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from impulse_core.timedomain.landing import LandingSettings
+from impulse_core.timedomain.landing import LandingSettings, landing
 from impulse_core.timedomain.landing_derivatives import SCALARS, landing_gradient
 from optimizer.cli.main import main
 from optimizer.config.model_file import load_model_file
@@ -67,7 +67,9 @@ def test_the_json_derivatives_are_landing_gradients_at_the_reported_step(case):
     assert d["landing"]["step"] == s["step"] == 1e-5 and s["events"] == len(d["events"]) == 2
     assert s["along"] == "event sequence" and d["warnings"] == []
     model = load_model_file(path)
-    g = landing_gradient(model.tree, model.scene, model.joints, LandingSettings(tolerance=float(TOLERANCE)), step=1e-5)
+    settings = LandingSettings(tolerance=float(TOLERANCE))
+    r = landing(model.tree, model.scene, model.joints, settings)  # its runs' momentum-balance share
+    g = landing_gradient(model.tree, model.scene, model.joints, settings, step=1e-5, share=r.share)
     assert s["design"] == list(g.names) and s["scene"] == list(g.scene_names)
     assert list(s["values"].values()) == [*g.theta, *g.scene_theta]
     for k in g.jacobian:

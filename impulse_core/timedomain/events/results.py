@@ -108,6 +108,10 @@ class LandingResult:
     #: 16-gon (polyhedral) answer was used (:func:`impulse_core.impact.cone.cone_unilateral`)
     inexact: int = 0
     momentum_balance: float = 0.0
+    #: the share of the momentum balance's budget its steps kept (:meth:`_Landing.run`'s ``share``:
+    #: :func:`balance_share` of the tolerance, shrunk where the step halving found runs split alike);
+    #: the derivatives replay the run at it
+    share: float = 1.0
     #: impacts whose rows were redundant: the velocities after are unique, the split is not
     #: (frictionless: the smallest-norm non-negative split, as the lcp rung; with friction: the
     #: smallest-norm split the law allows, as the friction rung: :func:`least_norm_law_split`)

@@ -337,7 +337,8 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         balance = float(np.max(np.abs(residual))) / reference
         out = self.result(totals, q, v, h, energy_before, pt.kinetic + self.joints.energy(q), gravity_work)
         self.set_chart(self.design, None)  # q_final's rotation vector is since touchdown
-        return replace(out, momentum_balance=balance, duration=end, spring_energy=wound, bridges=tuple(self.bridges))
+        return replace(out, momentum_balance=balance, duration=end, spring_energy=wound, bridges=tuple(self.bridges),
+                       share=share)
 
     def energy_cap(self, energy_before: float, wound: float, height0: float) -> float:
         """The kinetic energy beyond which a run has diverged (:meth:`run_once`), from the energy before
