@@ -25,10 +25,18 @@ algorithmic differentiation):
   sliding one its impulse on the cone's edge against the reported slip); each row's restitution
   is the number the run used (the plastic rules are decisions of the sequence), an input whose
   Jacobian carries the restitutions' derivatives;
-* the step count fixed: regular steps keep the length h, an event step is tau(theta), and the
+* the step count fixed: regular steps keep their taped length (h, or h / 2^j where the momentum
+  balance or, in space, a slow turning slip split it: :meth:`~events.stepping._Landing.slip_length`),
+  an event step is tau(theta), and the
   last step ends at T, so its length T - t(theta) moves with the event times. The derivative is
   that of the discretisation itself: central differences of the numeric landing at the same h
   agree with it while the sequence does not change (``tests/impulse_core/test_landing_derivatives.py``).
+  A split is a decision of the run (a threshold on the slip's speed): where a change of theta
+  moves one by a step, the numeric objective jumps by the two discretisations' difference (the
+  two-rod leg of ``test_landing_derivatives_spatial``, a slip slowing to its stop: central
+  differences at +-1e-5 of the friction, each run splitting on its own, are 3e-4 of the derivative
+  off, 2.9e-5 at +-1e-6, a jump of ~1e-10), and the derivative is that of the branch with the
+  run's splits; central differences along it hold them (:func:`taped_run`'s ``halvings``: 4.6e-7).
 
 In space (``space=SPATIAL``; ``tests/impulse_core/test_landing_derivatives_spatial.py``) the
 replay is the same, with what the plane's single tangent hides:
@@ -1067,12 +1075,16 @@ def replayed_step(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], settings
 
 
 def taped_run(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
-              settings: LandingSettings = LandingSettings(), space: Space = PLANAR, share: float | None = None
-              ) -> tuple[LandingResult, list, _Landing]:
+              settings: LandingSettings = LandingSettings(), space: Space = PLANAR, share: float | None = None,
+              halvings: list[int] | None = None) -> tuple[LandingResult, list, _Landing]:
     """One numeric landing at the fixed Runge-Kutta ``step`` (in ``space``) with its tape; its steps keep
     the momentum balance within ``share`` of its budget (None: the share :func:`landing` gives its
-    first run at ``settings.tolerance``, :func:`balance_share`; a landing's own: its ``share``)."""
+    first run at ``settings.tolerance``, :func:`balance_share`; a landing's own: its ``share``).
+    ``halvings``: another run's slow-slip splits (its ``run.slip_halvings``), taken instead of this
+    run's own as far as they reach (the branch whose derivative that run's replay gives: central
+    differences along it, module docstring)."""
     run = _Landing(tree, scene, laws, settings, space)
+    run.given_halvings = halvings
     if run.method == RADAU:
         raise ModelError("integrator: the derivatives replay RK4 and ROS2 steps, not Radau IIA's (radau)")
     run.tape = []

@@ -35,6 +35,7 @@ from impulse_core.model.tree import Body, Scene, Tree
 from impulse_core.timedomain.events.paradox import BRIDGE_STEPS
 from impulse_core.timedomain.events.rows import _Mode
 from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import SLIP_SPLITS
 from impulse_core.timedomain.events.tally import _Totals
 from impulse_core.timedomain.landing import LandingSettings, landing
 from optimizer.config.model_file import load_model_file
@@ -120,15 +121,17 @@ def test_a_bridge_crosses_its_span_and_counts_its_impulses(space):
 
 def test_a_stalled_random_landing_goes_on_through_a_bridge():
     """Random file 30891 (data/refused_30891.yaml, spatial, friction 1): its events stall at
-    0.0642 s (a slow slip turning at each event, no Painleve jam); the run crosses them by a bridge
+    0.0646 s (a slow slip turning at each event, no Painleve jam); the run crosses them by a bridge
     and goes on, its momentum balanced, its impacts lawful, its first event the first-impact answer,
-    the report naming the bridge (cut 2 ms after it)."""
+    the report naming the bridge (cut 2 ms after it). Where they stall is the run's: at its first
+    step h 0.06462 s with the slow slip's steps split (the default), 0.06428 s regularised
+    (slip_splits 0); at h / 2 0.06429 and 0.06428 s."""
     model = load_model_file(DATA / "refused_30891.yaml")
     tree, scene, settings = model.tree, model.scene, LandingSettings()
     run = _Landing(tree, scene, model.joints, settings, model.space)
     r = run.run(run.first_step(), until=lambda q, v, mode, totals: bool(run.bridges)
                 and totals.times[-1] > run.bridges[0][0] + run.bridges[0][1] + 2e-3)
-    assert r.bridges and 0.0642 < r.bridges[0][0] < 0.0643 and r.duration > r.bridges[0][0] + 2e-3
+    assert r.bridges and 0.0646 < r.bridges[0][0] < 0.0647 and r.duration > r.bridges[0][0] + 2e-3
     # the bridge's steps are first order in the momentum where the velocity jumps ((A(q1) - A(q)) dv
     # a step): 1.5e-4 of the touchdown momentum over this cut run's 8 bridges, 1.1e-5 over the landing
     assert r.momentum_balance < 1e-3
@@ -180,15 +183,18 @@ def test_a_bridge_step_keeps_the_linear_momentum_across_a_velocity_jump(space):
     assert np.max(np.abs(shift[run.dims:])) <= 1e-9 and 0 < np.max(np.abs(shift)) <= 1e-2
 
 
-@pytest.mark.parametrize("divisor, start", [(400, 0.17765), (800, 0.17458)], ids=["jam_fails", "diverges_after_jams"])
-def test_painleves_paradox_that_a_jam_cannot_end_is_bridged(divisor, start):
-    """Random file 60690 (data/singular_stage_60690.yaml: a light rod on its tip, friction 0.3):
-    at T / 400 the jam at t = 0.1777 s no longer stops the tip's slip (`take_jam` raised its
-    Painleve error, exit 1); at T / 800 a step sliding into the paradox right after two jams
-    diverged. Each run now crosses there by a bridge and goes on, its momentum balanced (cut
-    at the bridge's end)."""
+@pytest.mark.parametrize("divisor, splits, start", [(400, 0, 0.17765), (800, 0, 0.17458), (400, SLIP_SPLITS, 0.23461)],
+                         ids=["jam_fails", "diverges_after_jams", "split_jam_fails"])
+def test_painleves_paradox_that_a_jam_cannot_end_is_bridged(divisor, splits, start):
+    """Random file 60690 (data/singular_stage_60690.yaml: a light rod on its tip, friction 0.3),
+    its slow slip's direction regularised (slip_splits 0, as the file was found): at T / 400 the
+    jam at t = 0.1777 s no longer stops the tip's slip (`take_jam` raised its Painleve error,
+    exit 1); at T / 800 a step sliding into the paradox right after two jams diverged. Split
+    (the default), the runs at T / 100, T / 400 and T / 800 jam from 0.174 s on and meet, at
+    0.2346 s, a jam that does not end the slip (no divergence). Each run now crosses there by a
+    bridge and goes on, its momentum balanced (cut at the bridge's end)."""
     model = load_model_file(DATA / "singular_stage_60690.yaml")
-    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(slip_splits=splits), model.space)
     with np.errstate(all="ignore"):
         r = run.run(model.scene.duration / divisor, until=lambda q, v, mode, totals: bool(run.bridges))
     assert len(r.bridges) == 1 and r.bridges[0][0] == pytest.approx(start, abs=1e-5)
@@ -198,15 +204,16 @@ def test_painleves_paradox_that_a_jam_cannot_end_is_bridged(divisor, start):
 
 def test_a_paradox_that_outlasts_a_jam_is_bridged_from_after_it():
     """Random file 61645 (data/unjammed_61645.yaml: a lone 79 g rod on a heightfield, friction 1):
-    its run at h / 2 jams the tip at t = 0.367424 s, and the mode after that jam slides in the
-    paradox again, where a second jam at that instant cannot be taken (exit 1 before). The run now
+    its run at h / 2 jams the tip at t = 0.367425 s (0.367424 s regularised, slip_splits 0), and the
+    mode after that jam slides in the paradox again, where a second jam at that instant cannot be
+    taken (exit 1 before). The run now
     keeps the jam (its event and impulse) and crosses from the state after it by a bridge; the
     landing converges (two runs) with its momentum balanced, the jam the last event."""
     model = load_model_file(DATA / "unjammed_61645.yaml")
     r = landing(model.tree, model.scene, model.joints, LandingSettings(), space=model.space)
     jams = [e for e in r.events if e.jam]
     assert r.converged and len(jams) == 1 and jams[0] is r.events[-1]
-    assert len(r.bridges) == 1 and r.bridges[0][0] == jams[0].time == pytest.approx(0.367424, abs=1e-6)
+    assert len(r.bridges) == 1 and r.bridges[0][0] == jams[0].time == pytest.approx(0.367425, abs=1e-6)
     assert r.momentum_balance <= 1e-6
 
 
@@ -215,11 +222,12 @@ def test_a_bridge_that_blows_up_stops_the_run_as_its_divergence(monkeypatch):
     after a slide, and the bridge from that step's start blows up too (its rotation coordinates
     overflowed the chart, an OverflowError that reached the CLI as an internal error). The run
     now stops with the divergence, which :func:`landing` answers with a shorter step: the first
-    run raises Diverged, and the landing lands."""
+    run raises Diverged. Its slow slip's direction regularised (slip_splits 0, as the file was
+    found); split (the default), the first run does not diverge."""
     from impulse_core.timedomain.events.settings import Diverged
 
     m = load_model_file(DATA / "turning_slip_32113.yaml")
-    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(), space=m.space)
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(slip_splits=0), space=m.space)
     tried = []
     real = _Landing.bridge
     monkeypatch.setattr(_Landing, "bridge", lambda self, *a: tried.append(a[3]) or real(self, *a))

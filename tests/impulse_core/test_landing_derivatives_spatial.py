@@ -90,19 +90,26 @@ def _case(name: str) -> tuple[Tree, tuple[JointLaw, ...], Scene, LandingSettings
     return _two_rod_leg() if name == "two_rod" else _splayed_stop_leg()
 
 
+#: Each case's slow-slip splits at its nominal design (``run.slip_halvings``: filled by ``gradients``).
+HALVINGS: dict = {}
+
+
 @pytest.fixture(scope="module")
 def gradients() -> dict:
     out = {}
     for name in CASES:
         tree, laws, scene, settings = _case(name)
         out[name] = landing_gradient(tree, scene, laws, settings, step=STEP, space=SPATIAL)
+        HALVINGS[name] = list(taped_run(tree, scene, laws, STEP, settings, SPATIAL)[2].slip_halvings)
     return out
 
 
-def _objectives(name: str, theta: np.ndarray) -> tuple[np.ndarray, tuple]:
+def _objectives(name: str, theta: np.ndarray, halvings: list[int] | None = None) -> tuple[np.ndarray, tuple]:
+    """The objectives and event sequence of the numeric landing at theta; with ``halvings``, along
+    those slow-slip splits (the nominal run's: the branch the derivatives hold)."""
     tree, laws, scene, settings = _case(name)
     t, l = apply_theta(tree, laws, theta, SPATIAL)
-    r, tape, run = taped_run(t, scene, l, STEP, settings, SPATIAL)
+    r, tape, run = taped_run(t, scene, l, STEP, settings, SPATIAL, halvings=halvings)
     values = np.concatenate([[getattr(r, k) for k in SCALARS], r.total_external, r.final_angles])
     return values, sequence_signature(tape, run)
 
@@ -152,7 +159,10 @@ def test_replayed_values_equal_the_landing(gradients, name):
 @pytest.mark.parametrize("name", CASES)
 def test_gradients_agree_with_central_differences(gradients, name):
     """Two seeded random directions over every searched entry: J u against central differences
-    of the numeric landing at the same step, the event sequence unchanged at both ends."""
+    of the numeric landing at the same step, the event sequence unchanged at both ends and the
+    slow slip's steps split as at theta (a split moved by a step is a jump of the objective:
+    ``landing_derivatives``' module docstring; the two-rod leg's slip, slowing to its stop, takes
+    one more step of h / 1024 at +-EPS along the first direction)."""
     g = gradients[name]
     J = _jacobian(g)
     rng = np.random.default_rng(7)
@@ -160,8 +170,8 @@ def test_gradients_agree_with_central_differences(gradients, name):
     worst = 0.0
     for _ in range(2):
         u = rng.standard_normal(len(g.theta)) * scale
-        plus, seq_plus = _objectives(name, g.theta + EPS * u)
-        minus, seq_minus = _objectives(name, g.theta - EPS * u)
+        plus, seq_plus = _objectives(name, g.theta + EPS * u, HALVINGS[name])
+        minus, seq_minus = _objectives(name, g.theta - EPS * u, HALVINGS[name])
         assert seq_plus == g.sequence and seq_minus == g.sequence
         fd, exact = (plus - minus) / (2 * EPS), J @ u
         error = np.abs(fd - exact) / np.maximum(np.abs(exact), 1e-6)
@@ -175,7 +185,9 @@ def test_gradients_agree_with_central_differences(gradients, name):
                                              ("two_rod", "friction"), ("two_rod", "speed")])
 def test_scene_derivatives_agree_with_central_differences(gradients, name, value):
     """Along one scene value: its column of the scene Jacobian against central differences of the
-    numeric landing at the same step, the event sequence unchanged at both ends."""
+    numeric landing at the same step, the event sequence unchanged at both ends and the slow
+    slip's steps split as at the nominal scene (the two-rod leg's, left to split on their own at
+    friction +-SCENE_EPS, differ by 3e-4 of the derivative)."""
     tree, laws, scene, settings = _case(name)
     g = gradients[name]
     column = _jacobian_of(g.scene_jacobian)[:, g.scene_names.index(value)]
@@ -183,7 +195,7 @@ def test_scene_derivatives_agree_with_central_differences(gradients, name, value
     ends = []
     for h in (SCENE_EPS, -SCENE_EPS):
         s, l = moved_scene(tree, laws, scene, value, h)
-        r, tape, run = taped_run(tree, s, l, STEP, settings, SPATIAL)
+        r, tape, run = taped_run(tree, s, l, STEP, settings, SPATIAL, HALVINGS[name])
         assert sequence_signature(tape, run) == g.sequence
         ends.append(np.concatenate([[getattr(r, k) for k in SCALARS], r.total_external, r.final_angles]))
     fd = (ends[0] - ends[1]) / (2 * SCENE_EPS)

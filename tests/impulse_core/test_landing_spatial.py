@@ -732,7 +732,9 @@ def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall(
     s): it is not arrested, slides on, and each event gives the mode back, 7e5 such events to
     the landing's end (no end in 400 s). More than REPEATS of them in a row are a stall whatever
     their length: the run crosses it by a Moreau-Jean bridge (``_Landing.bridge``) and goes on;
-    with no bridge left (MAX_BRIDGES) the error names the contact (within 20000 steps and events)."""
+    with no bridge left (MAX_BRIDGES) the error names the contact (within 20000 steps and events).
+    The run at its first step h meets the stall at 0.0646 s with the slow slip's steps split (the
+    default; 0.0643 s regularised, and at h / 2, h / 4 either way)."""
     import impulse_core.timedomain.events.paradox as paradox_module  # where the bridges are counted
     from impulse_core.errors import NumericalError
 
@@ -745,11 +747,11 @@ def test_a_slow_slip_that_friction_cannot_stop_turning_at_each_event_is_a_stall(
 
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
     r = run.run(run.first_step(), until=lambda *a: until() or run.bridges)
-    assert run.bridges and 0.0642 < run.bridges[0][0] < 0.0643 and r.duration > run.bridges[0][0]
+    assert run.bridges and 0.0646 < run.bridges[0][0] < 0.0647 and r.duration > run.bridges[0][0]
     calls[0] = 0
     monkeypatch.setattr(paradox_module, "MAX_BRIDGES", 0)
     run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
-    message = r"chatters at t = 0\.0642.* slow slip of contacts b2\[0\] turns at each event"
+    message = r"chatters at t = 0\.0646.* slow slip of contacts b2\[0\] turns at each event"
     with pytest.raises(NumericalError, match=message):
         run.run(run.first_step(), until=until)
 

@@ -130,6 +130,11 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         #: ("twins", groups) where :meth:`twinned` set identical toes to their mean; q, v are the
         #: operation's inputs.
         self.tape: list | None = None
+        #: the halvings :meth:`slip_length` chose at each step's start of the last run, in order
+        #: (0: none); and None, or such a list that a run takes its halvings from instead, as far as
+        #: it reaches (``landing_derivatives.taped_run``: a run along another's split decisions)
+        self.slip_halvings: list[int] = []
+        self.given_halvings: list[int] | None = None
         #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         #: the code the steps run on: c, vm or numpy (``auto``: c where the compile cache holds it)
@@ -259,6 +264,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.min_bounce = MIN_BOUNCE * T
         self._jams = (math.nan, 0)
         self.refused = np.zeros(0, int)
+        self.slip_halvings = []
         q, v, mode, totals = self.first_impact()
         slid = bool(self.mu) and _any(mode.closed & mode.sliding)  # a contact slid (a jam may follow)
         self.end_normals = None
@@ -286,7 +292,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
                     continue
             # a slow turning slip splits the step where asked (slip_length), within SLIP_BUDGET steps per step h
             least = h / 2.0**splits if splits and totals.steps <= SLIP_BUDGET * T / h else math.inf
-            length = self.slip_length(q, v, mode, min(trial, T - t), least)
+            length = self.split_length(q, v, mode, min(trial, T - t), least)
             q1, v1, impulse, dt, grown = self.balanced_step(q, v, mode, length, rate, h / 2.0**MAX_SPLITS)
             step_vectors = self.vectors  # a curved heightfield (trial steps below replace self.vectors)
             self.check_budget(totals.steps, t, h)
@@ -368,6 +374,17 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
                 f"the implicit steps averaged {t / steps:.3g} s by t = {t:.6g} s, below half of RK4's "
                 f"stable step {self.rk4_pace:.3g} s (the momentum balance split them)", reached=t / T,
             )
+
+    def split_length(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: float, least: float) -> float:
+        """:meth:`slip_length`, or where :attr:`given_halvings` reaches this step, ``trial`` halved as
+        many times as it says; the halvings are kept (:attr:`slip_halvings`)."""
+        given, k = self.given_halvings, len(self.slip_halvings)
+        if given is not None and k < len(given):
+            length = trial / 2.0 ** given[k]
+        else:
+            length = self.slip_length(q, v, mode, trial, least)
+        self.slip_halvings.append(round(math.log2(trial / length)))
+        return length
 
     def diverged(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, h: float, totals: _Totals,
                  bridged: int, slid: bool) -> tuple[np.ndarray, np.ndarray, _Mode, float, int]:

@@ -83,7 +83,7 @@ DISTINCT_RUNS = 1.1
 #: Halvings of the nominal step for the momentum balance (a step that short is taken as it is).
 MAX_SPLITS = 14
 #: Halvings of the nominal step for a slow sliding contact in space, where
-#: :attr:`LandingSettings.slip_splits` asks for them (:meth:`_Landing.slip_length`; off by default):
+#: :attr:`LandingSettings.slip_splits` asks for them (:meth:`_Landing.slip_length`; the default):
 #: a step whose regularisation core (:meth:`_Landing.steer`, proportional to the step) would
 #: exceed a sliding contact's slip speed is halved down to h / 2^SLIP_SPLITS, below which the
 #: regularised direction takes over. Random file 61600 (a 32 g rod sliding at 0.13 to 2.8 m/s
@@ -279,11 +279,13 @@ class LandingSettings:
             free acceleration would end within b steps is plastic (module docstring; case 3's
             light toes: 441 impacts in 40 ms become 24 at b = 0.25 and step 1.5 ms, the run 0.15 x
             the time and 1e-7 from the converged landing).
-        slip_splits: 0 (default: a sliding contact's direction in space is regularised on every
-            step where :meth:`_Landing.steer`'s core exceeds its slip speed, an error of first order
-            in the step), or k > 0: such a step of a turning slip is halved instead, down to h / 2^k
-            (:meth:`_Landing.slip_length`; :data:`SLIP_SPLITS` = 10 is the value studied: random
-            file 61600 converges at its first halving, 8.8 s, instead of at h / 128).
+        slip_splits: k > 0 (default :data:`SLIP_SPLITS` = 10): a step from where a turning slip
+            in space is slow for it (:meth:`_Landing.steer`'s core above its slip speed) is halved,
+            down to h / 2^k, so that the exact law s / |s| holds at its start
+            (:meth:`_Landing.slip_length`: random file 61600 converges at its first halving, 8.8 s,
+            instead of at h / 128, 655 s), or 0: the direction is regularised on every such step,
+            an error of first order in the step (the runs some tests pin: a coarse run that
+            diverged). The derivatives replay the run's splits (``landing_derivatives``).
     """
 
     tolerance: float = 1e-3
@@ -294,7 +296,7 @@ class LandingSettings:
     integrator: str = AUTO
     step_code: str = VM_CODE
     bounce_steps: float = 0.0
-    slip_splits: int = 0
+    slip_splits: int = SLIP_SPLITS
 
 
 @dataclass(frozen=True)
