@@ -195,7 +195,7 @@ def test_scene_derivatives_agree_with_central_differences(gradients, name, value
     ends = []
     for h in (SCENE_EPS, -SCENE_EPS):
         s, l = moved_scene(tree, laws, scene, value, h)
-        r, tape, run = taped_run(tree, s, l, STEP, settings, SPATIAL, HALVINGS[name])
+        r, tape, run = taped_run(tree, s, l, STEP, settings, SPATIAL, halvings=HALVINGS[name])
         assert sequence_signature(tape, run) == g.sequence
         ends.append(np.concatenate([[getattr(r, k) for k in SCALARS], r.total_external, r.final_angles]))
     fd = (ends[0] - ends[1]) / (2 * SCENE_EPS)
