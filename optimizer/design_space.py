@@ -1198,8 +1198,12 @@ def landing_objectives(result: LandingResult) -> Objectives:
     )
 
 
-#: Why a design has no objectives where a figure of its impact or landing is not finite.
+#: Why a design has no objectives where a figure of its impact is not finite.
 NOT_FINITE = "a figure of the impact is not finite"
+#: The same of its whole landing.
+LANDING_NOT_FINITE = "a figure of the landing is not finite"
+#: Why a design failed where no reason was kept (trials recorded before reasons were).
+FAILED = "failed numerically"
 
 
 def failure_line(error: BaseException) -> str:
@@ -1212,7 +1216,7 @@ def unscored_why(result: LandingResult) -> str:
     """Why :func:`scored_landing` refuses ``result``: its momentum balance, or a figure not finite."""
     if result.momentum_balance > BALANCE_CHECK:
         return f"the landing's momentum balance {result.momentum_balance:.1e} is beyond {BALANCE_CHECK:g}"
-    return NOT_FINITE.replace("impact", "landing")
+    return LANDING_NOT_FINITE
 
 
 def scored_landing(result: LandingResult) -> Objectives | None:
@@ -1251,6 +1255,8 @@ def evaluate_design_landing(
 
 __all__ = [
     "FEASIBILITY_TOL",
+    "FAILED",
+    "LANDING_NOT_FINITE",
     "NOT_FINITE",
     "failure_line",
     "unscored_why",

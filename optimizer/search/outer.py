@@ -39,6 +39,7 @@ from optimizer.design_space import (
     MassMode,
     Objectives,
     Segment,
+    FAILED,
     JOINT_FAMILIES,
     NOT_FINITE,
     SplayMode,
@@ -434,7 +435,7 @@ def tell(study: optuna.Study, config: StudyConfig, trial: optuna.Trial, evaluati
     (the constraint values are still recorded)."""
     if evaluation.objectives is None:
         trial.set_user_attr(ATTR_CONSTRAINTS, dict(evaluation.constraints.items()))
-        trial.set_user_attr(ATTR_FAILURE, evaluation.failure or "failed numerically")
+        trial.set_user_attr(ATTR_FAILURE, evaluation.failure or FAILED)
         return study.tell(trial, state=TrialState.FAIL)
     for key, value in record_attrs(evaluation, "outer").items():
         trial.set_user_attr(key, value)
@@ -548,7 +549,7 @@ def recorded_trials(study: optuna.Study) -> Iterator[RecordedTrial]:
 def failed_designs(study: optuna.Study) -> list[tuple[int, str]]:
     """The trials whose designs failed (FAIL, not interrupted), in trial order, each with why
     (:data:`ATTR_FAILURE`; studies recorded before it say only that they failed)."""
-    return [(t.number, str(t.user_attrs.get(ATTR_FAILURE, "failed numerically")))
+    return [(t.number, str(t.user_attrs.get(ATTR_FAILURE, FAILED)))
             for t in study.get_trials(deepcopy=False, states=(TrialState.FAIL,))
             if not t.user_attrs.get(ATTR_INTERRUPTED)]
 

@@ -10,16 +10,9 @@ from dataclasses import fields
 import numpy as np
 
 from impulse_core.kinematics.spatial import DofLayout
+from impulse_core.model.rods import children as body_children
 from impulse_core.model.tree import Tree
 from impulse_core.timedomain.events.point import _Joints
-
-
-def _children(tree: Tree) -> list[list[int]]:
-    out: list[list[int]] = [[] for _ in tree.bodies]
-    for i, body in enumerate(tree.bodies):
-        if body.parent is not None:
-            out[body.parent].append(i)
-    return out
 
 
 def twin_groups(tree: Tree, joints: _Joints, layout: DofLayout) -> tuple[np.ndarray, ...]:
@@ -28,7 +21,7 @@ def twin_groups(tree: Tree, joints: _Joints, layout: DofLayout) -> tuple[np.ndar
     damping, rest angle, stops, stop restitution) at their DOFs. Each group is a k x m array: k
     twins, each one's m DOFs in the same order (its subtree's bodies in the tree's order). Twins
     inside twins form groups of their own. Empty where the tree has none."""
-    children = _children(tree)
+    children = body_children(tree)
     body_dof = layout.body_dof
     own = [f.name for f in fields(tree.bodies[0]) if f.name not in ("name", "parent")]
 
