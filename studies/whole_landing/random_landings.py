@@ -283,6 +283,8 @@ def check(status: int, stderr: str, landing: dict[str, Any] | None, first: dict[
         return [f"exit {status}: {_last_line(stderr)}"]
     if landing is None:
         return ["no JSON"]
+    if "landing" not in landing:  # --files: a model file without scene.duration (the first-impact JSON)
+        return ["no-landing: the file has no scene.duration"]
     fails = []
     if not landing.get("events") or landing["events"][0]["t"] != 0:
         fails.append("first event not at t = 0")
@@ -391,7 +393,7 @@ def momentum_balance(tree: Any, scene: Any, joints: Any = (), settings: Any = No
 class Outcome:
     """One seed's landing, checked."""
 
-    seed: int
+    seed: int | str  # --files: the file's stem where it is not a number
     space: str
     friction: float
     ground: str
@@ -427,7 +429,7 @@ def run_seed(seed: int, options: Options, out: Path, limit: float) -> Outcome:
     return run_file(seed, data, path, out, limit)
 
 
-def run_file(seed: int, data: dict[str, Any], path: Path, out: Path, limit: float) -> Outcome:
+def run_file(seed: int | str, data: dict[str, Any], path: Path, out: Path, limit: float) -> Outcome:
     """Land the model file ``path`` (its contents ``data``) in a worker within ``limit`` s and
     check it (the worker's side file in ``out``)."""
     space = data["model"].get("space", "planar")
@@ -448,12 +450,13 @@ def run_file(seed: int, data: dict[str, Any], path: Path, out: Path, limit: floa
     landing = _json(proc.stdout)
     first = _json(side.get("first_stdout", "")) if side.get("first_status") == 0 else None
     fails = check(proc.returncode, proc.stderr, landing, first, side.get("balance"), side.get("total_external"))
-    diff = first_event_difference(landing, first) if landing and first and landing.get("events") else None
+    events = landing.get("events") if landing else None
+    diff = first_event_difference(landing, first) if first and events else None
     message = _last_line(proc.stderr) if proc.returncode else ""
     if side.get("first_status") not in (0, None):
         message = (message + " | first impact: " + _last_line(side.get("first_stderr", ""))).strip(" |")
     return Outcome(seed, space, friction, ground_kind(data), proc.returncode,
-                   len(landing["events"]) if landing else None, seconds, side.get("balance"),
+                   None if events is None else len(events), seconds, side.get("balance"),
                    bool(side.get("own")), diff, fails, message)
 
 
@@ -512,7 +515,7 @@ def main(argv: list[str] | None = None) -> int:
     with open(args.out / "results.jsonl", "a") as log:
         for job in args.files or range(*args.seeds):
             if isinstance(job, Path):
-                seed = int(job.stem) if job.stem.isdigit() else -1
+                seed = int(job.stem) if job.stem.isdigit() else job.stem  # its side file named alike
                 o = run_file(seed, yaml.safe_load(job.read_text()), job.resolve(), args.out, args.limit)
             else:
                 o = run_seed(job, options, args.out, args.limit)

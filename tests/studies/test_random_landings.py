@@ -122,3 +122,19 @@ def test_files_are_checked_as_seeds_are(tmp_path):
     again = rl.run_seed(seed, rl.Options(), tmp_path / "seed", 120.0)
     assert [r["seed"] for r in by_file] == [seed] and by_file[0]["verdict"] == again.verdict == "ok"
     assert by_file[0]["events"] == again.events and by_file[0]["balance"] == pytest.approx(again.balance, rel=1e-12)
+
+
+def test_files_without_a_number_or_a_duration_are_named_and_flagged(tmp_path):
+    """``--files`` on a first-impact file (no ``scene.duration``) under a name that is not a number:
+    no crash (it read the JSON's ``events``), the verdict says it is not a landing, the record and
+    side file go by the file's name (not a shared -1)."""
+    data = rl.random_model(3)
+    del data["scene"]["duration"]
+    path = tmp_path / "paper_leg.yaml"
+    rl.write_model(data, path)
+    out = tmp_path / "out"
+    assert rl.main(["--files", str(path), "--out", str(out), "--limit", "120"]) == 0
+    record = json.loads((out / "results.jsonl").read_text())
+    assert record["seed"] == "paper_leg" and record["events"] is None
+    assert record["fails"] == ["no-landing: the file has no scene.duration"] and record["verdict"] == "no-landing"
+    assert (out / "paper_leg.side.json").exists()
