@@ -5,7 +5,8 @@ its step halvings included), the gradient along the reported run's event sequenc
 first design of its structure, building each mode's functions; ``warm``: a second design of the
 same structure, as in a search), their ratio, and the gradient against central differences of
 the numeric landing at the same step along three seeded directions (lengths, masses, angles and
-joint-law values; the event sequence checked unchanged at both ends). ``along 8``: the same
+joint-law values; the event sequence checked unchanged at both ends, and the slow slip's steps
+split as in the nominal run, ``taped_run(halvings=)``). ``along 8``: the same
 gradients carried along 8 seeded directions only (``landing_gradient(directions=...)``, forward
 mode, as the whole-landing inner search uses it with its variables), cold (the symbolic
 structures dropped first) and warm, and its largest difference from the full Jacobian times the
@@ -89,7 +90,9 @@ def main() -> None:
         t_landing = time.perf_counter() - t0
         h = result.step
         t0 = time.perf_counter()
-        taped_run(tree, scene, laws, h, space=space)
+        # the nominal run's slow-slip splits: the +-eps runs below follow them (a split is a threshold
+        # decision, so the branch the derivatives hold is the nominal run's; taped_run's docstring)
+        halvings = list(taped_run(tree, scene, laws, h, space=space)[2].slip_halvings)
         t_run = time.perf_counter() - t0
         t0 = time.perf_counter()
         g = landing_gradient(tree, scene, laws, settings, step=h, space=space)
@@ -113,7 +116,7 @@ def main() -> None:
             ends, same = [], True
             for sgn in (1, -1):
                 t, l = apply_theta(tree, laws, g.theta + sgn * eps * u, space)
-                r, tape, run = taped_run(t, scene, l, h, space=space)
+                r, tape, run = taped_run(t, scene, l, h, space=space, halvings=halvings)
                 ends.append(vector(r))
                 same = same and sequence_signature(tape, run) == g.sequence
             fd, exact = (ends[0] - ends[1]) / (2 * eps), J @ u
@@ -131,7 +134,7 @@ def main() -> None:
         ends, same = [], True
         for sgn in (1, -1):
             t, l = apply_theta(tree, laws, g.theta + sgn * 1e-6 * u, space)
-            r, tape, run = taped_run(t, scene, l, h, space=space)
+            r, tape, run = taped_run(t, scene, l, h, space=space, halvings=halvings)
             ends.append(vector(r))
             same = same and sequence_signature(tape, run) == g.sequence
         fd, exact = (ends[0] - ends[1]) / 2e-6, J @ u
