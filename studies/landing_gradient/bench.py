@@ -148,7 +148,8 @@ def main() -> None:
         )
         print(lines[-1], flush=True)
     text = "\n".join(lines)
-    (Path(__file__).parent / "results.md").write_text(
+    out = Path(__file__).parent / "results.md"
+    out.write_text(
         "# The exact landing gradient: cost and accuracy\n\n"
         "`.venv/bin/python studies/landing_gradient/bench.py` (one run, one machine; ratios to that run's "
         "`landing()` at the default tolerance). `cold`: the first design of a structure (each mode's "
@@ -169,8 +170,16 @@ def main() -> None:
         "forward mode: what the whole-landing inner search uses where its variables are at most a quarter of "
         "theta's and the scene's values), cold (the symbolic structures dropped first) and warm, its warm time "
         "over the full warm gradient's, and its largest difference from the full Jacobian times the directions "
-        "(relative to the largest entry).\n\n" + text + "\n"
+        "(relative to the largest entry).\n\n" + kept_notes(out) + text + "\n"
     )
+
+
+def kept_notes(path: Path) -> str:
+    """The dated notes of ``path`` (its paragraphs starting "Run "), each followed by a blank line,
+    so that a rerun replaces the table and keeps what was written about earlier runs."""
+    if not path.exists():
+        return ""
+    return "".join(p + "\n\n" for p in path.read_text().split("\n\n") if p.startswith("Run "))
 
 
 if __name__ == "__main__":
