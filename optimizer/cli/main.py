@@ -129,7 +129,7 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         metavar="PATH",
         help="draw the tree at touchdown with its impulses to PATH (.png or .svg); with several files, "
         "PATH gets '_<file stem>' before its suffix; a whole landing draws its impulses over time and the leg "
-        "at each event",
+        "at up to 12 events spread over the landing's time",
     )
     p.add_argument(
         "--landings",

@@ -88,6 +88,19 @@ def _configuration_at(result: LandingResult, t: float) -> np.ndarray:
 
 
 _AXES = ("x", "y", "z")
+#: A posture's time label is left out where another's lies within this fraction of the drawing's span.
+LABEL_SPACING = 0.04
+
+
+def posture_events(times: np.ndarray, count: int) -> np.ndarray:
+    """Indices of at most ``count`` events to draw, spread over the landing's time rather than over
+    the events' count: for each of ``count`` evenly spaced times from the first event to the last,
+    the first event at or after it. A Zeno cascade (case 3: 440 bounces within 21 ms of 0.3 s)
+    would otherwise take every pick but the first, all alike."""
+    if not len(times):
+        return np.zeros(0, int)
+    targets = np.linspace(times[0], times[-1], min(count, len(times)))
+    return np.unique(np.minimum(np.searchsorted(times, targets, side="left"), len(times) - 1))
 
 
 def _draw_postures(ax, tree: Tree, result: LandingResult, scene: Scene, space: Space,  # type: ignore[no-untyped-def]
@@ -95,17 +108,21 @@ def _draw_postures(ax, tree: Tree, result: LandingResult, scene: Scene, space: S
     """The leg at a few impacts (and at the end) seen along ``view`` (the world axes drawn
     across and up), the ground below."""
     h, v = view
-    picks = np.unique(np.linspace(0, len(result.events) - 1, min(MAX_POSTURES, len(result.events))).astype(int))
+    picks = posture_events(np.array([e.time for e in result.events]), MAX_POSTURES)
     moments = [(result.events[k].time, f"{1e3 * result.events[k].time:.1f} ms") for k in picks]
     moments.append((result.duration, f"end {1e3 * result.duration:g} ms"))
-    points = []
-    for n, (t, label) in enumerate(moments):
-        origins, tips = posture(tree, _configuration_at(result, t), space)
+    drawn = [posture(tree, _configuration_at(result, t), space) for t, _ in moments]
+    points = [p for pair in drawn for p in pair]
+    span = float(np.ptp(np.vstack(points)[:, [h, v]], axis=0).max()) or 1.0
+    labelled: list[np.ndarray] = []
+    for n, ((origins, tips), (_, label)) in enumerate(zip(drawn, moments)):
         shade = 0.25 + 0.75 * n / max(len(moments) - 1, 1)
         for o, tip in zip(origins, tips):
             ax.plot([o[h], tip[h]], [o[v], tip[v]], "-", color=(0.29, 0.43, 0.65, shade), lw=2)
-        ax.annotate(label, origins[0, [h, v]], fontsize=6, alpha=shade)
-        points += [origins, tips]
+        at = origins[0, [h, v]]
+        if all(np.max(np.abs(at - a)) > LABEL_SPACING * span for a in labelled):  # no label over another
+            ax.annotate(label, at, fontsize=6, alpha=shade)
+            labelled.append(at)
     if v == 1:
         across, ground = ground_section(np.vstack(points), scene, space, h)
         ax.plot(across, ground, color=_GROUND, lw=1.5)

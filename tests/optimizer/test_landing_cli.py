@@ -189,3 +189,46 @@ def test_the_landing_plot_shades_each_moreau_jean_bridge():
     plt.close(fig)
     assert spans == [pytest.approx((1.0, 1.2)), pytest.approx((3.0, 3.1))]
     assert [t.get_text() for t in ax.get_legend().get_texts()].count("Moreau-Jean bridge") == 1
+
+
+def test_the_postures_drawn_spread_over_the_landing_time():
+    """A Zeno cascade (one impact, then 440 within [9, 21] ms): the postures drawn are the events
+    first at or after 12 evenly spaced times, not 12 evenly spaced indices (11 of them in the
+    cascade's last milliseconds); no event is drawn twice and an empty landing draws none."""
+    from optimizer.report.landing_plot import posture_events
+
+    times = np.concatenate([[0.0], np.linspace(0.009, 0.021, 440)])
+    picks = posture_events(times, 12)
+    first_after = {int(np.argmax(times >= t)) for t in np.linspace(0.0, 0.021, 12)}
+    assert list(picks) == sorted(first_after) and len(picks) == 9  # the targets 1.9-7.6 ms share the 9 ms event
+    assert np.diff(times[picks])[2:].min() > 0.0018  # within the cascade ~1.9 ms apart (by index: 1.1 ms)
+    assert posture_events(np.zeros(0), 12).size == 0
+    assert list(posture_events(np.array([0.0, 0.0, 0.1]), 12)) == [0, 2]
+
+
+def test_the_posture_labels_do_not_overlap():
+    """Case 3's first 4 ms: the leg hardly moves between the impacts drawn, so their time labels
+    would print over each other; each label drawn lies at least LABEL_SPACING of the drawing apart."""
+    from dataclasses import replace
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from impulse_core.kinematics.spatial import PLANAR
+    from impulse_core.timedomain.landing import LandingSettings, landing
+    from optimizer.config.model_file import load_model_file
+    from optimizer.report.landing_plot import LABEL_SPACING, _draw_postures
+
+    model = load_model_file(REPO / "configs" / "landing_case3.yaml")
+    scene = replace(model.scene, duration=0.004)
+    r = landing(model.tree, scene, model.joints, LandingSettings())
+    fig, ax = plt.subplots()
+    _draw_postures(ax, model.tree, r, scene, PLANAR, (0, 1))
+    at = np.array([t.xy for t in ax.texts])
+    lines = np.vstack([np.column_stack(ln.get_data()) for ln in ax.get_lines()[:-1]])  # the ground last
+    plt.close(fig)
+    span = np.ptp(lines, axis=0).max()
+    assert 1 <= len(at) < len(r.events) + 1
+    assert all(np.max(np.abs(a - b)) > LABEL_SPACING * span for i, a in enumerate(at) for b in at[:i])
