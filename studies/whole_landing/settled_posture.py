@@ -64,6 +64,7 @@ from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.model.joints import JointLaw
 from impulse_core.model.tree import Body, JointKind, Scene, Tree
 from impulse_core.timedomain.compliant import chart_rotation
+from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.landing import LandingSettings, landing
 from optimizer.validation.mujoco_bridge import CONTACT_RADIUS
 
@@ -266,7 +267,18 @@ class StudyMujoco(Mujoco):
         d, n = self.start(self.h)
         for _ in range(n):
             self.mj.mj_step(self.m, d)
+        self.final = d
         return self.angles(d), float(np.max(np.abs(d.qvel)))
+
+    def configuration(self, d, q0: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+        """A spatial landing's q (footopt's: base origin, rotation vector, revolute joints' angles;
+        ``q0`` its touchdown) at MuJoCo's state d."""
+        angles = self.angles(d)
+        q = q0.copy()
+        q[:3] += d.qpos[self.base_q: self.base_q + 3] - self.m.qpos0[self.base_q: self.base_q + 3]
+        q[3:6] = angles[:3]
+        q[6:] = angles[[2 + i for i in self.revolute]]
+        return q
 
     def final_angles(self) -> np.ndarray:
         """The angles after the landing."""
@@ -353,15 +365,57 @@ def compare(seed: int, tips: bool, friction: float | None = None,
         ours = landing(tree, scene, laws, LandingSettings(), space=space)
     seconds = time.perf_counter() - start
     model = SimpleNamespace(tree=tree, scene=scene, joints=laws)
-    finals = [StudyMujoco(model, s, space=space).final_state() for s in settings]
+    runs = [StudyMujoco(model, s, space=space) for s in settings]
+    finals = [mj.final_state() for mj in runs]
     theirs = [a for a, _ in finals]
     gaps = [posture_gaps(ours.final_angles, a, space) for a in theirs]
     spread = max(posture_gaps(theirs[-1], theirs[-2], space)) if len(theirs) > 1 else math.nan
-    return {"seed": seed, "bodies": len(tree.bodies), "contacts": len(tree.contacts), "friction": scene.friction,
+    row = {"seed": seed, "bodies": len(tree.bodies), "contacts": len(tree.contacts), "friction": scene.friction,
             "restitution": scene.restitution, "settled_at": ours.settled_at, "events": len(ours.events),
             "base": [g[0] for g in gaps], "tilt": [g[1] for g in gaps], "joints": [g[2] for g in gaps],
             "spread": spread, "converged": ours.converged, "speed_ours": float(np.max(np.abs(ours.v_final))),
             "speed_theirs": finals[-1][1], "seconds": seconds}
+    if spatial:  # both final states in footopt's statics
+        run = _Landing(tree, scene, laws, LandingSettings(), space)
+        row["statics_ours"] = statics(run, ours.q_final, scene.friction)
+        row["statics_theirs"] = statics(run, runs[-1].configuration(runs[-1].final, run.q0), scene.friction)
+    return row
+
+
+#: a contact within this of the ground (m) may carry force in :func:`statics` (MuJoCo's contacts sag
+#: g / k = 1e-5 m into the ground)
+ON_GROUND = 1e-4
+
+
+def statics(run, q: np.ndarray, friction: float, sides: int = 16) -> float:  # type: ignore[no-untyped-def]
+    """Whether q is a rest of ``run``'s leg (:class:`_Landing`): the smallest largest residual
+    generalized force of gravity and the springs at q (at rest: no dampers) against forces at the
+    contacts within :data:`ON_GROUND` of the ground, normal >= 0 and tangential inside the friction
+    cone (a regular polygon of ``sides`` inscribed in it: conservative), over the weight (m: a
+    torque over the weight is a length); a linear program. ~0: a rest."""
+    from scipy.optimize import linprog
+
+    pt, weight = run.point(q, np.zeros_like(q)), run.mass * run.scene.gravity
+    on = np.flatnonzero(pt.gap < ON_GROUND)
+    m, nt = len(on), (pt.Jt.shape[1] if friction > 0 else 0)
+    A = np.array([pt.Jn[j] for j in on] + [t for j in on for t in pt.Jt[j]][: m * nt]).T.reshape(len(q), -1)
+    n = A.shape[1]  # forces, then the residual's bound r: min r, -r <= A x + f <= r
+    ones = np.ones((len(q), 1))
+    rows, bounds = [np.hstack([A, -ones]), np.hstack([-A, -ones])], [-pt.f, pt.f]
+    if nt:  # d_k . f_t <= mu cos(pi / sides) f_n, each side's normal d_k
+        for k in range(sides):
+            d = np.array([math.cos(2 * math.pi * k / sides), math.sin(2 * math.pi * k / sides)])
+            side = np.zeros((m, n + 1))
+            for c in range(m):
+                side[c, c] = -friction * math.cos(math.pi / sides)
+                side[c, m + nt * c: m + nt * c + nt] = d[:nt]
+            rows.append(side)
+            bounds.append(np.zeros(m))
+    cost = np.zeros(n + 1)
+    cost[-1] = 1.0
+    limits = [(0, None)] * m + [(None, None)] * (n - m) + [(0, None)]
+    result = linprog(cost, A_ub=np.vstack(rows), b_ub=np.concatenate(bounds), bounds=limits, method="highs")
+    return float(result.x[-1]) / weight if result.success else math.inf
 
 
 class TooLong(Exception):
@@ -403,8 +457,6 @@ def compare_resting(seed: int, settings: tuple[MujocoSettings, ...]) -> dict:
     with its tangent held, and Painleve's W_nn - mu |W_nt|, negative: the problem may have
     several answers or none)."""
     import mujoco
-
-    from impulse_core.timedomain.events.run import _Landing
 
     tree, laws, scene = random_leg(seed, True)
     scene = replace(scene, speed=RESTING_SPEED, duration=1.0)
@@ -534,21 +586,25 @@ def spatial_table(args, settings: tuple[MujocoSettings, ...], command: str,  # t
         "base orientations (frame-independent), **tilt**: the angle between the vertical seen in the two "
         "bases' frames (the part the statics sets; the rest is a turn about the vertical), **joints**: the "
         "largest joint angle gap. **speed**: the largest generalized speed at 3 s (rad/s, m/s), footopt / MuJoCo "
-        "(the last setting). **s**: footopt's landing, wall seconds (2 cores shared, nice 10).",
+        "(the last setting). **statics**: each final state in footopt's statics (`statics`: gravity and the "
+        "springs against forces at the contacts within 0.1 mm of the ground, inside the friction cone), the "
+        "smallest residual over the weight (m; ~0: a rest), footopt / MuJoCo. **s**: footopt's landing, wall "
+        "seconds (2 cores shared, nice 10).",
         "",
         "MuJoCo's settings: " + "; ".join(f"**{chr(65 + i)}** {s.label}" for i, s in enumerate(settings)) + ".",
         "",
     ]
     head = " | ".join(f"base / tilt / joints {chr(65 + i)} (rad)" for i in range(len(settings)))
     lines += [f"| seed | bodies | contacts | friction | restitution | events | settled at (s) | {head} | "
-              "speed footopt / MuJoCo | s |",
-              "|---|---|---|---|---|---|---|" + "---|" * len(settings) + "---|---|"]
+              "speed footopt / MuJoCo | statics footopt / MuJoCo | s |",
+              "|---|---|---|---|---|---|---|" + "---|" * len(settings) + "---|---|---|"]
     for r in rows:
         settled = "-" if r["settled_at"] is None else f"{r['settled_at']:.3f}"
         gaps = [f"{b:.1e} / {t:.1e} / {j:.1e}" for b, t, j in zip(r["base"], r["tilt"], r["joints"])]
         lines.append(f"| {r['seed']} | {r['bodies']} | {r['contacts']} | {r['friction']:g} | {r['restitution']:.2f} | "
                      f"{r['events']} | {settled} | {' | '.join(gaps)} | {r['speed_ours']:.0e} / "
-                     f"{r['speed_theirs']:.0e} | {r['seconds']:.0f} |")
+                     f"{r['speed_theirs']:.0e} | {r['statics_ours']:.0e} / {r['statics_theirs']:.0e} | "
+                     f"{r['seconds']:.0f} |")
     lines.append("")
     if skipped:
         lines.append(f"- Skipped (footopt's landing over {args.limit:g} s): seeds {', '.join(map(str, skipped))}.")
