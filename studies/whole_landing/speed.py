@@ -52,7 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
-from impulse_core.kinematics.spatial import dof_layout
+from impulse_core.kinematics.spatial import PLANAR, Space, dof_layout
 from impulse_core.timedomain.compliant import TOUCHDOWN_CLEARANCE, CompliantSettings, ContactLaw
 from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.landing import C_CODE, NUMPY_CODE, VM_CODE, LandingSettings, landing, landing_difference
@@ -78,9 +78,10 @@ def best_time(run, repeat: int):
 
 
 class Mujoco:
-    """The landing in MuJoCo at contact stiffness ``stiffness`` (1/s^2)."""
+    """The landing in MuJoCo at contact stiffness ``stiffness`` (1/s^2); ``space``: the model's
+    (spatial: the export's rotations and axes, the joints after the base's six velocities)."""
 
-    def __init__(self, model, stiffness: float) -> None:
+    def __init__(self, model, stiffness: float, space: Space = PLANAR) -> None:
         import mujoco
 
         self.mj = mujoco
@@ -88,14 +89,14 @@ class Mujoco:
         self.tree, self.scene = tree, scene
         settings = CompliantSettings(law=ContactLaw.CONSTRAINT, stiffness=stiffness, gravity=scene.gravity)
         k, c = contact_parameters(tree, scene, settings)
-        exported = to_mjcf(tree, scene, gravity=scene.gravity, joints=laws)
+        exported = to_mjcf(tree, scene, gravity=scene.gravity, joints=laws, space=space)
         self.text = exported_for_drop(exported, tree, scene.terrain, 1e-4, k, c, settings, scene.friction)
         self.m = mujoco.MjModel.from_xml_string(self.text)
         # MuJoCo's own solver defaults (the bridge asks 1e-14 for its impulse matching): the
         # cheaper setting, which the step search below then holds to the accuracy
         self.m.opt.tolerance, self.m.opt.iterations, self.m.opt.ls_tolerance = 1e-8, 100, 0.01
-        layout = dof_layout(tree.topology())
-        self.joints = [tree.bodies[layout.dof_body[j]].name for j in range(3, layout.nv)]
+        layout = dof_layout(tree.topology(), space)
+        self.joints = [tree.bodies[layout.dof_body[j]].name for j in range(len(space.base_dofs), layout.nv)]
         base = tree.bodies[0].name
         self.base_q = self.m.joint(base).qposadr[0]
         self.base_v = self.m.joint(base).dofadr[0]
