@@ -766,6 +766,31 @@ def test_a_pair_whose_coarser_run_the_balance_split_sees_the_budgets_error(monke
     assert [share for share, _ in asked] == [first, first / 16] and asked[0][1] > 0 and r.share == first / 16
 
 
+def test_a_fine_landing_whose_balance_split_no_step_keeps_its_share(monkeypatch):
+    """Random file 70018 (data/random_70018.yaml: planar, one impact) at tolerance 1e-5: the
+    momentum balance splits none of its runs' steps, so the rule above does not act (every run
+    asks balance_share(1e-5)), and the landing is the same to the bit as with the rule off."""
+    from optimizer.config.model_file import load_model_file
+
+    m = load_model_file(Path(__file__).parent / "data" / "random_70018.yaml")
+    settings = LandingSettings(tolerance=1e-5)
+    asked, kept = [], _Landing.run
+
+    def spy(self, h, *args, share=1.0):
+        result = kept(self, h, *args, share=share)
+        asked.append((share, self.balance_splits))
+        return result
+
+    with monkeypatch.context() as patched:
+        patched.setattr(_Landing, "run", spy)
+        r = landing(m.tree, m.scene, m.joints, settings, space=m.space)
+    assert len(asked) >= 2 and all(a == (balance_share(1e-5), 0) for a in asked)
+    with monkeypatch.context() as patched:
+        patched.setattr(landing_module, "BALANCE_TOLERANCE", 0.0)  # the rule off
+        off = landing(m.tree, m.scene, m.joints, settings, space=m.space)
+    assert pickle.dumps(r) == pickle.dumps(off)
+
+
 def test_an_implicit_run_that_overruns_its_budget_gives_way_to_rk4_at_its_stable_step(monkeypatch):
     """Random file 30039 (data/random_30039.yaml: planar, friction 1, h x rate 3.6 at touchdown):
     where ``auto`` takes ROS2 there (its threshold as it was, RK4_STABLE), the momentum balance
