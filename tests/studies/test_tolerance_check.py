@@ -50,13 +50,16 @@ def test_a_finer_tolerance_lands_both_ways_against_the_same_references(tmp_path:
 
 @pytest.mark.parametrize("spread, judged", [(5e-7, 2), (2e-6, 1)])
 def test_the_summary_judges_against_the_tolerance_asked_and_compares_the_budgets(spread: float, judged: int) -> None:
-    """At tolerance 1e-5 a reference is judged where its spread is below 1e-6; with ``compare``
-    the summary also counts the fixed budget's landings and gives the CPU ratio."""
+    """At tolerance 1e-5 a reference is judged where its spread is below 1e-6; the summary counts
+    the estimates below their errors by over 10 x where the error is above 1e-7; with ``compare``
+    it also counts the fixed budget's landings and gives the CPU ratio."""
     tc = _module()
     good = tc.Row(1, "planar flat mu 0", "rk4", 3, 1e-7, 5e-6, 1e-9, 2.0, tolerance=1e-5, fixed_estimate=1e-7,
                   fixed_error=3e-5, fixed_seconds=1.0)
     summary = tc.report([good, replace(good, seed=2, spread=spread)], (1, 3), 10.0, 1e-5, compare=True)
     assert "--tolerance 1e-05 --compare" in summary and f"{judged} of 2 files" in summary
     assert f"Within the tolerance: **{judged} of {judged}**" in summary
+    hidden = "1, 2" if judged == 2 else "1"  # error 5e-6, estimate 1e-7: 50 x, the error above 1e-7
+    assert f"understated over 10 x where the error is above tolerance / 100: {judged} ({hidden})" in summary
     assert f"With the budget fixed (main before issue #13): Within the tolerance: **0 of {judged}**" in summary
     assert "budget following the tolerance / fixed: 2.00" in summary

@@ -135,6 +135,10 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         #: it reaches (``landing_derivatives.taped_run``: a run along another's split decisions)
         self.slip_halvings: list[int] = []
         self.given_halvings: list[int] | None = None
+        #: the halvings of steps by the momentum balance in the last run (:meth:`balanced_step`: a
+        #: step's residual over its share of the budget): where the coarser run of a pair of the
+        #: step halving made any, :func:`landing` asks the finer for a smaller share (balance_order)
+        self.balance_splits = 0
         #: the compiled step of the integrator (None: numpy), and the last compiled step's end (ended())
         self.fast = self.compiled_step(settings.step_code)
         #: the code the steps run on: c, vm or numpy (``auto``: c where the compile cache holds it)
@@ -265,6 +269,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self._jams = (math.nan, 0)
         self.refused = np.zeros(0, int)
         self.slip_halvings = []
+        self.balance_splits = 0
         q, v, mode, totals = self.first_impact()
         slid = bool(self.mu) and _any(mode.closed & mode.sliding)  # a contact slid (a jam may follow)
         self.end_normals = None

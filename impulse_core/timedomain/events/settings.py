@@ -325,5 +325,7 @@ def balance_share(tolerance: float) -> float:
     the error the budget leaves (unseen by the step halving where it splits the runs' steps alike)
     shrinks with the tolerance: random file 70037, 1.6 x the budget. Not a bound: the budget holds
     the momentum, not the angles (random file 70002 at 1e-5: 3.9e-6 off, its share 2.4e-6).
-    Each run of the halving starts from it (and shrinks it after runs split alike, :func:`landing`)."""
+    Each run of the halving starts from it (and shrinks it after runs split alike, and below
+    BALANCE_TOLERANCE for the finer run of a pair whose coarser run the balance split,
+    :func:`landing`, so that the estimate sees the budget's error)."""
     return min(1.0, tolerance / BALANCE_TOLERANCE)
