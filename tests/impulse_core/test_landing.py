@@ -735,6 +735,27 @@ def test_a_fine_tolerance_is_met_where_one_budget_split_the_runs_alike():
     assert landing_difference(r, reference) <= 1e-7
 
 
+def _data_model(name: str):  # type: ignore[no-untyped-def]
+    from optimizer.config.model_file import load_model_file
+
+    return load_model_file(Path(__file__).parent / "data" / name)
+
+
+def _landing_with_shares(monkeypatch, m, settings):  # type: ignore[no-untyped-def]
+    """``landing()`` of the model file ``m``, and each of its runs' (share asked, balance splits made)."""
+    asked, kept = [], _Landing.run
+
+    def spy(self, h, *args, share=1.0):
+        result = kept(self, h, *args, share=share)
+        asked.append((share, self.balance_splits))
+        return result
+
+    with monkeypatch.context() as patched:
+        patched.setattr(_Landing, "run", spy)
+        r = landing(m.tree, m.scene, m.joints, settings, space=m.space)
+    return r, asked
+
+
 def test_a_pair_whose_coarser_run_the_balance_split_sees_the_budgets_error(monkeypatch):
     """Random file 70025 (data/random_70025.yaml: planar, friction 0.5, 6 events) at tolerance
     1e-5: the momentum balance splits about a third of its first run's steps (at 1 / 100 of
@@ -746,20 +767,8 @@ def test_a_pair_whose_coarser_run_the_balance_split_sees_the_budgets_error(monke
     their error: the estimate is at least the returned run's difference from the same step at a
     sixteenth of its share (measured: estimate 1.05e-8, that difference 6.7e-10; the reference's
     7e-10). Without the rule: estimate 1.5e-10, that difference 1.1e-8."""
-    from optimizer.config.model_file import load_model_file
-
-    m = load_model_file(Path(__file__).parent / "data" / "random_70025.yaml")
-    settings = LandingSettings(tolerance=1e-5, integrator="rk4")
-    asked, kept = [], _Landing.run
-
-    def spy(self, h, *args, share=1.0):
-        result = kept(self, h, *args, share=share)
-        asked.append((share, self.balance_splits))
-        return result
-
-    with monkeypatch.context() as patched:
-        patched.setattr(_Landing, "run", spy)
-        r = landing(m.tree, m.scene, m.joints, settings, space=m.space)
+    m, settings = _data_model("random_70025.yaml"), LandingSettings(tolerance=1e-5, integrator="rk4")
+    r, asked = _landing_with_shares(monkeypatch, m, settings)
     finer = _Landing(m.tree, m.scene, m.joints, settings, m.space).run(r.step, share=r.share / 16)
     assert r.converged and landing_difference(r, finer) <= r.error_estimate
     first = balance_share(1e-5)
@@ -770,20 +779,8 @@ def test_a_fine_landing_whose_balance_split_no_step_keeps_its_share(monkeypatch)
     """Random file 70018 (data/random_70018.yaml: planar, one impact) at tolerance 1e-5: the
     momentum balance splits none of its runs' steps, so the rule above does not act (every run
     asks balance_share(1e-5)), and the landing is the same to the bit as with the rule off."""
-    from optimizer.config.model_file import load_model_file
-
-    m = load_model_file(Path(__file__).parent / "data" / "random_70018.yaml")
-    settings = LandingSettings(tolerance=1e-5)
-    asked, kept = [], _Landing.run
-
-    def spy(self, h, *args, share=1.0):
-        result = kept(self, h, *args, share=share)
-        asked.append((share, self.balance_splits))
-        return result
-
-    with monkeypatch.context() as patched:
-        patched.setattr(_Landing, "run", spy)
-        r = landing(m.tree, m.scene, m.joints, settings, space=m.space)
+    m, settings = _data_model("random_70018.yaml"), LandingSettings(tolerance=1e-5)
+    r, asked = _landing_with_shares(monkeypatch, m, settings)
     assert len(asked) >= 2 and all(a == (balance_share(1e-5), 0) for a in asked)
     with monkeypatch.context() as patched:
         patched.setattr(landing_module, "BALANCE_TOLERANCE", 0.0)  # the rule off
