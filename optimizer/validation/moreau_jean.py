@@ -146,6 +146,74 @@ def _nsgs(W: np.ndarray, free: np.ndarray, target: np.ndarray, mu: float, kinds:
     return P, SWEEPS
 
 
+@dataclass(frozen=True)
+class _StepRows:
+    """A step's active rows: the contacts' normals, the stops (0..n-1 lower, n..2n-1 upper, per joint
+    DOF), the contacts' tangents where there is friction; G stacks them in that order (Pinocchio's v),
+    ``keys`` name them across steps."""
+
+    contacts: np.ndarray
+    stops: np.ndarray
+    friction: np.ndarray
+    G: np.ndarray
+    keys: list
+
+    @property
+    def normals(self) -> int:
+        return self.contacts.size + self.stops.size
+
+
+def _mass_matrix(model: pin.Model, data: pin.Data, q: np.ndarray) -> np.ndarray:
+    M = pin.crba(model, data, q)
+    return np.triu(M) + np.triu(M, 1).T
+
+
+def _step_rows(leg: _Leg, q: np.ndarray, v: np.ndarray, data: pin.Data, limits: tuple[np.ndarray, np.ndarray],
+               kept: dict, step: float, mu: float) -> _StepRows:
+    """The rows active over a step from (q, v): those whose gap the step would close, and those
+    loaded in the step before (``kept``: its impulses by key) while within :data:`REST_GAP`."""
+    lo, hi = limits
+    gap, Jn, Jt, margin = _rows(leg, data, q, lo, hi)
+    rate = np.concatenate([v[leg.idx_q - 1], -v[leg.idx_q - 1]])
+    rests = np.array([kept.get(("n", i), 0.0) > 0 for i in range(len(gap))])
+    held = np.array([kept.get(("s", i), 0.0) > 0 for i in range(margin.size)], dtype=bool)
+    contacts = np.flatnonzero(gap + 0.5 * step * (Jn @ v) <= np.where(rests, REST_GAP, 0.0))
+    stops = np.flatnonzero(margin + 0.5 * step * rate <= np.where(held, REST_GAP, 0.0))
+    Js = np.zeros((stops.size, v.size))
+    Js[np.arange(stops.size), leg.idx_q[stops % len(lo)] - 1] = np.where(stops < len(lo), 1.0, -1.0)
+    friction = contacts if mu > 0 else np.zeros(0, int)
+    keys = [("n", i) for i in contacts] + [("s", i) for i in stops] + [("t", i) for i in friction]
+    return _StepRows(contacts, stops, friction, np.vstack([Jn[contacts], Js, Jt[friction]]), keys)
+
+
+def _step_impulses(rows: _StepRows, M: np.ndarray, v: np.ndarray, free: np.ndarray, kept: dict,
+                   restitution: np.ndarray, mu: float) -> tuple[np.ndarray, int]:
+    """The law over ``rows`` from the velocity ``v`` before and ``free`` after the step's forces:
+    Newton's ``restitution`` (per normal row) on a new approach faster than the plastic speed,
+    Coulomb's cone; by nonsmooth Gauss-Seidel from the step before's impulses. Returns P, sweeps."""
+    n, before = rows.normals, rows.G @ v
+    resting = np.array([key in kept for key in rows.keys[:n]], dtype=bool)  # no new impact
+    e = np.where((-before[:n] > PLASTIC_SPEED) & ~resting, restitution, 0.0)
+    target = np.r_[e * np.minimum(before[:n], 0.0), np.zeros(rows.friction.size)]
+    kinds = np.r_[np.zeros(n, int), np.ones(rows.friction.size, int)]
+    pair = np.r_[np.zeros(n, int), np.arange(rows.friction.size)]
+    W = rows.G @ np.linalg.solve(M, rows.G.T)
+    start = np.array([kept.get(key, 0.0) for key in rows.keys])
+    return _nsgs(W, rows.G @ free, target, mu, kinds, pair, start)
+
+
+def _onto_resting(leg: _Leg, data: pin.Data, q: np.ndarray, limits: tuple[np.ndarray, np.ndarray],
+                  resting: np.ndarray) -> np.ndarray:
+    """q with the ``resting`` contacts' gaps set back to 0 by the least mass-weighted change
+    (Siconos's ``MoreauJeanDirectProjectionOSI``)."""
+    if not resting.size:
+        return q
+    gap, Jn = _rows(leg, data, q, *limits)[:2]
+    M, A = _mass_matrix(leg.model, data, q), Jn[resting]
+    multipliers = np.linalg.lstsq(A @ np.linalg.solve(M, A.T), -gap[resting], rcond=None)[0]
+    return pin.integrate(leg.model, q, np.linalg.solve(M, A.T @ multipliers))
+
+
 def moreau_jean_landing(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], step: float,
                         trace: list | None = None) -> MoreauJeanLanding:
     """The landing of a planar ``tree`` on flat ground from its touchdown (``scene``: approach,
@@ -157,67 +225,36 @@ def moreau_jean_landing(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], st
         raise ModelError("scene.terrain: the Moreau-Jean peer lands on flat ground only")
     q0 = touchdown_configuration(tree, scene.terrain, scene.base_x)
     joints = joint_arrays(tree, laws, q0, PLANAR)
-    lo, hi = joints.lo[3:], joints.hi[3:]
+    limits = joints.lo[3:], joints.hi[3:]
     k, c, rest, e_stop = joints.stiffness[3:], joints.damping[3:], joints.rest[3:], joints.restitution[3:]
     leg = _leg(tree, scene.gravity)
-    model, data = leg.model, leg.model.createData()
+    model, data, j = leg.model, leg.model.createData(), leg.idx_q
     q, v = _to_pin(leg, q0, pre_impact_velocity(tree.topology(), scene, PLANAR))
-    nc, nv, mu = len(leg.frames), model.nv, scene.friction
     theta = q0[2]  # the base angle, followed continuously (not wrapped)
-    total, peak, most = np.zeros(nc), 0.0, 0
-    kept, kept_step = {}, step  # the last step's impulses by row: the next solve starts from them (warm start)
-    n_steps = max(1, round(float(scene.duration) / step))
-    for n in range(n_steps):
-        M = pin.crba(model, data, q)
-        M = np.triu(M) + np.triu(M, 1).T
-        torque = np.zeros(nv)
-        torque[leg.idx_q - 1] = -k * (q[leg.idx_q] - rest) - c * v[leg.idx_q - 1]
+    total, peak, most = np.zeros(len(leg.frames)), 0.0, 0
+    kept: dict = {}  # the step before's impulses by row: where it rests, and the next solve's start
+    for n in range(max(1, round(float(scene.duration) / step))):
+        M = _mass_matrix(model, data, q)
+        torque = np.zeros(model.nv)
+        torque[j - 1] = -k * (q[j] - rest) - c * v[j - 1]
         free = v + step * np.linalg.solve(M, torque - pin.nle(model, data, q, v))
-        gap, Jn, Jt, margin = _rows(leg, data, q, lo, hi)
-        stop_rate = np.concatenate([v[leg.idx_q - 1], -v[leg.idx_q - 1]])
-        was = np.array([kept.get(("n", i), 0.0) > 0 for i in range(nc)])  # loaded in the step before: rests
-        contacts = np.flatnonzero(gap + 0.5 * step * (Jn @ v) <= np.where(was, REST_GAP, 0.0))
-        held = np.array([kept.get(("s", i), 0.0) > 0 for i in range(2 * len(lo))], dtype=bool)
-        stops = np.flatnonzero(margin + 0.5 * step * stop_rate <= np.where(held, REST_GAP, 0.0))
-        P = np.zeros(0)
-        if contacts.size or stops.size:
-            signs = np.where(stops < len(lo), 1.0, -1.0)
-            Js = np.zeros((stops.size, nv))
-            Js[np.arange(stops.size), leg.idx_q[stops % len(lo)] - 1] = signs
-            friction = contacts if mu > 0 else np.zeros(0, int)
-            G = np.vstack([Jn[contacts], Js, Jt[friction]])
-            before = G @ v
-            e = np.concatenate([np.full(contacts.size, scene.restitution), e_stop[stops % len(lo)],
-                                np.zeros(friction.size)])
-            keys = [("n", i) for i in contacts] + [("s", i) for i in stops] + [("t", i) for i in friction]
-            resting = np.array([key in kept for key in keys])  # active in the step before: no new impact
-            e = np.where((-before > PLASTIC_SPEED) & ~resting, e, 0.0)
-            kinds = np.r_[np.zeros(contacts.size + stops.size, int), np.ones(friction.size, int)]
-            pair = np.r_[np.zeros(contacts.size + stops.size, int), np.arange(friction.size)]
-            W = G @ np.linalg.solve(M, G.T)
-            start = np.array([kept.get(key, 0.0) for key in keys]) * (step / kept_step)
-            P, sweeps = _nsgs(W, G @ free, e * np.minimum(before, 0.0), mu, kinds, pair, start)
-            kept, kept_step = dict(zip(keys, P)), step
-            most = max(most, sweeps)
-            free = free + np.linalg.solve(M, G.T @ P)
-            after = G @ free
+        rows = _step_rows(leg, q, v, data, limits, kept, step, scene.friction)
+        resting = rows.contacts
+        if rows.keys:
+            restitution = np.r_[np.full(rows.contacts.size, scene.restitution), e_stop[rows.stops % len(k)]]
+            P, sweeps = _step_impulses(rows, M, v, free, kept, restitution, scene.friction)
+            free = free + np.linalg.solve(M, rows.G.T @ P)
+            after, most, kept = rows.G @ free, max(most, sweeps), dict(zip(rows.keys, P))
             if trace is not None:
-                trace.append((n * step, contacts, stops, P, after))
-            total[contacts] += P[: contacts.size]
-            peak = max(peak, float(np.linalg.norm(P[: contacts.size])))
+                trace.append((n * step, rows.contacts, rows.stops, P, after))
+            on = P[: rows.contacts.size]
+            total[rows.contacts] += on
+            peak = max(peak, float(np.linalg.norm(on)))
+            resting = rows.contacts[(on > 0) & (after[: rows.contacts.size] <= PLASTIC_SPEED)]  # not a rebound
         else:
             kept = {}
-        q_next = pin.integrate(model, q, step * free)
-        # the contacts that rest: loaded and not leaving (an impact's rebound is not corrected)
-        loaded = contacts[(P[: contacts.size] > 0) & (after[: contacts.size] <= PLASTIC_SPEED)] if P.size else P
-        if loaded.size:  # the loaded contacts' gaps set back to 0 (Siconos's MoreauJeanDirectProjectionOSI)
-            gap, Jn = _rows(leg, data, q_next, lo, hi)[:2]
-            Mq = pin.crba(model, data, q_next)
-            Mq = np.triu(Mq) + np.triu(Mq, 1).T
-            A = Jn[loaded]
-            dq = np.linalg.solve(Mq, A.T @ np.linalg.lstsq(A @ np.linalg.solve(Mq, A.T), -gap[loaded], rcond=None)[0])
-            q_next = pin.integrate(model, q_next, dq)
+        q_next = _onto_resting(leg, data, pin.integrate(model, q, step * free), limits, resting)
         theta += math.remainder(math.atan2(q_next[3], q_next[2]) - theta, 2 * math.pi)
         q, v = q_next, free
-    angles = np.concatenate([[theta], q[leg.idx_q]])
+    angles = np.concatenate([[theta], q[j]])
     return MoreauJeanLanding(step, angles, q[:2].copy(), _velocity_map(leg, q) @ v, total, peak, most)
