@@ -3,7 +3,10 @@
 A KeyboardInterrupt raised inside a Python callback that CasADi's wrapper calls (a NumPy
 conversion while a graph is built, IPOPT's iteration) can be caught there and lost, and the
 search then runs on to its end. Within :func:`interruptible` a SIGINT also sets a flag, which
-:func:`check_interrupt` turns back into the KeyboardInterrupt after each batch or solve.
+:func:`check_interrupt` turns back into the KeyboardInterrupt after each batch or solve, and any
+error raised once it is set is the interrupt: a C extension may replace the KeyboardInterrupt by
+an error of its own (NumPy's comparison of structured arrays, inside Optuna's TPE sampler, by
+``TypeError: Cannot compare structured arrays``, which ended a Ctrl-C'd study as an internal error).
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ def interruptible() -> Iterator[None]:
         previous = signal.signal(signal.SIGINT, _on_sigint)
     try:
         yield
-    except (SystemError, RuntimeError) as e:  # the KeyboardInterrupt surfaced inside a C call
+    except Exception as e:  # the KeyboardInterrupt surfaced inside a C call, as another error
         if _INTERRUPTED.is_set() or interrupted(e):
             raise KeyboardInterrupt from e
         raise

@@ -203,6 +203,26 @@ def test_a_ctrl_c_inside_a_c_extension_call_is_an_interrupt():
             raise SystemError("not an interrupt")
 
 
+def test_a_ctrl_c_that_a_c_extension_turns_into_another_error_is_an_interrupt():
+    """NumPy's comparison of structured arrays (in Optuna's TPE sampler) turned a SIGINT's
+    KeyboardInterrupt into ``TypeError: Cannot compare structured arrays ...`` with no cause:
+    within :func:`interruptible` any error raised after a SIGINT is the interrupt; before one, a
+    TypeError stays a TypeError."""
+    from optimizer.interrupts import interruptible
+
+    def swallowed_into_a_type_error() -> None:
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except BaseException:  # noqa: BLE001 - what NumPy's C code does
+            pass
+        raise TypeError("Cannot compare structured arrays unless they have a common dtype.")
+
+    with pytest.raises(KeyboardInterrupt), interruptible():
+        swallowed_into_a_type_error()
+    with pytest.raises(TypeError), interruptible():
+        raise TypeError("a plain error")
+
+
 def test_a_ctrl_c_that_casadi_swallows_still_stops_the_outer_search(tiny_outer_study, monkeypatch):
     """A SIGINT whose KeyboardInterrupt is caught on its way (as CasADi's wrapper catches one
     raised in a NumPy conversion while a graph is built) still stops the outer search after that
