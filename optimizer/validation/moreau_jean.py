@@ -51,7 +51,7 @@ from impulse_core.model.tree import Scene, Tree
 from impulse_core.timedomain.compliant import touchdown_configuration
 from impulse_core.timedomain.events.point import joint_arrays
 from impulse_core.timedomain.events.settings import PLASTIC_SPEED
-from optimizer.validation.pinocchio_bridge import build, velocity_map
+from optimizer.validation.pinocchio_bridge import build, crba_mass_matrix, velocity_map
 
 #: Nonsmooth Gauss-Seidel: sweeps at most, and the change of the impulses (relative) that ends them.
 SWEEPS, SWEEP_TOL = 2000, 1e-13
@@ -163,11 +163,6 @@ class _StepRows:
         return self.contacts.size + self.stops.size
 
 
-def _mass_matrix(model: pin.Model, data: pin.Data, q: np.ndarray) -> np.ndarray:
-    M = pin.crba(model, data, q)
-    return np.triu(M) + np.triu(M, 1).T
-
-
 def _step_rows(leg: _Leg, q: np.ndarray, v: np.ndarray, data: pin.Data, limits: tuple[np.ndarray, np.ndarray],
                kept: dict, step: float, mu: float) -> _StepRows:
     """The rows active over a step from (q, v): those whose gap the step would close, and those
@@ -209,7 +204,7 @@ def _onto_resting(leg: _Leg, data: pin.Data, q: np.ndarray, limits: tuple[np.nda
     if not resting.size:
         return q
     gap, Jn = _rows(leg, data, q, *limits)[:2]
-    M, A = _mass_matrix(leg.model, data, q), Jn[resting]
+    M, A = crba_mass_matrix(leg.model, data, q), Jn[resting]
     multipliers = np.linalg.lstsq(A @ np.linalg.solve(M, A.T), -gap[resting], rcond=None)[0]
     return pin.integrate(leg.model, q, np.linalg.solve(M, A.T @ multipliers))
 
@@ -234,14 +229,14 @@ def moreau_jean_landing(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], st
     total, peak, most = np.zeros(len(leg.frames)), 0.0, 0
     kept: dict = {}  # the step before's impulses by row: where it rests, and the next solve's start
     for n in range(max(1, round(float(scene.duration) / step))):
-        M = _mass_matrix(model, data, q)
+        M = crba_mass_matrix(model, data, q)
         torque = np.zeros(model.nv)
         torque[j - 1] = -k * (q[j] - rest) - c * v[j - 1]
         free = v + step * np.linalg.solve(M, torque - pin.nle(model, data, q, v))
         rows = _step_rows(leg, q, v, data, limits, kept, step, scene.friction)
         resting = rows.contacts
         if rows.keys:
-            restitution = np.r_[np.full(rows.contacts.size, scene.restitution), e_stop[rows.stops % len(k)]]
+            restitution = np.r_[np.full(rows.contacts.size, scene.restitution), e_stop[rows.stops % k.size]]
             P, sweeps = _step_impulses(rows, M, v, free, kept, restitution, scene.friction)
             free = free + np.linalg.solve(M, rows.G.T @ P)
             after, most, kept = rows.G @ free, max(most, sweeps), dict(zip(rows.keys, P))

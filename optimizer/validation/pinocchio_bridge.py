@@ -47,9 +47,7 @@ class PinocchioTree:
         return np.array(rows).reshape(len(active), self.model.nv)
 
     def mass_matrix(self) -> np.ndarray:
-        data = self.model.createData()
-        M = pin.crba(self.model, data, self.q)
-        return np.triu(M) + np.triu(M, 1).T
+        return crba_mass_matrix(self.model, self.model.createData(), self.q)
 
     def mass_matrix_ours(self) -> np.ndarray:
         """Pinocchio's mass matrix in our coordinates: M_ours = T^-T M_pin T^-1."""
@@ -62,6 +60,12 @@ class PinocchioTree:
         J = self.normal_jacobian(active)
         v_pin = pin.impulseDynamics(self.model, data, self.q, self.to_pin_velocity(v_minus), J, restitution, 0.0)
         return self.from_pin_velocity(np.array(v_pin)), np.array(data.impulse_c).copy()
+
+
+def crba_mass_matrix(model: pin.Model, data: pin.Data, q: np.ndarray) -> np.ndarray:
+    """The mass matrix at q by ``pinocchio.crba`` (which fills its upper triangle only), symmetric."""
+    M = pin.crba(model, data, q)
+    return np.triu(M) + np.triu(M, 1).T
 
 
 def _bodies(tree: Tree, base_joint: pin.JointModel) -> tuple[pin.Model, list[int], dict[int, float], tuple[int, ...]]:

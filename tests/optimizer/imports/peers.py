@@ -17,7 +17,7 @@ from impulse_core.kinematics.spatial import PLANAR
 from impulse_core.model.rods import body_rotation, unit_axis
 from impulse_core.model.tree import Scene, Tree
 from optimizer.imports.leg import TO_FOOTOPT, ImportedLeg
-from optimizer.validation.pinocchio_bridge import build, build_spatial
+from optimizer.validation.pinocchio_bridge import build, build_spatial, crba_mass_matrix
 
 
 def robot_file(relative: str) -> Path:
@@ -77,8 +77,7 @@ class Reference:
 
     def joint_mass_matrix(self) -> np.ndarray:
         """The chain joints' block of the mass matrix (independent of the base's coordinates)."""
-        M = pin.crba(self.model, self.model.createData(), self.q)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = crba_mass_matrix(self.model, self.model.createData(), self.q)
         nb = self.model.joints[1].nv
         return M[nb:, nb:]
 
