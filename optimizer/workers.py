@@ -1,5 +1,6 @@
 """Forked worker processes for the work of one run that splits into independent pieces (the
-inner search's shapes, the front's drawings): as many as the cores this process may run on, or
+inner search's shapes, the front's drawings, whole landings of a batch of designs or of a design's
+scenarios): as many as the cores this process may run on, or
 ``FOOTOPT_WORKERS`` (1: everything in this process). Workers leave Ctrl-C to the parent; results
 come back in the order asked, so a run's files do not depend on the number of workers."""
 
@@ -8,9 +9,12 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 #: Overrides the number of worker processes (an integer >= 1).
 WORKERS_ENV = "FOOTOPT_WORKERS"
@@ -32,7 +36,8 @@ def forked_pool(
     set up), or None when ``workers`` <= 1 or the platform cannot fork. Each worker first calls
     ``setup(*setup_args)``: the arguments reach it by the fork, not pickled (objects that cannot
     be pickled, such as CasADi functions, pass). On leaving, queued jobs are cancelled and running
-    ones awaited."""
+    ones awaited; leaving on an error (a Ctrl-C among them) stops the workers at once instead (a
+    whole landing can run for minutes, and its result would be thrown away)."""
     if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
         yield None
         return
@@ -40,8 +45,39 @@ def forked_pool(
     pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start, initargs=(setup, setup_args))
     try:
         yield pool
+    except BaseException:
+        for process in list((getattr(pool, "_processes", None) or {}).values()):  # no public handle on them
+            process.terminate()
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def mapped(pool: ProcessPoolExecutor | None, function: Callable[[Any], T], items: Iterable[Any],
+           progress: Callable[[int, int], None] | None = None) -> list[T]:
+    """``[function(x) for x in items]``, in ``pool``'s workers (here when ``pool`` is None), in
+    the order of ``items`` whatever order they finish in; ``progress(done, of)`` after each, in
+    that order. ``function`` and the items are pickled: a module-level function (or a partial of
+    one) and plain data."""
+    items = list(items)
+    if pool is None:
+        results = []
+        for x in items:
+            results.append(function(x))
+            if progress is not None:
+                progress(len(results), len(items))
+        return results
+    futures = [pool.submit(function, x) for x in items]
+    try:
+        results = []
+        for future in futures:
+            results.append(future.result())
+            if progress is not None:
+                progress(len(results), len(items))
+        return results
+    finally:
+        for future in futures:
+            future.cancel()
 
 
 def _start(setup: Callable[..., None] | None, args: tuple) -> None:
@@ -51,4 +87,4 @@ def _start(setup: Callable[..., None] | None, args: tuple) -> None:
         setup(*args)
 
 
-__all__ = ["WORKERS_ENV", "cores", "forked_pool"]
+__all__ = ["WORKERS_ENV", "cores", "forked_pool", "mapped"]

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, fields
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -25,6 +27,7 @@ from optimizer.evaluation.batched import FIRST_IMPACT, first_impact_values, firs
 from optimizer.evaluation.model_choice import evaluate_landing
 from optimizer.evaluation.scenarios import Landings, model_data, overrides, scenario_model
 from optimizer.evaluation.statistics import Statistic
+from optimizer.workers import cores, forked_pool, mapped
 
 
 @dataclass(frozen=True)
@@ -63,21 +66,20 @@ def scenario_objectives(model: ModelFile, whole: LandingSettings | None = None) 
 def scenario_table(
     model: ModelFile, names: tuple[str, ...], draws: np.ndarray, batched: np.ndarray | None = None,
     whole: LandingSettings | None = None, progress: Callable[[int, int], None] | None = None,
+    pool: ProcessPoolExecutor | None = None,
 ) -> tuple[tuple[str, ...], np.ndarray]:
     """Every scenario's objectives: their names and one row per scenario (NaN: the evaluation
     failed). Batchable first impacts together (:func:`first_impact_values`, or ``batched`` when
-    the caller evaluated them already), the rest one by one (whole landings with ``whole``),
+    the caller evaluated them already), the rest one by one (whole landings with ``whole``), in
+    ``pool``'s worker processes when given (:func:`optimizer.workers.mapped`: the same rows),
     ``progress`` told (done, of) after each of those."""
     table = first_impact_values(model, names, draws) if batched is None else batched.copy()
     todo = np.flatnonzero(np.isnan(table).any(axis=1))
     if todo.size == 0:
         return FIRST_IMPACT, table
     data = model_data(model)
-    found = {}
-    for done, k in enumerate(todo, start=1):
-        found[int(k)] = scenario_objectives(scenario_model(data, overrides(model, names, draws[k])), whole)
-        if progress is not None:
-            progress(done, len(todo))
+    models = [scenario_model(data, overrides(model, names, draws[k])) for k in todo]
+    found = dict(zip(map(int, todo), mapped(pool, partial(scenario_objectives, whole=whole), models, progress)))
     done = [o for o in found.values() if o is not None]
     keys = tuple(f.name for f in fields(Objectives) if done and getattr(done[0], f.name) is not None) or FIRST_IMPACT
     if keys != FIRST_IMPACT:
@@ -105,13 +107,13 @@ def statistics_over_landings(
 
 def statistics_over_landings_many(
     models: list[ModelFile], landings: Landings, statistic: Callable[[Objective], Statistic],
-    whole: LandingSettings | None = None,
+    whole: LandingSettings | None = None, pool: ProcessPoolExecutor | None = None,
 ) -> list[Objectives | None]:
     """:func:`statistics_over_landings` of many designs: their batchable scenarios in one call
-    per structure and contact set (:func:`first_impact_values_many`)."""
+    per structure and contact set (:func:`first_impact_values_many`), the rest in ``pool``."""
     draws = landings.draw()
     batched = first_impact_values_many(models, landings.names, draws)
-    return [statistics_of(*scenario_table(m, landings.names, draws, b, whole), statistic)
+    return [statistics_of(*scenario_table(m, landings.names, draws, b, whole, pool=pool), statistic)
             for m, b in zip(models, batched, strict=True)]
 
 
@@ -121,9 +123,11 @@ def evaluate_over_landings(
 ) -> RobustEvaluation:
     """``model`` on every scenario of ``landings`` (:func:`scenario_table`, which tells
     ``progress``), each row with its overrides, and the statistics; whole landings with ``whole``
-    (a study's: :func:`study_landing`)."""
+    (a study's: :func:`study_landing`), as many at once as there are cores (:func:`cores`)."""
     draws = landings.draw()
-    keys, table = scenario_table(model, landings.names, draws, whole=whole, progress=progress)
+    workers = min(cores(), len(draws)) if model.scene.duration is not None else 1
+    with forked_pool(workers) as pool:
+        keys, table = scenario_table(model, landings.names, draws, whole=whole, progress=progress, pool=pool)
     rows = tuple(
         ScenarioRow(k, overrides(model, landings.names, values),
                     None if np.isnan(row).any() else Objectives(**dict(zip(keys, map(float, row), strict=True))))

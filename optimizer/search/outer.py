@@ -22,6 +22,8 @@ import functools
 import math
 import warnings
 from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -57,6 +59,7 @@ from optimizer.evaluation.robust import statistics_over_landings_many
 from optimizer.interrupts import check_interrupt, interruptible
 from optimizer.search.compiled import VALUE_OUTPUTS, FootKind, cache_dir, foot_kind, values_function
 from optimizer.search.landing_code import LandingBuilds
+from optimizer.workers import cores, forked_pool, mapped
 
 #: User attributes every recorded trial carries.
 ATTR_DESIGN, ATTR_OBJECTIVES, ATTR_CONSTRAINTS, ATTR_METHOD = "design", "objectives", "constraints", "method"
@@ -357,8 +360,17 @@ def run_outer(
     """
     if workers == 1:
         mark_interrupted(study)
-    with landing_builds(config, trials) as builds:
-        return _run_batches(study, config, trials, progress, workers, builds)
+    with landing_builds(config, trials) as builds, landing_pool(config, workers) as pool:
+        return _run_batches(study, config, trials, progress, workers, builds, pool)
+
+
+def landing_pool(config: StudyConfig, workers: int) -> AbstractContextManager[ProcessPoolExecutor | None]:
+    """Worker processes that land a batch's designs at once (:func:`evaluate_designs`): a whole-
+    landing search's, the cores shared out between the study's ``workers`` processes (none for a
+    first-impact search, whose batch is one compiled call)."""
+    if not config.whole_landing:
+        return nullcontext(None)
+    return forked_pool(min(OUTER_BATCH, max(1, cores() // workers)))
 
 
 def landing_builds(config: StudyConfig, trials: int) -> LandingBuilds:
@@ -371,7 +383,7 @@ def landing_builds(config: StudyConfig, trials: int) -> LandingBuilds:
 
 def _run_batches(
     study: optuna.Study, config: StudyConfig, trials: int, progress: Callable[[int, int], None] | None,
-    workers: int, builds: LandingBuilds,
+    workers: int, builds: LandingBuilds, pool: ProcessPoolExecutor | None = None,
 ) -> int:
     """:func:`run_outer`'s loop of batches."""
     done, ran = finished_trials(study), 0
@@ -385,7 +397,7 @@ def _run_batches(
             size = min(OUTER_BATCH, max(1, remaining // workers))
         asked = ask_batch(study, config, size, done, workers)
         try:
-            evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked], builds)
+            evaluations = evaluate_designs(config, [suggest_design(t, config) for t in asked], builds, pool)
             check_interrupt()  # a Ctrl-C that CasADi caught while the batch's graph was built
         except BaseException:
             for trial in asked:
@@ -445,22 +457,22 @@ def tell(study: optuna.Study, config: StudyConfig, trial: optuna.Trial, evaluati
 
 
 def evaluate_designs(
-    config: StudyConfig, designs: list[FootDesign], builds: LandingBuilds | None = None
+    config: StudyConfig, designs: list[FootDesign], builds: LandingBuilds | None = None,
+    pool: ProcessPoolExecutor | None = None,
 ) -> list[DesignEvaluation]:
     """Every design's objectives and constraint values: the impact of each kind of foot
     (:func:`optimizer.search.compiled.foot_kind`) from its compiled ``VALUE_OUTPUTS`` function,
     one batched C loop per kind, cached on disk; the geometry from :func:`constraint_values`.
     A whole-landing study lands each design in full instead (:func:`evaluate_design_landing`), and
     a study with friction or a spatial design space (splayed toes) solves each design's impact by the
-    core's ``evaluate`` (:func:`evaluate_design`; the exact Coulomb law with friction)."""
+    core's ``evaluate`` (:func:`evaluate_design`; the exact Coulomb law with friction). Whole
+    landings run in ``pool``'s workers when given (:func:`landing_pool`; the same evaluations)."""
     if builds is not None:
         prepare_landings(builds, config, designs)
     if config.landings is not None:
-        return evaluate_designs_over_landings(config, designs)
+        return evaluate_designs_over_landings(config, designs, pool)
     if config.whole_landing:
-        e = config.space.joint_laws.stop_restitution
-        tol = config.search.landing_tolerance
-        return [evaluate_design_landing(config.leg, d, config.scene, config.limits, e, tol) for d in designs]
+        return mapped(pool, functools.partial(_landed, config), designs)
     if config.space.spatial or config.scene.friction > 0:  # spatial feet, the exact Coulomb law: one by one
         return [evaluate_design(config.leg, d, config.scene, config.limits) for d in designs]
     out: list[DesignEvaluation | None] = [None] * len(designs)
@@ -481,6 +493,12 @@ def evaluate_designs(
     return [e for e in out if e is not None]
 
 
+def _landed(config: StudyConfig, design: FootDesign) -> DesignEvaluation:
+    """One design of a whole-landing study, landed (:func:`evaluate_design_landing`)."""
+    e, tol = config.space.joint_laws.stop_restitution, config.search.landing_tolerance
+    return evaluate_design_landing(config.leg, design, config.scene, config.limits, e, tol)
+
+
 def prepare_landings(builds: LandingBuilds, config: StudyConfig, designs: list[FootDesign]) -> None:
     """Start the background builds of the designs' whole landings' C (:class:`LandingBuilds`; over
     ``landings``, the nominal scene's)."""
@@ -498,14 +516,15 @@ def evaluate_design_over_landings(config: StudyConfig, design: FootDesign) -> De
     return evaluate_designs_over_landings(config, [design])[0]
 
 
-def evaluate_designs_over_landings(config: StudyConfig, designs: list[FootDesign]) -> list[DesignEvaluation]:
+def evaluate_designs_over_landings(config: StudyConfig, designs: list[FootDesign],
+                                   pool: ProcessPoolExecutor | None = None) -> list[DesignEvaluation]:
     """:func:`evaluate_design_over_landings` of a batch of designs: designs x scenarios in one
-    compiled call per shape and contact set."""
+    compiled call per shape and contact set, the whole landings in ``pool``'s workers."""
     assert config.landings is not None
     e = config.space.joint_laws.stop_restitution
     models = [design_model(config.leg, d, config.scene, config.limits, e) for d in designs]
     found = statistics_over_landings_many(models, config.landings, config.statistic_of,
-                                          study_landing(config.search.landing_tolerance))
+                                          study_landing(config.search.landing_tolerance), pool)
     return [DesignEvaluation(d, s, constraint_values(config.leg, d, config.limits),
                              "" if s is not None else "a landing of the study's landings failed")
             for d, s in zip(designs, found, strict=True)]

@@ -100,6 +100,30 @@ def tiny_run(tmp_path_factory) -> Path:
     return out
 
 
+def _trials(run: Path) -> list[tuple]:
+    """Every trial of a run's study: number, state, values, parameters and records."""
+    from optimizer.results.runs import storage_url
+    from optimizer.search.outer import open_study
+
+    config = load_study(run / "study.yaml")
+    return [(t.number, t.state, t.values, t.params, t.user_attrs)
+            for t in open_study(config, storage_url(run, config)).get_trials(deepcopy=False)]
+
+
+def test_a_landing_study_lands_a_batch_in_worker_processes_as_in_one(tmp_path: Path, monkeypatch):
+    """The batch's whole landings in two worker processes (a study on two cores) or in this one:
+    the same trials, to the bit."""
+    study = tmp_path / "tiny_landing.yaml"
+    study.write_text(TINY_LANDING_YAML, encoding="utf-8")
+    runs = {}
+    for workers in ("2", "1"):
+        monkeypatch.setenv("FOOTOPT_WORKERS", workers)
+        runs[workers] = tmp_path / f"run{workers}"
+        assert main(["optimize", str(study), "--out", str(runs[workers]), "--quiet"]) == 0
+    assert _trials(runs["2"]) == _trials(runs["1"]) and len(_trials(runs["1"])) == 6
+    assert (runs["2"] / "pareto.csv").read_bytes() == (runs["1"] / "pareto.csv").read_bytes()
+
+
 def test_a_landing_study_writes_landing_objectives_and_joint_laws(tiny_run: Path):
     rows = list(csv.DictReader((tiny_run / "pareto.csv").open(encoding="utf-8")))
     assert rows
@@ -178,6 +202,7 @@ def test_a_failed_design_says_why(monkeypatch, tmp_path, capsys):
         return real(*args, **kwargs)
 
     monkeypatch.setattr(outer, "evaluate_design_landing", every_third_fails)
+    monkeypatch.setenv("FOOTOPT_WORKERS", "1")  # the plant counts calls: in one process
     study = tmp_path / "tiny_landing.yaml"
     study.write_text(TINY_LANDING_YAML, encoding="utf-8")
     out = tmp_path / "run"
@@ -208,3 +233,39 @@ def test_an_unscored_landing_says_why(monkeypatch, tmp_path):
     found = evaluate_design_landing(config.leg, design, config.scene, config.limits, 0.0, 1e-2)
     assert found.objectives is None
     assert found.failure == "the landing's momentum balance 1.2e-02 is beyond 0.0001"
+
+
+def test_a_ctrl_c_while_workers_land_a_batch_loses_no_trial(tmp_path: Path):
+    """A real SIGINT to a whole-landing study whose batch two worker processes are landing: exit
+    130 (the workers stopped, not awaited), the unfinished trials marked, and the printed resume
+    finishes the study: every trial asked once."""
+    import os
+    import shlex
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    study = tmp_path / "tiny_landing.yaml"
+    study.write_text(TINY_LANDING_YAML.replace("trials: 6, startup_trials: 6", "trials: 24, startup_trials: 6")
+                     .replace("duration: 0.02", "duration: 0.05"), encoding="utf-8")
+    env = {**os.environ, "PYTHONPATH": str(REPO), "FOOTOPT_WORKERS": "2"}
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "optimizer", "optimize", str(study), "--out", str(out), "--quiet"],
+                            cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and not (out / "study.journal").exists():
+        time.sleep(0.05)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    resume = shlex.split(err.split("Resume: ", 1)[1].strip())
+    assert resume[:2] == ["footopt", "optimize"]
+    subprocess.run([sys.executable, "-m", "optimizer", *resume[1:], "--quiet"], cwd=REPO, env=env, check=True,
+                   capture_output=True)
+    trials = _trials(out)
+    interrupted = [t for t in trials if t[1].name != "COMPLETE"]
+    assert all(t[4].get("interrupted") for t in interrupted)  # none when it came between two batches
+    finished = [t for t in trials if t[1].name == "COMPLETE"]
+    assert len(finished) == 24 and len({tuple(sorted(t[3].items())) for t in finished}) == 24

@@ -304,3 +304,26 @@ def test_designs_times_scenarios_in_one_call_per_shape_and_contact_set(monkeypat
         for objective in (Objective.EXTERNAL_NORM, Objective.INTERNAL_NORM):
             expected = config.statistic_of(objective).of(np.array([a.value(objective) for a in alone]))
             assert evaluation.objectives.value(objective) == pytest.approx(expected, rel=1e-12)
+
+
+def test_whole_landing_scenarios_run_in_worker_processes_as_one_by_one(tmp_path, monkeypatch):
+    """A design's whole landings over the landings, two at once in worker processes (a machine
+    with two cores): each row is that scenario's model landed alone here, to the bit."""
+    from optimizer.evaluation.robust import evaluate_over_landings, scenario_objectives
+    from optimizer.evaluation.scenarios import Distribution, DistributionKind, model_data, scenario_model
+
+    text = (Path(__file__).resolve().parents[2] / "configs" / "landing_case3.yaml").read_text(encoding="utf-8")
+    file = tmp_path / "short.yaml"
+    file.write_text(text.replace("duration: 0.3", "duration: 0.01"), encoding="utf-8")
+    model = load_model_file(file)
+    landings = Landings(count=3, seed=2, distributions=(
+        ("speed", Distribution(DistributionKind.UNIFORM, (2.0, 3.5))),
+        ("restitution", Distribution(DistributionKind.VALUES, (0.3, 0.8)))))
+    monkeypatch.setenv("FOOTOPT_WORKERS", "2")
+    told: list[tuple[int, int]] = []
+    robust = evaluate_over_landings(model, landings, lambda o: Statistic(), progress=lambda d, n: told.append((d, n)))
+    assert told == [(1, 3), (2, 3), (3, 3)]
+    for row in robust.rows:
+        assert row.objectives is not None and row.objectives.peak_external_norm is not None
+        assert scenario_objectives(scenario_model(model_data(model), row.overrides)) == row.objectives
+    assert len({row.objectives.peak_external_norm for row in robust.rows}) == 3
