@@ -79,7 +79,7 @@ def scenario_table(
         return FIRST_IMPACT, table
     data = model_data(model)
     models = [scenario_model(data, overrides(model, names, draws[k])) for k in todo]
-    found = dict(zip(map(int, todo), mapped(pool, partial(scenario_objectives, whole=whole), models, progress)))
+    found = dict(zip(map(int, todo), mapped(pool, partial(_objectives, whole), models, progress)))
     done = [o for o in found.values() if o is not None]
     keys = tuple(f.name for f in fields(Objectives) if done and getattr(done[0], f.name) is not None) or FIRST_IMPACT
     if keys != FIRST_IMPACT:
@@ -88,6 +88,11 @@ def scenario_table(
         if o is not None:
             table[k] = [getattr(o, n) for n in keys]
     return keys, table
+
+
+def _objectives(whole: LandingSettings | None, model: ModelFile) -> Objectives | None:
+    """:func:`scenario_objectives` as a worker runs it (by its name, as this module has it then)."""
+    return scenario_objectives(model, whole)
 
 
 def statistics_of(keys: tuple[str, ...], table: np.ndarray, statistic: Callable[[Objective], Statistic]) -> Objectives | None:

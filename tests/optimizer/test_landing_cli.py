@@ -93,6 +93,7 @@ def test_whole_landings_over_landings_show_their_count_on_a_terminal_only(tmp_pa
     calls = []
     real = robust.scenario_objectives
     monkeypatch.setattr(robust, "scenario_objectives", lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setenv("FOOTOPT_WORKERS", "1")  # the spy counts calls in this process
     plain = _json(capsys, "--landings", str(study), str(path))
     assert capsys.readouterr().err == "" and len(calls) == 3 and plain["scenarios"] == 3
     terminal = _Terminal()
