@@ -360,15 +360,15 @@ def _drawn(drawings: list[tuple[Callable, tuple]]) -> Iterator[None]:
     global _DRAWINGS
     if drawings:
         preload_matplotlib()  # once, before the workers fork
-    with forked_pool(min(cores(), len(drawings))) as pool:
-        _DRAWINGS = drawings  # the workers fork at the first job and find them here
-        try:
+    _DRAWINGS = drawings  # the workers fork as the pool starts and find them here
+    try:
+        with forked_pool(min(cores(), len(drawings))) as pool:
             jobs = [pool.submit(_draw, i) for i in range(len(drawings))] if pool is not None else []
             yield
             for job in jobs:
                 job.result()
-        finally:
-            _DRAWINGS = []
+    finally:
+        _DRAWINGS = []
     if not jobs:
         for f, args in drawings:
             f(*args)
