@@ -775,6 +775,41 @@ def test_a_pair_whose_coarser_run_the_balance_split_sees_the_budgets_error(monke
     assert [share for share, _ in asked] == [first, first / 16] and asked[0][1] > 0 and r.share == first / 16
 
 
+def test_a_momentum_whose_terms_cancel_is_judged_at_their_rounding(monkeypatch):
+    """Random file 70025 (data/random_70025.yaml) at tolerance 1e-6: its second run (h / 2, a
+    sixteenth of balance_share(1e-6)) flies with joints at up to 255 rad/s whose bodies hardly
+    move: the linear momentum (3.9 N s), P v with P the mass matrix's base-translation rows, is a
+    sum of terms of up to 512 N s, and rounds at their scale: below h / 2^9 the steps' residuals
+    stop falling as h^5 and sit at up to 3.7 eps of the terms (246 eps of the momentum). Reckoned
+    from the momentum, that rounding was over the share of such short steps: the balance split
+    3736 steps to the floor h / 2^14 (4228 splits, 5132 steps). Reckoned from the terms
+    (momentum_terms), no step reaches the floor; the momentum is P v to a few eps of its terms."""
+    from impulse_core.timedomain.events.point import momentum_terms
+
+    m = _data_model("random_70025.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(tolerance=1e-6, integrator="rk4"), m.space)
+    h, floors, states = run.first_step() / 2, [], []
+    kept = _Landing.balanced_step
+
+    def spy(self, q, v, mode, trial, rate, floor):  # type: ignore[no-untyped-def]
+        out = kept(self, q, v, mode, trial, rate, floor)
+        floors.append(out[3] <= floor)
+        states.append((q, v))
+        return out
+
+    monkeypatch.setattr(_Landing, "balanced_step", spy)
+    run.run(h, share=balance_share(1e-6) / 16)
+    assert not any(floors) and run.balance_splits < 1000
+    eps, spread, cancelled = np.finfo(float).eps, [], []
+    for q, v in states[::10]:
+        pt = run.point(q, v)
+        terms, p = momentum_terms(pt.M, v, run.dims), pt.momentum[:, 0]
+        spread.append(np.max(np.abs(pt.M[: run.dims] @ v - p) / (eps * terms)))
+        cancelled.append(np.max(terms) / np.max(np.abs(p)))
+    assert max(cancelled) > 100.0  # the terms cancel
+    assert max(spread) <= 4.0
+
+
 def test_a_fine_landing_whose_balance_split_no_step_keeps_its_share(monkeypatch):
     """Random file 70018 (data/random_70018.yaml: planar, one impact) at tolerance 1e-5: the
     momentum balance splits none of its runs' steps, so the rule above does not act (every run
