@@ -20,8 +20,9 @@ momentum at both ends and the step's momentum balance but for the weight (``bala
 of momentum minus the step's impulses as vectors, ``vectors``: along the end's normals and
 tangents, but on a sloped heightfield each stage's force along that stage's own normal and
 tangents, since a contact sliding across a curved cell turns its normal within a step and the
-end's directions would leave a residual of first order in the step), the normals and the
-kinetic energy (the divergence check), so that a plain step costs one call; and the projection
+end's directions would leave a residual of first order in the step; ``terms``: the momentum's
+terms at both ends, the scale it rounds at), the normals and the kinetic energy (the divergence
+check), so that a plain step costs one call; and the projection
 that follows it (:func:`landing_projection_function`, the same masked rows: positions, then
 velocities) where its placement is the mode's own. Redundant modes (least-norm forces and
 corrections) and non-finite results (singular rows) are left to the numpy path.
@@ -52,7 +53,7 @@ from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.heightfield import Heightfield
 from impulse_core.model.terrain import Terrain
 from impulse_core.timedomain.compliant import BufferedFunction
-from impulse_core.timedomain.events.point import _Joints, _any
+from impulse_core.timedomain.events.point import _Joints, _any, momentum_terms
 from impulse_core.timedomain.events.rows import _Mode, _mode_bytes
 from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.events.settings import RADAU_A, RADAU_B, RADAU_TOL, ROS2_GAMMA
@@ -68,7 +69,7 @@ from impulse_core.timedomain.landing_derivatives import (
 STEP_INPUTS = ("q", "v", "h", "active", "direction", "stop", "core", "mu", "floor", "stiffness", "damping", "rest",
                "p", "gravity")
 STEP_OUTPUTS = ("q1", "v1", "impulse", "momentum0", "momentum1", "gap0", "vn0", "gap", "vn", "slip", "fn", "ft",
-                "stop_force", "normal", "kinetic", "balance", "vectors")
+                "stop_force", "normal", "kinetic", "balance", "vectors", "terms")
 #: The Radau IIA step's further input and outputs (:func:`_radau`): its stages' Z before and after
 #: its Newton iterations, and their corrections' sizes.
 RADAU_INPUTS, RADAU_OUTPUTS = ("z0",), ("newton", "z")
@@ -319,7 +320,8 @@ def landing_step_function(topology, terrain: Terrain | Heightfield, stop_dofs: t
         applied = ca.sum2(vectors)
     outs = [q1, v1, impulse, start["momentum"], end["momentum"], start["gap"], start["Jn"] @ v, end["gap"],
             end["Jn"] @ v1, ca.horzcat(*end["slip"]), fn1, ca.horzcat(*ft1), stop1, end["normal"], end["kinetic"],
-            end["momentum"] - start["momentum"] - applied, vectors, *newton]
+            end["momentum"] - start["momentum"] - applied, vectors,
+            ca.vertcat(momentum_terms(start["M"], v, nt + 1), momentum_terms(end["M"], v1, nt + 1)), *newton]
     inputs = [q, v, h, x.active, x.direction, x.stop, x.core, x.mu, x.floor, x.stiffness, x.damping, x.rest, x.p,
               x.gravity, *extra]
     names = STEP_INPUTS + (RADAU_INPUTS if extra else ()), STEP_OUTPUTS + (RADAU_OUTPUTS if extra else ())
@@ -514,6 +516,9 @@ class StepEnd:
     balance: np.ndarray
     #: the step's impulses per contact as world vectors, d x n_c (a sloped heightfield: by stage)
     vectors: np.ndarray
+    #: the linear momentum's terms summed in absolute value at the start (d) and at the end (d):
+    #: the scale it rounds at (:func:`~impulse_core.timedomain.events.point.momentum_terms`)
+    terms: np.ndarray
     #: Radau IIA: each unrolled Newton iteration's correction size (:func:`_radau`), and the stages' Z (2 x 2 n_v)
     newton: np.ndarray | None = None
     z: np.ndarray | None = None
@@ -587,8 +592,8 @@ class CompiledStep(BufferedFunction):
         shape = (self.nc, self.nt)
         return StepEnd(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8], o[9].reshape(shape, order="F"), o[10],
                        o[11].reshape(shape, order="F"), stop_force, o[13].reshape(self.out[13].shape, order="F").T,
-                       float(o[14][0]), o[15], o[16].reshape(self.out[16].shape, order="F"),
-                       *(o[17], o[18].reshape(2, -1)) if len(o) > 17 else ())
+                       float(o[14][0]), o[15], o[16].reshape(self.out[16].shape, order="F"), o[17],
+                       *(o[18], o[19].reshape(2, -1)) if len(o) > 18 else ())
 
     def set_design(self, p: np.ndarray) -> None:
         """Evaluate with the design vector ``p`` from now on (space: a re-centred base's rotation

@@ -775,6 +775,65 @@ def test_a_pair_whose_coarser_run_the_balance_split_sees_the_budgets_error(monke
     assert [share for share, _ in asked] == [first, first / 16] and asked[0][1] > 0 and r.share == first / 16
 
 
+def test_a_momentum_whose_terms_cancel_is_judged_at_their_rounding(monkeypatch):
+    """Random file 70025 (data/random_70025.yaml) at tolerance 1e-6: its second run (h / 2, a
+    sixteenth of balance_share(1e-6)) flies with joints at up to 255 rad/s whose bodies hardly
+    move: the linear momentum (3.9 N s), P v with P the mass matrix's base-translation rows, is a
+    sum of terms of up to 512 N s, and rounds at their scale: below h / 2^9 the steps' residuals
+    stop falling as h^5 and sit at up to 3.7 eps of the terms (246 eps of the momentum). Reckoned
+    from the momentum, that rounding was over the share of such short steps: the balance split
+    3736 steps to the floor h / 2^14 (4228 splits, 5132 steps). Reckoned from the terms
+    (momentum_terms), no step reaches the floor; the momentum is P v to a few eps of its terms."""
+    from impulse_core.timedomain.events.point import momentum_terms
+
+    m = _data_model("random_70025.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(tolerance=1e-6, integrator="rk4"), m.space)
+    h, floors, states = run.first_step() / 2, [], []
+    kept = _Landing.balanced_step
+
+    def spy(self, q, v, mode, trial, rate, floor):  # type: ignore[no-untyped-def]
+        out = kept(self, q, v, mode, trial, rate, floor)
+        floors.append(out[3] <= floor)
+        states.append((q, v))
+        return out
+
+    monkeypatch.setattr(_Landing, "balanced_step", spy)
+    run.run(h, share=balance_share(1e-6) / 16)
+    assert not any(floors) and run.balance_splits < 1000
+    eps, spread, cancelled = np.finfo(float).eps, [], []
+    for q, v in states[::10]:
+        pt = run.point(q, v)
+        terms, p = momentum_terms(pt.M, v, run.dims), pt.momentum[:, 0]
+        spread.append(np.max(np.abs(pt.M[: run.dims] @ v - p) / (eps * terms)))
+        cancelled.append(np.max(terms) / np.max(np.abs(p)))
+    assert max(cancelled) > 100.0  # the terms cancel
+    assert max(spread) <= 4.0
+
+
+def test_a_step_closed_at_roundings_level_doubles_only_where_its_residual_would_stay_within_it(monkeypatch):
+    """Random file 70025 at tolerance 1e-6, its first run (h, balance_share(1e-6)): some flight
+    steps at h / 2^9 close with a residual within rounding's level (16 eps of the momentum's
+    terms) that is their error (4e-13 N s, 9 eps of the terms; 1.2e-11 N s at twice the length,
+    h^5). Held to that level as to a share, such a step's successor doubles only where 2^p
+    times its residual is within it, so the doubled trials are seldom split back (measured: 0 of
+    23). Taken for none (ratio 0), every such step doubled and the balance split the trial back:
+    120 of 143 doubled trials, 146 splits instead of 26."""
+    m = _data_model("random_70025.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, LandingSettings(tolerance=1e-6, integrator="rk4"), m.space)
+    calls, kept = [], _Landing.balanced_step
+
+    def spy(self, q, v, mode, trial, rate, floor):  # type: ignore[no-untyped-def]
+        out = kept(self, q, v, mode, trial, rate, floor)
+        calls.append((trial, out[3], out[4]))  # the trial, the step's length, the next trial
+        return out
+
+    monkeypatch.setattr(_Landing, "balanced_step", spy)
+    run.run(run.first_step(), share=balance_share(1e-6))
+    doubled = [now for before, now in zip(calls, calls[1:]) if before[2] == 2.0 * before[1] == now[0]]
+    back = [trial for trial, length, _ in doubled if length < trial]
+    assert len(doubled) >= 10 and len(back) <= 0.1 * len(doubled)
+
+
 def test_a_fine_landing_whose_balance_split_no_step_keeps_its_share(monkeypatch):
     """Random file 70018 (data/random_70018.yaml: planar, one impact) at tolerance 1e-5: the
     momentum balance splits none of its runs' steps, so the rule above does not act (every run

@@ -487,11 +487,12 @@ def test_a_momentum_residual_at_roundings_level_does_not_hold_the_steps():
     lengths, over = [], []
     for _ in range(30):
         p0 = run.point(q, v).momentum[:, 0].copy()
-        q, v, impulse, dt, grown = run.balanced_step(q, v, mode, trial, rate, floor)
-        end = run.ended(q, v, mode)
-        balance = end.balance if end is not None else run.momentum_change(p0, q, v, impulse)
+        q1, v1, impulse, dt, grown = run.balanced_step(q, v, mode, trial, rate, floor)
+        end = run.ended(q1, v1, mode)
+        balance = end.balance if end is not None else run.momentum_change(p0, q1, v1, impulse)
         residual = float(np.max(np.abs(balance - run.weight(dt))))
-        over.append(residual / max(rate * dt, run.balance_rounding(q, v, end, p0, balance, run.weight(dt))))
+        over.append(residual / max(rate * dt, run.balance_rounding(q, v, q1, v1, end, p0, balance, run.weight(dt))))
+        q, v = q1, v1
         lengths.append(dt)
         trial = min(kept["h"], grown)
     report("landing balance rounding", f"32787 stuck tip: 30 steps from {lengths[0]:.3g} s to {lengths[-1]:.3g} s, "

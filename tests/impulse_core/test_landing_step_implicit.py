@@ -12,6 +12,7 @@ import pytest
 
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL
 from impulse_core.timedomain import landing_step
+from impulse_core.timedomain.events.point import momentum_terms
 from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.landing import IMPLICIT, NUMPY_CODE, RK4, VM_CODE, LandingSettings, landing_difference
 from tests.impulse_core.test_landing import _light_tip_leg
@@ -64,7 +65,15 @@ def test_the_compiled_implicit_step_equals_the_numpy_step(leg):
         p0 = ref.point(q, v).momentum[:, 0]
         scale = max(np.max(np.abs(p0)), np.max(np.abs(end.momentum1)), np.max(np.abs(impulse)))
         assert np.max(np.abs(end.balance - ref.momentum_change(p0, q1, v1, impulse))) <= 1e-12 * scale
+        assert _rel(end.terms, _numpy_terms(ref, q, v, end)) <= 1e-12
     assert kinds >= {"flight", "sliding", "stop"} | ({"sticking"} if fast.mu > 0 else set())
+
+
+def _numpy_terms(ref: _Landing, q: np.ndarray, v: np.ndarray, end) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """A compiled step's momentum terms at its start (q, v) and its end (StepEnd.terms) by numpy:
+    momentum_terms of each end's point."""
+    return np.concatenate([momentum_terms(ref.point(q, v).M, v, ref.dims),
+                           momentum_terms(ref.point(end.q, end.v).M, end.v, ref.dims)])
 
 
 @pytest.mark.parametrize("leg", [1, 2])
@@ -87,6 +96,7 @@ def test_the_compiled_spatial_implicit_step_equals_the_numpy_step(leg):
             continue
         kinds |= _kinds(fast, mode)
         assert _rel(end.q, rq) <= tol and _rel(end.v, rv) <= tol and _rel(end.impulse, rimpulse) <= tol
+        assert _rel(end.terms, _numpy_terms(ref, q, v, end)) <= 1e-12
         a, b = mode.copy(), mode.copy()  # the landing's step: steered, then its end's figures
         q1, v1, impulse = fast.step(q, v, a, h)
         rq, rv, rimpulse = ref.step(q, v, b, h)

@@ -106,6 +106,15 @@ class _Point:
         return self.Jt @ v
 
 
+def momentum_terms(M, v, dims: int):  # type: ignore[no-untyped-def]
+    """The linear momentum's terms at velocity ``v`` summed in absolute value, sum_k |P_ik v_k| for
+    each of its ``dims`` components i (numpy or CasADi): the base's translations lead the
+    velocities in every :class:`~impulse_core.kinematics.spatial.Space`, so the linear momentum is
+    their generalized momentum P v, P the mass matrix ``M``'s first ``dims`` rows, and rounds at
+    this scale (:meth:`_Landing.balance_rounding`)."""
+    return abs(M[:dims, :]) @ abs(v)
+
+
 def tangent_basis(normal: np.ndarray) -> np.ndarray:
     """Per contact (rows of ``normal``, n_c x d), its d - 1 unit tangents (n_c x (d - 1) x d): in
     the plane (n_y, -n_x) (+x on flat ground); in space t_x, x's projection on the tangent plane,

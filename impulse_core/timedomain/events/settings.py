@@ -120,14 +120,17 @@ IMPULSES_AGREE = 0.01
 #: books it along the rows it acted on, 4.5e-5 and below).
 BALANCE_CHECK = 1e-4
 #: A step's momentum residual at most this many times eps times the largest of its
-#: terms (the momenta at both ends, the contact impulses, the weight's) is rounding's: shorter
+#: terms (the momenta at both ends and their terms, the contact impulses, the weight's:
+#: :meth:`_Landing.balance_rounding`) is rounding's: shorter
 #: steps do not shrink it (random file 32787's run at h / 64, its share of the balance 1 / 4096:
 #: after a 55 g rod's tip stuck, residuals of 6e-16 to 1e-14 N s, up to 3.5 eps times the tree's
 #: 12.5 N s, at h / 2^13 and h / 2^14 alike, above their shares of 9e-16 and 5e-16 N s: the steps
-#: stayed at those lengths, some 1e8 of them for the landing's rest). Such a step is taken and
-#: its successor may double (:meth:`_Landing.balanced_step`); summed over a run's step budget
+#: stayed at those lengths, some 1e8 of them for the landing's rest). Such a step is taken, held
+#: to that level as to its share: its successor doubles where 2^p times its residual is within it
+#: (:meth:`_Landing.balanced_step`); summed over a run's step budget
 #: (STEP_BUDGET per nominal step: 8e5 steps at h / 2^7 from duration / 100) these residuals come
-#: to about 3e-9 of the momenta, far below the balance's own bound (MOMENTUM_BALANCE).
+#: to about 3e-9 of the momenta (4e-7 where the terms are 130 times the momentum, as random file
+#: 70025's in flight), far below the balance's own bound (MOMENTUM_BALANCE).
 BALANCE_ROUNDING = 16
 #: Space: a direction of the mass matrix whose eigenvalue is at most this times the number of
 #: velocities times the rods' axial floors (sum of mass x (AXIAL_GYRATION_FLOOR x length)^2) is
