@@ -43,11 +43,11 @@ def forked_pool(
         return
     context = multiprocessing.get_context("fork")
     pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start, initargs=(setup, setup_args))
-    # fork every worker now (a fork context's first job starts them all): a thread this process
-    # starts later (a search's background compiler in CasADi's code) could hold a lock at the fork
-    # that the child would then wait on forever
-    pool.submit(int).result()
     try:
+        # fork every worker now (a fork context's first job starts them all): a thread this process
+        # starts later (a search's background compiler in CasADi's code) could hold a lock at the
+        # fork that the child would then wait on forever
+        pool.submit(int).result()
         yield pool
     except BaseException:
         for process in list((getattr(pool, "_processes", None) or {}).values()):  # no public handle on them

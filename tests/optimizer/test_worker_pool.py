@@ -23,6 +23,26 @@ def _sleep_then_mark(folder: str) -> None:
     Path(folder, f"{os.getpid()}.finished").touch()
 
 
+_LATER: list[str] = []
+
+
+def _later() -> list[str]:
+    return list(_LATER)
+
+
+def test_the_workers_fork_as_the_pool_opens():
+    """Not at the first job: what this process does after opening the pool (here a list filled;
+    in a search, a background compiler's thread started) does not reach the workers."""
+    with forked_pool(2) as pool:
+        if pool is None:
+            pytest.skip("no fork on this platform")
+        _LATER.append("after the fork")
+        try:
+            assert pool.submit(_later).result() == []
+        finally:
+            _LATER.clear()
+
+
 def test_mapped_keeps_the_order_asked_and_tells_progress_in_it():
     told: list[tuple[int, int]] = []
     with forked_pool(3) as pool:
