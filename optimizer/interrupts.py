@@ -7,6 +7,9 @@ search then runs on to its end. Within :func:`interruptible` a SIGINT also sets 
 error raised once it is set is the interrupt: a C extension may replace the KeyboardInterrupt by
 an error of its own (NumPy's comparison of structured arrays, inside Optuna's TPE sampler, by
 ``TypeError: Cannot compare structured arrays``, which ended a Ctrl-C'd study as an internal error).
+A block that ends without an error after a SIGINT ends with the KeyboardInterrupt: Python drops
+one raised inside a weakref callback or a ``__del__`` (a worker pool's, collected as an inner
+search ended: the search finished and the Ctrl-C was lost).
 """
 
 from __future__ import annotations
@@ -36,8 +39,9 @@ def check_interrupt() -> None:
 @contextmanager
 def interruptible() -> Iterator[None]:
     """Within: a SIGINT sets the flag :func:`check_interrupt` reads and raises KeyboardInterrupt,
-    and an error a C extension raised because of it is the KeyboardInterrupt. Nests (the
-    outermost block installs the handler); outside the main thread it only converts errors."""
+    and an error a C extension raised because of it is the KeyboardInterrupt, as is the block's
+    end after one that was swallowed. Nests (the outermost block installs the handler); outside
+    the main thread it only converts errors."""
     main = threading.current_thread() is threading.main_thread()
     outermost = main and signal.getsignal(signal.SIGINT) is not _on_sigint
     if outermost:
@@ -49,6 +53,9 @@ def interruptible() -> Iterator[None]:
         if _INTERRUPTED.is_set() or interrupted(e):
             raise KeyboardInterrupt from e
         raise
+    else:
+        if outermost and _INTERRUPTED.is_set():  # a Ctrl-C that something swallowed is still one
+            raise KeyboardInterrupt
     finally:
         if outermost:
             signal.signal(signal.SIGINT, previous)

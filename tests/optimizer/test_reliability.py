@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -332,3 +333,27 @@ def test_the_command_line_exits_130_on_a_surfaced_interrupt(monkeypatch, capsys)
     monkeypatch.setattr(cli, "run_evaluate", run)
     assert cli.main(["evaluate", "x.yaml"]) == 130
     assert "interrupted" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not hasattr(signal, "pthread_kill"), reason="no POSIX signals here")
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # the dropped one, reported
+def test_a_ctrl_c_that_something_swallowed_still_ends_the_block():
+    """Python drops a KeyboardInterrupt raised inside a weakref callback or ``__del__`` (an
+    inner search's worker pool collected as the search ended took one so, and the run finished
+    as if no Ctrl-C had come): the block ends with it all the same."""
+    import weakref
+
+    from optimizer.interrupts import interruptible
+
+    class Collected:
+        pass
+
+    ran: list[bool] = []
+    with pytest.raises(KeyboardInterrupt):
+        with interruptible():
+            thing = Collected()
+            weakref.finalize(thing, lambda: ran.append(True) or signal.pthread_kill(threading.get_ident(),
+                                                                                    signal.SIGINT))
+            del thing  # its callback takes the SIGINT's KeyboardInterrupt, which Python drops
+            sum(range(1000))  # the handler runs here, or in the callback
+    assert ran == [True]
