@@ -170,6 +170,7 @@ def test_a_run_killed_before_marking_a_shape_resumes_without_duplicates(tiny_stu
     assert counts(study) == whole
 
 
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # a Ctrl-C Python dropped
 def test_ctrl_c_stops_an_inner_search_and_keeps_finished_shapes(tiny_study: Path):
     config = load_study(tiny_study)
     study = open_study(config, optuna.storages.InMemoryStorage())
