@@ -19,6 +19,7 @@ from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Scene
 from optimizer.config.model_file import joint_law, load_yaml, read_text
 from optimizer.config.redact import redact_url
+from optimizer.config.yaml_fields import angle as _angle
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import mapping as _checked_mapping
 from optimizer.config.yaml_fields import number as _number
@@ -454,7 +455,7 @@ def _leg(data: Any, folder: Path | None = None) -> Leg | LegChain:
             if x <= 0:
                 raise ConfigError(f"{where}.{key}: must be > 0, got {x!r}")
             values[f"{rod}_{key}"] = x
-        values[angle_name] = _number(r.get("angle", getattr(d, angle_name)), f"{where}.angle")
+        values[angle_name] = _angle(r.get("angle", getattr(d, angle_name)), f"{where}.angle")
         com = _number(r.get("com", d.thigh_com), f"{where}.com")
         if not 0.0 <= com <= 1.0:
             raise ConfigError(f"{where}.com: must be in [0, 1] (a fraction of the length), got {com!r}")

@@ -139,3 +139,27 @@ def test_fuzzed_general_spatial_model_files(seed: int, tmp_path: Path, capsys) -
         _check(status, capsys.readouterr().err)
         invalid += status == 2
     assert invalid >= 10
+
+
+def _landing_model(duration: float = 0.005) -> dict:
+    """configs/landing_case3.yaml landing for ``duration`` s (each run well under a second)."""
+    data = yaml.safe_load((REPO / "configs" / "landing_case3.yaml").read_text())
+    data["scene"]["duration"] = duration
+    return data
+
+
+@pytest.mark.parametrize("key, value", [("angle", 1e12), ("angle", -1e308), ("rest", 1e12)])
+def test_a_far_angle_is_refused_not_run_forever(key: str, value: float, tmp_path: Path, capsys) -> None:
+    """Found by the fuzzer: a joint at 1e12 rad (finite) made a 5 ms landing run for ever, its
+    steps lost in the angle's rounding; a rest there took seconds to fail."""
+    data = _landing_model()
+    data["model"]["bodies"][7][key] = value
+    f = tmp_path / "far.yaml"
+    f.write_text(_dump(data), encoding="utf-8")
+    assert main(["evaluate", "--json", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert f"model.bodies[7].{key}: must be an angle within [-1e+06, 1e+06] rad" in err, err
+    study = yaml.safe_load(TINY_STUDY_YAML) | {"leg": {"thigh": {"angle": value}}}
+    f.write_text(_dump(study), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"leg.thigh.angle: must be an angle within"):
+        load_study(f)
