@@ -19,6 +19,7 @@ from optimizer.cli.main import main
 from optimizer.config.study_config import load_study
 from optimizer.errors import ConfigError
 from tests.optimizer.conftest import TINY_STUDY_YAML
+from tests.optimizer.imports.test_leg import SPATIAL_LEG, rod_urdf
 
 REPO = Path(__file__).resolve().parents[2]
 TOP = "scene|model|name|seed|storage|design_space|constraints|objectives|search|leg|notes|reference|the top level"
@@ -163,3 +164,15 @@ def test_a_far_angle_is_refused_not_run_forever(key: str, value: float, tmp_path
     f.write_text(_dump(study), encoding="utf-8")
     with pytest.raises(ConfigError, match=r"leg.thigh.angle: must be an angle within"):
         load_study(f)
+
+
+def test_a_urdf_loop_is_refused_not_walked_for_ever(tmp_path: Path, capsys) -> None:
+    """Found by the fuzzer: a joint whose parent hangs below its child made ``footopt import`` walk
+    the loop for ever."""
+    text = rod_urdf(SPATIAL_LEG).replace('<parent link="hip"/><child link="thigh"/>',
+                                         '<parent link="shank"/><child link="thigh"/>')
+    src = tmp_path / "loop.urdf"
+    src.write_text(text, encoding="utf-8")
+    assert main(["import", str(src), "--root", "base", "--ankle", "shank", "-o", str(tmp_path / "o.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert "joint 'thigh_joint': closes a loop (thigh <- shank <- thigh)" in err and err.count("\n") == 1, err
