@@ -103,7 +103,7 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         help=f"--model compliant: integration steps per period of the fastest contact oscillation (default "
-        f"{DEFAULT_STEPS_PER_PERIOD:g}; >= 4)",
+        f"{DEFAULT_STEPS_PER_PERIOD:g}; 4 to 1e5)",
     )
     p.add_argument(
         "--gravity",
