@@ -42,7 +42,8 @@ def add_export(subparsers: argparse._SubParsersAction) -> None:
         help="urdf or mjcf (default: from OUT's suffix, .urdf, or .xml / .mjcf for MJCF)",
     )
     p.add_argument("--stop-timestep", type=float, default=None, metavar="S",
-                   help="MJCF: tune the stops' stiff limits for MuJoCo steps of S seconds, 1e-8 to 1 (default: MuJoCo's "
+                   help="MJCF: tune the stops' stiff limits for MuJoCo steps of S seconds, 1e-8 to 1 "
+                        "(default: MuJoCo's "
                         "default step, 0.002; a longer step needs softer stops)")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     p.set_defaults(run=run_export)

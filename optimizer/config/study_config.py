@@ -17,6 +17,7 @@ from typing import Any
 
 from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Scene
+from impulse_core.timedomain.events.settings import MIN_TOLERANCE
 from optimizer.config.model_file import joint_law, load_yaml, read_text
 from optimizer.config.redact import redact_url
 from optimizer.config.yaml_fields import angle as _angle
@@ -633,8 +634,16 @@ def _search(data: Any) -> SearchSettings:
         population=_integer(m.get("population", d.population), "search.population", minimum=2),
         front_points=_integer(inner.get("front_points", d.front_points), "search.inner.front_points", minimum=0),
         starts=_integer(inner.get("starts", d.starts), "search.inner.starts", minimum=1),
-        landing_tolerance=_positive(m.get("landing_tolerance", d.landing_tolerance), "search.landing_tolerance"),
+        landing_tolerance=_landing_tolerance(m.get("landing_tolerance", d.landing_tolerance)),
     )
+
+
+def _landing_tolerance(value: Any) -> float:
+    """``search.landing_tolerance``: a finite number >= MIN_TOLERANCE (finer never ends)."""
+    x = _number(value, "search.landing_tolerance")
+    if x < MIN_TOLERANCE:
+        raise ConfigError(f"search.landing_tolerance: must be >= {MIN_TOLERANCE:g} (relative), got {x!r}")
+    return x
 
 
 # --------------------------------------------------------------------------------------------
