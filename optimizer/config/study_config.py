@@ -20,6 +20,7 @@ from impulse_core.model.tree import Scene
 from impulse_core.timedomain.events.settings import MIN_TOLERANCE
 from optimizer.config.model_file import joint_law, load_yaml, read_text
 from optimizer.config.redact import redact_url
+from optimizer.config.yaml_fields import MAX_ANGLE
 from optimizer.config.yaml_fields import angle as _angle
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import mapping as _checked_mapping
@@ -361,9 +362,11 @@ def _distribution(value: Any, where: str) -> Distribution:
 
 
 def _check_draws(landings: Landings) -> None:
-    """Every drawn landing must be a valid scene: speed > 0, restitution in [0, 1], friction >= 0."""
+    """Every drawn landing must be a valid scene: speed > 0, restitution in [0, 1], friction >= 0,
+    a pitch within +-MAX_ANGLE (a model file's angles)."""
     draws = landings.draw()
-    bounds = {"speed": (0.0, math.inf, False), "restitution": (0.0, 1.0, True), "friction": (0.0, math.inf, True)}
+    bounds = {"speed": (0.0, math.inf, False), "restitution": (0.0, 1.0, True), "friction": (0.0, math.inf, True),
+              "pitch": (-MAX_ANGLE, MAX_ANGLE, True)}
     for j, name in enumerate(landings.names):
         if name not in bounds:
             continue
@@ -371,7 +374,7 @@ def _check_draws(landings: Landings) -> None:
         x = draws[:, j]
         bad = x[(x < lo) | (x > hi) | ((x == lo) & (not closed))]
         if bad.size:
-            raise ConfigError(f"landings.{name}: draws {bad[0]!r}, outside its range; narrow the distribution")
+            raise ConfigError(f"landings.{name}: draws {float(bad[0])!r}, outside its range; narrow the distribution")
 
 
 def _statistic(data: Any) -> tuple[tuple[Objective, Statistic], ...]:
