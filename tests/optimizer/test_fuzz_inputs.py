@@ -184,7 +184,8 @@ def test_a_urdf_loop_is_refused_not_walked_for_ever(tmp_path: Path, capsys) -> N
 
 #: What a line about a command-line option or a robot description names: the option, a link,
 #: joint, body, geom or site, or the XML line.
-WHERE = re.compile(r"^footopt: error: (--[\w-]+: |.*(?:(?:link|joint|body|geom|site)\b|line \d+|<\w+>|: cannot write: ))", re.M)
+WHERE = re.compile(r"^footopt: error: (--[\w-]+: |.*(?:(?:link|joint|body|geom|site)\b|line \d+|<\w+>|: cannot write: ))",
+                   re.M)
 LANDING_FLAGS = [["--tolerance", "1e-300"], ["--tolerance=-1"], ["--tolerance", "nan"], ["--tolerance", "1e300"],
                  ["--model", "compliant"], ["--model", "sequential"], ["--model", "lcp"], ["--plot", "drawing.txt"]]
 
@@ -226,7 +227,8 @@ def _landing_studies() -> list[dict]:
     from tests.optimizer.test_robust import ROBUST_YAML
 
     statistic = "{peak_external_norm: 'cvar:0.5', energy_absorbed: mean}"
-    texts = [TINY_LANDING_YAML, robust_yaml(statistic), ROBUST_YAML, (REPO / "configs" / "landing_study.yaml").read_text()]
+    texts = [TINY_LANDING_YAML, robust_yaml(statistic), ROBUST_YAML,
+             (REPO / "configs" / "landing_study.yaml").read_text()]
     return [yaml.safe_load(t) for t in texts]
 
 
@@ -253,7 +255,7 @@ def test_fuzzed_landing_study_files(seed: int, tmp_path: Path, capsys) -> None:
 def test_fuzzed_evaluations_over_landings(tmp_path: Path, capsys) -> None:
     """``footopt evaluate --landings STUDY MODEL``, the study or the model fuzzed (2 landings of 5 ms)."""
     rng = random.Random(600)
-    studies = [s for s in _landing_studies()[1:3]]
+    studies = _landing_studies()[1:3]
     for s in studies:
         s["landings"]["count"] = 2
     model = _landing_model()
@@ -275,7 +277,8 @@ _ELEMENT = re.compile(r"<(inertial|mass|inertia|origin|axis|parent|child|limit|j
 XML_VALUES = ["nan", "inf", "-1", "0", "abc", "", "1 2", "1e400", "-inf", "1 2 3 4", "0 0 0", "1e308"]
 MJCF_LEG = """<mujoco model="leg"><worldbody>
 <body name="base" pos="0 0 1"><freejoint/><inertial pos="0.1 0 0" mass="3" diaginertia="0.01 0.01 0.01"/>
- <body name="thigh" pos="0.2 0 0"><joint name="hip" type="hinge" axis="0 0 1" range="-1 1" stiffness="10" damping="0.1"/>
+ <body name="thigh" pos="0.2 0 0">
+  <joint name="hip" type="hinge" axis="0 0 1" range="-1 1" stiffness="10" damping="0.1"/>
   <inertial pos="0 -0.15 0" mass="1" diaginertia="0.008 0.0002 0.008"/>
   <body name="shank" pos="0 -0.3 0"><joint name="knee" type="hinge" axis="0 0 1" range="-2 0"/>
    <inertial pos="0 -0.1 0" mass="0.3" diaginertia="0.002 0.0001 0.002"/>
