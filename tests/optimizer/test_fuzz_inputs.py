@@ -184,8 +184,8 @@ def test_a_urdf_loop_is_refused_not_walked_for_ever(tmp_path: Path, capsys) -> N
 
 #: What a line about a command-line option or a robot description names: the option, a link,
 #: joint, body, geom or site, or the XML line.
-WHERE = re.compile(r"^footopt: error: (--[\w-]+: |.*(?:(?:link|joint|body|geom|site)\b|line \d+|<\w+>|: cannot write: ))",
-                   re.M)
+WHERE = re.compile(r"^footopt: error: (--[\w-]+: |.*(?:(?:link|joint|body|geom|site)\b|line \d+|<\w+>"
+                   r"|: cannot write: ))", re.M)
 LANDING_FLAGS = [["--tolerance", "1e-300"], ["--tolerance=-1"], ["--tolerance", "nan"], ["--tolerance", "1e300"],
                  ["--model", "compliant"], ["--model", "sequential"], ["--model", "lcp"], ["--plot", "drawing.txt"]]
 
