@@ -125,6 +125,13 @@ class CompliantStatus(Enum):
     TIMEOUT = "timeout"  # max_time reached with a contact still loaded or approaching
 
 
+#: The contact stiffness a run accepts (N/m, or 1/s^2 for the constraint law): stiffer, its steps
+#: vanish beside the time and a drop never ends (1e300); softer, the bodies sink through the ground.
+STIFFNESS_RANGE = (1.0, 1.0e16)
+#: Steps per period of the fastest contact oscillation a run accepts: 1e5 already takes seconds.
+STEPS_PER_PERIOD_RANGE = (4.0, 1.0e5)
+
+
 @dataclass(frozen=True)
 class CompliantSettings:
     """Parameters of the compliant rung.
@@ -167,13 +174,15 @@ class CompliantSettings:
 
     def __post_init__(self) -> None:
         checks = (
-            (math.isfinite(self.stiffness) and self.stiffness > 0, "stiffness", "must be > 0"),
+            (STIFFNESS_RANGE[0] <= self.stiffness <= STIFFNESS_RANGE[1], "stiffness",
+             f"must be in [{STIFFNESS_RANGE[0]:g}, {STIFFNESS_RANGE[1]:g}]"),
             (
                 self.damping_ratio is None or (math.isfinite(self.damping_ratio) and self.damping_ratio >= 0),
                 "damping_ratio",
                 "must be >= 0 or None",
             ),
-            (math.isfinite(self.steps_per_period) and self.steps_per_period >= 4, "steps_per_period", "must be >= 4"),
+            (STEPS_PER_PERIOD_RANGE[0] <= self.steps_per_period <= STEPS_PER_PERIOD_RANGE[1], "steps_per_period",
+             f"must be in [{STEPS_PER_PERIOD_RANGE[0]:g}, {STEPS_PER_PERIOD_RANGE[1]:g}]"),
             (self.timestep is None or (math.isfinite(self.timestep) and self.timestep > 0), "timestep", "must be > 0"),
             (
                 self.flight_step is None or (math.isfinite(self.flight_step) and self.flight_step > 0),
@@ -1437,6 +1446,8 @@ def simulate_to_tolerance(
 
 
 __all__ = [
+    "STEPS_PER_PERIOD_RANGE",
+    "STIFFNESS_RANGE",
     "TOUCHDOWN_CLEARANCE",
     "CompliantResult",
     "CompliantSettings",

@@ -28,7 +28,7 @@ from impulse_core.errors import FootoptError, NumericalError
 from impulse_core.evaluate import pre_impact_velocity
 from impulse_core.kinematics.spatial import PLANAR, SPATIAL, Space
 from impulse_core.model.joints import JointLaw
-from impulse_core.timedomain.compliant import CompliantSettings, ContactLaw, simulate_impact
+from impulse_core.timedomain.compliant import STIFFNESS_RANGE, CompliantSettings, ContactLaw, simulate_impact
 from optimizer.cli.status import EXIT_FAILURE, EXIT_OK, EXIT_USAGE, warn
 from optimizer.cli.status import error as _error
 from optimizer.report.text import contact_names, joint_names
@@ -71,8 +71,9 @@ def run_drop(args: argparse.Namespace) -> int:
     except ImportError:
         _error("footopt drop", "needs MuJoCo: pip install mujoco")
         return EXIT_USAGE
-    if not (args.stiffness > 0 and np.isfinite(args.stiffness)):
-        _error("--stiffness", f"must be a finite number > 0 (1/s^2), got {args.stiffness}")
+    lo, hi = STIFFNESS_RANGE
+    if not lo <= args.stiffness <= hi:
+        _error("--stiffness", f"must be in [{lo:g}, {hi:g}] (1/s^2), got {args.stiffness}")
         return EXIT_USAGE
     try:
         model = load_model_file(args.model)

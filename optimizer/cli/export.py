@@ -7,7 +7,6 @@ exists (without ``--force``), one line on stderr naming the file or the option.
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 from impulse_core.errors import FootoptError
@@ -43,7 +42,8 @@ def add_export(subparsers: argparse._SubParsersAction) -> None:
         help="urdf or mjcf (default: from OUT's suffix, .urdf, or .xml / .mjcf for MJCF)",
     )
     p.add_argument("--stop-timestep", type=float, default=None, metavar="S",
-                   help="MJCF: tune the stops' stiff limits for MuJoCo steps of S seconds (default: MuJoCo's "
+                   help="MJCF: tune the stops' stiff limits for MuJoCo steps of S seconds, 1e-8 to 1 "
+                        "(default: MuJoCo's "
                         "default step, 0.002; a longer step needs softer stops)")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     p.set_defaults(run=run_export)
@@ -52,15 +52,16 @@ def add_export(subparsers: argparse._SubParsersAction) -> None:
 def run_export(args: argparse.Namespace) -> int:
     """``footopt export``."""
     from optimizer.config.model_file import load_model_file
-    from optimizer.results.export import ExportFormat, export_text
+    from optimizer.results.export import STOP_TIMESTEP_RANGE, ExportFormat, export_text
 
     name = args.format or _SUFFIXES.get(Path(args.out).suffix.lower())
     if name is None:
         _error("--format", f"give urdf or mjcf (the suffix of {args.out} names neither)")
         return EXIT_USAGE
     step = args.stop_timestep
-    if step is not None and not (math.isfinite(step) and step > 0):
-        _error("--stop-timestep", f"must be a time step > 0 (s), got {step!r}")
+    lo, hi = STOP_TIMESTEP_RANGE
+    if step is not None and not lo <= step <= hi:
+        _error("--stop-timestep", f"must be a time step in [{lo:g}, {hi:g}] (s), got {step!r}")
         return EXIT_USAGE
     try:
         model = load_model_file(args.model)

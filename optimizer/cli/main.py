@@ -35,6 +35,7 @@ from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
 from optimizer.errors import ConfigError, interrupted
 from optimizer.interrupts import check_interrupt, interruptible
+from impulse_core.timedomain.events.settings import MIN_TOLERANCE
 from impulse_core.timedomain.landing import AUTO_CODE, LandingProgress, LandingSettings
 from optimizer.evaluation.model_choice import COMPLIANT, LANDING, MODEL_CHOICES, TIME_DOMAIN_MODELS, evaluate_landing
 from optimizer.report.plot import PLOT_SUFFIXES, plot_speed, plot_touchdown, plot_views
@@ -103,7 +104,7 @@ def _add_evaluate(subparsers: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         help=f"--model compliant: integration steps per period of the fastest contact oscillation (default "
-        f"{DEFAULT_STEPS_PER_PERIOD:g}; >= 4)",
+        f"{DEFAULT_STEPS_PER_PERIOD:g}; 4 to 1e5)",
     )
     p.add_argument(
         "--gravity",
@@ -464,6 +465,9 @@ def _time_domain_options(
     tolerance = LandingSettings().tolerance if args.tolerance is None else args.tolerance
     if not (np.isfinite(tolerance) and tolerance > 0):
         _error("--tolerance", f"must be a finite number > 0 (relative), got {tolerance!r}")
+        return None
+    if args.model != COMPLIANT and tolerance < MIN_TOLERANCE:  # the compliant rung warns when unmet
+        _error("--tolerance", f"a landing's must be >= {MIN_TOLERANCE:g} (finer never ends), got {tolerance!r}")
         return None
     gravity = 0.0 if args.gravity is None else args.gravity
     if not (np.isfinite(gravity) and gravity >= 0):

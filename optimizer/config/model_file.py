@@ -47,6 +47,7 @@ from impulse_core.model.tree import (
     Tree,
     tensor_problem,
 )
+from optimizer.config.yaml_fields import angle as _angle
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import join as _join
 from optimizer.config.yaml_fields import mapping as _mapping
@@ -459,7 +460,7 @@ def joint_law(b: dict[str, Any], where: str) -> JointLaw:
     law = JointLaw(
         stiffness=_number(b.get("stiffness", 0.0), f"{where}.stiffness"),
         damping=_number(b.get("damping", 0.0), f"{where}.damping"),
-        rest=None if b.get("rest") is None else _number(b["rest"], f"{where}.rest"),
+        rest=None if b.get("rest") is None else _angle(b["rest"], f"{where}.rest"),
         limits=limits,
         stop_restitution=_number(b.get("stop_restitution", 0.0), f"{where}.stop_restitution"),
     )
@@ -568,7 +569,7 @@ def _parse_body(
     parent = _parse_parent(b, i, names, entries, where)
     length = _positive(_required(b, "length", where), f"{where}.length")
     mass = _positive(_required(b, "mass", where), f"{where}.mass")
-    angle = _number(_required(b, "angle", where), f"{where}.angle")
+    angle = _angle(_required(b, "angle", where), f"{where}.angle")
     at = _fraction(b.get("at", 1.0), f"{where}.at", "a fraction of the parent's length")
     joint = _choice(b.get("joint", JointKind.REVOLUTE.value), f"{where}.joint", JointKind, "joint kind")
     com = _fraction(b.get("com", UNIFORM_COM), f"{where}.com", "a fraction of the body's length")

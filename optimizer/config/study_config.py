@@ -17,8 +17,11 @@ from typing import Any
 
 from impulse_core.model.joints import FREE
 from impulse_core.model.tree import Scene
+from impulse_core.timedomain.events.settings import MIN_TOLERANCE
 from optimizer.config.model_file import joint_law, load_yaml, read_text
 from optimizer.config.redact import redact_url
+from optimizer.config.yaml_fields import MAX_ANGLE
+from optimizer.config.yaml_fields import angle as _angle
 from optimizer.config.yaml_fields import describe as _describe
 from optimizer.config.yaml_fields import mapping as _checked_mapping
 from optimizer.config.yaml_fields import number as _number
@@ -359,9 +362,11 @@ def _distribution(value: Any, where: str) -> Distribution:
 
 
 def _check_draws(landings: Landings) -> None:
-    """Every drawn landing must be a valid scene: speed > 0, restitution in [0, 1], friction >= 0."""
+    """Every drawn landing must be a valid scene: speed > 0, restitution in [0, 1], friction >= 0,
+    a pitch within +-MAX_ANGLE (a model file's angles)."""
     draws = landings.draw()
-    bounds = {"speed": (0.0, math.inf, False), "restitution": (0.0, 1.0, True), "friction": (0.0, math.inf, True)}
+    bounds = {"speed": (0.0, math.inf, False), "restitution": (0.0, 1.0, True), "friction": (0.0, math.inf, True),
+              "pitch": (-MAX_ANGLE, MAX_ANGLE, True)}
     for j, name in enumerate(landings.names):
         if name not in bounds:
             continue
@@ -369,7 +374,7 @@ def _check_draws(landings: Landings) -> None:
         x = draws[:, j]
         bad = x[(x < lo) | (x > hi) | ((x == lo) & (not closed))]
         if bad.size:
-            raise ConfigError(f"landings.{name}: draws {bad[0]!r}, outside its range; narrow the distribution")
+            raise ConfigError(f"landings.{name}: draws {float(bad[0])!r}, outside its range; narrow the distribution")
 
 
 def _statistic(data: Any) -> tuple[tuple[Objective, Statistic], ...]:
@@ -454,7 +459,7 @@ def _leg(data: Any, folder: Path | None = None) -> Leg | LegChain:
             if x <= 0:
                 raise ConfigError(f"{where}.{key}: must be > 0, got {x!r}")
             values[f"{rod}_{key}"] = x
-        values[angle_name] = _number(r.get("angle", getattr(d, angle_name)), f"{where}.angle")
+        values[angle_name] = _angle(r.get("angle", getattr(d, angle_name)), f"{where}.angle")
         com = _number(r.get("com", d.thigh_com), f"{where}.com")
         if not 0.0 <= com <= 1.0:
             raise ConfigError(f"{where}.com: must be in [0, 1] (a fraction of the length), got {com!r}")
@@ -632,8 +637,16 @@ def _search(data: Any) -> SearchSettings:
         population=_integer(m.get("population", d.population), "search.population", minimum=2),
         front_points=_integer(inner.get("front_points", d.front_points), "search.inner.front_points", minimum=0),
         starts=_integer(inner.get("starts", d.starts), "search.inner.starts", minimum=1),
-        landing_tolerance=_positive(m.get("landing_tolerance", d.landing_tolerance), "search.landing_tolerance"),
+        landing_tolerance=_landing_tolerance(m.get("landing_tolerance", d.landing_tolerance)),
     )
+
+
+def _landing_tolerance(value: Any) -> float:
+    """``search.landing_tolerance``: a finite number >= MIN_TOLERANCE (finer never ends)."""
+    x = _number(value, "search.landing_tolerance")
+    if x < MIN_TOLERANCE:
+        raise ConfigError(f"search.landing_tolerance: must be >= {MIN_TOLERANCE:g} (relative), got {x!r}")
+    return x
 
 
 # --------------------------------------------------------------------------------------------

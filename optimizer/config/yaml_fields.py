@@ -71,6 +71,19 @@ def number(value: Any, where: str) -> float:
     return x
 
 
+#: The largest |angle| (rad) a file may give a joint or its spring's rest: far beyond, a landing's
+#: steps are lost in the angle's rounding (at 1e12 rad a 1e-4 rad step is) and it never ends.
+MAX_ANGLE = 1.0e6
+
+
+def angle(value: Any, where: str) -> float:
+    """A finite angle (rad) within +-MAX_ANGLE."""
+    x = number(value, where)
+    if abs(x) > MAX_ANGLE:
+        raise ConfigError(f"{where}: must be an angle within [-{MAX_ANGLE:g}, {MAX_ANGLE:g}] rad, got {x!r}")
+    return x
+
+
 def string(value: Any, where: str) -> str:
     """A non-empty string."""
     if not isinstance(value, str) or not value.strip():

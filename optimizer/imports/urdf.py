@@ -56,7 +56,19 @@ def read_urdf(path: Path, text: str) -> Description:
         axis = unit(axis, f"{where}.axis", path) if kind == REVOLUTE else np.array([1.0, 0.0, 0.0])
         dynamics = _dynamics(el, where, path) if kind == REVOLUTE else Dynamics()
         joints[child] = Joint(name, kind, parent, child, xyz, rotation_rpy(tuple(rpy)), axis, dynamics)
+    _check_tree(joints, path)
     return Description(path, "URDF", links, joints)
+
+
+def _check_tree(joints: dict[str, Joint], path: Path) -> None:
+    """ConfigError naming a joint whose chain of parents comes back to its own child: a URDF is a tree."""
+    for child, joint in joints.items():
+        chain, link = [child], joint.parent
+        while link in joints and len(chain) <= len(joints):
+            chain.append(link)
+            if link == child:
+                raise ConfigError(f"joint '{joint.name}': closes a loop ({' <- '.join(chain)}): a URDF is a tree", path)
+            link = joints[link].parent
 
 
 def _dynamics(el: ET.Element, where: str, path: Path) -> Dynamics:

@@ -72,6 +72,9 @@ GRAVITY = 9.81
 VISUAL_RADIUS = 0.005
 #: MuJoCo's default time step (s), which the exported MJCF keeps: its stops are tuned for it.
 STOP_TIMESTEP = 0.002
+#: The MuJoCo steps (s) the stops can be tuned for: at 1e300 s their solreflimit was -0.0, at
+#: 1e-300 s -inf (not a number MuJoCo reads).
+STOP_TIMESTEP_RANGE = (1.0e-8, 1.0)
 #: Time steps per period of a stop's spring (MuJoCo's semi-implicit Euler step): the stop's
 #: rebound ratio is within 0.035 of its restitution at this step, whatever the phase of the step
 #: at which it closes, converging as the step shrinks (tests/optimizer/test_export.py).

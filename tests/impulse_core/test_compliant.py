@@ -78,6 +78,9 @@ def test_friction_and_bad_settings_are_refused():
         simulate_impact(rod(), Scene(friction=0.5))
     with pytest.raises(ModelError, match=r"compliant\.stiffness"):
         CompliantSettings(stiffness=-1.0)
+    for bad in ({"stiffness": 1e300}, {"stiffness": 1e-300}, {"steps_per_period": 1e300}):  # 1e300: ran for ever
+        with pytest.raises(ModelError, match=rf"compliant\.{next(iter(bad))}: must be in \["):
+            CompliantSettings(**bad)
     with pytest.raises(ModelError, match=r"compliant\.impedance"):
         CompliantSettings(impedance=1.0)
 

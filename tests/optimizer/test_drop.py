@@ -52,7 +52,11 @@ def test_the_table_names_the_contact_settings(capsys):
     assert "solref (-1e+07" in out and "heel[0]" in out and "MuJoCo" in out
 
 
-@pytest.mark.parametrize("args, where", [(["--stiffness", "-1"], "--stiffness"), ([], "nothere.yaml")])
+@pytest.mark.parametrize("args, where", [
+    (["--stiffness", "-1"], "--stiffness"), ([], "nothere.yaml"),
+    (["--stiffness", "1e300"], "--stiffness: must be in [1, 1e+16]"),  # the fuzzer's: ran for ever
+    (["--stiffness", "1e-300"], "--stiffness: must be in [1, 1e+16]"),  # the fuzzer's: a LinAlgError traceback
+])
 def test_bad_input_exits_2_naming_it(args, where, capsys, tmp_path):
     model = str(tmp_path / "nothere.yaml") if not args else str(REPO / "configs" / "paper_case2.yaml")
     assert main(["drop", model, *args]) == 2

@@ -112,6 +112,8 @@ def test_tolerance_applies_to_the_landing_only(tmp_path, capsys):
     assert "--tolerance: applies to --model landing" in capsys.readouterr().err
     assert main(["evaluate", "--tolerance", "-1", str(path)]) == 2
     assert "--tolerance: must be a finite number > 0" in capsys.readouterr().err
+    assert main(["evaluate", "--tolerance", "1e-300", str(path)]) == 2  # the fuzzer's: halved its steps for ever
+    assert "--tolerance: a landing's must be >= 1e-12" in capsys.readouterr().err
     d = _json(capsys, "--tolerance", "1e-6", str(path))
     assert d["tolerance"] == 1e-6 and d["error_estimate"] <= 1e-6
 

@@ -161,6 +161,7 @@ def test_export_tunes_the_stops_for_a_stated_step(tmp_path, capsys):
     ratios = np.array([rebound_ratio(m, p) for p in np.linspace(0.05, 0.95, 5)])
     assert np.max(np.abs(ratios - e)) <= AT_STEP
     capsys.readouterr()
-    assert main(["export", str(model), "-o", str(tmp_path / "x.xml"), "--stop-timestep", "-1"]) == 2
-    err = capsys.readouterr().err
-    assert "--stop-timestep" in err and len(err.strip().splitlines()) == 1
+    for bad in ("-1", "1e300", "1e-300"):  # the fuzzer's 1e300 and 1e-300 wrote solreflimit -0.0 and -inf, exit 0
+        assert main(["export", str(model), "-o", str(tmp_path / "x.xml"), f"--stop-timestep={bad}"]) == 2
+        err = capsys.readouterr().err
+        assert "--stop-timestep: must be a time step in [1e-08, 1]" in err and len(err.strip().splitlines()) == 1

@@ -82,7 +82,8 @@ BAD = [
     ("design_space: {joint_laws: {toe_root: {stop: [0, 0.2]}}}\n", "design_space.joint_laws.toe_root.stop[0]: must be > 0"),
     ("design_space: {joint_laws: {toe_root: {damping: [2, 1]}}}\n", "design_space.joint_laws.toe_root.damping: min 2"),
     ("design_space: {joint_laws: {toe_tip: {damping: [1, 2]}}}\n", "design_space.joint_laws.toe_tip: unknown key"),
-    ("search: {landing_tolerance: 0}\n", "search.landing_tolerance: must be a finite number > 0"),
+    ("search: {landing_tolerance: 0}\n", "search.landing_tolerance: must be >= 1e-12"),
+    ("search: {landing_tolerance: 1.0e-300}\n", "search.landing_tolerance: must be >= 1e-12"),  # ran for ever
     ("leg: {thigh: {mass: 0}}\n", "leg.thigh.mass: must be > 0"),
     ("leg: {shank: {angle: up}}\n", "leg.shank.angle: must be a number, got 'up'"),
     ("design_space: {toes: [3, 1]}\n", "design_space.toes: min 3 is above max 1"),

@@ -195,8 +195,10 @@ def test_bad_terrain_exits_2_with_its_yaml_path(write, line: str, start: str, ca
         (["--law", "constraint"], "--law", "applies to --model compliant only"),
         (["--model", "sequential", "--steps-per-period", "30"], "--steps-per-period", "applies to --model compliant"),
         (["--model", "lcp", "--gravity", "9.81"], "--gravity", "applies to --model sequential or compliant only"),
-        (["--model", "compliant", "--stiffness", "-1"], "--stiffness", "must be > 0"),
-        (["--model", "compliant", "--steps-per-period", "2"], "--steps-per-period", "must be >= 4"),
+        (["--model", "compliant", "--stiffness", "-1"], "--stiffness", "must be in [1, 1e+16]"),
+        (["--model", "compliant", "--stiffness", "1e300"], "--stiffness", "must be in [1, 1e+16]"),  # ran for ever
+        (["--model", "compliant", "--steps-per-period", "2"], "--steps-per-period", "must be in [4, 100000]"),
+        (["--model", "compliant", "--steps-per-period", "1e300"], "--steps-per-period", "must be in [4, 100000]"),
         (["--model", "sequential", "--gravity", "-9.81"], "--gravity", "must be a finite number >= 0"),
     ],
 )

@@ -25,6 +25,9 @@ MIN_BOUNCE = 1e-6
 SETTLE_SPEED = 1e-3
 #: Events after which the landing is abandoned (a chattering contact).
 MAX_EVENTS = 20000
+#: The finest tolerance a landing accepts: below, rounding keeps two runs from agreeing and the
+#: step halving never ends (1e-14 on a 10 ms landing ran for ever; 1e-12 takes 3 s).
+MIN_TOLERANCE = 1e-12
 #: The integrators between events (:attr:`LandingSettings.integrator`).
 RK4, IMPLICIT, RADAU, AUTO = "rk4", "implicit", "radau", "auto"
 #: RK4's stable step times the joint laws' fastest rate at touchdown (:func:`joint_law_rate`):
