@@ -36,8 +36,8 @@ Nothing of footopt's dynamics, events or impact solvers is used: the mass matrix
 effects and the contact Jacobians are Pinocchio's (:mod:`.pinocchio_bridge`'s tree). Only the model
 file's reading (the tree, its touchdown configuration and velocity, the joint laws' arrays) is
 shared. :func:`moreau_jean_landing` returns what ``footopt evaluate --json`` reports of a landing
-that a comparison uses: the final angles, base and velocity, each contact's total normal impulse,
-the largest step impulse (an impact's, plus at most h times the resting forces).
+that a comparison uses: the final angles, base and velocity, each contact's total normal and
+tangential impulses, the largest step impulse (an impact's, plus at most h times the resting forces).
 """
 
 from __future__ import annotations
@@ -80,6 +80,7 @@ class MoreauJeanLanding:
     final_base: np.ndarray  # x, y (space: x, y, z) of the base origin
     final_velocity: np.ndarray  # footopt's generalized velocity (space: the base's in the world frame)
     total_external: np.ndarray  # per contact, the normal impulse over [0, T] (N s)
+    total_tangential: np.ndarray  # per contact, the tangential impulse over [0, T] (along x; space: x, z)
     peak_external_norm: float  # the largest |P_n| over the steps (N s)
     sweeps: int  # the most Gauss-Seidel sweeps a step took
 
@@ -379,6 +380,7 @@ def moreau_jean_landing(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], st
     theta = q0[2]  # the base angle, followed continuously (not wrapped)
     turn = np.zeros(3)  # space: the base's rotation vector since touchdown, followed continuously
     total, peak, most = np.zeros(len(leg.frames)), 0.0, 0
+    tangential = np.zeros((len(leg.frames), 2 if spatial else 1))
     kept: dict = {}  # the step before's impulses by row: where it rests, and the next solve's start
     for n in range(max(1, round(float(scene.duration) / step))):
         M = crba_mass_matrix(model, data, q)
@@ -396,6 +398,7 @@ def moreau_jean_landing(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], st
                 trace.append((n * step, rows.contacts, rows.stops, P, after))
             on = P[: rows.contacts.size]
             total[rows.contacts] += on
+            tangential[rows.friction] += P[rows.normals:].reshape(-1, rows.tangents)
             peak = max(peak, float(np.linalg.norm(on)))
             resting = rows.contacts[(on > 0) & (after[: rows.contacts.size] <= PLASTIC_SPEED)]  # not a rebound
         else:
@@ -411,8 +414,8 @@ def moreau_jean_landing(tree: Tree, scene: Scene, laws: tuple[JointLaw, ...], st
     layout = dof_layout(tree.topology(), space)
     angles = np.array(base + [b.angle if d is None else q[j[d - nb]] for b, d in zip(tree.bodies[1:],
                                                                                    layout.body_dof[1:])])
-    return MoreauJeanLanding(step, angles, q[: 3 if spatial else 2].copy(), _velocity_map(leg, q) @ v, total, peak,
-                             most)
+    return MoreauJeanLanding(step, angles, q[: 3 if spatial else 2].copy(), _velocity_map(leg, q) @ v, total,
+                             tangential if spatial else tangential[:, 0], peak, most)
 
 
 #: space: the steps between two readings of the base's rotation vector (each continues the one
