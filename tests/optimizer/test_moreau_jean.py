@@ -71,7 +71,7 @@ def _spatial_gaps(seed: int, steps: tuple[float, ...], **changes):  # type: igno
     """Per peer step on ``settled_posture.py``'s spatial leg ``seed`` (its scene with ``changes``):
     footopt's landing's distance from the peer's (the posture frame-free, ``posture_gaps``: the
     larger of the base's relative turn and the largest joint gap, rad; each contact's total normal
-    and tangential impulses, relative), and the peer's landings."""
+    and tangential impulses, relative; the final velocity, relative), and the peer's landings."""
     study = study_module("settled_posture")
     tree, laws, scene = study.random_spatial_leg(seed)
     scene = replace(scene, **changes)
@@ -84,7 +84,8 @@ def _spatial_gaps(seed: int, steps: tuple[float, ...], **changes):  # type: igno
         rows.append((max(turn, joints),
                      float(np.max(np.abs(peer.total_external - ours.total_external)) / np.max(ours.total_external)),
                      float(np.max(np.abs(peer.total_tangential - ours.total_tangential)) / tangential)
-                     if tangential > 0 else 0.0))
+                     if tangential > 0 else 0.0,
+                     float(np.max(np.abs(peer.final_velocity - ours.v_final)) / np.max(np.abs(ours.v_final)))))
         peers.append(peer)
     return rows, peers
 
@@ -93,9 +94,10 @@ def test_a_spatial_leg_dropped_straight_agrees_with_moreau_jean():
     """``settled_posture.py --spatial``'s leg 3 (a body with a welded cross on three sprung chains,
     frictionless, restitution 0.19) over its first 50 ms: the spatial peer (a free-flyer base) at
     4e-5 and 2e-5 s is 6.1e-5 and 3.1e-5 rad from footopt's posture (first order), 1e-4 and 5e-5
-    of its contact totals."""
+    of its contact totals, 3.0e-4 and 1.5e-4 of its final velocity (the base's in the world
+    frame)."""
     (coarse, fine), _ = _spatial_gaps(3, (4e-5, 2e-5), duration=0.05)
-    assert fine[0] < 4e-5 and fine[1] < 1e-4
+    assert fine[0] < 4e-5 and fine[1] < 1e-4 and fine[3] < 3e-4
     assert fine[0] < 0.6 * coarse[0]
 
 
@@ -104,10 +106,10 @@ def test_a_spatial_leg_sliding_obliquely_agrees_with_moreau_jean():
     80 ms: its tips slide along the diagonal, where a square cone (|t_x|, |t_z| <= mu n) would hold
     more than the circular one. The peer at 4e-5 and 2e-5 s is 6.0e-5 and 3.0e-5 rad from
     footopt's posture, its tangential totals (x and z per contact, footopt's ``total_tangential``)
-    1.2e-4 and 5.8e-5 apart."""
+    1.2e-4 and 5.8e-5 apart, its final velocity 2.1e-4 and 1.0e-4."""
     (coarse, fine), _ = _spatial_gaps(1, (4e-5, 2e-5), duration=0.08, friction=0.3, velocity_x=0.7,
                                       velocity_z=-0.7)
-    assert fine[0] < 4e-5 and fine[1] < 1e-4 and fine[2] < 1e-4
+    assert fine[0] < 4e-5 and fine[1] < 1e-4 and fine[2] < 1e-4 and fine[3] < 3e-4
     assert fine[0] < 0.6 * coarse[0] and fine[2] < 0.6 * coarse[2]
 
 
