@@ -222,21 +222,59 @@ def _cone_contact(A: np.ndarray, inverse: np.ndarray, b: np.ndarray, mu: float, 
     the normal's restitution target included), 0 <= u_n _|_ r_n >= 0, |r_t| <= mu r_n, u_t = 0
     inside the cone, r_t = -mu r_n u_t / |u_t| on its edge. Tried in turn: separating (b_n >= 0),
     sticking (r = -A^-1 b inside the cone), sliding (:func:`_sliding`, from ``guess``'s direction,
-    the impulse before, or the sticking answer's)."""
+    the impulse before, then from the sticking answer's)."""
     if b[0] >= 0.0:
         return np.zeros(3)
     r = -(inverse @ b)
     if r[0] > 0.0 and math.hypot(r[1], r[2]) <= mu * r[0]:
         return r
-    start = guess if math.hypot(guess[1], guess[2]) > 0.0 else r
-    return _sliding(A, b, mu, math.atan2(start[2], start[1]))
+    slip = _slow_slip(inverse, r, mu)
+    if slip is not None:
+        return slip
+    starts = [math.atan2(x[2], x[1]) for x in (guess, r) if math.hypot(x[1], x[2]) > 0.0]
+    return _sliding(A, b, mu, starts or [0.0])
 
 
-def _sliding(A: np.ndarray, b: np.ndarray, mu: float, theta: float) -> np.ndarray:
+def _slow_slip(inverse: np.ndarray, stick: np.ndarray, mu: float) -> np.ndarray | None:
+    """:func:`_cone_contact`'s slide continued from the sticking answer ``stick`` (outside the
+    cone): r = stick - s A^-1 (0, d) (the impulse that slip speed s along -d leaves, u_n = 0), on
+    the cone's edge along d (r_t = mu r_n d); Newton's method on (s, the angle of d) from s = 0
+    and d along stick's r_t. Its answers with s >= 0 are the law's (s < 0: u_t along +d, not
+    one); None where it ends elsewhere. A slow slip's answer is next to the start (for the angle
+    alone, a root of u_t x d with u_t against d within a narrow window of directions)."""
+    if math.hypot(stick[1], stick[2]) == 0.0:
+        return None
+    theta, s = math.atan2(stick[2], stick[1]), 0.0
+    scale = float(np.abs(stick).max())
+    for _ in range(NEWTON_STEPS):
+        c, si = math.cos(theta), math.sin(theta)
+        w = -(inverse[:, 1] * c + inverse[:, 2] * si)
+        dw = inverse[:, 1] * si - inverse[:, 2] * c
+        r = stick + s * w
+        F = np.array([r[1] - mu * r[0] * c, r[2] - mu * r[0] * si])
+        if float(np.abs(F).max()) <= 1e-15 * scale:
+            break
+        J = np.array([[w[1] - mu * w[0] * c, s * (dw[1] - mu * dw[0] * c) + mu * r[0] * si],
+                      [w[2] - mu * w[0] * si, s * (dw[2] - mu * dw[0] * si) - mu * r[0] * c]])
+        try:
+            ds, dtheta = np.linalg.solve(J, -F)
+        except np.linalg.LinAlgError:
+            return None
+        s, theta = s + ds, theta + dtheta
+    else:
+        return None
+    if s < 0.0 or r[0] < 0.0:
+        return None
+    return np.array([r[0], mu * r[0] * c, mu * r[0] * si])
+
+
+def _sliding(A: np.ndarray, b: np.ndarray, mu: float, starts: list[float]) -> np.ndarray:
     """The sliding answer of :func:`_cone_contact`: r_t = mu r_n d, d = (cos, sin) of an angle,
-    r_n from u_n = 0, and u_t(d) anti-parallel to d: Newton's method on g = u_t x d from
-    ``theta``; where it ends elsewhere (u_t along +d, or r_n <= 0), the root of g bracketed on a
-    scan of :data:`SCAN` directions (nearest to ``theta``) refined by bisection."""
+    r_n from u_n = 0, and u_t(d) anti-parallel to d: Newton's method on g = u_t x d from each of
+    ``starts`` in turn; where each ends elsewhere (u_t along +d, or r_n <= 0), the roots of g
+    bracketed on a scan of :data:`SCAN` directions, refined by bisection, the nearest to the first
+    start with u_t against d (a slow slip's root lies within a narrow window of directions with
+    u_t against d: the scan's neighbours need not have it)."""
     (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = A.tolist()
     b0, b1, b2 = b.tolist()
 
@@ -251,40 +289,44 @@ def _sliding(A: np.ndarray, b: np.ndarray, mu: float, theta: float) -> np.ndarra
             + u2 * s
         return rn, u1 * s - u2 * c, dg, u1 * c + u2 * s, den
 
-    scale = abs(b0) + abs(b1) + abs(b2)
-    for _ in range(NEWTON_STEPS):
+    tol = 1e-9 * (abs(b0) + abs(b1) + abs(b2))
+    for theta in starts:
+        for _ in range(NEWTON_STEPS):
+            rn, g, dg, along, den = at(theta)
+            if dg == 0.0:
+                break
+            theta -= g / dg
+            if abs(g / dg) <= NEWTON_TOL:
+                break
         rn, g, dg, along, den = at(theta)
-        if dg == 0.0:
+        if den > 0.0 and rn >= 0.0 and along <= tol and abs(g) <= tol:
             break
-        theta -= g / dg
-        if abs(g / dg) <= NEWTON_TOL:
-            break
-    rn, g, dg, along, den = at(theta)
-    if not (den > 0.0 and rn >= 0.0 and along <= 1e-9 * scale and abs(g) <= 1e-9 * scale):
-        theta = _scanned_root(at, theta)
+    else:
+        theta = _scanned_root(at, starts[0], tol)
         rn = at(theta)[0]
     return np.array([rn, mu * rn * math.cos(theta), mu * rn * math.sin(theta)])
 
 
-def _scanned_root(at, near: float) -> float:  # type: ignore[no-untyped-def]
-    """:func:`_sliding`'s fallback: the angle nearest ``near`` where g changes sign between two of
-    :data:`SCAN` directions with u_t against d and r_n > 0 at both, by bisection."""
-    angles = np.linspace(near - math.pi, near + math.pi, SCAN + 1)
+def _scanned_root(at, near: float, tol: float) -> float:  # type: ignore[no-untyped-def]
+    """:func:`_sliding`'s fallback: the roots of g between two of :data:`SCAN` directions with
+    r_n >= 0 at both, by bisection; the nearest to ``near`` with u_t against d (within ``tol``)."""
+    cell = 2.0 * math.pi / SCAN
+    angles = near - math.pi + cell * np.arange(SCAN + 2)  # a turn and a cell: a root at the ends is inside one
     values = [at(float(t)) for t in angles]
-    ok = [v[4] > 0.0 and v[0] >= 0.0 and v[3] <= 0.0 for v in values]
-    brackets = [k for k in range(SCAN) if ok[k] and ok[k + 1] and values[k][1] * values[k + 1][1] <= 0.0]
-    if not brackets:
-        raise FloatingPointError("the circular cone's one-contact law has no sliding answer")
-    k = min(brackets, key=lambda k: abs(angles[k] - near))
-    lo, hi, g_lo = float(angles[k]), float(angles[k + 1]), values[k][1]
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        g = at(mid)[1]
-        if (g <= 0.0) == (g_lo <= 0.0):
-            lo, g_lo = mid, g
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+    ok = [v[4] > 0.0 and v[0] >= 0.0 for v in values]
+    brackets = [k for k in range(SCAN + 1) if ok[k] and ok[k + 1] and values[k][1] * values[k + 1][1] <= 0.0]
+    for k in sorted(brackets, key=lambda k: abs(angles[k] - near)):
+        lo, hi, g_lo = float(angles[k]), float(angles[k + 1]), values[k][1]
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            g = at(mid)[1]
+            if (g <= 0.0) == (g_lo <= 0.0):
+                lo, g_lo = mid, g
+            else:
+                hi = mid
+        if at(0.5 * (lo + hi))[3] <= tol:
+            return 0.5 * (lo + hi)
+    raise FloatingPointError("the circular cone's one-contact law has no sliding answer")
 
 
 @dataclass(frozen=True)
