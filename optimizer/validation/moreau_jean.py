@@ -10,10 +10,11 @@ takes fixed steps instead and solves, at every step, the contact law at the velo
     0 <= U_n+ + e U_n  _|_  P_n >= 0,    |P_t| <= mu P_n with U_t+ = 0 or P_t = -mu P_n sign(U_t+),
 
 U = J v the rows' velocities (contact normals and tangents, the stops' joint rates), e Newton's
-coefficient; in space |P_t| and U_t are 2-vectors (world x and z), the cone circular (isotropic
-Coulomb, ``MODEL_FORMAT.md``) and a sliding P_t = -mu P_n U_t+ / |U_t+|. Impacts and resting contact are the same law at the step's scale, and the scheme
-converges at first order in h to the rigid landing, Zeno cascades included (Acary & Brogliato,
-sec. 10.1). The rows and the law at a step:
+coefficient; in space P_t and U_t are 2-vectors (world x and z), the cone circular (isotropic
+Coulomb, ``MODEL_FORMAT.md``) and a sliding P_t = -mu P_n U_t+ / |U_t+|. Impacts and resting
+contact are the same law at the step's scale, and the scheme converges at first order in h to the
+rigid landing, Zeno cascades included (Acary & Brogliato, sec. 10.1). The rows and the law at a
+step:
 
 - active: the rows whose gap the step would close, and those loaded in the step before while their
   gap stays within :data:`REST_GAP`;
@@ -57,7 +58,9 @@ from impulse_core.model.tree import Scene, Tree
 from impulse_core.timedomain.compliant import chart_rotation, continued_rotation_vector, touchdown_configuration
 from impulse_core.timedomain.events.point import joint_arrays
 from impulse_core.timedomain.events.settings import PLASTIC_SPEED
-from optimizer.validation.pinocchio_bridge import build, build_spatial, crba_mass_matrix, velocity_map
+from optimizer.validation.pinocchio_bridge import (
+    build, build_spatial, crba_mass_matrix, spatial_velocity_map, velocity_map,
+)
 
 #: Nonsmooth Gauss-Seidel: sweeps at most, and the change of the impulses (relative) that ends them.
 SWEEPS, SWEEP_TOL = 2000, 1e-13
@@ -120,18 +123,11 @@ def _leg(tree: Tree, gravity: float, space: Space) -> _Leg:
     model.gravity.linear[:] = (0.0, -gravity, 0.0)
     rotation0 = body_rotation(tree.bodies[0])
     if space is SPATIAL:
-        permutation = built.T @ np.linalg.inv(_spatial_map(rotation0, model.nv))
+        permutation = built.T @ np.linalg.inv(spatial_velocity_map(rotation0, model.nv))
     else:
         permutation = built.T @ np.linalg.inv(velocity_map(tree.bodies[0].angle, model.nv))
     idx_v = np.argmax(np.abs(permutation[len(space.base_dofs):]), axis=1)
     return _Leg(model, built.contact_frames, space, np.round(permutation), idx_v, rotation0)
-
-
-def _spatial_map(R: np.ndarray, nv: int) -> np.ndarray:
-    """blockdiag(R, R, I): a free flyer's velocity (base frame) to the world frame's."""
-    T = np.eye(nv)
-    T[:3, :3] = T[3:6, 3:6] = R
-    return T
 
 
 def _base_rotation(q: np.ndarray) -> np.ndarray:
@@ -142,7 +138,7 @@ def _base_rotation(q: np.ndarray) -> np.ndarray:
 def _velocity_map(leg: _Leg, q: np.ndarray) -> np.ndarray:
     """T with v_ours = T v_pin at the configuration q (Pinocchio's)."""
     if leg.spatial:
-        return leg.permutation @ _spatial_map(_base_rotation(q), leg.model.nv)
+        return leg.permutation @ spatial_velocity_map(_base_rotation(q), leg.model.nv)
     return leg.permutation @ velocity_map(math.atan2(q[3], q[2]), leg.model.nv)
 
 

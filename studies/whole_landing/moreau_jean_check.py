@@ -192,7 +192,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs=2, default=(0, 20), metavar=("LO", "HI"))
     parser.add_argument("--step", type=float, default=4e-5, help="the peer's coarser step h (s)")
-    parser.add_argument("--spatial", action="store_true", help="the spatial legs with friction (moreau_jean_spatial.md)")
+    parser.add_argument("--spatial", action="store_true",
+                        help="the spatial legs with friction (moreau_jean_spatial.md)")
     parser.add_argument("--spatial-seeds", type=int, nargs="+", default=SPATIAL_SEEDS, metavar="S")
     args = parser.parse_args()
     if args.spatial:
