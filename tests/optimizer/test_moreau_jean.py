@@ -19,7 +19,7 @@ pin = pytest.importorskip("pinocchio")
 from impulse_core.kinematics.spatial import SPATIAL, dof_layout  # noqa: E402
 from impulse_core.timedomain.landing import LandingSettings, landing  # noqa: E402
 from optimizer.config.model_file import load_model_file  # noqa: E402
-from optimizer.validation.moreau_jean import _cone_contact, _leg, _to_pin, moreau_jean_landing  # noqa: E402
+from optimizer.validation.moreau_jean import SWEEPS, _cone_contact, _leg, _to_pin, moreau_jean_landing  # noqa: E402
 from tests.studies.scripts import study_module  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -107,8 +107,9 @@ def test_a_spatial_leg_sliding_obliquely_agrees_with_moreau_jean():
     more than the circular one. The peer at 4e-5 and 2e-5 s is 6.0e-5 and 3.0e-5 rad from
     footopt's posture, its tangential totals (x and z per contact, footopt's ``total_tangential``)
     1.2e-4 and 5.8e-5 apart, its final velocity 2.1e-4 and 1.0e-4."""
-    (coarse, fine), _ = _spatial_gaps(1, (4e-5, 2e-5), duration=0.08, friction=0.3, velocity_x=0.7,
-                                      velocity_z=-0.7)
+    (coarse, fine), peers = _spatial_gaps(1, (4e-5, 2e-5), duration=0.08, friction=0.3, velocity_x=0.7,
+                                          velocity_z=-0.7)
+    assert all(peer.sweeps < SWEEPS for peer in peers)  # Gauss-Seidel converged at every step
     assert fine[0] < 4e-5 and fine[1] < 1e-4 and fine[2] < 1e-4 and fine[3] < 3e-4
     assert fine[0] < 0.6 * coarse[0] and fine[2] < 0.6 * coarse[2]
 
