@@ -143,9 +143,15 @@ def build_spatial(tree: Tree) -> PinocchioTree:
     model, joint_of, q_of, frames = _bodies(tree, pin.JointModelFreeFlyer())
     R0 = body_rotation(tree.bodies[0])
     q_base = np.concatenate([np.zeros(3), pin.Quaternion(R0).coeffs()])  # x, y, z, w
-    T_base = np.zeros((6, 6))
-    T_base[:3, :3] = T_base[3:, 3:] = R0
-    return _tree(tree, model, joint_of, q_of, frames, q_base, T_base)
+    return _tree(tree, model, joint_of, q_of, frames, q_base, spatial_velocity_map(R0, 6))
+
+
+def spatial_velocity_map(R: np.ndarray, nv: int) -> np.ndarray:
+    """T with v_ours = T v_pinocchio for a free-flyer base turned by R (world from base):
+    blockdiag(R, R, I), the base origin's velocity and the angular velocity to the world frame."""
+    T = np.eye(nv)
+    T[:3, :3] = T[3:6, 3:6] = R
+    return T
 
 
 def joint_force_impulses(tree: PinocchioTree, v_minus: np.ndarray, v_plus: np.ndarray, active: tuple[int, ...],
