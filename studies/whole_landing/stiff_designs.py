@@ -141,16 +141,19 @@ def summary(rows: list[Row], what: str) -> str:
 
 def designs(config_path: str, trials: int, start: int = 0):
     """(trial number, config, model) of the designs the outer search asks as trials ``start`` to
-    ``trials`` - 1 (the earlier ones asked too, their designs not built)."""
+    ``trials`` - 1 (the earlier batches asked too, their designs not drawn)."""
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     config = load_study(config_path)
     study = optuna.create_study(directions=["minimize"] * len(config.objectives))
     e = config.space.joint_laws.stop_restitution
     for k in range(math.ceil(trials / BATCH)):
-        for t in ask_batch(study, config, BATCH, BATCH * k, 1):
+        batch = ask_batch(study, config, BATCH, BATCH * k, 1)
+        if BATCH * (k + 1) <= start:
+            continue
+        # every trial of a batch suggested in order, as the search does: the sampler seeded last draws them all
+        for t, design in [(t, suggest_design(t, config)) for t in batch]:
             if start <= t.number < trials:
-                yield t.number, config, design_model(config.leg, suggest_design(t, config), config.scene,
-                                                     config.limits, e)
+                yield t.number, config, design_model(config.leg, design, config.scene, config.limits, e)
 
 
 def measure(number: int, config, m, limit: float) -> Row | None:
