@@ -7,7 +7,8 @@ search then runs on to its end. Within :func:`interruptible` a SIGINT also sets 
 error raised once it is set is the interrupt: a C extension may replace the KeyboardInterrupt by
 an error of its own (NumPy's comparison of structured arrays, inside Optuna's TPE sampler, by
 ``TypeError: Cannot compare structured arrays``, which ended a Ctrl-C'd study as an internal error).
-A block that ends without an error after a SIGINT ends with the KeyboardInterrupt: Python drops
+A block (in the main thread) that ends without an error after a SIGINT that no caller answered
+(:func:`interrupt_handled`) ends with the KeyboardInterrupt: Python drops
 one raised inside a weakref callback or a ``__del__`` (a worker pool's, collected as an inner
 search ended: the search finished and the Ctrl-C was lost).
 """
@@ -36,6 +37,12 @@ def check_interrupt() -> None:
         raise KeyboardInterrupt
 
 
+def interrupt_handled() -> None:
+    """Forget the Ctrl-C that the caller caught and answered (it reports the interrupt itself):
+    the blocks it runs in end without raising it again."""
+    _INTERRUPTED.clear()
+
+
 @contextmanager
 def interruptible() -> Iterator[None]:
     """Within: a SIGINT sets the flag :func:`check_interrupt` reads and raises KeyboardInterrupt,
@@ -54,7 +61,7 @@ def interruptible() -> Iterator[None]:
             raise KeyboardInterrupt from e
         raise
     else:
-        if outermost and _INTERRUPTED.is_set():  # a Ctrl-C that something swallowed is still one
+        if main and _INTERRUPTED.is_set():  # a Ctrl-C that something swallowed is still one
             raise KeyboardInterrupt
     finally:
         if outermost:
@@ -62,4 +69,4 @@ def interruptible() -> Iterator[None]:
             _INTERRUPTED.clear()
 
 
-__all__ = ["check_interrupt", "interruptible"]
+__all__ = ["check_interrupt", "interrupt_handled", "interruptible"]

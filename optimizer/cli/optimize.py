@@ -134,7 +134,7 @@ def optimize(
         write_run_file,
         write_study_file,
     )
-    from optimizer.interrupts import interruptible
+    from optimizer.interrupts import interrupt_handled, interruptible
     from optimizer.search.inner import run_inner
     from optimizer.search.outer import failed_designs, finished_trials, open_study, run_outer
 
@@ -184,6 +184,8 @@ def optimize(
         status = EXIT_INTERRUPTED
     finally:
         bar.close()
+    if status == EXIT_INTERRUPTED:
+        interrupt_handled()  # answered below (the resume command), not again by main's block
     wall = time.perf_counter() - started
     points = export_front(run_dir, config, study)
     failed = failed_designs(study)

@@ -260,7 +260,8 @@ def test_a_ctrl_c_while_workers_land_a_batch_loses_no_trial(tmp_path: Path):
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
-    resume = shlex.split(err.split("Resume: ", 1)[1].strip())
+    assert err.count("interrupted") == 1, err
+    resume = shlex.split(err.split("Resume: ", 1)[1].splitlines()[0])
     assert resume[:2] == ["footopt", "optimize"]
     subprocess.run([sys.executable, "-m", "optimizer", *resume[1:], "--quiet"], cwd=REPO, env=env, check=True,
                    capture_output=True)

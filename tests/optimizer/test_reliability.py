@@ -357,3 +357,25 @@ def test_a_ctrl_c_that_something_swallowed_still_ends_the_block():
             del thing  # its callback takes the SIGINT's KeyboardInterrupt, which Python drops
             sum(range(1000))  # the handler runs here, or in the callback
     assert ran == [True]
+
+
+def test_a_ctrl_c_that_a_caller_answered_is_not_raised_again():
+    """``footopt optimize`` catches the interrupt in its block, writes the front and the resume
+    command and returns 130: the blocks around it end quietly (once, it was said twice); an
+    unanswered one still ends them."""
+    from optimizer.interrupts import interrupt_handled, interruptible
+
+    with interruptible():
+        try:
+            with interruptible():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(1.0)  # the handler raises here
+        except KeyboardInterrupt:
+            interrupt_handled()
+    with pytest.raises(KeyboardInterrupt):
+        with interruptible():
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(1.0)
+            except KeyboardInterrupt:
+                pass  # caught, not answered
