@@ -186,3 +186,33 @@ def test_a_radau_step_whose_iterations_fail_is_split_in_two(monkeypatch) -> None
         impulses.append(p)
     np.testing.assert_array_equal(np.concatenate(radau.radau_step(q, v, mode, 4.0 * short)),
                                   np.concatenate([*pieces, (impulses[0] + impulses[1]) + (impulses[2] + impulses[3])]))
+
+
+def _split_alike_landing():
+    from optimizer.design_space import study_landing
+
+    m = load_model_file(DATA / "radau_split_alike_371.yaml")
+    settings = study_landing(1e-3)
+    return m, settings, landing(m.tree, m.scene, m.joints, settings, m.space)
+
+
+def test_radaus_finer_run_asks_a_smaller_share_where_the_balance_split_the_coarser() -> None:
+    """At the default tolerance: the landing study's trial 371, which ``auto`` lands on Radau IIA,
+    its runs at h and h / 2 split alike by the momentum balance before the peak impact (so they
+    agreed to 6.9e-8 while 2.9e-3 off the limit): the finer run of its pair asks a smaller share,
+    and the pair's difference sees the split steps' error."""
+    _, _, r = _split_alike_landing()
+    assert r.integrator == RADAU and r.converged
+    assert r.share < 1.0  # the finer runs' steps split at smaller shares than the first's
+    assert r.error_estimate > 1e-5  # the split steps' error, not the 6.9e-8 of a pair split alike
+
+
+@pytest.mark.slow
+def test_radaus_estimate_on_a_pair_the_balance_split_bounds_its_error() -> None:
+    """The same landing against RK4 at a quarter of RK4's stable step (the share as small): the
+    error within the estimate and the tolerance (before: 2.9e-3 against an estimate of 6.9e-8)."""
+    m, settings, r = _split_alike_landing()
+    rk4 = _Landing(m.tree, m.scene, m.joints, replace(settings, integrator=RK4), m.space)
+    reference = rk4.run(min(r.step, rk4.stable_step()) / 4.0, share=r.share)
+    error = landing_difference(r, reference)
+    assert error <= r.error_estimate and error <= 1e-3
