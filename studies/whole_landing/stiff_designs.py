@@ -58,31 +58,16 @@ from optimizer.design_space import design_model, study_landing
 from optimizer.search.outer import ask_batch, suggest_design
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from tolerance_check import _alarm, _timed, _Timeout  # noqa: E402  (one copy of the wall-clock limit)
+
 #: Batches of the outer search (its default workers' batch).
 BATCH = 8
 #: The reference's step: the shortest returned step (or RK4's stable step) over this.
 REFERENCE_DIVISOR = 4.0
 #: The output's hand-written part from this heading on is kept when the table is rewritten.
 FINDINGS = "## Findings"
-
-
-class _Timeout(Exception):
-    pass
-
-
-def _alarm(*_: object) -> None:
-    raise _Timeout()
-
-
-def _timed(limit: float, run):
-    """``run()`` and its CPU seconds; raises _Timeout after ``limit`` wall-clock seconds."""
-    start = time.process_time()
-    signal.alarm(max(1, int(limit)))
-    try:
-        result = run()
-    finally:
-        signal.alarm(0)
-    return result, time.process_time() - start
 
 
 @dataclass

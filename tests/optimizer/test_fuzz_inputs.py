@@ -70,6 +70,24 @@ def _check(status: int, err: str) -> None:
         assert FIELD.search(err), err
 
 
+def _fuzzed_studies(bases: list, rng: random.Random, garbage_every: int, tmp_path: Path, capsys) -> int:
+    """60 fuzzed study files (garbage text every ``garbage_every``): each that does not load is
+    refused by ``footopt optimize`` with exit 2 and one line naming the field; how many."""
+    invalid = 0
+    for k in range(60):
+        text = rng.choice(GARBAGE) if k % garbage_every == 0 else _dump(_mutate(rng.choice(bases), rng))
+        f = tmp_path / f"s{k}.yaml"
+        f.write_text(text, encoding="utf-8")
+        try:
+            load_study(f)
+        except ConfigError:
+            status = main(["optimize", str(f), "--out", str(tmp_path / f"run{k}")])
+            _check(status, capsys.readouterr().err)
+            assert status == 2
+            invalid += 1
+    return invalid
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_fuzzed_model_files(seed: int, tmp_path: Path, capsys) -> None:
     rng = random.Random(seed)
@@ -90,19 +108,7 @@ def test_fuzzed_study_files(seed: int, tmp_path: Path, capsys) -> None:
     rng = random.Random(100 + seed)
     base = yaml.safe_load((REPO / "configs" / "quick_study.yaml").read_text())
     base |= yaml.safe_load(TINY_STUDY_YAML)
-    invalid = 0
-    for k in range(60):
-        text = rng.choice(GARBAGE) if k % 15 == 0 else _dump(_mutate(base, rng))
-        f = tmp_path / f"s{k}.yaml"
-        f.write_text(text, encoding="utf-8")
-        try:
-            load_study(f)
-        except ConfigError:
-            status = main(["optimize", str(f), "--out", str(tmp_path / f"run{k}")])
-            _check(status, capsys.readouterr().err)
-            assert status == 2
-            invalid += 1
-    assert invalid >= 20
+    assert _fuzzed_studies([base], rng, 15, tmp_path, capsys) >= 20
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -237,19 +243,7 @@ def test_fuzzed_landing_study_files(seed: int, tmp_path: Path, capsys) -> None:
     """Joint law ranges, landing_tolerance, landing objectives, landings: and statistic: blocks."""
     rng = random.Random(500 + seed)
     bases = _landing_studies()
-    invalid = 0
-    for k in range(60):
-        text = rng.choice(GARBAGE) if k % 20 == 0 else _dump(_mutate(rng.choice(bases), rng))
-        f = tmp_path / f"s{k}.yaml"
-        f.write_text(text, encoding="utf-8")
-        try:
-            load_study(f)
-        except ConfigError:
-            status = main(["optimize", str(f), "--out", str(tmp_path / f"run{k}")])
-            _check(status, capsys.readouterr().err)
-            assert status == 2
-            invalid += 1
-    assert invalid >= 30
+    assert _fuzzed_studies(bases, rng, 20, tmp_path, capsys) >= 30
 
 
 def test_fuzzed_evaluations_over_landings(tmp_path: Path, capsys) -> None:
