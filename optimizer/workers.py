@@ -64,23 +64,16 @@ def mapped(pool: ProcessPoolExecutor | None, function: Callable[[Any], T], items
     that order. ``function`` and the items are pickled: a module-level function (or a partial of
     one) and plain data."""
     items = list(items)
-    if pool is None:
-        results = []
-        for x in items:
-            results.append(function(x))
-            if progress is not None:
-                progress(len(results), len(items))
-        return results
-    futures = [pool.submit(function, x) for x in items]
+    futures = None if pool is None else [pool.submit(function, x) for x in items]
+    results: list[T] = []
     try:
-        results = []
-        for future in futures:
-            results.append(future.result())
+        for i, x in enumerate(items):
+            results.append(function(x) if futures is None else futures[i].result())
             if progress is not None:
                 progress(len(results), len(items))
         return results
     finally:
-        for future in futures:
+        for future in futures or ():
             future.cancel()
 
 
