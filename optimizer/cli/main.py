@@ -16,7 +16,7 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 
@@ -33,6 +33,7 @@ from optimizer.cli.optimize import add_optimize, add_pareto
 from optimizer.cli.status import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from optimizer.cli.status import error as _error
 from optimizer.config.model_file import ModelFile, load_model_file
+from optimizer.config.redact import redact_url
 from optimizer.errors import ConfigError, interrupted
 from optimizer.interrupts import check_interrupt, interruptible
 from impulse_core.timedomain.events.settings import MIN_TOLERANCE
@@ -217,7 +218,7 @@ SUBCOMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand of ``SUBCOMMANDS``."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="footopt",
         description="Design robot feet that spread landing impulses.",
         epilog="Run 'footopt COMMAND --help' for a command's options.",
@@ -242,7 +243,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as e:  # --help, --version (0) and usage errors (2, message already printed)
+    except SystemExit as e:  # --help, --version (0) and usage errors (2, their line already printed)
         return e.code if isinstance(e.code, int) else EXIT_OK if e.code is None else EXIT_USAGE
     try:
         with interruptible():
@@ -676,6 +677,15 @@ def _plot_paths(path: Path, files: list[str]) -> dict[int, Path]:
         used.add(candidate)
         out[n] = candidate
     return out
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser (its subcommands' too), whose usage errors are one line naming the
+    option, with where to read the command's options (argparse prints the usage before it)."""
+
+    def error(self, message: str) -> NoReturn:  # type: ignore[override]
+        one_line = redact_url(f"{self.prog}: error: {' '.join(message.split())}")
+        self.exit(EXIT_USAGE, f"{one_line} (see '{self.prog} --help')\n")
 
 
 class _VersionAction(argparse._VersionAction):
