@@ -17,6 +17,7 @@ and ``dof_frictionloss`` are kept as laws footopt cannot carry.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -76,6 +77,7 @@ def read_mjcf(path: Path) -> Description:
     links: dict[str, Link] = {}
     joints: dict[str, Joint] = {}
     for b in range(m.nbody):
+        _check_finite(m, b, body_name[b], path)
         Ri = _rotation(np.array(m.body_iquat[b], dtype=float))
         inertia = Ri @ np.diag(np.array(m.body_inertia[b], dtype=float)) @ Ri.T
         links[body_name[b]] = Link(body_name[b], float(m.body_mass[b]), np.array(m.body_ipos[b]) - anchor[b], inertia)
@@ -95,6 +97,16 @@ def read_mjcf(path: Path) -> Description:
                 b = int(body_of[k])
                 points[name] = (body_name[b], np.array(pos[k], dtype=float) - anchor[b])
     return Description(path, "MJCF", links, joints, points)
+
+
+def _check_finite(m: Any, b: int, name: str, path: Path) -> None:
+    """ConfigError naming body ``name`` where MuJoCo compiled a mass, inertia, pose or inertial
+    frame of it that is not finite (MuJoCo accepts ``mass="nan"``)."""
+    for field, label in (("body_mass", "mass"), ("body_inertia", "inertia"), ("body_ipos", "inertial pos"),
+                         ("body_iquat", "inertial quat"), ("body_pos", "pos"), ("body_quat", "quat")):
+        if not np.all(np.isfinite(np.asarray(getattr(m, field)[b], dtype=float))):
+            raise ConfigError(f"body '{name}': its {label} is not finite (compiled as "
+                              f"{np.asarray(getattr(m, field)[b]).tolist()})", path)
 
 
 __all__ = ["read_mjcf"]

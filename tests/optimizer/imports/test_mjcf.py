@@ -114,3 +114,23 @@ def test_mjcf_without_mujoco_says_so(tmp_path, monkeypatch):
 
     with pytest.raises(ConfigError, match="reading MJCF needs the mujoco package"):
         read_description(tmp_path / "a.xml")
+
+
+@pytest.mark.parametrize(("attribute", "label"), [('pos="0 0 0" mass="nan" diaginertia="1 1 1"', "mass"),
+                                                  ('pos="0 0 0" mass="1" diaginertia="nan 1 1"', "inertia"),
+                                                  ('pos="0 inf 0" mass="1" diaginertia="1 1 1"', "inertial pos")])
+def test_a_body_with_a_non_finite_inertial_is_named(tmp_path, attribute: str, label: str):
+    """Found by the fuzzer: MuJoCo compiles ``mass="nan"``, and the import's arithmetic on it raised
+    RuntimeWarnings before any error; it is now refused at once, naming the body (no warning)."""
+    import warnings
+
+    from optimizer.errors import ConfigError
+
+    src = tmp_path / "leg.xml"
+    src.write_text('<mujoco><worldbody><body name="shank"><joint name="knee" type="hinge"/>'
+                   '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>'  # the foot welded to it
+                   f'<body name="foot"><inertial {attribute}/></body></body></worldbody></mujoco>')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ConfigError, match=rf"body 'foot': its {label} is not finite"):
+            read_description(src)
