@@ -72,7 +72,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
-from contextlib import contextmanager, nullcontext
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -104,6 +104,7 @@ from optimizer.search.compiled import (
     vm_nlp,
 )
 from optimizer.interrupts import check_interrupt, interruptible
+from optimizer.search.landing_workers import landing_sweeps
 from optimizer.workers import cores, forked_pool
 from optimizer.search.outer import evaluate_design_over_landings, objective_values, record_attrs
 
@@ -381,7 +382,8 @@ def run_inner(
     design is recorded twice after a kill.
 
     Shapes are swept by ``workers`` processes (default :func:`optimizer.workers.cores`); the
-    trials are recorded here, in the serial order.
+    trials are recorded here, in the serial order (a whole-landing shape's designs as each is
+    found: :mod:`optimizer.search.landing_workers`).
 
     Returns:
         The number of shapes swept now.
@@ -409,15 +411,21 @@ def run_inner(
     swept, cache = 0, (None if config.whole_landing else NlpCache(config, kinds, solves=solves))
     order = {k: i for i, k in enumerate(kinds)}
     todo.sort(key=lambda s: order[foot_kind(config, s)])
-    sweeps = nullcontext(None) if config.whole_landing else _sweeps(config, todo, cache, workers)
+    if config.whole_landing:
+        def keep(shape: FootShape, designs: list[DesignEvaluation]) -> None:
+            _record_shape(study, config, shape, designs, None, distributions)
+
+        sweeps = landing_sweeps(config, todo, workers, keep)
+    else:
+        sweeps = _sweeps(config, todo, cache, workers)
     with interruptible(), sweeps as results:
         for shape in sorted(shapes, key=lambda s: order.get(foot_kind(config, s), -1)):
             if study.user_attrs.get(shape_done_key(shape)):
                 continue
             why = _why_infeasible(config, shape)
             if why is None:
-                if config.whole_landing:
-                    _record_landing_shape(study, config, shape, distributions)
+                if config.whole_landing:  # each design recorded as it is found (a solve can take minutes)
+                    _record_shape(study, config, shape, results.designs(shape), NO_LANDING, distributions)
                 else:
                     _record_shape(study, config, shape, *next(results), distributions)
             else:  # no design of it is feasible
@@ -497,15 +505,6 @@ def _sweep_in_worker(config: StudyConfig, shape: FootShape, folder) -> Sweep:
     return sweep_shape(config, nlp)
 
 
-def _record_landing_shape(study: optuna.Study, config: StudyConfig, shape: FootShape, distributions: dict) -> None:
-    """Sweep one shape of a whole-landing study (:mod:`optimizer.search.landing_inner`), each
-    design recorded as it is found (a solve can take minutes)."""
-    from optimizer.search.landing_inner import build_landing_nlp, landing_sweep
-
-    sweep = landing_sweep(build_landing_nlp(config, shape), shape_seed(config.seed, shape))
-    _record_shape(study, config, shape, sweep, "IPOPT found no feasible design that lands", distributions)
-
-
 def _record_shape(
     study: optuna.Study, config: StudyConfig, shape: FootShape, designs: Iterable[DesignEvaluation],
     diagnosis: str | None, distributions: dict,
@@ -532,6 +531,7 @@ def _record_shape(
 
 
 #: Why a shape has no feasible design, as the study files' fields say it (see ``infeasible_key``).
+NO_LANDING = "IPOPT found no feasible design that lands"
 NO_MASS = "constraints.min_link_mass x its rods exceeds constraints.foot_mass"
 NO_AREA = "constraints.support_margin > 0: one toe and the heel span no area"
 NO_POSTURE = (
