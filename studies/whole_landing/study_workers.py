@@ -93,7 +93,8 @@ def main() -> None:
         f"Median wall-time ratio: **{statistics.median(ratios):.2f} x** faster on {n} workers.",
         "",
     ]
-    (HERE / ("study_workers_inner.md" if args.inner else "study_workers.md")).write_text("\n".join(lines), encoding="utf-8")
+    out = HERE / ("study_workers_inner.md" if args.inner else "study_workers.md")
+    out.write_text("\n".join(lines), encoding="utf-8")
     print("\n".join(lines))
 
 

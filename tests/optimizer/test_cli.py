@@ -231,7 +231,8 @@ def test_unreadable(leg_file: Path, capsys) -> None:
     ("argv", "names"),
     [([], "COMMAND"), (["evaluate"], "FILE"), (["bogus"], "'bogus'"), (["evaluate", "--nope", "x.yaml"], "--nope"),
      (["evaluate", "--tolerance", "abc", "x.yaml"], "--tolerance: invalid float value: 'abc'"),
-     (["drop", "--stiffness", "1e", "x.yaml"], "--stiffness"), (["export", "x.yaml", "--stop-timestep"], "--stop-timestep"),
+     (["drop", "--stiffness", "1e", "x.yaml"], "--stiffness"),
+     (["export", "x.yaml", "--stop-timestep"], "--stop-timestep"),
      (["optimize", "--workers", "two"], "--workers: invalid int value")],
     ids=["none", "no file", "command", "option", "float", "drop float", "no value", "int"],
 )
