@@ -473,13 +473,15 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         """(q, v) at an accepted step's end or a located event in ``mode``, each group of twins set
         to their mean (:meth:`twinned`, taped so) where the mode treats them alike
         (:func:`mode_alike`), on Radau IIA (or any integrator, :attr:`hold_twins`); else as they
-        are. The exact landing keeps twins identical, and so mostly do RK4's and ROS2's compiled
-        steps from an identical state, but Radau IIA's Newton iterations part them by rounding,
-        and the mirror-antisymmetric motion grows (trial 64 of the landing study: 5.6e-17 rad at
-        1 ms, 5.6e-11 at 3.8 ms, x ~10 every 0.5 ms) up to an impact on both toes at once whose
-        split is ill-conditioned in their parting (both toes reaching their stops with both tips
-        pressed: 2.94 and 0.09 N s where the even split is 1.52 and 1.52; the landing 0.33 from
-        RK4's with an estimate of 8e-8; ``studies/whole_landing/stiff_designs.md``). Held alike,
+        are. The exact landing keeps twins identical; Radau IIA's Newton iterations part them by
+        rounding, and the mirror-antisymmetric motion grows (trial 64 of the landing study:
+        5.6e-17 rad at 1 ms, 5.6e-11 at 3.8 ms, x ~10 every 0.5 ms) up to an impact on both toes
+        at once whose split is ill-conditioned in their parting (both toes reaching their stops
+        with both tips pressed: 2.94 and 0.09 N s where the even split is 1.52 and 1.52; the
+        landing 0.33 from RK4's with an estimate of 8e-8; ``studies/whole_landing/stiff_designs.md``).
+        RK4's steps can part them too (trial 64's study landing kept them equal to the bit; a 5 ms
+        landing of it at the same step did not, and split that impact alike), but are left alone
+        by default so that RK4's and ROS2's landings stay what they were to the bit. Held alike,
         the twins are apart by at most one step's rounding, and at an event not at all. Where a
         mode parts them (a redundant pair's rows: one twin's contact closed, the other's open),
         their states may differ by its projection, and are left so. A no-op (no copy, nothing
