@@ -15,6 +15,7 @@ import numpy as np
 
 from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.events.settings import RADAU, RK4
+from impulse_core.timedomain.events.twins import mode_alike
 from optimizer.config.model_file import load_model_file
 from optimizer.design_space import study_landing
 
@@ -47,7 +48,10 @@ def test_radau_keeps_twin_toes_identical_through_their_stops() -> None:
     before = t < peak.time
     assert np.array_equal(q[before][:, group[0]], q[before][:, group[1]])
     # after it the contacts' mode lifts toe2's tip for 9 us (one of the rows' choices, as on RK4): the toes
-    # part, then meet again when it touches down, and are equal to the bit at the end
+    # part (a mode that treats them apart is followed, not averaged against its projection), then meet again
+    # when it touches down, and are equal to the bit at the end
+    after = (t > peak.time) & (t < peak.time + 2e-5)
+    assert np.max(np.abs(q[after][:, group[0]] - q[after][:, group[1]])) > 1e-6
     assert np.array_equal(r.q_final[group[0]], r.q_final[group[1]])
     assert np.array_equal(r.v_final[group[0]], r.v_final[group[1]])
     # the impact on both toes at once splits evenly between them (contacts 1 and 2: the toes' tips)
@@ -59,3 +63,18 @@ def test_radau_keeps_twin_toes_identical_through_their_stops() -> None:
     ref_peak = max(ref.events, key=lambda e: e.external_norm)
     assert abs(ref_peak.time - peak.time) < 1e-5
     assert abs(peak.external_norm - ref_peak.external_norm) <= 1e-3 * ref_peak.external_norm
+
+
+def test_a_mode_that_parts_the_twins_is_not_held_alike() -> None:
+    """:func:`mode_alike`: the twins' stops, contacts and slips equal twin by twin, or the mode
+    parts them (one tip resting, the other lifted: the state is left as its projection put it)."""
+    m = load_model_file(DATA / "twin_stops_64.yaml")
+    run = _Landing(m.tree, m.scene, m.joints, replace(study_landing(1e-3), integrator=RADAU), m.space)
+    stop, closed, slip = np.zeros(run.nv, int), np.array([False, True, True]), np.array([[0.0], [1.0], [1.0]])
+    assert mode_alike(stop, closed, slip, run.twins, run.twin_contacts)
+    assert not mode_alike(stop, np.array([False, True, False]), slip, run.twins, run.twin_contacts)
+    assert not mode_alike(stop, closed, np.array([[0.0], [1.0], [-1.0]]), run.twins, run.twin_contacts)
+    stop[5] = 1
+    assert not mode_alike(stop, closed, slip, run.twins, run.twin_contacts)
+    stop[7] = 1
+    assert mode_alike(stop, closed, slip, run.twins, run.twin_contacts)
