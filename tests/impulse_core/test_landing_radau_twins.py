@@ -2,9 +2,10 @@
 landing study (``configs/landing_study.yaml``, ``studies/whole_landing/stiff_designs.md``), two
 identical two-rod toes that reach their stops at once with both tips pressed at 3.77 ms, an
 impact whose split between the toes is ill-conditioned in their parting. Left to themselves,
-Radau's Newton iterations parted the toes by rounding (5.6e-11 rad by the impact, where RK4 keeps
-them equal to the bit), the impact split 2.94 and 0.09 N s where the even split is 1.52 and 1.52,
-and the landing ended 0.33 from RK4's reference with an estimate of 8e-8."""
+Radau's Newton iterations parted the toes by rounding (5.6e-11 rad by the impact, where the
+study's RK4 landing kept them equal to the bit), the impact split 2.94 and 0.09 N s where the
+even split is 1.52 and 1.52, and the landing ended 0.33 from RK4's reference with an estimate of
+8e-8."""
 
 from __future__ import annotations
 
