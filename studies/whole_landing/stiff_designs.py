@@ -20,7 +20,15 @@ whether RK4 or Radau IIA is the better second integrator below AUTO_RADAU:
   landings' returned steps and RK4's stable step (``_Landing.run``, the smallest share either
   asked): the reference. The true error of a landing is its ``landing_difference`` from the
   reference; the reference's own error is below ``auto``'s where auto ended on RK4 (a run at
-  4 x its step), which the table lists.
+  4 x its step), which the table lists. The reference holds twin toes alike after each step
+  (:attr:`_Landing.hold_twins`, as Radau IIA's landings do): left alone, RK4's steps part them by
+  rounding too (trial 64 at its stable step in a 5 ms landing: 1e-16 rad by 0.25 ms, and the
+  impact on both stops then split 2.94 and 0.09 N s, not 1.52 and 1.52), and where twins stay
+  equal to the bit it changes nothing;
+- with ``--candidate C``, each kept design is also landed by ``auto`` with AUTO_RADAU at C
+  (``impulse_core.timedomain.landing.AUTO_RADAU`` set for that landing; the other column then
+  lands with AUTO_RADAU at ``--main``, 100 by default: the shipped rule before this study): the
+  CPU that rule would save on the design, ROS2's run before the switch included.
 
 Where the design's two toes are identical (``toe_symmetry: identical``), "twins apart" is the largest
 difference between their joint angles (rad) along a landing's trajectory up to its peak event: the
@@ -31,10 +39,11 @@ Figures are CPU seconds (``time.process_time``) of this one process, the landing
 other (auto, Radau, reference), on a machine shared with other jobs.
 
 Run: python studies/whole_landing/stiff_designs.py [--config configs/landing_study.yaml]
-[--trials 64] [--start 0] [--limit 300] (writes stiff_designs.md next to this file; ``--start``:
-the first trial measured; ``--limit``: wall-clock seconds for any one landing, a design over it is
-listed as such; ``--out``: another file; the file's part from ``## Findings`` on, written by hand,
-is kept).
+[--trials 64] [--start 0] [--only 19,21] [--candidate C [--main 100]] [--limit 300] (writes
+stiff_designs.md next to this file; ``--start``: the first trial measured; ``--only``: measure these
+trials alone (the others are drawn, not landed); ``--limit``: wall-clock seconds for any one
+landing, a design over it is listed as such; ``--out``: another file; the file's part from
+``## Findings`` on, written by hand, is kept).
 """
 
 from __future__ import annotations
@@ -50,6 +59,7 @@ from pathlib import Path
 import numpy as np
 import optuna
 
+import impulse_core.timedomain.landing as landing_module
 from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.events.settings import AUTO, AUTO_RADAU, IMPLICIT, RADAU, RK4
 from impulse_core.timedomain.landing import LandingResult, landing, landing_difference
@@ -84,6 +94,9 @@ class Row:
     radau_seconds: float = math.nan
     reference: LandingResult | None = None
     reference_seconds: float = math.nan
+    #: ``auto`` with AUTO_RADAU at ``--candidate`` (None: not asked)
+    candidate: LandingResult | None = None
+    candidate_seconds: float = math.nan
     note: str = ""
 
     def error(self, r: LandingResult | None) -> float:
@@ -104,11 +117,14 @@ class Row:
         if a is None or b is None:
             return f"| {self.trial} | {self.h_rate:.1f} | {self.toes} |" + " |" * 15 + f" {self.note} |"
         ratio = self.auto_seconds / self.radau_seconds
+        c = self.candidate
+        extra = "" if c is None else (f" {c.integrator} | {self.candidate_seconds:.2f} | {c.error_estimate:.2g} | "
+                                      f"{self.error(c):.2g} | {self.auto_seconds / self.candidate_seconds:.2f} |")
         return (f"| {self.trial} | {self.h_rate:.1f} | {self.toes} | {self.auto_seconds:.2f} | {a.n_steps} | "
                 f"{len(a.events)} | {a.error_estimate:.2g} | {self.error(a):.2g} | {self.radau_seconds:.2f} | "
                 f"{b.n_steps} | {len(b.events)} | {b.error_estimate:.2g} | {len(b.halving) + 1} | "
                 f"{self.error(b):.2g} | {self.apart(a):.2g} | {self.apart(b):.2g} | {ratio:.2f} | "
-                f"{self.reference_seconds:.1f} | {self.note} |")
+                f"{self.reference_seconds:.1f} |{extra} {self.note} |")
 
 
 def summary(rows: list[Row], what: str) -> str:
@@ -141,8 +157,24 @@ def designs(config_path: str, trials: int, start: int = 0):
                 yield t.number, config, design_model(config.leg, design, config.scene, config.limits, e)
 
 
-def measure(number: int, config, m, limit: float) -> Row | None:
-    """A design's row where ``auto``'s ROS2 run gave way, else None."""
+def with_auto_radau(value: float | None, run):
+    """``run`` with :func:`landing`'s AUTO_RADAU at ``value`` (None: as shipped)."""
+    def call():
+        if value is None:
+            return run()
+        kept = landing_module.AUTO_RADAU
+        landing_module.AUTO_RADAU = value
+        try:
+            return run()
+        finally:
+            landing_module.AUTO_RADAU = kept
+    return call
+
+
+def measure(number: int, config, m, limit: float, candidate: float | None = None,
+            main: float | None = None) -> Row | None:
+    """A design's row where ``auto``'s ROS2 run gave way, else None (``auto`` with AUTO_RADAU at
+    ``main``, and with ``candidate`` where given: None, as shipped)."""
     settings = study_landing(config.search.landing_tolerance)
     run = _Landing(m.tree, m.scene, m.joints, settings, m.space)
     if run.method != IMPLICIT or settings.integrator != AUTO:
@@ -159,7 +191,7 @@ def measure(number: int, config, m, limit: float) -> Row | None:
         return lambda: landing(m.tree, m.scene, m.joints, s, m.space)
 
     try:
-        row.auto, row.auto_seconds = _timed(limit, land(settings))
+        row.auto, row.auto_seconds = _timed(limit, with_auto_radau(main, land(settings)))
     except _Timeout:
         row.note = f"auto over {limit:g} s"
         return row
@@ -173,9 +205,17 @@ def measure(number: int, config, m, limit: float) -> Row | None:
     except _Timeout:
         row.note += f" radau over {limit:g} s"
         return row
+    if candidate is not None:
+        try:
+            row.candidate, row.candidate_seconds = _timed(limit, with_auto_radau(candidate, land(settings)))
+        except _Timeout:
+            row.note += f" auto at {candidate:g} over {limit:g} s"
     share = min(1.0, row.auto.share, row.radau.share)
     reference_run = _Landing(m.tree, m.scene, m.joints, replace(settings, integrator=RK4), m.space)
-    finest = min(row.auto.step, row.radau.step, reference_run.stable_step())
+    reference_run.hold_twins = True  # as Radau IIA's landings (the module docstring)
+    finest = min(row.auto.step, row.radau.step, reference_run.stable_step(),
+                 math.inf if row.candidate is None else row.candidate.step)
+    share = min(share, 1.0 if row.candidate is None else row.candidate.share)
     try:
         row.reference, row.reference_seconds = _timed(
             20 * limit, lambda: reference_run.run(finest / REFERENCE_DIVISOR, share=share))
@@ -184,9 +224,24 @@ def measure(number: int, config, m, limit: float) -> Row | None:
     return row
 
 
+def candidate_summary(rows: list[Row], candidate: float) -> str:
+    """``auto`` at AUTO_RADAU ``candidate`` against the auto column: within the tolerance, the CPU."""
+    done = [r for r in rows if r.reference is not None and r.candidate is not None]
+    within = [r for r in done if r.error(r.candidate) <= r.candidate.tolerance]
+    before, after = sum(r.auto_seconds for r in done), sum(r.candidate_seconds for r in done)
+    ratios = sorted(r.auto_seconds / r.candidate_seconds for r in done)
+    spread = f", per design {ratios[0]:.2f} to {ratios[-1]:.2f} x" if ratios else ""
+    return (f"- auto at AUTO_RADAU {candidate:g}: {len(done)} with a reference; within the tolerance: {len(within)} "
+            f"of {len(done)}. CPU: {after:.1f} s against the auto column's {before:.1f} s"
+            + (f" ({before / after:.2f} x{spread})." if after else "."))
+
+
 HEADER = ("| trial | h x rate | toes | auto s | steps | events | estimate | error | Radau s | steps | events | "
           "estimate | pairs | error | twins apart to the peak: auto | Radau | auto / Radau | reference s | note |\n|"
           + "---|" * 19)
+CANDIDATE_HEADER = HEADER.replace(
+    "reference s | note |\n|" + "---|" * 19,
+    "reference s | candidate ends on | s | estimate | error | auto / candidate | note |\n|" + "---|" * 24)
 
 
 def main() -> None:
@@ -194,14 +249,23 @@ def main() -> None:
     parser.add_argument("--config", default="configs/landing_study.yaml")
     parser.add_argument("--trials", type=int, default=64)
     parser.add_argument("--start", type=int, default=0, help="the first trial measured")
+    parser.add_argument("--only", default="", help="comma-separated trials: measure these alone")
+    parser.add_argument("--candidate", type=float, default=None,
+                        help="also land auto with AUTO_RADAU at this value")
+    parser.add_argument("--main", type=float, default=None,
+                        help="with --candidate: the auto column's AUTO_RADAU (default 100, the rule before)")
     parser.add_argument("--limit", type=float, default=300.0)
     parser.add_argument("--out", default=str(HERE / "stiff_designs.md"))
     args = parser.parse_args()
     signal.signal(signal.SIGALRM, _alarm)
     rows, started, asked = [], time.process_time(), 0
+    only = {int(t) for t in args.only.split(",") if t.strip()}
+    main_value = args.main if args.main is not None else (100.0 if args.candidate is not None else None)
     for number, config, m in designs(args.config, args.trials, args.start):
+        if only and number not in only:
+            continue
         asked += 1
-        row = measure(number, config, m, args.limit)
+        row = measure(number, config, m, args.limit, args.candidate, main_value)
         if row is not None:
             rows.append(row)
             print(row.line(), flush=True)
@@ -209,7 +273,8 @@ def main() -> None:
     text = [
         "# Stiff designs of a whole-landing study: auto's RK4 against Radau IIA",
         "",
-        f"`{command}` ({time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC; AUTO_RADAU {AUTO_RADAU:g}; "
+        f"`{command}` ({time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC; AUTO_RADAU "
+        f"{AUTO_RADAU if main_value is None else main_value:g}; "
         f"{time.process_time() - started:.0f} CPU s). Method: the script's docstring.",
         "",
         f"Designs asked: {asked}; where auto's ROS2 run gave way: {len(rows)}.",
@@ -218,11 +283,12 @@ def main() -> None:
                 "auto went on with RK4 (first step x rate below AUTO_RADAU)"),
         summary([r for r in rows if r.auto is not None and r.auto.integrator == RADAU],
                 "auto went on with Radau IIA (above AUTO_RADAU: the same landing twice)"),
+        *([] if args.candidate is None else [candidate_summary(rows, args.candidate)]),
         "",
         "error: `landing_difference` from the reference (RK4 at a quarter of the finest step); auto: the "
         "landing as `auto` lands it (ROS2, then RK4 from its stable step); Radau: `integrator=\"radau\"`.",
         "",
-        HEADER,
+        HEADER if args.candidate is None else CANDIDATE_HEADER,
         *[r.line() for r in rows],
         "",
         "Switch messages:",

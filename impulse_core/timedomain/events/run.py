@@ -43,7 +43,7 @@ from impulse_core.timedomain.events.choice import _ModeChoice
 from impulse_core.timedomain.events.placement import _Placement
 from impulse_core.timedomain.events.paradox import BRIDGE, JAM_WATCH, _Paradox
 from impulse_core.timedomain.events.messages import _Messages
-from impulse_core.timedomain.events.twins import symmetrized, twin_groups
+from impulse_core.timedomain.events.twins import mode_alike, symmetrized, twin_contacts, twin_groups
 
 
 class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placement, _Paradox, _Messages, _Tally):
@@ -80,6 +80,11 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.layout = dof_layout(self.topology, space)
         #: the DOFs of each group of identical sibling subtrees (:func:`twin_groups`; :meth:`twinned`)
         self.twins = twin_groups(tree, self.joints, self.layout)
+        #: each group's declared contacts (:func:`twin_contacts`; :meth:`held_alike`)
+        self.twin_contacts = twin_contacts(tree, self.joints, self.layout)
+        #: hold twins alike after each step (:meth:`held_alike`): None by the integrator (Radau IIA
+        #: only), or True / False for any (a study's reference)
+        self.hold_twins: bool | None = None
         self.nc, self.nv = len(tree.contacts), len(self.q0)
         #: the rows of a point's position: 2 in the plane, 3 in space
         self.dims = 2 if self.planar else 3
@@ -320,6 +325,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
             located, crossed, cornered = self.event_location(q, v, mode, graze, crossing)
             tau = located.tau
             q_e, v_e, impulse = self.take(q, v, mode, located)
+            q_e, v_e = self.held_alike(q_e, v_e, mode)
             self.add(totals, impulse, q_e, v_e, self.vectors)
             self.tally_joints(totals, q, v, q_e, v_e, impulse, tau, _any(mode.closed), self.vectors)
             self.record(totals, t, v, t + tau, q_e, v_e)
@@ -421,6 +427,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         segments = self.segment_normals(q1, v1, mode)
         q, v, p = self.project(q1, v1, mode)
         self.follow_slip(q, v, mode)
+        q, v = self.held_alike(q, v, mode)
         self.vectors = step_vectors
         vectors = self.step_vectors(*self.projected_at, p)
         applied = impulse + p  # read only below
@@ -461,6 +468,29 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         if self.tape is not None and (q1 is not q or v1 is not v):
             self.tape.append(("twins", self.twins))
         return q1, v1
+
+    def held_alike(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) at an accepted step's end or a located event in ``mode``, each group of twins set
+        to their mean (:meth:`twinned`, taped so) where the mode treats them alike
+        (:func:`mode_alike`), on Radau IIA (or any integrator, :attr:`hold_twins`); else as they
+        are. The exact landing keeps twins identical; Radau IIA's Newton iterations part them by
+        rounding, and the mirror-antisymmetric motion grows (trial 64 of the landing study:
+        5.6e-17 rad at 1 ms, 5.6e-11 at 3.8 ms, x ~10 every 0.5 ms) up to an impact on both toes
+        at once whose split is ill-conditioned in their parting (both toes reaching their stops
+        with both tips pressed: 2.94 and 0.09 N s where the even split is 1.52 and 1.52; the
+        landing 0.33 from RK4's with an estimate of 8e-8; ``studies/whole_landing/stiff_designs.md``).
+        RK4's steps can part them too (trial 64's study landing kept them equal to the bit; a 5 ms
+        landing of it at the same step did not, and split that impact alike), but are left alone
+        by default so that RK4's and ROS2's landings stay what they were to the bit. Held alike,
+        the twins are apart by at most one step's rounding, and at an event not at all. Where a
+        mode parts them (a redundant pair's rows: one twin's contact closed, the other's open),
+        their states may differ by its projection, and are left so. A no-op (no copy, nothing
+        taped) where the twins are equal to the bit or there are none."""
+        hold = self.method == RADAU if self.hold_twins is None else self.hold_twins
+        if not hold or not self.twins or not mode_alike(mode.stop, mode.closed, mode.slip, self.twins,
+                                                        self.twin_contacts):
+            return q, v
+        return self.twinned(q, v)
 
     def resolve_or_jam(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                        jammed: bool = False) -> tuple[np.ndarray, np.ndarray, _Mode]:

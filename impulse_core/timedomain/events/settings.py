@@ -177,8 +177,21 @@ RK4_PACE, RK4_PACE_AFTER = 2.0, 4.0
 #: 6 Newton iterations, ``landing_step._radau``) made them 3.5 x, 1.8 x and 1.6 x faster again, but
 #: below 100 the files disagree: 32507 (76) lands 6.8 x faster than on RK4 within its estimate,
 #: 33491 (66) 2.3 x faster but 1.9e-3 from RK4's answer (beyond both estimates), 60113 (88) 1.3 x
-#: faster but unconverged (estimate 0.25, RK4's 6.7e-4), 32700 (44.7) 1.6 x slower: it stays 100.
-AUTO_RADAU = 100.0
+#: faster but unconverged (estimate 0.25, RK4's 6.7e-4), 32700 (44.7) 1.6 x slower: it stayed 100.
+#: It is 32 since Radau IIA holds twin toes alike (:meth:`_Landing.held_alike`): on the landing
+#: study's 16 of 384 designs below 100 whose ROS2 run gave way (h x rate 32.4 to 97.8;
+#: ``studies/whole_landing/stiff_designs.md``, 2026-11-28, branch ``twins``) Radau IIA lands every
+#: one within its estimate and within 1.9e-6 of an RK4 reference at a quarter of the finest step
+#: (trial 64, twin toes on their stops at once: 0.33 off before, with an estimate of 8e-8), and
+#: ``auto`` at 32 (ROS2's run before the switch included) takes 20.8 s of CPU where at 100 it took
+#: 104.5 s (5.0 x; 2.7 to 16 x a design). The two files that held it at 100, landed again on the
+#: same day (Radau IIA since b0d5865's shares; CPU of one run each): 32700 (44.7) 1.9 x faster
+#: than on RK4 (19.9 s against 37.7 s), 6.1e-6 from RK4's answer (estimate 3.5e-4); 33491 (66.2)
+#: 1.7e-4 from RK4 at its stable step / 32 (that and / 16: 4.9e-7 apart), its estimate 1.1e-3.
+#: 32507 (76.3) and 60113 (88.5) as above (60113 ends in one of two postures on either
+#: integrator; Radau's estimate says so). 32: below the least h x rate measured (the study's 32.4);
+#: none of the study's 384 designs had ROS2 give way between AUTO_IMPLICIT's 16 and it.
+AUTO_RADAU = 32.0
 #: Space: beyond this |phi| (rad) the base's rotation coordinates are re-centred on its current
 #: orientation (:meth:`_Landing.rechart`), far inside the chart's good region (singular at
 #: |phi| = 2 pi), so a base may turn any number of times.
