@@ -192,7 +192,9 @@ def landing(
     followed by one at a shorter step, and an implicit run that ``auto`` chose and whose steps
     overran their budget, or fell behind RK4's stable step (:data:`RK4_PACE`), by one of RK4 at its
     stable step, :meth:`_Landing.stable_step`, or where the first step is over AUTO_RADAU / rate,
-    by one of Radau IIA from that first step, :data:`AUTO_RADAU`).
+    by one of Radau IIA from that first step, :data:`AUTO_RADAU`, whose run gives way to RK4 at its
+    stable step in turn where its tries fall behind that step or overrun their budget:
+    :meth:`_Landing.check_budget`).
 
     Raises:
         ModelError: no ``scene.duration``, or joint laws that do not match the tree.
@@ -204,7 +206,8 @@ def landing(
         raise ModelError(f"joints: {len(joints)} joint laws for {tree.n_bodies} bodies")
     run = _Landing(tree, scene, joints, settings, space)
     h, switch, share = run.first_step(), "", balance_share(settings.tolerance)
-    if run.method == IMPLICIT and settings.integrator == AUTO:  # RK4 where ROS2's split steps fall behind it
+    auto = settings.integrator == AUTO
+    if run.method == IMPLICIT and auto:  # RK4 where ROS2's split steps fall behind it
         run.rk4_pace = run.stable_step()
     for halvings in range(settings.max_refinements + 1):  # a step too long for the stiffest joint diverges
         try:
@@ -214,10 +217,13 @@ def landing(
         except Diverged as e:
             if halvings == settings.max_refinements:
                 raise
-            if e.reached > 0 and run.method == IMPLICIT and settings.integrator == AUTO:
-                stiff = run.first_step() * run.rate > AUTO_RADAU  # Radau IIA from ROS2's first step, else RK4
+            if e.reached > 0 and auto and run.method in (IMPLICIT, RADAU):
+                # Radau IIA from ROS2's first step, else (and where Radau IIA gives way too) RK4
+                stiff = run.method == IMPLICIT and run.first_step() * run.rate > AUTO_RADAU
                 run = _Landing(tree, scene, joints, replace(settings, integrator=RADAU if stiff else RK4), space)
                 h, switch = run.first_step() if stiff else run.stable_step(), str(e)
+                if stiff:  # RK4 where Radau IIA's tries fall behind it (RK4_PACE)
+                    run.rk4_pace = run.stable_step()
                 continue
             h /= retry_factor(e.reached)
     error, halving, apart = math.inf, [], False

@@ -160,6 +160,11 @@ MASSLESS_SWING = 1e-6
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
 STEP_BUDGET = 64
+#: A Radau IIA run is abandoned as a run that overran :data:`STEP_BUDGET` once its tries (steps
+#: tried, pieces of split steps and the balance's rejections included: :attr:`_Landing.radau_tries`)
+#: exceed this many times that budget (a run cut to 9 ms of random file 33096 at the full file's
+#: step: 198 steps of a budget of 256, in more tries than that).
+RADAU_TRIES = 4
 #: ``auto``'s implicit first run is given up for RK4 from its stable step (:func:`landing`, as
 #: where it overruns :data:`STEP_BUDGET`) once it has taken over RK4_PACE_AFTER x duration / h
 #: steps and its mean step is below 1 / RK4_PACE of RK4's stable step: at h x rate >> 1 the

@@ -1,0 +1,76 @@
+"""A joint so stiff that only RK4 at its stable step follows it does not hang a landing: the case-3 leg
+(``configs/landing_case3.yaml``) with a heel of 1e12 N m/rad did not end its 5 ms in 150 s of CPU (``auto``:
+ROS2, then Radau IIA, whose Newton iterations failed on every step: 17 tries a step of 5e-11 s). Now
+``auto``'s Radau IIA run gives way to RK4 once its tries fall behind RK4's stable step
+(:data:`RK4_PACE`), which lands it (0.5124 N s of peak impulse, as at 1e8 and 1e10 N m/rad; on Radau
+the heel's oscillation was damped away: 0.413)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from impulse_core.timedomain.events.run import _Landing
+from impulse_core.timedomain.events.settings import BALANCE_CHECK, RK4_PACE_AFTER
+from impulse_core.timedomain.landing import IMPLICIT, RADAU, RK4, LandingProgress, LandingSettings, landing
+from optimizer.config.model_file import load_model_file
+
+CASE3 = Path(__file__).resolve().parents[2] / "configs" / "landing_case3.yaml"
+HEEL = 2  # model.bodies[2]: the heel, the first joint with stiffness 10 N m/rad
+
+
+def _stiff_heel(stiffness: float, duration: float):
+    model = load_model_file(CASE3)
+    assert model.tree.bodies[HEEL].name == "heel"
+    joints = list(model.joints)
+    joints[HEEL] = replace(joints[HEEL], stiffness=stiffness)
+    return model, replace(model.scene, duration=duration), tuple(joints)
+
+
+class _Enough(Exception):
+    """Raised from the progress callback: the test has seen what it looks for."""
+
+
+def test_autos_radau_run_gives_way_to_rk4_once_its_tries_fall_behind_rk4s_stable_step(monkeypatch) -> None:
+    """1e12 N m/rad over 5 ms: ROS2 from duration / 200 gives way (RK4_PACE), Radau IIA from the same
+    step (h x rate 962) does too, after RK4_PACE_AFTER x duration / h tries, not steps (before: it took
+    17 tries a step, each 5e-11 s, and crawled on), and RK4 from its stable step follows."""
+    model, scene, joints = _stiff_heel(1e12, 0.005)
+    h = 0.005 / 200.0
+    runs, original = [], _Landing.run
+
+    def watched(self, step, *args, **kwargs):
+        runs.append((self, step))
+        return original(self, step, *args, **kwargs)
+
+    def progress(p: LandingProgress) -> None:
+        run = runs[-1][0]
+        if run.method == RK4:
+            raise _Enough
+        assert run.radau_tries <= RK4_PACE_AFTER * 200 + 100, f"Radau IIA went on: {run.radau_tries} tries"
+
+    monkeypatch.setattr(_Landing, "run", watched)
+    with pytest.raises(_Enough):
+        landing(model.tree, scene, joints, LandingSettings(), model.space, progress)
+    assert [(run.method, step) for run, step in runs] == [(IMPLICIT, h), (RADAU, h), (RK4, runs[2][0].stable_step())]
+    assert runs[1][0].radau_tries > RK4_PACE_AFTER * 200
+
+
+@pytest.mark.slow
+def test_the_stiff_heel_lands_as_rk4_from_its_stable_step_does() -> None:
+    """The whole 5 ms (36 s): ``auto``'s landing is RK4's from its stable step to the bit, its momentum
+    balance closes, and its peak impulse is that of the heel at 1e10 N m/rad within 1e-4."""
+    model, scene, joints = _stiff_heel(1e12, 0.005)
+    r = landing(model.tree, scene, joints, LandingSettings(), model.space)
+    reference = landing(model.tree, scene, joints, LandingSettings(integrator=RK4), model.space)
+    assert r.integrator == RK4 and r.integrator_switch.startswith("Radau IIA's tries averaged")
+    for a, b in ((r.trajectory[0], reference.trajectory[0]), (r.trajectory[1], reference.trajectory[1]),
+                 (r.final_angles, reference.final_angles), (r.total_external, reference.total_external)):
+        np.testing.assert_array_equal(a, b)
+    assert (r.n_steps, r.step, r.error_estimate) == (reference.n_steps, reference.step, reference.error_estimate)
+    assert r.converged and r.momentum_balance < BALANCE_CHECK
+    softer = landing(model.tree, scene, _stiff_heel(1e10, 0.005)[2], LandingSettings(), model.space)
+    assert abs(r.peak_external_norm - softer.peak_external_norm) < 1e-4 * softer.peak_external_norm
