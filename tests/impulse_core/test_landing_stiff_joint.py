@@ -3,7 +3,8 @@
 ROS2, then Radau IIA, whose Newton iterations failed on every step: 17 tries a step of 5e-11 s). Now
 ``auto``'s Radau IIA run gives way to RK4 once its tries fall behind RK4's stable step
 (:data:`RK4_PACE`), which lands it (0.5124 N s of peak impulse, as at 1e8 and 1e10 N m/rad; on Radau
-the heel's oscillation was damped away: 0.413)."""
+the heel's oscillation was damped away: 0.413), and a landing that RK4 could not follow within
+:data:`LANDING_STEPS` is refused before any step, naming the joint."""
 
 from __future__ import annotations
 
@@ -13,9 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from impulse_core.errors import ModelError
 from impulse_core.timedomain.events.run import _Landing
-from impulse_core.timedomain.events.settings import BALANCE_CHECK, RK4_PACE_AFTER
-from impulse_core.timedomain.landing import IMPLICIT, RADAU, RK4, LandingProgress, LandingSettings, landing
+from impulse_core.timedomain.events.settings import BALANCE_CHECK, LANDING_STEPS, RK4_PACE_AFTER
+from impulse_core.timedomain.landing import (
+    IMPLICIT, RADAU, RK4, LandingProgress, LandingSettings, follows_oscillation, landing,
+)
+from optimizer.cli.main import main
 from optimizer.config.model_file import load_model_file
 
 CASE3 = Path(__file__).resolve().parents[2] / "configs" / "landing_case3.yaml"
@@ -32,6 +37,37 @@ def _stiff_heel(stiffness: float, duration: float):
 
 class _Enough(Exception):
     """Raised from the progress callback: the test has seen what it looks for."""
+
+
+@pytest.mark.parametrize(("stiffness", "duration"), [(1e12, 0.3), (1e14, 0.005)])
+def test_a_spring_rk4_cannot_follow_within_the_budget_is_refused_before_any_step(monkeypatch, stiffness,
+                                                                                 duration) -> None:
+    model, scene, joints = _stiff_heel(stiffness, duration)
+
+    def step(self, *args):
+        raise AssertionError("a step was taken")
+
+    monkeypatch.setattr(_Landing, "step", step)
+    with pytest.raises(ModelError) as refused:
+        landing(model.tree, scene, joints, LandingSettings(), model.space)
+    message = str(refused.value)
+    assert message.startswith(f"model.bodies[2].stiffness: heel's joint stiffness {stiffness:.3g} N m/rad")
+    assert "\n" not in message and f"over the {LANDING_STEPS} a landing may plan" in message
+    fits = float(message.split("at most ")[1].split(" N m/rad fits")[0])  # what it says would fit does
+    assert stiffness / 1e4 < fits < stiffness
+    run = _Landing(model.tree, scene, tuple(replace(j, stiffness=0.99 * fits) if i == HEEL else j
+                                            for i, j in enumerate(joints)), LandingSettings(), model.space)
+    follows_oscillation(run)
+
+
+def test_a_stiff_damper_is_left_to_the_implicit_integrators() -> None:
+    """A damper's rate as fast as that spring's: ROS2 and Radau IIA follow its decay, so no refusal
+    before the runs (they are ``auto``'s to try)."""
+    model, scene, joints = _stiff_heel(10.0, 0.3)
+    heel = replace(joints[HEEL], damping=1e6)
+    run = _Landing(model.tree, scene, joints[:HEEL] + (heel,) + joints[HEEL + 1:], LandingSettings(), model.space)
+    assert 3.0 * 0.3 * run.rate / 2.0 > LANDING_STEPS  # RK4 at its stable step would be over the budget
+    follows_oscillation(run)
 
 
 def test_autos_radau_run_gives_way_to_rk4_once_its_tries_fall_behind_rk4s_stable_step(monkeypatch) -> None:
@@ -57,6 +93,17 @@ def test_autos_radau_run_gives_way_to_rk4_once_its_tries_fall_behind_rk4s_stable
         landing(model.tree, scene, joints, LandingSettings(), model.space, progress)
     assert [(run.method, step) for run, step in runs] == [(IMPLICIT, h), (RADAU, h), (RK4, runs[2][0].stable_step())]
     assert runs[1][0].radau_tries > RK4_PACE_AFTER * 200
+
+
+def test_the_cli_refuses_it_in_one_line_with_status_2(tmp_path: Path, capsys) -> None:
+    text = CASE3.read_text()
+    assert text.index("stiffness: 10.0") < text.index("name: toe1_proximal")  # the first: the heel's
+    path = tmp_path / "stiff_heel.yaml"
+    path.write_text(text.replace("stiffness: 10.0", "stiffness: 1.0e12", 1))
+    assert main(["evaluate", "--json", str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "Traceback" not in err
+    assert f"{path}: model.bodies[2].stiffness: heel's joint stiffness 1e+12 N m/rad" in err
 
 
 @pytest.mark.slow
