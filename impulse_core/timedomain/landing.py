@@ -76,8 +76,8 @@ from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.events.settings import (
     AUTO, AUTO_CODE, AUTO_IMPLICIT, AUTO_RADAU, BALANCE_CHECK, BALANCE_TOLERANCE, C_CODE, DISTINCT_RUNS, IMPLICIT,
     IMPULSES_AGREE, LANDING_STEPS, MAX_EVENTS, MIN_BOUNCE, MODEL_NAME, NUMPY_CODE, PLASTIC_SPEED, POSTURE_SPREAD,
-    RADAU, RK4, RK4_STABLE, SETTLE_SPEED, VM_CODE, Diverged, LandingProgress, LandingSettings, PainleveParadox, Progress,
-    balance_share, retry_factor,
+    RADAU, RK4, RK4_STABLE, SETTLE_SPEED, VM_CODE, Diverged, LandingProgress, LandingSettings, PainleveParadox,
+    Progress, RadauTries, balance_share, retry_factor,
 )
 
 
@@ -288,6 +288,12 @@ def landing(
             if halvings == settings.max_refinements:
                 raise
             cause = str(e)
+            if isinstance(e, RadauTries) and not auto:  # a shorter step does not help (RadauTries)
+                b, name, value, rate = fastest_joint_law(run)
+                raise NumericalError(
+                    f"{e}; a shorter step would not help: its iterations fail where the fastest joint law "
+                    f"({run.tree.bodies[b].name}'s joint {name} {value:.3g}, rate {rate:.3g} 1/s) is "
+                    f"far beyond the step (h x rate {h * rate:.3g}); integrator auto or rk4 follows it") from None
             if e.reached > 0 and auto and run.method in (IMPLICIT, RADAU):
                 # Radau IIA from ROS2's first step, else (and where Radau IIA gives way too) RK4
                 stiff = run.method == IMPLICIT and run.first_step() * run.rate > AUTO_RADAU

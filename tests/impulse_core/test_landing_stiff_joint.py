@@ -121,3 +121,28 @@ def test_the_stiff_heel_lands_as_rk4_from_its_stable_step_does() -> None:
     assert r.converged and r.momentum_balance < BALANCE_CHECK
     softer = landing(model.tree, scene, _stiff_heel(1e10, 0.005)[2], LandingSettings(), model.space)
     assert abs(r.peak_external_norm - softer.peak_external_norm) < 1e-4 * softer.peak_external_norm
+
+
+def test_a_radau_run_asked_for_whose_tries_overrun_fails_naming_the_joint(monkeypatch) -> None:
+    """Radau IIA asked for, 1e12 N m/rad over 5 ms: its tries overrun their budget (lowered here to
+    RADAU_TRIES / 16 x STEP_BUDGET x duration / h: 800 tries, instead of 51,200 that took 34 s),
+    and the landing fails at once, naming the joint law, instead of retrying at ever shorter steps
+    (before: runs at h / 8 and h / 32 crawled alike, 36 s and over 140 s of CPU)."""
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain.events import run as events_run
+
+    model, scene, joints = _stiff_heel(1e12, 0.005)
+    monkeypatch.setattr(events_run, "RADAU_TRIES", events_run.RADAU_TRIES / 16.0)
+    runs, original = [], _Landing.run
+
+    def watched(self, step, *args, **kwargs):
+        runs.append((self.method, step))
+        assert len(runs) == 1, f"a second run: {runs}"
+        return original(self, step, *args, **kwargs)
+
+    monkeypatch.setattr(_Landing, "run", watched)
+    with pytest.raises(NumericalError) as failed:
+        landing(model.tree, scene, joints, LandingSettings(integrator=RADAU), model.space)
+    message = str(failed.value)
+    assert message.startswith("Radau IIA tried more than") and "heel's joint stiffness 1e+12" in message
+    assert runs == [(RADAU, 0.005 / 200.0)]

@@ -25,8 +25,8 @@ from impulse_core.timedomain.compliant import (
 from impulse_core.timedomain.events.settings import (
     AUTO, AUTO_CODE, AUTO_IMPLICIT, C_CODE, FIRST_STEPS, IMPLICIT, MASSLESS, MAX_SPLITS, MIN_BOUNCE,
     MOMENTUM_BALANCE, NUMPY_CODE, RADAU, RADAU_TRIES, RECHART, REPEAT_SPAN, REPEATS, RK4, RK4_PACE, RK4_PACE_AFTER,
-    RK4_STABLE, SLIP_BUDGET, STEP_BUDGET, VM_CODE, Diverged, _Jams, _Unjammed, LandingProgress, LandingSettings,
-    PainleveParadox, Progress, Until,
+    RK4_STABLE, SLIP_BUDGET, STEP_BUDGET, VM_CODE, Diverged, RadauTries, _Jams, _Unjammed, LandingProgress,
+    LandingSettings, PainleveParadox, Progress, Until,
 )
 from impulse_core.timedomain.events.results import LandingResult
 from impulse_core.timedomain.events.point import (
@@ -382,7 +382,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
                 "balance split its steps: a light rod spinning fast)", reached=t / T,
             )
         if self.radau_tries > RADAU_TRIES * STEP_BUDGET * T / h:
-            raise Diverged(  # as above
+            raise RadauTries(  # landing() goes on with RK4, or fails where Radau IIA was asked for
                 f"Radau IIA tried more than {RADAU_TRIES} x {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (its "
                 "Newton iterations failed, or the momentum balance split its steps)", reached=t / T,
             )

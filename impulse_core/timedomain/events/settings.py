@@ -222,6 +222,13 @@ class Diverged(NumericalError):
         self.reached = reached
 
 
+class RadauTries(Diverged):
+    """A Radau IIA run whose tries overran their budget (:data:`RADAU_TRIES`): where ``auto`` chose
+    Radau IIA, :func:`landing` goes on with RK4 from its stable step; asked for, the landing fails,
+    as a shorter step does not bring its Newton iterations back (the case-3 leg with a heel of 1e12
+    N m/rad: runs at h / 8 and h / 32 crawled alike, 36 s and over 140 s of CPU)."""
+
+
 class _Jams(Exception):
     """A run stopped by Painleve's paradox before the landing took impulsive jams
     (:meth:`_Landing.run` then starts it again taking them); ``failure``: the error it stopped with."""
