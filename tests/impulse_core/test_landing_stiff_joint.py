@@ -146,3 +146,21 @@ def test_a_radau_run_asked_for_whose_tries_overrun_fails_naming_the_joint(monkey
     message = str(failed.value)
     assert message.startswith("Radau IIA tried more than") and "heel's joint stiffness 1e+12" in message
     assert runs == [(RADAU, 0.005 / 200.0)]
+
+
+def test_a_run_at_a_step_too_short_for_the_budget_is_refused_with_its_cause() -> None:
+    """Where a retry's step (retry_factor after a run overran at a small fraction of the duration)
+    would take over LANDING_STEPS steps while RK4 at its stable step would not: a NumericalError with
+    the failure that shortened the step; a step within the budget is let through."""
+    from impulse_core.errors import NumericalError
+    from impulse_core.timedomain.landing import afford
+
+    model = load_model_file(CASE3)
+    run = _Landing(model.tree, model.scene, model.joints, LandingSettings(), model.space)
+    T = float(model.scene.duration)
+    afford(run, 3.0 * T / LANDING_STEPS)
+    with pytest.raises(NumericalError) as refused:
+        afford(run, 2.9 * T / LANDING_STEPS, "the landing took more than 64 x 200 steps by t = 1e-06 s")
+    message = str(refused.value)
+    assert message.startswith("the landing would take over 5.42e+05 steps at step")
+    assert "(the landing took more than 64 x 200 steps by t = 1e-06 s; the fastest joint law: " in message
