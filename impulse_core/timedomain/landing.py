@@ -66,7 +66,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from impulse_core.errors import ModelError
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.kinematics.spatial import PLANAR, Space
 from impulse_core.model.joints import JointLaw
 from impulse_core.model.tree import Scene, Tree
@@ -78,9 +78,9 @@ from impulse_core.timedomain.events.results import LandingEvent, LandingResult
 from impulse_core.timedomain.events.run import _Landing
 from impulse_core.timedomain.events.settings import (
     AUTO, AUTO_CODE, AUTO_IMPLICIT, AUTO_RADAU, BALANCE_CHECK, BALANCE_TOLERANCE, C_CODE, DISTINCT_RUNS, IMPLICIT,
-    IMPULSES_AGREE, MAX_EVENTS, MIN_BOUNCE, MODEL_NAME, NUMPY_CODE, PLASTIC_SPEED, POSTURE_SPREAD, RADAU, RK4,
-    RK4_STABLE, SETTLE_SPEED, VM_CODE, Diverged, LandingProgress, LandingSettings, PainleveParadox, Progress,
-    balance_share, retry_factor,
+    IMPULSES_AGREE, LANDING_STEPS, MAX_EVENTS, MIN_BOUNCE, MODEL_NAME, NUMPY_CODE, PLASTIC_SPEED, POSTURE_SPREAD,
+    RADAU, RK4, RK4_STABLE, SETTLE_SPEED, VM_CODE, Diverged, LandingProgress, LandingSettings, PainleveParadox,
+    Progress, RadauTries, balance_share, retry_factor,
 )
 
 
@@ -164,6 +164,67 @@ def halving_stalled(halving: tuple[tuple[float, float, float, float, float], ...
     return stall_start(halving) is not None
 
 
+def fastest_joint_law(run: _Landing) -> tuple[int, str, float, float]:
+    """The joint law whose rate at touchdown is the fastest of ``run``'s (:func:`joint_law_rate`, each
+    law on its own: a damper's D / m, a spring's sqrt(K / m), m the inertia its joint moves,
+    1 / (M^-1)_jj): (its body's index, ``stiffness`` or ``damping``, the law's value, its rate, 1/s)."""
+    M = run.mass_matrix_at(run.q0)
+    w, V = np.linalg.eigh(M)
+    inverse = np.diag((V / np.maximum(w, np.finfo(float).eps * w[-1])) @ V.T)  # M^-1's diagonal, floored
+    D, K = run.joints.damping, run.joints.stiffness
+    rates = np.stack([D * inverse, np.sqrt(np.maximum(K * inverse, 0.0))])
+    law, j = np.unravel_index(int(np.argmax(rates)), rates.shape)
+    return int(run.joints.dof_body[j]), ("damping", "stiffness")[law], float((D, K)[law][j]), float(rates[law, j])
+
+
+def follows_oscillation(run: _Landing) -> None:
+    """Refuse, before any run, a landing whose fastest joint law is a spring (its frequency above its
+    damper's rate: an oscillation that the joint's damping does not end within a period) that RK4
+    at its stable step cannot follow within :data:`LANDING_STEPS` (:func:`afford`): ROS2 and Radau
+    IIA would land it, but with that oscillation damped away (the case-3 leg over 5 ms with a heel
+    of 1e12 N m/rad: 0.413 N s of peak impulse on Radau, 0.5124 on RK4), and ``auto`` tries them
+    first, the step halving's retries on the way (that leg over 0.3 s: minutes before RK4 was refused).
+
+    Raises:
+        ModelError: as :func:`afford`'s, naming the spring.
+    """
+    if fastest_joint_law(run)[1] == "stiffness":
+        afford(run, None)
+
+
+def afford(run: _Landing, h: float | None, cause: str = "") -> None:
+    """Refuse a run of ``run``'s landing at step ``h`` where it and the step halving's first finer run
+    would take over :data:`LANDING_STEPS` steps between them (3 x duration / h at least; h None:
+    RK4 from its stable step, :func:`follows_oscillation`): as a
+    ModelError naming the fastest joint law where RK4 at its stable step would too (the joint's
+    rate sets the step: a spring so stiff that only RK4 follows its oscillation), else as a
+    NumericalError with ``cause``, the failure that shortened the step this far.
+
+    Raises:
+        ModelError: the fastest joint law, its value and rate, and what would fit.
+        NumericalError: ``cause``, the steps the run would take, and the fastest joint law.
+    """
+    T = float(run.scene.duration)
+    planned = math.inf if h is None else 3.0 * T / h
+    needed = 3.0 * T * run.rate / RK4_STABLE  # RK4 from its stable step, and the first halving
+    if (needed if h is None else planned) <= LANDING_STEPS:
+        return
+    b, name, value, rate = fastest_joint_law(run)
+    unit = "N m/rad" if name == "stiffness" else "N m s/rad"
+    law = f"{run.tree.bodies[b].name}'s joint {name} {value:.3g} {unit} (rate {rate:.3g} 1/s at touchdown)"
+    if needed > LANDING_STEPS:
+        fits = value * (LANDING_STEPS / needed) ** (2 if name == "stiffness" else 1)
+        damps = " (only an explicit step follows the joint's oscillation after an impact: ROS2 and Radau IIA " \
+            "damp it away)" if name == "stiffness" else ""
+        raise ModelError(
+            f"model.bodies[{b}].{name}: {law}: RK4's stable step is {RK4_STABLE / run.rate:.3g} s{damps}, and over the "
+            f"{T:.3g} s landing that and the step halving's first check take {needed:.3g} steps, over the "
+            f"{LANDING_STEPS} a landing may plan; at most {fits:.3g} {unit} fits (or a shorter scene.duration)")
+    raise NumericalError(
+        f"the landing would take over {planned:.3g} steps at step {h:.3g} s, over the {LANDING_STEPS} it "
+        f"may plan ({cause or 'the step asked for'}; the fastest joint law: {law})")
+
+
 def landing(
     tree: Tree, scene: Scene, joints: tuple[JointLaw, ...] = (), settings: LandingSettings = LandingSettings(),
     space: Space = PLANAR, progress: Progress | None = None,
@@ -195,11 +256,18 @@ def landing(
     followed by one at a shorter step, and an implicit run that ``auto`` chose and whose steps
     overran their budget, or fell behind RK4's stable step (:data:`RK4_PACE`), by one of RK4 at its
     stable step, :meth:`_Landing.stable_step`, or where the first step is over AUTO_RADAU / rate,
-    by one of Radau IIA from that first step, :data:`AUTO_RADAU`).
+    by one of Radau IIA from that first step, :data:`AUTO_RADAU`, whose run gives way to RK4 at its
+    stable step in turn where its tries fall behind that step or overrun their budget:
+    :meth:`_Landing.check_budget`). No run starts that, with the step halving's first finer run,
+    would take over :data:`LANDING_STEPS` steps (:func:`afford`), and with ``auto`` or ``rk4``
+    a landing whose fastest joint law is a spring that RK4 could not follow so is refused before
+    any run (:func:`follows_oscillation`).
 
     Raises:
-        ModelError: no ``scene.duration``, or joint laws that do not match the tree.
-        NumericalError: the integration diverged or chattered, or no consistent contact forces.
+        ModelError: no ``scene.duration``, joint laws that do not match the tree, or a joint law
+            that RK4 could not follow within LANDING_STEPS (naming it: ``model.bodies[i].stiffness``).
+        NumericalError: the integration diverged or chattered, no consistent contact forces, or a
+            retry at a step so short that its runs would take over LANDING_STEPS steps.
     """
     if scene.duration is None:
         raise ModelError("scene.duration: the whole landing needs a duration (s)")
@@ -207,9 +275,14 @@ def landing(
         raise ModelError(f"joints: {len(joints)} joint laws for {tree.n_bodies} bodies")
     run = _Landing(tree, scene, joints, settings, space)
     h, switch, share = run.first_step(), "", balance_share(settings.tolerance)
-    if run.method == IMPLICIT and settings.integrator == AUTO:  # RK4 where ROS2's split steps fall behind it
+    auto = settings.integrator == AUTO
+    if settings.integrator in (AUTO, RK4):  # before ROS2 and Radau IIA damp a stiff spring's oscillation away
+        follows_oscillation(run)
+    if run.method == IMPLICIT and auto:  # RK4 where ROS2's split steps fall behind it
         run.rk4_pace = run.stable_step()
+    cause = ""
     for halvings in range(settings.max_refinements + 1):  # a step too long for the stiffest joint diverges
+        afford(run, h, cause)
         try:
             previous = run.run(h, progress, halvings, share=share)
             run.rk4_pace = None
@@ -217,10 +290,20 @@ def landing(
         except Diverged as e:
             if halvings == settings.max_refinements:
                 raise
-            if e.reached > 0 and run.method == IMPLICIT and settings.integrator == AUTO:
-                stiff = run.first_step() * run.rate > AUTO_RADAU  # Radau IIA from ROS2's first step, else RK4
+            cause = str(e)
+            if isinstance(e, RadauTries) and not auto:  # a shorter step does not help (RadauTries)
+                b, name, value, rate = fastest_joint_law(run)
+                raise NumericalError(
+                    f"{e}; a shorter step would not help: its iterations fail where the fastest joint law "
+                    f"({run.tree.bodies[b].name}'s joint {name} {value:.3g}, rate {rate:.3g} 1/s) is "
+                    f"far beyond the step (h x rate {h * rate:.3g}); integrator auto or rk4 follows it") from None
+            if e.reached > 0 and auto and run.method in (IMPLICIT, RADAU):
+                # Radau IIA from ROS2's first step, else (and where Radau IIA gives way too) RK4
+                stiff = run.method == IMPLICIT and run.first_step() * run.rate > AUTO_RADAU
                 run = _Landing(tree, scene, joints, replace(settings, integrator=RADAU if stiff else RK4), space)
                 h, switch = run.first_step() if stiff else run.stable_step(), str(e)
+                if stiff:  # RK4 where Radau IIA's tries fall behind it (RK4_PACE)
+                    run.rk4_pace = run.stable_step()
                 continue
             h /= retry_factor(e.reached)
     error, halving, apart = math.inf, [], False
@@ -292,6 +375,10 @@ __all__ = [
     "balance_share",
     "retry_factor",
     "joint_law_rate",
+    "fastest_joint_law",
+    "afford",
+    "follows_oscillation",
+    "LANDING_STEPS",
     "landing_function",
     "RigidImpact",
     "contact_impulses",

@@ -24,9 +24,9 @@ from impulse_core.timedomain.compliant import (
 )
 from impulse_core.timedomain.events.settings import (
     AUTO, AUTO_CODE, AUTO_IMPLICIT, C_CODE, FIRST_STEPS, IMPLICIT, MASSLESS, MAX_SPLITS, MIN_BOUNCE,
-    MOMENTUM_BALANCE, NUMPY_CODE, RADAU, RECHART, REPEAT_SPAN, REPEATS, RK4, RK4_PACE, RK4_PACE_AFTER, RK4_STABLE,
-    SLIP_BUDGET, STEP_BUDGET, VM_CODE, Diverged, _Jams, _Unjammed, LandingProgress, LandingSettings,
-    PainleveParadox, Progress, Until,
+    MOMENTUM_BALANCE, NUMPY_CODE, RADAU, RADAU_TRIES, RECHART, REPEAT_SPAN, REPEATS, RK4, RK4_PACE, RK4_PACE_AFTER,
+    RK4_STABLE, SLIP_BUDGET, STEP_BUDGET, VM_CODE, Diverged, RadauTries, _Jams, _Unjammed, LandingProgress,
+    LandingSettings, PainleveParadox, Progress, Until,
 )
 from impulse_core.timedomain.events.results import LandingResult
 from impulse_core.timedomain.events.point import (
@@ -163,9 +163,12 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         #: (:meth:`run`), the fraction of its frictionless value below which a pressed sliding
         #: contact's A = n M^-1 (n - mu u t)^T jams at a step's start
         self.jam_watch: float | None = None
-        #: RK4's stable step where this run is ``auto``'s implicit first run (:func:`landing` sets
-        #: it; :data:`RK4_PACE`), else None
+        #: RK4's stable step where this run is ``auto``'s implicit first run, or the Radau IIA run
+        #: that ``auto`` went on with (:func:`landing` sets it; :data:`RK4_PACE`), else None
         self.rk4_pace: float | None = None
+        #: the Radau IIA steps the current run tried, pieces of split steps and the balance's
+        #: rejected trials included (:meth:`radau_step`): its work, which :meth:`check_budget` counts
+        self.radau_tries = 0
         gap_tol, nc, nv = settings.gap_tolerance, self.nc, self.nv
         #: the witnesses' tolerances (:meth:`witness_and_rate`): gaps, forces, cone margins, slip,
         #: stop margins (twice), stop forces; and the NaN rates of the force and slip witnesses
@@ -275,6 +278,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.refused = np.zeros(0, int)
         self.slip_halvings = []
         self.balance_splits = 0
+        self.radau_tries = 0
         q, v, mode, totals = self.first_impact()
         slid = bool(self.mu) and _any(mode.closed & mode.sliding)  # a contact slid (a jam may follow)
         self.end_normals = None
@@ -371,19 +375,32 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
 
     def check_budget(self, steps: int, t: float, h: float) -> None:
         """Raise Diverged where a run at step ``h`` has taken more than its budget of ``steps`` by ``t``
-        (:data:`STEP_BUDGET`), or, as ``auto``'s implicit first run, fallen behind RK4's stable step
-        (:data:`RK4_PACE`)."""
+        (:data:`STEP_BUDGET`), or, as ``auto``'s implicit run, fallen behind RK4's stable step
+        (:data:`RK4_PACE`). On Radau IIA both also count its tries (:attr:`radau_tries`; the budget
+        RADAU_TRIES x as many): where its Newton iterations fail (a spring so stiff that rounding in
+        its torque keeps them from converging: the case-3 leg with a heel of 1e12 N m/rad, 17 tries a
+        step, 5e-11 s each), a step is many tries, and the steps taken alone kept the run within
+        its budget while it crawled (no end in 150 s of CPU)."""
         T = float(self.scene.duration)
         if steps > STEP_BUDGET * T / h:
             raise Diverged(  # landing() shortens the step (retry_factor)
                 f"the landing took more than {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (the momentum "
                 "balance split its steps: a light rod spinning fast)", reached=t / T,
             )
+        if self.radau_tries > RADAU_TRIES * STEP_BUDGET * T / h:
+            raise RadauTries(  # landing() goes on with RK4, or fails where Radau IIA was asked for
+                f"Radau IIA tried more than {RADAU_TRIES} x {STEP_BUDGET} x {T / h:.0f} steps by t = {t:.6g} s (its "
+                "Newton iterations failed, or the momentum balance split its steps)", reached=t / T,
+            )
+        if self.method == RADAU:
+            steps = max(steps, self.radau_tries)
         if (self.rk4_pace is not None and steps > RK4_PACE_AFTER * T / h
                 and steps * self.rk4_pace > RK4_PACE * t):
+            why = ("Radau IIA's tries", "its Newton iterations failed or the momentum balance split them") \
+                if self.method == RADAU else ("the implicit steps", "the momentum balance split them")
             raise Diverged(  # landing() goes on with RK4 from its stable step
-                f"the implicit steps averaged {t / steps:.3g} s by t = {t:.6g} s, below half of RK4's "
-                f"stable step {self.rk4_pace:.3g} s (the momentum balance split them)", reached=t / T,
+                f"{why[0]} averaged {t / steps:.3g} s by t = {t:.6g} s, below half of RK4's "
+                f"stable step {self.rk4_pace:.3g} s ({why[1]})", reached=t / T,
             )
 
     def split_length(self, q: np.ndarray, v: np.ndarray, mode: _Mode, trial: float, least: float) -> float:

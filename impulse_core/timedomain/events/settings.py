@@ -160,6 +160,22 @@ MASSLESS_SWING = 1e-6
 #: rod spinning at 1e4 rad/s makes the balance split every step (the trial then fails, as it did
 #: when the step diverged).
 STEP_BUDGET = 64
+#: The steps a landing may plan (:func:`~impulse_core.timedomain.landing.landing`): a run at step h
+#: and the step halving's first finer run take at least 3 x duration / h steps between them, and a
+#: run is not started where that is over this. RK4's stable step shrinks as 1 / the joint laws'
+#: fastest rate, so a stiff joint with little damping, whose oscillation after every impact only
+#: an explicit step resolves (ROS2 and Radau IIA damp it away: the case-3 leg over 5 ms with a
+#: heel of 1e12 N m/rad landed on Radau with a peak impulse of 0.413 N s, on RK4 at its stable step
+#: 0.5124, as at 1e8 and 1e10 N m/rad), would otherwise run for hours: that leg's 5 ms take
+#: 2.9e5 steps (33 s), over its 0.3 s 1.7e7 (refused). A run retried at a far shorter step after
+#: its steps overran their budget (:func:`~impulse_core.timedomain.landing.retry_factor`) is held
+#: to it too.
+LANDING_STEPS = 2**19
+#: A Radau IIA run is abandoned as a run that overran :data:`STEP_BUDGET` once its tries (steps
+#: tried, pieces of split steps and the balance's rejections included: :attr:`_Landing.radau_tries`)
+#: exceed this many times that budget (a run cut to 9 ms of random file 33096 at the full file's
+#: step: 198 steps of a budget of 256, in more tries than that).
+RADAU_TRIES = 4
 #: ``auto``'s implicit first run is given up for RK4 from its stable step (:func:`landing`, as
 #: where it overruns :data:`STEP_BUDGET`) once it has taken over RK4_PACE_AFTER x duration / h
 #: steps and its mean step is below 1 / RK4_PACE of RK4's stable step: at h x rate >> 1 the
@@ -217,6 +233,13 @@ class Diverged(NumericalError):
     def __init__(self, message: str, reached: float = 0.0) -> None:
         super().__init__(message)
         self.reached = reached
+
+
+class RadauTries(Diverged):
+    """A Radau IIA run whose tries overran their budget (:data:`RADAU_TRIES`): where ``auto`` chose
+    Radau IIA, :func:`landing` goes on with RK4 from its stable step; asked for, the landing fails,
+    as a shorter step does not bring its Newton iterations back (the case-3 leg with a heel of 1e12
+    N m/rad: runs at h / 8 and h / 32 crawled alike, 36 s and over 140 s of CPU)."""
 
 
 class _Jams(Exception):

@@ -222,7 +222,9 @@ class _Stepping:
         :meth:`balanced_step` halves the step), down to RK4's stable step, where an RK4 step takes
         the piece. Random file 60147: the iterations failed on steps that crossed the point where
         a sliding contact's slip stops (the fixed mode's dynamics turn there), and an event
-        location's trial step, NaN, reached the witnesses' least squares, which failed."""
+        location's trial step, NaN, reached the witnesses' least squares, which failed. Each call
+        is a try (:attr:`_Landing.radau_tries`)."""
+        self.radau_tries += 1
         q1, v1, impulse = self.radau_once(q, v, mode, h)
         if _finite(q1) and _finite(v1):
             return q1, v1, impulse
