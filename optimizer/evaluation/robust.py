@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from impulse_core.errors import NumericalError
+from impulse_core.errors import ModelError, NumericalError
 from impulse_core.timedomain.landing import LandingResult, LandingSettings
 from optimizer.config.model_file import ModelFile
 from optimizer.design_space import Objective, Objectives, objectives, scored_landing
@@ -49,12 +49,14 @@ class RobustEvaluation:
 
 
 def scenario_objectives(model: ModelFile, whole: LandingSettings | None = None) -> Objectives | None:
-    """One model file's objectives by the model ``auto`` picks (None if the numerics fail); a
-    whole landing with the settings ``whole`` (default ``footopt evaluate``'s)."""
+    """One model file's objectives by the model ``auto`` picks (None if the numerics fail, or the
+    landing refuses a joint law too stiff to follow: a design's, as :func:`optimizer.design_space.
+    evaluate_design_landing` records it); a whole landing with the settings ``whole`` (default
+    ``footopt evaluate``'s)."""
     with np.errstate(all="ignore"):
         try:
             result = evaluate_landing(model.tree, model.scene, "auto", joints=model.joints, whole=whole, space=model.space)
-        except (np.linalg.LinAlgError, NumericalError):
+        except (np.linalg.LinAlgError, NumericalError, ModelError):  # ModelError: a joint law too stiff to follow
             return None
     inner = getattr(result, "result", None)
     if isinstance(inner, LandingResult):

@@ -328,3 +328,19 @@ def test_whole_landing_scenarios_run_in_worker_processes_as_one_by_one(tmp_path,
         assert row.objectives is not None and row.objectives.peak_external_norm is not None
         assert scenario_objectives(scenario_model(model_data(model), row.overrides)) == row.objectives
     assert len({row.objectives.peak_external_norm for row in robust.rows}) == 3
+
+
+def test_a_scenario_whose_spring_is_too_stiff_to_follow_fails_it_without_ending_the_study():
+    """A design's joint law that the landing refuses (a spring RK4 could not follow within
+    LANDING_STEPS: a ModelError naming it) makes its scenario fail, as a numerical failure does,
+    instead of stopping a robust study; alone, ``footopt evaluate`` names it (test_landing_stiff_joint)."""
+    from impulse_core.errors import ModelError
+    from impulse_core.timedomain.landing import LandingSettings, landing
+    from optimizer.evaluation.robust import scenario_objectives
+
+    model = load_model_file(Path(__file__).resolve().parents[2] / "configs" / "landing_case3.yaml")
+    joints = tuple(dataclasses.replace(j, stiffness=1e12) if i == 2 else j for i, j in enumerate(model.joints))
+    stiff = dataclasses.replace(model, joints=joints)
+    with pytest.raises(ModelError, match=r"model.bodies\[2\].stiffness"):
+        landing(stiff.tree, stiff.scene, joints, LandingSettings(), stiff.space)
+    assert scenario_objectives(stiff) is None
