@@ -39,10 +39,10 @@ Contacts*, 1996), the rigid counterpart of Moreau-Jean time stepping:
 * Identical toes (twins: sibling subtrees equal in everything but their names, with equal joint
   laws) move alike in the exact landing; after every event their angles and velocities are set
   to their mean (:meth:`_Landing.twinned`), so that rounding does not part them (in the plane n
-  of them then land as one toe of n times the mass, stiffness and damping); on Radau IIA also
+  of them then land as one toe of n times the mass, stiffness and damping); also
   after every accepted step and at a located event, where the mode treats them alike
-  (:meth:`_Landing.held_alike`: its Newton iterations part them, and an impact on both at once
-  can be ill-conditioned in their parting).
+  (:meth:`_Landing.held_alike`: the integrators' rounding parts them, and an impact on both at
+  once can be ill-conditioned in their parting).
 
 The error of a run at step h is estimated by comparing with the run at h / 2; the step is halved
 until that estimate meets ``tolerance`` (:func:`landing`).

@@ -1,4 +1,4 @@
-"""Radau IIA keeps identical toes (twins) identical (:meth:`_Landing.held_alike`): trial 64 of the
+"""Radau IIA (and RK4) keep identical toes (twins) identical (:meth:`_Landing.held_alike`): trial 64 of the
 landing study (``configs/landing_study.yaml``, ``studies/whole_landing/stiff_designs.md``), two
 identical two-rod toes that reach their stops at once with both tips pressed at 3.77 ms, an
 impact whose split between the toes is ill-conditioned in their parting. Left to themselves,
@@ -79,3 +79,19 @@ def test_a_mode_that_parts_the_twins_is_not_held_alike() -> None:
     assert not mode_alike(stop, closed, slip, run.twins, run.twin_contacts)
     stop[7] = 1
     assert mode_alike(stop, closed, slip, run.twins, run.twin_contacts)
+
+
+def test_rk4_keeps_twin_toes_identical_too() -> None:
+    """RK4 at its stable step (2.06e-5 s) holds them too (the default on every integrator): left
+    alone, its steps part the toes by rounding (1e-16 rad by 0.25 ms) and the impact on both toes
+    splits unevenly, as Radau IIA's did."""
+    run, r = _run(RK4, 2.06e-5)
+    (group,) = run.twins
+    t, q = r.trajectory
+    peak = max(r.events, key=lambda e: e.external_norm)
+    assert 3.7e-3 < peak.time < 3.85e-3
+    assert np.array_equal(q[t < peak.time][:, group[0]], q[t < peak.time][:, group[1]])
+    assert abs(peak.external[1] - peak.external[2]) <= 1e-12 * peak.external[1] and peak.external[1] > 1.5
+    _, loose = _run(RK4, 2.06e-5, hold=False)
+    parted = max(loose.events, key=lambda e: e.external_norm)
+    assert abs(parted.external[1] - parted.external[2]) > 0.5 * max(parted.external[1], parted.external[2])

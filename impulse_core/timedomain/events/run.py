@@ -82,8 +82,8 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.twins = twin_groups(tree, self.joints, self.layout)
         #: each group's declared contacts (:func:`twin_contacts`; :meth:`held_alike`)
         self.twin_contacts = twin_contacts(tree, self.joints, self.layout)
-        #: hold twins alike after each step (:meth:`held_alike`): None by the integrator (Radau IIA
-        #: only), or True / False for any (a study's reference)
+        #: hold twins alike after each step (:meth:`held_alike`): None or True (the default), False
+        #: never (a study's unheld reference)
         self.hold_twins: bool | None = None
         self.nc, self.nv = len(tree.contacts), len(self.q0)
         #: the rows of a point's position: 2 in the plane, 3 in space
@@ -489,25 +489,30 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
     def held_alike(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) at an accepted step's end or a located event in ``mode``, each group of twins set
         to their mean (:meth:`twinned`, taped so) where the mode treats them alike
-        (:func:`mode_alike`), on Radau IIA (or any integrator, :attr:`hold_twins`); else as they
-        are. The exact landing keeps twins identical; Radau IIA's Newton iterations part them by
-        rounding, and the mirror-antisymmetric motion grows (trial 64 of the landing study:
+        (:func:`mode_alike`), on every integrator (unless :attr:`hold_twins` is False); else as
+        they are. The exact landing keeps twins identical; rounding parts them (Radau IIA's Newton
+        iterations, and RK4's and ROS2's steps through the mass matrix's solve), and the
+        mirror-antisymmetric motion grows (trial 64 of the landing study:
         5.6e-17 rad at 1 ms, 5.6e-11 at 3.8 ms, x ~10 every 0.5 ms) up to an impact on both toes
         at once whose split is ill-conditioned in their parting (both toes reaching their stops
         with both tips pressed: 2.94 and 0.09 N s where the even split is 1.52 and 1.52; the
         landing 0.33 from RK4's with an estimate of 8e-8; ``studies/whole_landing/stiff_designs.md``).
-        RK4's steps can part them too (trial 64's study landing kept them equal to the bit; a 5 ms
-        landing of it at the same step did not, and split that impact alike), but are left alone
-        by default so that RK4's and ROS2's landings stay what they were to the bit. Held alike,
+        RK4's steps part them too: a 5 ms landing of trial 64 at RK4's stable step split that impact
+        2.94 and 0.09 N s as well, 0.28 from the held landing; trial 38's 20 ms parted on 924 of its
+        1008 steps. Held on every integrator since (case 3's landing moved by 4e-15 rad and 3e-13
+        N s, its 441 events the same; the landing tests' pinned figures held). Held alike,
         the twins are apart by at most one step's rounding, and at an event not at all. Where a
         mode parts them (a redundant pair's rows: one twin's contact closed, the other's open),
         their states may differ by its projection, and are left so. A no-op (no copy, nothing
         taped) where the twins are equal to the bit or there are none."""
-        hold = self.method == RADAU if self.hold_twins is None else self.hold_twins
-        if not hold or not self.twins or not mode_alike(mode.stop, mode.closed, mode.slip, self.twins,
-                                                        self.twin_contacts):
+        if not self.twins or self.hold_twins is False:
             return q, v
-        return self.twinned(q, v)
+        q1, v1 = symmetrized(q, self.twins), symmetrized(v, self.twins)
+        if (q1 is q and v1 is v) or not mode_alike(mode.stop, mode.closed, mode.slip, self.twins, self.twin_contacts):
+            return q, v
+        if self.tape is not None:
+            self.tape.append(("twins", self.twins))
+        return q1, v1
 
     def resolve_or_jam(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                        jammed: bool = False) -> tuple[np.ndarray, np.ndarray, _Mode]:

@@ -1,8 +1,8 @@
 """Identical sibling subtrees (twins: identical toes on one parent) and the symmetry of their
 motion: the exact landing keeps twins' states identical, since their equations of motion and
 contact laws map onto each other, and :func:`twin_groups` and :func:`symmetrized` let the landing
-hold them so against rounding (:meth:`_Landing.modes_after`; on Radau IIA after every step too,
-where :func:`mode_alike`: :meth:`_Landing.held_alike`)."""
+hold them so against rounding (:meth:`_Landing.modes_after`; after every step too, where
+:func:`mode_alike`: :meth:`_Landing.held_alike`)."""
 
 from __future__ import annotations
 
