@@ -132,12 +132,19 @@ def summary(rows: list[Row], what: str) -> str:
     done = [r for r in rows if r.reference is not None]
     honest = [r for r in done if r.error(r.radau) <= r.radau.error_estimate]
     within = [r for r in done if r.error(r.radau) <= r.radau.tolerance]
-    auto_total, radau_total = sum(r.auto_seconds for r in done), sum(r.radau_seconds for r in done)
-    ratios = sorted(r.auto_seconds / r.radau_seconds for r in done)
-    spread = f", per design {ratios[0]:.2f} to {ratios[-1]:.2f} x" if ratios else ""
+    auto = [r.auto_seconds for r in done]
+    radau = [r.radau_seconds for r in done]
     return (f"- {what}: {len(done)} with a reference. Radau's error within its estimate: {len(honest)} of "
-            f"{len(done)}; within the tolerance: {len(within)} of {len(done)}. CPU: auto {auto_total:.1f} s, "
-            f"Radau {radau_total:.1f} s" + (f" ({auto_total / radau_total:.2f} x{spread})." if radau_total else "."))
+            f"{len(done)}; within the tolerance: {len(within)} of {len(done)}. CPU: auto {sum(auto):.1f} s, "
+            f"Radau {sum(radau):.1f} s" + _speedup(auto, radau))
+
+
+def _speedup(before: list[float], after: list[float]) -> str:
+    """The CPU seconds ``before`` over ``after`` (per design) as " (total x, per design a to b x).", or "."."""
+    if not sum(after):
+        return "."
+    ratios = sorted(b / a for b, a in zip(before, after, strict=True))
+    return f" ({sum(before) / sum(after):.2f} x, per design {ratios[0]:.2f} to {ratios[-1]:.2f} x)."
 
 
 def designs(config_path: str, trials: int, start: int = 0):
@@ -228,12 +235,11 @@ def candidate_summary(rows: list[Row], candidate: float) -> str:
     """``auto`` at AUTO_RADAU ``candidate`` against the auto column: within the tolerance, the CPU."""
     done = [r for r in rows if r.reference is not None and r.candidate is not None]
     within = [r for r in done if r.error(r.candidate) <= r.candidate.tolerance]
-    before, after = sum(r.auto_seconds for r in done), sum(r.candidate_seconds for r in done)
-    ratios = sorted(r.auto_seconds / r.candidate_seconds for r in done)
-    spread = f", per design {ratios[0]:.2f} to {ratios[-1]:.2f} x" if ratios else ""
+    before = [r.auto_seconds for r in done]
+    after = [r.candidate_seconds for r in done]
     return (f"- auto at AUTO_RADAU {candidate:g}: {len(done)} with a reference; within the tolerance: {len(within)} "
-            f"of {len(done)}. CPU: {after:.1f} s against the auto column's {before:.1f} s"
-            + (f" ({before / after:.2f} x{spread})." if after else "."))
+            f"of {len(done)}. CPU: {sum(after):.1f} s against the auto column's {sum(before):.1f} s"
+            + _speedup(before, after))
 
 
 HEADER = ("| trial | h x rate | toes | auto s | steps | events | estimate | error | Radau s | steps | events | "
