@@ -192,6 +192,16 @@ def follows_oscillation(run: _Landing) -> None:
         afford(run, None)
 
 
+def _law_units(name: str) -> str:
+    return "N m/rad" if name == "stiffness" else "N m s/rad"
+
+
+def fastest_law_text(run: _Landing) -> str:
+    """:func:`fastest_joint_law` in words: "heel's joint stiffness 1e+12 N m/rad (rate ... 1/s at touchdown)"."""
+    b, name, value, rate = fastest_joint_law(run)
+    return f"{run.tree.bodies[b].name}'s joint {name} {value:.3g} {_law_units(name)} (rate {rate:.3g} 1/s at touchdown)"
+
+
 def afford(run: _Landing, h: float | None, cause: str = "") -> None:
     """Refuse a run of ``run``'s landing at step ``h`` where it and the step halving's first finer run
     would take over :data:`LANDING_STEPS` steps between them (3 x duration / h at least; h None:
@@ -210,8 +220,7 @@ def afford(run: _Landing, h: float | None, cause: str = "") -> None:
     if (needed if h is None else planned) <= LANDING_STEPS:
         return
     b, name, value, rate = fastest_joint_law(run)
-    unit = "N m/rad" if name == "stiffness" else "N m s/rad"
-    law = f"{run.tree.bodies[b].name}'s joint {name} {value:.3g} {unit} (rate {rate:.3g} 1/s at touchdown)"
+    unit, law = _law_units(name), fastest_law_text(run)
     if needed > LANDING_STEPS:
         fits = value * (LANDING_STEPS / needed) ** (2 if name == "stiffness" else 1)
         damps = " (only an explicit step follows the joint's oscillation after an impact: ROS2 and Radau IIA " \
@@ -292,11 +301,10 @@ def landing(
                 raise
             cause = str(e)
             if isinstance(e, RadauTries) and not auto:  # a shorter step does not help (RadauTries)
-                b, name, value, rate = fastest_joint_law(run)
                 raise NumericalError(
                     f"{e}; a shorter step would not help: its iterations fail where the fastest joint law "
-                    f"({run.tree.bodies[b].name}'s joint {name} {value:.3g}, rate {rate:.3g} 1/s) is "
-                    f"far beyond the step (h x rate {h * rate:.3g}); integrator auto or rk4 follows it") from None
+                    f"({fastest_law_text(run)}) is far beyond the step (h x rate {h * fastest_joint_law(run)[3]:.3g}); "
+                    "integrator auto or rk4 follows it") from None
             if e.reached > 0 and auto and run.method in (IMPLICIT, RADAU):
                 # Radau IIA from ROS2's first step, else (and where Radau IIA gives way too) RK4
                 stiff = run.method == IMPLICIT and run.first_step() * run.rate > AUTO_RADAU

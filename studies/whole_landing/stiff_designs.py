@@ -21,7 +21,7 @@ whether RK4 or Radau IIA is the better second integrator below AUTO_RADAU:
   asked): the reference. The true error of a landing is its ``landing_difference`` from the
   reference; the reference's own error is below ``auto``'s where auto ended on RK4 (a run at
   4 x its step), which the table lists. The reference holds twin toes alike after each step
-  (:attr:`_Landing.hold_twins`, as Radau IIA's landings do): left alone, RK4's steps part them by
+  (:attr:`_Landing.hold_twins`, as every landing does since 3e04d30): left alone, RK4's steps part them by
   rounding too (trial 64 at its stable step in a 5 ms landing: 1e-16 rad by 0.25 ms, and the
   impact on both stops then split 2.94 and 0.09 N s, not 1.52 and 1.52), and where twins stay
   equal to the bit it changes nothing;
@@ -219,7 +219,6 @@ def measure(number: int, config, m, limit: float, candidate: float | None = None
             row.note += f" auto at {candidate:g} over {limit:g} s"
     share = min(1.0, row.auto.share, row.radau.share)
     reference_run = _Landing(m.tree, m.scene, m.joints, replace(settings, integrator=RK4), m.space)
-    reference_run.hold_twins = True  # as Radau IIA's landings (the module docstring)
     finest = min(row.auto.step, row.radau.step, reference_run.stable_step(),
                  math.inf if row.candidate is None else row.candidate.step)
     share = min(share, 1.0 if row.candidate is None else row.candidate.share)

@@ -29,7 +29,8 @@ def _run(integrator: str, step: float | None = None, hold: bool | None = None):
     m = load_model_file(DATA / "twin_stops_64.yaml")
     scene = replace(m.scene, duration=UNTIL)
     run = _Landing(m.tree, scene, m.joints, replace(study_landing(1e-3), integrator=integrator), m.space)
-    run.hold_twins = hold
+    if hold is not None:
+        run.hold_twins = hold
     # the study's landing: Radau IIA from its first step (duration / 200 of the whole landing)
     result = run.run(step if step is not None else m.scene.duration / 200.0)
     return run, result

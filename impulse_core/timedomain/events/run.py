@@ -82,9 +82,8 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         self.twins = twin_groups(tree, self.joints, self.layout)
         #: each group's declared contacts (:func:`twin_contacts`; :meth:`held_alike`)
         self.twin_contacts = twin_contacts(tree, self.joints, self.layout)
-        #: hold twins alike after each step (:meth:`held_alike`): None or True (the default), False
-        #: never (a study's unheld reference)
-        self.hold_twins: bool | None = None
+        #: hold twins alike after each step (:meth:`held_alike`); False: never (a study's unheld reference)
+        self.hold_twins = True
         self.nc, self.nv = len(tree.contacts), len(self.q0)
         #: the rows of a point's position: 2 in the plane, 3 in space
         self.dims = 2 if self.planar else 3
@@ -489,7 +488,7 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
     def held_alike(self, q: np.ndarray, v: np.ndarray, mode: _Mode) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) at an accepted step's end or a located event in ``mode``, each group of twins set
         to their mean (:meth:`twinned`, taped so) where the mode treats them alike
-        (:func:`mode_alike`), on every integrator (unless :attr:`hold_twins` is False); else as
+        (:func:`mode_alike`), on every integrator (unless :attr:`hold_twins` is off); else as
         they are. The exact landing keeps twins identical; rounding parts them (Radau IIA's Newton
         iterations, and RK4's and ROS2's steps through the mass matrix's solve), and the
         mirror-antisymmetric motion grows (trial 64 of the landing study:
@@ -505,14 +504,10 @@ class _Landing(_Dynamics, _Stepping, _Location, _Impacts, _ModeChoice, _Placemen
         mode parts them (a redundant pair's rows: one twin's contact closed, the other's open),
         their states may differ by its projection, and are left so. A no-op (no copy, nothing
         taped) where the twins are equal to the bit or there are none."""
-        if not self.twins or self.hold_twins is False:
+        if not (self.hold_twins and self.twins
+                and mode_alike(mode.stop, mode.closed, mode.slip, self.twins, self.twin_contacts)):
             return q, v
-        q1, v1 = symmetrized(q, self.twins), symmetrized(v, self.twins)
-        if (q1 is q and v1 is v) or not mode_alike(mode.stop, mode.closed, mode.slip, self.twins, self.twin_contacts):
-            return q, v
-        if self.tape is not None:
-            self.tape.append(("twins", self.twins))
-        return q1, v1
+        return self.twinned(q, v)
 
     def resolve_or_jam(self, q: np.ndarray, v: np.ndarray, mode: _Mode, t: float, totals: _Totals,
                        jammed: bool = False) -> tuple[np.ndarray, np.ndarray, _Mode]:
